@@ -1,0 +1,102 @@
+// Conversions between numpy arrays and volrig's native types. Thin: no logic beyond layout checks.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <string>
+
+#include "volrig/volume.hpp"
+
+namespace volrig::py {
+
+namespace py = pybind11;
+
+/// numpy dtype for a volrig DType.
+inline py::dtype to_numpy_dtype(DType t) { return py::dtype(std::string(dtype_name(t))); }
+
+/// volrig DType of a numpy array (bool maps to uint8); throws Error on unsupported types.
+inline DType from_numpy_dtype(const py::array& a) {
+    if (a.dtype().kind() == 'b') return DType::UInt8;
+    return dtype_from_name(py::str(a.dtype()).cast<std::string>());
+}
+
+/// Hands an owning Volume's buffer to numpy without copying: returns an array [z, y, x].
+inline py::array to_numpy(Volume&& v) {
+    auto* holder = new std::vector<std::uint8_t>(std::move(v.data));
+    py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<std::uint8_t>*>(p); });
+    const auto esize = static_cast<py::ssize_t>(dtype_size(v.dtype));
+    const py::ssize_t nx = v.grid.dims[0], ny = v.grid.dims[1], nz = v.grid.dims[2];
+    return py::array(to_numpy_dtype(v.dtype), {nz, ny, nx}, {ny * nx * esize, nx * esize, esize}, holder->data(), owner);
+}
+
+/// Same for a plain vector of T shaped like `grid`.
+template <class T>
+py::array_t<T> to_numpy(std::vector<T>&& data, const Grid& grid) {
+    auto* holder = new std::vector<T>(std::move(data));
+    py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+    const py::ssize_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+    const auto e = static_cast<py::ssize_t>(sizeof(T));
+    return py::array_t<T>({nz, ny, nx}, {ny * nx * e, nx * e, e}, holder->data(), owner);
+}
+
+/// A 1-D or N-D array owning a vector, with the given shape.
+template <class T>
+py::array_t<T> to_numpy_shaped(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
+    auto* holder = new std::vector<T>(std::move(data));
+    py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+    return py::array_t<T>(shape, holder->data(), owner);
+}
+
+/// Grid of a C-contiguous 3-D array [z, y, x] with the given spacing and origin (x, y, z).
+inline Grid grid_of(const py::array& a, const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
+                    const char* what) {
+    if (a.ndim() != 3) throw Error(std::string(what) + ": expected a 3-D array [z, y, x], got " +
+                                   std::to_string(a.ndim()) + "-D");
+    if (!(a.flags() & py::array::c_style)) throw Error(std::string(what) + ": array must be C-contiguous");
+    Grid g;
+    g.dims = {static_cast<std::int64_t>(a.shape(2)), static_cast<std::int64_t>(a.shape(1)),
+              static_cast<std::int64_t>(a.shape(0))};
+    g.spacing = spacing;
+    g.origin = origin;
+    return g;
+}
+
+/// A view of a C-contiguous numpy volume (no copy). The array must outlive the view.
+inline VolumeView view_of(const py::array& a, const std::array<double, 3>& spacing,
+                          const std::array<double, 3>& origin, const char* what) {
+    VolumeView v;
+    v.grid = grid_of(a, spacing, origin, what);
+    v.dtype = from_numpy_dtype(a);
+    v.data = a.data();
+    return v;
+}
+
+/// Python tuple (array, spacing, origin) for a volume read from a file.
+inline py::tuple volume_tuple(Volume&& v) {
+    auto spacing = v.grid.spacing;
+    auto origin = v.grid.origin;
+    py::array arr = to_numpy(std::move(v));
+    return py::make_tuple(arr, py::make_tuple(spacing[0], spacing[1], spacing[2]),
+                          py::make_tuple(origin[0], origin[1], origin[2]));
+}
+
+/// Wraps a Python callable f(fraction) -> bool|None as a Progress (None or True continue, False cancels).
+/// Must be called with the GIL held; the returned Progress acquires the GIL itself when invoked.
+inline Progress progress_of(const py::object& f) {
+    if (f.is_none()) return {};
+    return [f](double x) {
+        py::gil_scoped_acquire gil;
+        py::object r = f(x);
+        return r.is_none() || r.cast<bool>();
+    };
+}
+
+// Per-capability binding registrations (one file each in native/bindings/).
+void bind_io(py::module_& m);
+void bind_vdb(py::module_& m);
+void bind_skeleton(py::module_& m);
+
+}  // namespace volrig::py

@@ -1,0 +1,144 @@
+// Bindings: distance transforms, the thinness skeleton, reconstruction, connected components.
+#include "convert.hpp"
+#include "volrig/components.hpp"
+#include "volrig/distance.hpp"
+#include "volrig/reconstruct.hpp"
+#include "volrig/skeleton.hpp"
+
+namespace volrig::py {
+
+namespace {
+
+using Mask = py::array_t<std::uint8_t, py::array::c_style>;
+using Vec3 = std::array<double, 3>;
+
+Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
+
+/// A numpy view of memory owned by `owner` (kept alive by the array).
+template <class T>
+py::array_t<T> view(const std::vector<T>& v, std::vector<py::ssize_t> shape, py::handle owner) {
+    return py::array_t<T>(shape, v.data(), owner);
+}
+
+}  // namespace
+
+void bind_skeleton(py::module_& m) {
+    m.def(
+        "distance_transform",
+        [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
+            const Grid g = mask_grid(mask, spacing);
+            const Metric mt = metric_from_name(metric);
+            Progress p = progress_of(progress);
+            std::vector<float> dt;
+            {
+                py::gil_scoped_release nogil;
+                dt = distance_transform(g, mask.data(), mt, p);
+            }
+            return to_numpy(std::move(dt), g);
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+
+    py::class_<Skeleton>(m, "Skeleton")
+        .def_property_readonly("metric", [](const Skeleton& s) { return std::string(metric_name(s.metric)); })
+        .def_property_readonly("object_count", &Skeleton::object_count)
+        .def_property_readonly("dt", [](py::object self) {
+            const auto& s = self.cast<const Skeleton&>();
+            return view(s.dt, {s.grid.dims[2], s.grid.dims[1], s.grid.dims[0]}, self);
+        })
+        .def_property_readonly("order", [](py::object self) {
+            const auto& s = self.cast<const Skeleton&>();
+            return view(s.order, {static_cast<py::ssize_t>(s.order.size())}, self);
+        })
+        .def("count_at", &Skeleton::count_at, py::arg("tp"))
+        .def("tp_for_count", &Skeleton::tp_for_count, py::arg("n"))
+        .def("dense_scores", [](const Skeleton& s) {
+            std::vector<float> d;
+            {
+                py::gil_scoped_release nogil;
+                d = s.dense_scores();
+            }
+            return to_numpy(std::move(d), s.grid);
+        })
+        .def("points", [](const Skeleton& s, std::size_t n) {
+            n = std::min(n, s.object_count());
+            std::vector<std::int32_t> ijk(3 * n);
+            std::vector<float> dt(n), sc(n);
+            {
+                py::gil_scoped_release nogil;
+                skeleton_points(s, n, ijk.data(), dt.data(), sc.data());
+            }
+            const auto pn = static_cast<py::ssize_t>(n);
+            return py::make_tuple(to_numpy_shaped(std::move(ijk), {pn, 3}), to_numpy_shaped(std::move(dt), {pn}),
+                                  to_numpy_shaped(std::move(sc), {pn}));
+        }, py::arg("n"));
+
+    m.def(
+        "skeletonize",
+        [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
+            const Grid g = mask_grid(mask, spacing);
+            const Metric mt = metric_from_name(metric);
+            Progress p = progress_of(progress);
+            Skeleton s;
+            {
+                py::gil_scoped_release nogil;
+                s = skeletonize(g, mask.data(), mt, p);
+            }
+            return s;
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+
+    m.def(
+        "reconstruct",
+        [](const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& ijk,
+           const py::array_t<float, py::array::c_style | py::array::forcecast>& radius,
+           const std::array<std::int64_t, 3>& shape_zyx, const Vec3& spacing, const std::string& metric,
+           const py::object& progress) {
+            if (ijk.ndim() != 2 || ijk.shape(1) != 3) throw Error("reconstruct: ijk must have shape (N, 3)");
+            if (radius.ndim() != 1 || radius.shape(0) != ijk.shape(0))
+                throw Error("reconstruct: radius must have shape (N,) matching ijk");
+            Grid g;
+            g.dims = {shape_zyx[2], shape_zyx[1], shape_zyx[0]};
+            g.spacing = spacing;
+            const Metric mt = metric_from_name(metric);
+            Progress p = progress_of(progress);
+            std::vector<std::uint8_t> out;
+            {
+                py::gil_scoped_release nogil;
+                out = reconstruct(g, mt, ijk.data(), radius.data(), static_cast<std::size_t>(ijk.shape(0)), p);
+            }
+            return to_numpy(std::move(out), g);
+        },
+        py::arg("ijk"), py::arg("radius"), py::arg("shape"), py::arg("spacing"), py::arg("metric"),
+        py::arg("progress") = py::none());
+
+    m.def(
+        "label_components",
+        [](const Mask& mask, const py::object& progress) {
+            const Grid g = mask_grid(mask, {1, 1, 1});
+            Progress p = progress_of(progress);
+            Components c;
+            {
+                py::gil_scoped_release nogil;
+                c = label_components(g, mask.data(), p);
+            }
+            const auto nc = static_cast<py::ssize_t>(c.sizes.size());
+            return py::make_tuple(to_numpy(std::move(c.labels), g), to_numpy_shaped(std::move(c.sizes), {nc}));
+        },
+        py::arg("mask"), py::arg("progress") = py::none());
+
+    m.def(
+        "largest_component",
+        [](const Mask& mask, const py::object& progress) {
+            const Grid g = mask_grid(mask, {1, 1, 1});
+            Progress p = progress_of(progress);
+            std::vector<std::uint8_t> out;
+            {
+                py::gil_scoped_release nogil;
+                out = largest_component(g, mask.data(), p);
+            }
+            return to_numpy(std::move(out), g);
+        },
+        py::arg("mask"), py::arg("progress") = py::none());
+}
+
+}  // namespace volrig::py

@@ -1,0 +1,98 @@
+// volrig/io.hpp: reading and writing sampled volumes.
+//
+// Readers validate every header against the file before allocating: declared sizes are compared with the
+// bytes present (or, for compressed data, with the largest size the compressed bytes could inflate to), absurd
+// dimensions are refused, and decompression never writes past the declared size. Every error is a
+// FileFormatError (or FileNotFound) whose message starts with the file name and says what is wrong.
+// Writers write to a temporary name beside the target and rename it into place.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "volrig/volume.hpp"
+
+namespace volrig {
+
+/// Default limit on the decoded size of one volume (bytes): 16 GiB, or $VOLRIG_MAX_BYTES when set.
+std::uint64_t default_max_bytes();
+
+struct ReadOptions {
+    std::uint64_t max_bytes = default_max_bytes();
+};
+
+/// A random-access byte source: a file on disk or a block of memory (fuzzing, tests).
+class ByteSource {
+public:
+    virtual ~ByteSource() = default;
+    virtual std::uint64_t size() const = 0;
+    /// Reads exactly n bytes at offset; throws FileFormatError naming the source when they are not there.
+    virtual void read(std::uint64_t offset, void* dst, std::size_t n) const = 0;
+    /// Name used in error messages (the path for files).
+    virtual const std::string& name() const = 0;
+    /// Opens a file named in this source's header (a detached data file), relative to this source's folder.
+    /// Memory sources refuse with FileFormatError.
+    virtual std::unique_ptr<ByteSource> open_sibling(const std::string& relative_name) const = 0;
+};
+
+std::unique_ptr<ByteSource> open_file(const std::string& path);
+std::unique_ptr<ByteSource> memory_source(const std::uint8_t* data, std::size_t n, std::string name);
+
+/// Raw voxels: the caller says what the file holds.
+struct RawLayout {
+    std::array<std::int64_t, 3> dims{0, 0, 0};  ///< x, y, z
+    DType dtype = DType::UInt8;
+    std::array<double, 3> spacing{1.0, 1.0, 1.0};
+    std::array<double, 3> origin{0.0, 0.0, 0.0};
+    bool big_endian = false;
+    std::uint64_t offset = 0;  ///< bytes to skip before the voxels
+};
+Volume read_raw(const ByteSource& src, const RawLayout& layout, const ReadOptions& opt = {});
+
+/// NRRD (.nrrd attached header, .nhdr detached header; raw and gzip encodings; either endianness).
+Volume read_nrrd(const ByteSource& src, const ReadOptions& opt = {});
+/// MetaImage (.mhd with a separate data file, .mha with LOCAL data; zlib CompressedData).
+Volume read_metaimage(const ByteSource& src, const ReadOptions& opt = {});
+/// NIfTI-1 (.nii, .nii.gz, .hdr/.img pair). scl_slope/scl_inter are applied (result float32, or float64 for
+/// float64 data) unless the slope is 0 or (slope, inter) = (1, 0). Spacing = |pixdim[1..3]|; origin from the
+/// sform (sform_code > 0) or else the qform offsets.
+Volume read_nifti(const ByteSource& src, const ReadOptions& opt = {});
+
+/// Picks the reader from the file name: .nrrd .nhdr .mhd .mha .nii .nii.gz .hdr .vdb (raw needs read_raw).
+Volume read_volume(const std::string& path, const ReadOptions& opt = {});
+
+/// Writers. gzip/compress select the compressed encodings.
+void write_nrrd(const std::string& path, const VolumeView& v, bool gzip = true);
+void write_metaimage(const std::string& path, const VolumeView& v, bool compress = true);
+
+/// Writes a file atomically: `write(tmp)` writes a temporary file beside `path`, which is then renamed onto
+/// `path`. On any exception the temporary file is removed and `path` is left untouched.
+void write_atomically(const std::string& path, const std::function<void(const std::string& tmp_path)>& write);
+
+// ---- OpenVDB -------------------------------------------------------------------------------------------------
+
+struct VdbGridInfo {
+    std::string name;
+    std::string type;  ///< OpenVDB value type name, e.g. "float", "int32"
+    std::array<std::int64_t, 3> bbox_min{0, 0, 0}, bbox_max{0, 0, 0};  ///< active voxel bounding box (index)
+    std::int64_t active_voxels = 0;
+};
+std::vector<VdbGridInfo> vdb_grids(const std::string& path);
+
+/// Reads one grid (by name; empty = "density" if present, else the first scalar grid) densely over its active
+/// voxel bounding box. Spacing = the transform's voxel size (linear, axis-aligned transforms only), origin =
+/// world position of the bbox minimum. float/double grids give float32/float64, int32/int64 grids int32/int64,
+/// bool grids uint8.
+Volume read_vdb(const std::string& path, const std::string& grid = "", const ReadOptions& opt = {});
+
+/// Writes named grids that share one geometry (spacing and origin go into each grid's transform). Floating
+/// volumes become FloatGrids (stored as half floats when `half`), integer volumes Int32Grids. Only non-zero
+/// voxels are active; the background is 0.
+void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
+
+}  // namespace volrig

@@ -1,0 +1,23 @@
+"""volrig: rig and animate volumes (skeletonization after Gagvani's parameter-controlled thinness).
+
+Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``reconstruct``.
+"""
+from . import _volrig
+from ._volrig import Cancelled, FileFormatError, VolrigError
+from .segment import label_components, segment
+from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
+                       reconstruction_loss, skeletonize)
+from .volume import Volume, load
+
+__version__ = "0.1.0"
+
+__all__ = ["Volume", "load", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
+           "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
+           "FileFormatError", "Cancelled", "phantom"]
+
+
+def __getattr__(name):
+    if name == "phantom":  # numpy-heavy generator, imported on first use
+        from . import phantom
+        return phantom
+    raise AttributeError(name)

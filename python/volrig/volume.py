@@ -1,0 +1,148 @@
+"""The sampled volume and file I/O: ``Volume``, ``load``.
+
+A ``Volume`` is a numpy array indexed ``[z, y, x]`` (x fastest, as MetaImage/NRRD/NIfTI store voxels) with the
+grid geometry: ``spacing`` (x, y, z) in world units per voxel (mm for medical data) and ``origin`` (x, y, z), the
+world position of voxel (0, 0, 0). World position of voxel (x, y, z) = origin + spacing * (x, y, z).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+from . import _volrig
+
+Vec3 = Tuple[float, float, float]
+
+#: File name endings each reader handles (longest first matters for ".nii.gz").
+FORMATS = {
+    ".nii.gz": "nifti", ".nii": "nifti", ".hdr": "nifti",
+    ".nrrd": "nrrd", ".nhdr": "nrrd",
+    ".mha": "metaimage", ".mhd": "metaimage",
+    ".vdb": "vdb",
+    ".raw": "raw", ".bin": "raw", ".img": "raw",
+}
+
+
+def _vec3(v, what: str) -> Vec3:
+    t = tuple(float(x) for x in (v if np.ndim(v) else (v, v, v)))
+    if len(t) != 3 or not all(np.isfinite(t)):
+        raise ValueError(f"{what} must be three finite numbers (x, y, z), got {v!r}")
+    return t  # type: ignore[return-value]
+
+
+def format_of(path: str) -> str:
+    """The reader/writer name for ``path`` from its ending (see ``FORMATS``); raises ValueError when unknown."""
+    low = os.fspath(path).lower()
+    for ending in sorted(FORMATS, key=len, reverse=True):
+        if low.endswith(ending):
+            return FORMATS[ending]
+    raise ValueError(f"{path}: unknown volume format (known endings: {', '.join(sorted(FORMATS))})")
+
+
+@dataclass
+class Volume:
+    """Samples on a regular grid.
+
+    array:   numpy array ``[z, y, x]``.
+    spacing: voxel size (x, y, z) in world units (mm for medical scans).
+    origin:  world position (x, y, z) of voxel (0, 0, 0).
+    path:    the file it was read from, if any.
+    """
+
+    array: np.ndarray
+    spacing: Vec3 = (1.0, 1.0, 1.0)
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    path: Optional[str] = field(default=None, compare=False)
+
+    def __post_init__(self):
+        self.array = np.asarray(self.array)
+        if self.array.ndim != 3:
+            raise ValueError(f"a Volume needs a 3-D array [z, y, x], got shape {self.array.shape}")
+        self.spacing = _vec3(self.spacing, "spacing")
+        if min(self.spacing) <= 0:
+            raise ValueError(f"spacing must be positive, got {self.spacing}")
+        self.origin = _vec3(self.origin, "origin")
+
+    @property
+    def dims(self) -> Tuple[int, int, int]:
+        """Grid size (x, y, z) in voxels."""
+        z, y, x = self.array.shape
+        return (x, y, z)
+
+    @property
+    def shape(self) -> Tuple[int, int, int]:
+        """Array shape (z, y, x)."""
+        return self.array.shape  # type: ignore[return-value]
+
+    def world(self, ijk) -> np.ndarray:
+        """World positions (N, 3) xyz of voxel indices ``ijk`` (N, 3) given as [z, y, x]."""
+        ijk = np.asarray(ijk, dtype=np.float64)
+        return ijk[..., ::-1] * np.asarray(self.spacing) + np.asarray(self.origin)
+
+    def like(self, array: np.ndarray) -> "Volume":
+        """A Volume with this one's geometry holding ``array`` (same shape)."""
+        if array.shape != self.array.shape:
+            raise ValueError(f"shape {array.shape} does not match the volume's {self.array.shape}")
+        return Volume(array, self.spacing, self.origin)
+
+    def save(self, path: str, *, compress: bool = True, half: bool = False, grid: str = "density") -> None:
+        """Write the volume to ``path``: ``.nrrd`` (gzip when ``compress``), ``.mha`` (zlib when ``compress``)
+        or ``.vdb`` (one float grid named ``grid``; half floats when ``half``). Written to a temporary file and
+        renamed, so a failed write never leaves a partial file."""
+        path = os.fspath(path)
+        fmt = format_of(path)
+        arr = np.ascontiguousarray(self.array)
+        if arr.dtype == np.bool_:
+            arr = arr.view(np.uint8)
+        if fmt == "nrrd":
+            _volrig.write_nrrd(path, arr, self.spacing, self.origin, compress)
+        elif fmt == "metaimage":
+            if path.lower().endswith(".mhd"):
+                raise ValueError(f"{path}: write MetaImage as a single .mha file")
+            _volrig.write_metaimage(path, arr, self.spacing, self.origin, compress)
+        elif fmt == "vdb":
+            _volrig.write_vdb(path, [(grid, arr)], self.spacing, self.origin, half)
+        else:
+            raise ValueError(f"{path}: cannot write {fmt} files (write .nrrd, .mha or .vdb)")
+
+    def __repr__(self) -> str:
+        x, y, z = self.dims
+        return (f"Volume({x} x {y} x {z} {self.array.dtype}, spacing={self.spacing}, origin={self.origin}"
+                + (f", path={self.path!r})" if self.path else ")"))
+
+
+def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=(1.0, 1.0, 1.0),
+         origin=(0.0, 0.0, 0.0), byte_order: str = "little", offset: int = 0, grid: str = "",
+         max_bytes: Optional[int] = None) -> Volume:
+    """Read a volume file.
+
+    The format comes from the name: NRRD (``.nrrd``, ``.nhdr``), MetaImage (``.mha``, ``.mhd``), NIfTI-1
+    (``.nii``, ``.nii.gz``, ``.hdr``), OpenVDB (``.vdb``) or raw voxels (``.raw``, ``.bin``, ``.img``).
+
+    Raw files need the hints: ``dims`` (x, y, z) in voxels, ``dtype`` (numpy name or type), ``spacing`` and
+    ``origin`` (x, y, z, world units), ``byte_order`` ("little" or "big"), ``offset`` (bytes to skip).
+    VDB files: ``grid`` names the grid to read (default "density", else the first scalar grid).
+    ``max_bytes`` caps the decoded size (default 16 GiB or $VOLRIG_MAX_BYTES).
+
+    Errors: FileNotFoundError when the file is missing; ``volrig.FileFormatError`` (a ValueError) naming the
+    file and the problem for anything malformed, before any large allocation.
+    """
+    path = os.fspath(path)
+    fmt = format_of(path) if dims is None else "raw"
+    limit = -1 if max_bytes is None else int(max_bytes)
+    if fmt == "raw":
+        if dims is None or dtype is None:
+            raise ValueError(f"{path}: raw files need dims=(x, y, z) and dtype=...")
+        if byte_order not in ("little", "big"):
+            raise ValueError(f"byte_order must be 'little' or 'big', got {byte_order!r}")
+        arr, sp, org = _volrig.read_raw(path, tuple(int(d) for d in dims), np.dtype(dtype).name,
+                                        _vec3(spacing, "spacing"), _vec3(origin, "origin"),
+                                        byte_order == "big", int(offset), limit)
+    elif fmt == "vdb":
+        arr, sp, org = _volrig.read_vdb(path, grid, limit)
+    else:
+        arr, sp, org = _volrig.read_volume(path, limit)
+    return Volume(arr, sp, org, path=path)
