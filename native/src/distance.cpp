@@ -40,6 +40,10 @@ struct Envelope {
     }
 
     void run(float* line, std::int64_t n, std::int64_t stride, double s2) {
+        // A line of background only stays 0.
+        bool any = false;
+        for (std::int64_t q = 0; q < n && !any; ++q) any = line[q * stride] != 0.0f;
+        if (!any) return;
         v.resize(static_cast<std::size_t>(n + 2));
         zb.resize(static_cast<std::size_t>(n + 3));
         fv.resize(static_cast<std::size_t>(n + 2));

@@ -18,6 +18,6 @@ __all__ = ["Volume", "load", "segment", "label_components", "skeletonize", "dist
 
 def __getattr__(name):
     if name == "phantom":  # numpy-heavy generator, imported on first use
-        from . import phantom
-        return phantom
+        import importlib
+        return importlib.import_module(".phantom", __name__)
     raise AttributeError(name)

@@ -1,0 +1,142 @@
+"""Command line: ``python -m volrig {info,skeletonize,demo}``. Run with -h for each command's options."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+
+def _add_load_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb, or raw with --dims)")
+    p.add_argument("--dims", type=int, nargs=3, metavar=("X", "Y", "Z"), help="raw files: size in voxels")
+    p.add_argument("--dtype", help="raw files: element type (uint8, int16, float32, ...)")
+    p.add_argument("--spacing", type=float, nargs=3, default=(1.0, 1.0, 1.0), metavar=("SX", "SY", "SZ"),
+                   help="raw files: voxel size in world units")
+    p.add_argument("--big-endian", action="store_true", help="raw files: big-endian samples")
+    p.add_argument("--offset", type=int, default=0, help="raw files: header bytes to skip")
+    p.add_argument("--grid", default="", help="VDB files: grid name (default: density, else the first)")
+
+
+def _load(args):
+    from .volume import load
+    if args.dims:
+        if not args.dtype:
+            raise ValueError("--dims needs --dtype")
+        return load(args.file, dims=args.dims, dtype=args.dtype, spacing=args.spacing,
+                    byte_order="big" if args.big_endian else "little", offset=args.offset)
+    return load(args.file, grid=args.grid)
+
+
+def cmd_info(args) -> int:
+    v = _load(args)
+    a = v.array
+    finite = a[np.isfinite(a)] if a.dtype.kind == "f" else a
+    info = {
+        "file": args.file, "dims_xyz": list(v.dims), "dtype": str(a.dtype), "spacing": list(v.spacing),
+        "origin": list(v.origin), "min": float(finite.min()) if finite.size else None,
+        "max": float(finite.max()) if finite.size else None, "nonzero": int(np.count_nonzero(a)),
+        "voxels": int(a.size),
+    }
+    if a.dtype.kind in "iu" and a.size and int(a.max()) - int(a.min()) <= 255:
+        values, counts = np.unique(a, return_counts=True)
+        info["values"] = {int(k): int(c) for k, c in zip(values, counts)}
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        x, y, z = v.dims
+        print(f"{args.file}\n  {x} x {y} x {z} {a.dtype}, spacing {v.spacing}, origin {v.origin}\n"
+              f"  values {info['min']} .. {info['max']}, {info['nonzero']:,} non-zero of {a.size:,} voxels")
+        if "values" in info and len(info["values"]) <= 40:
+            print("  labels: " + ", ".join(f"{k}: {c:,}" for k, c in info["values"].items()))
+    return 0
+
+
+def cmd_skeletonize(args) -> int:
+    from .files import atomic_output
+    from .segment import segment
+    from .skeleton import skeletonize
+    v = _load(args)
+    mask = segment(v, lo=args.lo, hi=args.hi, labels=args.labels, largest_component=args.largest)
+    if not mask.array.any():
+        raise ValueError(f"{args.file}: the segmentation is empty (check --lo/--hi/--labels)")
+    t = time.perf_counter()
+    sk = skeletonize(mask, args.metric, progress=_progress_bar("skeletonize") if args.progress else None)
+    elapsed = time.perf_counter() - t
+    pts = sk.top(args.count) if args.count is not None else sk.at(args.thinness)
+    out = args.output
+    if not out.endswith(".npz"):
+        raise ValueError(f"{out}: the output must be a .npz file")
+    with atomic_output(out, suffix=".npz") as tmp:
+        np.savez_compressed(tmp, ijk=pts.ijk, centers=pts.centers, radii=pts.radii, dt=pts.dt, scores=pts.scores,
+                            metric=pts.metric, thinness=np.nan if pts.thinness is None else pts.thinness,
+                            spacing=np.asarray(pts.spacing), origin=np.asarray(pts.origin),
+                            shape=np.asarray(mask.array.shape), source=args.file)
+    print(f"{len(pts):,} skeleton points of {sk.object_count:,} object voxels "
+          f"({100.0 * len(pts) / sk.object_count:.2f}%), {pts.metric}, "
+          + (f"thinness {pts.thinness}" if pts.thinness is not None else f"top {args.count}")
+          + f"; skeletonized in {elapsed:.2f} s -> {out}")
+    return 0
+
+
+def _progress_bar(label: str):
+    def show(f: float) -> bool:
+        sys.stderr.write(f"\r{label}: {100 * f:5.1f}%")
+        if f >= 1.0:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+        return True
+    return show
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+    run_demo(args.output, scale=args.scale, thinness=args.thinness)
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m volrig", description="volrig: rig and animate volumes")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("info", help="print a volume file's grid, type and value range")
+    _add_load_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=cmd_info)
+
+    p = sub.add_parser("skeletonize", help="skeleton points of a volume at a thinness")
+    _add_load_options(p)
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
+    g.add_argument("--count", "-n", type=int, help="keep the N highest-scoring points instead")
+    p.add_argument("--metric", choices=["euclidean", "chamfer345"], default="euclidean")
+    p.add_argument("--lo", type=float, help="segmentation: lowest object value")
+    p.add_argument("--hi", type=float, help="segmentation: highest object value")
+    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
+    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+    p.add_argument("--progress", action="store_true", help="show progress on stderr")
+    p.add_argument("-o", "--output", required=True, help="output .npz (ijk, centers, radii, dt, scores, ...)")
+    p.set_defaults(run=cmd_skeletonize)
+
+    p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
+    p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
+    p.add_argument("--scale", type=float, default=0.5, help="phantom scale (1.0 = 290 x 169 x 940)")
+    p.add_argument("--thinness", type=float, default=0.3, help="thinness for the pictured skeleton")
+    p.set_defaults(run=cmd_demo)
+
+    args = parser.parse_args(argv)
+    from . import Cancelled, VolrigError
+    try:
+        return args.run(args)
+    except FileNotFoundError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except (VolrigError, ValueError, Cancelled) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
