@@ -7,11 +7,11 @@ from ._volrig import Cancelled, FileFormatError, VolrigError
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
-from .volume import Volume, load
+from .volume import Volume, load, write_vdb
 
 __version__ = "0.1.0"
 
-__all__ = ["Volume", "load", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
+__all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom"]
 

@@ -146,3 +146,28 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
     else:
         arr, sp, org = _volrig.read_volume(path, limit)
     return Volume(arr, sp, org, path=path)
+
+
+def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = False) -> None:
+    """Write several named grids on one geometry to an OpenVDB file.
+
+    grids:   mapping name -> Volume or array [z, y, x] (all the same shape), e.g. {"density": v, "bone": labels}.
+             Floating and uint8/bool arrays become float grids, other integer arrays (e.g. int16/int32
+             labels) int32 grids; only non-zero voxels are active.
+    spacing, origin: (x, y, z) world geometry; taken from the first Volume when omitted.
+    half:    store float grids as 16-bit half floats (smaller files, ~3 significant digits).
+    The file is written to a temporary name and renamed.
+    """
+    items = list(grids.items()) if hasattr(grids, "items") else list(grids)
+    if not items:
+        raise ValueError(f"{path}: no grids to write")
+    first = next((g for _, g in items if isinstance(g, Volume)), None)
+    spacing = _vec3(spacing if spacing is not None else (first.spacing if first else 1.0), "spacing")
+    origin = _vec3(origin if origin is not None else (first.origin if first else 0.0), "origin")
+    arrays = []
+    for name, g in items:
+        a = np.ascontiguousarray(g.array if isinstance(g, Volume) else np.asarray(g))
+        if a.dtype == np.bool_:
+            a = a.view(np.uint8)
+        arrays.append((str(name), a))
+    _volrig.write_vdb(os.fspath(path), arrays, spacing, origin, bool(half))

@@ -1,0 +1,75 @@
+// Bindings for OpenVDB reading and writing (volrig/io.hpp, "OpenVDB"). Conversions only.
+#include <utility>
+#include <vector>
+
+#include "convert.hpp"
+#include "volrig/io.hpp"
+
+namespace volrig::py {
+
+void bind_vdb(py::module_& m) {
+    m.def(
+        "read_vdb",
+        [](const std::string& path, const std::string& grid, long long max_bytes) {
+            ReadOptions opt;
+            if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+            Volume v;
+            {
+                py::gil_scoped_release release;
+                v = read_vdb(path, grid, opt);
+            }
+            return volume_tuple(std::move(v));
+        },
+        py::arg("path"), py::arg("grid") = "", py::arg("max_bytes") = -1,
+        "read_vdb(path, grid='', max_bytes=-1) -> (array [z, y, x], spacing (x, y, z), origin (x, y, z))\n\n"
+        "Reads one scalar grid (default 'density', else the first scalar grid) densely over its active voxel\n"
+        "bounding box. float -> float32, double -> float64, int32/int64 -> int32/int64, bool -> uint8.\n"
+        "max_bytes < 0 uses the default limit.");
+
+    m.def(
+        "vdb_grids",
+        [](const std::string& path) {
+            std::vector<VdbGridInfo> grids;
+            {
+                py::gil_scoped_release release;
+                grids = vdb_grids(path);
+            }
+            py::list out;
+            for (const auto& g : grids) {
+                py::dict d;
+                d["name"] = g.name;
+                d["type"] = g.type;
+                d["bbox_min"] = py::make_tuple(g.bbox_min[0], g.bbox_min[1], g.bbox_min[2]);
+                d["bbox_max"] = py::make_tuple(g.bbox_max[0], g.bbox_max[1], g.bbox_max[2]);
+                d["active_voxels"] = g.active_voxels;
+                out.append(d);
+            }
+            return out;
+        },
+        py::arg("path"),
+        "vdb_grids(path) -> list of dict(name, type, bbox_min, bbox_max, active_voxels);\n"
+        "bounding boxes are index coordinates (x, y, z), inclusive.");
+
+    m.def(
+        "write_vdb",
+        [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
+           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half) {
+            std::vector<py::array> keep;  // C-contiguous versions of the arrays, alive while writing
+            std::vector<std::pair<std::string, VolumeView>> views;
+            keep.reserve(grids.size());
+            for (const auto& [name, array] : grids) {
+                keep.push_back(py::array::ensure(array, py::array::c_style));
+                if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
+                views.emplace_back(name, view_of(keep.back(), spacing, origin, path.c_str()));
+            }
+            py::gil_scoped_release release;
+            write_vdb(path, views, half);
+        },
+        py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
+        "write_vdb(path, grids, spacing, origin, half=False)\n\n"
+        "grids: list of (name, numpy array [z, y, x]) sharing one shape; spacing and origin (x, y, z).\n"
+        "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
+        "int32 grids. Only non-zero voxels are active. Written to a temporary file and renamed.");
+}
+
+}  // namespace volrig::py

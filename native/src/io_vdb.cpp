@@ -1,0 +1,582 @@
+// OpenVDB reading and writing: the "OpenVDB" section of volrig/io.hpp.
+//
+// Grid types written (write_vdb):
+//   float32, float64       -> FloatGrid, class FOG_VOLUME, stored as half floats when `half`.
+//   uint8                  -> FloatGrid too, class FOG_VOLUME (values unchanged: a mask becomes 0/1, an 8-bit scan
+//                             keeps 0..255). uint8 is what masks and 8-bit scans are; as float grids they render
+//                             directly as density in Blender/Cycles and in Blender's viewport.
+//   int8, int16, int32, uint16, uint32, int64, uint64
+//                          -> Int32Grid (labels such as the `bone` grid); a value outside int32 is refused.
+// Reading back therefore gives float32 for uint8 volumes written here (same values).
+//
+// Transform: a linear transform whose index (i, j, k) maps to origin + spacing * (i, j, k) (createLinearTransform
+// with the per-axis scale, then postTranslate(origin)). OpenVDB (and Blender's volume import) put voxel centres at
+// integer index coordinates, so voxel (x, y, z) of the array is centred at the world position DESIGN.md gives it.
+// Background 0; exactly the non-zero voxels are active; a leaf-sized 8^3 block whose 512 voxels are all non-zero and
+// equal is stored as an active tile (as openvdb::tools::copyFromDense does).
+//
+// Reading (read_vdb): the grid is copied densely over its active voxel bounding box. Only linear transforms with
+// an axis-aligned positive scale are accepted (rotated, sheared, mirrored and frustum transforms are refused);
+// spacing = the scale, origin = the world position of the bounding box minimum. Files are read through OpenVDB's
+// archive code from a stream owned here (see VdbReader), so truncated files are refused with a FileFormatError.
+// Known limit: OpenVDB 10 itself can overrun a buffer on some deliberately corrupted leaf data (bloscFromStream
+// copies a length read from the file before checking it), so .vdb files are trusted more than the other formats.
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+#include <openvdb/io/GridDescriptor.h>
+#include <openvdb/io/io.h>
+#include <openvdb/tools/Dense.h>
+
+#include <tbb/blocked_range2d.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "volrig/io.hpp"
+
+namespace volrig {
+
+namespace {
+
+void initialize_openvdb() {
+    static const bool done = [] {
+        openvdb::initialize();
+        return true;
+    }();
+    (void)done;
+}
+
+bool is_scalar_type(const std::string& t) {
+    return t == "float" || t == "double" || t == "int32" || t == "int64" || t == "bool";
+}
+
+/// Runs f() and turns OpenVDB's (and the standard library's) exceptions into a FileFormatError naming the file.
+template <class F>
+auto guarded_read(const std::string& path, const std::string& doing, F&& f) -> decltype(f()) {
+    try {
+        return f();
+    } catch (const Error&) {
+        throw;
+    } catch (const openvdb::Exception& e) {
+        throw FileFormatError(path + ": not a valid OpenVDB file: failed " + doing + " (" + e.what() + ")");
+    } catch (const std::bad_alloc&) {
+        throw FileFormatError(path + ": corrupt OpenVDB file: failed " + doing + " (out of memory)");
+    } catch (const std::exception& e) {
+        throw FileFormatError(path + ": corrupt OpenVDB file: failed " + doing + " (" + e.what() + ")");
+    }
+}
+
+/// Reads VDB files through OpenVDB's own archive code, as io::File does (header, file metadata, then one grid
+/// descriptor per grid with the grid's byte range), but from a stream it owns: io::File reads a truncated last
+/// grid without complaint (its stream state is not checked), whereas here every grid's byte range is checked
+/// against the file size when the file is opened and the stream state after each read.
+class VdbReader : public openvdb::io::Archive {
+public:
+    explicit VdbReader(const std::string& path) : path_(path) {
+        initialize_openvdb();
+        is_.open(path, std::ios::binary);
+        if (!is_) throw FileNotFound(path + ": no such file or it cannot be opened");
+        is_.seekg(0, std::ios::end);
+        size_ = static_cast<std::int64_t>(is_.tellg());
+        is_.seekg(0, std::ios::beg);
+        if (!is_ || size_ < 16)
+            throw FileFormatError(path + ": not an OpenVDB file (" + std::to_string(std::max<std::int64_t>(size_, 0)) +
+                                  " bytes is too short for a VDB header)");
+        guarded_read(path_, "reading the file header", [&] {
+            readHeader(is_);  // throws IoError when the magic number is wrong
+            check_stream("the file header");
+            const std::uint32_t oldest = openvdb::OPENVDB_FILE_VERSION_ROOTNODE_MAP,
+                                newest = openvdb::OPENVDB_FILE_VERSION;
+            if (fileVersion() < oldest || fileVersion() > newest)
+                throw FileFormatError(path_ + ": unsupported OpenVDB file format version " +
+                                      std::to_string(fileVersion()) + " (this build reads " + std::to_string(oldest) +
+                                      " to " + std::to_string(newest) + ")");
+            if (!inputHasGridOffsets())
+                throw FileFormatError(path_ + ": VDB stream without grid offsets (not a seekable .vdb file)");
+            meta_ = std::make_shared<openvdb::io::StreamMetadata>();
+            meta_->setSeekable(true);
+            openvdb::io::setStreamMetadataPtr(is_, meta_, /*transfer=*/false);
+            setFormatVersion(is_);
+            setLibraryVersion(is_);
+            setDataCompression(is_);
+            openvdb::MetaMap file_meta;
+            file_meta.readMeta(is_);
+            check_stream("the file metadata");
+            const std::int32_t count = readGridCount(is_);
+            check_stream("the grid count");
+            if (count < 0) throw FileFormatError(path_ + ": negative grid count " + std::to_string(count));
+            for (std::int32_t i = 0; i < count; ++i) {
+                openvdb::io::GridDescriptor gd;
+                gd.read(is_);
+                check_stream("grid descriptor " + std::to_string(i));
+                const std::int64_t here = static_cast<std::int64_t>(is_.tellg());
+                if (gd.getGridPos() < here || gd.getEndPos() < gd.getGridPos() || gd.getEndPos() > size_) {
+                    std::ostringstream s;
+                    s << path_ << ": truncated or corrupt OpenVDB file: grid '" << gd.gridName() << "' spans bytes "
+                      << gd.getGridPos() << " to " << gd.getEndPos() << " but the file holds " << size_ << " bytes";
+                    throw FileFormatError(s.str());
+                }
+                descriptors_.push_back(gd);
+                gd.seekToEnd(is_);
+            }
+            return 0;
+        });
+    }
+    VdbReader(const VdbReader&) = delete;
+    VdbReader& operator=(const VdbReader&) = delete;
+
+    const std::vector<openvdb::io::GridDescriptor>& descriptors() const { return descriptors_; }
+
+    /// The descriptor of the first grid named `name`, or nullptr.
+    const openvdb::io::GridDescriptor* find(const std::string& name) const {
+        for (const auto& gd : descriptors_)
+            if (gd.gridName() == name) return &gd;
+        return nullptr;
+    }
+
+    /// Value type name of a grid ("float", "int32", "vec3s", ...) without reading it.
+    static std::string value_type(const openvdb::io::GridDescriptor& gd) {
+        return openvdb::GridBase::createGrid(gd.gridType())->valueType();
+    }
+
+    /// A grid's metadata and transform (no tree).
+    openvdb::GridBase::Ptr read_metadata(const openvdb::io::GridDescriptor& gd) {
+        return guarded_read(path_, "reading the metadata of grid '" + gd.gridName() + "'", [&] {
+            auto grid = openvdb::GridBase::createGrid(gd.gridType());
+            grid->setSaveFloatAsHalf(gd.saveFloatAsHalf());
+            is_.clear();
+            gd.seekToGrid(is_);
+            readGridCompression(is_);
+            grid->readMeta(is_);
+            grid->readTransform(is_);
+            check_stream("grid '" + gd.gridName() + "' metadata");
+            if (grid->getName().empty()) grid->setName(gd.gridName());
+            return grid;
+        });
+    }
+
+    /// A whole grid (instances share their parent's tree).
+    openvdb::GridBase::Ptr read_grid(const openvdb::io::GridDescriptor& gd, int depth = 0) {
+        if (gd.isInstance()) {
+            const openvdb::io::GridDescriptor* parent = nullptr;
+            for (const auto& other : descriptors_)
+                if (other.uniqueName() == gd.instanceParentName()) parent = &other;
+            if (!parent || parent == &gd || depth > static_cast<int>(descriptors_.size()))
+                throw FileFormatError(path_ + ": grid '" + gd.gridName() + "' is an instance of a missing grid");
+            auto tree_owner = read_grid(*parent, depth + 1);
+            auto grid = read_metadata(gd);
+            guarded_read(path_, "sharing the tree of grid '" + gd.gridName() + "'", [&] {
+                grid->setTree(tree_owner->baseTreePtr());
+                return 0;
+            });
+            return grid;
+        }
+        return guarded_read(path_, "reading grid '" + gd.gridName() + "'", [&] {
+            auto grid = openvdb::GridBase::createGrid(gd.gridType());
+            grid->setSaveFloatAsHalf(gd.saveFloatAsHalf());
+            is_.clear();
+            gd.seekToGrid(is_);
+            openvdb::io::Archive::readGrid(grid, gd, is_);
+            check_stream("grid '" + gd.gridName() + "'");
+            if (static_cast<std::int64_t>(is_.tellg()) > gd.getEndPos())
+                throw FileFormatError(path_ + ": corrupt OpenVDB file: grid '" + gd.gridName() +
+                                      "' reads past its end");
+            if (grid->getName().empty()) grid->setName(gd.gridName());
+            return grid;
+        });
+    }
+
+    /// "'a' (float), 'b' (int32)" for error messages.
+    std::string grid_list() const {
+        std::string s;
+        for (const auto& gd : descriptors_) {
+            if (!s.empty()) s += ", ";
+            s += "'" + gd.gridName() + "' (" + value_type(gd) + ")";
+        }
+        return s.empty() ? std::string("none") : s;
+    }
+
+private:
+    void check_stream(const std::string& what) const {
+        if (!is_.good())
+            throw FileFormatError(path_ + ": truncated or corrupt OpenVDB file (reading " + what +
+                                  " ran past the end of the file)");
+    }
+
+    std::string path_;
+    std::ifstream is_;
+    std::int64_t size_ = 0;
+    openvdb::io::StreamMetadata::Ptr meta_;
+    std::vector<openvdb::io::GridDescriptor> descriptors_;
+};
+
+/// Index bounding box from the file's stats metadata, if it has them (written by OpenVDB's writer by default).
+bool stats_bbox(const openvdb::GridBase& g, openvdb::CoordBBox& bbox, std::int64_t& count) {
+    using openvdb::GridBase;
+    auto lo = g.getMetadata<openvdb::Vec3IMetadata>(GridBase::META_FILE_BBOX_MIN);
+    auto hi = g.getMetadata<openvdb::Vec3IMetadata>(GridBase::META_FILE_BBOX_MAX);
+    auto n = g.getMetadata<openvdb::Int64Metadata>(GridBase::META_FILE_VOXEL_COUNT);
+    if (!lo || !hi || !n) return false;
+    bbox = openvdb::CoordBBox(openvdb::Coord(lo->value()), openvdb::Coord(hi->value()));
+    count = n->value();
+    return true;
+}
+
+/// Grid geometry of `bbox` under `xf`, refusing transforms that are not an axis-aligned positive scale.
+Grid geometry_of(const openvdb::math::Transform& xf, const openvdb::CoordBBox& bbox, const std::string& path,
+                 const std::string& name) {
+    const std::string subject = path + ": grid '" + name + "'";
+    if (!xf.isLinear())
+        throw FileFormatError(subject + " has a nonlinear (" + xf.mapType() +
+                              ") transform; only axis-aligned linear transforms are supported");
+    const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();  // row vectors: world = index * m
+    double scale = 0;
+    for (int a = 0; a < 3; ++a) scale = std::max(scale, std::abs(m[a][a]));
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            if (r != c && !(std::abs(m[r][c]) <= 1e-9 * scale))
+                throw FileFormatError(subject + " has a rotated or sheared transform (" + xf.mapType() +
+                                      "); only axis-aligned linear transforms are supported");
+    for (int a = 0; a < 3; ++a)
+        if (!(m[a][a] > 0) || !std::isfinite(m[a][a]))
+            throw FileFormatError(subject + " has a mirrored or degenerate transform (scale " +
+                                  std::to_string(m[0][0]) + ", " + std::to_string(m[1][1]) + ", " +
+                                  std::to_string(m[2][2]) + "); only positive axis-aligned scales are supported");
+    Grid g;
+    for (int a = 0; a < 3; ++a) {
+        g.dims[a] = static_cast<std::int64_t>(bbox.max()[a]) - static_cast<std::int64_t>(bbox.min()[a]) + 1;
+        g.spacing[a] = m[a][a];
+    }
+    const openvdb::Vec3d o = xf.indexToWorld(bbox.min());
+    g.origin = {o[0], o[1], o[2]};
+    return g;
+}
+
+DType dtype_of_grid(const std::string& type) {
+    if (type == "float") return DType::Float32;
+    if (type == "double") return DType::Float64;
+    if (type == "int32") return DType::Int32;
+    if (type == "int64") return DType::Int64;
+    return DType::UInt8;  // bool
+}
+
+template <class T, class GridT>
+void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
+    openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(bbox, static_cast<T*>(out));
+    openvdb::tools::copyToDense(grid, dense);
+}
+
+// ---- writing -------------------------------------------------------------------------------------------------
+
+/// First offending voxel while building a grid (values that do not fit the grid type).
+struct Overflow {
+    std::atomic<bool> seen{false};
+    std::mutex mutex;
+    std::int64_t index = std::numeric_limits<std::int64_t>::max();
+    std::string value;
+    void note(std::int64_t i, const std::string& v) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (i < index) {
+            index = i;
+            value = v;
+        }
+        seen = true;
+    }
+};
+
+template <class Out, class In>
+bool fits(In v) {
+    if constexpr (std::is_floating_point_v<Out>) {
+        return true;
+    } else if constexpr (std::is_signed_v<In>) {
+        return static_cast<std::int64_t>(v) >= std::numeric_limits<Out>::min() &&
+               static_cast<std::int64_t>(v) <= std::numeric_limits<Out>::max();
+    } else {
+        return static_cast<std::uint64_t>(v) <= static_cast<std::uint64_t>(std::numeric_limits<Out>::max());
+    }
+}
+
+/// Builds a grid holding the non-zero voxels of `src` (C-order [z, y, x], dims of `g`) at index coordinates
+/// (x, y, z). Leaf-sized blocks are filled in parallel, one task per (z, y) row of blocks, then inserted serially.
+template <class GridT, class In>
+typename GridT::Ptr build_grid(const In* src, const Grid& g, Overflow& overflow) {
+    using ValueT = typename GridT::ValueType;
+    using TreeT = typename GridT::TreeType;
+    using LeafT = typename TreeT::LeafNodeType;
+    constexpr int D = static_cast<int>(LeafT::DIM);
+    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const std::int64_t bx = (nx + D - 1) / D, by = (ny + D - 1) / D, bz = (nz + D - 1) / D;
+    const ValueT zero = openvdb::zeroVal<ValueT>();
+
+    struct Block {
+        LeafT* leaf = nullptr;   // a partly active or non-constant block
+        bool tile = false;       // a fully active constant block
+        ValueT value{};
+    };
+    std::vector<Block> blocks(static_cast<std::size_t>(bx * by * bz));
+
+    tbb::parallel_for(tbb::blocked_range2d<std::int64_t>(0, bz, 1, 0, by, 4), [&](const auto& r) {
+        std::unique_ptr<LeafT> leaf;
+        for (std::int64_t kz = r.rows().begin(); kz != r.rows().end(); ++kz) {
+            for (std::int64_t ky = r.cols().begin(); ky != r.cols().end(); ++ky) {
+                for (std::int64_t kx = 0; kx < bx; ++kx) {
+                    const std::int64_t x0 = kx * D, y0 = ky * D, z0 = kz * D;
+                    const std::int64_t ex = std::min<std::int64_t>(D, nx - x0), ey = std::min<std::int64_t>(D, ny - y0),
+                                       ez = std::min<std::int64_t>(D, nz - z0);
+                    const openvdb::Coord origin(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(z0));
+                    if (!leaf) leaf = std::make_unique<LeafT>(origin, zero, false);
+                    else {
+                        leaf->setOrigin(origin);
+                        leaf->fill(zero, false);
+                    }
+                    bool any = false;
+                    for (std::int64_t z = 0; z < ez; ++z) {
+                        for (std::int64_t y = 0; y < ey; ++y) {
+                            const std::int64_t row = ((z0 + z) * ny + (y0 + y)) * nx + x0;
+                            const In* p = src + row;
+                            for (std::int64_t x = 0; x < ex; ++x) {
+                                const In v = p[x];
+                                if (v == In(0)) continue;
+                                if (!fits<ValueT>(v)) {
+                                    std::ostringstream s;
+                                    s << +v;
+                                    overflow.note(row + x, s.str());
+                                    continue;
+                                }
+                                leaf->setValueOn(static_cast<openvdb::Index>((x << (2 * LeafT::LOG2DIM)) +
+                                                                            (y << LeafT::LOG2DIM) + z),
+                                                 static_cast<ValueT>(v));
+                                any = true;
+                            }
+                        }
+                    }
+                    if (!any) continue;
+                    Block& b = blocks[static_cast<std::size_t>((kz * by + ky) * bx + kx)];
+                    bool state = false;
+                    ValueT first{};
+                    if (leaf->isConstant(first, state) && state) {
+                        b.tile = true;
+                        b.value = first;
+                    } else {
+                        b.leaf = leaf.release();
+                    }
+                }
+            }
+        }
+    });
+
+    auto grid = GridT::create(zero);
+    openvdb::tree::ValueAccessor<TreeT> acc(grid->tree());
+    for (Block& b : blocks) {
+        if (b.leaf) acc.addLeaf(b.leaf);  // the tree takes ownership
+        else if (b.tile) {
+            // Recompute the origin from the block index.
+            const std::size_t i = static_cast<std::size_t>(&b - blocks.data());
+            const std::int64_t kx = static_cast<std::int64_t>(i) % bx, ky = (static_cast<std::int64_t>(i) / bx) % by,
+                               kz = static_cast<std::int64_t>(i) / (bx * by);
+            acc.addTile(1, openvdb::Coord(static_cast<int>(kx * D), static_cast<int>(ky * D), static_cast<int>(kz * D)),
+                        b.value, true);
+        }
+    }
+    return grid;
+}
+
+template <class GridT>
+typename GridT::Ptr build_from_view(const VolumeView& v, Overflow& overflow) {
+    switch (v.dtype) {
+        case DType::UInt8: return build_grid<GridT>(static_cast<const std::uint8_t*>(v.data), v.grid, overflow);
+        case DType::Int8: return build_grid<GridT>(static_cast<const std::int8_t*>(v.data), v.grid, overflow);
+        case DType::UInt16: return build_grid<GridT>(static_cast<const std::uint16_t*>(v.data), v.grid, overflow);
+        case DType::Int16: return build_grid<GridT>(static_cast<const std::int16_t*>(v.data), v.grid, overflow);
+        case DType::UInt32: return build_grid<GridT>(static_cast<const std::uint32_t*>(v.data), v.grid, overflow);
+        case DType::Int32: return build_grid<GridT>(static_cast<const std::int32_t*>(v.data), v.grid, overflow);
+        case DType::UInt64: return build_grid<GridT>(static_cast<const std::uint64_t*>(v.data), v.grid, overflow);
+        case DType::Int64: return build_grid<GridT>(static_cast<const std::int64_t*>(v.data), v.grid, overflow);
+        case DType::Float32: return build_grid<GridT>(static_cast<const float*>(v.data), v.grid, overflow);
+        case DType::Float64: return build_grid<GridT>(static_cast<const double*>(v.data), v.grid, overflow);
+    }
+    throw Error("unknown dtype");
+}
+
+bool same(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max({1.0, std::abs(a), std::abs(b)}); }
+
+std::string dims_string(const Grid& g) {
+    std::ostringstream s;
+    s << g.dims[0] << " x " << g.dims[1] << " x " << g.dims[2] << " spacing (" << g.spacing[0] << ", " << g.spacing[1]
+      << ", " << g.spacing[2] << ") origin (" << g.origin[0] << ", " << g.origin[1] << ", " << g.origin[2] << ")";
+    return s.str();
+}
+
+}  // namespace
+
+// ---- public API ----------------------------------------------------------------------------------------------
+
+std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+    VdbReader file(path);
+    std::vector<VdbGridInfo> out;
+    for (const auto& gd : file.descriptors()) {
+        auto grid = file.read_metadata(gd);
+        VdbGridInfo info;
+        info.name = gd.gridName();
+        info.type = grid->valueType();
+        openvdb::CoordBBox bbox;
+        std::int64_t count = 0;
+        if (!stats_bbox(*grid, bbox, count)) {
+            auto full = file.read_grid(gd);
+            bbox = full->evalActiveVoxelBoundingBox();
+            count = static_cast<std::int64_t>(full->activeVoxelCount());
+        }
+        if (count > 0 && !bbox.empty()) {
+            for (int a = 0; a < 3; ++a) {
+                info.bbox_min[a] = bbox.min()[a];
+                info.bbox_max[a] = bbox.max()[a];
+            }
+        }
+        info.active_voxels = count;
+        out.push_back(std::move(info));
+    }
+    return out;
+}
+
+Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+    VdbReader file(path);
+    const openvdb::io::GridDescriptor* gd = nullptr;
+    if (grid_name.empty()) {
+        gd = file.find("density");
+        for (const auto& d : file.descriptors())
+            if (!gd && is_scalar_type(VdbReader::value_type(d))) gd = &d;
+        if (!gd) throw FileFormatError(path + ": no scalar grid to read (grids present: " + file.grid_list() + ")");
+    } else {
+        gd = file.find(grid_name);
+        if (!gd)
+            throw FileFormatError(path + ": no grid named '" + grid_name + "' (grids present: " + file.grid_list() +
+                                  ")");
+    }
+    const std::string name = gd->gridName();
+    const std::string subject = path + ": grid '" + name + "'";
+    const std::string type = VdbReader::value_type(*gd);
+    if (!is_scalar_type(type))
+        throw FileFormatError(subject + " holds " + type +
+                              " values; only scalar grids (float, double, int32, int64, bool) can be read");
+    const std::size_t esize = dtype_size(dtype_of_grid(type));
+    auto checked = [&](const Grid& g) {
+        try {
+            check_grid(g, esize, opt.max_bytes, subject);
+        } catch (const FileFormatError&) {
+            throw;
+        } catch (const Error& e) {
+            throw FileFormatError(e.what());
+        }
+    };
+
+    // Check the size the stats metadata declare (when present) before reading the tree.
+    {
+        auto meta = file.read_metadata(*gd);
+        openvdb::CoordBBox bbox;
+        std::int64_t count = 0;
+        if (stats_bbox(*meta, bbox, count) && count > 0 && !bbox.empty())
+            checked(geometry_of(meta->transform(), bbox, path, name));
+    }
+
+    auto base = file.read_grid(*gd);
+    const openvdb::CoordBBox bbox = base->evalActiveVoxelBoundingBox();
+    if (bbox.empty() || base->activeVoxelCount() == 0) throw FileFormatError(subject + " has no active voxels");
+    Volume vol;
+    vol.grid = geometry_of(base->transform(), bbox, path, name);
+    vol.dtype = dtype_of_grid(type);
+    checked(vol.grid);
+    vol.data.resize(static_cast<std::size_t>(vol.grid.voxel_count()) * esize);
+    void* out = vol.data.data();
+    guarded_read(path, "copying grid '" + name + "'", [&] {
+        if (type == "float") copy_dense<float>(*openvdb::gridPtrCast<openvdb::FloatGrid>(base), bbox, out);
+        else if (type == "double") copy_dense<double>(*openvdb::gridPtrCast<openvdb::DoubleGrid>(base), bbox, out);
+        else if (type == "int32") copy_dense<std::int32_t>(*openvdb::gridPtrCast<openvdb::Int32Grid>(base), bbox, out);
+        else if (type == "int64") copy_dense<std::int64_t>(*openvdb::gridPtrCast<openvdb::Int64Grid>(base), bbox, out);
+        else copy_dense<std::uint8_t>(*openvdb::gridPtrCast<openvdb::BoolGrid>(base), bbox, out);
+        return 0;
+    });
+    return vol;
+}
+
+void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
+    initialize_openvdb();
+    if (grids.empty()) throw Error(path + ": no grids to write");
+    const Grid& g0 = grids.front().second.grid;
+    std::set<std::string> names;
+    for (const auto& [name, view] : grids) {
+        const std::string subject = path + ": grid '" + name + "'";
+        if (name.empty()) throw Error(path + ": a grid needs a non-empty name");
+        if (!names.insert(name).second) throw Error(path + ": grid name '" + name + "' is used twice");
+        if (!view.data) throw Error(subject + " has no data");
+        check_grid(view.grid, dtype_size(view.dtype), std::numeric_limits<std::uint64_t>::max(), subject);
+        for (int a = 0; a < 3; ++a)
+            if (view.grid.dims[a] > std::numeric_limits<std::int32_t>::max())
+                throw Error(subject + ": dimensions exceed OpenVDB's 32-bit index range");
+        bool match = true;
+        for (int a = 0; a < 3; ++a)
+            match = match && view.grid.dims[a] == g0.dims[a] && same(view.grid.spacing[a], g0.spacing[a]) &&
+                    same(view.grid.origin[a], g0.origin[a]);
+        if (!match)
+            throw Error(subject + " has geometry " + dims_string(view.grid) + " but grid '" + grids.front().first +
+                        "' has " + dims_string(g0) + "; all grids of one file must share one geometry");
+    }
+
+    // index (i, j, k) -> origin + spacing * (i, j, k)
+    openvdb::Mat4d scale = openvdb::Mat4d::identity();
+    for (int a = 0; a < 3; ++a) scale[a][a] = g0.spacing[a];
+    auto xf = openvdb::math::Transform::createLinearTransform(scale);
+    xf->postTranslate(openvdb::Vec3d(g0.origin[0], g0.origin[1], g0.origin[2]));
+
+    openvdb::GridPtrVec out;
+    for (const auto& [name, view] : grids) {
+        Overflow overflow;
+        openvdb::GridBase::Ptr grid;
+        const bool as_float =
+            view.dtype == DType::Float32 || view.dtype == DType::Float64 || view.dtype == DType::UInt8;
+        if (as_float) {
+            auto fg = build_from_view<openvdb::FloatGrid>(view, overflow);
+            fg->setGridClass(openvdb::GRID_FOG_VOLUME);
+            fg->setSaveFloatAsHalf(half);
+            grid = fg;
+        } else {
+            grid = build_from_view<openvdb::Int32Grid>(view, overflow);
+        }
+        if (overflow.seen) {
+            const Grid& g = view.grid;
+            const std::int64_t i = overflow.index;
+            std::ostringstream s;
+            s << path << ": grid '" << name << "': value " << overflow.value << " at voxel (" << i % g.dims[0] << ", "
+              << (i / g.dims[0]) % g.dims[1] << ", " << i / (g.dims[0] * g.dims[1])
+              << ") does not fit in an int32 grid";
+            throw Error(s.str());
+        }
+        grid->setName(name);
+        grid->setTransform(xf->copy());
+        out.push_back(grid);
+    }
+
+    try {
+        write_atomically(path, [&](const std::string& tmp) {
+            openvdb::io::File file(tmp);
+            file.write(out);
+            file.close();
+        });
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw Error(path + ": cannot write the OpenVDB file (" + e.what() + ")");
+    }
+}
+
+}  // namespace volrig
