@@ -14,7 +14,6 @@ peak memory <= 12 bytes per voxel.
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -31,15 +30,20 @@ from volrig import phantom  # noqa: E402
 
 
 def peak_memory_child(mask_path: str) -> dict:
-    """Runs skeletonize in a fresh process; reports the growth of its peak RSS over the baseline (mask loaded)."""
+    """Runs skeletonize in a fresh process; reports the growth of its peak RSS (VmHWM, which unlike ru_maxrss is
+    not inherited from the forking parent) over the baseline with the mask loaded."""
     code = f"""
-import resource, sys, json, numpy as np
+import sys, json, numpy as np
 sys.path.insert(0, {os.path.join(HERE, '..', 'python')!r})
 import volrig
+def hwm():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
 mask = np.load({mask_path!r})
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+base = hwm()
 sk = volrig.skeletonize(mask)
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+peak = hwm()
 print(json.dumps({{"base_kib": base, "peak_kib": peak, "object": sk.object_count}}))
 """
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout

@@ -15,8 +15,8 @@ using Vec3 = std::array<double, 3>;
 Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
 
 /// A numpy view of memory owned by `owner` (kept alive by the array).
-template <class T>
-py::array_t<T> view(const std::vector<T>& v, std::vector<py::ssize_t> shape, py::handle owner) {
+template <class T, class A>
+py::array_t<T> view(const std::vector<T, A>& v, std::vector<py::ssize_t> shape, py::handle owner) {
     return py::array_t<T>(shape, v.data(), owner);
 }
 
@@ -61,21 +61,27 @@ void bind_skeleton(py::module_& m) {
         })
         .def("points", [](const Skeleton& s, std::size_t n) {
             n = std::min(n, s.object_count());
-            std::vector<std::int32_t> ijk(3 * n);
-            std::vector<float> dt(n), sc(n);
+            // numpy allocates without zero-filling; the native pass writes every element once.
+            const auto pn = static_cast<py::ssize_t>(n);
+            py::array_t<std::int32_t> ijk({pn, py::ssize_t{3}});
+            py::array_t<double> centers({pn, py::ssize_t{3}});
+            py::array_t<float> dt(pn), sc(pn);
+            std::int32_t* pi = ijk.mutable_data();
+            double* pc = centers.mutable_data();
+            float* pd = dt.mutable_data();
+            float* ps = sc.mutable_data();
             {
                 py::gil_scoped_release nogil;
-                skeleton_points(s, n, ijk.data(), dt.data(), sc.data());
+                skeleton_points(s, n, pi, pc, pd, ps);
             }
-            const auto pn = static_cast<py::ssize_t>(n);
-            return py::make_tuple(to_numpy_shaped(std::move(ijk), {pn, 3}), to_numpy_shaped(std::move(dt), {pn}),
-                                  to_numpy_shaped(std::move(sc), {pn}));
+            return py::make_tuple(ijk, centers, dt, sc);
         }, py::arg("n"));
 
     m.def(
         "skeletonize",
-        [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
-            const Grid g = mask_grid(mask, spacing);
+        [](const Mask& mask, const Vec3& spacing, const Vec3& origin, const std::string& metric,
+           const py::object& progress) {
+            const Grid g = grid_of(mask, spacing, origin, "mask");
             const Metric mt = metric_from_name(metric);
             Progress p = progress_of(progress);
             Skeleton s;
@@ -85,7 +91,7 @@ void bind_skeleton(py::module_& m) {
             }
             return s;
         },
-        py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("metric"), py::arg("progress") = py::none());
 
     m.def(
         "reconstruct",

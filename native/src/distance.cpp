@@ -39,11 +39,22 @@ struct Envelope {
                (2.0 * static_cast<double>(q - p));
     }
 
+    /// Transforms a whole line. A zero (background) sample at z0 is closer to every sample on its side than any
+    /// site beyond it, so zeros cut the line into independent runs of non-zero samples, each bounded by zeros (or
+    /// the out-of-array background): only the runs are transformed, which makes the work proportional to the
+    /// object voxels on the line rather than to its length.
     void run(float* line, std::int64_t n, std::int64_t stride, double s2) {
-        // A line of background only stays 0.
-        bool any = false;
-        for (std::int64_t q = 0; q < n && !any; ++q) any = line[q * stride] != 0.0f;
-        if (!any) return;
+        std::int64_t q = 0;
+        while (q < n) {
+            while (q < n && line[q * stride] == 0.0f) ++q;
+            const std::int64_t a = q;
+            while (q < n && line[q * stride] != 0.0f) ++q;
+            if (q > a) run_segment(line + a * stride, q - a, stride, s2);
+        }
+    }
+
+    /// One run of n samples with (virtual) zero samples at -1 and n.
+    void run_segment(float* line, std::int64_t n, std::int64_t stride, double s2) {
         v.resize(static_cast<std::size_t>(n + 2));
         zb.resize(static_cast<std::size_t>(n + 3));
         fv.resize(static_cast<std::size_t>(n + 2));
@@ -82,32 +93,30 @@ void euclidean_distance_transform(const Grid& g, const std::uint8_t* mask, float
                  sz2 = g.spacing[2] * g.spacing[2];
     const std::int64_t plane = nx * ny;
 
+    // Passes 1 and 2, slice by slice so that each z slice is transformed while it is in cache.
     // Pass 1 (x): squared distance to the nearest background voxel in the row, out-of-array ends included.
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny * nz), [&](const tbb::blocked_range<std::int64_t>& r) {
-        for (std::int64_t row = r.begin(); row != r.end(); ++row) {
-            const std::uint8_t* m = mask + row * nx;
-            float* d = dt + row * nx;
-            std::int64_t last = -1;  // position of the last background voxel seen from the left
-            for (std::int64_t x = 0; x < nx; ++x) {
-                if (!m[x]) last = x;
-                d[x] = static_cast<float>(x - last);  // distance in voxels to the left background
-            }
-            last = nx;
-            for (std::int64_t x = nx - 1; x >= 0; --x) {
-                if (!m[x]) last = x;
-                const double t = std::min<double>(d[x], static_cast<double>(last - x));
-                d[x] = static_cast<float>(t * t * sx2);
-            }
-        }
-    });
-    report(progress, 0.2);
-
-    // Pass 2 (y): each z slice is small enough to stay in cache; columns are strided by nx.
+    // Pass 2 (y): lower envelopes along the slice's columns (strided by nx).
     tbb::enumerable_thread_specific<Envelope> envelopes;
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& r) {
         Envelope& env = envelopes.local();
-        for (std::int64_t z = r.begin(); z != r.end(); ++z)
+        for (std::int64_t z = r.begin(); z != r.end(); ++z) {
+            for (std::int64_t y = 0; y < ny; ++y) {
+                const std::uint8_t* m = mask + z * plane + y * nx;
+                float* d = dt + z * plane + y * nx;
+                std::int64_t last = -1;  // position of the last background voxel seen from the left
+                for (std::int64_t x = 0; x < nx; ++x) {
+                    if (!m[x]) last = x;
+                    d[x] = static_cast<float>(x - last);  // voxels to the background on the left
+                }
+                last = nx;
+                for (std::int64_t x = nx - 1; x >= 0; --x) {
+                    if (!m[x]) last = x;
+                    const double t = std::min<double>(d[x], static_cast<double>(last - x));
+                    d[x] = static_cast<float>(t * t * sx2);
+                }
+            }
             for (std::int64_t x = 0; x < nx; ++x) env.run(dt + z * plane + x, ny, nx, sy2);
+        }
     });
     report(progress, 0.5);
 

@@ -89,7 +89,7 @@ void window9(const Grid& g, const float* dt, std::int64_t z, double* out, double
 
 }  // namespace
 
-std::vector<std::uint64_t> thinness_keys(const Grid& g, const std::uint8_t* mask, const float* dt) {
+Buffer<std::uint64_t> thinness_keys(const Grid& g, const std::uint8_t* mask, const float* dt) {
     const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2], plane = nx * ny;
     // Count object voxels per slice, then each slice writes its keys at its offset (keys stay in index order).
     std::vector<std::int64_t> offset(static_cast<std::size_t>(nz) + 1, 0);
@@ -102,7 +102,7 @@ std::vector<std::uint64_t> thinness_keys(const Grid& g, const std::uint8_t* mask
         }
     });
     for (std::size_t z = 0; z < static_cast<std::size_t>(nz); ++z) offset[z + 1] += offset[z];
-    std::vector<std::uint64_t> keys(static_cast<std::size_t>(offset.back()));
+    Buffer<std::uint64_t> keys(static_cast<std::size_t>(offset.back()));
     // The 27-sum around a voxel is the sum of the 3x3 window sums of the slices z-1, z, z+1 (separable, so each
     // voxel costs a few additions instead of 26 gathers). A task walks a run of slices keeping three windows.
     const std::int64_t grain = std::max<std::int64_t>(4, nz / 64);
@@ -130,13 +130,13 @@ std::vector<std::uint64_t> thinness_keys(const Grid& g, const std::uint8_t* mask
     return keys;
 }
 
-void sort_by_upper_key(std::vector<std::uint64_t>& keys) {
+void sort_by_upper_key(Buffer<std::uint64_t>& keys) {
     // Stable LSD radix sort on the upper 32 bits: three passes of 11, 11 and 10 bits. Each pass splits the input
     // into blocks; every block counts its digits, prefix sums give each (digit, block) its output range, and the
     // blocks scatter in parallel, each in input order, which keeps the sort stable.
     const std::size_t n = keys.size();
     if (n < 2) return;
-    std::vector<std::uint64_t> tmp(n);
+    Buffer<std::uint64_t> tmp(n);
     static constexpr int kShift[3] = {32, 43, 54};
     static constexpr int kBits[3] = {11, 11, 10};
     const std::size_t blocks = std::max<std::size_t>(1, std::min<std::size_t>(64, n / 16384));
@@ -185,7 +185,12 @@ Skeleton skeletonize(const Grid& g, const std::uint8_t* mask, Metric metric, con
         if (!progress) return {};
         return [&progress, a, b](double f) { return progress(a + (b - a) * f); };
     };
-    s.dt = distance_transform(g, mask, metric, scaled(0.0, 0.6));
+    check_grid(g, 1, std::numeric_limits<std::uint64_t>::max(), "skeletonize");
+    s.dt.resize(static_cast<std::size_t>(g.voxel_count()));
+    if (metric == Metric::Euclidean)
+        euclidean_distance_transform(g, mask, s.dt.data(), scaled(0.0, 0.6));
+    else
+        chamfer345_distance_transform(g, mask, s.dt.data(), scaled(0.0, 0.6));
     s.order = thinness_keys(g, mask, s.dt.data());
     report(progress, 0.8);
     sort_by_upper_key(s.order);
@@ -193,15 +198,23 @@ Skeleton skeletonize(const Grid& g, const std::uint8_t* mask, Metric metric, con
     return s;
 }
 
-void skeleton_points(const Skeleton& s, std::size_t n, std::int32_t* ijk, float* dt, float* scores) {
+void skeleton_points(const Skeleton& s, std::size_t n, std::int32_t* ijk, double* centers, float* dt, float* scores) {
     n = std::min(n, s.order.size());
     const std::int64_t nx = s.grid.dims[0], ny = s.grid.dims[1];
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             const std::int64_t i = s.voxel(k);
-            ijk[3 * k + 0] = static_cast<std::int32_t>(i / (nx * ny));
-            ijk[3 * k + 1] = static_cast<std::int32_t>((i / nx) % ny);
-            ijk[3 * k + 2] = static_cast<std::int32_t>(i % nx);
+            const std::int64_t z = i / (nx * ny), y = (i / nx) % ny, x = i % nx;
+            if (ijk) {
+                ijk[3 * k + 0] = static_cast<std::int32_t>(z);
+                ijk[3 * k + 1] = static_cast<std::int32_t>(y);
+                ijk[3 * k + 2] = static_cast<std::int32_t>(x);
+            }
+            if (centers) {
+                centers[3 * k + 0] = s.grid.origin[0] + s.grid.spacing[0] * static_cast<double>(x);
+                centers[3 * k + 1] = s.grid.origin[1] + s.grid.spacing[1] * static_cast<double>(y);
+                centers[3 * k + 2] = s.grid.origin[2] + s.grid.spacing[2] * static_cast<double>(z);
+            }
             if (dt) dt[k] = s.dt[static_cast<std::size_t>(i)];
             if (scores) scores[k] = s.score(k);
         }

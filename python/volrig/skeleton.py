@@ -116,12 +116,9 @@ class Skeleton:
         return self._points(min(int(n), self.object_count), None)
 
     def _points(self, n: int, tp) -> SkeletonPoints:
-        ijk, dt, scores = self._native.points(n)
-        sp = np.asarray(self.spacing)
-        centers = ijk[:, ::-1] * sp + np.asarray(self.origin)
-        radii = dt if self.metric == "euclidean" else (dt / np.float32(3.0)) * np.float32(sp.min())
-        return SkeletonPoints(ijk, centers, radii.astype(np.float32, copy=False), dt, scores, self.metric,
-                              self.spacing, self.origin, tp)
+        ijk, centers, dt, scores = self._native.points(n)
+        radii = dt if self.metric == "euclidean" else (dt / np.float32(3.0)) * np.float32(min(self.spacing))
+        return SkeletonPoints(ijk, centers, radii, dt, scores, self.metric, self.spacing, self.origin, tp)
 
     def __repr__(self) -> str:
         z, y, x = self.shape
@@ -143,7 +140,7 @@ def skeletonize(mask, metric: str = "euclidean", progress: ProgressFn = None) ->
         import warnings
         warnings.warn("chamfer345 ignores anisotropic spacing; use metric='euclidean' for world distances",
                       stacklevel=2)
-    native = _volrig.skeletonize(arr, spacing, metric, progress)
+    native = _volrig.skeletonize(arr, spacing, origin, metric, progress)
     return Skeleton(native, spacing, origin, arr.shape)
 
 

@@ -63,7 +63,7 @@ double euclid(const Grid& g, std::int64_t dx, std::int64_t dy, std::int64_t dz) 
 Skeleton skeleton_from_dt(const Grid& g, const std::vector<std::uint8_t>& mask, std::vector<float> dt) {
     Skeleton s;
     s.grid = g;
-    s.dt = std::move(dt);
+    s.dt.assign(dt.begin(), dt.end());
     s.order = thinness_keys(g, mask.data(), s.dt.data());
     sort_by_upper_key(s.order);
     return s;
@@ -73,7 +73,7 @@ std::vector<std::uint8_t> reconstruct_at(const Skeleton& s, double tp) {
     const std::size_t n = s.count_at(tp);
     std::vector<std::int32_t> ijk(3 * n);
     std::vector<float> r(n);
-    skeleton_points(s, n, ijk.data(), r.data(), nullptr);
+    skeleton_points(s, n, ijk.data(), nullptr, r.data(), nullptr);
     return reconstruct(s.grid, s.metric, ijk.data(), r.data(), n);
 }
 
@@ -290,7 +290,7 @@ TEST_CASE("tp_for_count gives the densest skeleton with at most n points", "[ske
 
 TEST_CASE("radix sort orders keys stably", "[skeleton]") {
     std::mt19937_64 rng(3);
-    std::vector<std::uint64_t> keys(100000);
+    Buffer<std::uint64_t> keys(100000);
     std::uniform_real_distribution<float> u(-5.0f, 5.0f);
     for (std::size_t i = 0; i < keys.size(); ++i)
         keys[i] = (std::uint64_t(descending_key(std::round(u(rng) * 8.0f) / 8.0f)) << 32) | i;

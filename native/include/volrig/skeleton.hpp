@@ -17,10 +17,10 @@ class Skeleton {
 public:
     Grid grid;
     Metric metric = Metric::Euclidean;
-    std::vector<float> dt;  ///< DT per voxel (metric units), [z, y, x]
+    Buffer<float> dt;  ///< DT per voxel (metric units), [z, y, x]
     /// Object voxels by descending score (ties by ascending voxel index), packed as
     /// (descending-sortable score bits << 32) | voxel index.
-    std::vector<std::uint64_t> order;
+    Buffer<std::uint64_t> order;
 
     std::size_t object_count() const { return order.size(); }
     float score(std::size_t k) const;            ///< score of the k-th voxel in the order
@@ -42,16 +42,17 @@ Skeleton skeletonize(const Grid& grid, const std::uint8_t* mask, Metric metric, 
 
 /// Score of every object voxel from a DT (`dt` of grid.voxel_count()), written as packed order keys in index order
 /// (unsorted); exposed for tests and tools that bring their own DT.
-std::vector<std::uint64_t> thinness_keys(const Grid& grid, const std::uint8_t* mask, const float* dt);
+Buffer<std::uint64_t> thinness_keys(const Grid& grid, const std::uint8_t* mask, const float* dt);
 
 /// Sorting keys: a float maps to a uint32 whose ascending order is the float's descending order.
 std::uint32_t descending_key(float score);
 float score_of_key(std::uint32_t key);
 
 /// Sorts packed keys ascending by their upper 32 bits, stable (LSD radix sort, parallel histograms).
-void sort_by_upper_key(std::vector<std::uint64_t>& keys);
+void sort_by_upper_key(Buffer<std::uint64_t>& keys);
 
-/// Skeleton points: the first n voxels of the order. Writes ijk [z, y, x] (n x 3), DT values and scores.
-void skeleton_points(const Skeleton& s, std::size_t n, std::int32_t* ijk, float* dt, float* scores);
+/// Skeleton points: the first n voxels of the order. Writes ijk [z, y, x] (n x 3), world centres (x, y, z) (n x 3),
+/// DT values and scores; any output pointer may be null.
+void skeleton_points(const Skeleton& s, std::size_t n, std::int32_t* ijk, double* centers, float* dt, float* scores);
 
 }  // namespace volrig

@@ -8,11 +8,37 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace volrig {
+
+/// Allocator whose construct() default-initialises: vectors of numbers grow without being zero-filled first, for
+/// buffers that are written in full right after allocation (one pass over memory instead of two).
+template <class T>
+struct UninitializedAllocator : std::allocator<T> {
+    template <class U>
+    struct rebind {
+        using other = UninitializedAllocator<U>;
+    };
+    UninitializedAllocator() = default;
+    template <class U>
+    UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+    template <class U>
+    void construct(U* p) noexcept {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <class U, class... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+};
+/// A vector of numbers that `Buffer<T>(n)` leaves uninitialised.
+template <class T>
+using Buffer = std::vector<T, UninitializedAllocator<T>>;
 
 /// Element types a volume may hold (numpy names in dtype_name()).
 enum class DType : std::uint8_t { UInt8, Int8, UInt16, Int16, UInt32, Int32, UInt64, Int64, Float32, Float64 };
