@@ -1,0 +1,84 @@
+// Bindings for volrig/io.hpp (except OpenVDB): conversions only. File reading, decompression and writing run
+// with the GIL released.
+#include "volrig/io.hpp"
+
+#include "convert.hpp"
+
+namespace volrig::py {
+
+namespace {
+
+ReadOptions options_of(std::int64_t max_bytes) {
+    ReadOptions opt;
+    if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+    return opt;
+}
+
+}  // namespace
+
+void bind_io(py::module_& m) {
+    m.def(
+        "read_volume",
+        [](const std::string& path, std::int64_t max_bytes) {
+            const ReadOptions opt = options_of(max_bytes);
+            Volume v;
+            {
+                py::gil_scoped_release release;
+                v = read_volume(path, opt);
+            }
+            return volume_tuple(std::move(v));
+        },
+        py::arg("path"), py::arg("max_bytes") = -1,
+        "Reads a .nrrd/.nhdr/.mhd/.mha/.nii/.nii.gz/.hdr/.vdb file: (array [z, y, x], spacing, origin). "
+        "max_bytes < 0 means the default limit.");
+
+    m.def(
+        "read_raw",
+        [](const std::string& path, const std::array<std::int64_t, 3>& dims, const std::string& dtype,
+           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool big_endian,
+           std::int64_t offset, std::int64_t max_bytes) {
+            if (offset < 0) throw Error(path + ": offset " + std::to_string(offset) + " must not be negative");
+            RawLayout layout;
+            layout.dims = dims;
+            layout.dtype = dtype_from_name(dtype);
+            layout.spacing = spacing;
+            layout.origin = origin;
+            layout.big_endian = big_endian;
+            layout.offset = static_cast<std::uint64_t>(offset);
+            const ReadOptions opt = options_of(max_bytes);
+            Volume v;
+            {
+                py::gil_scoped_release release;
+                auto src = open_file(path);
+                v = read_raw(*src, layout, opt);
+            }
+            return volume_tuple(std::move(v));
+        },
+        py::arg("path"), py::arg("dims"), py::arg("dtype"), py::arg("spacing"), py::arg("origin"),
+        py::arg("big_endian") = false, py::arg("offset") = 0, py::arg("max_bytes") = -1,
+        "Reads raw voxels: dims (x, y, z), numpy dtype name, spacing, origin, byte order, byte offset.");
+
+    m.def(
+        "write_nrrd",
+        [](const std::string& path, const py::array& array, const std::array<double, 3>& spacing,
+           const std::array<double, 3>& origin, bool gzip) {
+            const VolumeView v = view_of(array, spacing, origin, "write_nrrd");
+            py::gil_scoped_release release;
+            write_nrrd(path, v, gzip);
+        },
+        py::arg("path"), py::arg("array"), py::arg("spacing"), py::arg("origin"), py::arg("gzip") = true,
+        "Writes a C-contiguous [z, y, x] array as NRRD (gzip or raw), atomically.");
+
+    m.def(
+        "write_metaimage",
+        [](const std::string& path, const py::array& array, const std::array<double, 3>& spacing,
+           const std::array<double, 3>& origin, bool compress) {
+            const VolumeView v = view_of(array, spacing, origin, "write_metaimage");
+            py::gil_scoped_release release;
+            write_metaimage(path, v, compress);
+        },
+        py::arg("path"), py::arg("array"), py::arg("spacing"), py::arg("origin"), py::arg("compress") = true,
+        "Writes a C-contiguous [z, y, x] array as a single-file MetaImage (.mha, LOCAL data), atomically.");
+}
+
+}  // namespace volrig::py

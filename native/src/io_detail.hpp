@@ -1,0 +1,110 @@
+// io_detail.hpp: internals shared by the volume file readers and writers (io.cpp, io_nrrd.cpp,
+// io_metaimage.cpp, io_nifti.cpp). Not installed; not part of the public API.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "volrig/io.hpp"
+
+namespace volrig::detail {
+
+// ---- messages ------------------------------------------------------------------------------------------------
+
+/// Throws FileFormatError("<name>: <what>").
+[[noreturn]] void fail(const std::string& name, const std::string& what);
+/// 1558882 -> "1,558,882".
+std::string with_commas(std::uint64_t n);
+/// A header value quoted for an error message: non-printable bytes shown as '?', long values cut.
+std::string quoted(std::string_view s);
+/// "103x94x161 uint8".
+std::string describe(const std::array<std::int64_t, 3>& dims, DType t);
+
+// ---- text ----------------------------------------------------------------------------------------------------
+
+std::string_view trim(std::string_view s);
+std::string lower(std::string_view s);
+bool iequals(std::string_view a, std::string_view b);
+/// Splits on spaces/tabs (and, when `commas`, on commas).
+std::vector<std::string_view> split_words(std::string_view s, bool commas = false);
+/// Strict whole-token parses (locale independent); false on junk or overflow.
+bool parse_int(std::string_view s, std::int64_t& out);
+bool parse_double(std::string_view s, double& out);
+/// Shortest text that reads back as exactly `v`.
+std::string format_double(double v);
+
+// ---- grids and voxels ----------------------------------------------------------------------------------------
+
+/// Validates dims/spacing/origin and the decoded size against opt.max_bytes (check_grid), rethrowing as a
+/// FileFormatError naming `name`. Returns the byte count.
+std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std::uint64_t max_bytes);
+/// A volume of the grid's size (zero-filled).
+Volume allocate(const Grid& g, DType t);
+
+bool host_is_big_endian();
+/// Reverses the bytes of each of `count` elements of `esize` bytes, in place.
+void swap_bytes(void* data, std::size_t count, std::size_t esize);
+
+/// Where the voxels of a header-described volume live.
+struct DataLocation {
+    const ByteSource* src = nullptr;  ///< the file holding the voxels
+    std::string header;               ///< name of the header file (subject of error messages)
+    std::uint64_t offset = 0;         ///< first data byte in *src
+    bool detached = false;            ///< data file differs from the header file
+    const char* claimant = "header";  ///< who declared the layout ("header says ...")
+};
+
+/// The readers below check the bytes present against the grid before allocating, then read straight into the
+/// returned volume's buffer. The grid must have passed check_volume.
+
+/// Uncompressed voxels at loc, byte-swapped in place when the file's order differs from the host's.
+/// "<hdr>: header says 3x3x3 uint8 = 27 bytes but the file holds 20".
+Volume read_raw_voxels(const DataLocation& loc, const Grid& g, DType t, bool big_endian);
+/// A zlib/gzip stream of `compressed` bytes at loc, of which the first `skip` decompressed bytes are dropped.
+Volume read_compressed_voxels(const DataLocation& loc, std::uint64_t compressed, std::uint64_t skip,
+                              const Grid& g, DType t, bool big_endian);
+/// Whitespace- (or comma-) separated numbers at loc.
+Volume read_ascii_voxels(const DataLocation& loc, const Grid& g, DType t);
+
+/// Subject for messages about the data: "<hdr>" or "<hdr> (data file <data>)".
+std::string data_subject(const DataLocation& loc);
+
+/// Offset of the first byte after `lines` newlines starting at `offset` (NRRD "line skip").
+std::uint64_t skip_lines(const ByteSource& src, const std::string& header, std::uint64_t offset, std::int64_t lines);
+
+/// True when a data-file value names several files (LIST, or a printf pattern followed by numbers).
+bool names_several_files(std::string_view value);
+
+// ---- writing -------------------------------------------------------------------------------------------------
+
+/// An output file opened for writing (created or truncated); every failure throws naming `shown_as` (the
+/// final name when writing a temporary file), or the path itself.
+class FileWriter {
+public:
+    explicit FileWriter(const std::string& path, const std::string& shown_as = "");
+    ~FileWriter();
+    FileWriter(const FileWriter&) = delete;
+    FileWriter& operator=(const FileWriter&) = delete;
+    void write(const void* data, std::size_t n);
+    void write(std::string_view s) { write(s.data(), s.size()); }
+    /// Overwrites bytes already written at `offset`.
+    void write_at(std::uint64_t offset, const void* data, std::size_t n);
+    std::uint64_t position() const { return pos_; }
+    void close();
+
+private:
+    int fd_ = -1;
+    std::string path_;
+    std::uint64_t pos_ = 0;
+};
+
+/// Checks a view before writing it: positive dims, finite positive spacing, finite origin, data present.
+void check_view(const std::string& path, const VolumeView& v);
+/// Hands the voxels to `sink` in little-endian byte order, in chunks (no copy on little-endian hosts).
+void little_endian_chunks(const VolumeView& v, const std::function<void(const void*, std::size_t)>& sink);
+
+}  // namespace volrig::detail

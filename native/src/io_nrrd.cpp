@@ -1,0 +1,450 @@
+// io_nrrd.cpp: NRRD reader and writer (http://teem.sourceforge.net/nrrd/format.html).
+//
+// Reads NRRD0001..NRRD0005 with attached (.nrrd) or single detached (.nhdr + data file) data in raw, gzip or
+// ascii encoding, either endianness, dimension 1..3 (or more when the extra axes have size 1). Spacing comes from
+// "space directions" (vector norms) or "spacings"; origin from "space origin" (else "axis mins"). Orientation
+// (direction cosines) is not kept. Refused with a clear message: bzip2/hex encodings, type "block", several data
+// files (LIST or patterns), multi-component axes, 4-D data.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <map>
+
+#include "inflate.hpp"
+#include "io_detail.hpp"
+#include "volrig/io.hpp"
+
+namespace volrig {
+
+namespace {
+
+using detail::fail;
+using detail::quoted;
+using detail::with_commas;
+
+constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
+
+struct Field {
+    std::string value;
+    int line = 0;
+};
+
+// Field names compare lowercase with spaces removed ("data file" = "datafile").
+std::string field_key(std::string_view s) {
+    std::string out;
+    for (char c : s)
+        if (c != ' ' && c != '\t') out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return out;
+}
+
+bool nrrd_type(std::string_view name, DType& t) {
+    // Lowercase with runs of spaces collapsed.
+    std::string n;
+    for (auto w : detail::split_words(name)) {
+        if (!n.empty()) n += ' ';
+        n += detail::lower(w);
+    }
+    static const std::map<std::string, DType> types = {
+        {"uchar", DType::UInt8}, {"unsigned char", DType::UInt8}, {"uint8", DType::UInt8}, {"uint8_t", DType::UInt8},
+        {"signed char", DType::Int8}, {"int8", DType::Int8}, {"int8_t", DType::Int8},
+        {"short", DType::Int16}, {"short int", DType::Int16}, {"signed short", DType::Int16},
+        {"signed short int", DType::Int16}, {"int16", DType::Int16}, {"int16_t", DType::Int16},
+        {"ushort", DType::UInt16}, {"unsigned short", DType::UInt16}, {"unsigned short int", DType::UInt16},
+        {"uint16", DType::UInt16}, {"uint16_t", DType::UInt16},
+        {"int", DType::Int32}, {"signed int", DType::Int32}, {"int32", DType::Int32}, {"int32_t", DType::Int32},
+        {"uint", DType::UInt32}, {"unsigned int", DType::UInt32}, {"uint32", DType::UInt32},
+        {"uint32_t", DType::UInt32},
+        {"longlong", DType::Int64}, {"long long", DType::Int64}, {"long long int", DType::Int64},
+        {"signed long long", DType::Int64}, {"signed long long int", DType::Int64}, {"int64", DType::Int64},
+        {"int64_t", DType::Int64},
+        {"ulonglong", DType::UInt64}, {"unsigned long long", DType::UInt64},
+        {"unsigned long long int", DType::UInt64}, {"uint64", DType::UInt64}, {"uint64_t", DType::UInt64},
+        {"float", DType::Float32}, {"double", DType::Float64},
+    };
+    auto it = types.find(n);
+    if (it == types.end()) return false;
+    t = it->second;
+    return true;
+}
+
+const char* nrrd_type_name(DType t) {
+    switch (t) {
+        case DType::UInt8: return "uint8";
+        case DType::Int8: return "int8";
+        case DType::UInt16: return "uint16";
+        case DType::Int16: return "int16";
+        case DType::UInt32: return "uint32";
+        case DType::Int32: return "int32";
+        case DType::UInt64: return "uint64";
+        case DType::Int64: return "int64";
+        case DType::Float32: return "float";
+        case DType::Float64: return "double";
+    }
+    return "?";
+}
+
+// Kinds that describe positions along the grid (anything else is a per-sample component axis).
+bool domain_kind(std::string_view k) {
+    const std::string l = detail::lower(k);
+    return l == "domain" || l == "space" || l == "time" || l == "none" || l == "???";
+}
+
+// Parses "(a,b,c)" into numbers; false when malformed.
+bool parse_vector(std::string_view s, std::vector<double>& out) {
+    s = detail::trim(s);
+    if (s.size() < 2 || s.front() != '(' || s.back() != ')') return false;
+    s = s.substr(1, s.size() - 2);
+    out.clear();
+    std::size_t start = 0;
+    for (;;) {
+        const std::size_t comma = s.find(',', start);
+        double d = 0;
+        if (!detail::parse_double(s.substr(start, comma == std::string_view::npos ? s.npos : comma - start), d))
+            return false;
+        out.push_back(d);
+        if (comma == std::string_view::npos) break;
+        start = comma + 1;
+    }
+    return !out.empty() && out.size() <= 16;
+}
+
+// Splits a "space directions" value into per-axis items: "(1,0,0)", "none".
+std::vector<std::string_view> vector_items(std::string_view s) {
+    std::vector<std::string_view> out;
+    std::size_t i = 0;
+    while (i < s.size()) {
+        while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+        if (i >= s.size()) break;
+        std::size_t j = i;
+        if (s[i] == '(') {
+            j = s.find(')', i);
+            j = j == std::string_view::npos ? s.size() : j + 1;
+        } else {
+            while (j < s.size() && s[j] != ' ' && s[j] != '\t') ++j;
+        }
+        out.push_back(s.substr(i, j - i));
+        i = j;
+    }
+    return out;
+}
+
+struct Header {
+    std::map<std::string, Field> fields;
+    bool has_blank_line = false;
+    std::uint64_t data_start = 0;  // first byte after the blank line
+};
+
+Header read_header(const ByteSource& src) {
+    const std::string& name = src.name();
+    const std::uint64_t size = src.size();
+    std::string text;
+    Header h;
+    std::size_t scanned = 0;  // start of the first line not yet examined
+    int line_no = 0;
+    bool done = false;
+    while (!done) {
+        const std::size_t before = text.size();
+        if (before >= size) break;
+        if (before >= kMaxHeader) fail(name, "header is longer than 1 MiB (no blank line ends it): not a NRRD file?");
+        const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(64 * 1024, size - before));
+        text.resize(before + n);
+        src.read(before, &text[before], n);
+        if (before == 0 && text.compare(0, std::min<std::size_t>(text.size(), 7), std::string("NRRD000"), 0,
+                                        std::min<std::size_t>(text.size(), 7)) != 0)
+            fail(name, "not a NRRD file (it does not start with NRRD000x)");
+        // Examine each complete line.
+        for (;;) {
+            const std::size_t nl = text.find('\n', scanned);
+            const bool last = nl == std::string::npos;
+            if (last && text.size() < size) break;  // need more bytes
+            std::string_view line(text.data() + scanned, (last ? text.size() : nl) - scanned);
+            if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+            ++line_no;
+            const std::string here = "line " + std::to_string(line_no) + ": ";
+            if (line_no == 1) {
+                if (line.size() < 8 || line.substr(0, 7) != "NRRD000" || line[7] < '1' || line[7] > '9')
+                    fail(name, "not a NRRD file (it does not start with NRRD000x)");
+            } else if (line.empty() && !last) {
+                h.has_blank_line = true;
+                h.data_start = nl + 1;
+                done = true;
+                break;
+            } else if (!line.empty() && line[0] != '#') {
+                const std::size_t kv = line.find(":=");
+                const std::size_t fd = line.find(": ");
+                if (kv != std::string_view::npos && (fd == std::string_view::npos || kv < fd)) {
+                    // key:=value pair: ignored
+                } else if (fd == std::string_view::npos) {
+                    if (!detail::trim(line).empty())
+                        fail(name, here + "expected 'field: value', got " + quoted(line));
+                } else {
+                    const std::string key = field_key(line.substr(0, fd));
+                    h.fields[key] = Field{std::string(detail::trim(line.substr(fd + 2))), line_no};
+                }
+            }
+            if (last) {
+                done = true;
+                break;
+            }
+            scanned = nl + 1;
+        }
+    }
+    if (text.empty()) fail(name, "empty file: not a NRRD file");
+    return h;
+}
+
+}  // namespace
+
+Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
+    const std::string& name = src.name();
+    const Header h = read_header(src);
+    auto find = [&](const char* key) -> const Field* {
+        auto it = h.fields.find(key);
+        return it == h.fields.end() ? nullptr : &it->second;
+    };
+    auto need = [&](const char* key, const char* label) -> const Field& {
+        const Field* f = find(key);
+        if (!f) fail(name, std::string("missing field '") + label + "'");
+        return *f;
+    };
+    auto bad = [&](const Field& f, const char* label, const std::string& why) {
+        fail(name, "line " + std::to_string(f.line) + ": " + label + " " + quoted(f.value) + " " + why);
+    };
+
+    // type
+    const Field& ftype = need("type", "type");
+    DType dtype{};
+    if (detail::iequals(detail::trim(ftype.value), "block"))
+        bad(ftype, "type", "is not supported (opaque blocks are not voxels)");
+    if (!nrrd_type(ftype.value, dtype)) bad(ftype, "type", "is not a NRRD scalar type");
+
+    // dimension and sizes
+    const Field& fdim = need("dimension", "dimension");
+    std::int64_t dim = 0;
+    if (!detail::parse_int(fdim.value, dim) || dim < 1 || dim > 16)
+        bad(fdim, "dimension", "must be an integer from 1 to 16");
+    const Field& fsizes = need("sizes", "sizes");
+    const auto size_words = detail::split_words(fsizes.value);
+    if (static_cast<std::int64_t>(size_words.size()) != dim)
+        bad(fsizes, "sizes", "must list " + std::to_string(dim) + " sizes (dimension " + std::to_string(dim) + ")");
+
+    struct Axis {
+        std::int64_t size = 1;
+        bool has_spacing = false;
+        double spacing = 1.0;
+        double min = 0.0;
+        std::string kind = "domain";
+    };
+    std::vector<Axis> axes(static_cast<std::size_t>(dim));
+    for (std::size_t a = 0; a < axes.size(); ++a)
+        if (!detail::parse_int(size_words[a], axes[a].size) || axes[a].size <= 0)
+            bad(fsizes, "sizes", "must be positive integers");
+
+    if (const Field* f = find("spacedirections")) {
+        const auto items = vector_items(f->value);
+        if (items.size() != axes.size())
+            bad(*f, "space directions", "must give one vector or 'none' per axis (" + std::to_string(dim) + ")");
+        std::vector<double> v;
+        for (std::size_t a = 0; a < axes.size(); ++a) {
+            if (detail::iequals(items[a], "none")) continue;
+            if (!parse_vector(items[a], v)) bad(*f, "space directions", "must be vectors like (1,0,0) or 'none'");
+            double n2 = 0;
+            for (double c : v) n2 += c * c;
+            axes[a].has_spacing = true;
+            axes[a].spacing = std::sqrt(n2);
+        }
+    } else if (const Field* fs = find("spacings")) {
+        const auto words = detail::split_words(fs->value);
+        if (words.size() != axes.size())
+            bad(*fs, "spacings", "must give one number per axis (" + std::to_string(dim) + ")");
+        for (std::size_t a = 0; a < axes.size(); ++a) {
+            if (!detail::parse_double(words[a], axes[a].spacing)) bad(*fs, "spacings", "must be numbers");
+            axes[a].spacing = std::fabs(axes[a].spacing);
+            axes[a].has_spacing = true;
+        }
+    }
+    bool have_mins = false;
+    if (const Field* f = find("axismins")) {
+        const auto words = detail::split_words(f->value);
+        if (words.size() != axes.size())
+            bad(*f, "axis mins", "must give one number per axis (" + std::to_string(dim) + ")");
+        for (std::size_t a = 0; a < axes.size(); ++a)
+            if (!detail::parse_double(words[a], axes[a].min)) bad(*f, "axis mins", "must be numbers");
+        have_mins = true;
+    }
+    if (const Field* f = find("kinds")) {
+        const auto words = detail::split_words(f->value);
+        if (words.size() != axes.size())
+            bad(*f, "kinds", "must give one kind per axis (" + std::to_string(dim) + ")");
+        for (std::size_t a = 0; a < axes.size(); ++a) axes[a].kind = std::string(words[a]);
+    }
+
+    // Drop component axes of size 1, refuse larger ones; then drop size-1 axes beyond the third.
+    std::vector<Axis> kept;
+    for (std::size_t a = 0; a < axes.size(); ++a) {
+        if (domain_kind(axes[a].kind)) {
+            kept.push_back(axes[a]);
+        } else if (axes[a].size > 1) {
+            fail(name, "axis " + std::to_string(a) + " has kind " + quoted(axes[a].kind) + " of size " +
+                           std::to_string(axes[a].size) + ": multi-component volumes are not supported");
+        }
+    }
+    while (kept.size() > 3) {
+        auto it = std::find_if(kept.begin(), kept.end(), [](const Axis& x) { return x.size == 1; });
+        if (it == kept.end()) {
+            std::string sizes;
+            for (const Axis& x : kept) sizes += (sizes.empty() ? "" : "x") + std::to_string(x.size);
+            fail(name, std::to_string(kept.size()) + "-D data (" + sizes +
+                           ") is not supported: multi-component/4-D volumes are not supported");
+        }
+        kept.erase(it);
+    }
+    if (kept.empty()) fail(name, "no spatial axes (every axis is a component axis)");
+
+    Grid g;
+    for (std::size_t a = 0; a < 3; ++a) {
+        if (a >= kept.size()) {
+            g.dims[a] = 1;
+            continue;
+        }
+        g.dims[a] = kept[a].size;
+        if (kept[a].has_spacing) {
+            if (!std::isfinite(kept[a].spacing) || kept[a].spacing <= 0)
+                fail(name, std::string("spacing along ") + "xyz"[a] + " is " + detail::format_double(kept[a].spacing) +
+                               ": must be finite and non-zero");
+            g.spacing[a] = kept[a].spacing;
+        }
+        if (have_mins && std::isfinite(kept[a].min)) g.origin[a] = kept[a].min;
+    }
+    if (const Field* f = find("spaceorigin")) {
+        std::vector<double> v;
+        if (!detail::iequals(f->value, "none")) {
+            if (!parse_vector(f->value, v)) bad(*f, "space origin", "must be a vector like (0,0,0)");
+            g.origin = {0, 0, 0};
+            for (std::size_t a = 0; a < 3 && a < v.size(); ++a) g.origin[a] = v[a];
+            for (std::size_t a = 0; a < 3 && a < v.size(); ++a)
+                if (!std::isfinite(v[a])) bad(*f, "space origin", "must be finite");
+        }
+    }
+    const std::uint64_t bytes = detail::check_volume(name, g, dtype, opt.max_bytes);
+    (void)bytes;
+
+    // encoding and endianness
+    const Field& fenc = need("encoding", "encoding");
+    const std::string enc = detail::lower(fenc.value);
+    enum class Enc { Raw, Gzip, Ascii } encoding = Enc::Raw;
+    if (enc == "raw")
+        encoding = Enc::Raw;
+    else if (enc == "gzip" || enc == "gz")
+        encoding = Enc::Gzip;
+    else if (enc == "ascii" || enc == "text" || enc == "txt")
+        encoding = Enc::Ascii;
+    else if (enc == "bzip2" || enc == "bz2")
+        bad(fenc, "encoding", "is not supported: re-save the file with gzip or raw encoding");
+    else if (enc == "hex")
+        bad(fenc, "encoding", "is not supported: re-save the file with gzip or raw encoding");
+    else
+        bad(fenc, "encoding", "is not a known NRRD encoding (raw, gzip, ascii)");
+
+    bool big_endian = false;
+    if (const Field* f = find("endian")) {
+        const std::string e = detail::lower(f->value);
+        if (e == "big")
+            big_endian = true;
+        else if (e != "little")
+            bad(*f, "endian", "must be 'little' or 'big'");
+    } else if (dtype_size(dtype) > 1 && encoding != Enc::Ascii) {
+        fail(name, std::string("missing field 'endian' (required for ") + dtype_name(dtype) + " data)");
+    }
+
+    // where the data is
+    std::unique_ptr<ByteSource> detached;
+    detail::DataLocation loc;
+    loc.src = &src;
+    loc.header = name;
+    if (const Field* f = find("datafile")) {
+        if (detail::names_several_files(f->value))
+            bad(*f, "data file", "names several files: multi-file NRRD data is not supported");
+        detached = src.open_sibling(f->value);
+        loc.src = detached.get();
+        loc.detached = true;
+        loc.offset = 0;
+    } else {
+        if (!h.has_blank_line)
+            fail(name, "no data: the header has neither a blank line followed by data nor a 'data file' field");
+        loc.offset = h.data_start;
+    }
+    if (const Field* f = find("lineskip")) {
+        std::int64_t lines = 0;
+        if (!detail::parse_int(f->value, lines) || lines < 0) bad(*f, "line skip", "must be a non-negative integer");
+        loc.offset = detail::skip_lines(*loc.src, name, loc.offset, lines);
+    }
+    std::int64_t byte_skip = 0;
+    if (const Field* f = find("byteskip")) {
+        if (!detail::parse_int(f->value, byte_skip) || byte_skip < -1) bad(*f, "byte skip", "must be -1 or more");
+        if (byte_skip == -1 && encoding != Enc::Raw) bad(*f, "byte skip", "(data at the end of the file) is only valid with raw encoding");
+    }
+    const std::uint64_t data_bytes = static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(dtype);
+    const std::uint64_t file_size = loc.src->size();
+
+    switch (encoding) {
+        case Enc::Raw:
+            if (byte_skip == -1) {
+                // The data are the last bytes of the file (when the file is too short, the read reports it).
+                if (data_bytes <= file_size - std::min(loc.offset, file_size)) loc.offset = file_size - data_bytes;
+            } else {
+                const auto skip = static_cast<std::uint64_t>(byte_skip);
+                if (skip > file_size - std::min(loc.offset, file_size))
+                    fail(detail::data_subject(loc), "byte skip " + with_commas(skip) +
+                                                        " runs past the end of the data (" + with_commas(file_size) +
+                                                        " bytes)");
+                loc.offset += skip;
+            }
+            return detail::read_raw_voxels(loc, g, dtype, big_endian);
+        case Enc::Gzip: {
+            if (loc.offset > file_size) fail(detail::data_subject(loc), "no compressed data after the header");
+            return detail::read_compressed_voxels(loc, file_size - loc.offset, static_cast<std::uint64_t>(byte_skip), g,
+                                                  dtype, big_endian);
+        }
+        case Enc::Ascii: {
+            const auto skip = static_cast<std::uint64_t>(byte_skip);
+            if (skip > file_size - std::min(loc.offset, file_size))
+                fail(detail::data_subject(loc), "byte skip " + with_commas(skip) + " runs past the end of the data");
+            loc.offset += skip;
+            return detail::read_ascii_voxels(loc, g, dtype);
+        }
+    }
+    fail(name, "unreachable encoding");
+}
+
+void write_nrrd(const std::string& path, const VolumeView& v, bool gzip) {
+    detail::check_view(path, v);
+    const Grid& g = v.grid;
+    std::string h = "NRRD0004\n# Complete NRRD file format specification at:\n"
+                    "# http://teem.sourceforge.net/nrrd/format.html\n# written by volrig\n";
+    h += std::string("type: ") + nrrd_type_name(v.dtype) + "\n";
+    h += "dimension: 3\nspace dimension: 3\n";
+    h += "sizes: " + std::to_string(g.dims[0]) + " " + std::to_string(g.dims[1]) + " " + std::to_string(g.dims[2]) +
+         "\n";
+    const auto f = detail::format_double;
+    h += "space directions: (" + f(g.spacing[0]) + ",0,0) (0," + f(g.spacing[1]) + ",0) (0,0," + f(g.spacing[2]) +
+         ")\n";
+    h += "kinds: domain domain domain\n";
+    if (dtype_size(v.dtype) > 1) h += "endian: little\n";
+    h += std::string("encoding: ") + (gzip ? "gzip" : "raw") + "\n";
+    h += "space origin: (" + f(g.origin[0]) + "," + f(g.origin[1]) + "," + f(g.origin[2]) + ")\n\n";
+    write_atomically(path, [&](const std::string& tmp) {
+        detail::FileWriter out(tmp, path);
+        out.write(h);
+        if (gzip) {
+            detail::Deflater z(out, true);
+            detail::little_endian_chunks(v, [&](const void* p, std::size_t n) { z.write(p, n); });
+            z.finish();
+        } else {
+            detail::little_endian_chunks(v, [&](const void* p, std::size_t n) { out.write(p, n); });
+        }
+        out.close();
+    });
+}
+
+}  // namespace volrig
