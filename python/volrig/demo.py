@@ -9,13 +9,11 @@ import time
 import numpy as np
 
 
-def _mip(mask: np.ndarray, axis: int) -> np.ndarray:
-    return mask.max(axis=axis)
-
-
-def skeleton_figure(path: str, volume, mask, points, recon, counts, title: str) -> None:
-    """Front and side projections of the volume with the skeleton points (colour = sphere radius), the
-    reconstruction's missing voxels, and the point count against thinness."""
+def skeleton_figure(path: str, volume, mask, skeleton, thinness: float, recon, counts, title: str,
+                    thin: float = 0.8) -> None:
+    """Projections of the volume with the skeleton at ``thinness`` (front and side) and at a thinner ``thin``
+    (colour and size = sphere radius), the reconstruction with its missing voxels in red, and the point count
+    against thinness."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -25,38 +23,44 @@ def skeleton_figure(path: str, volume, mask, points, recon, counts, title: str) 
     a = volume.array.astype(np.float32)
     sx, sy, sz = volume.spacing
     nz, ny, nx = a.shape
-    fig, axes = plt.subplots(1, 4, figsize=(16, 8), gridspec_kw={"width_ratios": [nx * sx, ny * sy, nx * sx, nx * sx]})
-    c = points.centers
-    r = points.radii
-    order = np.argsort(r)
-    for ax, axis, (u, w), label in ((axes[0], 1, (0, 2), "front (x-z)"), (axes[1], 2, (1, 2), "side (y-z)")):
+    wide, deep = nx * sx, ny * sy
+    fig, axes = plt.subplots(1, 5, figsize=(19, 8.5),
+                             gridspec_kw={"width_ratios": [wide, deep, wide, wide, 1.3 * wide]})
+    views = ((axes[0], thinness, 1, 0, "front"), (axes[1], thinness, 2, 1, "side"), (axes[2], thin, 1, 0, "front"))
+    rmax = float(skeleton.at(thinness).radii.max())
+    for ax, tp, axis, u, label in views:
+        pts = skeleton.at(tp)
+        c, r = pts.centers, pts.radii
+        order = np.argsort(r)
         proj = a.max(axis=axis)
         ext = (volume.origin[u], volume.origin[u] + proj.shape[1] * volume.spacing[u],
                volume.origin[2], volume.origin[2] + nz * sz)
-        ax.imshow(proj, cmap="gray", origin="lower", extent=ext, alpha=0.45)
-        sc = ax.scatter(c[order, u], c[order, 2], c=r[order], s=2, cmap="viridis", linewidths=0)
-        ax.set_title(f"{label}: {len(points):,} skeleton points")
+        ax.imshow(proj, cmap="gray", origin="lower", extent=ext, alpha=0.4)
+        sc = ax.scatter(c[order, u], c[order, 2], c=r[order], s=0.3 + 12.0 * r[order] / rmax, cmap="viridis",
+                        vmin=0, vmax=rmax, linewidths=0)
+        ax.set_title(f"{label}, TP {tp}\n{len(pts):,} points", fontsize=11)
         ax.set_aspect("equal")
         ax.axis("off")
-    fig.colorbar(sc, ax=axes[:2], shrink=0.4, label="sphere radius (world units)")
+    fig.colorbar(sc, ax=axes[:3], shrink=0.35, label="sphere radius (world units)", location="bottom", pad=0.02)
     missing = mask & ~recon
     ext = (volume.origin[0], volume.origin[0] + nx * sx, volume.origin[2], volume.origin[2] + nz * sz)
-    axes[2].imshow(recon.max(axis=1), cmap="Blues", origin="lower", extent=ext, vmin=0, vmax=1.6)
+    axes[3].imshow(recon.max(axis=1), cmap="Blues", origin="lower", extent=ext, vmin=0, vmax=1.6)
     mz, my, mx = np.nonzero(missing)
-    axes[2].scatter(volume.origin[0] + mx * sx, volume.origin[2] + mz * sz, s=1, c="red", linewidths=0)
-    axes[2].set_title(f"reconstruction (red: {missing.sum():,} missing)")
-    axes[2].set_aspect("equal")
-    axes[2].axis("off")
+    axes[3].scatter(volume.origin[0] + mx * sx, volume.origin[2] + mz * sz, s=1, c="red", linewidths=0)
+    axes[3].set_title(f"reconstruction, TP {thinness}\n{missing.sum():,} voxels missing (red)", fontsize=11)
+    axes[3].set_aspect("equal")
+    axes[3].axis("off")
     tps, ns = zip(*counts)
-    axes[3].semilogy(tps, ns, "o-")
-    axes[3].axvline(points.thinness, color="gray", ls="--")
-    axes[3].set_xlabel("thinness TP")
-    axes[3].set_ylabel("skeleton points")
-    axes[3].set_title("points vs thinness")
-    axes[3].set_box_aspect(1.6)
-    fig.suptitle(title)
+    axes[4].semilogy(tps, ns, "o-")
+    for tp in (thinness, thin):
+        axes[4].axvline(tp, color="gray", ls="--")
+    axes[4].set_xlabel("thinness TP")
+    axes[4].set_ylabel("skeleton points")
+    axes[4].set_title("points vs thinness", fontsize=11)
+    axes[4].set_box_aspect(1.4)
+    fig.suptitle(title, fontsize=13)
     with atomic_output(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=90, bbox_inches="tight", format="png")
+        fig.savefig(tmp, dpi=80, bbox_inches="tight", format="png")
     plt.close(fig)
 
 
@@ -91,8 +95,8 @@ def run_demo(out_dir: str = "out/demo", scale: float = 0.5, thinness: float = 0.
         "points_by_thinness": {str(tp): n for tp, n in counts},
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
     }
-    skeleton_figure(os.path.join(out_dir, "skeleton.png"), ph.volume, mask.array, pts, recon.array, counts,
-                    f"volrig: humanoid phantom {x} x {y} x {z}, Euclidean skeleton at thinness {thinness}")
+    skeleton_figure(os.path.join(out_dir, "skeleton.png"), ph.volume, mask.array, sk, thinness, recon.array, counts,
+                    f"volrig: humanoid phantom {x} x {y} x {z}, Euclidean thinness skeletons")
     with atomic_output(os.path.join(out_dir, "report.json")) as tmp:
         with open(tmp, "w") as f:
             json.dump(report, f, indent=2)
