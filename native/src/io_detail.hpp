@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -36,6 +37,28 @@ bool parse_int(std::string_view s, std::int64_t& out);
 bool parse_double(std::string_view s, double& out);
 /// Shortest text that reads back as exactly `v`.
 std::string format_double(double v);
+
+// ---- text headers (NRRD, MetaImage) ---------------------------------------------------------------------------
+
+struct HeaderField {
+    std::string value;
+    int line = 0;  ///< line number in the header, for messages
+};
+
+/// The key/value fields of a text header, keyed as the reader normalises them.
+struct HeaderFields : std::map<std::string, HeaderField> {
+    /// The field, or null when absent.
+    const HeaderField* get(const std::string& key) const {
+        auto it = std::map<std::string, HeaderField>::find(key);
+        return it == end() ? nullptr : &it->second;
+    }
+    /// The field; fails with "<file>: missing field '<label>'" when absent.
+    const HeaderField& need(const std::string& file, const std::string& key, const char* label) const {
+        const HeaderField* f = get(key);
+        if (!f) fail(file, std::string("missing field '") + label + "'");
+        return *f;
+    }
+};
 
 // ---- grids and voxels ----------------------------------------------------------------------------------------
 

@@ -25,13 +25,10 @@ using detail::with_commas;
 
 constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
 
-struct Field {
-    std::string value;
-    int line = 0;
-};
+using Field = detail::HeaderField;
 
 struct Header {
-    std::map<std::string, Field> fields;  // lowercase keys
+    detail::HeaderFields fields;  // lowercase keys
     std::string data_file;
     int data_file_line = 0;
     std::uint64_t data_start = 0;  // first byte after the ElementDataFile line
@@ -118,15 +115,8 @@ const char* met_type_name(DType t) {
 Volume read_metaimage(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
     const Header h = read_header(src);
-    auto find = [&](const char* key) -> const Field* {
-        auto it = h.fields.find(key);
-        return it == h.fields.end() ? nullptr : &it->second;
-    };
-    auto need = [&](const char* key, const char* label) -> const Field& {
-        const Field* f = find(key);
-        if (!f) fail(name, std::string("missing field '") + label + "'");
-        return *f;
-    };
+    auto find = [&](const char* key) { return h.fields.get(key); };
+    auto need = [&](const char* key, const char* label) -> const Field& { return h.fields.need(name, key, label); };
     auto bad = [&](const Field& f, const char* label, const std::string& why) {
         fail(name, "line " + std::to_string(f.line) + ": " + label + " = " + quoted(f.value) + " " + why);
     };

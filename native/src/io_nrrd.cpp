@@ -24,10 +24,7 @@ using detail::with_commas;
 
 constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
 
-struct Field {
-    std::string value;
-    int line = 0;
-};
+using Field = detail::HeaderField;
 
 // Field names compare lowercase with spaces removed ("data file" = "datafile").
 std::string field_key(std::string_view s) {
@@ -68,19 +65,10 @@ bool nrrd_type(std::string_view name, DType& t) {
 }
 
 const char* nrrd_type_name(DType t) {
-    switch (t) {
-        case DType::UInt8: return "uint8";
-        case DType::Int8: return "int8";
-        case DType::UInt16: return "uint16";
-        case DType::Int16: return "int16";
-        case DType::UInt32: return "uint32";
-        case DType::Int32: return "int32";
-        case DType::UInt64: return "uint64";
-        case DType::Int64: return "int64";
-        case DType::Float32: return "float";
-        case DType::Float64: return "double";
-    }
-    return "?";
+    // NRRD accepts the numpy-style integer names; floats are "float" and "double".
+    if (t == DType::Float32) return "float";
+    if (t == DType::Float64) return "double";
+    return dtype_name(t);
 }
 
 // Kinds that describe positions along the grid (anything else is a per-sample component axis).
@@ -129,7 +117,7 @@ std::vector<std::string_view> vector_items(std::string_view s) {
 }
 
 struct Header {
-    std::map<std::string, Field> fields;
+    detail::HeaderFields fields;
     bool has_blank_line = false;
     std::uint64_t data_start = 0;  // first byte after the blank line
 };
@@ -198,15 +186,8 @@ Header read_header(const ByteSource& src) {
 Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
     const Header h = read_header(src);
-    auto find = [&](const char* key) -> const Field* {
-        auto it = h.fields.find(key);
-        return it == h.fields.end() ? nullptr : &it->second;
-    };
-    auto need = [&](const char* key, const char* label) -> const Field& {
-        const Field* f = find(key);
-        if (!f) fail(name, std::string("missing field '") + label + "'");
-        return *f;
-    };
+    auto find = [&](const char* key) { return h.fields.get(key); };
+    auto need = [&](const char* key, const char* label) -> const Field& { return h.fields.need(name, key, label); };
     auto bad = [&](const Field& f, const char* label, const std::string& why) {
         fail(name, "line " + std::to_string(f.line) + ": " + label + " " + quoted(f.value) + " " + why);
     };
