@@ -16,6 +16,7 @@ Components label_components(const Grid& g, const std::uint8_t* mask, const Progr
     c.labels.assign(static_cast<std::size_t>(n), 0);
     std::vector<std::int64_t> stack;
     std::int32_t next = 0;
+    std::int64_t reported = 0;
     for (std::int64_t i = 0; i < n; ++i) {
         if (!mask[i] || c.labels[static_cast<std::size_t>(i)]) continue;
         if (next == std::numeric_limits<std::int32_t>::max()) throw Error("label_components: too many components");
@@ -36,7 +37,11 @@ Components label_components(const Grid& g, const std::uint8_t* mask, const Progr
             });
         }
         c.sizes.push_back(size);
-        if ((i & 0xFFFFF) == 0) report(progress, 0.9 * static_cast<double>(i) / static_cast<double>(n));
+        // Report about every 2^20 voxels scanned (the scan position is the fraction done).
+        if ((i >> 20) != (reported >> 20)) {
+            reported = i;
+            report(progress, 0.9 * static_cast<double>(i) / static_cast<double>(n));
+        }
     }
     // Relabel by descending size (stable: ties keep discovery order).
     std::vector<std::int32_t> rank(c.sizes.size());

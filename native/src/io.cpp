@@ -560,23 +560,14 @@ FileWriter::~FileWriter() {
 }
 
 void FileWriter::write(const void* data, std::size_t n) {
-    const auto* p = static_cast<const char*>(data);
-    while (n > 0) {
-        const ssize_t r = ::write(fd_, p, std::min<std::size_t>(n, std::size_t(1) << 30));
-        if (r < 0) {
-            if (errno == EINTR) continue;
-            throw Error(path_ + ": write failed: " + errno_text(errno));
-        }
-        p += r;
-        n -= static_cast<std::size_t>(r);
-        pos_ += static_cast<std::uint64_t>(r);
-    }
+    write_at(pos_, data, n);
+    pos_ += n;
 }
 
 void FileWriter::write_at(std::uint64_t offset, const void* data, std::size_t n) {
     const auto* p = static_cast<const char*>(data);
     while (n > 0) {
-        const ssize_t r = ::pwrite(fd_, p, n, static_cast<off_t>(offset));
+        const ssize_t r = ::pwrite(fd_, p, std::min<std::size_t>(n, std::size_t(1) << 30), static_cast<off_t>(offset));
         if (r < 0) {
             if (errno == EINTR) continue;
             throw Error(path_ + ": write failed: " + errno_text(errno));

@@ -56,9 +56,10 @@ std::vector<std::uint8_t> reconstruct(const Grid& g, Metric metric, const std::i
         if (!std::isfinite(radius[k])) throw Error("reconstruct: radius of point " + std::to_string(k) + " is not finite");
 
     // Bucket the balls by the z slices they touch (CSR), so each slice is filled by one task without races.
-    std::vector<std::int64_t> hz(n), start(static_cast<std::size_t>(nz) + 1, 0);
+    std::vector<std::int64_t> hz(n), hy(n), start(static_cast<std::size_t>(nz) + 1, 0);
     for (std::size_t k = 0; k < n; ++k) {
         hz[k] = ball_half_extent(radius[k], g.spacing[2], metric);
+        hy[k] = ball_half_extent(radius[k], g.spacing[1], metric);
         if (hz[k] < 0) continue;
         const std::int64_t z0 = std::max<std::int64_t>(0, ijk[3 * k] - hz[k]);
         const std::int64_t z1 = std::min<std::int64_t>(nz - 1, ijk[3 * k] + hz[k]);
@@ -87,8 +88,7 @@ std::vector<std::uint8_t> reconstruct(const Grid& g, Metric metric, const std::i
                 const double rad = radius[k];
                 const double lim = open_ball_limit_sq(rad);
                 const std::int64_t cz = ijk[3 * k], cy = ijk[3 * k + 1], cx = ijk[3 * k + 2];
-                const std::int64_t hy = ball_half_extent(rad, g.spacing[1], metric);
-                const std::int64_t y0 = std::max<std::int64_t>(0, cy - hy), y1 = std::min<std::int64_t>(ny - 1, cy + hy);
+                const std::int64_t y0 = std::max<std::int64_t>(0, cy - hy[k]), y1 = std::min<std::int64_t>(ny - 1, cy + hy[k]);
                 for (std::int64_t y = y0; y <= y1; ++y) {
                     const std::int64_t w = row_half_width(metric, rad, lim, y - cy, z - cz, g.spacing);
                     if (w < 0) continue;

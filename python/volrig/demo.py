@@ -27,9 +27,10 @@ def skeleton_figure(path: str, volume, mask, skeleton, thinness: float, recon, c
     fig, axes = plt.subplots(1, 5, figsize=(19, 8.5),
                              gridspec_kw={"width_ratios": [wide, deep, wide, wide, 1.3 * wide]})
     views = ((axes[0], thinness, 1, 0, "front"), (axes[1], thinness, 2, 1, "side"), (axes[2], thin, 1, 0, "front"))
-    rmax = float(skeleton.at(thinness).radii.max())
+    points = {tp: skeleton.at(tp) for tp in (thinness, thin)}
+    rmax = float(points[thinness].radii.max())
     for ax, tp, axis, u, label in views:
-        pts = skeleton.at(tp)
+        pts = points[tp]
         c, r = pts.centers, pts.radii
         order = np.argsort(r)
         proj = a.max(axis=axis)

@@ -283,7 +283,7 @@ TEST_CASE("tp_for_count gives the densest skeleton with at most n points", "[ske
     for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{10}, std::size_t{100}, s.object_count()}) {
         const double tp = s.tp_for_count(n);
         CHECK(s.count_at(tp) <= n);
-        if (n < s.object_count()) CHECK(s.count_at(std::nextafter(tp, -1e300)) > n - 0);
+        if (n < s.object_count()) CHECK(s.count_at(std::nextafter(tp, -1e300)) > n);
     }
     CHECK(s.count_at(s.tp_for_count(s.object_count())) == s.object_count());
 }
