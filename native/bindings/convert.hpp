@@ -8,11 +8,18 @@
 #include <memory>
 #include <string>
 
+#include "volrig/tree.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig::py {
 
 namespace py = pybind11;
+
+using Vec3 = std::array<double, 3>;
+using MaskArray = py::array_t<std::uint8_t, py::array::c_style>;
+using IjkArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 /// numpy dtype for a volrig DType.
 inline py::dtype to_numpy_dtype(DType t) { return py::dtype(std::string(dtype_name(t))); }
@@ -94,9 +101,26 @@ inline Progress progress_of(const py::object& f) {
     };
 }
 
+/// A PointSet viewing (N, 3) voxel indices and, when given, (N,) radii; checks the shapes.
+inline PointSet point_set(const IjkArray& ijk, const FloatArray* radius, const char* what) {
+    if (ijk.ndim() != 2 || ijk.shape(1) != 3)
+        throw Error(std::string(what) + ": points' ijk must have shape (N, 3)");
+    PointSet p;
+    p.ijk = ijk.data();
+    p.n = static_cast<std::size_t>(ijk.shape(0));
+    if (radius) {
+        if (radius->ndim() != 1 || radius->shape(0) != ijk.shape(0))
+            throw Error(std::string(what) + ": radii must have shape (N,) matching the points");
+        p.radius = radius->data();
+    }
+    return p;
+}
+
 // Per-capability binding registrations (one file each in native/bindings/).
 void bind_io(py::module_& m);
 void bind_vdb(py::module_& m);
 void bind_skeleton(py::module_& m);
+void bind_tree(py::module_& m);
+void bind_rig(py::module_& m);
 
 }  // namespace volrig::py

@@ -24,4 +24,6 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_io(m);
     volrig::py::bind_vdb(m);
     volrig::py::bind_skeleton(m);
+    volrig::py::bind_tree(m);
+    volrig::py::bind_rig(m);
 }

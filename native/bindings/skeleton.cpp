@@ -9,8 +9,7 @@ namespace volrig::py {
 
 namespace {
 
-using Mask = py::array_t<std::uint8_t, py::array::c_style>;
-using Vec3 = std::array<double, 3>;
+using Mask = MaskArray;
 
 Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
 

@@ -1,0 +1,146 @@
+// Bindings for volrig/rig.hpp: autorig, bind, rest matrices. Conversions only.
+#include "volrig/rig.hpp"
+
+#include "convert.hpp"
+
+namespace volrig::py {
+
+namespace {
+
+using EdgeArray = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
+using IntArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+
+std::vector<std::array<std::uint32_t, 2>> edges_of(const EdgeArray& e) {
+    if (e.ndim() != 2 || e.shape(1) != 2) throw Error("tree edges must have shape (M, 2)");
+    std::vector<std::array<std::uint32_t, 2>> out(static_cast<std::size_t>(e.shape(0)));
+    for (std::size_t k = 0; k < out.size(); ++k) out[k] = {e.data()[2 * k], e.data()[2 * k + 1]};
+    return out;
+}
+
+Rig rig_of(const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,
+           const IntArray& parents) {
+    if (joints.ndim() != 2 || joints.shape(1) != 3) throw Error("rig: joints must have shape (K, 3)");
+    if (bones.ndim() != 2 || bones.shape(1) != 2) throw Error("rig: bones must have shape (B, 2)");
+    if (parents.ndim() != 1) throw Error("rig: parents must have shape (B,)");
+    Rig r;
+    r.joints.resize(static_cast<std::size_t>(joints.shape(0)));
+    for (std::size_t j = 0; j < r.joints.size(); ++j)
+        r.joints[j] = {joints.data()[3 * j], joints.data()[3 * j + 1], joints.data()[3 * j + 2]};
+    r.bones.resize(static_cast<std::size_t>(bones.shape(0)));
+    for (std::size_t b = 0; b < r.bones.size(); ++b) r.bones[b] = {bones.data()[2 * b], bones.data()[2 * b + 1]};
+    r.names = names;
+    r.parents.assign(parents.data(), parents.data() + parents.shape(0));
+    check_rig(r);
+    return r;
+}
+
+py::dict dict_of(Rig&& r) {
+    const auto nj = static_cast<py::ssize_t>(r.joints.size()), nb = static_cast<py::ssize_t>(r.bones.size());
+    std::vector<double> joints(3 * r.joints.size());
+    for (std::size_t j = 0; j < r.joints.size(); ++j)
+        for (int a = 0; a < 3; ++a) joints[3 * j + a] = r.joints[j][a];
+    std::vector<std::int32_t> bones(2 * r.bones.size());
+    for (std::size_t b = 0; b < r.bones.size(); ++b) {
+        bones[2 * b] = r.bones[b][0];
+        bones[2 * b + 1] = r.bones[b][1];
+    }
+    py::dict d;
+    d["joints"] = to_numpy_shaped(std::move(joints), {nj, 3});
+    d["bones"] = to_numpy_shaped(std::move(bones), {nb, 2});
+    d["names"] = r.names;
+    d["parents"] = to_numpy_shaped(std::move(r.parents), {nb});
+    d["kind"] = r.kind;
+    d["joint_points"] = to_numpy_shaped(std::move(r.joint_points), {nj});
+    return d;
+}
+
+}  // namespace
+
+void bind_rig(py::module_& m) {
+    m.def(
+        "autorig",
+        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
+           const EdgeArray& edges, int bones, double prune_scale, double tolerance, const py::object& progress) {
+            const Grid g = grid_of(mask, spacing, origin, "mask");
+            const PointSet pts = point_set(ijk, &radius, "autorig");
+            const auto e = edges_of(edges);
+            AutorigOptions opt;
+            opt.bones = bones;
+            opt.prune_scale = prune_scale;
+            opt.tolerance = tolerance;
+            Progress p = progress_of(progress);
+            Rig r;
+            AutorigDetail detail;
+            {
+                py::gil_scoped_release nogil;
+                r = autorig(g, mask.data(), pts, e, opt, p, &detail);
+            }
+            py::dict d = dict_of(std::move(r));
+            d["kept"] = to_numpy_shaped(std::move(detail.kept), {static_cast<py::ssize_t>(pts.n)}).attr("view")("bool");
+            d["root"] = detail.root;
+            std::vector<double> nodes;
+            for (const auto& c : detail.nodes) nodes.insert(nodes.end(), c.begin(), c.end());
+            std::vector<std::uint32_t> ne;
+            for (const auto& ed : detail.node_edges) ne.insert(ne.end(), ed.begin(), ed.end());
+            const auto nn = static_cast<py::ssize_t>(detail.nodes.size());
+            d["nodes"] = to_numpy_shaped(std::move(nodes), {nn, 3});
+            d["node_radius"] = to_numpy_shaped(std::move(detail.node_radius), {nn});
+            d["node_edges"] = to_numpy_shaped(std::move(ne), {static_cast<py::ssize_t>(detail.node_edges.size()), 2});
+            d["node_kept"] = to_numpy_shaped(std::move(detail.node_kept), {nn}).attr("view")("bool");
+            return d;
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
+        py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("progress") = py::none());
+
+    m.def(
+        "bind",
+        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
+           const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,
+           const IntArray& parents, const std::string& mode, const py::object& progress) {
+            const Grid g = grid_of(mask, spacing, origin, "mask");
+            const PointSet pts = point_set(ijk, &radius, "bind");
+            const Rig r = rig_of(joints, bones, names, parents);
+            BindMode bm;
+            if (mode == "rigid") bm = BindMode::Rigid;
+            else if (mode == "smooth") bm = BindMode::Smooth;
+            else throw Error("bind: mode must be 'rigid' or 'smooth', got '" + mode + "'");
+            Progress p = progress_of(progress);
+            Binding b;
+            {
+                py::gil_scoped_release nogil;
+                b = volrig::bind(g, mask.data(), pts, r, bm, p);
+            }
+            const auto n = static_cast<py::ssize_t>(pts.n);
+            std::vector<std::int32_t> wb(3 * pts.n);
+            std::vector<float> w(3 * pts.n);
+            for (std::size_t i = 0; i < pts.n; ++i)
+                for (int k = 0; k < 3; ++k) {
+                    wb[3 * i + k] = b.weight_bones[i][k];
+                    w[3 * i + k] = b.weights[i][k];
+                }
+            return py::make_tuple(to_numpy_shaped(std::move(b.bone), {n}), to_numpy_shaped(std::move(wb), {n, 3}),
+                                  to_numpy_shaped(std::move(w), {n, 3}),
+                                  to_numpy_shaped(std::move(b.unreachable), {n}).attr("view")("bool"));
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("joints"),
+        py::arg("bones"), py::arg("names"), py::arg("parents"), py::arg("mode"), py::arg("progress") = py::none());
+
+    m.def(
+        "check_rig",
+        [](const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,
+           const IntArray& parents) { rig_of(joints, bones, names, parents); },
+        py::arg("joints"), py::arg("bones"), py::arg("names"), py::arg("parents"));
+
+    m.def(
+        "rest_matrix",
+        [](const Vec3& head, const Vec3& tail) {
+            const auto m16 = rest_matrix(head, tail);
+            std::vector<double> rows(16);  // row-major for numpy
+            for (int r = 0; r < 4; ++r)
+                for (int c = 0; c < 4; ++c) rows[4 * r + c] = m16[4 * c + r];
+            return to_numpy_shaped(std::move(rows), {4, 4});
+        },
+        py::arg("head"), py::arg("tail"));
+}
+
+}  // namespace volrig::py

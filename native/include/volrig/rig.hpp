@@ -1,0 +1,89 @@
+// volrig/rig.hpp: the articulated skeleton (ALGORITHMS.md §6): automatic rigging from a skeleton-tree, Blender's
+// rest-matrix convention, and binding skeleton points to bones.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "volrig/tree.hpp"
+#include "volrig/volume.hpp"
+
+namespace volrig {
+
+/// Joints (world positions) and bones between them. A bone runs from joint bones[b][0] (head) to bones[b][1]
+/// (tail); parents[b] is the parent bone or -1.
+struct Rig {
+    std::vector<std::array<double, 3>> joints;
+    std::vector<std::array<std::int32_t, 2>> bones;
+    std::vector<std::string> names;
+    std::vector<std::int32_t> parents;
+    std::string kind = "custom";  ///< "humanoid", "quadruped", "chains" (autorig) or "custom"
+    /// Per joint: the skeleton point it sits on, or -1 (an end joint extended to the surface, a user joint).
+    std::vector<std::int64_t> joint_points;
+};
+
+/// Checks a rig's consistency (indices in range, finite joints, no zero-length bones, parents acyclic, names
+/// unique and non-empty); throws Error saying what is wrong.
+void check_rig(const Rig& rig);
+
+/// Blender's rest matrix of a bone (roll 0): column-major 4x4 (16 doubles), Y axis along head -> tail, X and Z
+/// from the smallest rotation taking +Y to the bone direction (vec_roll_to_mat3), translation = head.
+std::array<double, 16> rest_matrix(const std::array<double, 3>& head, const std::array<double, 3>& tail);
+
+struct AutorigOptions {
+    /// Bone count target. Role-named rigs (humanoid, quadruped) use their 21 role bones when this allows;
+    /// other shapes get at most this many bones along their chains. 0 selects 24.
+    int bones = 0;
+    /// Spur pruning: a leaf branch goes when its tip's ball lies inside the ball of a node nearer the root scaled
+    /// by this factor.
+    double prune_scale = 1.5;
+    /// Chains are split at bends until every point lies within tolerance * its radius of its bone (4-D: position
+    /// and radius), for shapes without a role template.
+    double tolerance = 0.35;
+};
+
+/// What autorig kept, for pictures and diagnostics.
+struct AutorigDetail {
+    std::vector<std::uint8_t> kept;  ///< per point: 1 when it survived spur pruning
+    std::int64_t root = -1;          ///< the point the pruned tree was rooted at
+    /// The level-set tree: node centroids, radii, edges, and whether each node survived pruning.
+    std::vector<std::array<double, 3>> nodes;
+    std::vector<double> node_radius;
+    std::vector<std::array<std::uint32_t, 2>> node_edges;
+    std::vector<std::uint8_t> node_kept;
+};
+
+/// Reduces a skeleton-tree (edges over the points) of the object in `mask` to an articulated skeleton: spurs
+/// pruned, joints at branch points, end points and bends, root at the largest-radius junction; bones named by role
+/// for humanoid-like (five extremities: head, two arms, two legs) and quadruped-like shapes. Uses the tree
+/// part with the largest ball volume. The points that carry the shape are the scale axis (points whose ball is
+/// not inside the 1.25x ball of a point twice as large: near-surface noise goes), joined by the tree's edges and
+/// by contained edges reaching across each point's ball; its geometry comes from the level sets of geodesic
+/// distance over that graph (the tree's own paths wander inside a skeleton several voxels thick).
+Rig autorig(const Grid& grid, const std::uint8_t* mask, const PointSet& pts,
+            const std::vector<std::array<std::uint32_t, 2>>& tree_edges, const AutorigOptions& opt = {},
+            const Progress& progress = {}, AutorigDetail* detail = nullptr);
+
+enum class BindMode { Rigid, Smooth };
+
+/// Skeleton points bound to bones. Rigid: bone[i] only. Smooth: up to 3 (bone, weight) pairs per point in
+/// weight_bones / weights (n x 3, unused slots bone -1 weight 0), weights summing to 1; bone[i] is the heaviest.
+struct Binding {
+    std::vector<std::int32_t> bone;
+    std::vector<std::array<std::int32_t, 3>> weight_bones;
+    std::vector<std::array<float, 3>> weights;
+    /// Per point: 1 when no bone could be reached inside the object and the nearest bone in a straight line
+    /// was used instead.
+    std::vector<std::uint8_t> unreachable;
+};
+
+/// Binds each point to the bone nearest to it by geodesic distance inside the object: distance along a contained
+/// straight line to the closest point of a bone, or along the contained neighbour graph (skeleton_graph) from
+/// points that have one. Smooth mode adds a falloff across each joint: within one radius of the joint plane the
+/// neighbouring bone takes up to half the weight.
+Binding bind(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
+             const Progress& progress = {});
+
+}  // namespace volrig

@@ -1,0 +1,225 @@
+"""The articulated skeleton: ``Rig``, ``autorig`` and ``bind`` (ALGORITHMS.md §6).
+
+``autorig`` reduces a skeleton-tree to a small set of joints and bones (spurs pruned, joints at branch points,
+end points and bends), naming bones by role when the shape is humanoid- or quadruped-like (Rigify's names: hips,
+spine, chest, neck, head, shoulder/upper_arm/forearm/hand and pelvis/thigh/shin/foot with .L/.R). ``bind``
+attaches every skeleton point to the bone that owns it, by geodesic distance inside the object.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from . import _volrig
+from .skeleton import ProgressFn, SkeletonPoints
+from .tree import SkeletonTree, _mask_for, _point_arrays
+
+
+@dataclass
+class Rig:
+    """Joints and the bones between them.
+
+    joints:  (K, 3) float64 world positions.
+    bones:   (B, 2) int32 joint indices (head, tail).
+    names:   B unique bone names.
+    parents: (B,) int32 parent bone of each bone, -1 for roots. Defaults to the bone whose tail is this bone's
+             head (-1 when there is none).
+    kind:    "humanoid", "quadruped", "chains" (from ``autorig``) or "custom".
+    joint_points: (K,) int64 skeleton point each joint sits on, -1 when none (end joints moved to the surface,
+             joints placed by hand and not snapped).
+    """
+
+    joints: np.ndarray
+    bones: np.ndarray
+    names: List[str]
+    parents: Optional[np.ndarray] = None
+    kind: str = "custom"
+    joint_points: Optional[np.ndarray] = None
+
+    def __post_init__(self):
+        self.joints = np.array(self.joints, dtype=np.float64, copy=True).reshape(-1, 3) if np.size(self.joints) \
+            else np.zeros((0, 3))
+        self.bones = np.array(self.bones, dtype=np.int32, copy=True).reshape(-1, 2) if np.size(self.bones) \
+            else np.zeros((0, 2), np.int32)
+        self.names = [str(n) for n in self.names]
+        if self.parents is None:
+            tail_of = {int(t): b for b, (h, t) in enumerate(self.bones)}
+            self.parents = np.array([tail_of.get(int(h), -1) for h, _ in self.bones], dtype=np.int32)
+        self.parents = np.array(self.parents, dtype=np.int32, copy=True).reshape(-1)
+        if self.joint_points is None:
+            self.joint_points = np.full(len(self.joints), -1, dtype=np.int64)
+        self.joint_points = np.array(self.joint_points, dtype=np.int64, copy=True).reshape(-1)
+        if len(self.joint_points) != len(self.joints):
+            raise ValueError(f"joint_points has {len(self.joint_points)} entries for {len(self.joints)} joints")
+        _volrig.check_rig(self.joints, self.bones, self.names, self.parents)
+
+    def __len__(self) -> int:
+        return len(self.bones)
+
+    def index(self, name: str) -> int:
+        """Bone index of ``name``; raises KeyError naming the known bones."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"no bone named {name!r}; bones: {', '.join(self.names)}") from None
+
+    def heads(self) -> np.ndarray:
+        """(B, 3) bone head positions."""
+        return self.joints[self.bones[:, 0]]
+
+    def tails(self) -> np.ndarray:
+        """(B, 3) bone tail positions."""
+        return self.joints[self.bones[:, 1]]
+
+    @property
+    def rest_matrices(self) -> np.ndarray:
+        """(B, 4, 4) rest matrices in Blender's convention (roll 0): columns X, Y, Z, translation; Y runs head ->
+        tail, X and Z come from the smallest rotation taking +Y onto the bone, as Blender computes them."""
+        return np.stack([_volrig.rest_matrix(tuple(h), tuple(t)) for h, t in zip(self.heads(), self.tails())]) \
+            if len(self.bones) else np.zeros((0, 4, 4))
+
+    def snap(self, points: SkeletonPoints, joints: Optional[Sequence[int]] = None) -> "Rig":
+        """A copy with the given joints (default: all) moved onto their nearest skeleton point."""
+        idx = np.arange(len(self.joints)) if joints is None else np.asarray(joints, dtype=np.int64).reshape(-1)
+        if len(idx) and (idx.min() < 0 or idx.max() >= len(self.joints)):
+            raise IndexError(f"joint indices must lie in 0..{len(self.joints) - 1}")
+        if len(points) == 0:
+            raise ValueError("no skeleton points to snap to")
+        new = self.joints.copy()
+        jp = self.joint_points.copy()
+        for k in idx:
+            d = np.einsum("ij,ij->i", points.centers - new[k], points.centers - new[k])
+            p = int(np.argmin(d))
+            new[k] = points.centers[p]
+            jp[k] = p
+        return replace(self, joints=new, joint_points=jp)
+
+    def __repr__(self) -> str:
+        return f"Rig({self.kind}, {len(self.joints)} joints, {len(self.bones)} bones: {', '.join(self.names[:6])}" \
+               f"{', ...' if len(self.names) > 6 else ''})"
+
+
+@dataclass
+class AutorigResult:
+    """What ``autorig`` worked on, for pictures and diagnostics.
+
+    kept:       (N,) bool, the points whose level-set node survived spur pruning.
+    root:       the point the pruned tree was rooted at.
+    nodes:      (K, 3) centroids of the level-set tree's nodes; node_radius (K,); node_edges (K-1, 2);
+    node_kept:  (K,) bool, nodes left after pruning.
+    """
+    kept: np.ndarray
+    root: int
+    nodes: np.ndarray
+    node_radius: np.ndarray
+    node_edges: np.ndarray
+    node_kept: np.ndarray
+
+
+def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
+            prune_scale: float = 1.5, tolerance: float = 0.35, progress: ProgressFn = None,
+            detail: Optional[list] = None) -> Rig:
+    """Articulated skeleton from a skeleton-tree (see the module docstring).
+
+    bones:       bone count target (default 24). Humanoid and quadruped shapes get their 21 role bones when the
+                 target allows at least 21; other shapes get at most this many bones along their chains.
+    prune_scale: a leaf branch is pruned when its tip's ball lies inside the ball of a node nearer the root scaled
+                 by this factor (larger prunes more).
+    tolerance:   chains without a role are cut at bends until every point lies within tolerance * its radius of
+                 its bone (in position and radius).
+    detail:      pass a list to receive an ``AutorigResult`` appended to it.
+    """
+    ijk, radii = _point_arrays(points)
+    arr = _mask_for(points, mask)
+    if not isinstance(tree, SkeletonTree):
+        raise TypeError(f"tree must be a SkeletonTree (from skeleton_tree), got {type(tree).__name__}")
+    if len(tree.component) != len(points):
+        raise ValueError(f"the tree has {len(tree.component)} points but {len(points)} points were given")
+    if bones is not None and not (1 <= int(bones) <= 10000):
+        raise ValueError(f"bones must lie in 1..10000, got {bones}")
+    d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
+                        float(prune_scale), float(tolerance), progress)
+    if detail is not None:
+        detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
+                                    d["node_kept"]))
+    return Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"])
+
+
+@dataclass
+class Binding:
+    """Skeleton points bound to bones.
+
+    bone:        (N,) int32 owning bone of each point (the heaviest in smooth mode).
+    weights:     (N, B) scipy.sparse CSR matrix of weights (rows sum to 1): one-hot in rigid mode; up to three
+                 bones per point in smooth mode.
+    mode:        "rigid" or "smooth".
+    unreachable: (N,) bool: points that no bone reaches inside the object (bound to the nearest bone in a straight
+                 line instead; e.g. fragments separate from the rigged part).
+    bone_names:  the rig's bone names, for reference.
+    """
+
+    bone: np.ndarray
+    weights: "object"
+    mode: str
+    unreachable: np.ndarray
+    bone_names: List[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.bone)
+
+    def points_of(self, bone) -> np.ndarray:
+        """Indices of the points owned by ``bone`` (an index or a name)."""
+        b = self.bone_names.index(bone) if isinstance(bone, str) else int(bone)
+        return np.flatnonzero(self.bone == b)
+
+    def reassign(self, points, bone) -> "Binding":
+        """A copy with ``points`` (indices or a boolean mask) bound to ``bone`` (index or name) alone, as weight
+        painting does."""
+        from scipy import sparse
+        b = self.bone_names.index(bone) if isinstance(bone, str) else int(bone)
+        nb = self.weights.shape[1]
+        if not 0 <= b < nb:
+            raise IndexError(f"bone {b} out of range (the rig has {nb} bones)")
+        idx = np.asarray(points)
+        idx = np.flatnonzero(idx) if idx.dtype == np.bool_ else idx.astype(np.int64).reshape(-1)
+        if len(idx) and (idx.min() < 0 or idx.max() >= len(self.bone)):
+            raise IndexError(f"point indices must lie in 0..{len(self.bone) - 1}")
+        w = self.weights.tolil(copy=True)
+        for i in idx:
+            w.rows[i] = [b]
+            w.data[i] = [1.0]
+        owner = self.bone.copy()
+        owner[idx] = b
+        unreachable = self.unreachable.copy()
+        unreachable[idx] = False
+        return Binding(owner, sparse.csr_matrix(w, dtype=np.float32), self.mode, unreachable, list(self.bone_names))
+
+
+def weights_matrix(weight_bones: np.ndarray, weights: np.ndarray, bone_count: int):
+    """(N, B) CSR matrix from up to three (bone, weight) pairs per point (bone -1 = unused)."""
+    from scipy import sparse
+    n = len(weight_bones)
+    rows = np.repeat(np.arange(n), weight_bones.shape[1])
+    cols = weight_bones.reshape(-1)
+    vals = weights.reshape(-1)
+    keep = cols >= 0
+    return sparse.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(n, bone_count), dtype=np.float32)
+
+
+def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: ProgressFn = None) -> Binding:
+    """Binds every skeleton point to the bone that owns it.
+
+    The owner is the bone nearest by geodesic distance inside the object: along a straight line to the bone's
+    closest point when that line stays inside the object, otherwise along the contained neighbour graph from points
+    that have one (so a hand resting on a thigh binds to the arm). ``mode="smooth"`` adds weights across each joint:
+    within one radius of the joint plane the neighbouring bone takes up to half (summing to 1 with the owner).
+    """
+    if mode not in ("rigid", "smooth"):
+        raise ValueError(f"mode must be 'rigid' or 'smooth', got {mode!r}")
+    ijk, radii = _point_arrays(points)
+    arr = _mask_for(points, mask)
+    bone, wb, w, unreachable = _volrig.bind(arr, points.spacing, points.origin, ijk, radii, rig.joints, rig.bones,
+                                            rig.names, rig.parents, mode, progress)
+    return Binding(bone, weights_matrix(wb, w, len(rig.bones)), mode, unreachable, list(rig.names))
