@@ -1,0 +1,120 @@
+#!/usr/bin/python3
+"""Pictures of automatic rigs: skeleton points, the level-set tree autorig works on, and the rig, over maximum
+intensity projections of the mask. Writes docs/images/rig_<name>.png for the phantom humanoid, the frog
+(../shared/data/frogtissue) and the libigl arm mesh (../shared/data/meshes/arm.obj, voxelized), when present.
+
+    PYTHONPATH=python /usr/bin/python3 scripts/rig_pictures.py [--out docs/images] [--only phantom,frog,arm]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "python"))
+SHARED = os.path.join(ROOT, "..", "shared", "data")
+
+import volrig  # noqa: E402
+from volrig.rig import autorig, bind  # noqa: E402
+from volrig.tree import skeleton_tree  # noqa: E402
+
+
+def rig_case(name: str, mask: volrig.Volume, count: int, reference=None):
+    """Skeleton at `count` points, tree, autorig, rigid binding; returns everything the picture needs."""
+    sk = volrig.skeletonize(mask)
+    pts = sk.top(count)
+    t0 = time.perf_counter()
+    tree = skeleton_tree(pts, mask)
+    detail = []
+    rig = autorig(pts, tree, mask, detail=detail)
+    binding = bind(pts, rig, mask)
+    seconds = time.perf_counter() - t0
+    print(f"{name}: {len(pts)} points (TP {sk.tp_for_count(count):.3f}), {rig}, tree+autorig+bind {seconds:.2f} s")
+    return dict(name=name, mask=mask, points=pts, tree=tree, rig=rig, detail=detail[0], binding=binding,
+                reference=reference, seconds=seconds)
+
+
+def draw(case, path: str, views=((0, 2), (1, 2))):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    mask, pts, rig, det = case["mask"], case["points"], case["rig"], case["detail"]
+    arr = mask.array
+    sp, org = np.asarray(mask.spacing), np.asarray(mask.origin)
+    fig, axes = plt.subplots(1, len(views), figsize=(5.5 * len(views), 7.5))
+    axis_names = "xyz"
+    for ax, (i, j) in zip(np.atleast_1d(axes), views):
+        k = 3 - i - j  # the axis projected away
+        proj = arr.max(axis=2 - k)  # array axes are [z, y, x]
+        img = proj if (2 - j) < (2 - i) else proj.T  # rows = j, columns = i
+        ext = (org[i] - sp[i] / 2, org[i] + sp[i] * (arr.shape[2 - i] - 0.5),
+               org[j] - sp[j] / 2, org[j] + sp[j] * (arr.shape[2 - j] - 0.5))
+        ax.imshow(img, origin="lower", cmap="Greys", alpha=0.25, extent=ext, aspect="equal")
+        c = pts.centers
+        ax.scatter(c[:, i], c[:, j], s=0.2, c=case["binding"].bone % 20, cmap="tab20", alpha=0.35, linewidths=0)
+        nodes, edges, kept = det.nodes, det.node_edges, det.node_kept
+        for u, v in edges:
+            if kept[u] and kept[v]:
+                ax.plot(nodes[[u, v], i], nodes[[u, v], j], "-", color="tab:blue", lw=0.6, alpha=0.7)
+        for b, (h, t) in enumerate(rig.bones):
+            ax.plot(rig.joints[[h, t], i], rig.joints[[h, t], j], "-", color="crimson", lw=2.2)
+        ax.plot(rig.joints[:, i], rig.joints[:, j], "o", color="crimson", ms=3.5)
+        if case["reference"] is not None:
+            ref = case["reference"]
+            ax.plot(ref[:, i], ref[:, j], "+", color="green", ms=10, mew=2)
+        if rig.kind in ("humanoid", "quadruped"):
+            for b, name in enumerate(rig.names):
+                if name.endswith(".L") or name in ("head", "hips"):
+                    h, t = rig.bones[b]
+                    m = 0.5 * (rig.joints[h] + rig.joints[t])
+                    ax.annotate(name, (m[i], m[j]), fontsize=6, color="black")
+        ax.set_xlabel(axis_names[i])
+        ax.set_ylabel(axis_names[j])
+    fig.suptitle(f"{case['name']}: {len(pts):,} skeleton points, {rig.kind} rig of {len(rig)} bones "
+                 f"(points coloured by bone; blue: level-set tree; red: rig" +
+                 ("; green +: reference joints)" if case["reference"] is not None else ")"), fontsize=9)
+    fig.tight_layout()
+    tmp = path + ".tmp.png"
+    fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+    os.replace(tmp, path)
+    print("wrote", path)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
+    ap.add_argument("--only", default="phantom,frog,arm")
+    args = ap.parse_args(argv)
+    os.makedirs(args.out, exist_ok=True)
+    only = set(args.only.split(","))
+    if "phantom" in only:
+        ph = volrig.phantom.humanoid(0.5)
+        ref = np.array([v for k, v in ph.joints.items()])
+        draw(rig_case("phantom humanoid (scale 0.5)", volrig.segment(ph.volume), 15000, ref),
+             os.path.join(args.out, "rig_phantom.png"))
+    frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
+    if "frog" in only:
+        if os.path.exists(frog):
+            draw(rig_case("frog (frogtissue, labels > 0)", volrig.segment(volrig.load(frog)), 40000),
+                 os.path.join(args.out, "rig_frog.png"), views=((0, 1), (0, 2)))
+        else:
+            print(f"skipping the frog: {frog} is absent")
+    arm = os.path.join(SHARED, "meshes", "arm.obj")
+    if "arm" in only:
+        if os.path.exists(arm) and hasattr(volrig, "voxelize"):
+            v, f = volrig.read_mesh(arm)
+            joints, _ = volrig.read_tgf(os.path.join(SHARED, "meshes", "arm.tgf"))
+            draw(rig_case("libigl arm (arm.obj voxelized at 0.01)", volrig.voxelize(v, f, 0.01), 4000, joints),
+                 os.path.join(args.out, "rig_arm.png"), views=((0, 1), (0, 2)))
+        else:
+            print("skipping the arm: arm.obj or volrig.voxelize is absent")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,300 @@
+"""Skeleton-tree, autorig and binding: synthetic shapes with known structure, brute-force references, the phantom."""
+import numpy as np
+import pytest
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import minimum_spanning_tree
+
+import volrig
+from volrig import _volrig
+from volrig.rig import Rig, autorig, bind
+from volrig.skeleton import SkeletonPoints
+from volrig.tree import skeleton_tree
+
+
+def points_at(ijk, radii, spacing=(1.0, 1.0, 1.0)):
+    """SkeletonPoints for hand-placed voxels [z, y, x] (centres = ijk * spacing, origin 0)."""
+    ijk = np.asarray(ijk, dtype=np.int32).reshape(-1, 3)
+    centers = ijk[:, ::-1] * np.asarray(spacing)
+    r = np.asarray(radii, dtype=np.float32) * np.ones(len(ijk), np.float32)
+    return SkeletonPoints(ijk, centers, r, r, np.zeros(len(ijk), np.float32), "euclidean", tuple(spacing),
+                          (0.0, 0.0, 0.0))
+
+
+def segment_sampled_inside(mask, a, b, strict=False):
+    """Independent containment check of the discrete line a-b ([z, y, x]): at each step of the driving axis the
+    voxel nearest the segment must be object; where the segment passes exactly between two voxels, either one
+    (or, with strict, both)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    steps = int(np.abs(b - a).max())
+    for k in range(steps + 1):
+        p = a + (b - a) * (k / steps if steps else 0.0)
+        options = [[int(np.floor(c)), int(np.ceil(c))] if abs(c - np.floor(c) - 0.5) < 1e-9 else [int(round(c))]
+                   for c in p]
+        hits = [mask[z, y, x] for z in options[0] for y in options[1] for x in options[2]]
+        if not (all(hits) if strict else any(hits)):
+            return False
+    return True
+
+
+def capsule_mask(shape, segments, radius):
+    """Union of capsules (segments given as ((z, y, x), (z, y, x))) on a grid."""
+    zz, yy, xx = np.indices(shape)
+    q = np.stack([zz, yy, xx], -1).astype(float)
+    out = np.zeros(shape, bool)
+    for a, b in segments:
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        d = b - a
+        t = np.clip(((q - a) @ d) / (d @ d), 0, 1)[..., None]
+        out |= np.linalg.norm(q - (a + t * d), axis=-1) <= radius
+    return out
+
+
+# ---- skeleton-tree -------------------------------------------------------------------------------------------
+
+def test_ring_tree_is_the_cycle_minus_one_edge_and_never_crosses_the_hole():
+    # A torus (ring radius 20, tube radius 4) and its centre circle as skeleton points.
+    shape = (9, 61, 61)
+    zz, yy, xx = np.indices(shape)
+    rho = np.hypot(yy - 30, xx - 30)
+    mask = (rho - 20) ** 2 + (zz - 4) ** 2 <= 16
+    ang = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    ring = np.unique(np.stack([np.full(400, 4), np.rint(30 + 20 * np.sin(ang)), np.rint(30 + 20 * np.cos(ang))],
+                              1).astype(int), axis=0)
+    assert mask[ring[:, 0], ring[:, 1], ring[:, 2]].all()
+    pts = points_at(ring, 4.0)
+    for e in (1.8, 60.0):  # a large E would cross the hole if containment were not enforced
+        tree = skeleton_tree(pts, mask, alpha=1.0, max_edge=e)
+        n = len(pts)
+        assert tree.component_count == 1 and len(tree) == n - 1
+        for i, j in tree.edges:
+            assert segment_sampled_inside(mask, ring[i], ring[j])
+            assert np.linalg.norm(pts.centers[i] - pts.centers[j]) <= 3.0  # neighbours along the ring, not chords
+        deg = tree.degree()
+        assert (deg == 1).sum() == 2 and (deg == 2).sum() == n - 2  # a path: the cycle minus one edge
+        a, b = np.flatnonzero(deg == 1)
+        assert np.linalg.norm(pts.centers[a] - pts.centers[b]) <= 1.8  # the removed edge joins the two ends
+
+
+def test_tree_weight_equals_brute_force_mst_in_a_convex_object():
+    rng = np.random.default_rng(3)
+    mask = np.ones((20, 22, 24), bool)
+    ijk = np.unique(rng.integers(0, [20, 22, 24], size=(300, 3)), axis=0)
+    pts = points_at(ijk, rng.uniform(1, 5, len(ijk)))
+    tree = skeleton_tree(pts, mask, alpha=1.0, max_edge=100.0)
+    d = np.linalg.norm(pts.centers[:, None] - pts.centers[None], axis=-1)
+    reference = minimum_spanning_tree(csr_matrix(np.triu(d, 1))).sum()
+    assert tree.component_count == 1
+    assert tree.weights.sum() == pytest.approx(reference, rel=1e-9)
+    # alpha < 1 adds the radius term: never below the brute force over all pairs
+    tree9 = skeleton_tree(pts, mask, alpha=0.9, max_edge=100.0)
+    w = 0.9 * d + 0.1 * np.abs(pts.radii[:, None] - pts.radii[None])
+    ref9 = minimum_spanning_tree(csr_matrix(np.triu(w, 1))).sum()
+    assert ref9 * (1 - 1e-6) <= tree9.weights.sum() <= ref9 * 1.02
+
+
+def test_separate_parts_stay_apart_unless_bridged():
+    mask = np.zeros((10, 10, 30), bool)
+    mask[2:8, 2:8, 2:12] = True
+    mask[2:8, 2:8, 15:28] = True  # a gap of 3 voxels
+    ijk = np.array([[5, 5, x] for x in list(range(4, 11)) + list(range(17, 27))])
+    pts = points_at(ijk, 2.0)
+    tree = skeleton_tree(pts, mask, max_edge=20.0)
+    assert tree.component_count == 2 and len(tree) == len(ijk) - 2 and not tree.bridged.any()
+    bridged = skeleton_tree(pts, mask, max_edge=20.0, bridge=True)
+    assert bridged.component_count == 1 and bridged.bridged.sum() == 1
+    i, j = bridged.edges[bridged.bridged][0]
+    assert {int(ijk[i, 2]), int(ijk[j, 2])} == {10, 17}  # the closest pair across the gap
+
+
+def test_line_inside_matches_an_independent_check():
+    rng = np.random.default_rng(7)
+    mask = rng.random((12, 13, 14)) < 0.85
+    for _ in range(400):
+        a, b = rng.integers(0, [12, 13, 14], size=(2, 3))
+        got = _volrig.line_inside(mask.view(np.uint8), tuple(int(v) for v in a), tuple(int(v) for v in b))
+        if got:  # Bresenham visits a subset of the voxels near the segment, all of them object
+            assert mask[tuple(a)] and mask[tuple(b)]
+        if segment_sampled_inside(mask, a, b, strict=True):  # every voxel near the segment is object
+            assert got
+
+
+def test_tree_errors_are_clear():
+    mask = np.zeros((5, 5, 5), bool)
+    mask[1:4, 1:4, 1:4] = True
+    with pytest.raises(volrig.VolrigError, match="not an object voxel"):
+        skeleton_tree(points_at([[0, 0, 0]], 1.0), mask)
+    with pytest.raises(volrig.VolrigError, match="outside the mask's grid"):
+        skeleton_tree(points_at([[9, 2, 2]], 1.0), mask)
+    with pytest.raises(ValueError, match="alpha"):
+        skeleton_tree(points_at([[2, 2, 2]], 1.0), mask, alpha=1.5)
+    with pytest.raises(ValueError, match="max_edge"):
+        skeleton_tree(points_at([[2, 2, 2]], 1.0), mask, max_edge=-1)
+    pts = points_at([[2, 2, 2]], 1.0)
+    bad = SkeletonPoints(pts.ijk, pts.centers, np.array([np.nan], np.float32), pts.dt, pts.scores, "euclidean",
+                         pts.spacing, pts.origin)
+    with pytest.raises(volrig.VolrigError, match="radius"):
+        skeleton_tree(bad, mask)
+
+
+# ---- rigs ------------------------------------------------------------------------------------------------------
+
+def test_rest_matrices_follow_blenders_convention():
+    r = Rig([[0, 0, 0], [0, 2, 0], [3, 2, 4]], [[0, 1], [1, 2]], ["a", "b"])
+    m = r.rest_matrices
+    np.testing.assert_allclose(m[0], [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], atol=1e-12)
+    np.testing.assert_allclose(m[1][:3, 1], [0.6, 0, 0.8])  # Y runs head -> tail
+    np.testing.assert_allclose(m[1][:3, 3], [0, 2, 0])
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        d = rng.normal(size=3)
+        R = _volrig.rest_matrix((0.0, 0.0, 0.0), tuple(d))[:3, :3]
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-4)  # Blender's series near -Y is approximate
+        assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-4)
+        np.testing.assert_allclose(R[:, 1], d / np.linalg.norm(d), atol=1e-12)
+    # Blender's own matrix for a bone along +X with roll 0: X axis (0, -1, 0), Z axis (0, 0, 1)
+    np.testing.assert_allclose(_volrig.rest_matrix((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))[:3, :3],
+                               [[0, 1, 0], [-1, 0, 0], [0, 0, 1]], atol=1e-12)
+
+
+def test_rig_validation():
+    with pytest.raises(volrig.VolrigError, match="used twice"):
+        Rig([[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[0, 1], [1, 2]], ["a", "a"])
+    with pytest.raises(volrig.VolrigError, match="refers to joint 5"):
+        Rig([[0, 0, 0], [0, 1, 0]], [[0, 5]], ["a"])
+    with pytest.raises(volrig.VolrigError, match="zero length"):
+        Rig([[0, 0, 0], [0, 0, 0]], [[0, 1]], ["a"])
+    with pytest.raises(volrig.VolrigError, match="cycle"):
+        Rig([[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[0, 1], [1, 2]], ["a", "b"], parents=[1, 0])
+    r = Rig([[0, 0, 0], [0, 1, 0], [0, 2, 0]], [[0, 1], [1, 2]], ["a", "b"])
+    assert list(r.parents) == [-1, 0]  # default parents follow connected joints
+    with pytest.raises(KeyError, match="bones: a, b"):
+        r.index("c")
+
+
+def test_y_shape_autorigs_into_three_chains_meeting_at_the_fork():
+    fork = (40, 30, 30)
+    mask = capsule_mask((100, 60, 60), [((5, 30, 30), fork), (fork, (90, 30, 8)), (fork, (90, 30, 52))], 6)
+    sk = volrig.skeletonize(mask)
+    pts = sk.at(0.3)
+    tree = skeleton_tree(pts, mask)
+    for i, j in tree.edges:
+        assert segment_sampled_inside(mask, pts.ijk[i], pts.ijk[j])
+    rig = autorig(pts, tree, mask)
+    assert rig.kind == "chains"
+    # three branches: three end joints, and a joint with three bones near the fork
+    heads, tails = rig.bones[:, 0], rig.bones[:, 1]
+    ends = [j for j in range(len(rig.joints)) if (heads == j).sum() + (tails == j).sum() == 1]
+    assert len(ends) == 3
+    fork_xyz = np.array(fork[::-1], float)
+    branching = [j for j in range(len(rig.joints)) if (heads == j).sum() + (tails == j).sum() >= 3]
+    assert branching and min(np.linalg.norm(rig.joints[j] - fork_xyz) for j in branching) <= 1.5 * 6
+    tips = np.array([[30, 30, 5], [8, 30, 90], [52, 30, 90]], float)
+    for t in tips:
+        assert np.linalg.norm(rig.joints[ends] - t, axis=1).min() <= 8.0
+
+
+def test_bind_is_geodesic_a_hand_near_a_thigh_binds_to_the_arm():
+    # "thigh": a tall cylinder at x = 10; "arm": a parallel cylinder at x = 24 (a 4-voxel gap), whose bone only
+    # covers its upper part, so that its lower points are nearer the thigh's bone in a straight line.
+    mask = capsule_mask((70, 20, 36), [((4, 10, 10), (64, 10, 10)), ((4, 10, 24), (64, 10, 24))], 4.5)
+    rig = Rig([[10, 10, 2], [10, 10, 64], [24, 10, 45], [24, 10, 64]], [[0, 1], [2, 3]], ["thigh", "arm"])
+    ijk = np.array([[z, 10, x] for z in range(6, 63, 2) for x in (10, 24)])
+    pts = points_at(ijk, 4.0)
+    b = bind(pts, rig, mask)
+    on_arm = ijk[:, 2] == 24
+    assert (b.bone[on_arm] == 1).all() and (b.bone[~on_arm] == 0).all()
+    assert not b.unreachable.any()
+    # the lower arm points are indeed nearer the thigh's bone in a straight line
+    low = on_arm & (ijk[:, 0] < 20)
+    assert (np.abs(pts.centers[low, 2] - 45) > 14).all()
+
+
+def test_smooth_weights_blend_across_joints_and_sum_to_one():
+    mask = capsule_mask((80, 20, 20), [((4, 10, 10), (76, 10, 10))], 6)
+    rig = Rig([[10, 10, 4], [10, 10, 40], [10, 10, 76]], [[0, 1], [1, 2]], ["upper", "lower"])
+    ijk = np.array([[z, 10, 10] for z in range(4, 77)])
+    pts = points_at(ijk, 5.0)
+    b = bind(pts, rig, mask, mode="smooth")
+    w = b.weights.toarray()
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-6)
+    z = ijk[:, 0]
+    np.testing.assert_allclose(w[z == 40], [[0.5, 0.5]], atol=1e-6)  # at the joint plane: half and half
+    assert (w[np.abs(z - 40) >= 5].max(axis=1) == 1.0).all()          # beyond one radius: one bone
+    assert (w[(np.abs(z - 40) > 0) & (np.abs(z - 40) < 5)].min(axis=1) > 0).all()
+    rigid = bind(pts, rig, mask)
+    assert rigid.weights.nnz == len(pts)
+    moved = rigid.reassign(np.flatnonzero(z < 10), "lower")
+    assert (moved.bone[z < 10] == 1).all() and (moved.bone[(z >= 10) & (z < 40)] == 0).all()
+    np.testing.assert_allclose(moved.weights.toarray().sum(axis=1), 1.0)
+    assert rigid.bone[0] == 0  # the original is unchanged
+
+
+def test_snap_moves_joints_onto_skeleton_points():
+    pts = points_at([[5, 5, 5], [5, 5, 9], [5, 9, 9]], 1.0)
+    r = Rig([[5.2, 4.9, 5.1], [8.6, 5.3, 5.0]], [[0, 1]], ["a"]).snap(pts)
+    np.testing.assert_allclose(r.joints, [[5, 5, 5], [9, 5, 5]])
+    assert list(r.joint_points) == [0, 1]
+
+
+# ---- the phantom -----------------------------------------------------------------------------------------------
+
+ROLE_BONES = {"hips", "spine", "chest", "neck", "head"} | {
+    f"{b}.{s}" for s in "LR" for b in ("shoulder", "upper_arm", "forearm", "hand", "pelvis", "thigh", "shin", "foot")}
+
+
+@pytest.fixture(scope="module")
+def phantom_rig(phantom_half):
+    mask = volrig.segment(phantom_half.volume)
+    pts = volrig.skeletonize(mask).top(15000)
+    tree = skeleton_tree(pts, mask)
+    rig = autorig(pts, tree, mask)
+    return phantom_half, mask, pts, tree, rig, bind(pts, rig, mask)
+
+
+def test_phantom_autorig_is_a_role_named_humanoid(phantom_rig):
+    ph, mask, pts, tree, rig, _ = phantom_rig
+    assert rig.kind == "humanoid"
+    assert set(rig.names) == ROLE_BONES
+    assert rig.names[rig.parents.tolist().index(-1)] == "hips" and (rig.parents == -1).sum() == 1
+    # .L is the character's left: +x on the phantom
+    for b in ("upper_arm", "thigh", "hand", "foot"):
+        assert rig.tails()[rig.index(f"{b}.L")][0] > 72 > rig.tails()[rig.index(f"{b}.R")][0]
+    assert rig.joints[rig.bones[rig.index("head"), 1]][2] > rig.joints[rig.bones[rig.index("neck"), 0]][2]
+
+
+def test_phantom_elbows_and_knees_are_where_the_phantom_bends(phantom_rig):
+    ph, mask, pts, tree, rig, _ = phantom_rig
+    radius = {s.name: s.radius_a for s in ph.segments}
+    for side in "LR":
+        for joint, bone, seg in (("elbow", "upper_arm", "forearm"), ("knee", "thigh", "shin")):
+            got = rig.tails()[rig.index(f"{bone}.{side}")]
+            err = np.linalg.norm(got - ph.joints[f"{joint}.{side}"])
+            assert err <= 1.5 * radius[f"{seg}.{side}"], (joint, side, err)
+
+
+def test_phantom_limb_points_bind_to_their_limb(phantom_rig):
+    ph, mask, pts, tree, rig, binding = phantom_rig
+    c = pts.centers
+    inside_torso = np.zeros(len(c), bool)
+    for e in ph.ellipsoids:
+        if e.name != "head":
+            inside_torso |= (((c - e.centre) / np.asarray(e.radii)) ** 2).sum(1) <= 1
+    segs = {s.name: s for s in ph.segments}
+
+    def in_capsule(s):
+        a, b = ph.joints[s.joint_a], ph.joints[s.joint_b]
+        d = b - a
+        t = np.clip((c - a) @ d / (d @ d), 0, 1)
+        return np.linalg.norm(c - (a + t[:, None] * d), axis=1) <= s.radius_a + t * (s.radius_b - s.radius_a)
+
+    for side in "LR":
+        for limb, parts, bones in (("arm", ("upper_arm", "forearm", "hand"), ("shoulder", "upper_arm", "forearm", "hand")),
+                                   ("leg", ("thigh", "shin", "foot"), ("pelvis", "thigh", "shin", "foot"))):
+            inside = np.zeros(len(c), bool)
+            for p in parts:
+                inside |= in_capsule(segs[f"{p}.{side}"])
+            inside &= ~inside_torso
+            own = np.isin(binding.bone, [rig.index(f"{b}.{side}") for b in bones])
+            assert inside.sum() > 100
+            assert own[inside].mean() >= 0.99, (limb, side, own[inside].mean())
+    assert not binding.unreachable.any()
