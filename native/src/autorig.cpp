@@ -328,7 +328,8 @@ private:
 
     // ---- persistence ------------------------------------------------------------------------------------------
 
-    /// Leaves by descending persistence, with their persistence.
+    /// Leaves by descending significance: each leaf's branch in the longest-path decomposition of the rooted tree
+    /// attaches at a node; the significance is how far the leaf lies outside that node's ball.
     std::vector<std::pair<double, std::uint32_t>> extremities() const {
         std::vector<double> height(pos_.size(), 0.0);
         std::vector<std::uint32_t> heavy(pos_.size(), kNone);
@@ -347,7 +348,8 @@ private:
             std::uint32_t t = l;
             while (t != root_ && heavy[t_.parent[t]] == t) t = t_.parent[t];
             const std::uint32_t top = t == root_ ? root_ : t_.parent[t];
-            out.emplace_back(t_.dist[l] - t_.dist[top], l);
+            // How far the branch sticks out of the ball where it attaches (internal wandering does not count).
+            out.emplace_back((at(l) - at(top)).norm() - radius(top), l);
         }
         std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
             return a.first != b.first ? a.first > b.first : a.second < b.second;
@@ -596,10 +598,21 @@ private:
     bool role_rig(Rig& out) const {
         const auto ext = extremities();
         if (ext.size() < 5) return false;
-        std::uint32_t leaf[5];
-        for (int i = 0; i < 5; ++i) leaf[i] = ext[static_cast<std::size_t>(i)].second;
+        // Five of the (up to) seven most significant leaves: head, two legs, two arms.
+        const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
+        double total = 0;
+        for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
         double best = std::numeric_limits<double>::infinity();
-        int plan[5] = {0, 0, 0, 0, 0};  // head, leg, leg, arm, arm (indices into leaf)
+        std::uint32_t chosen[5] = {0, 0, 0, 0, 0};  // head, leg, leg, arm, arm
+        std::uint32_t leaf[5];
+        for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
+            if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5) continue;
+            double left_out = 0;
+            for (int i = 0, k = 0; i < m; ++i) {
+                if (mask5 & (1 << i)) leaf[k++] = ext[static_cast<std::size_t>(i)].second;
+                else left_out += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+            }
+            const double leave_penalty = total > 0 ? left_out / total : 0.0;
         for (int h = 0; h < 5; ++h)
             for (int a = 0; a < 5; ++a)
                 for (int b = a + 1; b < 5; ++b) {
@@ -613,22 +626,23 @@ private:
                     if (!on_path(pelvis, A, B) || !on_path(chest, C, D)) continue;
                     const double la = path_length(pelvis, A), lb = path_length(pelvis, B);
                     const double lc = path_length(chest, C), ld = path_length(chest, D);
-                    double score = std::abs(la - lb) / (la + lb) + std::abs(lc - ld) / (lc + ld);
+                    double score = std::abs(la - lb) / (la + lb) + std::abs(lc - ld) / (lc + ld) + leave_penalty;
                     const double rl = 0.5 * (mean_radius(path(pelvis, A)) + mean_radius(path(pelvis, B)));
                     const double ra = 0.5 * (mean_radius(path(chest, C)) + mean_radius(path(chest, D)));
                     if (rl < ra) score += 0.25;  // legs carry the body: thicker than arms
                     if (score < best) {
                         best = score;
-                        plan[0] = h;
-                        plan[1] = a;
-                        plan[2] = b;
-                        plan[3] = rest[0];
-                        plan[4] = rest[1];
+                        chosen[0] = H;
+                        chosen[1] = A;
+                        chosen[2] = B;
+                        chosen[3] = C;
+                        chosen[4] = D;
                     }
                 }
+        }
         if (!std::isfinite(best) || best > 0.6) return false;
-        const std::uint32_t H = leaf[plan[0]];
-        std::uint32_t legs[2] = {leaf[plan[1]], leaf[plan[2]]}, arms[2] = {leaf[plan[3]], leaf[plan[4]]};
+        const std::uint32_t H = chosen[0];
+        std::uint32_t legs[2] = {chosen[1], chosen[2]}, arms[2] = {chosen[3], chosen[4]};
         const std::uint32_t pelvis = median(legs[0], legs[1], H), chest = median(arms[0], arms[1], H);
 
         const std::vector<std::uint32_t> spine = path(pelvis, chest), head = path(chest, H);
@@ -810,6 +824,12 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
             sub_edges.push_back({std::min(sub_of[e[0]], sub_of[e[1]]), std::max(sub_of[e[0]], sub_of[e[1]])});
     std::sort(sub_edges.begin(), sub_edges.end());
     sub_edges.erase(std::unique(sub_edges.begin(), sub_edges.end()), sub_edges.end());
+    report(progress, 0.2);
+    // Thin parts of a sparse skeleton break into fragments farther apart than E: join each fragment to its nearest
+    // point elsewhere along a line inside the object, up to 8 E away.
+    const double e0 = default_max_edge(g);
+    const auto joins = bridge_components(g, mask, sub, sub_edges, 8.0 * e0, e0);
+    sub_edges.insert(sub_edges.end(), joins.begin(), joins.end());
     report(progress, 0.3);
     SkeletonGraph graph;
     graph.offsets.assign(sub.n + 1, 0);

@@ -179,10 +179,12 @@ double distance(const Grid& g, const PointSet& pts, std::uint32_t i, std::uint32
     return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
-/// Nearest point (world distance) whose component differs from `comp[i]`; returns (distance, index) or
+/// Nearest point (world distance) whose component differs from `comp[i]`, no farther than `max_dist`; with a
+/// mask, the nearest whose line from i stays inside it (at most 64 lines tested). Returns (distance, index) or
 /// (inf, n) when there is none.
 std::pair<double, std::uint32_t> nearest_other(const Grid& g, const PointSet& pts, const PointGrid& grid,
-                                               const std::vector<std::uint32_t>& comp, std::uint32_t i) {
+                                               const std::vector<std::uint32_t>& comp, std::uint32_t i,
+                                               const std::uint8_t* mask, double max_dist) {
     const auto c = grid.cell_of(pts.ijk + 3 * i);
     double ring_step = std::numeric_limits<double>::infinity();
     std::int64_t max_ring = 0;
@@ -190,24 +192,30 @@ std::pair<double, std::uint32_t> nearest_other(const Grid& g, const PointSet& pt
         ring_step = std::min(ring_step, static_cast<double>(grid.cell()[a]) * g.spacing[a]);
         max_ring = std::max(max_ring, grid.cells()[a]);
     }
+    if (std::isfinite(max_dist))
+        max_ring = std::min<std::int64_t>(max_ring, static_cast<std::int64_t>(std::ceil(max_dist / ring_step)) + 1);
     const auto pi = point_position(g, pts, i);
-    double best = std::numeric_limits<double>::infinity();
-    std::uint32_t arg = static_cast<std::uint32_t>(pts.n);
+    std::vector<std::pair<double, std::uint32_t>> pending;  // sorted by descending distance when popped
+    int tests = 0;
     for (std::int64_t r = 0; r <= max_ring; ++r) {
         grid.for_each_in_ring(c, r, [&](std::uint32_t j) {
             if (comp[j] == comp[i]) return;
             const auto pj = point_position(g, pts, j);
             const double d = std::sqrt((pj[0] - pi[0]) * (pj[0] - pi[0]) + (pj[1] - pi[1]) * (pj[1] - pi[1]) +
                                        (pj[2] - pi[2]) * (pj[2] - pi[2]));
-            if (d < best || (d == best && j < arg)) {
-                best = d;
-                arg = j;
-            }
+            if (d <= max_dist) pending.emplace_back(d, j);
         });
         // Every point not yet visited lies at least r cells away along some axis.
-        if (best <= static_cast<double>(r) * ring_step) break;
+        const double sure = r == max_ring ? std::numeric_limits<double>::infinity() : static_cast<double>(r) * ring_step;
+        std::sort(pending.begin(), pending.end(), std::greater<>());
+        while (!pending.empty() && pending.back().first <= sure) {
+            const auto [d, j] = pending.back();
+            pending.pop_back();
+            if (!mask || line_inside(g, mask, pts.ijk + 3 * i, pts.ijk + 3 * j)) return {d, j};
+            if (++tests >= 64) return {std::numeric_limits<double>::infinity(), static_cast<std::uint32_t>(pts.n)};
+        }
     }
-    return {best, arg};
+    return {std::numeric_limits<double>::infinity(), static_cast<std::uint32_t>(pts.n)};
 }
 
 }  // namespace
@@ -259,6 +267,45 @@ std::vector<std::uint32_t> forest_components(std::size_t n, const std::vector<Pa
     return id;
 }
 
+std::vector<Pair> bridge_components(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
+                                    const std::vector<Pair>& edges, double max_dist, double cell_size) {
+    // Boruvka: each round, every component but the one with most points contributes its closest pair to another
+    // component (a safe spanning-tree edge by the cut property), until one is left or none can join.
+    std::array<std::int64_t, 3> cell;
+    for (int a = 0; a < 3; ++a) cell[a] = std::max<std::int64_t>(2, static_cast<std::int64_t>(cell_size / g.spacing[a]));
+    const PointGrid grid(g, pts, cell);
+    DisjointSets sets(pts.n);
+    for (const auto& e : edges) sets.unite(e[0], e[1]);
+    std::vector<Pair> all = edges, added;
+    for (;;) {
+        std::size_t count = 0;
+        const std::vector<std::uint32_t> comp = forest_components(pts.n, all, &count);
+        if (count <= 1) break;
+        std::vector<std::pair<double, std::uint32_t>> best(pts.n);
+        tbb::parallel_for(std::uint32_t{0}, static_cast<std::uint32_t>(pts.n), [&](std::uint32_t i) {
+            best[i] = comp[i] == 0 ? std::pair<double, std::uint32_t>{std::numeric_limits<double>::infinity(), 0}
+                                   : nearest_other(g, pts, grid, comp, i, mask, max_dist);
+        });
+        std::vector<std::tuple<double, std::uint32_t, std::uint32_t>> pick(
+            count, {std::numeric_limits<double>::infinity(), 0, 0});
+        for (std::uint32_t i = 0; i < pts.n; ++i) {
+            auto& p = pick[comp[i]];
+            if (best[i].first < std::get<0>(p)) p = {best[i].first, i, best[i].second};
+        }
+        std::sort(pick.begin(), pick.end());
+        bool joined = false;
+        for (const auto& [d, i, j] : pick) {
+            if (!std::isfinite(d) || !sets.unite(i, j)) continue;
+            const Pair e{std::min(i, j), std::max(i, j)};
+            all.push_back(e);
+            added.push_back(e);
+            joined = true;
+        }
+        if (!joined) break;
+    }
+    return added;
+}
+
 SkeletonTree skeleton_tree(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const TreeOptions& opt,
                            const Progress& progress) {
     if (!(opt.alpha >= 0.0 && opt.alpha <= 1.0)) throw Error("skeleton_tree: alpha must lie in [0, 1]");
@@ -292,35 +339,14 @@ SkeletonTree skeleton_tree(const Grid& g, const std::uint8_t* mask, const PointS
     t.component = forest_components(pts.n, t.edges, &t.component_count);
 
     if (opt.bridge && t.component_count > 1) {
-        // Boruvka over the components, ignoring containment: each round, every component but the largest
-        // contributes its closest pair to another component (a safe MST edge by the cut property).
-        std::array<std::int64_t, 3> cell;
-        for (int a = 0; a < 3; ++a) cell[a] = std::max<std::int64_t>(2, static_cast<std::int64_t>(t.max_edge / g.spacing[a]));
-        const PointGrid grid(g, pts, cell);
-        while (t.component_count > 1) {
-            std::vector<std::pair<double, std::uint32_t>> best(pts.n);
-            tbb::parallel_for(std::uint32_t{0}, static_cast<std::uint32_t>(pts.n), [&](std::uint32_t i) {
-                best[i] = t.component[i] == 0 ? std::pair<double, std::uint32_t>{std::numeric_limits<double>::infinity(), 0}
-                                              : nearest_other(g, pts, grid, t.component, i);
-            });
-            std::vector<std::tuple<double, std::uint32_t, std::uint32_t>> pick(
-                t.component_count, {std::numeric_limits<double>::infinity(), 0, 0});
-            for (std::uint32_t i = 0; i < pts.n; ++i) {
-                auto& p = pick[t.component[i]];
-                if (best[i].first < std::get<0>(p)) p = {best[i].first, i, best[i].second};
-            }
-            std::sort(pick.begin(), pick.end());
-            for (const auto& [d, i, j] : pick) {
-                if (!std::isfinite(d)) continue;
-                if (sets.unite(i, j)) {
-                    t.edges.push_back({std::min(i, j), std::max(i, j)});
-                    t.weights.push_back(weight(i, j));
-                    t.bridged.push_back(1);
-                }
-            }
-            t.component = forest_components(pts.n, t.edges, &t.component_count);
-            report(progress, 0.95);
+        const std::vector<Pair> added =
+            bridge_components(g, nullptr, pts, t.edges, std::numeric_limits<double>::infinity(), t.max_edge);
+        for (const auto& e : added) {
+            t.edges.push_back(e);
+            t.weights.push_back(weight(e[0], e[1]));
+            t.bridged.push_back(1);
         }
+        t.component = forest_components(pts.n, t.edges, &t.component_count);
     }
     report(progress, 1.0);
     return t;

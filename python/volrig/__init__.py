@@ -1,6 +1,7 @@
 """volrig: rig and animate volumes (skeletonization after Gagvani's parameter-controlled thinness).
 
-Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``reconstruct``.
+Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``skeleton_tree`` -> ``autorig``
+-> ``bind`` (and ``reconstruct``); ``save_rig`` / ``load_rig`` keep the result in one file.
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
@@ -8,12 +9,16 @@ from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
 from .volume import Volume, load, write_vdb
+from .tree import SkeletonTree, skeleton_tree
+from .rig import Binding, Rig, autorig, bind
+from .rigfile import RiggedSkeleton, load_rig, save_rig
 
 __version__ = "0.1.0"
 
 __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
-           "FileFormatError", "Cancelled", "phantom"]
+           "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
+           "Binding", "RiggedSkeleton", "save_rig", "load_rig"]
 
 
 def __getattr__(name):

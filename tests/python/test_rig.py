@@ -298,3 +298,78 @@ def test_phantom_limb_points_bind_to_their_limb(phantom_rig):
             assert inside.sum() > 100
             assert own[inside].mean() >= 0.99, (limb, side, own[inside].mean())
     assert not binding.unreachable.any()
+
+
+# ---- the rig file ----------------------------------------------------------------------------------------------
+
+def test_rig_file_round_trip(phantom_rig, tmp_path):
+    ph, mask, pts, tree, rig, binding = phantom_rig
+    smooth = bind(pts, rig, mask, mode="smooth")
+    path = tmp_path / "phantom.vrig"
+    volrig.save_rig(path, pts, tree, rig, smooth, source="phantom.nrrd")
+    r = volrig.load_rig(path)
+    for f in ("ijk", "centers", "radii", "dt", "scores"):
+        np.testing.assert_array_equal(getattr(r.points, f), getattr(pts, f))
+    assert (r.points.metric, r.points.spacing, r.points.origin) == (pts.metric, pts.spacing, pts.origin)
+    np.testing.assert_array_equal(r.tree.edges, tree.edges)
+    np.testing.assert_array_equal(r.tree.weights, tree.weights)
+    assert r.tree.component_count == tree.component_count and r.tree.alpha == tree.alpha
+    np.testing.assert_array_equal(r.rig.joints, rig.joints)
+    np.testing.assert_array_equal(r.rig.bones, rig.bones)
+    assert r.rig.names == rig.names and r.rig.kind == "humanoid"
+    np.testing.assert_array_equal(r.rig.parents, rig.parents)
+    assert (r.binding.weights != smooth.weights).nnz == 0 and r.binding.mode == "smooth"
+    np.testing.assert_array_equal(r.binding.bone, smooth.bone)
+    assert r.source == str(tmp_path / "phantom.nrrd")
+    # only the points
+    volrig.save_rig(path, pts)
+    r = volrig.load_rig(path)
+    assert r.tree is None and r.rig is None and r.binding is None and len(r.points) == len(pts)
+
+
+def test_rig_file_errors(phantom_rig, tmp_path):
+    ph, mask, pts, tree, rig, binding = phantom_rig
+    good = tmp_path / "good.vrig"
+    volrig.save_rig(good, pts, tree, rig, binding)
+    with pytest.raises(FileNotFoundError):
+        volrig.load_rig(tmp_path / "absent.vrig")
+    # a newer version says so
+    with np.load(good) as z:
+        a = {k: z[k] for k in z.files}
+    newer = tmp_path / "newer.vrig"
+    with open(newer, "wb") as f:
+        np.savez(f, **{**a, "version": np.array(2)})
+    with pytest.raises(volrig.FileFormatError, match="newer volrig"):
+        volrig.load_rig(newer)
+    # lying shapes, out-of-range indices, wrong types
+    for key, value, message in (("radii", a["radii"][:-1], "shape"), ("tree_edges", a["tree_edges"] + len(pts), "outside"),
+                                ("rig_bones", a["rig_bones"] * 100, "inconsistent rig"),
+                                ("binding_bone", a["binding_bone"] + 99, "outside"),
+                                ("centers", np.full_like(a["centers"], np.nan), "non-finite"),
+                                ("ijk", a["ijk"].astype(np.float32), "type"), ("format", np.array("other"), "format")):
+        p = tmp_path / f"bad_{key}.vrig"
+        with open(p, "wb") as f:
+            np.savez(f, **{**a, key: value})
+        with pytest.raises(volrig.FileFormatError, match=message):
+            volrig.load_rig(p)
+    # truncation and random damage: always a FileFormatError, never another exception
+    data = good.read_bytes()
+    rng = np.random.default_rng(5)
+    bad = tmp_path / "damaged.vrig"
+    for k in range(120):
+        if k % 3 == 0:
+            blob = data[:int(rng.integers(0, len(data)))]
+        else:
+            b = bytearray(data)
+            for pos in rng.integers(0, len(b), size=int(rng.integers(1, 8))):
+                b[pos] = int(rng.integers(0, 256))
+            blob = bytes(b)
+        bad.write_bytes(blob)
+        try:
+            volrig.load_rig(bad)
+        except volrig.FileFormatError:
+            pass
+    # the writer never leaves a partial file behind
+    with pytest.raises(ValueError):
+        volrig.save_rig(tmp_path / "x.vrig", pts, tree, None, binding)
+    assert not list(tmp_path.glob(".x.vrig*")) and not (tmp_path / "x.vrig").exists()

@@ -79,6 +79,15 @@ std::vector<std::array<std::uint32_t, 2>> cone_edges(const Grid& grid, const std
                                                      double e, bool ball_rule, const Progress& progress, double p0,
                                                      double p1);
 
+/// Edges that join the components of the graph `edges` over the points: Boruvka rounds in which every component
+/// but the one with most points adds its closest pair (i, j) to another component, with |i - j| <= max_dist and,
+/// when `mask` is given, the line i-j inside the object (the nearest 64 candidates of each point are tested).
+/// Stops when one component is left or none can join. `cell_size` (world units) sizes the search grid.
+std::vector<std::array<std::uint32_t, 2>> bridge_components(const Grid& grid, const std::uint8_t* mask,
+                                                            const PointSet& pts,
+                                                            const std::vector<std::array<std::uint32_t, 2>>& edges,
+                                                            double max_dist, double cell_size);
+
 /// Components of a forest given by its edges over n points, numbered by descending size (ties: smallest point).
 std::vector<std::uint32_t> forest_components(std::size_t n, const std::vector<std::array<std::uint32_t, 2>>& edges,
                                              std::size_t* count = nullptr);
