@@ -114,11 +114,8 @@ using Pair = std::array<std::uint32_t, 2>;
 std::vector<std::array<std::uint32_t, 2>> cone_edges(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
                                                      double e, bool ball_rule, const Progress& progress, double p0,
                                                      double p1) {
-    double largest = 0;
-    if (ball_rule)
-        for (std::size_t i = 0; i < pts.n; ++i) largest = std::max(largest, static_cast<double>(pts.radius[i]));
-    // Cells of about the typical search reach; a point scans the cells its reach touches.
-    const double cell_w = std::max(e, 0.25 * largest);
+    // Cells of the plain reach e; a point scans the cells its reach touches (at most 3 e with the ball rule).
+    const double cell_w = e;
     std::array<std::int64_t, 3> cell;
     for (int a = 0; a < 3; ++a) cell[a] = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(cell_w / g.spacing[a])));
     const PointGrid grid(g, pts, cell);
@@ -130,7 +127,7 @@ std::vector<std::array<std::uint32_t, 2>> cone_edges(const Grid& g, const std::u
         for (std::size_t i = b; i < end; ++i) {
             const std::int32_t* pi = pts.ijk + 3 * i;
             const double ri = ball_rule ? static_cast<double>(pts.radius[i]) : 0.0;
-            const double reach = std::max(e, ri), reach2 = reach * reach;
+            const double reach = std::max(e, std::min(ri, 3.0 * e)), reach2 = reach * reach;
             std::array<std::int64_t, 3> lo, hi;
             for (int a = 0; a < 3; ++a) {
                 const std::int64_t v = pi[2 - a], span = static_cast<std::int64_t>(std::ceil(reach / g.spacing[a]));

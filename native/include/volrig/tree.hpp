@@ -73,8 +73,8 @@ SkeletonTree skeleton_tree(const Grid& grid, const std::uint8_t* mask, const Poi
                            const Progress& progress = {});
 
 /// The undirected cone edges (i < j, sorted, unique) behind skeleton_graph. With `ball_rule` (radii required) a
-/// point searches up to max(e, its radius): its own ball lies inside the object, so a sparse axis of large balls
-/// stays connected; lines inside the ball need no test. Progress is reported from p0 to p1.
+/// point searches up to max(e, min(its radius, 3 e)): its own ball lies inside the object, so a sparse axis of
+/// large balls stays connected; lines inside the ball need no test. Progress is reported from p0 to p1.
 std::vector<std::array<std::uint32_t, 2>> cone_edges(const Grid& grid, const std::uint8_t* mask, const PointSet& pts,
                                                      double e, bool ball_rule, const Progress& progress, double p0,
                                                      double p1);
