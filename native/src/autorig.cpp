@@ -621,11 +621,13 @@ private:
                     for (int i = 0; i < 5; ++i)
                         if (i != h && i != a && i != b) rest[r++] = i;
                     const std::uint32_t H = leaf[h], A = leaf[a], B = leaf[b], C = leaf[rest[0]], D = leaf[rest[1]];
-                    const std::uint32_t pelvis = median(A, B, H), chest = median(C, D, H);
-                    if (pelvis == chest || !on_path(chest, pelvis, H)) continue;
-                    if (!on_path(pelvis, A, B) || !on_path(chest, C, D)) continue;
-                    const double la = path_length(pelvis, A), lb = path_length(pelvis, B);
-                    const double lc = path_length(chest, C), ld = path_length(chest, D);
+                    // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where
+                    // that branch joins the spine.
+                    const std::uint32_t pelvis = median(A, B, H), chest = median(pelvis, median(C, D, H), H);
+                    if (pelvis == chest) continue;
+                    // Limb lengths as straight reaches (paths through a cluttered trunk wander).
+                    const double la = (at(A) - at(pelvis)).norm(), lb = (at(B) - at(pelvis)).norm();
+                    const double lc = (at(C) - at(chest)).norm(), ld = (at(D) - at(chest)).norm();
                     double score = std::abs(la - lb) / (la + lb) + std::abs(lc - ld) / (lc + ld) + leave_penalty;
                     const double rl = 0.5 * (mean_radius(path(pelvis, A)) + mean_radius(path(pelvis, B)));
                     const double ra = 0.5 * (mean_radius(path(chest, C)) + mean_radius(path(chest, D)));
@@ -643,7 +645,8 @@ private:
         if (!std::isfinite(best) || best > 0.6) return false;
         const std::uint32_t H = chosen[0];
         std::uint32_t legs[2] = {chosen[1], chosen[2]}, arms[2] = {chosen[3], chosen[4]};
-        const std::uint32_t pelvis = median(legs[0], legs[1], H), chest = median(arms[0], arms[1], H);
+        const std::uint32_t pelvis = median(legs[0], legs[1], H);
+        const std::uint32_t chest = median(pelvis, median(arms[0], arms[1], H), H);
 
         const std::vector<std::uint32_t> spine = path(pelvis, chest), head = path(chest, H);
         std::vector<std::uint32_t> leg_chain[2] = {path(pelvis, legs[0]), path(pelvis, legs[1])};

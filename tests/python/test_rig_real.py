@@ -1,0 +1,25 @@
+"""Autorig on real data: the frog (../shared/data/frogtissue) and the libigl arm mesh (../shared/data/meshes)."""
+import numpy as np
+import pytest
+
+import volrig
+from conftest import shared
+
+
+@pytest.mark.xfail(strict=True, reason="the frog's cluttered trunk (organs, no skin) still confuses the body plan: "
+                                       "a front leg is taken for the head (README, Known limits)")
+def test_frog_gets_four_legs_a_spine_and_a_head():
+    vol = volrig.load(str(shared("frogtissue/frogtissue.mhd")))
+    mask = volrig.segment(vol)
+    pts = volrig.skeletonize(mask).top(40000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    assert rig.kind in ("humanoid", "quadruped")
+    tip = lambda name: rig.tails()[rig.index(name)]  # noqa: E731
+    # the frog lies along +x: snout near x = 470, hind feet at x < 200, front feet beside the trunk
+    assert tip("head")[0] > 400
+    for side in "LR":
+        assert tip(f"foot.{side}")[0] < 200
+        assert 230 < tip(f"hand.{side}")[0] < 380 and abs(tip(f"hand.{side}")[1] - 230) > 80
+        for limb in (("upper_arm", "forearm", "hand"), ("thigh", "shin", "foot")):
+            assert all(f"{b}.{side}" in rig.names for b in limb)
+    assert {"hips", "spine", "chest"} <= set(rig.names)
