@@ -98,5 +98,6 @@ inline Progress progress_of(const py::object& f) {
 void bind_io(py::module_& m);
 void bind_vdb(py::module_& m);
 void bind_skeleton(py::module_& m);
+void bind_mesh(py::module_& m);
 
 }  // namespace volrig::py

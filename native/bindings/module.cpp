@@ -24,4 +24,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_io(m);
     volrig::py::bind_vdb(m);
     volrig::py::bind_skeleton(m);
+    volrig::py::bind_mesh(m);
 }

@@ -1,9 +1,11 @@
 """volrig: rig and animate volumes (skeletonization after Gagvani's parameter-controlled thinness).
 
 Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``reconstruct``.
+Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s).
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
+from .mesh import read_mesh, read_tgf, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
@@ -13,7 +15,7 @@ __version__ = "0.1.0"
 
 __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
-           "FileFormatError", "Cancelled", "phantom"]
+           "FileFormatError", "Cancelled", "phantom", "read_mesh", "read_tgf", "voxelize"]
 
 
 def __getattr__(name):
