@@ -122,5 +122,6 @@ void bind_vdb(py::module_& m);
 void bind_skeleton(py::module_& m);
 void bind_tree(py::module_& m);
 void bind_rig(py::module_& m);
+void bind_mesh(py::module_& m);
 
 }  // namespace volrig::py

@@ -26,4 +26,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_skeleton(m);
     volrig::py::bind_tree(m);
     volrig::py::bind_rig(m);
+    volrig::py::bind_mesh(m);
 }

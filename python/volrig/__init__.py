@@ -2,9 +2,11 @@
 
 Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``skeleton_tree`` -> ``autorig``
 -> ``bind`` (and ``reconstruct``); ``save_rig`` / ``load_rig`` keep the result in one file.
+Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s).
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
+from .mesh import read_mesh, read_tgf, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
@@ -18,7 +20,7 @@ __version__ = "0.1.0"
 __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
-           "Binding", "RiggedSkeleton", "save_rig", "load_rig"]
+           "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize"]
 
 
 def __getattr__(name):

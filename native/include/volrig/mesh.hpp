@@ -1,0 +1,91 @@
+// volrig/mesh.hpp: triangle meshes in: OBJ, PLY and TGF readers, and voxelization of a closed (or nearly closed)
+// surface into a volume mask.
+//
+// Readers follow volrig/io.hpp's rules: counts are checked against the bytes present before anything is
+// allocated, absurd sizes are refused (ReadOptions::max_bytes bounds the decoded mesh: 24 bytes per vertex, 12 per
+// triangle), and every error is a FileFormatError (or FileNotFound) whose message starts with the file name and
+// says what is wrong and where ("arm.obj: line 12: face index 9000 out of range (8311 vertices)").
+// Coordinates must be finite; indices must be in range; a mesh without faces is refused.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "volrig/io.hpp"
+#include "volrig/volume.hpp"
+
+namespace volrig {
+
+/// A triangle mesh: polygons are fan-triangulated on reading (v0 v1 v2, v0 v2 v3, ...). Indices are 0-based.
+struct Mesh {
+    std::vector<std::array<double, 3>> vertices;
+    std::vector<std::array<std::uint32_t, 3>> triangles;
+};
+
+/// A skeleton in libigl's Trivial Graph Format: joint positions and 0-based edges (bones) between them.
+struct TgfSkeleton {
+    std::vector<std::array<double, 3>> joints;
+    std::vector<std::array<std::uint32_t, 2>> edges;
+};
+
+/// Wavefront OBJ: `v x y z [w | r g b]` and `f` lines whose entries are `i`, `i/t`, `i//n` or `i/t/n` (1-based,
+/// or negative = relative to the vertices defined so far); faces of 3 or more vertices are fan-triangulated.
+/// Texture coordinates, normals, groups, objects, smoothing, materials, lines, points and comments are ignored;
+/// a trailing backslash continues a line.
+Mesh read_obj(const ByteSource& src, const ReadOptions& opt = {});
+
+/// Stanford PLY: ascii, binary_little_endian and binary_big_endian. `element vertex` needs scalar properties x, y,
+/// z of any numeric type (other properties are skipped); `element face` needs `property list <count> <index>
+/// vertex_indices` (or vertex_index) with integer types. Other elements and properties are skipped by their types.
+Mesh read_ply(const ByteSource& src, const ReadOptions& opt = {});
+
+/// libigl's TGF: joint lines `index x y z [ignored columns]`, a line `#`, edge lines `a b [ignored columns]`
+/// (1-based joint numbers), optionally a second `#` after which everything is ignored.
+TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt = {});
+
+/// Picks the reader from the file name: .obj or .ply (case-insensitive).
+Mesh read_mesh(const std::string& path, const ReadOptions& opt = {});
+
+/// Builds a Mesh from flat arrays (xyz per vertex; three 0-based indices per triangle), refusing non-finite
+/// coordinates, indices outside [0, vertex_count), and empty input with an Error naming `what`.
+Mesh make_mesh(const double* xyz, std::size_t vertex_count, const std::int64_t* triangles, std::size_t triangle_count,
+               const std::string& what = "mesh");
+
+/// Checks a mesh: at least one triangle, finite coordinates, indices in range. Throws Error naming `what`.
+void check_mesh(const Mesh& mesh, const std::string& what = "mesh");
+
+// ---- voxelization --------------------------------------------------------------------------------------------
+
+struct VoxelizeOptions {
+    /// Whole empty voxels kept around the mesh's bounding box on each side (rounded up; 0 to 1000).
+    double padding_voxels = 2;
+    /// Hole closing radius in voxels (0 or 0.5 to 4). The exterior is the region reachable from the grid border
+    /// through voxel centres farther than this from the surface, so holes (and gaps) narrower than about twice
+    /// this radius do not let it in. 0 uses OpenVDB's own sign (watertight meshes only: its exterior flood fill
+    /// leaks through any hole wider than about 1.5 voxels and the result is then empty or partly empty).
+    double closing_radius = 1.5;
+    /// Limit on the dense grid (bytes; voxelization holds two bytes per voxel).
+    std::uint64_t max_bytes = default_max_bytes();
+};
+
+/// Voxelizes the solid a triangle mesh encloses: a uint8 mask (1 inside) on a grid of spacing `voxel_size` in all
+/// three axes whose origin is the mesh-space position of voxel (0, 0, 0)'s centre, so voxel (x, y, z) is centred at
+/// origin + voxel_size * (x, y, z). The grid's cells cover the mesh's bounding box (its minimum corner lies on a
+/// cell boundary) plus `padding_voxels` whole cells on every side. A voxel is inside when its centre is.
+///
+/// Method (closing_radius r > 0): OpenVDB's meshToVolume gives the unsigned distance u to the surface in a narrow
+/// band; the exterior E is flood-filled from the grid border through voxels with u > r; a voxel is outside when it
+/// is in E or lies strictly inside a ball B(e, u(e)) around an exterior voxel e (such balls touch the surface but
+/// never cross it). Everything else is inside. For a closed surface this is the solid it encloses, except that
+/// creases narrower than 2r are filled and concave corners rounded with radius r (a morphological closing);
+/// holes narrower than about 2r are bridged. Orientation and self-intersections do not matter; enclosed cavities
+/// are filled. Refuses non-positive or non-finite voxel sizes, grids beyond max_bytes, and meshes that enclose
+/// no voxel centre at this voxel size.
+Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt, const Progress& progress = {});
+
+/// Same with default options except the padding.
+Volume voxelize(const Mesh& mesh, double voxel_size, double padding_voxels = 2, const Progress& progress = {});
+
+}  // namespace volrig

@@ -1,0 +1,905 @@
+// Tests for volrig/mesh.hpp: OBJ/PLY/TGF readers (round trips of meshes written here in every encoding, every kind
+// of malformed input), voxelization against analytic volumes and voxel-by-voxel geometry, hole closing, and the
+// arm mesh and skeleton in ../shared/data when present.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "volrig/mesh.hpp"
+
+using namespace volrig;
+namespace fs = std::filesystem;
+
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+using Vec3 = std::array<double, 3>;
+using Tri = std::array<std::uint32_t, 3>;
+
+Bytes bytes(const std::string& s) { return Bytes(s.begin(), s.end()); }
+Bytes operator+(Bytes a, const Bytes& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+}
+
+Bytes read_file(const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return Bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+template <class R>
+auto read_mem(R reader, const Bytes& b, const std::string& name, ReadOptions opt = {}) {
+    auto src = memory_source(b.data(), b.size(), name);
+    return reader(*src, opt);
+}
+Mesh obj(const std::string& text, const std::string& name = "m.obj") {
+    return read_mem(read_obj, bytes(text), name);
+}
+Mesh ply(const Bytes& b, const std::string& name = "m.ply") { return read_mem(read_ply, b, name); }
+TgfSkeleton tgf(const std::string& text, const std::string& name = "s.tgf") {
+    return read_mem(read_tgf, bytes(text), name);
+}
+
+/// Runs f and checks it throws E whose message contains every part.
+template <class E = FileFormatError, class F>
+void expect_error(F&& f, std::initializer_list<std::string> parts) {
+    try {
+        f();
+    } catch (const E& e) {
+        const std::string m = e.what();
+        INFO("message: " << m);
+        for (const auto& p : parts) CHECK(m.find(p) != std::string::npos);
+        return;
+    }
+    std::string all;
+    for (const auto& p : parts) all += "'" + p + "' ";
+    FAIL("no exception; expected one mentioning " << all);
+}
+
+// ---- test meshes -----------------------------------------------------------------------------------------------
+
+/// The box [lo, hi] as 8 vertices and 6 quads (outward, counter-clockwise), fan-split as the readers split them.
+struct QuadBox {
+    std::vector<Vec3> v;
+    std::vector<std::array<std::uint32_t, 4>> quads = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                                                       {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+    explicit QuadBox(Vec3 lo = {0, 0, 0}, Vec3 hi = {1, 1, 1}) {
+        for (int k = 0; k < 8; ++k)
+            v.push_back({(k & 1) ^ ((k >> 1) & 1) ? hi[0] : lo[0], (k & 2) ? hi[1] : lo[1], (k & 4) ? hi[2] : lo[2]});
+    }
+    Mesh mesh() const {
+        Mesh m;
+        m.vertices = v;
+        for (const auto& q : quads) {
+            m.triangles.push_back({q[0], q[1], q[2]});
+            m.triangles.push_back({q[0], q[2], q[3]});
+        }
+        return m;
+    }
+};
+
+Mesh rotated(Mesh m, double ax, double ay, double az, Vec3 shift) {
+    auto rot = [](Vec3 p, int a, double t) {
+        const int i = (a + 1) % 3, j = (a + 2) % 3;
+        const double c = std::cos(t), s = std::sin(t), pi = p[static_cast<std::size_t>(i)],
+                     pj = p[static_cast<std::size_t>(j)];
+        p[static_cast<std::size_t>(i)] = c * pi - s * pj;
+        p[static_cast<std::size_t>(j)] = s * pi + c * pj;
+        return p;
+    };
+    for (auto& p : m.vertices) {
+        p = rot(rot(rot(p, 0, ax), 1, ay), 2, az);
+        for (std::size_t a = 0; a < 3; ++a) p[a] += shift[a];
+    }
+    return m;
+}
+
+/// Icosahedron subdivided `levels` times onto the sphere of radius `r` centred at `c`.
+Mesh icosphere(int levels, double r = 1.0, Vec3 c = {0, 0, 0}) {
+    const double t = (1 + std::sqrt(5.0)) / 2;
+    std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<Tri> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                          {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                          {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+    auto unit = [](Vec3 p) {
+        const double n = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        return Vec3{p[0] / n, p[1] / n, p[2] / n};
+    };
+    for (auto& p : v) p = unit(p);
+    for (int l = 0; l < levels; ++l) {
+        std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> mid;
+        auto m = [&](std::uint32_t a, std::uint32_t b) {
+            const auto key = std::minmax(a, b);
+            auto it = mid.find(key);
+            if (it != mid.end()) return it->second;
+            v.push_back(unit({v[a][0] + v[b][0], v[a][1] + v[b][1], v[a][2] + v[b][2]}));
+            return mid[key] = static_cast<std::uint32_t>(v.size() - 1);
+        };
+        std::vector<Tri> g;
+        for (const auto& x : f) {
+            const std::uint32_t ab = m(x[0], x[1]), bc = m(x[1], x[2]), ca = m(x[2], x[0]);
+            g.push_back({x[0], ab, ca});
+            g.push_back({x[1], bc, ab});
+            g.push_back({x[2], ca, bc});
+            g.push_back({ab, bc, ca});
+        }
+        f = std::move(g);
+    }
+    Mesh out;
+    for (auto& p : v) out.vertices.push_back({c[0] + r * p[0], c[1] + r * p[1], c[2] + r * p[2]});
+    out.triangles = f;
+    return out;
+}
+
+/// Exact volume of a closed, consistently oriented mesh (divergence theorem).
+double volume_of(const Mesh& m) {
+    double s = 0;
+    for (const auto& t : m.triangles) {
+        const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
+        s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    return std::abs(s) / 6;
+}
+
+std::int64_t count(const Volume& v) { return std::count(v.data.begin(), v.data.end(), std::uint8_t(1)); }
+
+Vec3 centre_of(const Volume& v, std::int64_t x, std::int64_t y, std::int64_t z) {
+    return {v.grid.origin[0] + v.grid.spacing[0] * static_cast<double>(x),
+            v.grid.origin[1] + v.grid.spacing[1] * static_cast<double>(y),
+            v.grid.origin[2] + v.grid.spacing[2] * static_cast<double>(z)};
+}
+
+/// Fraction of voxels on which two masks of one grid agree, and the overlap |a and b| / |a|.
+std::pair<double, double> agreement(const Volume& a, const Volume& b) {
+    REQUIRE(a.grid.dims == b.grid.dims);
+    std::int64_t same = 0, both = 0, in_a = 0;
+    for (std::size_t i = 0; i < a.data.size(); ++i) {
+        same += a.data[i] == b.data[i];
+        both += a.data[i] && b.data[i];
+        in_a += a.data[i] != 0;
+    }
+    return {static_cast<double>(same) / static_cast<double>(a.data.size()),
+            static_cast<double>(both) / static_cast<double>(std::max<std::int64_t>(in_a, 1))};
+}
+
+// ---- writers for the round trips -------------------------------------------------------------------------------
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return s.str();
+}
+
+enum class PlyEnc { Ascii, LE, BE };
+
+struct PlyWriter {
+    PlyEnc enc;
+    std::string header = "ply\n";
+    Bytes body;
+    std::string line;  // ascii: the element instance being written
+
+    explicit PlyWriter(PlyEnc e) : enc(e) {
+        header += std::string("format ") +
+                  (e == PlyEnc::Ascii ? "ascii" : e == PlyEnc::LE ? "binary_little_endian" : "binary_big_endian") +
+                  " 1.0\ncomment written by test_mesh.cpp\n";
+    }
+    void h(const std::string& s) { header += s + "\n"; }
+    template <class T>
+    void put(T v) {
+        if (enc == PlyEnc::Ascii) {
+            if (!line.empty()) line += ' ';
+            if constexpr (std::is_floating_point_v<T>)
+                line += num(static_cast<double>(v));
+            else
+                line += std::to_string(static_cast<long long>(v));
+            return;
+        }
+        std::uint8_t b[sizeof(T)];
+        std::memcpy(b, &v, sizeof(T));
+        if (enc == PlyEnc::BE) std::reverse(b, b + sizeof(T));
+        body.insert(body.end(), b, b + sizeof(T));
+    }
+    void end_instance() {
+        if (enc == PlyEnc::Ascii) {
+            const Bytes l = bytes(line + "\n");
+            body.insert(body.end(), l.begin(), l.end());
+            line.clear();
+        }
+    }
+    Bytes bytes_() const { return bytes(header + "end_header\n") + body; }
+};
+
+/// The QuadBox as PLY with extra properties and elements, x y z of type XYZ and indices of type I.
+template <class XYZ, class I>
+Bytes box_ply(PlyEnc enc, const char* xyz_type, const char* index_type, const QuadBox& b) {
+    PlyWriter w(enc);
+    w.h("obj_info extra elements before, between and after");
+    w.h("element material 2");
+    w.h("property uchar red");
+    w.h("property list uchar float params");
+    w.h("element vertex 8");
+    w.h("property float nx");
+    w.h(std::string("property ") + xyz_type + " x");
+    w.h(std::string("property ") + xyz_type + " y");
+    w.h("property list ushort int extra");
+    w.h(std::string("property ") + xyz_type + " z");
+    w.h("property uchar red");
+    w.h("element face 6");
+    w.h("property int flags");
+    w.h(std::string("property list uchar ") + index_type + " vertex_indices");
+    w.h("property double quality");
+    w.h("element edge 1");
+    w.h("property int vertex1");
+    w.h("property int vertex2");
+    for (int m = 0; m < 2; ++m) {
+        w.put<std::uint8_t>(200);
+        w.put<std::uint8_t>(static_cast<std::uint8_t>(m + 1));
+        for (int k = 0; k <= m; ++k) w.put<float>(0.5f * static_cast<float>(k));
+        w.end_instance();
+    }
+    for (const auto& p : b.v) {
+        w.put<float>(-1.0f);
+        w.put<XYZ>(static_cast<XYZ>(p[0]));
+        w.put<XYZ>(static_cast<XYZ>(p[1]));
+        w.put<std::uint16_t>(2);
+        w.put<std::int32_t>(7);
+        w.put<std::int32_t>(-7);
+        w.put<XYZ>(static_cast<XYZ>(p[2]));
+        w.put<std::uint8_t>(255);
+        w.end_instance();
+    }
+    for (const auto& q : b.quads) {
+        w.put<std::int32_t>(-3);
+        w.put<std::uint8_t>(4);
+        for (auto k : q) w.put<I>(static_cast<I>(k));
+        w.put<double>(0.25);
+        w.end_instance();
+    }
+    w.put<std::int32_t>(0);
+    w.put<std::int32_t>(1);
+    w.end_instance();
+    return w.bytes_();
+}
+
+/// A minimal PLY: the header lines given, then the body.
+Bytes ply_with(PlyEnc enc, const std::vector<std::string>& lines, const Bytes& body) {
+    PlyWriter w(enc);
+    for (const auto& l : lines) w.h(l);
+    w.body = body;
+    return w.bytes_();
+}
+
+template <class T>
+Bytes le(std::initializer_list<T> vals) {
+    Bytes out;
+    for (T v : vals) {
+        std::uint8_t b[sizeof(T)];
+        std::memcpy(b, &v, sizeof(T));
+        out.insert(out.end(), b, b + sizeof(T));
+    }
+    return out;
+}
+
+/// A binary little-endian triangle: 3 float vertices and one face of uchar count + int indices.
+Bytes tiny_binary_ply(std::int32_t index2 = 2, float x0 = 0, std::uint8_t count = 3) {
+    return ply_with(PlyEnc::LE,
+                    {"element vertex 3", "property float x", "property float y", "property float z", "element face 1",
+                     "property list uchar int vertex_indices"},
+                    le<float>({x0, 0, 0, 1, 0, 0, 0, 1, 0}) + Bytes{count} + le<std::int32_t>({0, 1, index2}));
+}
+
+std::string shared_data() { return VOLRIG_SHARED_DATA; }
+bool skip_without_data() {
+    if (fs::is_directory(shared_data() + "/meshes")) return false;
+    WARN("shared test data not found at " << shared_data() << "/meshes: real-mesh tests skipped");
+    return true;
+}
+
+}  // namespace
+
+// =================================================================================================================
+// OBJ
+// =================================================================================================================
+
+TEST_CASE("OBJ: vertices, every face entry form, relative indices, ignored statements", "[mesh][obj]") {
+    const QuadBox b({-1.5, 0.25, 2}, {3.125, 1e-3, 7.5});
+    std::string text = "# a box\r\nmtllib box.mtl\no box\ng side\ns off\nusemtl red\n";
+    for (const auto& p : b.v) text += "v " + num(p[0]) + " " + num(p[1]) + " " + num(p[2]) + "\n";
+    text += "vt 0 0\nvt 1 0 0\nvn 0 0 1\n";
+    // one face in each entry form, one with relative indices, one continued over two lines, one with a comment
+    auto q = [&](int i, int k) { return std::to_string(b.quads[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)] + 1); };
+    text += "f " + q(0, 0) + " " + q(0, 1) + " " + q(0, 2) + " " + q(0, 3) + "\n";
+    text += "f " + q(1, 0) + "/1 " + q(1, 1) + "/2 " + q(1, 2) + "/1 " + q(1, 3) + "/2\n";
+    text += "f " + q(2, 0) + "//1 " + q(2, 1) + "//1 " + q(2, 2) + "//1 " + q(2, 3) + "//1\n";
+    text += "f " + q(3, 0) + "/1/1 " + q(3, 1) + "/2/1 \\\n  " + q(3, 2) + "/1/1 " + q(3, 3) + "/2/1\n";
+    auto rel = [&](int i, int k) { return std::to_string(static_cast<int>(b.quads[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)]) - 8); };
+    text += "f " + rel(4, 0) + " " + rel(4, 1) + "/-1 " + rel(4, 2) + "//-1 " + rel(4, 3) + "\n";
+    text += "l 1 2\np 3\n\t\n   f " + q(5, 0) + " " + q(5, 1) + " " + q(5, 2) + " " + q(5, 3) + "  # last face\n";
+    const Mesh m = obj(text);
+    const Mesh want = b.mesh();
+    CHECK(m.vertices == want.vertices);
+    CHECK(m.triangles == want.triangles);
+}
+
+TEST_CASE("OBJ: polygons fan-triangulated, vertex extras ignored, file without final newline", "[mesh][obj]") {
+    const Mesh m = obj("v 0 0 0 1\nv 1 0 0 0.5 0.5 0.5\nv 1 1 0\nv 0 1 0\nv -1 0.5 0\nf 1 2 3 4 5");
+    REQUIRE(m.vertices.size() == 5);
+    CHECK(m.vertices[1] == Vec3{1, 0, 0});
+    CHECK(m.triangles == std::vector<Tri>{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}});
+}
+
+TEST_CASE("OBJ: bad input names the file, the line and the problem", "[mesh][obj][errors]") {
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    expect_error([&] { obj(tri + "f 1 2 9000\n", "arm.obj"); },
+                 {"arm.obj: line 4: face index 9000 out of range (3 vertices)"});
+    expect_error([&] { obj(tri + "f 1 2 3\n\nf 2 3 4\nf 1 2 3\n"); }, {"m.obj: line 6: face index 4 out of range (3"});
+    expect_error([&] { obj(tri + "f 1 2 0\n"); }, {"line 4", "face index 0", "start at 1"});
+    expect_error([&] { obj(tri + "f -1 -2 -4\n"); }, {"line 4", "-4", "before the first vertex", "3 vertices so far"});
+    expect_error([&] { obj("v 0 0 0\nf -1 -1 -1\nv 1 0 0\nv 0 1 0\nf -1 -2 -3 -4\n"); }, {"line 5", "-4"});
+    expect_error([&] { obj(tri + "f 1 2\n"); }, {"line 4", "2 vertices", "at least 3"});
+    expect_error([&] { obj(tri + "f 1\n"); }, {"line 4", "1 vertex"});
+    expect_error([&] { obj(tri + "f 1 2 x\n"); }, {"line 4", "'x'", "not an index"});
+    expect_error([&] { obj(tri + "f 1 2 3/x\n"); }, {"line 4", "'3/x'"});
+    expect_error([&] { obj(tri + "f 1 2 3//\n"); }, {"line 4", "'3//'"});
+    expect_error([&] { obj(tri + "f 1 2 99999999999\n"); }, {"line 4", "99999999999", "out of range"});
+    expect_error([&] { obj("v 0 0 0\nv 1 zero 0\n"); }, {"line 2", "y 'zero' is not a number"});
+    expect_error([&] { obj("v 0 0 0\nv 1 0 0x10\n"); }, {"line 2", "z '0x10' is not a number"});
+    expect_error([&] { obj("v 0 0 0\nv 1 0 1e999\n"); }, {"line 2", "'1e999' is not a number"});
+    expect_error([&] { obj("v 0 0 0\nv 1 nan 0\n"); }, {"line 2", "y 'nan' is not finite"});
+    expect_error([&] { obj("v 0 0 0\nv -inf 0 0\n"); }, {"line 2", "x '-inf' is not finite"});
+    expect_error([&] { obj("v 0 0\n"); }, {"line 1", "vertex needs x y z"});
+    expect_error([&] { obj(tri); }, {"m.obj: no faces"});
+    expect_error([&] { obj("# nothing\n\n"); }, {"m.obj: no vertices"});
+    expect_error([&] { obj(""); }, {"m.obj: no vertices"});
+    expect_error([&] { obj(std::string("v 0 0 0\nv 1 0\0 0\n", 17)); }, {"line 2", "NUL"});
+}
+
+TEST_CASE("OBJ: the size limit stops a reader before it grows past it", "[mesh][obj][errors]") {
+    std::string text;
+    for (int i = 0; i < 100; ++i) text += "v " + std::to_string(i) + " 0 0\n";
+    ReadOptions small;
+    small.max_bytes = 24 * 50;
+    expect_error([&] { read_mem(read_obj, bytes(text + "f 1 2 3\n"), "big.obj", small); },
+                 {"big.obj: line 51", "51 vertices", "above the limit of 1,200 bytes"});
+    small.max_bytes = 24 * 100 + 12 * 3;
+    text += "f 1 2 3 4 5\n";  // 3 triangles: fits exactly
+    CHECK(read_mem(read_obj, bytes(text), "ok.obj", small).triangles.size() == 3);
+    expect_error([&] { read_mem(read_obj, bytes(text + "f 1 2 3\n"), "big.obj", small); }, {"line 102", "limit"});
+}
+
+// =================================================================================================================
+// PLY
+// =================================================================================================================
+
+TEMPLATE_TEST_CASE("PLY: a box in ascii and both binary byte orders, xyz and index types, skipped extras",
+                   "[mesh][ply]", float, double, std::int16_t) {
+    const bool integral = std::is_integral_v<TestType>;
+    const QuadBox b = integral ? QuadBox({-3, 0, 2}, {5, 1, 7}) : QuadBox({-1.5, 0.25, 2}, {3.125, 1e-3, 7.5});
+    const char* xyz = std::is_same_v<TestType, float> ? "float" : std::is_same_v<TestType, double> ? "double" : "short";
+    Mesh want = b.mesh();
+    if (std::is_same_v<TestType, float>)
+        for (auto& p : want.vertices)
+            for (auto& c : p) c = static_cast<double>(static_cast<float>(c));
+    for (PlyEnc enc : {PlyEnc::Ascii, PlyEnc::LE, PlyEnc::BE}) {
+        INFO("encoding " << static_cast<int>(enc) << ", xyz " << xyz);
+        const Mesh a = ply(box_ply<TestType, std::int32_t>(enc, xyz, "int", b));
+        CHECK(a.vertices == want.vertices);
+        CHECK(a.triangles == want.triangles);
+        const Mesh u = ply(box_ply<TestType, std::uint16_t>(enc, xyz, "ushort", b));
+        CHECK(u.triangles == want.triangles);
+        const Mesh c = ply(box_ply<TestType, std::uint8_t>(enc, xyz, "uint8", b));
+        CHECK(c.triangles == want.triangles);
+    }
+}
+
+TEST_CASE("PLY: vertex_index, CRLF header, faces before vertices, zero-property elements", "[mesh][ply]") {
+    const Bytes body = Bytes{3} + le<std::int32_t>({0, 1, 2}) + le<double>({0, 0, 0, 1, 0, 0, 0, 1, 0.5});
+    std::string h = "ply\r\nformat binary_little_endian 1.0\r\nelement nothing 1000000000000\r\nelement face 1\r\n"
+                    "property list uchar int vertex_index\r\nelement vertex 3\r\nproperty double x\r\n"
+                    "property double y\r\nproperty double z\r\nend_header\r\n";
+    const Mesh m = ply(bytes(h) + body);
+    CHECK(m.triangles == std::vector<Tri>{{0, 1, 2}});
+    CHECK(m.vertices[2] == Vec3{0, 1, 0.5});
+    // the same with an index beyond the vertices read later
+    const Bytes bad = Bytes{3} + le<std::int32_t>({0, 3, 2}) + le<double>({0, 0, 0, 1, 0, 0, 0, 1, 0.5});
+    expect_error([&] { ply(bytes(h) + bad); }, {"face 0 of 1", "vertex index 3 out of range (3 vertices)"});
+}
+
+TEST_CASE("PLY: bad headers name the file, the line and the problem", "[mesh][ply][errors]") {
+    const std::vector<std::string> xyz = {"element vertex 3", "property float x", "property float y",
+                                          "property float z"};
+    auto with = [&](std::vector<std::string> extra) {
+        std::vector<std::string> l = xyz;
+        l.insert(l.end(), extra.begin(), extra.end());
+        return l;
+    };
+    const std::vector<std::string> face = {"element face 1", "property list uchar int vertex_indices"};
+    expect_error([&] { ply(bytes("plyx\nformat ascii 1.0\nend_header\n")); }, {"m.ply: not a PLY file"});
+    expect_error([&] { ply(bytes("")); }, {"m.ply: empty file"});
+    expect_error([&] { ply(bytes("ply\nformat ascii 1.0\nelement vertex 3\n")); }, {"no end_header"});
+    expect_error([&] { ply(bytes("ply\nelement vertex 0\nend_header\n")); }, {"no 'format' line"});
+    expect_error([&] { ply(bytes("ply\nformat binary_middle_endian 1.0\nend_header\n")); },
+                 {"line 2", "unknown format 'binary_middle_endian'"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, {"property float x"}, {})); }, {"line 4", "property before any element"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"property flot w"}), {})); },
+                 {"line 8", "unknown property type 'flot'"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list float int vertex_indices"}), {})); },
+                 {"line 9", "count type 'float' must be an integer type"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list uchar float vertex_indices"}), {})); },
+                 {"line 8", "vertex_indices", "integer type"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property int vertex_indices"}), {})); },
+                 {"vertex_indices", "not a list"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list uchar int corners"}), {})); },
+                 {"line 8", "no 'vertex_indices' list"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element vertex 2"}), {})); }, {"line 8", "declared twice"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"property float x"}), {})); }, {"line 8", "'x' declared twice"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face -1"}), {})); }, {"line 8", "'-1'", "non-negative"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face many"}), {})); }, {"line 8", "'many'"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"what is this"}), {})); }, {"line 8", "unknown header line"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, {"element vertex 3", "property float x", "property float y"}, {})); },
+                 {"line 4", "element vertex has no property 'z'"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, face, {})); }, {"no 'element vertex'"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, xyz, le<float>({0, 0, 0, 1, 0, 0, 0, 1, 0}))); },
+                 {"no 'element face'", "point cloud"});
+}
+
+TEST_CASE("PLY: counts the file cannot hold are refused before anything is allocated", "[mesh][ply][errors]") {
+    const auto start = std::chrono::steady_clock::now();
+    for (PlyEnc enc : {PlyEnc::Ascii, PlyEnc::LE, PlyEnc::BE}) {
+        const Bytes huge = ply_with(enc,
+                                    {"element vertex 1000000000000", "property float x", "property float y",
+                                     "property float z", "element face 1", "property list uchar int vertex_indices"},
+                                    Bytes(1000, '1'));
+        expect_error([&] { ply(huge, "huge.ply"); },
+                     {"huge.ply: line 4: header declares 1,000,000,000,000 vertex elements", "only 1,000 bytes"});
+        const Bytes faces = ply_with(enc,
+                                     {"element vertex 3", "property float x", "property float y", "property float z",
+                                      "element face 4294967295", "property list uchar int vertex_indices"},
+                                     Bytes(1000, '1'));
+        expect_error([&] { ply(faces, "huge.ply"); }, {"line 8: header declares 4,294,967,295 face elements"});
+    }
+    CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(2));
+    // a list claiming more items than the file holds
+    expect_error([&] { ply(tiny_binary_ply(2, 0, 250)); }, {"face 0 of 1", "claims 250 items", "bytes remain"});
+    // the size limit
+    ReadOptions small;
+    small.max_bytes = 3 * 24 + 12 - 1;
+    expect_error([&] { read_mem(read_ply, tiny_binary_ply(), "t.ply", small); }, {"t.ply: header: 3 vertices and 1 triangles", "limit of 83 bytes"});
+}
+
+TEST_CASE("PLY: bad data names the element and where it is", "[mesh][ply][errors]") {
+    CHECK(ply(tiny_binary_ply()).triangles.size() == 1);
+    expect_error([&] { ply(tiny_binary_ply(3)); }, {"m.ply: face 0 of 1 (byte", "vertex index 3 out of range (3 vertices)"});
+    expect_error([&] { ply(tiny_binary_ply(-1)); }, {"face 0 of 1", "vertex index -1 out of range"});
+    expect_error([&] { ply(tiny_binary_ply(2, std::nanf(""))); }, {"vertex 0 of 3 (byte", "x is not finite"});
+    expect_error([&] { ply(tiny_binary_ply(2, INFINITY)); }, {"vertex 0 of 3", "x is not finite (inf)"});
+    expect_error([&] { ply(tiny_binary_ply(2, 0, 2)); }, {"face 0 of 1", "2 vertices", "at least 3"});
+    // ascii: text in numbers, integers out of their type's range, NaN, files that end early
+    const std::vector<std::string> h = {"element vertex 3",       "property float x", "property float y",
+                                        "property float z",       "element face 1",
+                                        "property list uchar int vertex_indices"};
+    auto ascii = [&](const std::string& body) { return ply(ply_with(PlyEnc::Ascii, h, bytes(body)), "a.ply"); };
+    CHECK(ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").triangles == std::vector<Tri>{{0, 1, 2}});
+    CHECK(ascii("0 0 0 1 0 0\n\n0 1 0 3\n0 1 2").triangles.size() == 1);  // a token stream
+    expect_error([&] { ascii("0 0 0\n1 zero 0\n0 1 0\n3 0 1 2\n"); },
+                 {"a.ply: line 12: vertex 1 of 3", "property 'y' 'zero' is not a valid float"});
+    expect_error([&] { ascii("0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"); }, {"line 12: vertex 1 of 3", "y is not finite"});
+    expect_error([&] { ascii("0 0 0\n1 0 0\n0 1 0\n300 0 1 2\n"); },
+                 {"line 14: face 0 of 1", "the count of list 'vertex_indices' '300' is not a valid uchar"});
+    expect_error([&] { ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1 2.5\n"); }, {"line 14", "'2.5' is not a valid int"});
+    // too short for the declared counts at two bytes per value: refused before reading
+    expect_error([&] { ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1\n"); }, {"line 8: header declares 1 face elements"});
+    expect_error([&] { ascii("0.000 0 0\n1 0 0\n0 1 0\n3 0 1\n"); }, {"line 14: face 0 of 1", "ends before a vertex index"});
+    expect_error([&] { ascii("0.0000000000 0 0\n1.00000000000 0 0\n"); }, {"vertex 2 of 3", "ends before property 'x'"});
+}
+
+TEST_CASE("PLY: every truncation of a binary file is refused, of an ascii file never crashes", "[mesh][ply][errors]") {
+    const QuadBox b;
+    for (PlyEnc enc : {PlyEnc::LE, PlyEnc::BE}) {
+        const Bytes full = box_ply<float, std::int32_t>(enc, "float", "int", b);
+        CHECK(ply(full).triangles.size() == 12);
+        for (std::size_t n = 0; n < full.size(); ++n) {
+            INFO("first " << n << " of " << full.size() << " bytes");
+            const Bytes cut(full.begin(), full.begin() + static_cast<std::ptrdiff_t>(n));
+            CHECK_THROWS_AS(ply(cut), FileFormatError);
+        }
+    }
+    const Bytes full = box_ply<float, std::int32_t>(PlyEnc::Ascii, "float", "int", b);
+    for (std::size_t n = 0; n < full.size(); ++n) {
+        const Bytes cut(full.begin(), full.begin() + static_cast<std::ptrdiff_t>(n));
+        try {
+            ply(cut);
+        } catch (const FileFormatError&) {
+        }
+    }
+}
+
+// =================================================================================================================
+// TGF
+// =================================================================================================================
+
+TEST_CASE("TGF: joints, edges, extra columns, trailing section", "[mesh][tgf]") {
+    const TgfSkeleton s = tgf("1 0 0 0 9 9 9\n2 1 0 0 3e300 nan\n\n3 1 1 0\n#\n1 2 1 0 0\n2   3\n#\nanything at all\n");
+    CHECK(s.joints == std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}});
+    CHECK(s.edges == std::vector<std::array<std::uint32_t, 2>>{{0, 1}, {1, 2}});
+    CHECK(tgf("1 0.5 -2 3\n").edges.empty());  // joints only
+}
+
+TEST_CASE("TGF: bad input names the file, the line and the problem", "[mesh][tgf][errors]") {
+    const std::string j = "1 0 0 0\n2 1 0 0\n3 2 0 0\n#\n";
+    expect_error([&] { tgf(j + "1 2\n2 4\n", "arm.tgf"); }, {"arm.tgf: line 6: edge joint 4 out of range (3 joints"});
+    expect_error([&] { tgf(j + "0 1\n"); }, {"line 5", "edge joint 0 out of range"});
+    expect_error([&] { tgf(j + "2 2\n"); }, {"line 5", "joins joint 2 to itself"});
+    expect_error([&] { tgf(j + "1 b\n"); }, {"line 5", "two integers"});
+    expect_error([&] { tgf(j + "1\n"); }, {"line 5", "two joint numbers"});
+    expect_error([&] { tgf("1 0 0 0\n2 1 y 0\n"); }, {"line 2", "joint y 'y' is not a number"});
+    expect_error([&] { tgf("1 0 0 0\n2 1 inf 0\n"); }, {"line 2", "not finite"});
+    expect_error([&] { tgf("1 0 0\n"); }, {"line 1", "index x y z"});
+    expect_error([&] { tgf("one 0 0 0\n"); }, {"line 1", "joint index 'one'"});
+    expect_error([&] { tgf("#\n1 2\n"); }, {"s.tgf: no joints"});
+    expect_error([&] { tgf(""); }, {"no joints"});
+}
+
+// =================================================================================================================
+// Dispatch, validation
+// =================================================================================================================
+
+TEST_CASE("read_mesh picks the reader by ending and reports missing files", "[mesh]") {
+    const fs::path dir = fs::temp_directory_path() / ("volrig_mesh_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    {
+        std::ofstream(dir / "t.OBJ") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        const Bytes p = tiny_binary_ply();
+        std::ofstream(dir / "t.ply", std::ios::binary).write(reinterpret_cast<const char*>(p.data()), static_cast<std::streamsize>(p.size()));
+    }
+    CHECK(read_mesh((dir / "t.OBJ").string()).triangles.size() == 1);
+    CHECK(read_mesh((dir / "t.ply").string()).vertices.size() == 3);
+    expect_error<FileNotFound>([&] { read_mesh((dir / "missing.obj").string()); }, {"missing.obj", "no such file"});
+    expect_error([&] { read_mesh((dir / "t.stl").string()); }, {"t.stl: unknown mesh format"});
+    fs::remove_all(dir);
+}
+
+TEST_CASE("make_mesh and check_mesh refuse bad arrays", "[mesh][errors]") {
+    const double xyz[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const std::int64_t ok[] = {0, 1, 2}, bad[] = {0, 1, 3}, neg[] = {0, -1, 2};
+    CHECK(make_mesh(xyz, 3, ok, 1).triangles == std::vector<Tri>{{0, 1, 2}});
+    expect_error<Error>([&] { make_mesh(xyz, 3, bad, 1, "arrays"); }, {"arrays: triangle 0 uses vertex 3 out of range (3"});
+    expect_error<Error>([&] { make_mesh(xyz, 3, neg, 1); }, {"vertex -1 out of range"});
+    expect_error<Error>([&] { make_mesh(xyz, 0, ok, 1); }, {"no vertices"});
+    expect_error<Error>([&] { make_mesh(xyz, 3, ok, 0); }, {"no triangles"});
+    const double nan_xyz[] = {0, 0, 0, 1, std::nan(""), 0, 0, 1, 0};
+    expect_error<Error>([&] { make_mesh(nan_xyz, 3, ok, 1); }, {"vertex 1", "non-finite", "y = nan"});
+    Mesh m = make_mesh(xyz, 3, ok, 1);
+    m.triangles[0][2] = 7;
+    expect_error<Error>([&] { check_mesh(m, "m"); }, {"m: triangle 0 uses vertex 7"});
+}
+
+// =================================================================================================================
+// Voxelization
+// =================================================================================================================
+
+TEST_CASE("voxelize: an axis-aligned box gives exactly its cells, on the documented grid", "[mesh][voxelize]") {
+    const Mesh box = QuadBox({0, 0, 0}, {1, 1, 1}).mesh();
+    for (double r : {1.5, 0.0}) {
+        INFO("closing radius " << r);
+        VoxelizeOptions opt;
+        opt.closing_radius = r;
+        const Volume v = voxelize(box, 0.05, opt);
+        CHECK(v.dtype == DType::UInt8);
+        CHECK(v.grid.dims == std::array<std::int64_t, 3>{24, 24, 24});  // 20 cells + 2 padding each side
+        CHECK(v.grid.spacing == Vec3{0.05, 0.05, 0.05});
+        for (double o : v.grid.origin) CHECK(o == Approx(-0.075).margin(1e-12));
+        CHECK(count(v) == 8000);
+        // voxel-by-voxel: inside exactly when the centre is inside the box
+        std::int64_t wrong = 0;
+        for (std::int64_t z = 0; z < 24; ++z)
+            for (std::int64_t y = 0; y < 24; ++y)
+                for (std::int64_t x = 0; x < 24; ++x) {
+                    const Vec3 c = centre_of(v, x, y, z);
+                    const bool in = c[0] > 0 && c[0] < 1 && c[1] > 0 && c[1] < 1 && c[2] > 0 && c[2] < 1;
+                    wrong += in != (v.data[static_cast<std::size_t>(v.grid.index(x, y, z))] == 1);
+                }
+        CHECK(wrong == 0);
+    }
+    // padding: 0 and rounded up
+    CHECK(voxelize(box, 0.05, 0.0).grid.dims == std::array<std::int64_t, 3>{20, 20, 20});
+    CHECK(voxelize(box, 0.05, 2.2).grid.dims == std::array<std::int64_t, 3>{26, 26, 26});
+    CHECK(count(voxelize(box, 0.05, 0.0)) == 8000);
+    // a box offset from the origin and flat in one axis relative to the voxel size
+    const Volume thin = voxelize(QuadBox({10, -5, 3}, {10.5, -4.5, 3.2}).mesh(), 0.1);
+    CHECK(thin.grid.dims == std::array<std::int64_t, 3>{9, 9, 6});
+    CHECK(count(thin) == 5 * 5 * 2);
+}
+
+TEST_CASE("voxelize: rotated boxes and spheres match their analytic volumes", "[mesh][voxelize]") {
+    const Mesh cube = rotated(QuadBox({-0.5, -0.5, -0.5}, {0.5, 0.5, 0.5}).mesh(), 0.3, 0.7, -1.1, {0.2, -3, 5});
+    for (double h : {0.031, 0.047}) {
+        const double want = 1.0 / (h * h * h);
+        const double got = static_cast<double>(count(voxelize(cube, h)));
+        INFO("voxel size " << h << ": " << got << " voxels, analytic " << want);
+        CHECK(std::abs(got / want - 1) < 0.02);
+    }
+    const Mesh sphere = icosphere(3, 0.8, {1, 2, 3});
+    for (double h : {0.02, 0.04}) {
+        const double poly = volume_of(sphere) / (h * h * h), ball = 4.0 / 3.0 * M_PI * 0.512 / (h * h * h);
+        for (double r : {1.5, 0.0}) {
+            VoxelizeOptions opt;
+            opt.closing_radius = r;
+            const double got = static_cast<double>(count(voxelize(sphere, h, opt)));
+            INFO("voxel size " << h << ", closing " << r << ": " << got << " voxels, polyhedron " << poly
+                               << ", ball " << ball);
+            CHECK(std::abs(got / poly - 1) < 0.01);
+            CHECK(std::abs(got / ball - 1) < 0.03);
+        }
+    }
+}
+
+TEST_CASE("voxelize: voxel by voxel, a sphere is inside its inscribed ball and outside its circumscribed one",
+          "[mesh][voxelize]") {
+    const Vec3 c{0.3, -0.2, 0.1};
+    const Mesh sphere = icosphere(3, 1.0, c);
+    // inradius: the smallest distance from the centre to a face plane
+    double inr = 1;
+    for (const auto& t : sphere.triangles) {
+        const Vec3 &a = sphere.vertices[t[0]], &b = sphere.vertices[t[1]], &d = sphere.vertices[t[2]];
+        const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+        Vec3 n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        inr = std::min(inr, std::abs(n[0] * (a[0] - c[0]) + n[1] * (a[1] - c[1]) + n[2] * (a[2] - c[2])) / len);
+    }
+    REQUIRE(inr > 0.98);
+    for (double r : {1.5, 0.0}) {
+        VoxelizeOptions opt;
+        opt.closing_radius = r;
+        const Volume v = voxelize(sphere, 0.037, opt);
+        std::int64_t wrong = 0, checked = 0;
+        for (std::int64_t z = 0; z < v.grid.dims[2]; ++z)
+            for (std::int64_t y = 0; y < v.grid.dims[1]; ++y)
+                for (std::int64_t x = 0; x < v.grid.dims[0]; ++x) {
+                    const Vec3 p = centre_of(v, x, y, z);
+                    const double d = std::sqrt((p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) +
+                                               (p[2] - c[2]) * (p[2] - c[2]));
+                    const bool in = v.data[static_cast<std::size_t>(v.grid.index(x, y, z))] == 1;
+                    if (d < inr) wrong += !in, ++checked;
+                    if (d > 1.0) wrong += in, ++checked;
+                }
+        INFO("closing radius " << r);
+        CHECK(checked > 0.95 * static_cast<double>(v.grid.voxel_count()));
+        CHECK(wrong == 0);
+    }
+}
+
+TEST_CASE("voxelize: a sphere with deleted triangles still comes out filled", "[mesh][voxelize][holes]") {
+    const Mesh closed = icosphere(3);  // edges ~0.15: 5 voxels at voxel size 0.03
+    Mesh holed = closed;
+    std::set<std::uint32_t> used;
+    std::vector<Tri> kept;
+    int deleted = 0;
+    for (std::size_t i = 0; i < closed.triangles.size(); ++i) {
+        const Tri& t = closed.triangles[i];
+        if (deleted < 6 && i % 97 == 13 && !used.count(t[0]) && !used.count(t[1]) && !used.count(t[2])) {
+            used.insert(t.begin(), t.end());
+            ++deleted;
+            continue;
+        }
+        kept.push_back(t);
+    }
+    REQUIRE(deleted == 6);
+    holed.triangles = kept;
+    const double h = 0.03;
+    const Volume a = voxelize(closed, h), b = voxelize(holed, h);
+    const auto [same, kept_fraction] = agreement(a, b);
+    INFO("closed " << count(a) << " voxels, with holes " << count(b));
+    CHECK(kept_fraction >= 0.98);
+    CHECK(same >= 0.995);
+    CHECK(std::abs(static_cast<double>(count(a)) / (volume_of(closed) / (h * h * h)) - 1) < 0.01);
+    // Why the closing exists: OpenVDB's own sign leaks through these holes and loses the interior.
+    VoxelizeOptions vdb;
+    vdb.closing_radius = 0;
+    try {
+        const Volume c = voxelize(holed, h, vdb);
+        CHECK(agreement(a, c).second < 0.5);
+    } catch (const Error& e) {
+        CHECK(std::string(e.what()).find("encloses no voxel centre") != std::string::npos);
+    }
+    // A smaller closing radius lets the exterior in as well; a larger one keeps closing.
+    VoxelizeOptions small, large;
+    small.closing_radius = 1.0;
+    large.closing_radius = 3.0;
+    try {
+        CHECK(agreement(a, voxelize(holed, h, small)).second < 0.5);
+    } catch (const Error&) {
+    }
+    CHECK(agreement(a, voxelize(holed, h, large)).second >= 0.98);
+}
+
+TEST_CASE("voxelize: triangle orientation and self-overlap do not matter", "[mesh][voxelize]") {
+    Mesh sphere = icosphere(2, 1.0);
+    const Volume a = voxelize(sphere, 0.06);
+    for (std::size_t i = 0; i < sphere.triangles.size(); i += 2) std::swap(sphere.triangles[i][1], sphere.triangles[i][2]);
+    CHECK(voxelize(sphere, 0.06).data == a.data);
+    // Two overlapping boxes: the union, except that both methods also fill the voxel row hugging each of the six
+    // concave edges where a face of one box meets a face of the other (centres half a voxel from both faces).
+    Mesh two = QuadBox({0, 0, 0}, {1, 1, 1}).mesh();
+    const Mesh other = QuadBox({0.5, 0.5, 0.5}, {1.5, 1.5, 1.5}).mesh();
+    for (auto t : other.triangles) two.triangles.push_back({t[0] + 8, t[1] + 8, t[2] + 8});
+    two.vertices.insert(two.vertices.end(), other.vertices.begin(), other.vertices.end());
+    auto in_box = [](const Vec3& p, double lo, double hi) {
+        return p[0] > lo && p[0] < hi && p[1] > lo && p[1] < hi && p[2] > lo && p[2] < hi;
+    };
+    for (double r : {1.5, 0.0}) {
+        VoxelizeOptions opt;
+        opt.closing_radius = r;
+        const Volume u = voxelize(two, 0.05, opt);
+        std::int64_t lost = 0, extra = 0, extra_off_edge = 0;
+        for (std::int64_t z = 0; z < u.grid.dims[2]; ++z)
+            for (std::int64_t y = 0; y < u.grid.dims[1]; ++y)
+                for (std::int64_t x = 0; x < u.grid.dims[0]; ++x) {
+                    const Vec3 p = centre_of(u, x, y, z);
+                    const bool want = in_box(p, 0, 1) || in_box(p, 0.5, 1.5);
+                    const bool got = u.data[static_cast<std::size_t>(u.grid.index(x, y, z))] == 1;
+                    lost += want && !got;
+                    if (got && !want) {
+                        ++extra;
+                        // a concave edge: one coordinate 1 (a far face of the first box), another 0.5 (a near
+                        // face of the second)
+                        bool at_one = false, at_half = false;
+                        for (double c : p) {
+                            at_one = at_one || std::abs(c - 1) < 0.05;
+                            at_half = at_half || std::abs(c - 0.5) < 0.05;
+                        }
+                        extra_off_edge += !(at_one && at_half);
+                    }
+                }
+        INFO("closing radius " << r << ": " << extra << " voxels beyond the union");
+        CHECK(lost == 0);
+        CHECK(extra <= 6 * 11);
+        CHECK(extra_off_edge == 0);
+    }
+}
+
+TEST_CASE("voxelize: progress is reported in order and cancelling stops it", "[mesh][voxelize]") {
+    const Mesh sphere = icosphere(3);
+    for (double r : {1.5, 0.0}) {
+        VoxelizeOptions opt;
+        opt.closing_radius = r;
+        std::vector<double> seen;
+        voxelize(sphere, 0.05, opt, [&](double f) {
+            seen.push_back(f);
+            return true;
+        });
+        REQUIRE(seen.size() >= 3);
+        CHECK(seen.front() == 0.0);
+        CHECK(seen.back() == 1.0);
+        CHECK(std::is_sorted(seen.begin(), seen.end()));
+        for (double stop_at : {0.0, 0.3, 0.7}) {
+            int calls_after = 0;
+            bool stopped = false;
+            CHECK_THROWS_AS(voxelize(sphere, 0.05, opt,
+                                     [&](double f) {
+                                         if (stopped) ++calls_after;
+                                         stopped = stopped || f > stop_at;
+                                         return !stopped;
+                                     }),
+                            Cancelled);
+            CHECK(calls_after == 0);
+        }
+    }
+}
+
+TEST_CASE("voxelize: bad arguments and absurd grids are refused", "[mesh][voxelize][errors]") {
+    const Mesh box = QuadBox().mesh();
+    for (double h : {0.0, -0.1, std::nan(""), double(INFINITY)})
+        expect_error<Error>([&] { voxelize(box, h); }, {"voxelize: voxel size must be finite and positive"});
+    for (double p : {-1.0, 1001.0, std::nan("")})
+        expect_error<Error>([&] { voxelize(box, 0.1, p); }, {"voxelize: padding must be between 0 and 1000"});
+    for (double r : {0.2, 4.5, -1.0}) {
+        VoxelizeOptions opt;
+        opt.closing_radius = r;
+        expect_error<Error>([&] { voxelize(box, 0.1, opt); }, {"closing radius must be 0 or between 0.5 and 4"});
+    }
+    expect_error<Error>([&] { voxelize(box, 1e-4); }, {"voxelize: the grid at voxel size 0.0001", "exceeds the limit"});
+    expect_error<Error>([&] { voxelize(box, 1e-12); }, {"voxels along x", "limit is 2^28"});
+    VoxelizeOptions tiny;
+    tiny.max_bytes = 1000;
+    expect_error<Error>([&] { voxelize(box, 0.1, tiny); }, {"exceeds the limit of 1000 bytes"});
+    expect_error<Error>([&] { voxelize(Mesh{}, 0.1); }, {"voxelize: no vertices"});
+    Mesh bad = box;
+    bad.triangles[3][1] = 8;
+    expect_error<Error>([&] { voxelize(bad, 0.1); }, {"voxelize: triangle 3 uses vertex 8 out of range"});
+    bad = box;
+    bad.vertices[2][0] = std::nan("");
+    expect_error<Error>([&] { voxelize(bad, 0.1); }, {"vertex 2 has a non-finite coordinate"});
+    // an open surface, and a box smaller than a voxel: nothing enclosed
+    Mesh open;
+    open.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    open.triangles = {{0, 1, 2}};
+    expect_error<Error>([&] { voxelize(open, 0.1); }, {"encloses no voxel centre at voxel size 0.1"});
+    expect_error<Error>([&] { voxelize(QuadBox({0, 0, 0}, {0.01, 0.01, 0.01}).mesh(), 0.1); }, {"encloses no voxel"});
+}
+
+// =================================================================================================================
+// Fuzz seed corpus: every seed must read or fail with a volrig error (regression for fuzzer findings)
+// =================================================================================================================
+
+TEST_CASE("Mesh fuzz corpus files never crash the readers", "[mesh][fuzz]") {
+    const fs::path corpus = VOLRIG_FUZZ_CORPUS;
+    ReadOptions opt;
+    opt.max_bytes = 64 << 20;
+    int files = 0;
+    for (const char* sub : {"obj", "ply", "tgf"}) {
+        if (!fs::is_directory(corpus / sub)) continue;
+        for (const auto& e : fs::directory_iterator(corpus / sub)) {
+            const Bytes b = read_file(e.path());
+            INFO(e.path());
+            try {
+                read_mem(read_obj, b, e.path().filename().string(), opt);
+            } catch (const Error&) {
+            }
+            try {
+                read_mem(read_ply, b, e.path().filename().string(), opt);
+            } catch (const Error&) {
+            }
+            try {
+                read_mem(read_tgf, b, e.path().filename().string(), opt);
+            } catch (const Error&) {
+            }
+            ++files;
+        }
+    }
+    if (files == 0) WARN("no mesh fuzz corpus under " << corpus);
+}
+
+// =================================================================================================================
+// Real data: libigl's arm
+// =================================================================================================================
+
+TEST_CASE("Real: arm.obj and arm.tgf read, voxelize, and the joints lie in the arm", "[mesh][real]") {
+    if (skip_without_data()) return;
+    const Mesh arm = read_mesh(shared_data() + "/meshes/arm.obj");
+    CHECK(arm.vertices.size() == 8311);
+    CHECK(arm.triangles.size() == 16618);
+    auto src = open_file(shared_data() + "/meshes/arm.tgf");
+    const TgfSkeleton s = read_tgf(*src);
+    REQUIRE(s.joints.size() == 5);
+    CHECK(s.edges == std::vector<std::array<std::uint32_t, 2>>{{0, 1}, {1, 2}, {2, 3}, {3, 4}});
+    CHECK(s.joints[0][0] == Approx(-0.72962893));
+    CHECK(s.joints[4][2] == Approx(0.090210152));
+
+    const double h = 0.01;
+    const Volume v = voxelize(arm, h);
+    CHECK(v.grid.dims == std::array<std::int64_t, 3>{187, 77, 47});
+    const double exact = volume_of(arm) / (h * h * h);
+    INFO("arm: " << count(v) << " voxels, polyhedron " << exact);
+    CHECK(std::abs(static_cast<double>(count(v)) / exact - 1) < 0.01);
+    VoxelizeOptions vdb;
+    vdb.closing_radius = 0;
+    CHECK(agreement(v, voxelize(arm, h, vdb)).first > 0.999);
+    // every joint within 3 voxels of an inside voxel
+    for (const Vec3& j : s.joints) {
+        double best = 1e9;
+        for (std::int64_t z = 0; z < v.grid.dims[2]; ++z)
+            for (std::int64_t y = 0; y < v.grid.dims[1]; ++y)
+                for (std::int64_t x = 0; x < v.grid.dims[0]; ++x)
+                    if (v.data[static_cast<std::size_t>(v.grid.index(x, y, z))]) {
+                        const Vec3 p = centre_of(v, x, y, z);
+                        best = std::min(best, std::hypot(p[0] - j[0], p[1] - j[1], p[2] - j[2]));
+                    }
+        INFO("joint " << j[0] << " " << j[1] << " " << j[2]);
+        CHECK(best <= 3 * h);
+    }
+}
