@@ -393,6 +393,13 @@ private:
         up.insert(up.end(), down.rbegin(), down.rend());
         return up;
     }
+    /// True when node v lies within twice its radius of the path a-b: a body plan's spine must pass by the
+    /// largest ball (five fingers of a hand are not a body).
+    bool near_path(std::uint32_t v, std::uint32_t a, std::uint32_t b) const {
+        for (std::uint32_t u : path(a, b))
+            if ((at(u) - at(v)).norm() <= 2.0 * radius(v)) return true;
+        return false;
+    }
     double mean_radius(const std::vector<std::uint32_t>& p) const {
         double s = 0;
         for (std::uint32_t v : p) s += radius(v);
@@ -624,7 +631,7 @@ private:
                     // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where
                     // that branch joins the spine.
                     const std::uint32_t pelvis = median(A, B, H), chest = median(pelvis, median(C, D, H), H);
-                    if (pelvis == chest) continue;
+                    if (pelvis == chest || !near_path(root_, pelvis, H)) continue;
                     // Limb lengths as straight reaches (paths through a cluttered trunk wander).
                     const double la = (at(A) - at(pelvis)).norm(), lb = (at(B) - at(pelvis)).norm();
                     const double lc = (at(C) - at(chest)).norm(), ld = (at(D) - at(chest)).norm();

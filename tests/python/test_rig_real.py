@@ -23,3 +23,23 @@ def test_frog_gets_four_legs_a_spine_and_a_head():
         for limb in (("upper_arm", "forearm", "hand"), ("thigh", "shin", "foot")):
             assert all(f"{b}.{side}" in rig.names for b in limb)
     assert {"hips", "spine", "chest"} <= set(rig.names)
+
+
+def test_libigl_arm_joints_are_found():
+    v, f = volrig.read_mesh(str(shared("meshes/arm.obj")))
+    joints, edges = volrig.read_tgf(str(shared("meshes/arm.tgf")))
+    mask = volrig.voxelize(v, f, 0.01)
+    pts = volrig.skeletonize(mask).top(4000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    assert rig.kind == "chains"  # an arm with five fingers is no body plan
+    dt = volrig.distance_transform(mask)
+    sp, org = np.asarray(mask.spacing), np.asarray(mask.origin)
+    for j in joints:
+        ijk = np.rint((j - org) / sp).astype(int)[::-1]
+        lo, hi = np.maximum(ijk - 3, 0), ijk + 4
+        local_radius = dt[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]].max()
+        nearest = np.linalg.norm(rig.joints - j, axis=1).min()
+        assert local_radius > 0.02
+        assert nearest <= 2 * local_radius, (j, nearest, local_radius)
+    # a rig, not a joint per voxel: the arm and five fingers need few bones
+    assert len(rig) <= 24
