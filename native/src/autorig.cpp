@@ -717,15 +717,45 @@ private:
     }
 
     /// Chains between branch points, cut at bends; at most `target` bones.
-    void chain_rig(Rig& out, int target) const {
+    /// Key nodes of the subtree spanned by the root and the chosen leaves: the root, the leaves, and the nodes
+    /// where two or more chosen branches part.
+    std::vector<std::uint8_t> key_nodes(const std::vector<std::uint32_t>& leaves, std::vector<std::uint8_t>& in) const {
+        in.assign(pos_.size(), 0);
+        in[root_] = 1;
+        for (std::uint32_t l : leaves)
+            for (std::uint32_t v = l; v != kNone && !in[v]; v = t_.parent[v]) in[v] = 1;
+        std::vector<std::uint32_t> kids(pos_.size(), 0);
+        for (std::uint32_t v = 0; v < pos_.size(); ++v)
+            if (in[v] && v != root_) ++kids[t_.parent[v]];
         std::vector<std::uint8_t> key(pos_.size(), 0);
         key[root_] = 1;
-        for (std::uint32_t v : t_.order)
-            if (t_.children[v].size() != 1) key[v] = 1;
+        for (std::uint32_t v = 0; v < pos_.size(); ++v)
+            if (in[v] && (kids[v] != 1)) key[v] = 1;
+        return key;
+    }
+
+    void chain_rig(Rig& out, int target) const {
+        // The most significant branches, as many as the bone target allows one bone each.
+        const auto ext = extremities();
+        std::vector<std::uint32_t> leaves;
+        std::vector<std::uint8_t> in, key;
+        for (const auto& [significance, leaf] : ext) {
+            leaves.push_back(leaf);
+            std::vector<std::uint8_t> in2;
+            const std::vector<std::uint8_t> key2 = key_nodes(leaves, in2);
+            const long chains = std::count(key2.begin(), key2.end(), 1) - 1;
+            if (chains > target && leaves.size() > 1) {
+                leaves.pop_back();
+                break;
+            }
+            key = key2;
+            in = in2;
+        }
+        if (leaves.empty()) key = key_nodes(leaves, in);
         // Chains: from each key node (not the root) up to its nearest key ancestor, ordered outward from the root.
         std::vector<std::vector<std::uint32_t>> chains;
         for (std::uint32_t v : t_.order) {
-            if (v == root_ || !key[v]) continue;
+            if (v == root_ || !key[v] || !in[v]) continue;
             std::vector<std::uint32_t> c{v};
             for (std::uint32_t u = t_.parent[v]; u != kNone; u = t_.parent[u]) {
                 c.push_back(u);
