@@ -60,7 +60,8 @@ void bind_rig(py::module_& m) {
     m.def(
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
-           const EdgeArray& edges, int bones, double prune_scale, double tolerance, const py::object& progress) {
+           const EdgeArray& edges, int bones, double prune_scale, double tolerance, bool roles,
+           const py::object& progress) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             const PointSet pts = point_set(ijk, &radius, "autorig");
             const auto e = edges_of(edges);
@@ -68,6 +69,7 @@ void bind_rig(py::module_& m) {
             opt.bones = bones;
             opt.prune_scale = prune_scale;
             opt.tolerance = tolerance;
+            opt.roles = roles;
             Progress p = progress_of(progress);
             Rig r;
             AutorigDetail detail;
@@ -90,7 +92,8 @@ void bind_rig(py::module_& m) {
             return d;
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
-        py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("progress") = py::none());
+        py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"),
+        py::arg("progress") = py::none());
 
     m.def(
         "bind",

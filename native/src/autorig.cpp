@@ -218,7 +218,7 @@ public:
         }
         Rig rig;
         const int target = opt_.bones > 0 ? opt_.bones : 24;
-        if (target >= 21 && !role_rig(rig)) rig = Rig{};
+        if (opt_.roles && target >= 21 && !role_rig(rig)) rig = Rig{};
         if (rig.bones.empty()) chain_rig(rig, target);
         report(progress, 1.0);
         return rig;

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -56,16 +56,10 @@ def cmd_info(args) -> int:
 
 def cmd_skeletonize(args) -> int:
     from .files import atomic_output
-    from .segment import segment
-    from .skeleton import skeletonize
-    v = _load(args)
-    mask = segment(v, lo=args.lo, hi=args.hi, labels=args.labels, largest_component=args.largest)
-    if not mask.array.any():
-        raise ValueError(f"{args.file}: the segmentation is empty (check --lo/--hi/--labels)")
     t = time.perf_counter()
-    sk = skeletonize(mask, args.metric, progress=_progress_bar("skeletonize") if args.progress else None)
+    args.voxel_size = None
+    mask, sk, pts = _mask_and_skeleton(args)
     elapsed = time.perf_counter() - t
-    pts = sk.top(args.count) if args.count is not None else sk.at(args.thinness)
     out = args.output
     if not out.endswith(".npz"):
         raise ValueError(f"{out}: the output must be a .npz file")
@@ -77,8 +71,60 @@ def cmd_skeletonize(args) -> int:
     print(f"{len(pts):,} skeleton points of {sk.object_count:,} object voxels "
           f"({100.0 * len(pts) / sk.object_count:.2f}%), {pts.metric}, "
           + (f"thinness {pts.thinness}" if pts.thinness is not None else f"top {args.count}")
-          + f"; skeletonized in {elapsed:.2f} s -> {out}")
+          + f"; loaded and skeletonized in {elapsed:.2f} s -> {out}")
     return 0
+
+
+def _mask_and_skeleton(args):
+    """The mask (segmented volume, or voxelized mesh) and its skeleton points, as the options say."""
+    from .segment import segment
+    from .skeleton import skeletonize
+    if args.file.lower().endswith((".obj", ".ply")):
+        from .mesh import read_mesh, voxelize
+        if not args.voxel_size:
+            raise ValueError(f"{args.file}: meshes need --voxel-size")
+        mask = voxelize(*read_mesh(args.file), args.voxel_size)
+    else:
+        mask = segment(_load(args), lo=args.lo, hi=args.hi, labels=args.labels, largest_component=args.largest)
+    if not mask.array.any():
+        raise ValueError(f"{args.file}: the segmentation is empty (check --lo/--hi/--labels)")
+    sk = skeletonize(mask, args.metric, progress=_progress_bar("skeletonize") if args.progress else None)
+    pts = sk.top(args.count) if args.count is not None else sk.at(args.thinness)
+    return mask, sk, pts
+
+
+def cmd_rig(args) -> int:
+    from .rig import autorig, bind
+    from .rigfile import save_rig
+    from .tree import skeleton_tree
+    if not args.output.endswith(".vrig"):
+        raise ValueError(f"{args.output}: the output must be a .vrig file")
+    t = time.perf_counter()
+    mask, sk, pts = _mask_and_skeleton(args)
+    show = args.progress
+    tree = skeleton_tree(pts, mask, alpha=args.alpha, max_edge=args.max_edge,
+                         progress=_progress_bar("skeleton-tree") if show else None)
+    rig = autorig(pts, tree, mask, bones=args.bones, roles=not args.no_roles,
+                  progress=_progress_bar("autorig") if show else None)
+    binding = bind(pts, rig, mask, mode=args.bind, progress=_progress_bar("bind") if show else None)
+    save_rig(args.output, pts, tree, rig, binding, source=args.file)
+    print(f"{len(pts):,} skeleton points, tree of {tree.component_count} part(s), {rig.kind} rig of {len(rig)} bones "
+          f"({', '.join(rig.names[:8])}{', ...' if len(rig) > 8 else ''}), {args.bind} binding; "
+          f"{time.perf_counter() - t:.1f} s -> {args.output}")
+    return 0
+
+
+def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
+    g.add_argument("--count", "-n", type=int, help="keep the N highest-scoring points instead")
+    p.add_argument("--metric", choices=["euclidean", "chamfer345"], default="euclidean")
+    p.add_argument("--lo", type=float, help="segmentation: lowest object value")
+    p.add_argument("--hi", type=float, help="segmentation: highest object value")
+    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
+    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+    p.add_argument("--progress", action="store_true", help="show progress on stderr")
+    p.add_argument("-o", "--output", required=True, help=what)
 
 
 def _progress_bar(label: str):
@@ -108,17 +154,19 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("skeletonize", help="skeleton points of a volume at a thinness")
     _add_load_options(p)
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
-    g.add_argument("--count", "-n", type=int, help="keep the N highest-scoring points instead")
-    p.add_argument("--metric", choices=["euclidean", "chamfer345"], default="euclidean")
-    p.add_argument("--lo", type=float, help="segmentation: lowest object value")
-    p.add_argument("--hi", type=float, help="segmentation: highest object value")
-    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
-    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
-    p.add_argument("--progress", action="store_true", help="show progress on stderr")
-    p.add_argument("-o", "--output", required=True, help="output .npz (ijk, centers, radii, dt, scores, ...)")
+    _add_skeleton_options(p, "output .npz (ijk, centers, radii, dt, scores, ...)")
     p.set_defaults(run=cmd_skeletonize)
+
+    p = sub.add_parser("rig", help="skeleton, skeleton-tree, automatic rig and binding, saved as one .vrig file")
+    _add_load_options(p)
+    _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
+    p.add_argument("--voxel-size", type=float, help="meshes (.obj, .ply): voxel size in the mesh's units")
+    p.add_argument("--alpha", type=float, default=0.9, help="skeleton-tree connectivity parameter (0..1)")
+    p.add_argument("--max-edge", type=float, help="longest tree edge in world units (default 4 voxel diagonals)")
+    p.add_argument("--bones", type=int, help="bone count target (default 24; role rigs use 21)")
+    p.add_argument("--no-roles", action="store_true", help="neutral chain names, no humanoid/quadruped guess")
+    p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
+    p.set_defaults(run=cmd_rig)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

@@ -119,7 +119,7 @@ class AutorigResult:
 
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
-            prune_scale: float = 1.5, tolerance: float = 0.35, progress: ProgressFn = None,
+            prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
             detail: Optional[list] = None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
@@ -129,6 +129,8 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  by this factor (larger prunes more).
     tolerance:   chains without a role are cut at bends until every point lies within tolerance * its radius of
                  its bone (in position and radius).
+    roles:       try the humanoid / quadruped body plans (a guess from the shape's five main extremities: a molar
+                 with four roots passes for a quadruped); False gives neutral chains.
     detail:      pass a list to receive an ``AutorigResult`` appended to it.
     """
     ijk, radii = _point_arrays(points)
@@ -140,7 +142,7 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     if bones is not None and not (1 <= int(bones) <= 10000):
         raise ValueError(f"bones must lie in 1..10000, got {bones}")
     d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
-                        float(prune_scale), float(tolerance), progress)
+                        float(prune_scale), float(tolerance), bool(roles), progress)
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"]))

@@ -69,3 +69,24 @@ def test_demo(tmp_path):
     assert report["skeleton"]["points"] > 0 and report["reconstruction"]["percent_lost"] < 1.0
     png = (tmp_path / "demo" / "skeleton.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20000
+
+
+def test_rig_writes_a_rig_file(tmp_path):
+    ph = volrig.phantom.humanoid(0.25)
+    src = tmp_path / "phantom.nrrd"
+    ph.volume.save(src)
+    out = tmp_path / "phantom.vrig"
+    r = run("rig", src, "--lo", 1, "--count", 4000, "-o", out)
+    assert r.returncode == 0, r.stderr
+    assert "humanoid rig of 21 bones" in r.stdout
+    loaded = volrig.load_rig(out)
+    assert loaded.rig.kind == "humanoid" and len(loaded.points) == 4000
+    assert loaded.binding.mode == "smooth" and loaded.source == str(src)
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--no-roles", "--bones", 12, "-o", out)
+    assert r.returncode == 0, r.stderr
+    loaded = volrig.load_rig(out)
+    assert loaded.rig.kind == "chains" and len(loaded.rig) <= 12
+    bad = run("rig", src, "--lo", 1, "--count", 4000, "-o", tmp_path / "x.npz")
+    assert bad.returncode == 2 and ".vrig" in bad.stderr
+    mesh = run("rig", tmp_path / "arm.obj", "--count", 100, "-o", out)
+    assert mesh.returncode == 2 and "voxel-size" in mesh.stderr

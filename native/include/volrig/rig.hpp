@@ -42,6 +42,8 @@ struct AutorigOptions {
     /// Chains are split at bends until every point lies within tolerance * its radius of its bone (4-D: position
     /// and radius), for shapes without a role template.
     double tolerance = 0.35;
+    /// Try the humanoid / quadruped body plans; false gives neutral chains whatever the shape.
+    bool roles = true;
 };
 
 /// What autorig kept, for pictures and diagnostics.
