@@ -393,11 +393,11 @@ private:
         up.insert(up.end(), down.rbegin(), down.rend());
         return up;
     }
-    /// True when node v lies within twice its radius of the path a-b: a body plan's spine must pass by the
-    /// largest ball (five fingers of a hand are not a body).
-    bool near_path(std::uint32_t v, std::uint32_t a, std::uint32_t b) const {
+    /// True when the path a-b passes through a node at least half as thick as the thickest (the root): a body
+    /// plan's spine runs through the trunk (five fingers at the end of an arm are no body).
+    bool thick_path(std::uint32_t a, std::uint32_t b) const {
         for (std::uint32_t u : path(a, b))
-            if ((at(u) - at(v)).norm() <= 2.0 * radius(v)) return true;
+            if (radius(u) >= 0.5 * radius(root_)) return true;
         return false;
     }
     double mean_radius(const std::vector<std::uint32_t>& p) const {
@@ -613,7 +613,8 @@ private:
         std::uint32_t chosen[5] = {0, 0, 0, 0, 0};  // head, leg, leg, arm, arm
         std::uint32_t leaf[5];
         for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
-            if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5) continue;
+            // A body plan includes the two most prominent extremities.
+            if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
             double left_out = 0;
             for (int i = 0, k = 0; i < m; ++i) {
                 if (mask5 & (1 << i)) leaf[k++] = ext[static_cast<std::size_t>(i)].second;
@@ -631,7 +632,7 @@ private:
                     // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where
                     // that branch joins the spine.
                     const std::uint32_t pelvis = median(A, B, H), chest = median(pelvis, median(C, D, H), H);
-                    if (pelvis == chest || !near_path(root_, pelvis, H)) continue;
+                    if (pelvis == chest || !thick_path(pelvis, H)) continue;
                     // Limb lengths as straight reaches (paths through a cluttered trunk wander).
                     const double la = (at(A) - at(pelvis)).norm(), lb = (at(B) - at(pelvis)).norm();
                     const double lc = (at(C) - at(chest)).norm(), ld = (at(D) - at(chest)).norm();
