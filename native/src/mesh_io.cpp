@@ -84,7 +84,7 @@ private:
 
 void refuse_binary(const std::string& name, std::int64_t line_no, std::string_view line, const char* format) {
     if (line.find('\0') != std::string_view::npos)
-        fail(name, at_line(line_no) + "binary data (a NUL byte) in a " + format + " text file");
+        fail(name, at_line(line_no) + "binary data (a NUL byte) where " + format + " text was expected");
 }
 
 /// Throws when a mesh of this many vertices and triangles would exceed the limits; `where()` gives the message's

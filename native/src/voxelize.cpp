@@ -6,19 +6,29 @@
 // tests show a sphere with a few deleted triangles losing its whole interior). It is kept as closing_radius = 0.
 //
 // What is done instead (closing_radius r > 0), on a working grid with a margin of ceil(r) + 3 voxels:
-//   1. OpenVDB's meshToVolume in UNSIGNED_DISTANCE_FIELD mode gives u, the exact distance (in voxels) from each
-//      voxel centre within r + 2.5 voxels of the surface to the nearest triangle.
+//   1. OpenVDB's meshToVolume in UNSIGNED_DISTANCE_FIELD mode gives u, the distance (in voxels) from each voxel
+//      centre within r + 2.5 voxels of the surface to a triangle. Its band expansion propagates candidate triangles,
+//      so u is an upper bound, not always the nearest (about 3% of the arm's band voxels are up to 0.43 voxel too
+//      far); the voxels with r < u <= r + 2 get the exact distance from a bounding-volume hierarchy of the
+//      triangles (TriangleTree).
 //   2. Voxels with u <= r are walls. The exterior E is flood-filled (6-connected, scanline fill) from the grid
 //      border through the other voxels, so it cannot pass any hole or gap narrower than about 2r.
-//   3. A ball B(e, u(e)) around an exterior voxel touches the surface but never crosses it. Every voxel strictly
-//      inside such a ball (for the exterior voxels with u <= r + 2, whose balls reach every wall voxel outside the
-//      surface) is outside too. This removes the outer half of the wall with sub-voxel accuracy: a voxel centre
-//      outside a closed surface is covered (up to lattice sampling of the ball centres, which matters only for
-//      centres within a few hundredths of a voxel of the surface), and one inside never is, since any segment
-//      from it to an exterior voxel crosses the surface.
-//   4. Inside = neither exterior nor covered. The result is the morphological closing of the solid with a ball of
-//      radius r: creases narrower than 2r are filled, concave corners rounded with radius r, holes bridged by a
-//      cap that dips at most r - sqrt(r² - h²) voxels (hole radius h < r), enclosed cavities filled.
+//   3. A ball B(e, u(e)) around an exterior voxel touches the surface but never crosses it, so every voxel strictly
+//      inside such a ball is outside too (the exterior voxels with u <= r + 2 are the centres; their balls reach
+//      every wall voxel outside the surface). A voxel inside a closed surface is never covered: any segment from it
+//      to an exterior voxel crosses the surface.
+//   3b. Ball centres on the lattice miss some voxels within a few hundredths of a voxel of the surface. Each wall
+//      voxel v within half a voxel of it gets a second test with a centre off the lattice: q = s + (r + 1) n, where
+//      s is v's nearest surface point and n the unit vector from s to v. If no triangle comes nearer to q than v
+//      and q's nearest voxel (which must be exterior or covered), v is in q's empty ball, connected to the
+//      exterior, and outside. This is sound for the same reason as 3.
+//   4. Inside = neither exterior nor covered. The result is close to the morphological closing of the solid with a
+//      ball of radius r: creases narrower than 2r are filled, concave corners are rounded (the voxel row along a
+//      concave edge stays inside, as it does with OpenVDB's sign), holes narrower than about 2r are bridged by a
+//      cap that dips at most r - sqrt(r² - h²) voxels (hole radius h < r), enclosed cavities are filled.
+//      Measured on the closed arm mesh at voxel size 0.01: 58,778 voxels against the exact volume's 58,619 (+0.27%);
+//      OpenVDB's sign gives 58,630. They differ on 184 voxels, all within 1.3 voxels of the surface; a winding-number
+//      test sides with the closing on 76 of them (OpenVDB's sign is not exact either) and with OpenVDB on 108.
 #include <openvdb/openvdb.h>
 #include <openvdb/math/Proximity.h>
 #include <openvdb/tools/MeshToVolume.h>

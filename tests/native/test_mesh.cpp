@@ -838,6 +838,10 @@ TEST_CASE("voxelize: bad arguments and absurd grids are refused", "[mesh][voxeli
 
 TEST_CASE("Mesh fuzz corpus files never crash the readers", "[mesh][fuzz]") {
     const fs::path corpus = VOLRIG_FUZZ_CORPUS;
+    if (!fs::is_directory(corpus)) {
+        WARN("no fuzz corpus at " << corpus << ": skipped");
+        return;
+    }
     ReadOptions opt;
     opt.max_bytes = 64 << 20;
     int files = 0;
@@ -861,7 +865,7 @@ TEST_CASE("Mesh fuzz corpus files never crash the readers", "[mesh][fuzz]") {
             ++files;
         }
     }
-    if (files == 0) WARN("no mesh fuzz corpus under " << corpus);
+    CHECK(files >= 30);
 }
 
 // =================================================================================================================

@@ -75,14 +75,15 @@ struct VoxelizeOptions {
 /// origin + voxel_size * (x, y, z). The grid's cells cover the mesh's bounding box (its minimum corner lies on a
 /// cell boundary) plus `padding_voxels` whole cells on every side. A voxel is inside when its centre is.
 ///
-/// Method (closing_radius r > 0): OpenVDB's meshToVolume gives the unsigned distance u to the surface in a narrow
-/// band; the exterior E is flood-filled from the grid border through voxels with u > r; a voxel is outside when it
-/// is in E or lies strictly inside a ball B(e, u(e)) around an exterior voxel e (such balls touch the surface but
-/// never cross it). Everything else is inside. For a closed surface this is the solid it encloses, except that
-/// creases narrower than 2r are filled and concave corners rounded with radius r (a morphological closing);
-/// holes narrower than about 2r are bridged. Orientation and self-intersections do not matter; enclosed cavities
-/// are filled. Refuses non-positive or non-finite voxel sizes, grids beyond max_bytes, and meshes that enclose
-/// no voxel centre at this voxel size.
+/// Method (closing_radius r > 0; details in voxelize.cpp): OpenVDB's meshToVolume gives the unsigned distance u to
+/// the surface in a narrow band (made exact near the threshold with a bounding-volume hierarchy); the exterior E is
+/// flood-filled from the grid border through voxels with u > r; a voxel is also outside when it lies strictly
+/// inside a ball B(c, u(c)) around an exterior point c (such balls touch the surface but never cross it).
+/// Everything else is inside. For a closed surface this is the solid it encloses, except that creases narrower
+/// than 2r are filled and concave corners rounded (a morphological closing); holes narrower than about 2r are
+/// bridged. Orientation and self-intersections do not matter; enclosed cavities are filled. Refuses non-positive or
+/// non-finite voxel sizes, grids beyond max_bytes or 2^28 voxels along an axis, and meshes that enclose no voxel
+/// centre at this voxel size.
 Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt, const Progress& progress = {});
 
 /// Same with default options except the padding.
