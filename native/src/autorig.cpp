@@ -393,12 +393,14 @@ private:
         up.insert(up.end(), down.rbegin(), down.rend());
         return up;
     }
-    /// True when the path a-b passes through a node at least half as thick as the thickest (the root): a body
-    /// plan's spine runs through the trunk (five fingers at the end of an arm are no body).
-    bool thick_path(std::uint32_t a, std::uint32_t b) const {
-        for (std::uint32_t u : path(a, b))
-            if (radius(u) >= 0.5 * radius(root_)) return true;
-        return false;
+    /// Diagonal of the bounding box of the given nodes' positions.
+    double extent(const std::vector<std::uint32_t>& nodes) const {
+        Vec lo = Vec::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+        for (std::uint32_t v : nodes) {
+            lo = lo.cwiseMin(at(v));
+            hi = hi.cwiseMax(at(v));
+        }
+        return nodes.empty() ? 0.0 : (hi - lo).norm();
     }
     double mean_radius(const std::vector<std::uint32_t>& p) const {
         double s = 0;
@@ -609,6 +611,7 @@ private:
         const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
         double total = 0;
         for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+        const double whole_extent = extent(t_.order);
         double best = std::numeric_limits<double>::infinity();
         std::uint32_t chosen[5] = {0, 0, 0, 0, 0};  // head, leg, leg, arm, arm
         std::uint32_t leaf[5];
@@ -621,6 +624,8 @@ private:
                 else left_out += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
             }
             const double leave_penalty = total > 0 ? left_out / total : 0.0;
+            // A body spans the object: five fingers at the end of an arm are no body plan.
+            if (extent(std::vector<std::uint32_t>(leaf, leaf + 5)) < 0.5 * whole_extent) continue;
         for (int h = 0; h < 5; ++h)
             for (int a = 0; a < 5; ++a)
                 for (int b = a + 1; b < 5; ++b) {
@@ -632,11 +637,19 @@ private:
                     // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where
                     // that branch joins the spine.
                     const std::uint32_t pelvis = median(A, B, H), chest = median(pelvis, median(C, D, H), H);
-                    if (pelvis == chest || !thick_path(pelvis, H)) continue;
-                    // Limb lengths as straight reaches (paths through a cluttered trunk wander).
-                    const double la = (at(A) - at(pelvis)).norm(), lb = (at(B) - at(pelvis)).norm();
-                    const double lc = (at(C) - at(chest)).norm(), ld = (at(D) - at(chest)).norm();
-                    double score = std::abs(la - lb) / (la + lb) + std::abs(lc - ld) / (lc + ld) + leave_penalty;
+                    if (pelvis == chest) continue;
+                    // A pair of limbs mirrors across the body's midplane: both tips sit at the same place along the
+                    // spine's line (pelvis -> head) and at the same distance from it. Straight-line measures: paths
+                    // through a cluttered trunk wander.
+                    const Vec axis = (at(H) - at(pelvis)).normalized();
+                    auto mirror = [&](std::uint32_t x, std::uint32_t y, std::uint32_t base) {
+                        const Vec px = at(x) - at(pelvis), py = at(y) - at(pelvis);
+                        const double tx = px.dot(axis), ty = py.dot(axis);
+                        const double rx = (px - tx * axis).norm(), ry = (py - ty * axis).norm();
+                        return (std::abs(tx - ty) + std::abs(rx - ry)) /
+                               std::max((at(x) - at(base)).norm() + (at(y) - at(base)).norm(), 1e-12);
+                    };
+                    double score = mirror(A, B, pelvis) + mirror(C, D, chest) + leave_penalty;
                     const double rl = 0.5 * (mean_radius(path(pelvis, A)) + mean_radius(path(pelvis, B)));
                     const double ra = 0.5 * (mean_radius(path(chest, C)) + mean_radius(path(chest, D)));
                     if (rl < ra) score += 0.25;  // legs carry the body: thicker than arms
