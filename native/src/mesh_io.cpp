@@ -99,7 +99,8 @@ void check_mesh_size(const std::string& name, const Where& where, std::uint64_t 
         fail(name, where() + "more than " + with_commas(kMaxVertices) + " vertices (indices are 32-bit)");
     fail(name, where() + with_commas(vertices) + " vertices and " + with_commas(triangles) + " triangles take " +
                    with_commas(static_cast<std::uint64_t>(std::min<long double>(bytes, 1.8e19L))) +
-                   " bytes, above the limit of " + with_commas(max_bytes) + " bytes (raise max_bytes if this is intended)");
+                   " bytes, above the limit of " + with_commas(max_bytes) +
+                   " bytes (raise max_bytes if this is intended)");
 }
 
 /// Parses three finite coordinates; the message names what is wrong.
@@ -187,7 +188,8 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
             std::array<double, 3> p{};
             std::string why;
             if (!parse_xyz(w, 1, p, why)) fail(name, at_line(line_no) + "vertex " + why);
-            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size() + 1, m.triangles.size(), opt.max_bytes);
+            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size() + 1, m.triangles.size(),
+                            opt.max_bytes);
             m.vertices.push_back(p);
         } else if (w[0] == "f") {
             if (w.size() < 4)
@@ -204,8 +206,8 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
                 if (k < 0) {
                     if (-k > count)
                         fail(name, at_line(line_no) + "relative face index " + std::to_string(k) +
-                                       " refers before the first vertex (" + with_commas(static_cast<std::uint64_t>(count)) +
-                                       " vertices so far)");
+                                       " refers before the first vertex (" +
+                                       with_commas(static_cast<std::uint64_t>(count)) + " vertices so far)");
                     k = count + k + 1;
                 }
                 if (static_cast<std::uint64_t>(k) > kMaxVertices)
@@ -217,8 +219,8 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
                 }
                 poly.push_back(static_cast<std::uint32_t>(k - 1));
             }
-            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size(), m.triangles.size() + poly.size() - 2,
-                            opt.max_bytes);
+            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size(),
+                            m.triangles.size() + poly.size() - 2, opt.max_bytes);
             fan(poly, m.triangles);
         }
         // Everything else (vt vn vp g o s usemtl mtllib l p and unknown statements) is ignored.
@@ -256,7 +258,8 @@ TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
         }
         if (section == 0) {
             std::int64_t index = 0;
-            if (w.size() < 4) fail(name, at_line(line_no) + "joint needs 'index x y z', got " + quoted(detail::trim(line)));
+            if (w.size() < 4)
+                fail(name, at_line(line_no) + "joint needs 'index x y z', got " + quoted(detail::trim(line)));
             if (!detail::parse_int(w[0], index))
                 fail(name, at_line(line_no) + "joint index " + quoted(w[0]) + " is not an integer");
             std::array<double, 3> p{};
@@ -266,9 +269,11 @@ TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
             s.joints.push_back(p);
         } else {
             std::int64_t a = 0, b = 0;
-            if (w.size() < 2) fail(name, at_line(line_no) + "edge needs two joint numbers, got " + quoted(detail::trim(line)));
+            if (w.size() < 2)
+                fail(name, at_line(line_no) + "edge needs two joint numbers, got " + quoted(detail::trim(line)));
             if (!detail::parse_int(w[0], a) || !detail::parse_int(w[1], b))
-                fail(name, at_line(line_no) + "edge " + quoted(detail::trim(line)) + " does not start with two integers");
+                fail(name, at_line(line_no) + "edge " + quoted(detail::trim(line)) +
+                               " does not start with two integers");
             check_mesh_size(name, [&] { return at_line(line_no); }, s.joints.size(), edges.size() + 1, opt.max_bytes);
             edges.push_back({a, b, line_no});
         }
@@ -379,7 +384,8 @@ PlyHeader read_ply_header(const ByteSource& src, LineReader& lines) {
             ended = true;
         } else if (w[0] == "format") {
             if (have_format) fail(name, here + "a second 'format' line");
-            if (w.size() != 3) fail(name, here + "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
+            if (w.size() != 3)
+                fail(name, here + "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
             if (w[1] == "ascii")
                 h.format = PlyFormat::Ascii;
             else if (w[1] == "binary_little_endian")
@@ -589,7 +595,9 @@ bool ascii_number(std::string_view tok, PlyType t, double& out) {
             case PlyType::UInt8: lo = 0, hi = 255; break;
             case PlyType::Int16: lo = -32768, hi = 32767; break;
             case PlyType::UInt16: lo = 0, hi = 65535; break;
-            case PlyType::Int32: lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max(); break;
+            case PlyType::Int32:
+                lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max();
+                break;
             default: lo = 0, hi = std::numeric_limits<std::uint32_t>::max(); break;
         }
         if (v < lo || v > hi) return false;
@@ -716,7 +724,8 @@ private:
 
     std::uint64_t list_count(const PlyProperty& p) {
         const double c = value(p.count_type, p, Role::Count);
-        if (c < 0) fail(name_, where() + "list '" + p.name + "' has a negative count (" + detail::format_double(c) + ")");
+        if (c < 0)
+            fail(name_, where() + "list '" + p.name + "' has a negative count (" + detail::format_double(c) + ")");
         const auto n = static_cast<std::uint64_t>(c);
         // Each item needs bytes of its own: refuse counts the rest of the file cannot hold before reading them.
         const std::uint64_t per = ascii() ? 2 : ply_size(p.type);
@@ -762,6 +771,7 @@ private:
     void read_face() {
         const auto& props = element_->props;
         const bool vertices_known = L_.vertex < L_.face;
+        const std::uint64_t vertex_count = h_.elements[static_cast<std::size_t>(L_.vertex)].count;
         for (std::size_t i = 0; i < props.size(); ++i) {
             const PlyProperty& p = props[i];
             if (static_cast<int>(i) != L_.indices) {
@@ -780,9 +790,7 @@ private:
                 if (v < 0 || v >= static_cast<double>(kMaxVertices) ||
                     (vertices_known && v >= static_cast<double>(m_.vertices.size())))
                     fail(name_, where() + "vertex index " + detail::format_double(v) + " out of range (" +
-                                    with_commas(vertices_known ? m_.vertices.size()
-                                                               : h_.elements[static_cast<std::size_t>(L_.vertex)].count) +
-                                    " vertices)");
+                                    with_commas(vertices_known ? m_.vertices.size() : vertex_count) + " vertices)");
                 const auto idx = static_cast<std::uint32_t>(v);
                 if (!vertices_known && (max_index_where_.empty() || idx > max_index_)) {
                     max_index_ = idx;

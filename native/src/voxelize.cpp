@@ -294,7 +294,8 @@ void cover_balls(const Grid& g, std::uint8_t* state, std::vector<BallCentre>& ce
     std::vector<std::size_t> first(static_cast<std::size_t>(slabs) + 1, centres.size());
     for (std::size_t i = centres.size(); i-- > 0;) first[static_cast<std::size_t>(centres[i].z / slab)] = i;
     for (std::int64_t s = slabs; s-- > 0;)
-        first[static_cast<std::size_t>(s)] = std::min(first[static_cast<std::size_t>(s)], first[static_cast<std::size_t>(s) + 1]);
+        first[static_cast<std::size_t>(s)] =
+            std::min(first[static_cast<std::size_t>(s)], first[static_cast<std::size_t>(s) + 1]);
 
     auto do_slab = [&](std::int64_t s) {
         for (std::size_t c = first[static_cast<std::size_t>(s)]; c < first[static_cast<std::size_t>(s) + 1]; ++c) {
@@ -317,6 +318,7 @@ void cover_balls(const Grid& g, std::uint8_t* state, std::vector<BallCentre>& ce
     }
 }
 
+using Range = tbb::blocked_range<std::size_t>;
 using FloatTree = openvdb::FloatGrid::TreeType;
 using FloatLeaf = FloatTree::LeafNodeType;
 
@@ -446,7 +448,7 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
             std::vector<openvdb::Coord> close;  // walls within kSurfaceLayer of the surface
         };
         tbb::enumerable_thread_specific<Found> found;
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const tbb::blocked_range<std::size_t>& br) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.size()), [&](const Range& br) {
             auto& mine = found.local();
             for (std::size_t i = br.begin(); i != br.end(); ++i)
                 for (auto it = leaves[i]->cbeginValueOn(); it; ++it) {
@@ -470,7 +472,7 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
 
         // 2. Exact distances for the voxels between r and r + 2; walls, then the exterior.
         const TriangleTree tree(points, mesh.triangles);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, near.size()), [&](const tbb::blocked_range<std::size_t>& br) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, near.size()), [&](const Range& br) {
             for (std::size_t i = br.begin(); i != br.end(); ++i) {
                 BallCentre& e = near[i];
                 const double d = tree.nearest(openvdb::Vec3d(e.x, e.y, e.z), e.radius + 1e-3);
@@ -497,7 +499,7 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
         //     nearest voxel (which is exterior or covered), v is in q's empty ball and so outside as well. A voxel
         //     inside the surface never passes: the segment from it to an outside q crosses the surface.
         std::vector<std::uint8_t> outside(close.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, close.size()), [&](const tbb::blocked_range<std::size_t>& br) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, close.size()), [&](const Range& br) {
             for (std::size_t i = br.begin(); i != br.end(); ++i) {
                 if (state[index(close[i])] != kWall) continue;
                 const openvdb::Vec3d p = close[i].asVec3d();

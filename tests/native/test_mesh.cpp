@@ -149,7 +149,8 @@ double volume_of(const Mesh& m) {
     double s = 0;
     for (const auto& t : m.triangles) {
         const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
-        s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+             a[2] * (b[0] * c[1] - b[1] * c[0]);
     }
     return std::abs(s) / 6;
 }
@@ -321,12 +322,15 @@ TEST_CASE("OBJ: vertices, every face entry form, relative indices, ignored state
     for (const auto& p : b.v) text += "v " + num(p[0]) + " " + num(p[1]) + " " + num(p[2]) + "\n";
     text += "vt 0 0\nvt 1 0 0\nvn 0 0 1\n";
     // one face in each entry form, one with relative indices, one continued over two lines, one with a comment
-    auto q = [&](int i, int k) { return std::to_string(b.quads[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)] + 1); };
+    auto corner = [&](int i, int k) {
+        return static_cast<int>(b.quads[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)]);
+    };
+    auto q = [&](int i, int k) { return std::to_string(corner(i, k) + 1); };
     text += "f " + q(0, 0) + " " + q(0, 1) + " " + q(0, 2) + " " + q(0, 3) + "\n";
     text += "f " + q(1, 0) + "/1 " + q(1, 1) + "/2 " + q(1, 2) + "/1 " + q(1, 3) + "/2\n";
     text += "f " + q(2, 0) + "//1 " + q(2, 1) + "//1 " + q(2, 2) + "//1 " + q(2, 3) + "//1\n";
     text += "f " + q(3, 0) + "/1/1 " + q(3, 1) + "/2/1 \\\n  " + q(3, 2) + "/1/1 " + q(3, 3) + "/2/1\n";
-    auto rel = [&](int i, int k) { return std::to_string(static_cast<int>(b.quads[static_cast<std::size_t>(i)][static_cast<std::size_t>(k)]) - 8); };
+    auto rel = [&](int i, int k) { return std::to_string(corner(i, k) - 8); };
     text += "f " + rel(4, 0) + " " + rel(4, 1) + "/-1 " + rel(4, 2) + "//-1 " + rel(4, 3) + "\n";
     text += "l 1 2\np 3\n\t\n   f " + q(5, 0) + " " + q(5, 1) + " " + q(5, 2) + " " + q(5, 3) + "  # last face\n";
     const Mesh m = obj(text);
@@ -434,12 +438,15 @@ TEST_CASE("PLY: bad headers name the file, the line and the problem", "[mesh][pl
     expect_error([&] { ply(bytes("ply\nelement vertex 0\nend_header\n")); }, {"no 'format' line"});
     expect_error([&] { ply(bytes("ply\nformat binary_middle_endian 1.0\nend_header\n")); },
                  {"line 2", "unknown format 'binary_middle_endian'"});
-    expect_error([&] { ply(ply_with(PlyEnc::LE, {"property float x"}, {})); }, {"line 4", "property before any element"});
+    expect_error([&] { ply(ply_with(PlyEnc::LE, {"property float x"}, {})); },
+                 {"line 4", "property before any element"});
     expect_error([&] { ply(ply_with(PlyEnc::LE, with({"property flot w"}), {})); },
                  {"line 8", "unknown property type 'flot'"});
-    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list float int vertex_indices"}), {})); },
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list float int vertex_indices"}),
+                                    {})); },
                  {"line 9", "count type 'float' must be an integer type"});
-    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list uchar float vertex_indices"}), {})); },
+    expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property list uchar float vertex_indices"}),
+                                    {})); },
                  {"line 8", "vertex_indices", "integer type"});
     expect_error([&] { ply(ply_with(PlyEnc::LE, with({"element face 1", "property int vertex_indices"}), {})); },
                  {"vertex_indices", "not a list"});
@@ -478,12 +485,14 @@ TEST_CASE("PLY: counts the file cannot hold are refused before anything is alloc
     // the size limit
     ReadOptions small;
     small.max_bytes = 3 * 24 + 12 - 1;
-    expect_error([&] { read_mem(read_ply, tiny_binary_ply(), "t.ply", small); }, {"t.ply: header: 3 vertices and 1 triangles", "limit of 83 bytes"});
+    expect_error([&] { read_mem(read_ply, tiny_binary_ply(), "t.ply", small); },
+                 {"t.ply: header: 3 vertices and 1 triangles", "limit of 83 bytes"});
 }
 
 TEST_CASE("PLY: bad data names the element and where it is", "[mesh][ply][errors]") {
     CHECK(ply(tiny_binary_ply()).triangles.size() == 1);
-    expect_error([&] { ply(tiny_binary_ply(3)); }, {"m.ply: face 0 of 1 (byte", "vertex index 3 out of range (3 vertices)"});
+    expect_error([&] { ply(tiny_binary_ply(3)); },
+                 {"m.ply: face 0 of 1 (byte", "vertex index 3 out of range (3 vertices)"});
     expect_error([&] { ply(tiny_binary_ply(-1)); }, {"face 0 of 1", "vertex index -1 out of range"});
     expect_error([&] { ply(tiny_binary_ply(2, std::nanf(""))); }, {"vertex 0 of 3 (byte", "x is not finite"});
     expect_error([&] { ply(tiny_binary_ply(2, INFINITY)); }, {"vertex 0 of 3", "x is not finite (inf)"});
@@ -503,8 +512,10 @@ TEST_CASE("PLY: bad data names the element and where it is", "[mesh][ply][errors
     expect_error([&] { ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1 2.5\n"); }, {"line 14", "'2.5' is not a valid int"});
     // too short for the declared counts at two bytes per value: refused before reading
     expect_error([&] { ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1\n"); }, {"line 8: header declares 1 face elements"});
-    expect_error([&] { ascii("0.000 0 0\n1 0 0\n0 1 0\n3 0 1\n"); }, {"line 14: face 0 of 1", "ends before a vertex index"});
-    expect_error([&] { ascii("0.0000000000 0 0\n1.00000000000 0 0\n"); }, {"vertex 2 of 3", "ends before property 'x'"});
+    expect_error([&] { ascii("0.000 0 0\n1 0 0\n0 1 0\n3 0 1\n"); },
+                 {"line 14: face 0 of 1", "ends before a vertex index"});
+    expect_error([&] { ascii("0.0000000000 0 0\n1.00000000000 0 0\n"); },
+                 {"vertex 2 of 3", "ends before property 'x'"});
 }
 
 TEST_CASE("PLY: every truncation of a binary file is refused, of an ascii file never crashes", "[mesh][ply][errors]") {
@@ -564,7 +575,8 @@ TEST_CASE("read_mesh picks the reader by ending and reports missing files", "[me
     {
         std::ofstream(dir / "t.OBJ") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
         const Bytes p = tiny_binary_ply();
-        std::ofstream(dir / "t.ply", std::ios::binary).write(reinterpret_cast<const char*>(p.data()), static_cast<std::streamsize>(p.size()));
+        std::ofstream(dir / "t.ply", std::ios::binary)
+            .write(reinterpret_cast<const char*>(p.data()), static_cast<std::streamsize>(p.size()));
     }
     CHECK(read_mesh((dir / "t.OBJ").string()).triangles.size() == 1);
     CHECK(read_mesh((dir / "t.ply").string()).vertices.size() == 3);
@@ -577,7 +589,8 @@ TEST_CASE("make_mesh and check_mesh refuse bad arrays", "[mesh][errors]") {
     const double xyz[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
     const std::int64_t ok[] = {0, 1, 2}, bad[] = {0, 1, 3}, neg[] = {0, -1, 2};
     CHECK(make_mesh(xyz, 3, ok, 1).triangles == std::vector<Tri>{{0, 1, 2}});
-    expect_error<Error>([&] { make_mesh(xyz, 3, bad, 1, "arrays"); }, {"arrays: triangle 0 uses vertex 3 out of range (3"});
+    expect_error<Error>([&] { make_mesh(xyz, 3, bad, 1, "arrays"); },
+                        {"arrays: triangle 0 uses vertex 3 out of range (3"});
     expect_error<Error>([&] { make_mesh(xyz, 3, neg, 1); }, {"vertex -1 out of range"});
     expect_error<Error>([&] { make_mesh(xyz, 0, ok, 1); }, {"no vertices"});
     expect_error<Error>([&] { make_mesh(xyz, 3, ok, 0); }, {"no triangles"});
@@ -730,7 +743,8 @@ TEST_CASE("voxelize: a sphere with deleted triangles still comes out filled", "[
 TEST_CASE("voxelize: triangle orientation and self-overlap do not matter", "[mesh][voxelize]") {
     Mesh sphere = icosphere(2, 1.0);
     const Volume a = voxelize(sphere, 0.06);
-    for (std::size_t i = 0; i < sphere.triangles.size(); i += 2) std::swap(sphere.triangles[i][1], sphere.triangles[i][2]);
+    for (std::size_t i = 0; i < sphere.triangles.size(); i += 2)
+        std::swap(sphere.triangles[i][1], sphere.triangles[i][2]);
     CHECK(voxelize(sphere, 0.06).data == a.data);
     // Two overlapping boxes: the union, except that both methods also fill the voxel row hugging each of the six
     // concave edges where a face of one box meets a face of the other (centres half a voxel from both faces).
