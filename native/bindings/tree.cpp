@@ -1,4 +1,4 @@
-// Bindings for volrig/tree.hpp: the skeleton-tree and the contained neighbour graph. Conversions only.
+// Bindings for volrig/tree.hpp: the skeleton-tree and the containment test. Conversions only.
 #include "volrig/tree.hpp"
 
 #include "convert.hpp"
@@ -35,25 +35,6 @@ void bind_tree(py::module_& m) {
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("alpha"),
         py::arg("max_edge"), py::arg("bridge"), py::arg("progress") = py::none());
-
-    m.def(
-        "skeleton_graph",
-        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, double max_edge,
-           const py::object& progress) {
-            const Grid g = grid_of(mask, spacing, origin, "mask");
-            const PointSet pts = point_set(ijk, nullptr, "skeleton_graph");
-            Progress p = progress_of(progress);
-            SkeletonGraph gr;
-            {
-                py::gil_scoped_release nogil;
-                gr = skeleton_graph(g, mask.data(), pts, max_edge, p);
-            }
-            const auto no = static_cast<py::ssize_t>(gr.offsets.size()), nt = static_cast<py::ssize_t>(gr.targets.size());
-            return py::make_tuple(to_numpy_shaped(std::move(gr.offsets), {no}), to_numpy_shaped(std::move(gr.targets), {nt}),
-                                  to_numpy_shaped(std::move(gr.lengths), {nt}));
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("max_edge"),
-        py::arg("progress") = py::none());
 
     m.def(
         "line_inside",

@@ -21,7 +21,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <queue>
 #include <tuple>
 #include <string>
 #include <unordered_map>
@@ -108,25 +107,11 @@ LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGr
     std::uint32_t root = kNone;
     for (std::uint32_t i = 0; i < n; ++i)
         if (component[i] == 0 && (root == kNone || pts.radius[i] > pts.radius[root])) root = i;
-    const double inf = std::numeric_limits<double>::infinity();
-    std::vector<double> dist(n, inf);
-    using Item = std::pair<double, std::uint32_t>;
-    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+    std::vector<double> dist(n, std::numeric_limits<double>::infinity());
     dist[root] = 0;
-    queue.push({0.0, root});
-    while (!queue.empty()) {
-        const auto [d, v] = queue.top();
-        queue.pop();
-        if (d > dist[v]) continue;
-        for (std::uint32_t e = graph.offsets[v]; e < graph.offsets[v + 1]; ++e) {
-            const std::uint32_t w = graph.targets[e];
-            if (component[w] != 0) continue;
-            if (d + graph.lengths[e] < dist[w]) {
-                dist[w] = d + graph.lengths[e];
-                queue.push({dist[w], w});
-            }
-        }
-    }
+    std::vector<std::uint8_t> in_part(n);
+    for (std::size_t i = 0; i < n; ++i) in_part[i] = component[i] == 0;
+    shortest_paths(graph, dist, nullptr, &in_part);
     std::vector<std::int64_t> level(n, -1);
     for (std::size_t i = 0; i < n; ++i)
         if (std::isfinite(dist[i])) level[i] = static_cast<std::int64_t>(dist[i] / band);
@@ -193,18 +178,19 @@ public:
         std::uint32_t root = 0;
         for (std::uint32_t i = 0; i < pos_.size(); ++i)
             if (radius(i) > radius(root)) root = i;
-        root_tree(root);
+        kept_.assign(pos_.size(), 1);
+        reroot(root);
         report(progress, 0.2);
         prune();
         report(progress, 0.6);
         // A path (two ends): root it at its thicker end so that its bones run outward from there.
         bool is_path = kept_children(root_) <= 2;
-        for (std::uint32_t v : order_kept())
+        for (std::uint32_t v : t_.order)
             if (v != root_ && kept_children(v) > 1) is_path = false;
         if (is_path) {
             std::vector<std::uint32_t> ends = leaves_of();
             if (kept_children(root_) <= 1) ends.push_back(root_);
-            if (ends.size() == 2) root_tree_kept(end_radius(ends[0]) >= end_radius(ends[1]) ? ends[0] : ends[1]);
+            if (ends.size() == 2) reroot(end_radius(ends[0]) >= end_radius(ends[1]) ? ends[0] : ends[1]);
         }
         if (detail) {
             detail->kept.assign(pts_.n, 0);
@@ -230,17 +216,9 @@ private:
 
     // ---- rooted tree ----------------------------------------------------------------------------------------
 
-    void root_tree(std::uint32_t root) {
-        root_ = root;
-        kept_.assign(pos_.size(), 1);
-        reroot(root);
-    }
-    void root_tree_kept(std::uint32_t root) {
-        root_ = root;
-        reroot(root);
-    }
-    /// Parent pointers, BFS order, depth and path length over the kept points, from `root`.
+    /// Roots the kept nodes at `root`: parent pointers, BFS order, depth and path length.
     void reroot(std::uint32_t root) {
+        root_ = root;
         const std::size_t n = pos_.size();
         t_.parent.assign(n, kNone);
         t_.depth.assign(n, 0);
@@ -261,7 +239,6 @@ private:
         }
     }
     std::size_t kept_children(std::uint32_t v) const { return t_.children[v].size(); }
-    const std::vector<std::uint32_t>& order_kept() const { return t_.order; }
     std::vector<std::uint32_t> leaves_of() const {
         std::vector<std::uint32_t> l;
         for (std::uint32_t v : t_.order)
@@ -368,12 +345,6 @@ private:
         }
         return a;
     }
-    double path_length(std::uint32_t a, std::uint32_t b) const {
-        return t_.dist[a] + t_.dist[b] - 2.0 * t_.dist[lca(a, b)];
-    }
-    std::uint32_t hops(std::uint32_t a, std::uint32_t b) const {
-        return t_.depth[a] + t_.depth[b] - 2 * t_.depth[lca(a, b)];
-    }
     /// The node on all three paths between a, b and c.
     std::uint32_t median(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
         const std::uint32_t x = lca(a, b), y = lca(b, c), z = lca(a, c);
@@ -382,7 +353,6 @@ private:
         if (t_.depth[z] > t_.depth[m]) m = z;
         return m;
     }
-    bool on_path(std::uint32_t v, std::uint32_t a, std::uint32_t b) const { return hops(a, v) + hops(v, b) == hops(a, b); }
     /// Nodes of the path from a to b, both included.
     std::vector<std::uint32_t> path(std::uint32_t a, std::uint32_t b) const {
         const std::uint32_t m = lca(a, b);
@@ -885,27 +855,7 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     const auto joins = bridge_components(g, mask, sub, sub_edges, 8.0 * e0, e0);
     sub_edges.insert(sub_edges.end(), joins.begin(), joins.end());
     report(progress, 0.3);
-    SkeletonGraph graph;
-    graph.offsets.assign(sub.n + 1, 0);
-    for (const auto& e : sub_edges) {
-        ++graph.offsets[e[0] + 1];
-        ++graph.offsets[e[1] + 1];
-    }
-    std::partial_sum(graph.offsets.begin(), graph.offsets.end(), graph.offsets.begin());
-    graph.targets.resize(2 * sub_edges.size());
-    graph.lengths.resize(2 * sub_edges.size());
-    {
-        std::vector<std::uint32_t> fill(graph.offsets.begin(), graph.offsets.end() - 1);
-        for (const auto& e : sub_edges) {
-            const auto a = point_position(g, sub, e[0]), b = point_position(g, sub, e[1]);
-            const float len = static_cast<float>(std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                                                           (a[2] - b[2]) * (a[2] - b[2])));
-            graph.targets[fill[e[0]]] = e[1];
-            graph.lengths[fill[e[0]]++] = len;
-            graph.targets[fill[e[1]]] = e[0];
-            graph.lengths[fill[e[1]]++] = len;
-        }
-    }
+    const SkeletonGraph graph = graph_of_edges(g, sub, sub_edges);
     // The part to rig: the connected part with the largest ball volume, renumbered 0.
     std::size_t count = 0;
     std::vector<std::uint32_t> component = forest_components(sub.n, sub_edges, &count);

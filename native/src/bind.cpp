@@ -7,7 +7,6 @@
 #include <cmath>
 #include <functional>
 #include <limits>
-#include <queue>
 
 #include "volrig/rig.hpp"
 
@@ -93,24 +92,7 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
     if (any_unbound) {
         const SkeletonGraph graph = skeleton_graph(g, mask, pts, 0.0);
         report(progress, 0.7);
-        using Item = std::pair<double, std::uint32_t>;
-        std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
-        for (std::uint32_t i = 0; i < n; ++i)
-            if (out.bone[i] >= 0) queue.push({dist[i], i});
-        while (!queue.empty()) {
-            const auto [d, v] = queue.top();
-            queue.pop();
-            if (d > dist[v]) continue;
-            for (std::uint32_t e = graph.offsets[v]; e < graph.offsets[v + 1]; ++e) {
-                const std::uint32_t w = graph.targets[e];
-                const double nd = d + graph.lengths[e];
-                if (nd < dist[w]) {
-                    dist[w] = nd;
-                    out.bone[w] = out.bone[v];
-                    queue.push({nd, w});
-                }
-            }
-        }
+        shortest_paths(graph, dist, &out.bone);
         // 3. Parts of the object no bone reaches: the nearest bone in a straight line, flagged.
         for (std::size_t i = 0; i < n; ++i) {
             if (out.bone[i] >= 0) continue;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <queue>
 #include <string>
 #include <tuple>
 
@@ -221,7 +222,12 @@ SkeletonGraph skeleton_graph(const Grid& g, const std::uint8_t* mask, const Poin
                              const Progress& progress) {
     check_points(g, mask, pts, "skeleton_graph");
     const double e = resolve_max_edge(g, max_edge);
-    const std::vector<Pair> edges = cone_edges(g, mask, pts, e, false, progress, 0.0, 0.9);
+    SkeletonGraph out = graph_of_edges(g, pts, cone_edges(g, mask, pts, e, false, progress, 0.0, 0.9));
+    report(progress, 1.0);
+    return out;
+}
+
+SkeletonGraph graph_of_edges(const Grid& g, const PointSet& pts, const std::vector<Pair>& edges) {
     SkeletonGraph out;
     out.offsets.assign(pts.n + 1, 0);
     for (const auto& p : edges) {
@@ -239,8 +245,28 @@ SkeletonGraph skeleton_graph(const Grid& g, const std::uint8_t* mask, const Poin
         out.targets[fill[p[1]]] = p[0];
         out.lengths[fill[p[1]]++] = len;
     }
-    report(progress, 1.0);
     return out;
+}
+
+void shortest_paths(const SkeletonGraph& graph, std::vector<double>& dist, std::vector<std::int32_t>* label,
+                    const std::vector<std::uint8_t>* allowed) {
+    using Item = std::pair<double, std::uint32_t>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+    for (std::uint32_t i = 0; i < dist.size(); ++i)
+        if (std::isfinite(dist[i])) queue.push({dist[i], i});
+    while (!queue.empty()) {
+        const auto [d, v] = queue.top();
+        queue.pop();
+        if (d > dist[v]) continue;
+        for (std::uint32_t e = graph.offsets[v]; e < graph.offsets[v + 1]; ++e) {
+            const std::uint32_t w = graph.targets[e];
+            const double nd = d + graph.lengths[e];
+            if ((allowed && !(*allowed)[w]) || nd >= dist[w]) continue;
+            dist[w] = nd;
+            if (label) (*label)[w] = (*label)[v];
+            queue.push({nd, w});
+        }
+    }
 }
 
 std::vector<std::uint32_t> forest_components(std::size_t n, const std::vector<Pair>& edges, std::size_t* count) {

@@ -15,7 +15,7 @@ import numpy as np
 
 from ._volrig import FileFormatError, VolrigError
 from .files import atomic_output
-from .rig import Binding, Rig, weights_matrix
+from .rig import Binding, Rig
 from .skeleton import SkeletonPoints
 from .tree import SkeletonTree
 

@@ -53,6 +53,16 @@ struct SkeletonGraph {
 SkeletonGraph skeleton_graph(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, double max_edge,
                              const Progress& progress = {});
 
+/// The graph with the given undirected edges (i < j) over the points, lengths = world distances.
+SkeletonGraph graph_of_edges(const Grid& grid, const PointSet& pts,
+                             const std::vector<std::array<std::uint32_t, 2>>& edges);
+
+/// Multi-source Dijkstra: the sources are the points whose dist is finite on entry; on return dist holds the
+/// shortest path length from any source. With `label`, each point takes the label of its nearest source; with
+/// `allowed`, paths only pass through points whose flag is non-zero.
+void shortest_paths(const SkeletonGraph& graph, std::vector<double>& dist, std::vector<std::int32_t>* label = nullptr,
+                    const std::vector<std::uint8_t>* allowed = nullptr);
+
 struct TreeOptions {
     double alpha = 0.9;     ///< connectivity parameter, 0..1
     double max_edge = 0.0;  ///< E in world units; <= 0 selects default_max_edge
