@@ -336,19 +336,42 @@ struct KdNode {
 struct BoneField {
     // spheres in local (k-d) order
     std::vector<std::uint32_t> global;
-    std::vector<double> cx, cy, cz;  // centre, index space
-    std::vector<double> wx, wy, wz;  // centre, world offsets (index * spacing)
-    std::vector<double> lim;         // open-ball squared radius (world units²)
+    struct Sphere {
+        double c[3];  // centre, index space
+        double lim;   // open-ball squared radius (world units²)
+    };
+    std::vector<Sphere> sph;
     std::vector<KdNode> nodes;
     // power-diagram labels on the lattice over [lo, lo + dims), stored in allocated 8³ blocks
     std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
     std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
     std::vector<std::uint32_t> labels;            // 512 per allocated block
+    std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
+
+    /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
+    bool any_block(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t k0[3], k1[3];
+        for (int i = 0; i < 3; ++i) {
+            k0[i] = std::max<std::int64_t>(0, a[i] - lo[i]);
+            k1[i] = std::min<std::int64_t>(dims[i] - 1, b[i] - lo[i]);
+            if (k0[i] > k1[i]) return false;
+            k0[i] >>= 3;
+            k1[i] = (k1[i] >> 3) + 1;
+        }
+        const std::int64_t sx = bdims[0] + 1, sy = bdims[1] + 1;
+        auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            return static_cast<std::int64_t>(block_sat[static_cast<std::size_t>((z * sy + y) * sx + x)]);
+        };
+        const std::int64_t n = at(k1[0], k1[1], k1[2]) - at(k0[0], k1[1], k1[2]) - at(k1[0], k0[1], k1[2]) -
+                               at(k1[0], k1[1], k0[2]) + at(k0[0], k0[1], k1[2]) + at(k0[0], k1[1], k0[2]) +
+                               at(k1[0], k0[1], k0[2]) - at(k0[0], k0[1], k0[2]);
+        return n > 0;
+    }
 
     std::size_t bytes() const {
-        return global.size() * (4 + 7 * 8) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + labels.size() * 4;
+        return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
+               blocks.size() * 24 + labels.size() * 4 + block_sat.size() * 4;
     }
 
     std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
@@ -454,13 +477,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     std::iota(order.begin(), order.end(), 0u);
     if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims);
     f.global.resize(m);
-    f.cx.resize(m);
-    f.cy.resize(m);
-    f.cz.resize(m);
-    f.wx.resize(m);
-    f.wy.resize(m);
-    f.wz.resize(m);
-    f.lim.resize(m);
+    f.sph.resize(m);
     std::array<std::int64_t, 3> lo{std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
                                    std::numeric_limits<std::int64_t>::max()};
     std::array<std::int64_t, 3> hi{std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min(),
@@ -469,14 +486,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         const std::uint32_t src = order[k];
         const std::uint32_t i = members[src];
         f.global[k] = i;
-        f.cx[k] = s.ijk[3 * i + 2];
-        f.cy[k] = s.ijk[3 * i + 1];
-        f.cz[k] = s.ijk[3 * i];
-        f.wx[k] = w3[3 * src];
-        f.wy[k] = w3[3 * src + 1];
-        f.wz[k] = w3[3 * src + 2];
-        f.lim[k] = lims[src];
-        const double c[3] = {f.cx[k], f.cy[k], f.cz[k]};
+        f.sph[k] = {{static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
+                     static_cast<double>(s.ijk[3 * i])},
+                    lims[src]};
+        const double* c = f.sph[k].c;
         for (int a = 0; a < 3; ++a) {
             // Beyond this margin the power of the sphere exceeds T: cells outside the box need no labels.
             const auto e = static_cast<std::int64_t>(std::ceil(std::sqrt(r[i] * r[i] + T) / g.spacing[a])) + 1;
@@ -495,12 +508,13 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     std::vector<double> F(count, kInf);
     std::vector<std::uint32_t> lab(count, kNone);
     for (std::size_t k = 0; k < m; ++k) {
-        if (!(f.lim[k] > 0)) continue;
-        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(f.cz[k]) - lo[2]) * ny +
-                                                   (static_cast<std::int64_t>(f.cy[k]) - lo[1])) * nx +
-                                                  (static_cast<std::int64_t>(f.cx[k]) - lo[0]));
-        if (-f.lim[k] < F[idx]) {
-            F[idx] = -f.lim[k];
+        const auto& sp = f.sph[k];
+        if (!(sp.lim > 0)) continue;
+        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - lo[2]) * ny +
+                                                   (static_cast<std::int64_t>(sp.c[1]) - lo[1])) * nx +
+                                                  (static_cast<std::int64_t>(sp.c[0]) - lo[0]));
+        if (-sp.lim < F[idx]) {
+            F[idx] = -sp.lim;
             lab[idx] = static_cast<std::uint32_t>(k);
         }
     }
@@ -553,6 +567,18 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                         for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
                             out[((z & 7) * 8 + (y & 7)) * 8 + (x & 7)] = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
             }
+    const std::int64_t sx = bx + 1, sy = by + 1;
+    f.block_sat.assign(static_cast<std::size_t>(sx * sy * (bz + 1)), 0);
+    for (std::int64_t z = 1; z <= bz; ++z)
+        for (std::int64_t y = 1; y <= by; ++y)
+            for (std::int64_t x = 1; x <= bx; ++x) {
+                auto at = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::int32_t& {
+                    return f.block_sat[static_cast<std::size_t>((k * sy + j) * sx + i)];
+                };
+                at(x, y, z) = (f.block_index[static_cast<std::size_t>(((z - 1) * by + (y - 1)) * bx + (x - 1))] >= 0) +
+                              at(x - 1, y, z) + at(x, y - 1, z) + at(x, y, z - 1) - at(x - 1, y - 1, z) -
+                              at(x - 1, y, z - 1) - at(x, y - 1, z - 1) + at(x - 1, y - 1, z - 1);
+            }
     return f;
 }
 
@@ -589,9 +615,10 @@ void query(const BoneField& f, std::int32_t node, const double* p, const double*
     }
     if (n.left < 0) {
         for (std::uint32_t k = n.begin; k < n.end; ++k) {
-            const double d2 = length2(pi[0] - f.cx[k], pi[1] - f.cy[k], pi[2] - f.cz[k], s2);
-            if (nearest && !(d2 < f.lim[k])) continue;
-            const double key = nearest ? d2 : d2 - f.lim[k];
+            const auto& sp = f.sph[k];
+            const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
+            if (nearest && !(d2 < sp.lim)) continue;
+            const double key = nearest ? d2 : d2 - sp.lim;
             if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
         }
         return;
@@ -615,59 +642,103 @@ Best exact(const BoneField& f, const double* p_index, const double* s, const dou
     return b;
 }
 
-/// Bounds on a bone's power function at a rest point p (index space), from the labels of the lattice cube
-/// around p. L <= min power <= U; U is the power of sphere `local` at p.
-struct Bounds {
-    double L = kInf, U = kInf;
-    std::uint32_t local = kNone;
+/// The power-diagram labels of the lattice cube around a rest point p (index space) of one bone.
+struct Cube {
+    std::uint32_t lab[8];
+    double base[3];  // the cube's first corner
+    bool same;       // all eight corners carry one sphere
 };
 
-Bounds bounds_at(const BoneField& f, const double* p, const double* s2, double T) {
-    Bounds out;
+/// Reads the cube around p; false when no corner carries a label (then no sphere of the bone covers p).
+bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     const double fx = std::floor(p[0]), fy = std::floor(p[1]), fz = std::floor(p[2]);
-    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return out;
+    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return false;
     const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy), z0 = static_cast<std::int64_t>(fz);
-    if (x0 + 1 < f.lo[0] || y0 + 1 < f.lo[1] || z0 + 1 < f.lo[2] || x0 >= f.lo[0] + f.dims[0] ||
-        y0 >= f.lo[1] + f.dims[1] || z0 >= f.lo[2] + f.dims[2])
-        return out;
-    std::uint32_t lab[8];
+    const std::int64_t lx = x0 - f.lo[0], ly = y0 - f.lo[1], lz = z0 - f.lo[2];
+    if (lx + 1 < 0 || ly + 1 < 0 || lz + 1 < 0 || lx >= f.dims[0] || ly >= f.dims[1] || lz >= f.dims[2]) return false;
+    std::uint32_t* lab = cube.lab;
+    if (lx >= 0 && ly >= 0 && lz >= 0 && (lx & 7) != 7 && (ly & 7) != 7 && (lz & 7) != 7 && lx + 1 < f.dims[0] &&
+        ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
+        // The whole cube lies in one block (most of the time).
+        const std::int32_t blk =
+            f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
+        if (blk < 0) return false;
+        const std::uint32_t* b0 =
+            f.labels.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
+        lab[0] = b0[0];
+        lab[1] = b0[1];
+        lab[2] = b0[8];
+        lab[3] = b0[9];
+        lab[4] = b0[64];
+        lab[5] = b0[65];
+        lab[6] = b0[72];
+        lab[7] = b0[73];
+    } else {
+        for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
+    }
     bool same = true, any = false;
     for (int c = 0; c < 8; ++c) {
-        lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
         same = same && lab[c] == lab[0];
         any = any || lab[c] != kNone;
     }
-    if (!any) return out;
-    auto power = [&](std::uint32_t k, double x, double y, double z) {
-        return length2(x - f.cx[k], y - f.cy[k], z - f.cz[k], s2) - f.lim[k];
-    };
-    if (same) {  // the power function is this sphere's on the whole cube
-        out.L = out.U = power(lab[0], p[0], p[1], p[2]);
-        out.local = lab[0];
-        return out;
+    cube.base[0] = fx;
+    cube.base[1] = fy;
+    cube.base[2] = fz;
+    cube.same = same;
+    return any;
+}
+
+inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
+    const auto& sp = f.sph[k];
+    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// An upper bound of the bone's power at p: the least power at p among the cube's labels (a real sphere's, so
+/// a negative value proves coverage). With `any_negative` it stops at the first negative value.
+double upper_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, bool any_negative,
+                   std::uint32_t& local) {
+    double U = kInf;
+    local = kNone;
+    for (int c = 0; c < 8; ++c) {
+        const std::uint32_t k = cube.lab[c];
+        if (k == kNone || k == local) continue;
+        const double v = power_of(f, k, p, s2);
+        if (v < U || (v == U && f.global[k] < f.global[local])) {
+            U = v;
+            local = k;
+            if (any_negative && U < 0) break;
+        }
     }
-    const double u[3] = {p[0] - fx, p[1] - fy, p[2] - fz};
+    return U;
+}
+
+/// A lower bound of the bone's power at p. The power is |p|² plus a concave function (a minimum of linear
+/// ones), so the trilinear interpolation of the corner values minus Σ s²u(1−u) bounds it from below; corners
+/// without a label hold at least T.
+double lower_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, double T) {
+    const double u[3] = {p[0] - cube.base[0], p[1] - cube.base[1], p[2] - cube.base[2]};
     double L = 0;
     for (int c = 0; c < 8; ++c) {
         const double lam = ((c & 1) ? u[0] : 1 - u[0]) * (((c >> 1) & 1) ? u[1] : 1 - u[1]) *
                            (((c >> 2) & 1) ? u[2] : 1 - u[2]);
-        const double F = lab[c] == kNone ? T
-                                         : power(lab[c], fx + (c & 1), fy + ((c >> 1) & 1), fz + ((c >> 2) & 1));
-        L += lam * F;
-        if (lab[c] == kNone) continue;
-        bool seen = false;
-        for (int e = 0; e < c && !seen; ++e) seen = lab[e] == lab[c];
-        if (seen) continue;
-        const double v = power(lab[c], p[0], p[1], p[2]);
-        if (v < out.U || (v == out.U && f.global[lab[c]] < f.global[out.local])) {
-            out.U = v;
-            out.local = lab[c];
-        }
+        const double corner[3] = {cube.base[0] + (c & 1), cube.base[1] + ((c >> 1) & 1), cube.base[2] + ((c >> 2) & 1)};
+        L += lam * (cube.lab[c] == kNone ? T : power_of(f, cube.lab[c], corner, s2));
     }
     L -= s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]);
-    out.L = L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
-    return out;
+    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
 }
+
+/// A bone (or, with bone -1, the blended sphere of the proximity buffer) that may cover an output voxel.
+struct Cand {
+    std::int32_t bone;
+    double L, U;          // bounds of its power at the voxel (equal when exact; the nearest-centre key later)
+    std::uint32_t local;  // the sphere achieving U (local index; for bone -1 the blended slot)
+    std::uint32_t global;
+    double p[3];          // the voxel's rest position under this bone's (or sphere's) motion
+    bool covered;
+    bool has_U, has_L;    // which bounds are computed yet
+    Cube cube;
+};
 
 }  // namespace
 
@@ -918,141 +989,200 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + im.bone / 64] |= std::uint64_t{1} << (im.bone % 64);
     }
 
-    // Gather.
+    // The bones whose rest data the preimage of output block (kx, ky, kz) meets.
+    auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb) {
+        cb.clear();
+        const std::size_t blk = static_cast<std::size_t>((kz * oby + ky) * obx + kx);
+        for (std::size_t w = 0; w < words; ++w) {
+            std::uint64_t m = bits[blk * words + w];
+            while (m) {
+                const int t = __builtin_ctzll(m);
+                const auto b = static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(t));
+                m &= m - 1;
+                double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
+                for (int c = 0; c < 8; ++c) {
+                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock : 0))};
+                    double r[3];
+                    motions[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    for (int a = 0; a < 3; ++a) {
+                        plo[a] = std::min(plo[a], r[a]);
+                        phi[a] = std::max(phi[a], r[a]);
+                    }
+                }
+                const std::int64_t ca[3] = {static_cast<std::int64_t>(std::floor(plo[0])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[1])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[2])) - 1};
+                const std::int64_t cc[3] = {static_cast<std::int64_t>(std::floor(phi[0])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[1])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[2])) + 1};
+                if (fields[static_cast<std::size_t>(b)].any_block(ca, cc)) cb.push_back(b);
+            }
+        }
+    };
+
+    auto exact_covered = [&](Cand& c, std::int64_t& n_q) {
+        if (c.bone < 0) return true;
+        ++n_q;
+        const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
+        c.L = c.U = e.key;
+        c.local = e.local;
+        c.global = e.global;
+        c.has_L = c.has_U = true;
+        return e.key < 0;
+    };
+    auto set_upper = [&](Cand& c, bool any_negative) {
+        const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
+        c.U = upper_bound(f, c.cube, c.p, s2, any_negative, c.local);
+        c.global = f.global[c.local];
+        c.has_U = !any_negative || !(c.U < 0);  // a cut-short minimum is only an upper bound of the upper bound
+    };
+    auto set_lower = [&](Cand& c) {
+        if (c.has_L) return;
+        c.L = lower_bound(fields[static_cast<std::size_t>(c.bone)], c.cube, c.p, s2, T);
+        c.has_L = true;
+    };
+    // Whether a candidate covers its point: from the bounds when they decide, else exactly.
+    auto covers = [&](Cand& c, std::int64_t& n_q) {
+        if (c.has_U && c.U < 0) return true;
+        if (!c.has_U) {
+            set_upper(c, true);
+            if (c.U < 0) return true;
+        }
+        set_lower(c);
+        if (!(c.L < 0)) return false;
+        return exact_covered(c, n_q);
+    };
+
+    // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
+    auto resolve = [&](const std::vector<std::int32_t>& cb, const double* m3, std::size_t idx,
+                       std::vector<Cand>& cands, std::int64_t& n_q) -> const Cand* {
+        cands.clear();
+        for (std::int32_t b : cb) {
+            Cand c;
+            c.bone = b;
+            motions[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
+            const BoneField& f = fields[static_cast<std::size_t>(b)];
+            if (!fetch_cube(f, c.p, c.cube)) continue;
+            c.has_U = c.has_L = false;
+            c.covered = false;
+            if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
+                c.local = c.cube.lab[0];
+                c.L = c.U = power_of(f, c.local, c.p, s2);
+                if (!(c.U < 0)) continue;
+                c.global = f.global[c.local];
+                c.has_U = c.has_L = true;
+            }
+            cands.push_back(c);
+        }
+        if (!bkey.empty() && bslot[idx] >= 0) {
+            Cand c;
+            c.bone = -1;
+            c.L = c.U = bkey[idx];
+            c.has_L = c.has_U = true;
+            c.local = static_cast<std::uint32_t>(bslot[idx]);
+            c.global = blended[c.local];
+            c.covered = true;
+            bmot[c.local].inverse.apply(m3, c.p);
+            cands.push_back(c);
+        }
+        if (cands.empty()) return nullptr;
+        if (cands.size() == 1) return covers(cands[0], n_q) ? &cands[0] : nullptr;
+        auto before = [](const Cand& a, const Cand& b) { return a.U < b.U || (a.U == b.U && a.global < b.global); };
+        if (!nearest) {
+            for (auto& c : cands)
+                if (!c.has_U) set_upper(c, false);
+            std::size_t bi = 0;
+            for (std::size_t k = 1; k < cands.size(); ++k)
+                if (before(cands[k], cands[bi])) bi = k;
+            // Certified when the best upper bound is negative and below every other candidate's lower bound.
+            bool certain = cands[bi].U < 0;
+            for (std::size_t k = 0; k < cands.size() && certain; ++k) {
+                if (k == bi) continue;
+                set_lower(cands[k]);
+                if (!(cands[bi].U < cands[k].L)) certain = false;
+            }
+            if (certain) return &cands[bi];
+            const double bound = cands[bi].U;
+            for (auto& c : cands) {
+                if (c.bone < 0) continue;
+                set_lower(c);
+                if (c.L == c.U || c.L > bound || !(c.L < 0)) continue;
+                exact_covered(c, n_q);
+            }
+            const Cand* win = nullptr;
+            for (const auto& c : cands)
+                if (c.U < 0 && (!win || before(c, *win))) win = &c;
+            return win;
+        }
+        // Nearest centre: coverage first, then the nearest covering centre.
+        std::size_t ncov = 0;
+        for (auto& c : cands) {
+            c.covered = c.covered || covers(c, n_q);
+            ncov += c.covered;
+        }
+        const Cand* win = nullptr;
+        for (auto& c : cands) {
+            if (!c.covered) continue;
+            if (ncov > 1 && c.bone >= 0) {
+                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, true);
+                ++n_q;
+                c.U = e.key;
+                c.global = e.global;
+            }
+            if (!win || before(c, *win)) win = &c;
+        }
+        return win;
+    };
+
+    // Gather, row by row (contiguous writes); each 8-voxel run of a row shares its block's candidate bones.
     if (o.values) out.values.resize(total);
     out.bone.resize(total);
     std::atomic<std::int64_t> covered{0}, queries{0};
-    struct Cand {
-        std::int32_t bone;  // -1: the blended sphere
-        double L, U;
-        std::uint32_t local;
-        std::uint32_t global;
-        double p[3];
-        bool covered;
-    };
-    tbb::enumerable_thread_specific<std::vector<Cand>> scratch;
     const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
     with_sampler(source, [&](auto sampler) {
         for (std::int64_t ch = 0; ch < chunks; ++ch) {
             const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
-            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby * obx, z1 * oby * obx),
-                              [&](const tbb::blocked_range<std::int64_t>& rg) {
-                std::vector<Cand>& cands = scratch.local();
-                std::vector<std::int32_t> cb;
+            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby, z1 * oby), [&](const tbb::blocked_range<std::int64_t>& rg) {
+                std::vector<std::vector<std::int32_t>> row_cands(static_cast<std::size_t>(obx));
+                std::vector<Cand> cands;
                 std::int64_t n_cov = 0, n_q = 0;
-                for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk) {
-                    const std::int64_t kx = blk % obx, ky = (blk / obx) % oby, kz = blk / (obx * oby);
-                    cb.clear();
-                    for (std::size_t w = 0; w < words; ++w) {
-                        std::uint64_t m = bits[static_cast<std::size_t>(blk) * words + w];
-                        while (m) {
-                            const int t = __builtin_ctzll(m);
-                            cb.push_back(static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(t)));
-                            m &= m - 1;
-                        }
-                    }
+                for (std::int64_t brow = rg.begin(); brow != rg.end(); ++brow) {
+                    const std::int64_t ky = brow % oby, kz = brow / oby;
+                    for (std::int64_t kx = 0; kx < obx; ++kx)
+                        block_candidates(kx, ky, kz, row_cands[static_cast<std::size_t>(kx)]);
                     for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock); ++z)
-                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y)
-                            for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x) {
-                                const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                                const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                                      static_cast<double>(z + bx[2])};
-                                cands.clear();
-                                for (std::int32_t b : cb) {
-                                    Cand c;
-                                    c.bone = b;
-                                    motions[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
-                                    const Bounds bd = bounds_at(fields[static_cast<std::size_t>(b)], c.p, s2, T);
-                                    if (!(bd.L < 0)) continue;
-                                    c.L = bd.L;
-                                    c.U = bd.U;
-                                    c.local = bd.local;
-                                    c.global = bd.local == kNone ? kNone : fields[static_cast<std::size_t>(b)].global[bd.local];
-                                    c.covered = bd.U < 0;
-                                    cands.push_back(c);
-                                }
-                                if (!bkey.empty() && bslot[idx] >= 0) {
-                                    Cand c;
-                                    c.bone = -1;
-                                    c.L = c.U = bkey[idx];
-                                    c.local = static_cast<std::uint32_t>(bslot[idx]);
-                                    c.global = blended[c.local];
-                                    c.covered = true;
-                                    bmot[c.local].inverse.apply(m3, c.p);
-                                    cands.push_back(c);
-                                }
-                                const Cand* win = nullptr;
-                                if (cands.size() == 1 && cands[0].covered) {
-                                    win = &cands[0];
-                                } else if (!cands.empty()) {
-                                    if (!nearest) {
-                                        // Certified when the best upper bound is negative and below every other
-                                        // candidate's lower bound.
-                                        std::size_t bi = 0;
-                                        for (std::size_t k = 1; k < cands.size(); ++k)
-                                            if (cands[k].U < cands[bi].U ||
-                                                (cands[k].U == cands[bi].U && cands[k].global < cands[bi].global))
-                                                bi = k;
-                                        bool certain = cands[bi].U < 0;
-                                        for (std::size_t k = 0; k < cands.size() && certain; ++k)
-                                            if (k != bi && !(cands[bi].U < cands[k].L)) certain = false;
-                                        if (!certain) {
-                                            for (auto& c : cands) {
-                                                if (c.bone < 0 || c.L == c.U) continue;
-                                                if (!(c.L < 0) || c.L > cands[bi].U) continue;
-                                                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
-                                                ++n_q;
-                                                c.U = c.L = e.key;
-                                                c.local = e.local;
-                                                c.global = e.global;
-                                            }
-                                            bi = cands.size();
-                                            for (std::size_t k = 0; k < cands.size(); ++k) {
-                                                if (!(cands[k].U < 0)) continue;
-                                                if (bi == cands.size() || cands[k].U < cands[bi].U ||
-                                                    (cands[k].U == cands[bi].U && cands[k].global < cands[bi].global))
-                                                    bi = k;
-                                            }
-                                        }
-                                        if (bi < cands.size()) win = &cands[bi];
-                                    } else {
-                                        // Coverage first (from the power bounds), then the nearest covering centre.
-                                        std::size_t ncov = 0;
-                                        for (auto& c : cands) {
-                                            if (!c.covered && c.bone >= 0) {
-                                                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
-                                                ++n_q;
-                                                c.covered = e.key < 0;
-                                            }
-                                            ncov += c.covered;
-                                        }
-                                        if (ncov == 1) {
-                                            for (auto& c : cands)
-                                                if (c.covered) win = &c;
-                                        } else if (ncov > 1) {
-                                            for (auto& c : cands) {
-                                                if (!c.covered) continue;
-                                                if (c.bone >= 0) {
-                                                    const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, true);
-                                                    ++n_q;
-                                                    c.U = e.key;
-                                                    c.global = e.global;
-                                                }
-                                                if (!win || c.U < win->U || (c.U == win->U && c.global < win->global)) win = &c;
-                                            }
-                                        }
-                                    }
-                                }
-                                if (!win) {
-                                    out.bone[idx] = 0;
-                                    if (o.values) out.values[idx] = 0.0f;
+                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y) {
+                            const auto row = static_cast<std::size_t>((z * ny + y) * nx);
+                            for (std::int64_t kx = 0; kx < obx; ++kx) {
+                                const auto& cb = row_cands[static_cast<std::size_t>(kx)];
+                                const std::int64_t xa = kx * kBlock, xb = std::min(nx, (kx + 1) * kBlock);
+                                const bool blend_here = !bkey.empty();
+                                if (cb.empty() && !blend_here) {
+                                    std::fill(out.bone.begin() + static_cast<std::ptrdiff_t>(row + xa),
+                                              out.bone.begin() + static_cast<std::ptrdiff_t>(row + xb), std::int16_t{0});
+                                    if (o.values)
+                                        std::fill(out.values.begin() + static_cast<std::ptrdiff_t>(row + xa),
+                                                  out.values.begin() + static_cast<std::ptrdiff_t>(row + xb), 0.0f);
                                     continue;
                                 }
-                                ++n_cov;
-                                out.bone[idx] = static_cast<std::int16_t>(
-                                    (win->bone >= 0 ? win->bone : bone[win->global]) + 1);
-                                if (o.values) out.values[idx] = sampler.sample(win->p, o.sampling);
+                                for (std::int64_t x = xa; x < xb; ++x) {
+                                    const std::size_t idx = row + static_cast<std::size_t>(x);
+                                    const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                                          static_cast<double>(z + bx[2])};
+                                    const Cand* win = resolve(cb, m3, idx, cands, n_q);
+                                    if (!win) {
+                                        out.bone[idx] = 0;
+                                        if (o.values) out.values[idx] = 0.0f;
+                                        continue;
+                                    }
+                                    ++n_cov;
+                                    out.bone[idx] = static_cast<std::int16_t>((win->bone >= 0 ? win->bone : bone[win->global]) + 1);
+                                    if (o.values) out.values[idx] = sampler.sample(win->p, o.sampling);
+                                }
                             }
+                        }
                 }
                 covered += n_cov;
                 queries += n_q;
