@@ -1045,7 +1045,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     };
     // Whether a candidate covers its point: from the bounds when they decide, else exactly.
     auto covers = [&](Cand& c, std::int64_t& n_q) {
-        if (c.has_U && c.U < 0) return true;
+        if (c.bone < 0 || (c.has_U && c.U < 0)) return true;  // blended spheres scatter only where they cover
         if (!c.has_U) {
             set_upper(c, true);
             if (c.U < 0) return true;
@@ -1238,56 +1238,46 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     const auto total = static_cast<std::size_t>(nx * ny * nz);
     std::vector<double> P(total, kInf);        // the proximity buffer
     std::vector<std::int64_t> who(total, -1);  // the sphere that wrote each voxel
-    const bool nearest = o.proximity == Proximity::Nearest;
-    // Parallel over z slabs; within a slab the spheres are scattered in index order, as in the thesis.
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz, 4), [&](const tbb::blocked_range<std::int64_t>& rg) {
-        for (std::size_t i = 0; i < s.n; ++i) {
-            const double r = radii[i];
-            if (!mot[i].valid || !(r > 0)) continue;
-            const double lim = open_ball_limit_sq(r);
-            const double cx = centre[i][0] - static_cast<double>(bx[0]), cy = centre[i][1] - static_cast<double>(bx[1]),
-                         cz = centre[i][2] - static_cast<double>(bx[2]);
-            const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
-            const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
-            const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
-            const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
-            const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - r / grid.spacing[0])));
-            const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + r / grid.spacing[0])));
-            for (std::int64_t z = za; z <= zb; ++z)
-                for (std::int64_t y = ya; y <= yb; ++y)
-                    for (std::int64_t x = xa; x <= xb; ++x) {
-                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                             static_cast<double>(z + bx[2])};
-                        const double d2 = moved_length2(mot[i], rest[i].data(), centre[i].data(), q, s2);
-                        if (!(d2 < lim)) continue;
-                        const double key = nearest ? d2 : d2 - lim;
-                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                        if (key < P[idx]) {
-                            P[idx] = key;
-                            who[idx] = static_cast<std::int64_t>(i);
-                        }
-                    }
-        }
-    });
-    report(progress, 0.8);
     if (o.values) out.values.assign(total, 0.0f);
     out.bone.assign(total, 0);
+    const bool nearest = o.proximity == Proximity::Nearest;
     with_sampler(source, [&](auto sampler) {
-        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-            for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
-                for (std::int64_t y = 0; y < ny; ++y)
-                    for (std::int64_t x = 0; x < nx; ++x) {
-                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                        const std::int64_t i = who[idx];
-                        if (i < 0) continue;
-                        out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
-                        if (!o.values) continue;
-                        const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                              static_cast<double>(z + bx[2])};
-                        double p[3];
-                        mot[static_cast<std::size_t>(i)].inverse.apply(m3, p);
-                        out.values[idx] = sampler.sample(p, o.sampling);
-                    }
+        // Parallel over z slabs; within a slab the spheres are scattered in index order, as in the thesis.
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz, 4), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            for (std::size_t i = 0; i < s.n; ++i) {
+                const double r = radii[i];
+                if (!mot[i].valid || !(r > 0)) continue;
+                const double lim = open_ball_limit_sq(r);
+                const double cx = centre[i][0] - static_cast<double>(bx[0]),
+                             cy = centre[i][1] - static_cast<double>(bx[1]),
+                             cz = centre[i][2] - static_cast<double>(bx[2]);
+                const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
+                const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
+                const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
+                const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
+                const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - r / grid.spacing[0])));
+                const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + r / grid.spacing[0])));
+                for (std::int64_t z = za; z <= zb; ++z)
+                    for (std::int64_t y = ya; y <= yb; ++y)
+                        for (std::int64_t x = xa; x <= xb; ++x) {
+                            const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                                 static_cast<double>(z + bx[2])};
+                            const double d2 = moved_length2(mot[i], rest[i].data(), centre[i].data(), q, s2);
+                            if (!(d2 < lim)) continue;
+                            const double key = nearest ? d2 : d2 - lim;
+                            const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                            if (key < P[idx]) {  // mark q, R(q) = S(T⁻¹q), P(q) = proximity: as the thesis writes it
+                                P[idx] = key;
+                                who[idx] = static_cast<std::int64_t>(i);
+                                out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
+                                if (o.values) {
+                                    double p[3];
+                                    mot[i].inverse.apply(q, p);
+                                    out.values[idx] = sampler.sample(p, o.sampling);
+                                }
+                            }
+                        }
+            }
         });
     });
     for (std::size_t k = 0; k < total; ++k) out.stats.covered += who[k] >= 0;
@@ -1296,19 +1286,22 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
 }
 
 std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
-                                const Progress& progress) {
+                                const Progress& progress, const std::array<std::int64_t, 6>* box) {
     const Grid& g = source.grid;
     check_grid(g, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "inverse_warp");
     const Motion m = bone_motions(matrix, 1, g)[0];
-    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-    std::vector<float> out(static_cast<std::size_t>(g.voxel_count()));
+    const std::array<std::int64_t, 6> bx = box ? *box : std::array<std::int64_t, 6>{0, 0, 0, g.dims[0], g.dims[1], g.dims[2]};
+    const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
+    if (nx <= 0 || ny <= 0 || nz <= 0) throw Error("inverse_warp: the output box must have positive dimensions");
+    std::vector<float> out(static_cast<std::size_t>(nx * ny * nz));
     with_sampler(source, [&](auto sampler) {
         tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
             for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
                 for (std::int64_t y = 0; y < ny; ++y) {
                     float* row = out.data() + (z * ny + y) * nx;
                     for (std::int64_t x = 0; x < nx; ++x) {
-                        const double q[3] = {static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                             static_cast<double>(z + bx[2])};
                         double p[3];
                         m.inverse.apply(q, p);
                         row[x] = sampler.sample(p, sampling);

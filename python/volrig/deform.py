@@ -194,9 +194,13 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     return _frame(d, source)
 
 
-def inverse_warp(source: Volume, matrix, sampling: str = "trilinear") -> Volume:
-    """The source resampled through one rest-to-pose matrix onto its own grid (one gather per voxel): the speed
-    reference of ``deform``."""
+def inverse_warp(source: Volume, matrix, sampling: str = "trilinear", like: Optional[Frame] = None) -> Volume:
+    """The source resampled through one rest-to-pose matrix (one gather per output voxel): the speed reference of
+    ``deform``. The output grid is the source's, or ``like``'s (a Frame) to compare per output voxel."""
     _check_choice("sampling", sampling, SAMPLINGS)
     m = np.ascontiguousarray(matrix, dtype=np.float64)
-    return source.like(_volrig.inverse_warp(_source_array(source), source.spacing, source.origin, m, sampling))
+    box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
+    arr = _volrig.inverse_warp(_source_array(source), source.spacing, source.origin, m, sampling, box)
+    if like is None:
+        return source.like(arr)
+    return Volume(arr, source.spacing, like.bone.origin)

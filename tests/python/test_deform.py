@@ -68,13 +68,14 @@ def test_rigid_mode_equals_the_brute_force_scatter_voxel_for_voxel(seed, proximi
 
 
 @pytest.mark.parametrize("mode", ["linear", "dual_quaternion"])
-def test_smooth_modes_equal_the_brute_force_scatter(mode):
+@pytest.mark.parametrize("proximity", ["power", "nearest"])
+def test_smooth_modes_equal_the_brute_force_scatter(mode, proximity):
     volume, rig = capsule_chain(7)
     mask, pts, binding = rigged(volume, rig, 300, bind="smooth")
     M = random_pose(rig, np.random.default_rng(5), degrees=25)
-    fast = volrig.deform(volume, pts, binding, M, mode=mode)
+    fast = volrig.deform(volume, pts, binding, M, mode=mode, proximity=proximity)
     assert fast.stats["blended_spheres"] > 0
-    ref = volrig.deform_reference(volume, pts, binding, M, mode=mode, like=fast)
+    ref = volrig.deform_reference(volume, pts, binding, M, mode=mode, proximity=proximity, like=fast)
     assert np.array_equal(fast.bone.array, ref.bone.array)
     assert np.array_equal(fast.values.array, ref.values.array)
 

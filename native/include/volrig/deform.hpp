@@ -113,9 +113,9 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& sp
                                 const DeformOptions& options, const Progress& progress = {},
                                 const std::array<std::int64_t, 6>* box = nullptr);
 
-/// A plain inverse warp of the whole source grid by one rest-to-pose matrix onto the same grid (one gather per
-/// output voxel): the speed reference for deform.
+/// A plain inverse warp of the source by one rest-to-pose matrix (one gather per output voxel): the speed
+/// reference for deform. The output grid is the source grid, or `box` as in Deformer::frame.
 std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
-                                const Progress& progress = {});
+                                const Progress& progress = {}, const std::array<std::int64_t, 6>* box = nullptr);
 
 }  // namespace volrig
