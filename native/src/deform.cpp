@@ -130,8 +130,11 @@ std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid
     return out;
 }
 
-/// A sphere's weights: (bone, weight in 64ths) pairs sorted by bone, zero weights dropped.
+/// A sphere's weights: (bone, weight in kWeightSteps-ths) pairs sorted by bone, zero weights dropped.
 using Weights = std::vector<std::pair<std::int32_t, std::int32_t>>;
+/// Smooth weights are rounded to 16ths: at a 120° bend neighbouring groups differ by at most ~8°, and the groups
+/// stay few enough for the per-bone machinery (the cost grows with the groups a voxel lies in).
+constexpr std::int32_t kWeightSteps = 16;
 
 /// The blended world transform of a sphere from its bones' weights (rigid in both modes).
 ///   Linear: the weighted mean of the matrices, made rigid: its linear part projected onto the nearest rotation
@@ -291,22 +294,22 @@ std::vector<double> scaled_radii(const BoundSpheres& s, const DeformOptions& o) 
     return r;
 }
 
-/// A sphere's smooth weights rounded to 64ths of their sum (spheres whose rounded weights agree share one
+/// A sphere's smooth weights rounded to kWeightSteps-ths of their sum (spheres whose rounded weights agree share one
 /// blended transform, which is what lets smooth modes use the per-bone machinery).
 Weights quantized_weights(const BoundSpheres& s, std::size_t i) {
     Weights w;
-    if (!s.weight_offsets) return {{s.bone[i], 64}};
+    if (!s.weight_offsets) return {{s.bone[i], kWeightSteps}};
     double total = 0;
     for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) total += s.weights[k];
     for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) {
-        const auto q = static_cast<std::int32_t>(std::lround(64.0 * s.weights[k] / total));
+        const auto q = static_cast<std::int32_t>(std::lround(kWeightSteps * s.weights[k] / total));
         if (q <= 0) continue;
         auto it = std::find_if(w.begin(), w.end(), [&](const auto& e) { return e.first == s.weight_bones[k]; });
         if (it != w.end()) it->second += q;
         else w.emplace_back(s.weight_bones[k], q);
     }
     std::sort(w.begin(), w.end());
-    if (w.empty()) w.emplace_back(s.bone[i], 64);
+    if (w.empty()) w.emplace_back(s.bone[i], kWeightSteps);
     return w;
 }
 

@@ -9,7 +9,7 @@
 // Ties go to the lowest sphere index (the brute-force scatter in index order with a strict comparison).
 //
 // Modes: Rigid (the thesis: every sphere moves with its owning bone), Linear and DualQuaternion (each sphere's
-// transform is the blend of its bones' transforms by the binding weights, rounded to 64ths; linear blends are
+// transform is the blend of its bones' transforms by the binding weights, rounded to 16ths; linear blends are
 // projected onto the nearest rotation, dual quaternions are rigid by construction; the value still comes from the
 // inverse of that sphere's own transform). Bone matrices must be rigid (rotation + translation).
 //
