@@ -46,6 +46,12 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 using Vec3d = std::array<double, 3>;
 
+/// floor() without a libm call (x86-64's baseline has no SSE4.1 round); |x| must be far below 2^62.
+inline double fast_floor(double x) {
+    const double t = static_cast<double>(static_cast<std::int64_t>(x));
+    return t > x ? t - 1.0 : t;
+}
+
 /// Squared world length of an index-space offset. Every distance test in this file goes through this one
 /// expression, so that the fast path and the reference round identically.
 inline double length2(double dx, double dy, double dz, const double* s2) {
@@ -194,7 +200,8 @@ struct Sampler {
         return static_cast<float>(data[(z * ny + y) * nx + x]);
     }
     static std::int64_t clamp_index(double v, std::int64_t n) {
-        const auto i = static_cast<std::int64_t>(std::floor(v + 0.5));
+        if (!(v > -1e15 && v < 1e15)) v = v > 0 ? 1e15 : -1e15;
+        const auto i = static_cast<std::int64_t>(fast_floor(v + 0.5));
         return i < 0 ? 0 : (i >= n ? n - 1 : i);
     }
     float nearest(const double* p) const {
@@ -699,8 +706,8 @@ struct Cube {
 
 /// Reads the cube around p; false when no corner carries a label (then no sphere of the bone covers p).
 bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
-    const double fx = std::floor(p[0]), fy = std::floor(p[1]), fz = std::floor(p[2]);
-    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return false;
+    if (!(p[0] >= -1e15 && p[0] <= 1e15 && p[1] >= -1e15 && p[1] <= 1e15 && p[2] >= -1e15 && p[2] <= 1e15)) return false;
+    const double fx = fast_floor(p[0]), fy = fast_floor(p[1]), fz = fast_floor(p[2]);
     const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy), z0 = static_cast<std::int64_t>(fz);
     const std::int64_t lx = x0 - f.lo[0], ly = y0 - f.lo[1], lz = z0 - f.lo[2];
     if (lx + 1 < 0 || ly + 1 < 0 || lz + 1 < 0 || lx >= f.dims[0] || ly >= f.dims[1] || lz >= f.dims[2]) return false;
@@ -1059,21 +1066,27 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                        std::int64_t& n_q) -> const Cand* {
         cands.clear();
         for (std::int32_t b : cb) {
-            Cand c;
+            cands.emplace_back();
+            Cand& c = cands.back();
             c.bone = b;
             fmot[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
             const BoneField& f = fields[static_cast<std::size_t>(b)];
-            if (!fetch_cube(f, c.p, c.cube)) continue;
+            if (!fetch_cube(f, c.p, c.cube)) {
+                cands.pop_back();
+                continue;
+            }
             c.has_U = c.has_L = false;
             c.covered = false;
             if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
                 c.local = c.cube.lab[0];
                 c.L = c.U = power_of(f, c.local, c.p, s2);
-                if (!(c.U < 0)) continue;
+                if (!(c.U < 0)) {
+                    cands.pop_back();
+                    continue;
+                }
                 c.global = f.global[c.local];
                 c.has_U = c.has_L = true;
             }
-            cands.push_back(c);
         }
         if (cands.empty()) return nullptr;
         if (cands.size() == 1) return covers(cands[0], n_q) ? &cands[0] : nullptr;
