@@ -126,6 +126,14 @@ std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid
         if (err > 1e-3 || R.determinant() <= 0)
             throw Error(who + " is not a rotation plus a translation (scale, shear or mirror): deform needs rigid "
                               "bone motions (use radius_scale for bulge and pinch)");
+        // A bone at rest, as single-precision pose matrices give it (off by ~1e-5): the identity, so that sphere
+        // boundaries lying exactly on lattice points (every ball touches the background at exactly its radius)
+        // do not flip inwards.
+        const double smin = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+        if ((R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-5 && d.cwiseAbs().maxCoeff() < 1e-4 * smin) {
+            out.push_back(motion_of(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), g));
+            continue;
+        }
         if (err > 0) {  // polar decomposition: the nearest rotation
             Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
             const Eigen::Matrix3d Q = svd.matrixU() * svd.matrixV().transpose();
