@@ -1,0 +1,156 @@
+"""The scan behind each volrig Volume object: its cache folder on disk and, in memory for this Blender session,
+its samples, mask and skeleton.
+
+The cache folder sits beside the .blend (``<blend name>_volrig/<object>/``; a temporary folder while the file is
+unsaved) and holds ``source.vdb`` (the imported samples as float32, the grid the object shows before baking), the
+``.vrig`` rig files and the baked ``frames/``. The user's source file is only ever read.
+
+The skeleton is computed once per segmentation and metric and kept here, keyed by the Volume object's name, so
+the thinness slider re-thresholds it instantly. Entries are checked against the settings they were made with, so
+undo and redo never show a stale one; after reopening a .blend they are rebuilt from the cache folder on demand.
+"""
+import os
+import re
+import tempfile
+
+import bpy
+import numpy as np
+
+import volrig
+
+_memory = {}  # object name -> {"source": Volume, "mask": (settings, Volume), "skeleton": (settings, Skeleton)}
+
+
+def cache_root() -> str:
+    """The folder new caches go to: beside the saved .blend (as a Blender-relative path), else a temp folder."""
+    if bpy.data.filepath:
+        stem = os.path.splitext(os.path.basename(bpy.data.filepath))[0]
+        return "//" + stem + "_volrig"
+    return os.path.join(tempfile.gettempdir(), f"volrig_{os.getpid()}")
+
+
+def cache_dir(volume_obj) -> str:
+    """Absolute path of the object's cache folder (created if missing)."""
+    path = bpy.path.abspath(volume_obj.volrig.cache_dir)
+    if not volume_obj.volrig.cache_dir:
+        raise ValueError(f"{volume_obj.name} has no volrig cache folder (import it with volrig)")
+    os.makedirs(path, exist_ok=True)
+    return path
+
+
+def source_path(volume_obj) -> str:
+    return os.path.join(cache_dir(volume_obj), "source.vdb")
+
+
+def rig_path(volume_obj) -> str:
+    """Absolute path of the object's current .vrig file; ValueError when it has not been rigged."""
+    s = volume_obj.volrig
+    if not s.rig_file:
+        raise ValueError(f"{volume_obj.name} has no rig yet: press Rig first")
+    return os.path.join(cache_dir(volume_obj), s.rig_file)
+
+
+def remember_source(volume_obj, volume: volrig.Volume) -> None:
+    _memory[volume_obj.name] = {"source": volume}
+
+
+def forget(volume_obj) -> None:
+    _memory.pop(volume_obj.name, None)
+
+
+def source(volume_obj) -> volrig.Volume:
+    """The samples (float32) on the grid they were imported with, from memory or the cache's source.vdb."""
+    entry = _memory.setdefault(volume_obj.name, {})
+    s = volume_obj.volrig
+    v = entry.get("source")
+    if v is None or v.dims != tuple(s.dims):
+        path = source_path(volume_obj)
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"{path}: the cached source of {volume_obj.name} is missing "
+                                    f"(import {s.source or 'the volume'} again)")
+        v = volrig.load(path).on_grid(tuple(s.origin), tuple(s.dims))
+        entry.clear()
+        entry["source"] = v
+    return v
+
+
+def parse_labels(text: str):
+    """'1 4 7-9' -> [1, 4, 7, 8, 9]; ValueError naming the bad part."""
+    out = []
+    for part in re.split(r"[\s,;]+", text.strip()):
+        if not part:
+            continue
+        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
+        if not m:
+            raise ValueError(f"labels: {part!r} is not a number or a range like 7-9")
+        a = int(m.group(1))
+        b = int(m.group(2)) if m.group(2) else a
+        if b < a or b - a > 100000:
+            raise ValueError(f"labels: bad range {part!r}")
+        out.extend(range(a, b + 1))
+    if not out:
+        raise ValueError("labels: none given")
+    return out
+
+
+def _segmentation(s):
+    if s.segment_by == "LABELS":
+        return ("labels", tuple(parse_labels(s.labels)), bool(s.largest))
+    if s.low > s.high:
+        raise ValueError(f"segmentation: Low ({s.low:g}) is above High ({s.high:g})")
+    return ("range", float(s.low), float(s.high), bool(s.largest))
+
+
+def mask(volume_obj) -> volrig.Volume:
+    """The segmentation mask for the object's current settings (computed once per setting)."""
+    key = _segmentation(volume_obj.volrig)
+    entry = _memory.setdefault(volume_obj.name, {})
+    cached = entry.get("mask")
+    if cached is None or cached[0] != key:
+        v = source(volume_obj)
+        if key[0] == "labels":
+            m = volrig.segment(v, labels=key[1], largest_component=key[2])
+        else:
+            m = volrig.segment(v, lo=key[1], hi=key[2], largest_component=key[3])
+        if not m.array.any():
+            raise ValueError(f"{volume_obj.name}: the segmentation is empty (check Low/High or the labels)")
+        entry["mask"] = cached = (key, m)
+        entry.pop("skeleton", None)
+    return cached[1]
+
+
+def skeleton(volume_obj, progress=None, compute: bool = True):
+    """The skeleton (scores sorted once) for the current segmentation and metric; None when not computed yet and
+    ``compute`` is False."""
+    s = volume_obj.volrig
+    entry = _memory.get(volume_obj.name, {})
+    try:
+        key = (_segmentation(s), s.metric)
+    except ValueError:
+        return None
+    cached = entry.get("skeleton")
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    if not compute:
+        return None
+    m = mask(volume_obj)
+    sk = volrig.skeletonize(m, s.metric, progress=progress)
+    _memory[volume_obj.name]["skeleton"] = (key, sk)
+    return sk
+
+
+def update_mask_count(volume_obj) -> None:
+    """The live object-voxel count shown under the segmentation settings (thresholds only: the largest-part filter
+    applies when skeletonizing). -1 when the settings are invalid or the source is unavailable."""
+    s = volume_obj.volrig
+    try:
+        key = _segmentation(s)
+        a = source(volume_obj).array
+    except (ValueError, OSError, volrig.VolrigError):
+        s.mask_count = -1
+        return
+    if key[0] == "labels":
+        count = int(np.count_nonzero(np.isin(a, key[1])))
+    else:
+        count = int(np.count_nonzero((a >= key[1]) & (a <= key[2])))
+    s.mask_count = count
