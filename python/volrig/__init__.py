@@ -1,7 +1,7 @@
 """volrig: rig and animate volumes (skeletonization after Gagvani's parameter-controlled thinness).
 
 Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``skeleton_tree`` -> ``autorig``
--> ``bind`` (and ``reconstruct``); ``save_rig`` / ``load_rig`` keep the result in one file.
+-> ``bind`` (and ``reconstruct``) -> per frame ``deform`` (``Deformer``); ``save_rig`` / ``load_rig`` keep the result in one file.
 Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s).
 """
 from . import _volrig
@@ -14,13 +14,15 @@ from .volume import Volume, load, write_vdb
 from .tree import SkeletonTree, skeleton_tree
 from .rig import Binding, Rig, autorig, bind
 from .rigfile import RiggedSkeleton, load_rig, save_rig
+from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 
 __version__ = "0.1.0"
 
 __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
-           "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize"]
+           "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
+           "deform_reference", "inverse_warp"]
 
 
 def __getattr__(name):
