@@ -36,13 +36,13 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("properties", "scans", "objects", "materials", "bake", "operators", "panels"):
+    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "operators", "panels"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import bake, materials, objects, operators, panels, properties, scans  # noqa: E402,F401
+from . import bake, materials, objects, operators, panels, properties, scans, staging  # noqa: E402,F401
 
 
 def register():

@@ -61,6 +61,7 @@ class Baker:
             raise RuntimeError("this volrig has no deform yet (volrig.Deformer); update volrig")
         self.volume_obj = volume_obj
         self.mode = mode
+        self.sampling = volume_obj.volrig.sampling
         parts = objects.members(volume_obj)
         if "RIG" not in parts or "SPHERES" not in parts:
             raise ValueError(f"{volume_obj.name} is not rigged: press Rig first")
@@ -79,7 +80,7 @@ class Baker:
         h = hashlib.sha1()
         for a in (w.indptr, w.indices, w.data):
             h.update(np.ascontiguousarray(a).tobytes())
-        h.update(json.dumps([os.path.basename(path), self.names, mode]).encode())
+        h.update(json.dumps([os.path.basename(path), self.names, mode, self.sampling]).encode())
         self.setup_hash = h.hexdigest()
         self._poses_path = os.path.join(frames_dir(volume_obj), "poses.json")
         try:
@@ -92,9 +93,16 @@ class Baker:
         """(B, 4, 4) rest-to-pose matrices of the evaluated armature, in the bone order of the binding."""
         arm = self.rig_obj.evaluated_get(depsgraph)
         out = np.empty((len(self.names), 4, 4))
+        reach = 1.0
         for b, name in enumerate(self.names):
             pb = arm.pose.bones[name]
             out[b] = np.array(pb.matrix @ pb.bone.matrix_local.inverted())
+            reach = max(reach, float(np.abs(np.array(pb.bone.head_local)).max()))
+        # Blender's single-precision pose leaves a bone at rest some 1e-7 (relative) off the identity; snap it
+        # back so a rest bone reconstructs exactly the rest spheres (their lattice-exact boundaries would flip)
+        dev = np.abs(out - np.eye(4))
+        at_rest = (dev[:, :3, :3].max(axis=(1, 2)) <= 1e-5) & (dev[:, :3, 3].max(axis=1) <= 1e-5 * reach)
+        out[at_rest] = np.eye(4)
         return out
 
     def pose_hash(self, matrices: np.ndarray) -> str:
@@ -109,7 +117,7 @@ class Baker:
         if not force and self.poses.get(str(frame)) == key and os.path.exists(path):
             return False
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        result = self.deformer.frame(matrices, mode=self.mode, progress=progress)
+        result = self.deformer.frame(matrices, mode=self.mode, sampling=self.sampling, progress=progress)
         result.save(path, half=True)
         self.poses[str(frame)] = key
         self._save_poses()

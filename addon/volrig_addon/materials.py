@@ -78,7 +78,7 @@ def _nodes(mat):
     link(bone.outputs["Fac"], is_bone.inputs[0])
     link(is_bone.outputs[0], glow.inputs[0])
     link(glow.outputs[0], glow_density.inputs[0])
-    link(ramp.outputs["Alpha"], glow_density.inputs[1])
+    link(opacity.outputs[0], glow_density.inputs[1])
     link(glow_density.outputs[0], emit.inputs["Strength"])
     link(scatter.outputs[0], add1.inputs[0])
     link(absorb.outputs[0], add1.inputs[1])

@@ -142,7 +142,7 @@ def update_skeleton_preview(volume_obj) -> None:
     sk = scans.skeleton(volume_obj, compute=False)
     if sk is None:
         return
-    pts = sk.at(s.thinness)
+    pts = sk.at(scans.thinness(volume_obj))
     s.point_count = len(pts)
     obj = members(volume_obj).get("SKELETON")
     if obj is None:

@@ -122,9 +122,9 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     rel = os.path.join(root, f"{safe}-{key}")
     folder = bpy.path.abspath(rel)
     os.makedirs(folder, exist_ok=True)
-    vdb = os.path.join(folder, "source.vdb")
-    volrig.write_vdb(vdb, {"density": vol}, half=False)
+    scans.write_source(folder, vol, source)
     obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale)
+    scans.remember_source(obj, vol)
     s = obj.volrig
     s.source, s.cache_dir = source, rel
     s.dims, s.spacing, s.origin = vol.dims, vol.spacing, vol.origin
@@ -133,12 +133,12 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     nonzero = a[a != 0]
     s.low = float(np.percentile(nonzero, 5)) if nonzero.size else 1.0
     s.high = s.value_max
-    is_labels = a.size and np.array_equal(a, np.round(a)) and 0 <= s.value_min and s.value_max <= 255 and \
-        len(np.unique(a[:: max(1, a.shape[0] // 16)])) <= 32
+    s.preset = "SOFT_TISSUE"
+    if _looks_like_labels(a):
+        s.preset, s.sampling, s.segment_by = "LABELS", "nearest", "LABELS"
+        s.labels = f"1-{int(s.value_max)}"
     extent = max(np.asarray(vol.dims) * np.asarray(vol.spacing)) * unit_scale
     s.density_scale = round(40.0 / max(extent, 1e-6), 3)
-    s.preset = "LABELS" if is_labels and s.value_max > 3 else "SOFT_TISSUE"
-    scans.remember_source(obj, vol)
     scans.update_mask_count(obj)
     materials.update_volume_material(obj)
     for o in context.view_layer.objects:
@@ -146,6 +146,15 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     obj.select_set(True)
     context.view_layer.objects.active = obj
     return obj
+
+
+def _looks_like_labels(a: np.ndarray) -> bool:
+    """A label map: a few small non-negative integers numbered from about 1 up (not a scan's intensity levels)."""
+    if not a.size:
+        return False
+    some = np.unique(a[:: max(1, a.shape[0] // 32)])
+    return bool(len(some) <= 64 and some.min() >= 0 and np.array_equal(some, np.round(some))
+                and 3 < some.max() <= 2 * len(some) + 8)
 
 
 class VOLRIG_OT_skeletonize(bpy.types.Operator):
@@ -195,7 +204,7 @@ class VOLRIG_OT_rig(bpy.types.Operator):
         try:
             mask = scans.mask(vol)
             sk = scans.skeleton(vol, progress=_progress(context, 0, 30))
-            pts = sk.at(s.thinness)
+            pts = sk.at(scans.thinness(vol))
             if len(pts) < 2:
                 raise ValueError(f"only {len(pts)} skeleton point(s) at thinness {s.thinness:g}: lower the thinness")
             tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=_progress(context, 30, 55))
@@ -325,6 +334,43 @@ class VOLRIG_OT_bake(bpy.types.Operator):
             self._baker.play(context.scene)
 
 
+class VOLRIG_OT_walk_cycle(bpy.types.Operator):
+    """Keyframe a procedural walk on a humanoid rig (thighs, shins, feet, arms swing about its left-right axis)"""
+    bl_idname = "volrig.walk_cycle"
+    bl_label = "Add Walk Cycle"
+    bl_options = {"REGISTER", "UNDO"}
+
+    frame_start: bpy.props.IntProperty(name="Start", default=1)
+    frames: bpy.props.IntProperty(name="Frames", default=24, min=1, max=100000)
+    period: FloatProperty(name="Stride", default=24.0, min=1.0, description="Frames per stride")
+    amplitude: FloatProperty(name="Amplitude", default=1.0, min=0.0, soft_max=2.0, description="Angle scale")
+
+    @classmethod
+    def poll(cls, context):
+        vol = _active_volume(context)
+        return vol is not None and "RIG" in objects.members(vol) and context.mode in ("OBJECT", "POSE")
+
+    @_reported
+    def execute(self, context):
+        from mathutils import Quaternion, Vector
+        from volrig.walk import walk_cycle
+        vol = _active_volume(context)
+        rig_obj = objects.members(vol)["RIG"]
+        axis, angles = walk_cycle(objects.armature_rig(rig_obj), self.frames, self.period, self.amplitude)
+        for name, values in angles.items():
+            pb = rig_obj.pose.bones[name]
+            pb.rotation_mode = "QUATERNION"
+            local_axis = pb.bone.matrix_local.to_3x3().transposed() @ Vector(axis)
+            for i, angle in enumerate(values):
+                pb.rotation_quaternion = Quaternion(local_axis, float(angle))
+                pb.keyframe_insert("rotation_quaternion", frame=self.frame_start + i, group=name)
+        scene = context.scene
+        scene.frame_start, scene.frame_end = self.frame_start, self.frame_start + self.frames - 1
+        scene.frame_set(self.frame_start)
+        self.report({"INFO"}, f"volrig: walk on {len(angles)} bones over {self.frames} frames")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_show_rest(bpy.types.Operator):
     """Show the imported volume again instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
@@ -347,7 +393,7 @@ def menu_import(self, context):
 
 
 CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_bake,
-           VOLRIG_OT_show_rest)
+           VOLRIG_OT_walk_cycle, VOLRIG_OT_show_rest)
 
 
 def register():

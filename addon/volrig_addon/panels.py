@@ -89,6 +89,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         row.operator("volrig.rebind", icon="FILE_REFRESH")
         parts = objects.members(vol)
         if "RIG" in parts:
+            layout.operator("volrig.walk_cycle", icon="ANIM")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
         if "SPHERES" in parts:
             layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
@@ -121,6 +122,7 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
         s = objects.volume_of(context.active_object).volrig
         layout = self.layout
         layout.prop(s, "deform_mode")
+        layout.prop(s, "sampling")
         layout.prop(s, "bake_frames")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")

@@ -78,7 +78,8 @@ class VolrigObject(bpy.types.PropertyGroup):
     ], default="euclidean")
     thinness: FloatProperty(name="Thinness", default=0.5, min=0.0, max=4.1, soft_max=1.42, precision=3, step=1,
                             update=_thinness_changed,
-                            description="Keep voxels whose thinness score exceeds this; larger = fewer spheres")
+                            description="Keep voxels whose thinness score exceeds this, in voxels (Euclidean: "
+                                        "0 .. 1.416; chamfer <3,4,5>: 0 .. 4.077); larger = fewer spheres")
     point_count: IntProperty(name="Points", default=-1)
     show_spheres: BoolProperty(name="Spheres", default=True, update=_thinness_changed,
                                description="Show the skeleton's spheres scaled by radius (else points only)")
@@ -116,6 +117,10 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("dual_quaternion", "Dual quaternion", "Blend as dual quaternions (keeps volume at twisted joints)"),
         ("rigid", "Rigid", "Each sphere follows its heaviest bone"),
     ], default="linear")
+    sampling: EnumProperty(name="Sampling", items=[
+        ("trilinear", "Trilinear", "Interpolate the scan's samples (intensities)"),
+        ("nearest", "Nearest", "Take the nearest sample (label maps)"),
+    ], default="trilinear")
     bake_frames: StringProperty(name="Frames", default="",
                                 description="Frames to bake, e.g. '1-48' or '1-10,20'; empty = the scene range")
     baked_start: IntProperty(name="Baked from", default=0)

@@ -9,6 +9,7 @@ The skeleton is computed once per segmentation and metric and kept here, keyed b
 the thinness slider re-thresholds it instantly. Entries are checked against the settings they were made with, so
 undo and redo never show a stale one; after reopening a .blend they are rebuilt from the cache folder on demand.
 """
+import json
 import os
 import re
 import tempfile
@@ -58,17 +59,33 @@ def forget(volume_obj) -> None:
     _memory.pop(volume_obj.name, None)
 
 
+def write_source(folder: str, volume: volrig.Volume, source_file: str = "") -> str:
+    """Write ``volume`` (float32 samples) into a cache folder: source.vdb and source.json, the exact grid (Blender's
+    float properties are single precision, the rig file's geometry is not); returns the VDB's path."""
+    from volrig.files import atomic_output
+    vdb = os.path.join(folder, "source.vdb")
+    volrig.write_vdb(vdb, {"density": volume}, half=False)
+    with atomic_output(os.path.join(folder, "source.json")) as tmp:
+        with open(tmp, "w") as f:
+            json.dump({"dims": list(volume.dims), "spacing": list(volume.spacing), "origin": list(volume.origin),
+                       "source": source_file}, f, indent=1)
+    return vdb
+
+
 def source(volume_obj) -> volrig.Volume:
     """The samples (float32) on the grid they were imported with, from memory or the cache's source.vdb."""
     entry = _memory.setdefault(volume_obj.name, {})
-    s = volume_obj.volrig
     v = entry.get("source")
-    if v is None or v.dims != tuple(s.dims):
+    if v is None:
         path = source_path(volume_obj)
-        if not os.path.exists(path):
-            raise FileNotFoundError(f"{path}: the cached source of {volume_obj.name} is missing "
-                                    f"(import {s.source or 'the volume'} again)")
-        v = volrig.load(path).on_grid(tuple(s.origin), tuple(s.dims))
+        try:
+            with open(os.path.join(os.path.dirname(path), "source.json")) as f:
+                grid = json.load(f)
+        except (OSError, ValueError) as e:
+            raise FileNotFoundError(f"{os.path.dirname(path)}: the cached source of {volume_obj.name} is missing or "
+                                    f"damaged ({e}); import {volume_obj.volrig.source or 'the volume'} again") from None
+        v = volrig.load(path).on_grid(grid["origin"], grid["dims"])
+        v = volrig.Volume(v.array, tuple(grid["spacing"]), tuple(grid["origin"]))
         entry.clear()
         entry["source"] = v
     return v
@@ -137,6 +154,13 @@ def skeleton(volume_obj, progress=None, compute: bool = True):
     sk = volrig.skeletonize(m, s.metric, progress=progress)
     _memory[volume_obj.name]["skeleton"] = (key, sk)
     return sk
+
+
+def thinness(volume_obj) -> float:
+    """The skeleton's thinness TP for the slider's value: the slider counts voxels, a Euclidean score is in world
+    units (so TP = value * smallest spacing), a chamfer score in grid steps (TP = value)."""
+    s = volume_obj.volrig
+    return float(s.thinness) * (min(s.spacing) if s.metric == "euclidean" else 1.0)
 
 
 def update_mask_count(volume_obj) -> None:
