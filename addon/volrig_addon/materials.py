@@ -57,7 +57,9 @@ def _nodes(mat):
     bone.attribute_name = "bone"
     is_bone = node("ShaderNodeMath", "is_bone", -700, -400)
     is_bone.operation = "COMPARE"
-    is_bone.inputs[2].default_value = 0.5
+    # Cycles interpolates the label grid: only values within 0.05 of the label count (between two labels or at
+    # the surface the interpolated value passes the label in a thin shell only)
+    is_bone.inputs[2].default_value = 0.05
     glow = node("ShaderNodeMath", "glow", -500, -400)
     glow.operation = "MULTIPLY"
     glow_density = node("ShaderNodeMath", "glow_density", -300, -400)

@@ -17,11 +17,16 @@ def volume_box(volume_obj):
     return c.min(axis=0), c.max(axis=0)
 
 
-def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15):
-    """Camera, light and render settings framing ``volume_obj`` from the front; returns the camera object."""
+def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15, azimuth=0.0):
+    """Camera, light and render settings framing ``volume_obj`` from the front (``azimuth`` degrees turns the
+    camera about the vertical axis towards +x); returns the camera object."""
     lo, hi = volume_box(volume_obj)
     centre = (lo + hi) / 2
+    a = np.radians(azimuth)
+    right = np.array([np.cos(a), np.sin(a), 0.0])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     size = hi - lo
+    size[0] = np.ptp(corners @ right)  # the width the camera sees
     cam = scene.objects.get("volrig camera")
     if cam is None:
         cam = bpy.data.objects.new("volrig camera", bpy.data.cameras.new("volrig camera"))
@@ -35,8 +40,8 @@ def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15):
         cam.data.ortho_scale = margin * max(size[0], size[2] * aspect)
     cam.data.clip_end = 10 * float(size.max()) + 100
     distance = 2.0 * float(size.max())
-    cam.matrix_world = Matrix.Translation(Vector((centre[0], lo[1] - distance, centre[2]))) @ \
-        Matrix.Rotation(np.pi / 2, 4, "X")
+    cam.matrix_world = Matrix.Translation(Vector(centre + distance * np.array([np.sin(a), -np.cos(a), 0.0]))) @ \
+        Matrix.Rotation(a, 4, "Z") @ Matrix.Rotation(np.pi / 2, 4, "X")
     scene.camera = cam
     sun = scene.objects.get("volrig sun")
     if sun is None:
