@@ -45,14 +45,34 @@ def _active_volume(context):
     return objects.volume_of(context.active_object)
 
 
-def _progress(context, start: float, end: float):
-    """A volrig progress callback mapped onto [start, end] of the window manager's progress (0..100)."""
-    wm = context.window_manager
+class _ProgressBar:
+    """The window manager's progress bar (0..100) for a with-block; ``part(start, end)`` is a volrig progress
+    callback mapped onto [start, end]."""
 
-    def show(f):
-        wm.progress_update(start + (end - start) * float(f))
-        return True
-    return show
+    def __init__(self, context):
+        self.wm = context.window_manager
+
+    def __enter__(self):
+        self.wm.progress_begin(0, 100)
+        return self
+
+    def __exit__(self, *exc):
+        self.wm.progress_end()
+
+    def part(self, start: float, end: float):
+        def show(f):
+            self.wm.progress_update(start + (end - start) * float(f))
+            return True
+        return show
+
+
+class _OnVolume:
+    """Operators on the active object's volrig volume, in object mode."""
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _active_volume(context) is not None and context.mode == "OBJECT"
 
 
 class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
@@ -157,26 +177,17 @@ def _looks_like_labels(a: np.ndarray) -> bool:
                 and 3 < some.max() <= 2 * len(some) + 8)
 
 
-class VOLRIG_OT_skeletonize(bpy.types.Operator):
+class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     """Segment the volume and compute its thinness skeleton once; the Thinness slider then re-thresholds it"""
     bl_idname = "volrig.skeletonize"
     bl_label = "Skeletonize"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        return _active_volume(context) is not None and context.mode == "OBJECT"
 
     @_reported
     def execute(self, context):
         vol = _active_volume(context)
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        try:
+        with _ProgressBar(context) as bar:
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=_progress(context, 0, 100))
-        finally:
-            wm.progress_end()
+            sk = scans.skeleton(vol, progress=bar.part(0, 100))
         vol.volrig.mask_count = int(np.count_nonzero(mask.array))
         objects.update_skeleton_preview(vol)
         self.report({"INFO"}, f"volrig: {sk.object_count:,} object voxels; {vol.volrig.point_count:,} skeleton points "
@@ -184,34 +195,25 @@ class VOLRIG_OT_skeletonize(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_rig(bpy.types.Operator):
+class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
     """Build the skeleton-tree, the automatic armature and the binding from the skeleton at the current thinness:
     creates <name>_rig and <name>_spheres"""
     bl_idname = "volrig.rig"
     bl_label = "Rig"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        return _active_volume(context) is not None and context.mode == "OBJECT"
 
     @_reported
     def execute(self, context):
         vol = _active_volume(context)
         s = vol.volrig
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        try:
+        with _ProgressBar(context) as bar:
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=_progress(context, 0, 30))
+            sk = scans.skeleton(vol, progress=bar.part(0, 30))
             pts = sk.at(scans.thinness(vol))
             if len(pts) < 2:
                 raise ValueError(f"only {len(pts)} skeleton point(s) at thinness {s.thinness:g}: lower the thinness")
-            tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=_progress(context, 30, 55))
-            rig = volrig.autorig(pts, tree, mask, bones=s.bones, roles=s.roles, progress=_progress(context, 55, 85))
-            binding = volrig.bind(pts, rig, mask, mode=s.bind_mode, progress=_progress(context, 85, 100))
-        finally:
-            wm.progress_end()
+            tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=bar.part(30, 55))
+            rig = volrig.autorig(pts, tree, mask, bones=s.bones, roles=s.roles, progress=bar.part(55, 85))
+            binding = volrig.bind(pts, rig, mask, mode=s.bind_mode, progress=bar.part(85, 100))
         _save_rig(vol, pts, tree, rig, binding)
         rig_obj = objects.build_armature(vol, rig)
         objects.build_spheres(vol, rig_obj, pts, tree, binding)

@@ -15,11 +15,12 @@ class _VolrigPanel:
         return objects.volume_of(context.active_object) is not None
 
 
-class VOLRIG_PT_volume(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "volrig"
+class VOLRIG_PT_volume(_VolrigPanel, bpy.types.Panel):
     bl_label = "Volume"
+
+    @classmethod
+    def poll(cls, context):
+        return True  # the import button is always there
 
     def draw(self, context):
         layout = self.layout

@@ -206,3 +206,44 @@ def test_rebind_after_editing_the_armature(rigged):
 def test_rebind_without_rig_is_refused(empty_scene, phantom_file):
     run_op(bpy.ops.volrig.import_volume, filepath=phantom_file[0])
     assert not bpy.ops.volrig.rebind.poll()
+
+
+class _Layout:
+    """Records what a panel draws; checks every property it shows exists."""
+
+    def __init__(self, drawn):
+        self.drawn = drawn
+
+    def prop(self, data, name, **kw):
+        assert name in data.bl_rna.properties, f"no property {name!r}"
+        self.drawn.append(name)
+
+    def prop_search(self, data, name, search_data, search_name, **kw):
+        assert name in data.bl_rna.properties and hasattr(search_data, search_name)
+        self.drawn.append(name)
+
+    def operator(self, idname, **kw):
+        module, op = idname.split(".")
+        assert hasattr(getattr(bpy.ops, module), op), idname
+        self.drawn.append(idname)
+
+    def label(self, **kw):
+        self.drawn.append(kw.get("text", ""))
+
+    def row(self, **kw):
+        return self
+
+    column = box = row
+
+
+def test_panels_draw_every_stage(rigged):
+    from volrig_addon import panels
+    drawn = []
+    for cls in panels.CLASSES:
+        assert cls.poll(bpy.context)
+        stub = type("PanelStub", (), {"layout": _Layout(drawn)})()
+        cls.draw(stub, bpy.context)
+    for expected in ("volrig.import_volume", "low", "thinness", "volrig.rig", "volrig.rebind", "volrig.walk_cycle",
+                     "preset", "highlight_bone", "volrig.bake", "deform_mode"):
+        assert expected in drawn
+    assert any("21 bones" in str(t) for t in drawn)

@@ -107,3 +107,24 @@ def test_vdb_read_back_returns_to_its_grid(tmp_path):
     assert not back.on_grid((1000.0, 0.0, 0.0), (3, 3, 3)).array.any()
     with pytest.raises(ValueError, match="whole number"):
         back.on_grid((10.25, 20.0, 30.0), v.dims)
+
+
+def test_walk_cycle_swings_the_legs_in_opposition(rigged):
+    from volrig.walk import walk_cycle
+    _, _, _, rig, _ = rigged
+    axis, angles = walk_cycle(rig, frames=24, period=24)
+    np.testing.assert_allclose(axis, [1.0, 0.0, 0.0], atol=0.05)  # the phantom's left is on +x
+    assert {"thigh.L", "thigh.R", "shin.L", "shin.R", "upper_arm.L"} <= set(angles)
+    left, right = angles["thigh.L"], angles["thigh.R"]
+    assert left.shape == (24,)
+    np.testing.assert_allclose(left[:12], right[12:], atol=1e-12)  # half a stride apart
+    assert np.degrees(np.ptp(left)) == pytest.approx(56.0, abs=1.0)
+    assert (np.degrees(angles["shin.L"]) >= -1e-9).all()  # knees bend one way only
+    np.testing.assert_allclose(walk_cycle(rig, 24, amplitude=0.0)[1]["thigh.L"], 0.0)
+
+
+def test_walk_cycle_needs_a_humanoid():
+    from volrig.walk import walk_cycle
+    chain = volrig.Rig([[0, 0, 0], [0, 0, 1], [0, 0, 2]], [[0, 1], [1, 2]], ["a", "b"])
+    with pytest.raises(ValueError, match="humanoid"):
+        walk_cycle(chain, 10)
