@@ -11,7 +11,6 @@ samples: <out>/phantom_walk.blend (the phantom walking, 24 frames baked) and, wh
 Everything goes through the add-on's operators, as a user would click them.
 """
 import argparse
-import math
 import os
 import sys
 import time

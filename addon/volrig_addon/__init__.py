@@ -51,9 +51,13 @@ def register():
     properties.register()
     operators.register()
     panels.register()
+    bpy.app.handlers.load_post.append(scans.forget_all)
 
 
 def unregister():
+    if scans.forget_all in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(scans.forget_all)
+    scans.forget_all()
     panels.unregister()
     operators.unregister()
     properties.unregister()

@@ -144,9 +144,9 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     os.makedirs(folder, exist_ok=True)
     scans.write_source(folder, vol, source)
     obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale)
-    scans.remember_source(obj, vol)
     s = obj.volrig
     s.source, s.cache_dir = source, rel
+    scans.remember_source(obj, vol)
     s.dims, s.spacing, s.origin = vol.dims, vol.spacing, vol.origin
     a = vol.array
     s.value_min, s.value_max = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)

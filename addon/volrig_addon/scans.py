@@ -5,7 +5,8 @@ The cache folder sits beside the .blend (``<blend name>_volrig/<object>/``; a te
 unsaved) and holds ``source.vdb`` (the imported samples as float32, the grid the object shows before baking), the
 ``.vrig`` rig files and the baked ``frames/``. The user's source file is only ever read.
 
-The skeleton is computed once per segmentation and metric and kept here, keyed by the Volume object's name, so
+The skeleton is computed once per segmentation and metric and kept here, keyed by the cache folder (one per
+import, so another file's object of the same name never sees this one's data), so
 the thinness slider re-thresholds it instantly. Entries are checked against the settings they were made with, so
 undo and redo never show a stale one; after reopening a .blend they are rebuilt from the cache folder on demand.
 """
@@ -19,7 +20,17 @@ import numpy as np
 
 import volrig
 
-_memory = {}  # object name -> {"source": Volume, "mask": (settings, Volume), "skeleton": (settings, Skeleton)}
+_memory = {}  # cache folder -> {"source": Volume, "mask": (settings, Volume), "skeleton": (settings, Skeleton)}
+
+
+def _entry(volume_obj) -> dict:
+    return _memory.setdefault(bpy.path.abspath(volume_obj.volrig.cache_dir), {})
+
+
+@bpy.app.handlers.persistent
+def forget_all(*_args) -> None:
+    """Drops every scan held in memory (on loading a .blend: its objects rebuild theirs from their caches)."""
+    _memory.clear()
 
 
 def cache_root() -> str:
@@ -52,11 +63,9 @@ def rig_path(volume_obj) -> str:
 
 
 def remember_source(volume_obj, volume: volrig.Volume) -> None:
-    _memory[volume_obj.name] = {"source": volume}
-
-
-def forget(volume_obj) -> None:
-    _memory.pop(volume_obj.name, None)
+    entry = _entry(volume_obj)
+    entry.clear()
+    entry["source"] = volume
 
 
 def write_source(folder: str, volume: volrig.Volume, source_file: str = "") -> str:
@@ -74,7 +83,7 @@ def write_source(folder: str, volume: volrig.Volume, source_file: str = "") -> s
 
 def source(volume_obj) -> volrig.Volume:
     """The samples (float32) on the grid they were imported with, from memory or the cache's source.vdb."""
-    entry = _memory.setdefault(volume_obj.name, {})
+    entry = _entry(volume_obj)
     v = entry.get("source")
     if v is None:
         path = source_path(volume_obj)
@@ -121,7 +130,7 @@ def _segmentation(s):
 def mask(volume_obj) -> volrig.Volume:
     """The segmentation mask for the object's current settings (computed once per setting)."""
     key = _segmentation(volume_obj.volrig)
-    entry = _memory.setdefault(volume_obj.name, {})
+    entry = _entry(volume_obj)
     cached = entry.get("mask")
     if cached is None or cached[0] != key:
         v = source(volume_obj)
@@ -140,7 +149,7 @@ def skeleton(volume_obj, progress=None, compute: bool = True):
     """The skeleton (scores sorted once) for the current segmentation and metric; None when not computed yet and
     ``compute`` is False."""
     s = volume_obj.volrig
-    entry = _memory.get(volume_obj.name, {})
+    entry = _entry(volume_obj)
     try:
         key = (_segmentation(s), s.metric)
     except ValueError:
@@ -152,7 +161,7 @@ def skeleton(volume_obj, progress=None, compute: bool = True):
         return None
     m = mask(volume_obj)
     sk = volrig.skeletonize(m, s.metric, progress=progress)
-    _memory[volume_obj.name]["skeleton"] = (key, sk)
+    entry["skeleton"] = (key, sk)
     return sk
 
 

@@ -1,7 +1,5 @@
 """Fixtures for tests that run inside headless Blender (see run.py): the add-on registered once, a factory-fresh
 scene per test, and the humanoid phantom imported, skeletonized and rigged through the operators."""
-import os
-import sys
 
 import pytest
 

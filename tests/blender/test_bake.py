@@ -1,7 +1,6 @@
 """Baking the posed phantom into a VDB sequence, rendering it in Cycles, and baking a saved .blend headless."""
 import os
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -153,3 +152,16 @@ def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
         again = volrig.load(bake.frame_path(vol, f))
         assert again.origin == interactive[f].origin
         np.testing.assert_array_equal(again.array, interactive[f].array)
+
+
+def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
+    blend = str(tmp_path / "plain.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    run = ["/usr/bin/python3", "-m", "volrig", "bake"]
+    out = subprocess.run(run + [blend], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]
+    out = subprocess.run(run + [str(tmp_path / "none.blend")], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and "none.blend: no such file" in out.stderr
+    out = subprocess.run(run + [blend, "--frames", "5-x"], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "'5-x' is not a frame" in out.stderr, out.stderr[-2000:]
