@@ -49,6 +49,16 @@ py::array_t<T> to_numpy(std::vector<T>&& data, const Grid& grid) {
     return py::array_t<T>({nz, ny, nx}, {ny * nx * e, nx * e, e}, holder->data(), owner);
 }
 
+/// Same for a calloc'd ZeroedArray (its untouched pages stay shared zero pages).
+template <class T>
+py::array_t<T> to_numpy(ZeroedArray<T>&& data, const Grid& grid) {
+    const py::ssize_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+    const auto e = static_cast<py::ssize_t>(sizeof(T));
+    T* p = data.release();
+    py::capsule owner(p, [](void* q) { std::free(q); });
+    return py::array_t<T>({nz, ny, nx}, {ny * nx * e, nx * e, e}, p, owner);
+}
+
 /// A 1-D or N-D array owning a vector, with the given shape.
 template <class T>
 py::array_t<T> to_numpy_shaped(std::vector<T>&& data, std::vector<py::ssize_t> shape) {

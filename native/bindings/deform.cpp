@@ -165,7 +165,7 @@ void bind_deform(py::module_& m) {
     m.def(
         "inverse_warp",
         [](const py::array& source, const Vec3& spacing, const Vec3& origin, const DoubleArray& matrix,
-           const std::string& sampling) {
+           const std::string& sampling, const Box& box) {
             const py::array src = py::array::ensure(source, py::array::c_style);
             if (!src) throw Error("inverse_warp: the source is not a numeric array");
             if (matrix.ndim() != 2 || matrix.shape(0) != 4 || matrix.shape(1) != 4)
@@ -175,11 +175,14 @@ void bind_deform(py::module_& m) {
             std::vector<float> out;
             {
                 py::gil_scoped_release nogil;
-                out = inverse_warp(v, matrix.data(), s);
+                out = inverse_warp(v, matrix.data(), s, {}, box ? &*box : nullptr);
             }
-            return to_numpy(std::move(out), v.grid);
+            Grid g = v.grid;
+            if (box) g.dims = {(*box)[3], (*box)[4], (*box)[5]};
+            return to_numpy(std::move(out), g);
         },
-        py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("matrix"), py::arg("sampling") = "trilinear");
+        py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("matrix"), py::arg("sampling") = "trilinear",
+        py::arg("box") = py::none());
 }
 
 }  // namespace volrig::py

@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <string>
 
@@ -77,44 +78,28 @@ Affine index_affine(const Eigen::Matrix3d& L, const Eigen::Vector3d& d, const Gr
 }
 
 struct Motion {
-    Eigen::Matrix3d R;  // rotation (or a general linear part for linear blending)
+    Eigen::Matrix3d R;  // rotation
     Eigen::Vector3d d;
     Affine forward;  // rest lattice -> posed lattice
     Affine inverse;  // posed lattice -> rest lattice
-    bool valid = true;
-    bool rigid = true;  // distances are then measured in rest space: |T⁻¹q − c| (= |q − Tc|)
 };
 
-Motion motion_of(const Eigen::Matrix3d& L, const Eigen::Vector3d& d, const Grid& g, bool rigid) {
+Motion motion_of(const Eigen::Matrix3d& R, const Eigen::Vector3d& d, const Grid& g) {
     Motion m;
-    m.R = L;
+    m.R = R;
     m.d = d;
-    m.forward = index_affine(L, d, g);
-    m.rigid = rigid;
-    if (rigid) {
-        const Eigen::Matrix3d Lt = L.transpose();
-        m.inverse = index_affine(Lt, -(Lt * d), g);
-    } else {
-        const double det = L.determinant();
-        if (!(std::abs(det) > 1e-9)) {
-            m.valid = false;  // a blend of opposite rotations collapses the sphere: it covers nothing
-            return m;
-        }
-        const Eigen::Matrix3d Li = L.inverse();
-        m.inverse = index_affine(Li, -(Li * d), g);
-    }
+    m.forward = index_affine(R, d, g);
+    const Eigen::Matrix3d Rt = R.transpose();
+    m.inverse = index_affine(Rt, -(Rt * d), g);
     return m;
 }
 
-/// Squared world distance between a posed lattice point q and a moved sphere (rest centre c, posed centre Tc):
-/// |T⁻¹q − c| in rest space for rigid motions (as the per-bone fields measure it), |q − Tc| otherwise.
-inline double moved_length2(const Motion& m, const double* c, const double* tc, const double* q, const double* s2) {
-    if (m.rigid) {
-        double p[3];
-        m.inverse.apply(q, p);
-        return length2(p[0] - c[0], p[1] - c[1], p[2] - c[2], s2);
-    }
-    return length2(q[0] - tc[0], q[1] - tc[1], q[2] - tc[2], s2);
+/// Squared world distance between a posed lattice point q and a sphere of rest centre c moved rigidly by m,
+/// measured in rest space, |T⁻¹q − c| (= |q − Tc|), as the per-bone fields measure it.
+inline double moved_length2(const Motion& m, const double* c, const double* q, const double* s2) {
+    double p[3];
+    m.inverse.apply(q, p);
+    return length2(p[0] - c[0], p[1] - c[1], p[2] - c[2], s2);
 }
 
 /// Checks and orthonormalises the bone matrices (row-major 4x4).
@@ -140,37 +125,54 @@ std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid
             const Eigen::Matrix3d Q = svd.matrixU() * svd.matrixV().transpose();
             if ((Q - R).cwiseAbs().maxCoeff() > 1e-15) R = Q;
         }
-        out.push_back(motion_of(R, d, g, true));
+        out.push_back(motion_of(R, d, g));
     }
     return out;
 }
 
-/// The blended world transform of a sphere from its bones' weights.
-Motion blended_motion(const std::vector<Motion>& bones, const std::int32_t* wb, const float* w, std::int64_t count,
-                      std::int32_t owner, DeformMode mode, const Grid& g) {
+/// A sphere's weights: (bone, weight in kWeightSteps-ths) pairs sorted by bone, zero weights dropped.
+using Weights = std::vector<std::pair<std::int32_t, std::int32_t>>;
+/// Smooth weights are rounded to 16ths: at a 120° bend neighbouring groups differ by at most ~8°, and the groups
+/// stay few enough for the per-bone machinery (the cost grows with the groups a voxel lies in).
+constexpr std::int32_t kWeightSteps = 16;
+
+/// The blended world transform of a sphere from its bones' weights (rigid in both modes).
+///   Linear: the weighted mean of the matrices, made rigid: its linear part projected onto the nearest rotation
+///           (polar decomposition) about `pivot` (world), which keeps the blend's position, so that spheres keep
+///           their size and distances stay measurable in rest space.
+///   DualQuaternion (Kavan et al.): the weighted mean of unit dual quaternions aligned with the owner's
+///           hemisphere, normalised.
+Motion blended_motion(const std::vector<Motion>& bones, const Weights& w, std::int32_t owner, DeformMode mode,
+                      const Grid& g, const Eigen::Vector3d& pivot) {
     double total = 0;
-    for (std::int64_t k = 0; k < count; ++k) total += w[k];
+    for (const auto& [b, q] : w) total += q;
     if (mode == DeformMode::Linear) {
         Eigen::Matrix3d L = Eigen::Matrix3d::Zero();
         Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        for (std::int64_t k = 0; k < count; ++k) {
-            L += (w[k] / total) * bones[static_cast<std::size_t>(wb[k])].R;
-            d += (w[k] / total) * bones[static_cast<std::size_t>(wb[k])].d;
+        for (const auto& [b, q] : w) {
+            L += (q / total) * bones[static_cast<std::size_t>(b)].R;
+            d += (q / total) * bones[static_cast<std::size_t>(b)].d;
         }
-        return motion_of(L, d, g, false);
+        Eigen::JacobiSVD<Eigen::Matrix3d> svd(L, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
+        if (R.determinant() < 0) {  // a blend of opposite rotations: keep a proper rotation
+            Eigen::Matrix3d U = svd.matrixU();
+            U.col(2) = -U.col(2);
+            R = U * svd.matrixV().transpose();
+        }
+        return motion_of(R, L * pivot + d - R * pivot, g);
     }
-    // Dual quaternions (Kavan et al.): blend, aligned with the owner's hemisphere, then normalise.
     const Eigen::Quaterniond ref(bones[static_cast<std::size_t>(owner)].R);
     Eigen::Vector4d real = Eigen::Vector4d::Zero(), dual = Eigen::Vector4d::Zero();
-    for (std::int64_t k = 0; k < count; ++k) {
-        const Motion& m = bones[static_cast<std::size_t>(wb[k])];
-        Eigen::Quaterniond q(m.R);
-        if (q.coeffs().dot(ref.coeffs()) < 0) q.coeffs() = -q.coeffs();
+    for (const auto& [b, q] : w) {
+        const Motion& m = bones[static_cast<std::size_t>(b)];
+        Eigen::Quaterniond r(m.R);
+        if (r.coeffs().dot(ref.coeffs()) < 0) r.coeffs() = -r.coeffs();
         const Eigen::Quaterniond t(0, m.d[0], m.d[1], m.d[2]);
-        Eigen::Quaterniond qd = t * q;
-        qd.coeffs() *= 0.5;
-        real += (w[k] / total) * q.coeffs();
-        dual += (w[k] / total) * qd.coeffs();
+        Eigen::Quaterniond rd = t * r;
+        rd.coeffs() *= 0.5;
+        real += (q / total) * r.coeffs();
+        dual += (q / total) * rd.coeffs();
     }
     const double n = real.norm();
     Eigen::Quaterniond qr, qd;
@@ -178,7 +180,7 @@ Motion blended_motion(const std::vector<Motion>& bones, const std::int32_t* wb, 
     qd.coeffs() = dual / n;
     const Eigen::Quaterniond tq = qd * qr.conjugate();
     const Eigen::Vector3d d = 2.0 * tq.vec();
-    return motion_of(qr.toRotationMatrix(), d, g, true);
+    return motion_of(qr.toRotationMatrix(), d, g);
 }
 
 // ---- sampling ----------------------------------------------------------------------------------------------
@@ -292,16 +294,62 @@ std::vector<double> scaled_radii(const BoundSpheres& s, const DeformOptions& o) 
     return r;
 }
 
-/// A sphere moves with one bone alone when its weight row holds a single positive weight.
-std::int32_t single_bone(const BoundSpheres& s, std::size_t i) {
-    if (!s.weight_offsets) return s.bone[i];
-    std::int32_t b = -1;
+/// A sphere's smooth weights rounded to kWeightSteps-ths of their sum (spheres whose rounded weights agree share one
+/// blended transform, which is what lets smooth modes use the per-bone machinery).
+Weights quantized_weights(const BoundSpheres& s, std::size_t i) {
+    Weights w;
+    if (!s.weight_offsets) return {{s.bone[i], kWeightSteps}};
+    double total = 0;
+    for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) total += s.weights[k];
     for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) {
-        if (s.weights[k] <= 0) continue;
-        if (b >= 0 && s.weight_bones[k] != b) return -1;
-        b = s.weight_bones[k];
+        const auto q = static_cast<std::int32_t>(std::lround(kWeightSteps * s.weights[k] / total));
+        if (q <= 0) continue;
+        auto it = std::find_if(w.begin(), w.end(), [&](const auto& e) { return e.first == s.weight_bones[k]; });
+        if (it != w.end()) it->second += q;
+        else w.emplace_back(s.weight_bones[k], q);
     }
-    return b;
+    std::sort(w.begin(), w.end());
+    if (w.empty()) w.emplace_back(s.bone[i], kWeightSteps);
+    return w;
+}
+
+/// Smooth-mode groups: spheres whose rounded weights and owner agree share one blended transform (for linear
+/// blending, made rigid about the group's centroid).
+struct SmoothGroups {
+    std::vector<std::int32_t> group_of;  ///< per sphere: its group, or -1 when one bone moves it
+    std::vector<std::int32_t> bone_of;   ///< per sphere: that bone (when group_of is -1)
+    std::vector<Weights> weights;
+    std::vector<std::int32_t> owner;
+    std::vector<Eigen::Vector3d> pivot;  ///< world centroid of each group's centres
+};
+
+SmoothGroups smooth_groups(const BoundSpheres& s, const Grid& g) {
+    SmoothGroups out;
+    out.group_of.assign(s.n, -1);
+    out.bone_of.assign(s.bone, s.bone + s.n);
+    std::map<std::pair<std::int32_t, Weights>, std::int32_t> ids;
+    std::vector<std::int64_t> count;
+    for (std::size_t i = 0; i < s.n; ++i) {
+        Weights w = quantized_weights(s, i);
+        if (w.size() == 1) {
+            out.bone_of[i] = w[0].first;
+            continue;
+        }
+        auto [it, fresh] = ids.try_emplace({s.bone[i], w}, static_cast<std::int32_t>(out.weights.size()));
+        if (fresh) {
+            out.weights.push_back(std::move(w));
+            out.owner.push_back(s.bone[i]);
+            out.pivot.emplace_back(0, 0, 0);
+            count.push_back(0);
+        }
+        const auto k = static_cast<std::size_t>(it->second);
+        out.group_of[i] = it->second;
+        for (int a = 0; a < 3; ++a)
+            out.pivot[k][a] += g.origin[a] + g.spacing[a] * static_cast<double>(s.ijk[3 * i + 2 - a]);
+        ++count[k];
+    }
+    for (std::size_t k = 0; k < count.size(); ++k) out.pivot[k] /= static_cast<double>(count[k]);
+    return out;
 }
 
 /// Output box {offset, dims} from a lattice-space AABB; checks its size.
@@ -336,19 +384,42 @@ struct KdNode {
 struct BoneField {
     // spheres in local (k-d) order
     std::vector<std::uint32_t> global;
-    std::vector<double> cx, cy, cz;  // centre, index space
-    std::vector<double> wx, wy, wz;  // centre, world offsets (index * spacing)
-    std::vector<double> lim;         // open-ball squared radius (world units²)
+    struct Sphere {
+        double c[3];  // centre, index space
+        double lim;   // open-ball squared radius (world units²)
+    };
+    std::vector<Sphere> sph;
     std::vector<KdNode> nodes;
     // power-diagram labels on the lattice over [lo, lo + dims), stored in allocated 8³ blocks
     std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
     std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
     std::vector<std::uint32_t> labels;            // 512 per allocated block
+    std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
+
+    /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
+    bool any_block(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t k0[3], k1[3];
+        for (int i = 0; i < 3; ++i) {
+            k0[i] = std::max<std::int64_t>(0, a[i] - lo[i]);
+            k1[i] = std::min<std::int64_t>(dims[i] - 1, b[i] - lo[i]);
+            if (k0[i] > k1[i]) return false;
+            k0[i] >>= 3;
+            k1[i] = (k1[i] >> 3) + 1;
+        }
+        const std::int64_t sx = bdims[0] + 1, sy = bdims[1] + 1;
+        auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            return static_cast<std::int64_t>(block_sat[static_cast<std::size_t>((z * sy + y) * sx + x)]);
+        };
+        const std::int64_t n = at(k1[0], k1[1], k1[2]) - at(k0[0], k1[1], k1[2]) - at(k1[0], k0[1], k1[2]) -
+                               at(k1[0], k1[1], k0[2]) + at(k0[0], k0[1], k1[2]) + at(k0[0], k1[1], k0[2]) +
+                               at(k1[0], k0[1], k0[2]) - at(k0[0], k0[1], k0[2]);
+        return n > 0;
+    }
 
     std::size_t bytes() const {
-        return global.size() * (4 + 7 * 8) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + labels.size() * 4;
+        return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
+               blocks.size() * 24 + labels.size() * 4 + block_sat.size() * 4;
     }
 
     std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
@@ -454,13 +525,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     std::iota(order.begin(), order.end(), 0u);
     if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims);
     f.global.resize(m);
-    f.cx.resize(m);
-    f.cy.resize(m);
-    f.cz.resize(m);
-    f.wx.resize(m);
-    f.wy.resize(m);
-    f.wz.resize(m);
-    f.lim.resize(m);
+    f.sph.resize(m);
     std::array<std::int64_t, 3> lo{std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
                                    std::numeric_limits<std::int64_t>::max()};
     std::array<std::int64_t, 3> hi{std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min(),
@@ -469,14 +534,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         const std::uint32_t src = order[k];
         const std::uint32_t i = members[src];
         f.global[k] = i;
-        f.cx[k] = s.ijk[3 * i + 2];
-        f.cy[k] = s.ijk[3 * i + 1];
-        f.cz[k] = s.ijk[3 * i];
-        f.wx[k] = w3[3 * src];
-        f.wy[k] = w3[3 * src + 1];
-        f.wz[k] = w3[3 * src + 2];
-        f.lim[k] = lims[src];
-        const double c[3] = {f.cx[k], f.cy[k], f.cz[k]};
+        f.sph[k] = {{static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
+                     static_cast<double>(s.ijk[3 * i])},
+                    lims[src]};
+        const double* c = f.sph[k].c;
         for (int a = 0; a < 3; ++a) {
             // Beyond this margin the power of the sphere exceeds T: cells outside the box need no labels.
             const auto e = static_cast<std::int64_t>(std::ceil(std::sqrt(r[i] * r[i] + T) / g.spacing[a])) + 1;
@@ -495,12 +556,13 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     std::vector<double> F(count, kInf);
     std::vector<std::uint32_t> lab(count, kNone);
     for (std::size_t k = 0; k < m; ++k) {
-        if (!(f.lim[k] > 0)) continue;
-        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(f.cz[k]) - lo[2]) * ny +
-                                                   (static_cast<std::int64_t>(f.cy[k]) - lo[1])) * nx +
-                                                  (static_cast<std::int64_t>(f.cx[k]) - lo[0]));
-        if (-f.lim[k] < F[idx]) {
-            F[idx] = -f.lim[k];
+        const auto& sp = f.sph[k];
+        if (!(sp.lim > 0)) continue;
+        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - lo[2]) * ny +
+                                                   (static_cast<std::int64_t>(sp.c[1]) - lo[1])) * nx +
+                                                  (static_cast<std::int64_t>(sp.c[0]) - lo[0]));
+        if (-sp.lim < F[idx]) {
+            F[idx] = -sp.lim;
             lab[idx] = static_cast<std::uint32_t>(k);
         }
     }
@@ -553,6 +615,18 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                         for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
                             out[((z & 7) * 8 + (y & 7)) * 8 + (x & 7)] = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
             }
+    const std::int64_t sx = bx + 1, sy = by + 1;
+    f.block_sat.assign(static_cast<std::size_t>(sx * sy * (bz + 1)), 0);
+    for (std::int64_t z = 1; z <= bz; ++z)
+        for (std::int64_t y = 1; y <= by; ++y)
+            for (std::int64_t x = 1; x <= bx; ++x) {
+                auto at = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::int32_t& {
+                    return f.block_sat[static_cast<std::size_t>((k * sy + j) * sx + i)];
+                };
+                at(x, y, z) = (f.block_index[static_cast<std::size_t>(((z - 1) * by + (y - 1)) * bx + (x - 1))] >= 0) +
+                              at(x - 1, y, z) + at(x, y - 1, z) + at(x, y, z - 1) - at(x - 1, y - 1, z) -
+                              at(x - 1, y, z - 1) - at(x, y - 1, z - 1) + at(x - 1, y - 1, z - 1);
+            }
     return f;
 }
 
@@ -589,9 +663,10 @@ void query(const BoneField& f, std::int32_t node, const double* p, const double*
     }
     if (n.left < 0) {
         for (std::uint32_t k = n.begin; k < n.end; ++k) {
-            const double d2 = length2(pi[0] - f.cx[k], pi[1] - f.cy[k], pi[2] - f.cz[k], s2);
-            if (nearest && !(d2 < f.lim[k])) continue;
-            const double key = nearest ? d2 : d2 - f.lim[k];
+            const auto& sp = f.sph[k];
+            const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
+            if (nearest && !(d2 < sp.lim)) continue;
+            const double key = nearest ? d2 : d2 - sp.lim;
             if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
         }
         return;
@@ -615,59 +690,103 @@ Best exact(const BoneField& f, const double* p_index, const double* s, const dou
     return b;
 }
 
-/// Bounds on a bone's power function at a rest point p (index space), from the labels of the lattice cube
-/// around p. L <= min power <= U; U is the power of sphere `local` at p.
-struct Bounds {
-    double L = kInf, U = kInf;
-    std::uint32_t local = kNone;
+/// The power-diagram labels of the lattice cube around a rest point p (index space) of one bone.
+struct Cube {
+    std::uint32_t lab[8];
+    double base[3];  // the cube's first corner
+    bool same;       // all eight corners carry one sphere
 };
 
-Bounds bounds_at(const BoneField& f, const double* p, const double* s2, double T) {
-    Bounds out;
+/// Reads the cube around p; false when no corner carries a label (then no sphere of the bone covers p).
+bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     const double fx = std::floor(p[0]), fy = std::floor(p[1]), fz = std::floor(p[2]);
-    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return out;
+    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return false;
     const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy), z0 = static_cast<std::int64_t>(fz);
-    if (x0 + 1 < f.lo[0] || y0 + 1 < f.lo[1] || z0 + 1 < f.lo[2] || x0 >= f.lo[0] + f.dims[0] ||
-        y0 >= f.lo[1] + f.dims[1] || z0 >= f.lo[2] + f.dims[2])
-        return out;
-    std::uint32_t lab[8];
+    const std::int64_t lx = x0 - f.lo[0], ly = y0 - f.lo[1], lz = z0 - f.lo[2];
+    if (lx + 1 < 0 || ly + 1 < 0 || lz + 1 < 0 || lx >= f.dims[0] || ly >= f.dims[1] || lz >= f.dims[2]) return false;
+    std::uint32_t* lab = cube.lab;
+    if (lx >= 0 && ly >= 0 && lz >= 0 && (lx & 7) != 7 && (ly & 7) != 7 && (lz & 7) != 7 && lx + 1 < f.dims[0] &&
+        ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
+        // The whole cube lies in one block (most of the time).
+        const std::int32_t blk =
+            f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
+        if (blk < 0) return false;
+        const std::uint32_t* b0 =
+            f.labels.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
+        lab[0] = b0[0];
+        lab[1] = b0[1];
+        lab[2] = b0[8];
+        lab[3] = b0[9];
+        lab[4] = b0[64];
+        lab[5] = b0[65];
+        lab[6] = b0[72];
+        lab[7] = b0[73];
+    } else {
+        for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
+    }
     bool same = true, any = false;
     for (int c = 0; c < 8; ++c) {
-        lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
         same = same && lab[c] == lab[0];
         any = any || lab[c] != kNone;
     }
-    if (!any) return out;
-    auto power = [&](std::uint32_t k, double x, double y, double z) {
-        return length2(x - f.cx[k], y - f.cy[k], z - f.cz[k], s2) - f.lim[k];
-    };
-    if (same) {  // the power function is this sphere's on the whole cube
-        out.L = out.U = power(lab[0], p[0], p[1], p[2]);
-        out.local = lab[0];
-        return out;
+    cube.base[0] = fx;
+    cube.base[1] = fy;
+    cube.base[2] = fz;
+    cube.same = same;
+    return any;
+}
+
+inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
+    const auto& sp = f.sph[k];
+    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// An upper bound of the bone's power at p: the least power at p among the cube's labels (a real sphere's, so
+/// a negative value proves coverage). With `any_negative` it stops at the first negative value.
+double upper_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, bool any_negative,
+                   std::uint32_t& local) {
+    double U = kInf;
+    local = kNone;
+    for (int c = 0; c < 8; ++c) {
+        const std::uint32_t k = cube.lab[c];
+        if (k == kNone || k == local) continue;
+        const double v = power_of(f, k, p, s2);
+        if (v < U || (v == U && f.global[k] < f.global[local])) {
+            U = v;
+            local = k;
+            if (any_negative && U < 0) break;
+        }
     }
-    const double u[3] = {p[0] - fx, p[1] - fy, p[2] - fz};
+    return U;
+}
+
+/// A lower bound of the bone's power at p. The power is |p|² plus a concave function (a minimum of linear
+/// ones), so the trilinear interpolation of the corner values minus Σ s²u(1−u) bounds it from below; corners
+/// without a label hold at least T.
+double lower_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, double T) {
+    const double u[3] = {p[0] - cube.base[0], p[1] - cube.base[1], p[2] - cube.base[2]};
     double L = 0;
     for (int c = 0; c < 8; ++c) {
         const double lam = ((c & 1) ? u[0] : 1 - u[0]) * (((c >> 1) & 1) ? u[1] : 1 - u[1]) *
                            (((c >> 2) & 1) ? u[2] : 1 - u[2]);
-        const double F = lab[c] == kNone ? T
-                                         : power(lab[c], fx + (c & 1), fy + ((c >> 1) & 1), fz + ((c >> 2) & 1));
-        L += lam * F;
-        if (lab[c] == kNone) continue;
-        bool seen = false;
-        for (int e = 0; e < c && !seen; ++e) seen = lab[e] == lab[c];
-        if (seen) continue;
-        const double v = power(lab[c], p[0], p[1], p[2]);
-        if (v < out.U || (v == out.U && f.global[lab[c]] < f.global[out.local])) {
-            out.U = v;
-            out.local = lab[c];
-        }
+        const double corner[3] = {cube.base[0] + (c & 1), cube.base[1] + ((c >> 1) & 1), cube.base[2] + ((c >> 2) & 1)};
+        L += lam * (cube.lab[c] == kNone ? T : power_of(f, cube.lab[c], corner, s2));
     }
     L -= s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]);
-    out.L = L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
-    return out;
+    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
 }
+
+/// A field (a bone, or a group of blended spheres) that may cover an output voxel.
+struct Cand {
+    std::int32_t bone;    // the field
+    double L, U;          // bounds of its power at the voxel (equal when exact; the nearest-centre key later)
+    std::uint32_t local;  // the sphere achieving U (local index)
+    std::uint32_t global;
+    double p[3];          // the voxel's rest position under the field's motion
+    bool covered;
+    bool has_U, has_L;    // which bounds are computed yet
+    Cube cube;
+};
 
 }  // namespace
 
@@ -685,9 +804,13 @@ struct Deformer::Impl {
     // per-rig data for one (partition, radii) key
     bool built = false, built_smooth = false;
     std::vector<float> built_scale;
+    // Fields: one per bone (its rigid spheres), then, in smooth modes, one per group of spheres whose rounded
+    // weights agree (they share one blended transform).
     std::vector<BoneField> fields;
-    std::vector<std::uint32_t> blended;  // spheres that blend several bones (smooth modes)
-    std::vector<double> radii;           // scaled radii
+    std::vector<std::int32_t> field_owner;  // the bone each field's voxels are labelled with
+    SmoothGroups groups;                    // fields from bone_count on are its groups, in order
+    std::int64_t blended_spheres = 0;
+    std::vector<double> radii;              // scaled radii
 
     BoundSpheres view() const {
         BoundSpheres s;
@@ -713,20 +836,31 @@ struct Deformer::Impl {
         if (built && built_smooth == smooth && built_scale == o.radius_scale) return;
         built = false;
         fields.clear();
-        blended.clear();
+        field_owner.clear();
+        blended_spheres = 0;
         const BoundSpheres s = view();
         radii = scaled_radii(s, o);
         std::vector<std::vector<std::uint32_t>> members(bone_count);
+        for (std::size_t b = 0; b < bone_count; ++b) field_owner.push_back(static_cast<std::int32_t>(b));
+        groups = smooth ? smooth_groups(s, grid) : SmoothGroups{};
+        for (std::size_t k = 0; k < groups.weights.size(); ++k) {
+            members.emplace_back();
+            field_owner.push_back(groups.owner[k]);
+        }
         for (std::size_t i = 0; i < n; ++i) {
-            const std::int32_t b = smooth ? single_bone(s, i) : bone[i];
-            if (b >= 0) members[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(i));
-            else blended.push_back(static_cast<std::uint32_t>(i));
+            std::size_t f = static_cast<std::size_t>(bone[i]);
+            if (smooth) {
+                f = groups.group_of[i] >= 0 ? bone_count + static_cast<std::size_t>(groups.group_of[i])
+                                            : static_cast<std::size_t>(groups.bone_of[i]);
+                blended_spheres += groups.group_of[i] >= 0;
+            }
+            members[f].push_back(static_cast<std::uint32_t>(i));
         }
         const double T = threshold();
-        fields.reserve(bone_count);
-        for (std::size_t b = 0; b < bone_count; ++b) {
-            fields.push_back(build_bone_field(grid, s, members[b], radii, T));
-            report(progress, 0.5 * static_cast<double>(b + 1) / static_cast<double>(bone_count));
+        fields.reserve(members.size());
+        for (std::size_t f = 0; f < members.size(); ++f) {
+            fields.push_back(build_bone_field(grid, s, members[f], radii, T));
+            report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(members.size()));
         }
         built = true;
         built_smooth = smooth;
@@ -765,7 +899,7 @@ std::size_t Deformer::sphere_count() const { return impl_->n; }
 std::size_t Deformer::memory_bytes() const {
     std::size_t b = impl_->ijk.size() * 4 + impl_->radius.size() * 4 + impl_->bone.size() * 4 +
                     impl_->weights.size() * 8 + impl_->weight_offsets.size() * 8 + impl_->radii.size() * 8 +
-                    impl_->blended.size() * 4;
+                    impl_->groups.group_of.size() * 8 + impl_->groups.weights.size() * 64;
     for (const auto& f : impl_->fields) b += f.bytes();
     return b;
 }
@@ -786,18 +920,10 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const double T = threshold();
     const bool nearest = o.proximity == Proximity::Nearest;
 
-    // Blended spheres: their own motions and posed centres.
-    std::vector<Motion> bmot;
-    bmot.reserve(blended.size());
-    std::vector<std::array<double, 3>> bcentre(blended.size()), brest(blended.size());
-    for (std::size_t k = 0; k < blended.size(); ++k) {
-        const std::uint32_t i = blended[k];
-        const std::int64_t a = weight_offsets[i], e = weight_offsets[i + 1];
-        bmot.push_back(blended_motion(motions, weight_bones.data() + a, weights.data() + a, e - a, bone[i], o.mode, grid));
-        brest[k] = {static_cast<double>(ijk[3 * i + 2]), static_cast<double>(ijk[3 * i + 1]),
-                    static_cast<double>(ijk[3 * i])};
-        bmot.back().forward.apply(brest[k].data(), bcentre[k].data());
-    }
+    // Every field's motion: its bone's, or its group's blend.
+    std::vector<Motion> fmot(motions);
+    for (std::size_t k = 0; k < groups.weights.size(); ++k)
+        fmot.push_back(blended_motion(motions, groups.weights[k], groups.owner[k], o.mode, grid, groups.pivot[k]));
 
     // Images of every allocated rest block (dilated by one cell: cube corners) in the posed lattice.
     struct BlockBox {
@@ -807,7 +933,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     std::vector<BlockBox> images;
     Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (std::size_t b = 0; b < fields.size(); ++b) {
-        const Affine& fw = motions[b].forward;
+        const Affine& fw = fmot[b].forward;
         for (const auto& blk : fields[b].blocks) {
             BlockBox bb{static_cast<std::uint32_t>(b), {kInf, kInf, kInf, -kInf, -kInf, -kInf}};
             for (int c = 0; c < 8; ++c) {
@@ -828,14 +954,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             images.push_back(bb);
         }
     }
-    for (std::size_t k = 0; k < blended.size(); ++k) {
-        if (!bmot[k].valid || !(radii[blended[k]] > 0)) continue;
-        for (int a = 0; a < 3; ++a) {
-            const double e = radii[blended[k]] / grid.spacing[a] + 1;
-            lo[a] = std::min(lo[a], bcentre[k][a] - e);
-            hi[a] = std::max(hi[a], bcentre[k][a] + e);
-        }
-    }
     const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
     for (int a = 0; a < 3; ++a)
         if (bx[3 + a] <= 0) throw Error("deform: the output box must have positive dimensions");
@@ -845,60 +963,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     out.grid.spacing = grid.spacing;
     for (int a = 0; a < 3; ++a) out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(bx[a]);
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
-    const auto total = static_cast<std::size_t>(nx * ny * nz);
-    out.stats.blended_spheres = static_cast<std::int64_t>(blended.size());
+    out.stats.blended_spheres = blended_spheres;
 
-    // Scatter the blended spheres (proximity buffer over the output grid).
-    std::vector<double> bkey;
-    std::vector<std::int32_t> bslot;
-    if (!blended.empty()) {
-        bkey.assign(total, kInf);
-        bslot.assign(total, -1);
-        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-            for (std::size_t k = 0; k < blended.size(); ++k) {
-                const double r = radii[blended[k]];
-                if (!bmot[k].valid || !(r > 0)) continue;
-                const double lim = open_ball_limit_sq(r);
-                const auto& c = bcentre[k];
-                const double cz = c[2] - static_cast<double>(bx[2]);
-                const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
-                const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
-                for (std::int64_t z = za; z <= zb; ++z) {
-                    const double dz = (static_cast<double>(z) - cz);
-                    const double cy = c[1] - static_cast<double>(bx[1]);
-                    const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
-                    const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
-                    for (std::int64_t y = ya; y <= yb; ++y) {
-                        const double dy = static_cast<double>(y) - cy;
-                        const double rest = lim - s2[2] * dz * dz - s2[1] * dy * dy;
-                        if (rest <= 0) continue;
-                        const double cx = c[0] - static_cast<double>(bx[0]);
-                        const double hw = std::sqrt(rest / s2[0]) + 1;
-                        const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - hw)));
-                        const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + hw)));
-                        for (std::int64_t x = xa; x <= xb; ++x) {
-                            const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                                 static_cast<double>(z + bx[2])};
-                            const double d2 = moved_length2(bmot[k], brest[k].data(), c.data(), q, s2);
-                            if (!(d2 < lim)) continue;
-                            const double key = nearest ? d2 : d2 - lim;
-                            const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                            const std::int32_t cur = bslot[idx];
-                            if (key < bkey[idx] || (key == bkey[idx] && cur >= 0 && blended[k] < blended[static_cast<std::size_t>(cur)])) {
-                                bkey[idx] = key;
-                                bslot[idx] = static_cast<std::int32_t>(k);
-                            }
-                        }
-                    }
-                }
-            }
-        });
-    }
     report(progress, 0.55);
 
     // Candidate bones of each output block.
     const std::int64_t obx = (nx + kBlock - 1) / kBlock, oby = (ny + kBlock - 1) / kBlock, obz = (nz + kBlock - 1) / kBlock;
-    const std::size_t words = (bone_count + 63) / 64;
+    const std::size_t words = (fields.size() + 63) / 64;
     std::vector<std::uint64_t> bits(static_cast<std::size_t>(obx * oby * obz) * words, 0);
     for (const auto& im : images) {
         std::int64_t a[3], e[3];
@@ -918,148 +989,243 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + im.bone / 64] |= std::uint64_t{1} << (im.bone % 64);
     }
 
-    // Gather.
-    if (o.values) out.values.resize(total);
-    out.bone.resize(total);
-    std::atomic<std::int64_t> covered{0}, queries{0};
-    struct Cand {
-        std::int32_t bone;  // -1: the blended sphere
-        double L, U;
-        std::uint32_t local;
-        std::uint32_t global;
-        double p[3];
-        bool covered;
+    // The bones whose rest data the preimage of output block (kx, ky, kz) meets.
+    auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb) {
+        cb.clear();
+        const std::size_t blk = static_cast<std::size_t>((kz * oby + ky) * obx + kx);
+        for (std::size_t w = 0; w < words; ++w) {
+            std::uint64_t m = bits[blk * words + w];
+            while (m) {
+                const int t = __builtin_ctzll(m);
+                const auto b = static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(t));
+                m &= m - 1;
+                double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
+                for (int c = 0; c < 8; ++c) {
+                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock : 0))};
+                    double r[3];
+                    fmot[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    for (int a = 0; a < 3; ++a) {
+                        plo[a] = std::min(plo[a], r[a]);
+                        phi[a] = std::max(phi[a], r[a]);
+                    }
+                }
+                const std::int64_t ca[3] = {static_cast<std::int64_t>(std::floor(plo[0])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[1])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[2])) - 1};
+                const std::int64_t cc[3] = {static_cast<std::int64_t>(std::floor(phi[0])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[1])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[2])) + 1};
+                if (fields[static_cast<std::size_t>(b)].any_block(ca, cc)) cb.push_back(b);
+            }
+        }
     };
-    tbb::enumerable_thread_specific<std::vector<Cand>> scratch;
+
+    auto exact_covered = [&](Cand& c, std::int64_t& n_q) {
+        ++n_q;
+        const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
+        c.L = c.U = e.key;
+        c.local = e.local;
+        c.global = e.global;
+        c.has_L = c.has_U = true;
+        return e.key < 0;
+    };
+    auto set_upper = [&](Cand& c, bool any_negative) {
+        const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
+        c.U = upper_bound(f, c.cube, c.p, s2, any_negative, c.local);
+        c.global = f.global[c.local];
+        c.has_U = !any_negative || !(c.U < 0);  // a cut-short minimum is only an upper bound of the upper bound
+    };
+    auto set_lower = [&](Cand& c) {
+        if (c.has_L) return;
+        c.L = lower_bound(fields[static_cast<std::size_t>(c.bone)], c.cube, c.p, s2, T);
+        c.has_L = true;
+    };
+    // Whether a candidate covers its point: from the bounds when they decide, else exactly.
+    auto covers = [&](Cand& c, std::int64_t& n_q) {
+        if (c.has_U && c.U < 0) return true;
+        if (!c.has_U) {
+            set_upper(c, true);
+            if (c.U < 0) return true;
+        }
+        set_lower(c);
+        if (!(c.L < 0)) return false;
+        return exact_covered(c, n_q);
+    };
+
+    // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
+    auto resolve = [&](const std::vector<std::int32_t>& cb, const double* m3, std::vector<Cand>& cands,
+                       std::int64_t& n_q) -> const Cand* {
+        cands.clear();
+        for (std::int32_t b : cb) {
+            Cand c;
+            c.bone = b;
+            fmot[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
+            const BoneField& f = fields[static_cast<std::size_t>(b)];
+            if (!fetch_cube(f, c.p, c.cube)) continue;
+            c.has_U = c.has_L = false;
+            c.covered = false;
+            if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
+                c.local = c.cube.lab[0];
+                c.L = c.U = power_of(f, c.local, c.p, s2);
+                if (!(c.U < 0)) continue;
+                c.global = f.global[c.local];
+                c.has_U = c.has_L = true;
+            }
+            cands.push_back(c);
+        }
+        if (cands.empty()) return nullptr;
+        if (cands.size() == 1) return covers(cands[0], n_q) ? &cands[0] : nullptr;
+        auto before = [](const Cand& a, const Cand& b) { return a.U < b.U || (a.U == b.U && a.global < b.global); };
+        if (!nearest) {
+            for (auto& c : cands)
+                if (!c.has_U) set_upper(c, false);
+            std::size_t bi = 0;
+            for (std::size_t k = 1; k < cands.size(); ++k)
+                if (before(cands[k], cands[bi])) bi = k;
+            // Certified when the best upper bound is negative and below every other candidate's lower bound.
+            bool certain = cands[bi].U < 0;
+            for (std::size_t k = 0; k < cands.size() && certain; ++k) {
+                if (k == bi) continue;
+                set_lower(cands[k]);
+                if (!(cands[bi].U < cands[k].L)) certain = false;
+            }
+            if (certain) return &cands[bi];
+            const double bound = cands[bi].U;
+            for (auto& c : cands) {
+                set_lower(c);
+                if (c.L == c.U || c.L > bound || !(c.L < 0)) continue;
+                exact_covered(c, n_q);
+            }
+            const Cand* win = nullptr;
+            for (const auto& c : cands)
+                if (c.U < 0 && (!win || before(c, *win))) win = &c;
+            return win;
+        }
+        // Nearest centre: coverage first, then the nearest covering centre.
+        std::size_t ncov = 0;
+        for (auto& c : cands) {
+            c.covered = c.covered || covers(c, n_q);
+            ncov += c.covered;
+        }
+        const Cand* win = nullptr;
+        for (auto& c : cands) {
+            if (!c.covered) continue;
+            if (ncov > 1) {
+                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, true);
+                ++n_q;
+                c.U = e.key;
+                c.global = e.global;
+            }
+            if (!win || before(c, *win)) win = &c;
+        }
+        return win;
+    };
+
+    // Gather, block by block into block-local buffers; blocks with a covered voxel are kept, then copied into the
+    // output box (the covered voxels' bounding box unless a box was imposed).
+    struct Kept {
+        std::int64_t kx, ky, kz;
+        float values[512];
+        std::int16_t bone[512];
+    };
+    struct Local {
+        std::vector<Kept> kept;
+        std::int64_t lo[3] = {std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
+                              std::numeric_limits<std::int64_t>::max()};
+        std::int64_t hi[3] = {-1, -1, -1};
+        std::int64_t covered = 0, queries = 0;
+    };
+    tbb::enumerable_thread_specific<Local> locals;
     const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
     with_sampler(source, [&](auto sampler) {
         for (std::int64_t ch = 0; ch < chunks; ++ch) {
             const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
-            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby * obx, z1 * oby * obx),
-                              [&](const tbb::blocked_range<std::int64_t>& rg) {
-                std::vector<Cand>& cands = scratch.local();
+            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby * obx, z1 * oby * obx), [&](const tbb::blocked_range<std::int64_t>& rg) {
+                Local& loc = locals.local();
                 std::vector<std::int32_t> cb;
-                std::int64_t n_cov = 0, n_q = 0;
+                std::vector<Cand> cands;
+                Kept blockbuf;
                 for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk) {
                     const std::int64_t kx = blk % obx, ky = (blk / obx) % oby, kz = blk / (obx * oby);
-                    cb.clear();
-                    for (std::size_t w = 0; w < words; ++w) {
-                        std::uint64_t m = bits[static_cast<std::size_t>(blk) * words + w];
-                        while (m) {
-                            const int t = __builtin_ctzll(m);
-                            cb.push_back(static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(t)));
-                            m &= m - 1;
-                        }
-                    }
-                    for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock); ++z)
-                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y)
-                            for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x) {
-                                const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                    block_candidates(kx, ky, kz, cb);
+                    if (cb.empty()) continue;
+                    bool any = false;
+                    for (std::int64_t dz = 0; dz < kBlock; ++dz)
+                        for (std::int64_t dy = 0; dy < kBlock; ++dy)
+                            for (std::int64_t dx = 0; dx < kBlock; ++dx) {
+                                const int li = static_cast<int>((dz * 8 + dy) * 8 + dx);
+                                blockbuf.bone[li] = 0;
+                                blockbuf.values[li] = 0.0f;
+                                const std::int64_t x = kx * kBlock + dx, y = ky * kBlock + dy, z = kz * kBlock + dz;
+                                if (x >= nx || y >= ny || z >= nz) continue;
                                 const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
                                                       static_cast<double>(z + bx[2])};
-                                cands.clear();
-                                for (std::int32_t b : cb) {
-                                    Cand c;
-                                    c.bone = b;
-                                    motions[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
-                                    const Bounds bd = bounds_at(fields[static_cast<std::size_t>(b)], c.p, s2, T);
-                                    if (!(bd.L < 0)) continue;
-                                    c.L = bd.L;
-                                    c.U = bd.U;
-                                    c.local = bd.local;
-                                    c.global = bd.local == kNone ? kNone : fields[static_cast<std::size_t>(b)].global[bd.local];
-                                    c.covered = bd.U < 0;
-                                    cands.push_back(c);
+                                const Cand* win = resolve(cb, m3, cands, loc.queries);
+                                if (!win) continue;
+                                any = true;
+                                ++loc.covered;
+                                blockbuf.bone[li] = static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win->bone)] + 1);
+                                if (o.values) blockbuf.values[li] = sampler.sample(win->p, o.sampling);
+                                const std::int64_t v[3] = {x, y, z};
+                                for (int a = 0; a < 3; ++a) {
+                                    loc.lo[a] = std::min(loc.lo[a], v[a]);
+                                    loc.hi[a] = std::max(loc.hi[a], v[a]);
                                 }
-                                if (!bkey.empty() && bslot[idx] >= 0) {
-                                    Cand c;
-                                    c.bone = -1;
-                                    c.L = c.U = bkey[idx];
-                                    c.local = static_cast<std::uint32_t>(bslot[idx]);
-                                    c.global = blended[c.local];
-                                    c.covered = true;
-                                    bmot[c.local].inverse.apply(m3, c.p);
-                                    cands.push_back(c);
-                                }
-                                const Cand* win = nullptr;
-                                if (cands.size() == 1 && cands[0].covered) {
-                                    win = &cands[0];
-                                } else if (!cands.empty()) {
-                                    if (!nearest) {
-                                        // Certified when the best upper bound is negative and below every other
-                                        // candidate's lower bound.
-                                        std::size_t bi = 0;
-                                        for (std::size_t k = 1; k < cands.size(); ++k)
-                                            if (cands[k].U < cands[bi].U ||
-                                                (cands[k].U == cands[bi].U && cands[k].global < cands[bi].global))
-                                                bi = k;
-                                        bool certain = cands[bi].U < 0;
-                                        for (std::size_t k = 0; k < cands.size() && certain; ++k)
-                                            if (k != bi && !(cands[bi].U < cands[k].L)) certain = false;
-                                        if (!certain) {
-                                            for (auto& c : cands) {
-                                                if (c.bone < 0 || c.L == c.U) continue;
-                                                if (!(c.L < 0) || c.L > cands[bi].U) continue;
-                                                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
-                                                ++n_q;
-                                                c.U = c.L = e.key;
-                                                c.local = e.local;
-                                                c.global = e.global;
-                                            }
-                                            bi = cands.size();
-                                            for (std::size_t k = 0; k < cands.size(); ++k) {
-                                                if (!(cands[k].U < 0)) continue;
-                                                if (bi == cands.size() || cands[k].U < cands[bi].U ||
-                                                    (cands[k].U == cands[bi].U && cands[k].global < cands[bi].global))
-                                                    bi = k;
-                                            }
-                                        }
-                                        if (bi < cands.size()) win = &cands[bi];
-                                    } else {
-                                        // Coverage first (from the power bounds), then the nearest covering centre.
-                                        std::size_t ncov = 0;
-                                        for (auto& c : cands) {
-                                            if (!c.covered && c.bone >= 0) {
-                                                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
-                                                ++n_q;
-                                                c.covered = e.key < 0;
-                                            }
-                                            ncov += c.covered;
-                                        }
-                                        if (ncov == 1) {
-                                            for (auto& c : cands)
-                                                if (c.covered) win = &c;
-                                        } else if (ncov > 1) {
-                                            for (auto& c : cands) {
-                                                if (!c.covered) continue;
-                                                if (c.bone >= 0) {
-                                                    const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, true);
-                                                    ++n_q;
-                                                    c.U = e.key;
-                                                    c.global = e.global;
-                                                }
-                                                if (!win || c.U < win->U || (c.U == win->U && c.global < win->global)) win = &c;
-                                            }
-                                        }
-                                    }
-                                }
-                                if (!win) {
-                                    out.bone[idx] = 0;
-                                    if (o.values) out.values[idx] = 0.0f;
-                                    continue;
-                                }
-                                ++n_cov;
-                                out.bone[idx] = static_cast<std::int16_t>(
-                                    (win->bone >= 0 ? win->bone : bone[win->global]) + 1);
-                                if (o.values) out.values[idx] = sampler.sample(win->p, o.sampling);
                             }
+                    if (!any) continue;
+                    blockbuf.kx = kx;
+                    blockbuf.ky = ky;
+                    blockbuf.kz = kz;
+                    loc.kept.push_back(blockbuf);
                 }
-                covered += n_cov;
-                queries += n_q;
             });
-            report(progress, 0.55 + 0.45 * static_cast<double>(ch + 1) / static_cast<double>(chunks));
+            report(progress, 0.55 + 0.4 * static_cast<double>(ch + 1) / static_cast<double>(chunks));
         }
     });
+    std::int64_t covered = 0, queries = 0, lo3[3] = {nx, ny, nz}, hi3[3] = {-1, -1, -1};
+    std::vector<const Kept*> kept;
+    for (const Local& loc : locals) {
+        covered += loc.covered;
+        queries += loc.queries;
+        for (int a = 0; a < 3; ++a) {
+            lo3[a] = std::min(lo3[a], loc.lo[a]);
+            hi3[a] = std::max(hi3[a], loc.hi[a]);
+        }
+        for (const Kept& k : loc.kept) kept.push_back(&k);
+    }
+    if (!fixed_box) {  // shrink to the covered voxels (one voxel when none is covered)
+        for (int a = 0; a < 3; ++a) {
+            if (hi3[a] < lo3[a]) lo3[a] = hi3[a] = 0;
+            out.offset[a] = bx[a] + lo3[a];
+            out.grid.dims[a] = hi3[a] - lo3[a] + 1;
+            out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(out.offset[a]);
+        }
+    } else {
+        for (int a = 0; a < 3; ++a) lo3[a] = 0;
+    }
+    const std::int64_t ox = out.grid.dims[0], oy = out.grid.dims[1], oz = out.grid.dims[2];
+    const auto out_total = static_cast<std::size_t>(ox * oy * oz);
+    if (o.values) out.values = ZeroedArray<float>(out_total);
+    out.bone = ZeroedArray<std::int16_t>(out_total);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kept.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        for (std::size_t k = rg.begin(); k != rg.end(); ++k) {
+            const Kept& b = *kept[k];
+            for (std::int64_t dz = 0; dz < kBlock; ++dz)
+                for (std::int64_t dy = 0; dy < kBlock; ++dy)
+                    for (std::int64_t dx = 0; dx < kBlock; ++dx) {
+                        const int li = static_cast<int>((dz * 8 + dy) * 8 + dx);
+                        if (!b.bone[li]) continue;
+                        const std::int64_t x = b.kx * kBlock + dx - lo3[0], y = b.ky * kBlock + dy - lo3[1],
+                                           z = b.kz * kBlock + dz - lo3[2];
+                        const auto i = static_cast<std::size_t>((z * oy + y) * ox + x);
+                        out.bone[i] = b.bone[li];
+                        if (o.values) out.values[i] = b.values[li];
+                    }
+        }
+    });
+    report(progress, 1.0);
     out.stats.covered = covered;
     out.stats.exact_queries = queries;
     return out;
@@ -1080,19 +1246,17 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                           grid.spacing[2] * grid.spacing[2]};
     std::vector<Motion> mot(s.n);
     std::vector<std::array<double, 3>> centre(s.n), rest(s.n);
+    const SmoothGroups groups = smooth ? smooth_groups(s, grid) : SmoothGroups{};
     Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (std::size_t i = 0; i < s.n; ++i) {
-        const std::int32_t b = smooth ? single_bone(s, i) : s.bone[i];
-        if (b >= 0) {
-            mot[i] = motions[static_cast<std::size_t>(b)];
-        } else {
-            const std::int64_t a = s.weight_offsets[i], e = s.weight_offsets[i + 1];
-            mot[i] = blended_motion(motions, s.weight_bones + a, s.weights + a, e - a, s.bone[i], o.mode, grid);
-        }
+        const std::int32_t k = smooth ? groups.group_of[i] : -1;
+        mot[i] = k < 0 ? motions[static_cast<std::size_t>(smooth ? groups.bone_of[i] : s.bone[i])]
+                       : blended_motion(motions, groups.weights[static_cast<std::size_t>(k)], s.bone[i], o.mode, grid,
+                                        groups.pivot[static_cast<std::size_t>(k)]);
         rest[i] = {static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
                    static_cast<double>(s.ijk[3 * i])};
         mot[i].forward.apply(rest[i].data(), centre[i].data());
-        if (!mot[i].valid || !(radii[i] > 0)) continue;
+        if (!(radii[i] > 0)) continue;
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], centre[i][a] - radii[i] / grid.spacing[a]);
             hi[a] = std::max(hi[a], centre[i][a] + radii[i] / grid.spacing[a]);
@@ -1108,56 +1272,46 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     const auto total = static_cast<std::size_t>(nx * ny * nz);
     std::vector<double> P(total, kInf);        // the proximity buffer
     std::vector<std::int64_t> who(total, -1);  // the sphere that wrote each voxel
+    if (o.values) out.values = ZeroedArray<float>(total);
+    out.bone = ZeroedArray<std::int16_t>(total);
     const bool nearest = o.proximity == Proximity::Nearest;
-    // Parallel over z slabs; within a slab the spheres are scattered in index order, as in the thesis.
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz, 4), [&](const tbb::blocked_range<std::int64_t>& rg) {
-        for (std::size_t i = 0; i < s.n; ++i) {
-            const double r = radii[i];
-            if (!mot[i].valid || !(r > 0)) continue;
-            const double lim = open_ball_limit_sq(r);
-            const double cx = centre[i][0] - static_cast<double>(bx[0]), cy = centre[i][1] - static_cast<double>(bx[1]),
-                         cz = centre[i][2] - static_cast<double>(bx[2]);
-            const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
-            const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
-            const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
-            const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
-            const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - r / grid.spacing[0])));
-            const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + r / grid.spacing[0])));
-            for (std::int64_t z = za; z <= zb; ++z)
-                for (std::int64_t y = ya; y <= yb; ++y)
-                    for (std::int64_t x = xa; x <= xb; ++x) {
-                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                             static_cast<double>(z + bx[2])};
-                        const double d2 = moved_length2(mot[i], rest[i].data(), centre[i].data(), q, s2);
-                        if (!(d2 < lim)) continue;
-                        const double key = nearest ? d2 : d2 - lim;
-                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                        if (key < P[idx]) {
-                            P[idx] = key;
-                            who[idx] = static_cast<std::int64_t>(i);
-                        }
-                    }
-        }
-    });
-    report(progress, 0.8);
-    if (o.values) out.values.assign(total, 0.0f);
-    out.bone.assign(total, 0);
     with_sampler(source, [&](auto sampler) {
-        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-            for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
-                for (std::int64_t y = 0; y < ny; ++y)
-                    for (std::int64_t x = 0; x < nx; ++x) {
-                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                        const std::int64_t i = who[idx];
-                        if (i < 0) continue;
-                        out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
-                        if (!o.values) continue;
-                        const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                              static_cast<double>(z + bx[2])};
-                        double p[3];
-                        mot[static_cast<std::size_t>(i)].inverse.apply(m3, p);
-                        out.values[idx] = sampler.sample(p, o.sampling);
-                    }
+        // Parallel over z slabs; within a slab the spheres are scattered in index order, as in the thesis.
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz, 4), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            for (std::size_t i = 0; i < s.n; ++i) {
+                const double r = radii[i];
+                if (!(r > 0)) continue;
+                const double lim = open_ball_limit_sq(r);
+                const double cx = centre[i][0] - static_cast<double>(bx[0]),
+                             cy = centre[i][1] - static_cast<double>(bx[1]),
+                             cz = centre[i][2] - static_cast<double>(bx[2]);
+                const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
+                const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
+                const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
+                const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
+                const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - r / grid.spacing[0])));
+                const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + r / grid.spacing[0])));
+                for (std::int64_t z = za; z <= zb; ++z)
+                    for (std::int64_t y = ya; y <= yb; ++y)
+                        for (std::int64_t x = xa; x <= xb; ++x) {
+                            const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                                 static_cast<double>(z + bx[2])};
+                            const double d2 = moved_length2(mot[i], rest[i].data(), q, s2);
+                            if (!(d2 < lim)) continue;
+                            const double key = nearest ? d2 : d2 - lim;
+                            const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                            if (key < P[idx]) {  // mark q, R(q) = S(T⁻¹q), P(q) = proximity: as the thesis writes it
+                                P[idx] = key;
+                                who[idx] = static_cast<std::int64_t>(i);
+                                out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
+                                if (o.values) {
+                                    double p[3];
+                                    mot[i].inverse.apply(q, p);
+                                    out.values[idx] = sampler.sample(p, o.sampling);
+                                }
+                            }
+                        }
+            }
         });
     });
     for (std::size_t k = 0; k < total; ++k) out.stats.covered += who[k] >= 0;
@@ -1166,19 +1320,22 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
 }
 
 std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
-                                const Progress& progress) {
+                                const Progress& progress, const std::array<std::int64_t, 6>* box) {
     const Grid& g = source.grid;
     check_grid(g, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "inverse_warp");
     const Motion m = bone_motions(matrix, 1, g)[0];
-    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-    std::vector<float> out(static_cast<std::size_t>(g.voxel_count()));
+    const std::array<std::int64_t, 6> bx = box ? *box : std::array<std::int64_t, 6>{0, 0, 0, g.dims[0], g.dims[1], g.dims[2]};
+    const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
+    if (nx <= 0 || ny <= 0 || nz <= 0) throw Error("inverse_warp: the output box must have positive dimensions");
+    std::vector<float> out(static_cast<std::size_t>(nx * ny * nz));
     with_sampler(source, [&](auto sampler) {
         tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
             for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
                 for (std::int64_t y = 0; y < ny; ++y) {
                     float* row = out.data() + (z * ny + y) * nx;
                     for (std::int64_t x = 0; x < nx; ++x) {
-                        const double q[3] = {static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                             static_cast<double>(z + bx[2])};
                         double p[3];
                         m.inverse.apply(q, p);
                         row[x] = sampler.sample(p, sampling);

@@ -12,7 +12,7 @@ from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transfor
                        reconstruction_loss, skeletonize)
 from .volume import Volume, load, write_vdb
 from .tree import SkeletonTree, skeleton_tree
-from .rig import Binding, Rig, autorig, bind
+from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 
@@ -22,7 +22,7 @@ __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skelet
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
-           "deform_reference", "inverse_warp"]
+           "deform_reference", "inverse_warp", "rest_pose", "rotation_about"]
 
 
 def __getattr__(name):

@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from . import _volrig
-from .rig import Binding
+from .rig import Binding, rest_pose, rotation_about  # noqa: F401  (re-exported for convenience)
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
 
@@ -194,28 +194,13 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     return _frame(d, source)
 
 
-def inverse_warp(source: Volume, matrix, sampling: str = "trilinear") -> Volume:
-    """The source resampled through one rest-to-pose matrix onto its own grid (one gather per voxel): the speed
-    reference of ``deform``."""
+def inverse_warp(source: Volume, matrix, sampling: str = "trilinear", like: Optional[Frame] = None) -> Volume:
+    """The source resampled through one rest-to-pose matrix (one gather per output voxel): the speed reference of
+    ``deform``. The output grid is the source's, or ``like``'s (a Frame) to compare per output voxel."""
     _check_choice("sampling", sampling, SAMPLINGS)
     m = np.ascontiguousarray(matrix, dtype=np.float64)
-    return source.like(_volrig.inverse_warp(_source_array(source), source.spacing, source.origin, m, sampling))
-
-
-def rest_pose(bone_count: int) -> np.ndarray:
-    """(B, 4, 4) identity matrices: the rest pose."""
-    return np.repeat(np.eye(4)[None], int(bone_count), axis=0)
-
-
-def rotation_about(axis, angle_degrees: float, pivot) -> np.ndarray:
-    """4x4 rigid matrix rotating by ``angle_degrees`` about ``axis`` through the world point ``pivot``."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    t = np.radians(angle_degrees)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
-    M = np.eye(4)
-    M[:3, :3] = R
-    p = np.asarray(pivot, dtype=np.float64)
-    M[:3, 3] = p - R @ p
-    return M
+    box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
+    arr = _volrig.inverse_warp(_source_array(source), source.spacing, source.origin, m, sampling, box)
+    if like is None:
+        return source.like(arr)
+    return Volume(arr, source.spacing, like.bone.origin)

@@ -80,7 +80,7 @@ def test_mixed_float_int_and_mask_grids(tmp_path):
     bone = (np.arange(density.size).reshape(density.shape) % 5 - 2).astype(np.int16) * 1000
     mask = density > 0
     path = tmp_path / "mixed.vdb"
-    volrig.write_vdb(path, {"density": volrig.Volume(density, SPACING, ORIGIN), "bone": bone, "mask": mask})
+    volrig.write_vdb(path, {"density": volrig.Volume(density, SPACING, ORIGIN), "bone": bone, "mask": mask}, half=False)
     types = {g["name"]: g["type"] for g in _volrig.vdb_grids(str(path))}
     assert types == {"density": "float", "bone": "int32", "mask": "float"}
 
@@ -235,3 +235,11 @@ def test_blender_reads_grids_and_geometry(tmp_path):
         m = np.asarray(r["matrix"][name])
         np.testing.assert_allclose(m[:3, :3], np.diag(SPACING), atol=1e-6)
         np.testing.assert_allclose(m[:3, 3], ORIGIN, atol=1e-6)
+
+
+def test_write_vdb_stores_half_floats_by_default(tmp_path):
+    a = pattern()
+    volrig.write_vdb(tmp_path / "default.vdb", {"density": volrig.Volume(a, SPACING, ORIGIN)})
+    volrig.write_vdb(tmp_path / "full.vdb", {"density": volrig.Volume(a, SPACING, ORIGIN)}, half=False)
+    assert (tmp_path / "default.vdb").stat().st_size < (tmp_path / "full.vdb").stat().st_size
+    assert np.allclose(volrig.load(tmp_path / "default.vdb").array, volrig.load(tmp_path / "full.vdb").array, rtol=1e-3)

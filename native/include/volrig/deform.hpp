@@ -9,8 +9,9 @@
 // Ties go to the lowest sphere index (the brute-force scatter in index order with a strict comparison).
 //
 // Modes: Rigid (the thesis: every sphere moves with its owning bone), Linear and DualQuaternion (each sphere's
-// transform is the blend of its bones' transforms by the binding weights; the value still comes from the inverse
-// of that sphere's own transform). Bone matrices must be rigid (rotation + translation).
+// transform is the blend of its bones' transforms by the binding weights, rounded to 16ths; linear blends are
+// projected onto the nearest rotation, dual quaternions are rigid by construction; the value still comes from the
+// inverse of that sphere's own transform). Bone matrices must be rigid (rotation + translation).
 //
 // Speed. Within one bone all spheres share one transform and rigid motions keep distances, so the winner among a
 // bone's spheres at an output voxel q is the winner at its rest position p = T⁻¹q. For each bone the rest-space
@@ -19,8 +20,8 @@
 // the lattice cube around p the trilinear interpolation of F_b minus Σ s²u(1−u) is a lower bound of the exact
 // value and the argmins of the cube's corners give an upper bound; both are equal wherever the corners agree.
 // These bounds decide coverage and the winning bone almost everywhere; the rest is settled exactly by a k-d tree
-// over the bone's spheres. Per frame the work is close to one gather per output voxel. Blended spheres (smooth
-// modes) are scattered per frame.
+// over the bone's spheres. Per frame the work is close to one gather per output voxel. In smooth modes the spheres
+// whose rounded weights agree form one more "bone" with the blended transform, so the same machinery applies.
 #pragma once
 
 #include <array>
@@ -65,16 +66,17 @@ struct DeformOptions {
 struct DeformStats {
     std::int64_t covered = 0;        ///< output voxels covered by a sphere
     std::int64_t exact_queries = 0;  ///< per-bone exact (k-d tree) queries the bounds did not settle
-    std::int64_t blended_spheres = 0;
+    std::int64_t blended_spheres = 0;  ///< spheres moved by a blend of bones (smooth modes)
 };
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel
 /// (x, y, z) is source lattice index offset + (x, y, z), so grid.origin = source origin + spacing * offset.
+/// Unless a box is imposed, it is the bounding box of the covered voxels.
 struct DeformedVolume {
     Grid grid;
     std::array<std::int64_t, 3> offset{0, 0, 0};
-    std::vector<float> values;       ///< source samples (0 where empty); empty when options.values is false
-    std::vector<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
+    ZeroedArray<float> values;       ///< source samples (0 where empty); empty when options.values is false
+    ZeroedArray<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
     DeformStats stats;
 };
 
@@ -113,9 +115,9 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& sp
                                 const DeformOptions& options, const Progress& progress = {},
                                 const std::array<std::int64_t, 6>* box = nullptr);
 
-/// A plain inverse warp of the whole source grid by one rest-to-pose matrix onto the same grid (one gather per
-/// output voxel): the speed reference for deform.
+/// A plain inverse warp of the source by one rest-to-pose matrix (one gather per output voxel): the speed
+/// reference for deform. The output grid is the source grid, or `box` as in Deformer::frame.
 std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
-                                const Progress& progress = {});
+                                const Progress& progress = {}, const std::array<std::int64_t, 6>* box = nullptr);
 
 }  // namespace volrig

@@ -7,6 +7,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <new>
 #include <functional>
 #include <memory>
 #include <stdexcept>
@@ -39,6 +42,39 @@ struct UninitializedAllocator : std::allocator<T> {
 /// A vector of numbers that `Buffer<T>(n)` leaves uninitialised.
 template <class T>
 using Buffer = std::vector<T, UninitializedAllocator<T>>;
+
+/// A zero-filled array from calloc: pages the program never writes stay shared zero pages, so a large, mostly
+/// empty output costs memory only where it is written. `release()` hands the buffer over (free it with std::free).
+template <class T>
+class ZeroedArray {
+public:
+    ZeroedArray() = default;
+    explicit ZeroedArray(std::size_t n) : n_(n) {
+        if (n == 0) return;
+        p_.reset(static_cast<T*>(std::calloc(n, sizeof(T))));
+        if (!p_) throw std::bad_alloc();
+    }
+    T* data() { return p_.get(); }
+    const T* data() const { return p_.get(); }
+    std::size_t size() const { return n_; }
+    bool empty() const { return n_ == 0; }
+    T& operator[](std::size_t i) { return p_.get()[i]; }
+    const T& operator[](std::size_t i) const { return p_.get()[i]; }
+    bool operator==(const ZeroedArray& o) const {
+        return n_ == o.n_ && (n_ == 0 || std::memcmp(p_.get(), o.p_.get(), n_ * sizeof(T)) == 0);
+    }
+    T* release() {
+        n_ = 0;
+        return p_.release();
+    }
+
+private:
+    struct Free {
+        void operator()(T* p) const { std::free(p); }
+    };
+    std::unique_ptr<T, Free> p_;
+    std::size_t n_ = 0;
+};
 
 /// Element types a volume may hold (numpy names in dtype_name()).
 enum class DType : std::uint8_t { UInt8, Int8, UInt16, Int16, UInt32, Int32, UInt64, Int64, Float32, Float64 };
