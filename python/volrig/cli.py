@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,bake,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -137,6 +137,47 @@ def _progress_bar(label: str):
     return show
 
 
+#: Runs inside Blender for ``bake``: enables the add-on (from the checkout, else as installed), bakes, exits with
+#: 0, or 2 and a message for a user error (Python errors exit 1 through --python-exit-code).
+_BAKE_IN_BLENDER = """
+import json, os, sys
+args = json.loads(sys.argv[sys.argv.index("--") + 1])
+sys.path[:0] = args["paths"]
+import addon_utils
+addon_utils.enable("volrig_addon", default_set=False)
+from volrig_addon import bake
+try:
+    n = bake.bake_saved_scene(args["frames"], args["objects"], args["mode"], args["force"], args["save"])
+    print(f"volrig: baked {n} frame(s) of {os.path.basename(args['blend'])}")
+    code = 0
+except (ValueError, OSError, RuntimeError) as e:
+    print(f"error: {e}", file=sys.stderr)
+    code = 2
+sys.stdout.flush(); sys.stderr.flush()
+os._exit(code)
+"""
+
+
+def cmd_bake(args) -> int:
+    import os
+    import shutil
+    import subprocess
+    blender = args.blender or os.environ.get("BLENDER") or shutil.which("blender")
+    if not blender:
+        raise FileNotFoundError("blender not found: install it (apt-get install blender) or pass --blender PATH")
+    if not os.path.isfile(args.blend):
+        raise FileNotFoundError(f"{args.blend}: no such file")
+    here = os.path.dirname(os.path.abspath(__file__))
+    checkout_addon = os.path.normpath(os.path.join(here, "..", "..", "addon"))
+    paths = [os.path.dirname(here)] + ([checkout_addon] if os.path.isdir(checkout_addon) else [])
+    payload = json.dumps({"paths": paths, "frames": args.frames or "", "objects": args.object or [],
+                          "mode": args.mode or "", "force": args.force, "save": not args.no_save,
+                          "blend": args.blend})
+    cmd = [blender, "-b", "--factory-startup", os.path.abspath(args.blend), "--python-exit-code", "1",
+           "--python-expr", _BAKE_IN_BLENDER, "--", payload]
+    return subprocess.run(cmd).returncode
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(args.output, scale=args.scale, thinness=args.thinness)
@@ -167,6 +208,18 @@ def main(argv=None) -> int:
     p.add_argument("--no-roles", action="store_true", help="neutral chain names, no humanoid/quadruped guess")
     p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
     p.set_defaults(run=cmd_rig)
+
+    p = sub.add_parser("bake", help="bake a saved .blend's volrig volumes in headless Blender (then render with "
+                                    "blender -b scene.blend -a)")
+    p.add_argument("blend", help="the saved .blend file")
+    p.add_argument("--frames", help="frames to bake, e.g. 1-48 or 1-10,20 (default: the scene's range); split a "
+                                    "range across machines sharing the cache folder")
+    p.add_argument("--object", action="append", help="bake only this volrig Volume object (repeatable)")
+    p.add_argument("--mode", choices=["rigid", "linear", "dual_quaternion"], help="override the deform mode")
+    p.add_argument("--force", action="store_true", help="bake frames whose pose did not change, too")
+    p.add_argument("--no-save", action="store_true", help="do not save the .blend after baking")
+    p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
+    p.set_defaults(run=cmd_bake)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

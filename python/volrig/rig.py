@@ -80,6 +80,35 @@ class Rig:
         return np.stack([_volrig.rest_matrix(tuple(h), tuple(t)) for h, t in zip(self.heads(), self.tails())]) \
             if len(self.bones) else np.zeros((0, 4, 4))
 
+    @classmethod
+    def from_bones(cls, heads, tails, names: Sequence[str], parents, kind: str = "custom",
+                   tolerance: float = 1e-6) -> "Rig":
+        """A rig from bones given by head and tail positions (B, 3) and parent indices (-1 for roots), as an
+        armature stores them (Blender edit bones). Heads and tails closer than ``tolerance`` times the rig's size
+        become one joint, so connected bones share their joint."""
+        heads = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
+        tails = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
+        if len(heads) != len(tails):
+            raise ValueError(f"{len(heads)} heads but {len(tails)} tails")
+        ends = np.concatenate([heads, tails])
+        if not np.isfinite(ends).all():
+            raise ValueError("bone ends must be finite")
+        size = float(np.ptp(ends, axis=0).max()) if len(ends) else 0.0
+        eps = tolerance * max(size, 1.0)
+        joints: List[np.ndarray] = []
+        index = np.empty(len(ends), dtype=np.int32)
+        for i, p in enumerate(ends):
+            for j, q in enumerate(joints):
+                if np.abs(p - q).max() <= eps:
+                    index[i] = j
+                    break
+            else:
+                index[i] = len(joints)
+                joints.append(p)
+        b = len(heads)
+        return cls(np.array(joints).reshape(-1, 3), np.stack([index[:b], index[b:]], axis=1), list(names),
+                   np.asarray(parents, dtype=np.int32), kind)
+
     def pose(self, rotations) -> np.ndarray:
         """(B, 4, 4) rest-to-pose matrices from local rotations: ``rotations`` maps a bone name to (axis, degrees),
         a rotation about the bone's rest head in world axes, applied after its parent's motion (forward kinematics:
@@ -242,6 +271,74 @@ class Binding:
         unreachable = self.unreachable.copy()
         unreachable[idx] = False
         return Binding(owner, sparse.csr_matrix(w, dtype=np.float32), self.mode, unreachable, list(self.bone_names))
+
+
+    def groups(self):
+        """The weights bone by bone, as vertex groups hold them: a list over bones of (point indices int64,
+        weights float32), only non-zero weights."""
+        w = self.weights.tocsc()
+        w.eliminate_zeros()
+        return [(w.indices[w.indptr[b]:w.indptr[b + 1]].astype(np.int64),
+                 w.data[w.indptr[b]:w.indptr[b + 1]].astype(np.float32)) for b in range(w.shape[1])]
+
+    @classmethod
+    def from_groups(cls, groups, bone_names: Sequence[str], count: int, fallback: Optional["Binding"] = None) \
+            -> "Binding":
+        """The binding painted weights describe (the inverse of ``groups``).
+
+        groups:     mapping bone name -> (point indices, weights), e.g. read from vertex groups; names that are
+                    not bones are ignored, bones without a group get no weight.
+        bone_names: the rig's bones, in order; count: the number of points.
+        fallback:   the binding to keep for points left without any weight (else they are an error).
+        Rows are normalised to sum to 1; the owner is the heaviest bone; mode is "rigid" when every point has one
+        bone, else "smooth".
+        """
+        from scipy import sparse
+        names = [str(n) for n in bone_names]
+        rows, cols, vals = [], [], []
+        for b, name in enumerate(names):
+            if name not in groups:
+                continue
+            idx, w = groups[name]
+            idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+            w = np.asarray(w, dtype=np.float64).reshape(-1)
+            if len(idx) != len(w):
+                raise ValueError(f"group {name!r}: {len(idx)} indices but {len(w)} weights")
+            if len(idx) and (idx.min() < 0 or idx.max() >= count):
+                raise IndexError(f"group {name!r} refers to points outside 0..{count - 1}")
+            if not np.isfinite(w).all() or (w < 0).any():
+                raise ValueError(f"group {name!r} has negative or non-finite weights")
+            keep = w > 0
+            rows.append(idx[keep])
+            cols.append(np.full(int(keep.sum()), b, dtype=np.int64))
+            vals.append(w[keep])
+        nb = len(names)
+        cat = (lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dt))
+        w = sparse.csr_matrix((cat(vals, np.float64), (cat(rows, np.int64), cat(cols, np.int64))),
+                              shape=(count, nb))
+        w.sum_duplicates()
+        total = np.asarray(w.sum(axis=1)).reshape(-1)
+        empty = np.flatnonzero(total <= 0)
+        unreachable = np.zeros(count, dtype=bool)
+        if len(empty):
+            if fallback is None:
+                raise ValueError(f"{len(empty)} of {count} points have no weight on any bone")
+            if len(fallback) != count or fallback.weights.shape[1] != nb:
+                raise ValueError(f"the fallback binding ({fallback.weights.shape}) does not match {count} points "
+                                 f"and {nb} bones")
+            w = w.tolil()
+            fw = fallback.weights.tocsr()
+            for i in empty:
+                row = fw.getrow(i)
+                w.rows[i] = list(row.indices)
+                w.data[i] = list(row.data.astype(np.float64))
+            w = w.tocsr()
+            total = np.asarray(w.sum(axis=1)).reshape(-1)
+            unreachable[empty] = fallback.unreachable[empty]
+        w = sparse.csr_matrix(sparse.diags(1.0 / total) @ w, dtype=np.float32)
+        owner = np.asarray(w.argmax(axis=1)).reshape(-1).astype(np.int32)
+        mode = "rigid" if (np.diff(w.indptr) <= 1).all() else "smooth"
+        return cls(owner, w, mode, unreachable, names)
 
 
 def weights_matrix(weight_bones: np.ndarray, weights: np.ndarray, bone_count: int):

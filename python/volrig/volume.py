@@ -88,6 +88,31 @@ class Volume:
             raise ValueError(f"shape {array.shape} does not match the volume's {self.array.shape}")
         return Volume(array, self.spacing, self.origin)
 
+    def on_grid(self, origin, dims) -> "Volume":
+        """The samples placed on another grid of the same spacing: ``origin`` (x, y, z) and ``dims`` (x, y, z)
+        voxels, zero where this volume has no sample. The origins must differ by whole voxels (e.g. a VDB file
+        read back, which holds only the bounding box of its non-zero voxels, returned to the grid it was
+        written from)."""
+        origin = np.asarray(_vec3(origin, "origin"))
+        dims = tuple(int(d) for d in dims)
+        if len(dims) != 3 or min(dims) < 0:
+            raise ValueError(f"dims must be three sizes (x, y, z), got {dims}")
+        shift = (np.asarray(self.origin) - origin) / np.asarray(self.spacing)
+        step = np.round(shift)
+        if np.abs(shift - step).max() > 1e-3:
+            raise ValueError(f"origin {tuple(origin)} is not a whole number of voxels from {self.origin}")
+        out = np.zeros(dims[::-1], dtype=self.array.dtype)
+        dst, src = [], []
+        for axis, off in enumerate(step.astype(np.int64)[::-1]):  # z, y, x
+            n_src, n_dst = self.array.shape[axis], out.shape[axis]
+            lo, hi = max(0, off), min(n_dst, off + n_src)
+            if hi <= lo:
+                return Volume(out, self.spacing, tuple(origin))
+            dst.append(slice(lo, hi))
+            src.append(slice(lo - off, hi - off))
+        out[tuple(dst)] = self.array[tuple(src)]
+        return Volume(out, self.spacing, tuple(origin))
+
     def save(self, path: str, *, compress: bool = True, half: bool = False, grid: str = "density") -> None:
         """Write the volume to ``path``: ``.nrrd`` (gzip when ``compress``), ``.mha`` (zlib when ``compress``)
         or ``.vdb`` (one float grid named ``grid``; half floats when ``half``). Written to a temporary file and

@@ -1,0 +1,63 @@
+"""volrig for Blender: import a volume, skeletonize it, rig it automatically, animate the armature and bake the
+deformed volume into a VDB sequence that Cycles renders.
+
+The add-on is a thin layer over the ``volrig`` Python package: it finds the package bundled beside it (the add-on
+zip carries ``volrig/`` with its compiled module in ``lib/``) or, in a checkout, in ``../../python``.
+"""
+bl_info = {
+    "name": "volrig",
+    "author": "volrig authors",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "3D View > Sidebar > volrig",
+    "description": "Skeletonize, rig, animate and render volumes (CT, MRI, label maps, VDB)",
+    "warning": "Tested with Blender 3.4 .. 4.x",
+    "doc_url": "",
+    "category": "Animation",
+}
+
+import os
+import sys
+
+#: Blender versions the add-on supports: 3.4 up to (not including) 5.0.
+SUPPORTED = ((3, 4, 0), (5, 0, 0))
+
+
+def _find_volrig() -> None:
+    here = os.path.dirname(os.path.abspath(__file__))
+    for folder in (os.path.join(here, "lib"), os.path.normpath(os.path.join(here, "..", "..", "python"))):
+        if os.path.isdir(os.path.join(folder, "volrig")):
+            if folder not in sys.path:
+                sys.path.insert(0, folder)
+            return
+
+
+_find_volrig()
+
+if "bpy" in locals():  # reloading (F3 > Reload Scripts)
+    import importlib
+    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "operators", "panels"):
+        if _m in locals():
+            importlib.reload(locals()[_m])
+
+import bpy  # noqa: E402
+
+from . import bake, materials, objects, operators, panels, properties, scans, staging  # noqa: E402,F401
+
+
+def register():
+    if not (SUPPORTED[0] <= tuple(bpy.app.version) < SUPPORTED[1]):
+        print(f"volrig: Blender {bpy.app.version_string} is outside the supported range 3.4 .. 4.x")
+    properties.register()
+    operators.register()
+    panels.register()
+    bpy.app.handlers.load_post.append(scans.forget_all)
+
+
+def unregister():
+    if scans.forget_all in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(scans.forget_all)
+    scans.forget_all()
+    panels.unregister()
+    operators.unregister()
+    properties.unregister()

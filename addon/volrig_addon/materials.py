@@ -1,0 +1,135 @@
+"""The Cycles volume material of a volrig Volume object: a transfer function (a colour ramp over the ``density``
+grid, the scan's own values) driving scattering and absorption, a density multiplier, and a glow on the voxels of
+one bone read from the baked ``bone`` grid (bone index + 1 in the armature's bone order, 0 = empty)."""
+import bpy
+
+#: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
+#: (position, (r, g, b), opacity) over that window.
+PRESETS = {
+    "CT_BONE": (0.45, 1.0, "LINEAR", [(0.0, (0.55, 0.25, 0.2), 0.0), (0.25, (0.85, 0.75, 0.65), 0.3),
+                                      (1.0, (1.0, 0.98, 0.95), 1.0)]),
+    "SOFT_TISSUE": (0.05, 1.0, "LINEAR", [(0.0, (0.6, 0.15, 0.1), 0.0), (0.15, (0.8, 0.35, 0.3), 0.12),
+                                          (0.5, (0.9, 0.65, 0.55), 0.25), (1.0, (1.0, 1.0, 0.95), 1.0)]),
+    "GREY": (0.0, 1.0, "LINEAR", [(0.0, (1.0, 1.0, 1.0), 0.0), (1.0, (1.0, 1.0, 1.0), 1.0)]),
+}
+#: Label colours (label k uses PALETTE[(k - 1) % len]); a colour ramp holds at most 32 stops.
+PALETTE = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.45, 0.80, 0.40), (0.70, 0.45, 0.85),
+           (0.95, 0.55, 0.20), (0.35, 0.85, 0.80), (0.85, 0.40, 0.60), (0.60, 0.60, 0.60), (0.55, 0.35, 0.20)]
+
+
+def _stops(preset, vmin, vmax):
+    if preset == "LABELS":
+        top = max(1, min(int(round(vmax)), 31))
+        stops = [(0.0, (0.0, 0.0, 0.0), 0.0)]
+        stops += [((k - 0.5) / top, PALETTE[(k - 1) % len(PALETTE)], 1.0) for k in range(1, top + 1)]
+        return 0.0, float(top), "CONSTANT", stops
+    lo, hi, interpolation, stops = PRESETS[preset]
+    span = (vmax - vmin) or 1.0
+    return vmin + lo * span, vmin + hi * span, interpolation, stops
+
+
+def _nodes(mat):
+    """The material's nodes by role, building the tree on first use."""
+    tree = mat.node_tree
+    n = tree.nodes
+    if "volrig ramp" in n:
+        return {k: n["volrig " + k] for k in ("density", "window", "ramp", "opacity", "scatter", "absorb", "bone",
+                                              "is_bone", "glow", "glow_density", "emit")}
+    n.clear()
+    link = tree.links.new
+
+    def node(kind, key, x, y):
+        nd = n.new(kind)
+        nd.name = nd.label = "volrig " + key
+        nd.location = (x, y)
+        return nd
+
+    density = node("ShaderNodeAttribute", "density", -900, 0)
+    density.attribute_name = "density"
+    window = node("ShaderNodeMapRange", "window", -700, 0)
+    window.clamp = True
+    ramp = node("ShaderNodeValToRGB", "ramp", -500, 0)
+    opacity = node("ShaderNodeMath", "opacity", -200, -150)
+    opacity.operation = "MULTIPLY"
+    scatter = node("ShaderNodeVolumeScatter", "scatter", 0, 150)
+    absorb = node("ShaderNodeVolumeAbsorption", "absorb", 0, -50)
+    bone = node("ShaderNodeAttribute", "bone", -900, -400)
+    bone.attribute_name = "bone"
+    is_bone = node("ShaderNodeMath", "is_bone", -700, -400)
+    is_bone.operation = "COMPARE"
+    # Cycles interpolates the label grid: only values within 0.05 of the label count (between two labels or at
+    # the surface the interpolated value passes the label in a thin shell only)
+    is_bone.inputs[2].default_value = 0.05
+    glow = node("ShaderNodeMath", "glow", -500, -400)
+    glow.operation = "MULTIPLY"
+    glow_density = node("ShaderNodeMath", "glow_density", -300, -400)
+    glow_density.operation = "MULTIPLY"
+    emit = node("ShaderNodeEmission", "emit", 0, -300)
+    add1 = n.new("ShaderNodeAddShader")
+    add1.location = (200, 50)
+    add2 = n.new("ShaderNodeAddShader")
+    add2.location = (350, -50)
+    out = n.new("ShaderNodeOutputMaterial")
+    out.location = (550, 0)
+    link(density.outputs["Fac"], window.inputs["Value"])
+    link(window.outputs["Result"], ramp.inputs["Fac"])
+    link(ramp.outputs["Alpha"], opacity.inputs[0])
+    for shader in (scatter, absorb):
+        link(ramp.outputs["Color"], shader.inputs["Color"])
+        link(opacity.outputs[0], shader.inputs["Density"])
+    link(bone.outputs["Fac"], is_bone.inputs[0])
+    link(is_bone.outputs[0], glow.inputs[0])
+    link(glow.outputs[0], glow_density.inputs[0])
+    link(opacity.outputs[0], glow_density.inputs[1])
+    link(glow_density.outputs[0], emit.inputs["Strength"])
+    link(scatter.outputs[0], add1.inputs[0])
+    link(absorb.outputs[0], add1.inputs[1])
+    link(add1.outputs[0], add2.inputs[0])
+    link(emit.outputs[0], add2.inputs[1])
+    link(add2.outputs[0], out.inputs["Volume"])
+    return _nodes(mat)
+
+
+def bone_index(volume_obj, name: str) -> int:
+    """1-based index of bone ``name`` in the rig (the ``bone`` grid's label), 0 when there is no such bone."""
+    from .objects import members
+    rig = members(volume_obj).get("RIG")
+    if rig is None or not name:
+        return 0
+    names = [b.name for b in rig.data.bones]
+    return names.index(name) + 1 if name in names else 0
+
+
+def update_volume_material(volume_obj):
+    """Create or update the object's material from its settings (preset, density, highlighted bone)."""
+    s = volume_obj.volrig
+    data = volume_obj.data
+    if not isinstance(data, bpy.types.Volume):
+        return None
+    mat = data.materials[0] if len(data.materials) and data.materials[0] is not None else None
+    if mat is None:
+        mat = bpy.data.materials.new(volume_obj.name + " volume")
+        mat.use_nodes = True
+        if len(data.materials):
+            data.materials[0] = mat
+        else:
+            data.materials.append(mat)
+    nd = _nodes(mat)
+    lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max)
+    nd["window"].inputs["From Min"].default_value = lo
+    nd["window"].inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
+    ramp = nd["ramp"].color_ramp
+    ramp.interpolation = interpolation
+    while len(ramp.elements) > 1:
+        ramp.elements.remove(ramp.elements[-1])
+    ramp.elements[0].position = stops[0][0]
+    ramp.elements[0].color = (*stops[0][1], stops[0][2])
+    for pos, rgb, alpha in stops[1:]:
+        ramp.elements.new(pos).color = (*rgb, alpha)
+    nd["opacity"].inputs[1].default_value = s.density_scale
+    nd["absorb"].inputs["Density"].default_value = 0.0
+    index = bone_index(volume_obj, s.highlight_bone)
+    nd["is_bone"].inputs[1].default_value = float(index) if index else -10.0
+    nd["glow"].inputs[1].default_value = s.highlight_strength
+    nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
+    return mat

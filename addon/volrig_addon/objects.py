@@ -1,0 +1,284 @@
+"""The Blender objects of one rigged volume (DESIGN.md, Blender object model), all in the collection ``<name>``:
+
+- ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
+- ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
+- ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
+- ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
+                      skeleton-tree as edges, one vertex group per bone, an Armature modifier.
+Volume units (e.g. mm) are kept inside the objects; each object's matrix scales them into Blender units.
+"""
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+import volrig
+
+SPHERE_NODES = "volrig spheres"
+
+
+def volume_of(obj):
+    """The volrig Volume object ``obj`` belongs to (itself for the Volume), or None."""
+    if obj is None:
+        return None
+    if obj.volrig.role == "VOLUME":
+        return obj
+    v = obj.volrig.volume
+    return v if v is not None and v.volrig.role == "VOLUME" else None
+
+
+def members(volume_obj):
+    """Objects of the set by role: {"RIG": obj, "SPHERES": obj, ...} (those that exist)."""
+    out = {}
+    for o in bpy.data.objects:
+        if o.volrig.role != "VOLUME" and o.volrig.volume == volume_obj:
+            out[o.volrig.role] = o
+    return out
+
+
+def _collection_of(volume_obj):
+    return volume_obj.users_collection[0] if volume_obj.users_collection else bpy.context.scene.collection
+
+
+def _new_object(volume_obj, name, data, role):
+    obj = bpy.data.objects.new(name, data)
+    _collection_of(volume_obj).objects.link(obj)
+    obj.volrig.role = role
+    obj.volrig.volume = volume_obj
+    return obj
+
+
+def _remove(obj) -> None:
+    data = obj.data
+    bpy.data.objects.remove(obj, do_unlink=True)
+    if data is not None and data.users == 0:
+        for kind, coll in ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Armature, bpy.data.armatures),
+                           (bpy.types.Volume, bpy.data.volumes)):
+            if isinstance(data, kind):
+                coll.remove(data)
+
+
+def create_volume_object(context, name: str, vdb_path: str, unit_scale: float):
+    """A Volume object in a new collection ``name`` showing ``vdb_path``, scaled by ``unit_scale``."""
+    coll = bpy.data.collections.new(name)
+    context.scene.collection.children.link(coll)
+    data = bpy.data.volumes.new(name)
+    data.filepath = vdb_path
+    obj = bpy.data.objects.new(name, data)
+    coll.objects.link(obj)
+    obj.matrix_world = Matrix.Scale(unit_scale, 4)
+    obj.volrig.role = "VOLUME"
+    obj.volrig.unit_scale = unit_scale
+    return obj
+
+
+# ---- spheres drawn by geometry nodes: an icosphere instanced on each vertex, scaled by its radius ----
+
+def _new_socket(group, name, in_out, socket_type):
+    if hasattr(group, "interface"):  # Blender 4.0+
+        group.interface.new_socket(name=name, in_out=in_out, socket_type=socket_type)
+    elif in_out == "INPUT":
+        group.inputs.new(socket_type, name)
+    else:
+        group.outputs.new(socket_type, name)
+
+
+def sphere_nodes():
+    """The shared geometry-nodes group that shows each vertex's sphere (``radius`` attribute) and keeps the edges."""
+    group = bpy.data.node_groups.get(SPHERE_NODES)
+    if group is not None:
+        return group
+    group = bpy.data.node_groups.new(SPHERE_NODES, "GeometryNodeTree")
+    _new_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
+    _new_socket(group, "Geometry", "OUTPUT", "NodeSocketGeometry")
+    n = group.nodes
+    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+    ico = n.new("GeometryNodeMeshIcoSphere")
+    ico.inputs["Radius"].default_value = 1.0
+    ico.inputs["Subdivisions"].default_value = 1
+    radius = n.new("GeometryNodeInputNamedAttribute")
+    radius.data_type = "FLOAT"
+    radius.inputs["Name"].default_value = "radius"
+    inst = n.new("GeometryNodeInstanceOnPoints")
+    join = n.new("GeometryNodeJoinGeometry")
+    link = group.links.new
+    link(gin.outputs[0], inst.inputs["Points"])
+    link(ico.outputs["Mesh"], inst.inputs["Instance"])
+    link(next(o for o in radius.outputs if o.enabled), inst.inputs["Scale"])
+    link(gin.outputs[0], join.inputs[0])
+    link(inst.outputs["Instances"], join.inputs[0])
+    link(join.outputs[0], gout.inputs[0])
+    for i, node in enumerate((gin, radius, ico, inst, join, gout)):
+        node.location = (200 * i, 0)
+    return group
+
+
+def _show_spheres(obj, show: bool) -> None:
+    mod = obj.modifiers.get("volrig spheres")
+    if show and mod is None:
+        mod = obj.modifiers.new("volrig spheres", "NODES")
+        mod.node_group = sphere_nodes()
+        mod.show_render = False
+    elif mod is not None:
+        mod.show_viewport = show
+
+
+def _set_points(mesh, centers, radii, edges=None) -> None:
+    mesh.clear_geometry()
+    mesh.vertices.add(len(centers))
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(centers, dtype=np.float32).ravel())
+    if edges is not None and len(edges):
+        mesh.edges.add(len(edges))
+        mesh.edges.foreach_set("vertices", np.ascontiguousarray(edges, dtype=np.int32).ravel())
+    attr = mesh.attributes.get("radius") or mesh.attributes.new("radius", "FLOAT", "POINT")
+    attr.data.foreach_set("value", np.ascontiguousarray(radii, dtype=np.float32))
+    mesh.update()
+
+
+def update_skeleton_preview(volume_obj) -> None:
+    """Re-threshold the kept skeleton at the current thinness and show its points (instant: no recomputation).
+    Does nothing until Skeletonize has computed the skeleton in this session."""
+    from . import scans
+    s = volume_obj.volrig
+    sk = scans.skeleton(volume_obj, compute=False)
+    if sk is None:
+        return
+    pts = sk.at(scans.thinness(volume_obj))
+    s.point_count = len(pts)
+    obj = members(volume_obj).get("SKELETON")
+    if obj is None:
+        obj = _new_object(volume_obj, volume_obj.name + "_skeleton", bpy.data.meshes.new(volume_obj.name + "_skeleton"),
+                          "SKELETON")
+        obj.matrix_world = volume_obj.matrix_world
+    _set_points(obj.data, pts.centers, pts.radii)
+    _show_spheres(obj, s.show_spheres)
+
+
+# ---- the rig ----
+
+def build_armature(volume_obj, rig: volrig.Rig):
+    """``<name>_rig``: one bone per rig bone from rig.heads()/rig.tails() in volume units (roll 0, so each bone's
+    rest matrix equals Rig.rest_matrices), parents from rig.parents; replaces an existing one."""
+    old = members(volume_obj).get("RIG")
+    name = volume_obj.name + "_rig"
+    if old is not None:
+        _remove(old)
+    arm = bpy.data.armatures.new(name)
+    arm.display_type = "STICK"
+    obj = _new_object(volume_obj, name, arm, "RIG")
+    obj.show_in_front = True
+    obj.matrix_world = volume_obj.matrix_world if volume_obj.parent is None else \
+        volume_obj.parent.matrix_world @ volume_obj.matrix_local
+    _edit_armature(obj, lambda: _add_bones(arm, rig))
+    return obj
+
+
+def _edit_armature(obj, edit) -> None:
+    view_layer = bpy.context.view_layer
+    previous = view_layer.objects.active
+    if bpy.context.mode != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
+    view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    try:
+        edit()
+    finally:
+        bpy.ops.object.mode_set(mode="OBJECT")
+        view_layer.objects.active = previous if previous is not None and previous.name in view_layer.objects else obj
+
+
+def _add_bones(arm, rig: volrig.Rig) -> None:
+    heads, tails = rig.heads(), rig.tails()
+    ebs = []
+    for b, name in enumerate(rig.names):
+        eb = arm.edit_bones.new(name)
+        eb.head, eb.tail, eb.roll = tuple(heads[b]), tuple(tails[b]), 0.0
+        ebs.append(eb)
+    for b, p in enumerate(rig.parents):
+        if p >= 0:
+            ebs[b].parent = ebs[p]
+            ebs[b].use_connect = bool(np.allclose(heads[b], tails[p]))
+
+
+def armature_rig(rig_obj) -> volrig.Rig:
+    """The rig the armature describes now (after the user's edits), bones in the armature's order."""
+    bones = list(rig_obj.data.bones)
+    if not bones:
+        raise ValueError(f"{rig_obj.name} has no bones")
+    index = {b.name: i for i, b in enumerate(bones)}
+    heads = np.array([tuple(b.head_local) for b in bones])
+    tails = np.array([tuple(b.tail_local) for b in bones])
+    parents = [index[b.parent.name] if b.parent else -1 for b in bones]
+    return volrig.Rig.from_bones(heads, tails, [b.name for b in bones], parents)
+
+
+def build_spheres(volume_obj, rig_obj, points: volrig.SkeletonPoints, tree, binding: volrig.Binding):
+    """``<name>_spheres``: one vertex per point, ``radius``, tree edges, vertex groups from the binding, Armature
+    modifier, parented to the rig; replaces an existing one."""
+    old = members(volume_obj).get("SPHERES")
+    if old is not None:
+        _remove(old)
+    name = volume_obj.name + "_spheres"
+    obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "SPHERES")
+    _set_points(obj.data, points.centers, points.radii, tree.edges if tree is not None else None)
+    obj.parent = rig_obj
+    obj.matrix_parent_inverse = Matrix.Identity(4)
+    obj.matrix_basis = Matrix.Identity(4)
+    set_vertex_groups(obj, binding)
+    mod = obj.modifiers.new("Armature", "ARMATURE")
+    mod.object = rig_obj
+    mod.use_vertex_groups = True
+    _show_spheres(obj, True)
+    obj.display_type = "WIRE"
+    obj.hide_render = True
+    return obj
+
+
+def set_vertex_groups(spheres_obj, binding: volrig.Binding) -> None:
+    """One vertex group per bone holding its weights (existing groups are replaced)."""
+    spheres_obj.vertex_groups.clear()
+    for name, (idx, w) in zip(binding.bone_names, binding.groups()):
+        vg = spheres_obj.vertex_groups.new(name=name)
+        if not len(idx):
+            continue
+        values, inverse = np.unique(w, return_inverse=True)
+        for k, value in enumerate(values):
+            vg.add(idx[inverse == k].tolist(), float(value), "REPLACE")
+
+
+def vertex_groups(spheres_obj):
+    """The weights the vertex groups hold now: {group name: (vertex indices, weights)}."""
+    names = [vg.name for vg in spheres_obj.vertex_groups]
+    idx = [[] for _ in names]
+    w = [[] for _ in names]
+    for v in spheres_obj.data.vertices:
+        for g in v.groups:
+            if g.weight > 0:
+                idx[g.group].append(v.index)
+                w[g.group].append(g.weight)
+    return {n: (np.array(i, dtype=np.int64), np.array(x, dtype=np.float64)) for n, i, x in zip(names, idx, w)}
+
+
+def attach_volume(volume_obj, rig_obj) -> None:
+    """Parent the Volume object to the rig without moving it, so moving the rig object moves the bake too."""
+    world = volume_obj.matrix_world.copy()
+    volume_obj.parent = rig_obj
+    volume_obj.matrix_parent_inverse = Matrix.Identity(4)
+    volume_obj.matrix_world = world
+
+
+def point_volume_at(volume_obj, path: str, sequence=None) -> None:
+    """Show ``path`` on the Volume object; ``sequence`` = (first frame, last frame) plays files numbered by scene
+    frame (``<name>_0001.vdb`` ...)."""
+    data = volume_obj.data
+    data.filepath = path
+    if sequence is None:
+        data.is_sequence = False
+    else:
+        first, last = sequence
+        data.is_sequence = True
+        data.frame_start = first
+        data.frame_duration = last - first + 1
+        data.frame_offset = first - 1  # file number = scene frame
+        data.sequence_mode = "EXTEND"
+    data.grids.unload()
+    data.grids.load()

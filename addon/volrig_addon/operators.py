@@ -1,0 +1,410 @@
+"""Operators: thin over the volrig package. Each reports user mistakes (bad files, empty segmentations, missing
+rigs) in the UI instead of raising, is undoable, and never writes to the user's source file."""
+import os
+import uuid
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntVectorProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
+
+import volrig
+from volrig.volume import FORMATS
+
+from . import bake as baking
+from . import materials, objects, scans
+from .properties import UNIT_FACTOR, UNIT_SCALES
+
+#: What a user mistake or a bad file raises; reported in the UI, never as a traceback.
+USER_ERRORS = (ValueError, KeyError, IndexError, OSError, RuntimeError, volrig.VolrigError, volrig.Cancelled)
+
+
+def _reported(method):
+    """Wraps an operator's execute(self, context) or invoke(self, context, event): user errors become a report."""
+    def run(self, context, *event):
+        try:
+            return method(self, context, *event)
+        except volrig.Cancelled:
+            self.report({"WARNING"}, "volrig: cancelled")
+            return {"CANCELLED"}
+        except USER_ERRORS as e:
+            self.report({"ERROR"}, f"volrig: {e}")
+            return {"CANCELLED"}
+
+    if method.__code__.co_argcount == 3:  # Blender checks the argument count
+        def invoke(self, context, event):
+            return run(self, context, event)
+        return invoke
+
+    def execute(self, context):
+        return run(self, context)
+    return execute
+
+
+def _active_volume(context):
+    return objects.volume_of(context.active_object)
+
+
+class _ProgressBar:
+    """The window manager's progress bar (0..100) for a with-block; ``part(start, end)`` is a volrig progress
+    callback mapped onto [start, end]."""
+
+    def __init__(self, context):
+        self.wm = context.window_manager
+
+    def __enter__(self):
+        self.wm.progress_begin(0, 100)
+        return self
+
+    def __exit__(self, *exc):
+        self.wm.progress_end()
+
+    def part(self, start: float, end: float):
+        def show(f):
+            self.wm.progress_update(start + (end - start) * float(f))
+            return True
+        return show
+
+
+class _OnVolume:
+    """Operators on the active object's volrig volume, in object mode."""
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _active_volume(context) is not None and context.mode == "OBJECT"
+
+
+class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
+    """Import a volume (NRRD, MetaImage, NIfTI, OpenVDB or raw) as a Volume object for rigging"""
+    bl_idname = "volrig.import_volume"
+    bl_label = "Import Volume"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(default=";".join("*" + e for e in FORMATS), options={"HIDDEN"})
+    unit: EnumProperty(name="Units", items=UNIT_SCALES, default="MM")
+    custom_scale: FloatProperty(name="Scale", default=1.0, min=1e-9, precision=6,
+                                description="Blender units per volume unit (Custom)")
+    name: StringProperty(name="Name", default="", description="Object name (default: the file name)")
+    grid: StringProperty(name="VDB grid", default="", description="VDB files: grid to read (default density)")
+    raw_dims: IntVectorProperty(name="Raw size", size=3, default=(0, 0, 0), min=0,
+                                description="Raw files: voxels along x, y, z")
+    raw_dtype: EnumProperty(name="Raw type", items=[(t, t, "") for t in (
+        "uint8", "int8", "uint16", "int16", "uint32", "int32", "float32", "float64")], default="uint8")
+    raw_spacing: FloatVectorProperty(name="Raw spacing", size=3, default=(1.0, 1.0, 1.0), min=1e-9)
+    raw_big_endian: bpy.props.BoolProperty(name="Big-endian", default=False)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.prop(self, "name")
+        layout.prop(self, "unit")
+        if self.unit == "CUSTOM":
+            layout.prop(self, "custom_scale")
+        layout.prop(self, "grid")
+        box = layout.box()
+        box.label(text="Raw files (.raw .bin .img)")
+        box.prop(self, "raw_dims")
+        box.prop(self, "raw_dtype")
+        box.prop(self, "raw_spacing")
+        box.prop(self, "raw_big_endian")
+
+    @_reported
+    def execute(self, context):
+        path = bpy.path.abspath(self.filepath)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"{path}: no such file")
+        if volrig.volume.format_of(path) == "raw":
+            if min(self.raw_dims) <= 0:
+                raise ValueError(f"{os.path.basename(path)}: a raw file needs its size (Raw size x, y, z)")
+            vol = volrig.load(path, dims=tuple(self.raw_dims), dtype=self.raw_dtype, spacing=tuple(self.raw_spacing),
+                              byte_order="big" if self.raw_big_endian else "little")
+        else:
+            vol = volrig.load(path, grid=self.grid)
+        samples = vol.array.astype(np.float32, copy=False)
+        finite = np.isfinite(samples)
+        if not finite.all():
+            samples = np.where(finite, samples, np.float32(0))
+        vol = volrig.Volume(samples, vol.spacing, vol.origin)
+        scale = self.custom_scale if self.unit == "CUSTOM" else UNIT_FACTOR[self.unit]
+        base = self.name or os.path.basename(path).split(".")[0] or "volume"
+        obj = import_samples(context, vol, base, scale, source=path)
+        x, y, z = vol.dims
+        self.report({"INFO"}, f"volrig: {obj.name}: {x} x {y} x {z} voxels, spacing {tuple(vol.spacing)}; "
+                              f"cache {scans.cache_dir(obj)}")
+        return {"FINISHED"}
+
+
+def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, source: str = ""):
+    """Write ``vol`` (float32 samples) into a new cache folder as source.vdb and make its Volume object."""
+    key = uuid.uuid4().hex[:8]
+    root = scans.cache_root()
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+    rel = os.path.join(root, f"{safe}-{key}")
+    folder = bpy.path.abspath(rel)
+    os.makedirs(folder, exist_ok=True)
+    scans.write_source(folder, vol, source)
+    obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale)
+    s = obj.volrig
+    s.source, s.cache_dir = source, rel
+    scans.remember_source(obj, vol)
+    s.dims, s.spacing, s.origin = vol.dims, vol.spacing, vol.origin
+    a = vol.array
+    s.value_min, s.value_max = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
+    nonzero = a[a != 0]
+    s.low = float(np.percentile(nonzero, 5)) if nonzero.size else 1.0
+    s.high = s.value_max
+    s.preset = "SOFT_TISSUE"
+    if _looks_like_labels(a):
+        s.preset, s.sampling, s.segment_by = "LABELS", "nearest", "LABELS"
+        s.labels = f"1-{int(s.value_max)}"
+    extent = max(np.asarray(vol.dims) * np.asarray(vol.spacing)) * unit_scale
+    s.density_scale = round(40.0 / max(extent, 1e-6), 3)
+    scans.update_mask_count(obj)
+    materials.update_volume_material(obj)
+    for o in context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    return obj
+
+
+def _looks_like_labels(a: np.ndarray) -> bool:
+    """A label map: a few small non-negative integers numbered from about 1 up (not a scan's intensity levels)."""
+    if not a.size:
+        return False
+    some = np.unique(a[:: max(1, a.shape[0] // 32)])
+    return bool(len(some) <= 64 and some.min() >= 0 and np.array_equal(some, np.round(some))
+                and 3 < some.max() <= 2 * len(some) + 8)
+
+
+class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
+    """Segment the volume and compute its thinness skeleton once; the Thinness slider then re-thresholds it"""
+    bl_idname = "volrig.skeletonize"
+    bl_label = "Skeletonize"
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            sk = scans.skeleton(vol, progress=bar.part(0, 100))
+        vol.volrig.mask_count = int(np.count_nonzero(mask.array))
+        objects.update_skeleton_preview(vol)
+        self.report({"INFO"}, f"volrig: {sk.object_count:,} object voxels; {vol.volrig.point_count:,} skeleton points "
+                              f"at thinness {vol.volrig.thinness:g}")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
+    """Build the skeleton-tree, the automatic armature and the binding from the skeleton at the current thinness:
+    creates <name>_rig and <name>_spheres"""
+    bl_idname = "volrig.rig"
+    bl_label = "Rig"
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        s = vol.volrig
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            sk = scans.skeleton(vol, progress=bar.part(0, 30))
+            pts = sk.at(scans.thinness(vol))
+            if len(pts) < 2:
+                raise ValueError(f"only {len(pts)} skeleton point(s) at thinness {s.thinness:g}: lower the thinness")
+            tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=bar.part(30, 55))
+            rig = volrig.autorig(pts, tree, mask, bones=s.bones, roles=s.roles, progress=bar.part(55, 85))
+            binding = volrig.bind(pts, rig, mask, mode=s.bind_mode, progress=bar.part(85, 100))
+        _save_rig(vol, pts, tree, rig, binding)
+        rig_obj = objects.build_armature(vol, rig)
+        objects.build_spheres(vol, rig_obj, pts, tree, binding)
+        objects.attach_volume(vol, rig_obj)
+        preview = objects.members(vol).get("SKELETON")
+        if preview is not None:
+            preview.hide_set(True)
+        materials.update_volume_material(vol)
+        self.report({"INFO"}, f"volrig: {rig.kind} rig of {len(rig)} bones on {len(pts):,} spheres")
+        return {"FINISHED"}
+
+
+def _save_rig(vol, pts, tree, rig, binding) -> None:
+    """Each rig gets a new file (so undo returns to a rig whose file still exists); the objects name it."""
+    name = f"rig-{uuid.uuid4().hex[:8]}.vrig"
+    volrig.save_rig(os.path.join(scans.cache_dir(vol), name), pts, tree, rig, binding, source="source.vdb")
+    vol.volrig.rig_file = name
+
+
+class VOLRIG_OT_rebind(bpy.types.Operator):
+    """Bind the spheres again to the armature as it is now (after moving, adding or deleting bones in edit mode);
+    replaces the vertex groups"""
+    bl_idname = "volrig.rebind"
+    bl_label = "Rebind"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        vol = _active_volume(context)
+        return vol is not None and "RIG" in objects.members(vol)
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        parts = objects.members(vol)
+        if "SPHERES" not in parts:
+            raise ValueError(f"{vol.name} has no sphere mesh: press Rig")
+        if context.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")  # edit bones reach the armature on leaving edit mode
+        saved = volrig.load_rig(scans.rig_path(vol))
+        rig = objects.armature_rig(parts["RIG"])
+        mask = scans.mask(vol)
+        binding = volrig.bind(saved.points, rig, mask, mode=vol.volrig.bind_mode)
+        objects.set_vertex_groups(parts["SPHERES"], binding)
+        _save_rig(vol, saved.points, saved.tree, rig, binding)
+        materials.update_volume_material(vol)
+        self.report({"INFO"}, f"volrig: {len(saved.points):,} spheres bound to {len(rig)} bones")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_bake(bpy.types.Operator):
+    """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
+    bl_idname = "volrig.bake"
+    bl_label = "Bake"
+    bl_options = {"REGISTER", "UNDO"}
+
+    force: bpy.props.BoolProperty(name="All frames", default=False,
+                                  description="Bake every frame, also those whose pose did not change")
+
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        vol = _active_volume(context)
+        return vol is not None and context.mode in ("OBJECT", "POSE")
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
+        n = baking.bake(vol, context.scene, frames, vol.volrig.deform_mode, self.force, report=lambda m: None)
+        self.report({"INFO"}, f"volrig: baked {n} of {len(frames)} frames (the others were up to date)")
+        return {"FINISHED"}
+
+    @_reported
+    def invoke(self, context, event):
+        vol = _active_volume(context)
+        self._frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
+        self._baker = baking.Baker(vol, vol.volrig.deform_mode)
+        self._next = 0
+        self._written = 0
+        self._current = context.scene.frame_current
+        wm = context.window_manager
+        wm.progress_begin(0, len(self._frames))
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._finish(context)
+            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            frame = self._frames[self._next]
+            if self._baker.bake_frame(context.scene, frame, force=self.force):
+                self._written += 1
+        except USER_ERRORS as e:
+            self._finish(context)
+            self.report({"ERROR"}, f"volrig: {e}")
+            return {"CANCELLED"}
+        self._next += 1
+        context.window_manager.progress_update(self._next)
+        if self._next < len(self._frames):
+            return {"RUNNING_MODAL"}
+        self._finish(context)
+        self.report({"INFO"}, f"volrig: baked {self._written} of {len(self._frames)} frames")
+        return {"FINISHED"}
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        context.scene.frame_set(self._current)
+        if self._next:
+            self._baker.play(context.scene)
+
+
+class VOLRIG_OT_walk_cycle(bpy.types.Operator):
+    """Keyframe a procedural walk on a humanoid rig (thighs, shins, feet, arms swing about its left-right axis)"""
+    bl_idname = "volrig.walk_cycle"
+    bl_label = "Add Walk Cycle"
+    bl_options = {"REGISTER", "UNDO"}
+
+    frame_start: bpy.props.IntProperty(name="Start", default=1)
+    frames: bpy.props.IntProperty(name="Frames", default=24, min=1, max=100000)
+    period: FloatProperty(name="Stride", default=24.0, min=1.0, description="Frames per stride")
+    amplitude: FloatProperty(name="Amplitude", default=1.0, min=0.0, soft_max=2.0, description="Angle scale")
+
+    @classmethod
+    def poll(cls, context):
+        vol = _active_volume(context)
+        return vol is not None and "RIG" in objects.members(vol) and context.mode in ("OBJECT", "POSE")
+
+    @_reported
+    def execute(self, context):
+        from mathutils import Quaternion, Vector
+        from volrig.walk import walk_cycle
+        vol = _active_volume(context)
+        rig_obj = objects.members(vol)["RIG"]
+        axis, angles = walk_cycle(objects.armature_rig(rig_obj), self.frames, self.period, self.amplitude)
+        for name, values in angles.items():
+            pb = rig_obj.pose.bones[name]
+            pb.rotation_mode = "QUATERNION"
+            local_axis = pb.bone.matrix_local.to_3x3().transposed() @ Vector(axis)
+            for i, angle in enumerate(values):
+                pb.rotation_quaternion = Quaternion(local_axis, float(angle))
+                pb.keyframe_insert("rotation_quaternion", frame=self.frame_start + i, group=name)
+        scene = context.scene
+        scene.frame_start, scene.frame_end = self.frame_start, self.frame_start + self.frames - 1
+        scene.frame_set(self.frame_start)
+        self.report({"INFO"}, f"volrig: walk on {len(angles)} bones over {self.frames} frames")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_show_rest(bpy.types.Operator):
+    """Show the imported volume again instead of the baked sequence"""
+    bl_idname = "volrig.show_rest"
+    bl_label = "Show Source"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _active_volume(context) is not None
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        objects.point_volume_at(vol, os.path.join(vol.volrig.cache_dir, "source.vdb"))
+        return {"FINISHED"}
+
+
+def menu_import(self, context):
+    self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
+
+
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_bake,
+           VOLRIG_OT_walk_cycle, VOLRIG_OT_show_rest)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+    bpy.types.TOPBAR_MT_file_import.append(menu_import)
+
+
+def unregister():
+    bpy.types.TOPBAR_MT_file_import.remove(menu_import)
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

@@ -1,0 +1,145 @@
+"""The "volrig" tab of the 3D view's sidebar: Volume, Segment, Skeleton, Rig, Look and Bake panels for the volrig
+set of the active object."""
+import bpy
+
+from . import objects
+
+
+class _VolrigPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "volrig"
+
+    @classmethod
+    def poll(cls, context):
+        return objects.volume_of(context.active_object) is not None
+
+
+class VOLRIG_PT_volume(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Volume"
+
+    @classmethod
+    def poll(cls, context):
+        return True  # the import button is always there
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator("volrig.import_volume", icon="IMPORT")
+        vol = objects.volume_of(context.active_object)
+        if vol is None:
+            layout.label(text="Select a volrig volume, or import one")
+            return
+        s = vol.volrig
+        col = layout.column(align=True)
+        col.label(text=vol.name, icon="VOLUME_DATA")
+        x, y, z = s.dims
+        col.label(text=f"{x} x {y} x {z} voxels")
+        col.label(text="spacing " + " x ".join(f"{v:g}" for v in s.spacing))
+        col.label(text=f"values {s.value_min:g} .. {s.value_max:g}")
+        col.prop(s, "unit_scale")
+        if s.source:
+            col.label(text=bpy.path.basename(s.source), icon="FILE")
+
+
+class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Segment"
+
+    def draw(self, context):
+        s = objects.volume_of(context.active_object).volrig
+        layout = self.layout
+        layout.prop(s, "segment_by", expand=True)
+        if s.segment_by == "RANGE":
+            row = layout.row(align=True)
+            row.prop(s, "low")
+            row.prop(s, "high")
+        else:
+            layout.prop(s, "labels")
+        layout.prop(s, "largest")
+        layout.label(text=f"{s.mask_count:,} voxels in range" if s.mask_count >= 0 else "invalid segmentation",
+                     icon="INFO" if s.mask_count > 0 else "ERROR")
+
+
+class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Skeleton"
+
+    def draw(self, context):
+        s = objects.volume_of(context.active_object).volrig
+        layout = self.layout
+        layout.prop(s, "metric")
+        layout.operator("volrig.skeletonize", icon="OUTLINER_OB_POINTCLOUD")
+        layout.prop(s, "thinness", slider=True)
+        row = layout.row()
+        row.label(text=f"{s.point_count:,} points" if s.point_count >= 0 else "not skeletonized yet")
+        row.prop(s, "show_spheres")
+
+
+class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Rig"
+
+    def draw(self, context):
+        vol = objects.volume_of(context.active_object)
+        s = vol.volrig
+        layout = self.layout
+        col = layout.column(align=True)
+        col.prop(s, "alpha")
+        col.prop(s, "bones")
+        col.prop(s, "roles")
+        layout.prop(s, "bind_mode")
+        row = layout.row(align=True)
+        row.operator("volrig.rig", icon="ARMATURE_DATA")
+        row.operator("volrig.rebind", icon="FILE_REFRESH")
+        parts = objects.members(vol)
+        if "RIG" in parts:
+            layout.operator("volrig.walk_cycle", icon="ANIM")
+            layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
+        if "SPHERES" in parts:
+            layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
+                         icon="MESH_UVSPHERE")
+
+
+class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Look"
+
+    def draw(self, context):
+        vol = objects.volume_of(context.active_object)
+        s = vol.volrig
+        layout = self.layout
+        layout.prop(s, "preset")
+        layout.prop(s, "density_scale")
+        rig = objects.members(vol).get("RIG")
+        if rig is not None:
+            layout.prop_search(s, "highlight_bone", rig.data, "bones")
+        else:
+            layout.prop(s, "highlight_bone")
+        row = layout.row(align=True)
+        row.prop(s, "highlight_strength")
+        row.prop(s, "highlight_color", text="")
+
+
+class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Bake"
+
+    def draw(self, context):
+        s = objects.volume_of(context.active_object).volrig
+        layout = self.layout
+        layout.prop(s, "deform_mode")
+        layout.prop(s, "sampling")
+        layout.prop(s, "bake_frames")
+        row = layout.row(align=True)
+        row.operator("volrig.bake", icon="RENDER_ANIMATION")
+        row.operator("volrig.show_rest", icon="VOLUME_DATA")
+        if s.baked_end >= s.baked_start:
+            layout.label(text=f"plays frames {s.baked_start} .. {s.baked_end}")
+
+
+CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_PT_look, VOLRIG_PT_bake)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

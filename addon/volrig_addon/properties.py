@@ -1,0 +1,137 @@
+"""What the add-on stores on Blender objects (``Object.volrig``), so a saved .blend knows how its volume was
+imported, segmented, skeletonized and rigged. Every setting lives on the ``<name>`` Volume object; the rig, the
+sphere mesh and the skeleton preview point back to it."""
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty,
+                       IntVectorProperty, PointerProperty, StringProperty)
+
+UNIT_SCALES = [
+    ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
+    ("CM", "cm to m", "Volume units are centimetres; 1 cm = 0.01 Blender units", 1),
+    ("M", "m", "Volume units are metres; no scaling", 2),
+    ("CUSTOM", "Custom", "Blender units per volume unit", 3),
+]
+UNIT_FACTOR = {"MM": 0.001, "CM": 0.01, "M": 1.0}
+
+
+def _segmentation_changed(self, context):
+    from . import scans
+    scans.update_mask_count(self.id_data)
+
+
+def _thinness_changed(self, context):
+    from . import objects
+    objects.update_skeleton_preview(self.id_data)
+
+
+def _look_changed(self, context):
+    from . import materials
+    materials.update_volume_material(self.id_data)
+
+
+def _volume_object(self, obj):
+    return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
+
+
+class VolrigObject(bpy.types.PropertyGroup):
+    role: EnumProperty(name="Role", items=[
+        ("NONE", "None", "Not a volrig object"),
+        ("VOLUME", "Volume", "The imported (and baked) volume; holds every setting"),
+        ("RIG", "Rig", "The armature"),
+        ("SPHERES", "Spheres", "One vertex per skeleton sphere, bound to the armature"),
+        ("SKELETON", "Skeleton preview", "The skeleton points at the current thinness"),
+        ("MASK", "Mask preview", "The segmentation mask"),
+    ], default="NONE")
+    volume: PointerProperty(name="Volume", type=bpy.types.Object, poll=_volume_object,
+                            description="The volrig Volume object this object belongs to")
+
+    # --- the source (read-only in the UI) ---
+    source: StringProperty(name="Source", description="The file the volume was imported from (never modified)")
+    cache_dir: StringProperty(name="Cache", subtype="DIR_PATH",
+                              description="Folder holding this volume's source copy, rig file and baked frames")
+    dims: IntVectorProperty(name="Voxels", size=3, description="Grid size (x, y, z)")
+    spacing: FloatVectorProperty(name="Spacing", size=3, precision=4, description="Voxel size (x, y, z)")
+    origin: FloatVectorProperty(name="Origin", size=3, precision=3, description="World position of voxel 0")
+    value_min: FloatProperty(name="Minimum")
+    value_max: FloatProperty(name="Maximum")
+    unit_scale: FloatProperty(name="Unit scale", default=0.001, min=1e-9, precision=6,
+                              description="Blender units per volume unit")
+
+    # --- segmentation ---
+    segment_by: EnumProperty(name="Segment by", items=[
+        ("RANGE", "Range", "Object = samples between Low and High"),
+        ("LABELS", "Labels", "Object = samples equal to one of the labels (label maps)"),
+    ], default="RANGE", update=_segmentation_changed)
+    low: FloatProperty(name="Low", default=1.0, update=_segmentation_changed,
+                       description="Lowest object value (e.g. Hounsfield units)")
+    high: FloatProperty(name="High", default=1e9, update=_segmentation_changed, description="Highest object value")
+    labels: StringProperty(name="Labels", default="1", update=_segmentation_changed,
+                           description="Object labels: numbers and ranges, e.g. '1 4 7-9'")
+    largest: BoolProperty(name="Largest part only", default=True, update=_segmentation_changed,
+                          description="Keep only the largest connected part of the object")
+    mask_count: IntProperty(name="Object voxels", default=-1)
+
+    # --- skeleton ---
+    metric: EnumProperty(name="Metric", items=[
+        ("euclidean", "Euclidean", "Exact Euclidean distance, anisotropic spacing honoured (thinness 0 .. 1.416)"),
+        ("chamfer345", "Chamfer <3,4,5>", "The thesis' chamfer distance (thinness 0 .. 4.077, grid units)"),
+    ], default="euclidean")
+    thinness: FloatProperty(name="Thinness", default=0.5, min=0.0, max=4.1, soft_max=1.42, precision=3, step=1,
+                            update=_thinness_changed,
+                            description="Keep voxels whose thinness score exceeds this, in voxels (Euclidean: "
+                                        "0 .. 1.416; chamfer <3,4,5>: 0 .. 4.077); larger = fewer spheres")
+    point_count: IntProperty(name="Points", default=-1)
+    show_spheres: BoolProperty(name="Spheres", default=True, update=_thinness_changed,
+                               description="Show the skeleton's spheres scaled by radius (else points only)")
+
+    # --- rig ---
+    alpha: FloatProperty(name="Alpha", default=0.9, min=0.0, max=1.0,
+                         description="Skeleton-tree: 1 weighs edges by length only, lower prefers equal radii")
+    bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
+    roles: BoolProperty(name="Body roles", default=True,
+                        description="Name bones as a humanoid or quadruped when the shape looks like one")
+    bind_mode: EnumProperty(name="Binding", items=[
+        ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),
+        ("rigid", "Rigid", "Every point follows one bone"),
+    ], default="smooth")
+    rig_file: StringProperty(name="Rig file", description="The .vrig file (points, tree, rig, binding) in the cache")
+
+    # --- look ---
+    preset: EnumProperty(name="Transfer function", items=[
+        ("CT_BONE", "CT bone", "Dense values opaque and bone-white, soft values transparent"),
+        ("SOFT_TISSUE", "Soft tissue", "Low values reddish and translucent, dense values white"),
+        ("LABELS", "Label map", "One colour per integer label"),
+        ("GREY", "Grey", "Density proportional to the value"),
+    ], default="SOFT_TISSUE", update=_look_changed)
+    density_scale: FloatProperty(name="Density", default=1.0, min=0.0, soft_max=100.0, update=_look_changed,
+                                 description="Density multiplier (per Blender unit of the scaled object)")
+    highlight_bone: StringProperty(name="Highlight bone", update=_look_changed,
+                                   description="Make this bone's part of the volume glow (needs a baked frame)")
+    highlight_strength: FloatProperty(name="Glow", default=2.0, min=0.0, soft_max=20.0, update=_look_changed)
+    highlight_color: FloatVectorProperty(name="Glow colour", subtype="COLOR", size=3, default=(1.0, 0.35, 0.05),
+                                         min=0.0, max=1.0, update=_look_changed)
+
+    # --- bake ---
+    deform_mode: EnumProperty(name="Deform", items=[
+        ("linear", "Linear blend", "Blend the bones' matrices by the weights (smooth near joints)"),
+        ("dual_quaternion", "Dual quaternion", "Blend as dual quaternions (keeps volume at twisted joints)"),
+        ("rigid", "Rigid", "Each sphere follows its heaviest bone"),
+    ], default="linear")
+    sampling: EnumProperty(name="Sampling", items=[
+        ("trilinear", "Trilinear", "Interpolate the scan's samples (intensities)"),
+        ("nearest", "Nearest", "Take the nearest sample (label maps)"),
+    ], default="trilinear")
+    bake_frames: StringProperty(name="Frames", default="",
+                                description="Frames to bake, e.g. '1-48' or '1-10,20'; empty = the scene range")
+    baked_start: IntProperty(name="Baked from", default=0)
+    baked_end: IntProperty(name="Baked to", default=-1)
+
+
+def register():
+    bpy.utils.register_class(VolrigObject)
+    bpy.types.Object.volrig = PointerProperty(type=VolrigObject)
+
+
+def unregister():
+    del bpy.types.Object.volrig
+    bpy.utils.unregister_class(VolrigObject)

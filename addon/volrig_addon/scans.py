@@ -1,0 +1,189 @@
+"""The scan behind each volrig Volume object: its cache folder on disk and, in memory for this Blender session,
+its samples, mask and skeleton.
+
+The cache folder sits beside the .blend (``<blend name>_volrig/<object>/``; a temporary folder while the file is
+unsaved) and holds ``source.vdb`` (the imported samples as float32, the grid the object shows before baking), the
+``.vrig`` rig files and the baked ``frames/``. The user's source file is only ever read.
+
+The skeleton is computed once per segmentation and metric and kept here, keyed by the cache folder (one per
+import, so another file's object of the same name never sees this one's data), so
+the thinness slider re-thresholds it instantly. Entries are checked against the settings they were made with, so
+undo and redo never show a stale one; after reopening a .blend they are rebuilt from the cache folder on demand.
+"""
+import json
+import os
+import re
+import tempfile
+
+import bpy
+import numpy as np
+
+import volrig
+
+_memory = {}  # cache folder -> {"source": Volume, "mask": (settings, Volume), "skeleton": (settings, Skeleton)}
+
+
+def _entry(volume_obj) -> dict:
+    return _memory.setdefault(bpy.path.abspath(volume_obj.volrig.cache_dir), {})
+
+
+@bpy.app.handlers.persistent
+def forget_all(*_args) -> None:
+    """Drops every scan held in memory (on loading a .blend: its objects rebuild theirs from their caches)."""
+    _memory.clear()
+
+
+def cache_root() -> str:
+    """The folder new caches go to: beside the saved .blend (as a Blender-relative path), else a temp folder."""
+    if bpy.data.filepath:
+        stem = os.path.splitext(os.path.basename(bpy.data.filepath))[0]
+        return "//" + stem + "_volrig"
+    return os.path.join(tempfile.gettempdir(), f"volrig_{os.getpid()}")
+
+
+def cache_dir(volume_obj) -> str:
+    """Absolute path of the object's cache folder (created if missing)."""
+    path = bpy.path.abspath(volume_obj.volrig.cache_dir)
+    if not volume_obj.volrig.cache_dir:
+        raise ValueError(f"{volume_obj.name} has no volrig cache folder (import it with volrig)")
+    os.makedirs(path, exist_ok=True)
+    return path
+
+
+def source_path(volume_obj) -> str:
+    return os.path.join(cache_dir(volume_obj), "source.vdb")
+
+
+def rig_path(volume_obj) -> str:
+    """Absolute path of the object's current .vrig file; ValueError when it has not been rigged."""
+    s = volume_obj.volrig
+    if not s.rig_file:
+        raise ValueError(f"{volume_obj.name} has no rig yet: press Rig first")
+    return os.path.join(cache_dir(volume_obj), s.rig_file)
+
+
+def remember_source(volume_obj, volume: volrig.Volume) -> None:
+    entry = _entry(volume_obj)
+    entry.clear()
+    entry["source"] = volume
+
+
+def write_source(folder: str, volume: volrig.Volume, source_file: str = "") -> str:
+    """Write ``volume`` (float32 samples) into a cache folder: source.vdb and source.json, the exact grid (Blender's
+    float properties are single precision, the rig file's geometry is not); returns the VDB's path."""
+    from volrig.files import atomic_output
+    vdb = os.path.join(folder, "source.vdb")
+    volrig.write_vdb(vdb, {"density": volume}, half=False)
+    with atomic_output(os.path.join(folder, "source.json")) as tmp:
+        with open(tmp, "w") as f:
+            json.dump({"dims": list(volume.dims), "spacing": list(volume.spacing), "origin": list(volume.origin),
+                       "source": source_file}, f, indent=1)
+    return vdb
+
+
+def source(volume_obj) -> volrig.Volume:
+    """The samples (float32) on the grid they were imported with, from memory or the cache's source.vdb."""
+    entry = _entry(volume_obj)
+    v = entry.get("source")
+    if v is None:
+        path = source_path(volume_obj)
+        try:
+            with open(os.path.join(os.path.dirname(path), "source.json")) as f:
+                grid = json.load(f)
+        except (OSError, ValueError) as e:
+            raise FileNotFoundError(f"{os.path.dirname(path)}: the cached source of {volume_obj.name} is missing or "
+                                    f"damaged ({e}); import {volume_obj.volrig.source or 'the volume'} again") from None
+        v = volrig.load(path).on_grid(grid["origin"], grid["dims"])
+        v = volrig.Volume(v.array, tuple(grid["spacing"]), tuple(grid["origin"]))
+        entry.clear()
+        entry["source"] = v
+    return v
+
+
+def parse_labels(text: str):
+    """'1 4 7-9' -> [1, 4, 7, 8, 9]; ValueError naming the bad part."""
+    out = []
+    for part in re.split(r"[\s,;]+", text.strip()):
+        if not part:
+            continue
+        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
+        if not m:
+            raise ValueError(f"labels: {part!r} is not a number or a range like 7-9")
+        a = int(m.group(1))
+        b = int(m.group(2)) if m.group(2) else a
+        if b < a or b - a > 100000:
+            raise ValueError(f"labels: bad range {part!r}")
+        out.extend(range(a, b + 1))
+    if not out:
+        raise ValueError("labels: none given")
+    return out
+
+
+def _segmentation(s):
+    if s.segment_by == "LABELS":
+        return ("labels", tuple(parse_labels(s.labels)), bool(s.largest))
+    if s.low > s.high:
+        raise ValueError(f"segmentation: Low ({s.low:g}) is above High ({s.high:g})")
+    return ("range", float(s.low), float(s.high), bool(s.largest))
+
+
+def mask(volume_obj) -> volrig.Volume:
+    """The segmentation mask for the object's current settings (computed once per setting)."""
+    key = _segmentation(volume_obj.volrig)
+    entry = _entry(volume_obj)
+    cached = entry.get("mask")
+    if cached is None or cached[0] != key:
+        v = source(volume_obj)
+        if key[0] == "labels":
+            m = volrig.segment(v, labels=key[1], largest_component=key[2])
+        else:
+            m = volrig.segment(v, lo=key[1], hi=key[2], largest_component=key[3])
+        if not m.array.any():
+            raise ValueError(f"{volume_obj.name}: the segmentation is empty (check Low/High or the labels)")
+        entry["mask"] = cached = (key, m)
+        entry.pop("skeleton", None)
+    return cached[1]
+
+
+def skeleton(volume_obj, progress=None, compute: bool = True):
+    """The skeleton (scores sorted once) for the current segmentation and metric; None when not computed yet and
+    ``compute`` is False."""
+    s = volume_obj.volrig
+    entry = _entry(volume_obj)
+    try:
+        key = (_segmentation(s), s.metric)
+    except ValueError:
+        return None
+    cached = entry.get("skeleton")
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    if not compute:
+        return None
+    m = mask(volume_obj)
+    sk = volrig.skeletonize(m, s.metric, progress=progress)
+    entry["skeleton"] = (key, sk)
+    return sk
+
+
+def thinness(volume_obj) -> float:
+    """The skeleton's thinness TP for the slider's value: the slider counts voxels, a Euclidean score is in world
+    units (so TP = value * smallest spacing), a chamfer score in grid steps (TP = value)."""
+    s = volume_obj.volrig
+    return float(s.thinness) * (min(s.spacing) if s.metric == "euclidean" else 1.0)
+
+
+def update_mask_count(volume_obj) -> None:
+    """The live object-voxel count shown under the segmentation settings (thresholds only: the largest-part filter
+    applies when skeletonizing). -1 when the settings are invalid or the source is unavailable."""
+    s = volume_obj.volrig
+    try:
+        key = _segmentation(s)
+        a = source(volume_obj).array
+    except (ValueError, OSError, volrig.VolrigError):
+        s.mask_count = -1
+        return
+    if key[0] == "labels":
+        count = int(np.count_nonzero(np.isin(a, key[1])))
+    else:
+        count = int(np.count_nonzero((a >= key[1]) & (a <= key[2])))
+    s.mask_count = count

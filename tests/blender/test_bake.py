@@ -1,0 +1,167 @@
+"""Baking the posed phantom into a VDB sequence, rendering it in Cycles, and baking a saved .blend headless."""
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import bpy
+import volrig
+from conftest import run_op
+from mathutils import Euler
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _members(vol):
+    from volrig_addon.objects import members
+    return members(vol)
+
+
+def _active_voxels(path, grid):
+    return next(g["active_voxels"] for g in volrig._volrig.vdb_grids(path) if g["name"] == grid)
+
+
+def _pose_forearm(rig_obj, frames_angles):
+    """Keyframes forearm.L at the given {frame: angle about its local X (radians)}."""
+    pb = rig_obj.pose.bones["forearm.L"]
+    pb.rotation_mode = "XYZ"
+    for frame, angle in frames_angles.items():
+        pb.rotation_euler = Euler((angle, 0.0, 0.0))
+        pb.keyframe_insert("rotation_euler", frame=frame)
+
+
+@pytest.fixture
+def posed(rigged):
+    vol = rigged
+    rig_obj = _members(vol)["RIG"]
+    _pose_forearm(rig_obj, {1: 0.0, 2: 0.6, 3: 1.2})
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 3
+    return vol
+
+
+def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
+    from volrig_addon import bake, scans
+    vol = posed
+    scene = bpy.context.scene
+    run_op(bpy.ops.volrig.bake)  # in the background: blocking execute
+    files = [bake.frame_path(vol, f) for f in (1, 2, 3)]
+    assert all(os.path.exists(f) for f in files)
+    # the rest reconstruction's voxels, with the binding as the vertex groups hold it
+    saved = volrig.load_rig(scans.rig_path(vol))
+    rest = volrig.Deformer(scans.source(vol), saved.points, saved.binding).frame(
+        np.repeat(np.eye(4)[None], len(saved.rig), axis=0), mode="linear")
+    rest_count = int(np.count_nonzero(rest.bone.array))
+    assert rest_count > 0.95 * np.count_nonzero(scans.mask(vol).array)
+    counts = [_active_voxels(f, "bone") for f in files]
+    assert counts[0] == rest_count  # frame 1 is the rest pose
+    for c in counts:
+        assert abs(c - rest_count) <= 0.01 * rest_count
+    grids = {g["name"] for g in volrig._volrig.vdb_grids(files[1])}
+    assert grids == {"density", "bone"}
+    # frame 2 differs from the rest where the forearm moved
+    f2 = volrig.load(files[1], grid="bone")
+    assert f2.array.shape != rest.bone.array.shape or not np.array_equal(f2.array, rest.bone.array)
+    # the Volume object plays the files: sequence over the scene range, file number = scene frame
+    data = vol.data
+    assert data.is_sequence and data.frame_start == 1 and data.frame_duration == 3
+    assert bpy.path.abspath(data.filepath) == files[0]
+    for f in (1, 2, 3):
+        scene.frame_set(f)
+        dg = bpy.context.evaluated_depsgraph_get()
+        ev = vol.evaluated_get(dg).data
+        ev.grids.load()
+        assert ev.grids.frame == f and os.path.samefile(ev.grids.frame_filepath, files[f - 1])
+    # nothing changed: a second bake writes nothing; a new pose re-bakes that frame only
+    baker = bake.Baker(vol, "linear")
+    assert [baker.bake_frame(scene, f) for f in (1, 2, 3)] == [False, False, False]
+    _pose_forearm(_members(vol)["RIG"], {3: -0.5})
+    baker = bake.Baker(vol, "linear")
+    assert [baker.bake_frame(scene, f) for f in (1, 2, 3)] == [False, False, True]
+
+
+def test_painted_weights_change_the_bake(posed):
+    """Moving the forearm's spheres to the upper arm's group (weight painting) keeps them still when the forearm
+    bends."""
+    from volrig_addon import bake, objects
+    vol = posed
+    scene = bpy.context.scene
+    spheres = _members(vol)["SPHERES"]
+    baker = bake.Baker(vol, "linear")
+    baker.bake_frame(scene, 3)
+    bent = volrig.load(bake.frame_path(vol, 3), grid="bone")
+    forearm = baker.names.index("forearm.L") + 1
+    assert np.count_nonzero(bent.array == forearm) > 100
+    groups = objects.vertex_groups(spheres)
+    idx, _ = groups["forearm.L"]
+    spheres.vertex_groups["forearm.L"].remove(idx.tolist())
+    spheres.vertex_groups["upper_arm.L"].add(idx.tolist(), 1.0, "REPLACE")
+    baker = bake.Baker(vol, "linear")
+    assert baker.bake_frame(scene, 3)  # the weights changed, so the frame is out of date
+    painted = volrig.load(bake.frame_path(vol, 3), grid="bone")
+    assert np.count_nonzero(painted.array == forearm) == 0
+
+
+def _render(scene, frame, path):
+    scene.frame_set(frame)
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path)
+    px = np.array(img.pixels[:], dtype=np.float32).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[::-1, :, :3]  # Blender's pixels run bottom-up
+
+
+def test_cycles_render_of_baked_frames(posed, tmp_path):
+    from volrig_addon import staging
+    vol = posed
+    scene = bpy.context.scene
+    run_op(bpy.ops.volrig.bake)
+    staging.stage(scene, vol, resolution=(96, 128), samples=8)
+    rest = _render(scene, 1, str(tmp_path / "f1.png"))
+    bent = _render(scene, 3, str(tmp_path / "f3.png"))
+    lum_rest, lum_bent = rest.mean(axis=2), bent.mean(axis=2)
+    background = np.median(np.concatenate([lum_rest[:, :3].ravel(), lum_rest[:, -3:].ravel()]))
+    covered = np.abs(lum_rest - background) > 0.05
+    assert 0.03 < covered.mean() < 0.8  # not blank, not all figure
+    diff = np.abs(lum_rest - lum_bent) > 0.1
+    assert diff.mean() > 0.003  # the forearm moved
+    # the difference sits on the left forearm's side of the picture (the figure's left is on +x, the camera
+    # looks along +y from the front, so it appears on the right half), the head and legs agree
+    cols = np.nonzero(diff)[1]
+    rows = np.nonzero(diff)[0]
+    assert np.mean(cols > lum_rest.shape[1] / 2) > 0.8
+    assert np.mean(rows < 0.2 * lum_rest.shape[0]) < 0.05  # (rows run top down) not the head
+
+
+def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
+    from volrig_addon import bake
+    vol = posed
+    run_op(bpy.ops.volrig.bake)
+    interactive = {f: volrig.load(bake.frame_path(vol, f)) for f in (1, 2, 3)}
+    blend = str(tmp_path / "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    for f in (1, 2, 3):
+        os.remove(bake.frame_path(vol, f))
+    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    out = subprocess.run(["/usr/bin/python3", "-m", "volrig", "bake", blend, "--frames", "1-3"], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout + out.stderr
+    for f in (1, 2, 3):
+        again = volrig.load(bake.frame_path(vol, f))
+        assert again.origin == interactive[f].origin
+        np.testing.assert_array_equal(again.array, interactive[f].array)
+
+
+def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
+    blend = str(tmp_path / "plain.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    run = ["/usr/bin/python3", "-m", "volrig", "bake"]
+    out = subprocess.run(run + [blend], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]
+    out = subprocess.run(run + [str(tmp_path / "none.blend")], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and "none.blend: no such file" in out.stderr
+    out = subprocess.run(run + [blend, "--frames", "5-x"], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "'5-x' is not a frame" in out.stderr, out.stderr[-2000:]
