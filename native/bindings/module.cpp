@@ -27,4 +27,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_tree(m);
     volrig::py::bind_rig(m);
     volrig::py::bind_mesh(m);
+    volrig::py::bind_bvh(m);
 }
