@@ -236,6 +236,7 @@ private:
 
     std::vector<BvhChannel> read_channels(const std::string& what) {
         const std::string_view w = need("in the CHANNELS of " + what);
+        const std::string count_line = here();  // count mismatches are reported on the CHANNELS line
         std::int64_t n = 0;
         if (!detail::parse_int(w, n) || n < 0)
             fail(name_, here() + "CHANNELS of " + what + ": the count " + quoted(w) + " is not a whole number");
@@ -250,7 +251,7 @@ private:
             if (!channel_of(c, ch)) {
                 if (c == "{" || c == "}" || detail::iequals(c, "JOINT") || detail::iequals(c, "End") ||
                     detail::iequals(c, "MOTION"))
-                    fail(name_, here() + "CHANNELS of " + what + " declares " + std::to_string(n) +
+                    fail(name_, count_line + "CHANNELS of " + what + " declares " + std::to_string(n) +
                                     " channels but names " + std::to_string(k));
                 fail(name_, here() + "CHANNELS of " + what + ": unknown channel " + quoted(c) +
                                 " (known: Xposition Yposition Zposition Xrotation Yrotation Zrotation)");
@@ -264,7 +265,7 @@ private:
         std::string_view c;
         BvhChannel extra{};
         if (peek(c) && channel_of(c, extra))
-            fail(name_, here() + "CHANNELS of " + what + " declares " + std::to_string(n) +
+            fail(name_, count_line + "CHANNELS of " + what + " declares " + std::to_string(n) +
                             " channels but names more (" + quoted(c) + ")");
         return out;
     }

@@ -24,12 +24,14 @@ rig's world coordinates (``posed_point = M[f, b] @ rest_point``):
   axis change above). Its posed direction is therefore the BVH joint's global rotation times its rest direction;
   twist comes along. Unmapped bones follow their parent rigidly. Bone lengths are kept; a child connected to its
   parent (head on the parent's tail) stays connected.
-* **Root motion**: the rig's root bones move with the BVH root joint. Vertically always: the rig's hips rise and
-  fall with the BVH root's height above the clip's floor (the lowest point any joint or end site reaches in the
-  whole clip) compared with its standing height at rest, times the scale, so feet stay on the floor at contact.
-  Horizontally ``root_motion="travel"`` adds the scaled horizontal displacement from the clip's first frame;
-  ``"in_place"`` (default) drops it. References are taken on the whole clip, so any frame range gives the same
-  matrices for its frames (farm-friendly).
+* **Root motion**: the rig's root bones carry the BVH root's motion. Vertically always: when legs are mapped, the
+  whole pose is raised or lowered so that the rig's lower ankle stands as high above its rest ankle height as the
+  BVH's lower ankle stands above the lowest any ankle reaches in the whole clip, times the scale (feet stay on the
+  floor at contact, whatever the two skeletons' proportions); without mapped legs, the root rises and falls with
+  the BVH root's scaled height change from the clip's first frame. Horizontally ``root_motion="travel"`` adds the
+  scaled horizontal displacement of the BVH root from the clip's first frame; ``"in_place"`` (default) drops it.
+  References are taken on the whole clip, so any frame range gives the same matrices for its frames (farms can
+  split a clip).
 """
 from __future__ import annotations
 
@@ -262,8 +264,7 @@ def default_bone_map(motion: Motion, rig) -> Dict[str, str]:
     rig = _rig_of(rig)
     roots = [n for n, p in zip(motion.names, motion.parents) if p < 0]
     bvh_roles = body_roles(motion.names, roots[0] if roots else None)
-    rig_roots = [n for n, p in zip(rig.names, rig.parents) if p < 0]
-    rig_roles = body_roles(rig.names, rig_roots[0] if len(rig_roots) == 1 else None)
+    rig_roles = body_roles(rig.names)  # a rig's root is not taken for hips: neutral chains map nothing
     m = {bvh_roles[r]: rig_roles[r] for r in bvh_roles if r in rig_roles}
     if not m:
         raise ValueError(f"no automatic bone map: the BVH's joints ({', '.join(motion.names[:12])}"

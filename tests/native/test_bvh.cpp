@@ -150,7 +150,7 @@ TEST_CASE("BVH: malformed hierarchies give clear errors naming the line", "[bvh]
     expect_error(replace(kClip, "JOINT Spine", "JOINT LeftLeg"), {"line 20", "'LeftLeg'", "used twice", "line 10"});
     expect_error(replace(kClip, "CHANNELS 3 Zrotation Xrotation Yrotation\n\t\tJOINT",
                          "CHANNELS 3 Zrotation Xrotation\n\t\tJOINT"),
-                 {"line 10", "'LeftUpLeg'", "declares 3 channels but names 2"});
+                 {"line 9", "'LeftUpLeg'", "declares 3 channels but names 2"});
     expect_error(replace(kClip, "CHANNELS 3 Zrotation Xrotation Yrotation\n\t\tJOINT",
                          "CHANNELS 2 Zrotation Xrotation Yrotation\n\t\tJOINT"),
                  {"line 9", "declares 2 channels but names more", "'Yrotation'"});
