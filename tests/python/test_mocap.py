@@ -8,9 +8,6 @@ from __future__ import annotations
 import json
 import os
 import random
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,8 +15,8 @@ import pytest
 import volrig
 from volrig import mocap
 from conftest import shared
+from test_cli import run
 
-REPO = Path(__file__).resolve().parents[2]
 #: BVH (Y up, facing +Z) -> volrig world (Z up, facing -Y): +90 degrees about X, written out independently here.
 Y_UP = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 
@@ -264,6 +261,13 @@ def leg_length(rig):
                  + np.linalg.norm(rig.tails()[rig.index("shin.L")] - rig.heads()[rig.index("shin.L")]))
 
 
+def clip_scale(rig, motion):
+    """Rig units per BVH unit from the legs (the phantom's are equal): hip-to-ankle along the chain."""
+    bvh = np.mean([np.linalg.norm(motion.offsets[motion.index(k)]) + np.linalg.norm(motion.offsets[motion.index(a)])
+                   for k, a in (("LeftKnee", "LeftAnkle"), ("RightKnee", "RightAnkle"))])
+    return leg_length(rig) / bvh
+
+
 @pytest.fixture(scope="module")
 def walk_matrices(phantom_rig, walk):
     return volrig.animate(phantom_rig, walk)
@@ -297,8 +301,7 @@ def test_ankles_alternate_with_the_clips_steps(phantom_rig, walk, walk_matrices)
     from scipy.signal import find_peaks
     rig = phantom_rig
     pos, _ = walk.forward_kinematics()
-    scale = leg_length(rig) / np.mean([np.linalg.norm(walk.offsets[walk.index(n)]) + np.linalg.norm(
-        walk.offsets[walk.index(a)]) for n, a in (("LeftKnee", "LeftAnkle"), ("RightKnee", "RightAnkle"))])
+    scale = clip_scale(rig, walk)
     heads = points(walk_matrices, rig.heads())
     bvh = {s: pos[:, walk.index(j), 1] for s, j in (("L", "LeftAnkle"), ("R", "RightAnkle"))}
     ours = {s: heads[:, rig.index(f"foot.{s}"), 2] for s in "LR"}
@@ -351,8 +354,7 @@ def test_travel_scales_the_root_path_and_frames_split_alike(phantom_rig, walk, w
     pos, _ = walk.forward_kinematics()
     shift = points(travel, rig.heads())[:, root] - points(walk_matrices, rig.heads())[:, root]
     bvh_shift = (Y_UP @ (pos[:, 0] - pos[0, 0]).T).T
-    scale = leg_length(rig) / np.mean([np.linalg.norm(walk.offsets[3]) + np.linalg.norm(walk.offsets[4]),
-                                       np.linalg.norm(walk.offsets[8]) + np.linalg.norm(walk.offsets[9])])
+    scale = clip_scale(rig, walk)
     np.testing.assert_allclose(shift[:, :2], scale * bvh_shift[:, :2], atol=1e-9)
     np.testing.assert_allclose(shift[:, 2], 0.0, atol=1e-9)
     assert np.linalg.norm(shift[-1, :2]) > 2 * leg_length(rig)  # the walk goes somewhere
@@ -379,8 +381,8 @@ def test_hop_lifts_the_rig(phantom_rig, hop):
     lower_ankle = np.minimum(pos[:, hop.index("LeftAnkle"), 1], pos[:, hop.index("RightAnkle"), 1])
     ours = np.minimum(heads[:, rig.index("foot.L"), 2], heads[:, rig.index("foot.R"), 2])
     # the rig's lower foot leaves the floor exactly when and as far as the hopper's (scaled)
-    scale = leg_length(rig) / 14.2
-    np.testing.assert_allclose(ours - ours.min(), (lower_ankle - lower_ankle.min()) * scale, rtol=0.01, atol=1e-6)
+    np.testing.assert_allclose(ours - ours.min(), (lower_ankle - lower_ankle.min()) * clip_scale(rig, hop), atol=1e-9)
+    assert np.ptp(ours) > 0.3 * leg_length(rig)  # the hops leave the floor
 
 
 # ---- exactness on skeletons built here --------------------------------------------------------------------------
@@ -531,12 +533,6 @@ def test_random_truncation_and_corruption_only_raise_file_format_errors(tmp_path
 
 
 # ---- command line -----------------------------------------------------------------------------------------------
-
-def run(*args, cwd=None):
-    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
-    return subprocess.run([sys.executable, "-m", "volrig", *map(str, args)], capture_output=True, text=True,
-                          env=env, cwd=cwd)
-
 
 def test_cli_animate(tmp_path, phantom_points_and_rig, walk, walk_matrices):
     pts, phantom_rig = phantom_points_and_rig
