@@ -136,6 +136,7 @@ void bind_skeleton(py::module_& m);
 void bind_tree(py::module_& m);
 void bind_rig(py::module_& m);
 void bind_mesh(py::module_& m);
+void bind_deform(py::module_& m);
 void bind_bvh(py::module_& m);
 
 }  // namespace volrig::py

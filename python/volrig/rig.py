@@ -80,6 +80,28 @@ class Rig:
         return np.stack([_volrig.rest_matrix(tuple(h), tuple(t)) for h, t in zip(self.heads(), self.tails())]) \
             if len(self.bones) else np.zeros((0, 4, 4))
 
+    def pose(self, rotations) -> np.ndarray:
+        """(B, 4, 4) rest-to-pose matrices from local rotations: ``rotations`` maps a bone name to (axis, degrees),
+        a rotation about the bone's rest head in world axes, applied after its parent's motion (forward kinematics:
+        M[b] = M[parent] @ R_b). Bones not named follow their parents."""
+        for name in rotations:
+            self.index(name)  # KeyError naming the known bones
+        heads = self.heads()
+        M = rest_pose(len(self))
+        done = np.zeros(len(self), dtype=bool)
+
+        def world(b: int) -> np.ndarray:
+            if not done[b]:
+                p = int(self.parents[b])
+                local = rotation_about(*rotations[self.names[b]], heads[b]) if self.names[b] in rotations else np.eye(4)
+                M[b] = (world(p) if p >= 0 else np.eye(4)) @ local
+                done[b] = True
+            return M[b]
+
+        for b in range(len(self)):
+            world(b)
+        return M
+
     def snap(self, points: SkeletonPoints, joints: Optional[Sequence[int]] = None) -> "Rig":
         """A copy with the given joints (default: all) moved onto their nearest skeleton point."""
         idx = np.arange(len(self.joints)) if joints is None else np.asarray(joints, dtype=np.int64).reshape(-1)
@@ -99,6 +121,29 @@ class Rig:
     def __repr__(self) -> str:
         return f"Rig({self.kind}, {len(self.joints)} joints, {len(self.bones)} bones: {', '.join(self.names[:6])}" \
                f"{', ...' if len(self.names) > 6 else ''})"
+
+
+def rest_pose(bone_count: int) -> np.ndarray:
+    """(B, 4, 4) identity matrices: the rest pose."""
+    return np.repeat(np.eye(4)[None], int(bone_count), axis=0)
+
+
+def rotation_about(axis, angle_degrees: float, pivot) -> np.ndarray:
+    """4x4 rigid matrix rotating by ``angle_degrees`` (right-handed) about ``axis`` through the world point
+    ``pivot``."""
+    a = np.asarray(axis, dtype=np.float64)
+    n = np.linalg.norm(a)
+    if a.shape != (3,) or not np.isfinite(n) or n == 0:
+        raise ValueError(f"axis must be a non-zero 3-vector, got {axis!r}")
+    a = a / n
+    t = np.radians(float(angle_degrees))
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+    M = np.eye(4)
+    M[:3, :3] = R
+    p = np.asarray(pivot, dtype=np.float64)
+    M[:3, 3] = p - R @ p
+    return M
 
 
 @dataclass

@@ -148,7 +148,7 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
     return Volume(arr, sp, org, path=path)
 
 
-def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = False) -> None:
+def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) -> None:
     """Write several named grids on one geometry to an OpenVDB file.
 
     grids:   mapping name -> Volume or array [z, y, x] (all the same shape), e.g. {"density": v, "bone": labels}.

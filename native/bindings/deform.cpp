@@ -1,0 +1,185 @@
+// Bindings for volrig/deform.hpp: the Deformer, the thesis' brute-force reference and the inverse-warp speed
+// reference. Conversions only.
+#include "volrig/deform.hpp"
+
+#include <memory>
+#include <optional>
+#include <utility>
+
+#include "convert.hpp"
+
+namespace volrig::py {
+
+namespace {
+
+using Int32Array = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+using Int64Array = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
+using Box = std::optional<std::array<std::int64_t, 6>>;
+
+/// The arrays a BoundSpheres views, kept alive together.
+struct SphereArrays {
+    IjkArray ijk;
+    FloatArray radius;
+    Int32Array bone;
+    std::size_t bone_count;
+    std::optional<Int64Array> offsets;
+    std::optional<Int32Array> wbones;
+    std::optional<FloatArray> weights;
+
+    BoundSpheres view() const {
+        const PointSet p = point_set(ijk, &radius, "deform");
+        if (bone.ndim() != 1 || bone.shape(0) != static_cast<py::ssize_t>(p.n))
+            throw Error("deform: the binding has " + std::to_string(bone.size()) + " entries for " +
+                        std::to_string(p.n) + " points");
+        BoundSpheres s;
+        s.ijk = p.ijk;
+        s.radius = p.radius;
+        s.n = p.n;
+        s.bone = bone.data();
+        s.bone_count = bone_count;
+        if (offsets && wbones && weights) {
+            if (offsets->ndim() != 1 || offsets->shape(0) != static_cast<py::ssize_t>(p.n + 1))
+                throw Error("deform: the weight matrix has " + std::to_string(offsets->size() - 1) + " rows for " +
+                            std::to_string(p.n) + " points");
+            const auto nnz = offsets->size() ? offsets->data()[p.n] : 0;
+            if (wbones->size() != nnz || weights->size() != nnz || nnz < 0)
+                throw Error("deform: the weight matrix's index and value arrays do not match its rows");
+            s.weight_offsets = offsets->data();
+            s.weight_bones = wbones->data();
+            s.weights = weights->data();
+        }
+        return s;
+    }
+};
+
+struct PyDeformer {
+    py::array source;  // keeps the samples alive
+    SphereArrays spheres;
+    std::unique_ptr<Deformer> deformer;
+};
+
+DeformOptions options_of(const std::string& mode, const std::string& proximity, const std::string& sampling,
+                         const py::object& radius_scale, bool values) {
+    DeformOptions o;
+    o.mode = deform_mode_from_name(mode);
+    o.proximity = proximity_from_name(proximity);
+    o.sampling = sampling_from_name(sampling);
+    o.values = values;
+    if (!radius_scale.is_none()) {
+        const FloatArray a = radius_scale.cast<FloatArray>();
+        if (a.ndim() != 1) throw Error("deform: radius_scale must be a 1-D array, one factor per point");
+        o.radius_scale.assign(a.data(), a.data() + a.size());
+    }
+    return o;
+}
+
+const double* matrices_of(const DoubleArray& m, std::size_t bones) {
+    if (m.ndim() != 3 || m.shape(1) != 4 || m.shape(2) != 4)
+        throw Error("deform: bone matrices must have shape (B, 4, 4)");
+    if (static_cast<std::size_t>(m.shape(0)) != bones)
+        throw Error("deform: got " + std::to_string(m.shape(0)) + " bone matrices for a rig of " +
+                    std::to_string(bones) + " bones");
+    return m.data();
+}
+
+py::dict frame_dict(DeformedVolume&& f) {
+    py::dict d;
+    d["values"] = f.values.empty() ? py::object(py::none()) : py::object(to_numpy(std::move(f.values), f.grid));
+    d["bone"] = to_numpy(std::move(f.bone), f.grid);
+    d["offset"] = py::make_tuple(f.offset[0], f.offset[1], f.offset[2]);
+    d["origin"] = py::make_tuple(f.grid.origin[0], f.grid.origin[1], f.grid.origin[2]);
+    d["covered"] = f.stats.covered;
+    d["exact_queries"] = f.stats.exact_queries;
+    d["blended_spheres"] = f.stats.blended_spheres;
+    return d;
+}
+
+}  // namespace
+
+void bind_deform(py::module_& m) {
+    py::class_<PyDeformer>(m, "Deformer")
+        .def(py::init([](const py::array& source, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk,
+                         const FloatArray& radius, const Int32Array& bone, std::size_t bone_count,
+                         std::optional<Int64Array> offsets, std::optional<Int32Array> wbones,
+                         std::optional<FloatArray> weights) {
+                 auto d = std::make_unique<PyDeformer>();
+                 d->source = py::array::ensure(source, py::array::c_style);
+                 if (!d->source) throw Error("deform: the source is not a numeric array");
+                 d->spheres = SphereArrays{ijk, radius, bone, bone_count, std::move(offsets), std::move(wbones),
+                                           std::move(weights)};
+                 const VolumeView v = view_of(d->source, spacing, origin, "deform source");
+                 d->deformer = std::make_unique<Deformer>(v, d->spheres.view());
+                 return d;
+             }),
+             py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"),
+             py::arg("bone"), py::arg("bone_count"), py::arg("weight_offsets") = py::none(),
+             py::arg("weight_bones") = py::none(), py::arg("weights") = py::none())
+        .def(
+            "frame",
+            [](PyDeformer& d, const DoubleArray& matrices, const std::string& mode, const std::string& proximity,
+               const std::string& sampling, const py::object& radius_scale, bool values, const py::object& progress,
+               const Box& box) {
+                const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values);
+                const double* mat = matrices_of(matrices, d.deformer->bone_count());
+                Progress p = progress_of(progress);
+                DeformedVolume f;
+                {
+                    py::gil_scoped_release nogil;
+                    f = d.deformer->frame(mat, o, p, box ? &*box : nullptr);
+                }
+                return frame_dict(std::move(f));
+            },
+            py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
+            py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
+            py::arg("progress") = py::none(), py::arg("box") = py::none())
+        .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); });
+
+    m.def(
+        "deform_reference",
+        [](const py::array& source, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk,
+           const FloatArray& radius, const Int32Array& bone, std::size_t bone_count, std::optional<Int64Array> offsets,
+           std::optional<Int32Array> wbones, std::optional<FloatArray> weights, const DoubleArray& matrices,
+           const std::string& mode, const std::string& proximity, const std::string& sampling,
+           const py::object& radius_scale, bool values, const Box& box) {
+            const py::array src = py::array::ensure(source, py::array::c_style);
+            if (!src) throw Error("deform: the source is not a numeric array");
+            const SphereArrays arrays{ijk, radius, bone, bone_count, std::move(offsets), std::move(wbones),
+                                      std::move(weights)};
+            const BoundSpheres s = arrays.view();
+            const VolumeView v = view_of(src, spacing, origin, "deform source");
+            const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values);
+            const double* mat = matrices_of(matrices, bone_count);
+            DeformedVolume f;
+            {
+                py::gil_scoped_release nogil;
+                f = deform_reference(v, s, mat, o, {}, box ? &*box : nullptr);
+            }
+            return frame_dict(std::move(f));
+        },
+        py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("bone"),
+        py::arg("bone_count"), py::arg("weight_offsets"), py::arg("weight_bones"), py::arg("weights"),
+        py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
+        py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
+        py::arg("box") = py::none());
+
+    m.def(
+        "inverse_warp",
+        [](const py::array& source, const Vec3& spacing, const Vec3& origin, const DoubleArray& matrix,
+           const std::string& sampling) {
+            const py::array src = py::array::ensure(source, py::array::c_style);
+            if (!src) throw Error("inverse_warp: the source is not a numeric array");
+            if (matrix.ndim() != 2 || matrix.shape(0) != 4 || matrix.shape(1) != 4)
+                throw Error("inverse_warp: the matrix must be 4x4");
+            const VolumeView v = view_of(src, spacing, origin, "inverse_warp source");
+            const Sampling s = sampling_from_name(sampling);
+            std::vector<float> out;
+            {
+                py::gil_scoped_release nogil;
+                out = inverse_warp(v, matrix.data(), s);
+            }
+            return to_numpy(std::move(out), v.grid);
+        },
+        py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("matrix"), py::arg("sampling") = "trilinear");
+}
+
+}  // namespace volrig::py

@@ -1,0 +1,121 @@
+// volrig/deform.hpp: per-frame sampled reconstruction from moved spheres (ALGORITHMS.md §7).
+//
+// Each skeleton point i is a sphere: centre cᵢ (a voxel of the source grid), radius rᵢ (world units), bound to one
+// or more bones. A frame gives one rest-to-pose matrix per bone (world coordinates of the source grid:
+// posed = M · rest). Every output voxel q covered by a moved sphere (|q − Tᵢcᵢ|² < rᵢ², open balls as in
+// reconstruct.hpp) takes the source value at Tᵢ⁻¹q from the covering sphere that wins the proximity buffer:
+//   * Proximity::Nearest: the nearest centre, |q − Tᵢcᵢ| (the thesis);
+//   * Proximity::Power:   the smallest power distance |q − Tᵢcᵢ|² − rᵢ² (the sphere q is deepest inside).
+// Ties go to the lowest sphere index (the brute-force scatter in index order with a strict comparison).
+//
+// Modes: Rigid (the thesis: every sphere moves with its owning bone), Linear and DualQuaternion (each sphere's
+// transform is the blend of its bones' transforms by the binding weights; the value still comes from the inverse
+// of that sphere's own transform). Bone matrices must be rigid (rotation + translation).
+//
+// Speed. Within one bone all spheres share one transform and rigid motions keep distances, so the winner among a
+// bone's spheres at an output voxel q is the winner at its rest position p = T⁻¹q. For each bone the rest-space
+// power diagram of its spheres is sampled once per rig on the lattice (a lower envelope of parabolas, linear
+// time: F_b(v) = minᵢ |v − cᵢ|² − rᵢ² and its argmin). The power function is |p|² plus a concave function, so on
+// the lattice cube around p the trilinear interpolation of F_b minus Σ s²u(1−u) is a lower bound of the exact
+// value and the argmins of the cube's corners give an upper bound; both are equal wherever the corners agree.
+// These bounds decide coverage and the winning bone almost everywhere; the rest is settled exactly by a k-d tree
+// over the bone's spheres. Per frame the work is close to one gather per output voxel. Blended spheres (smooth
+// modes) are scattered per frame.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "volrig/volume.hpp"
+
+namespace volrig {
+
+enum class DeformMode { Rigid, Linear, DualQuaternion };
+enum class Proximity { Power, Nearest };
+enum class Sampling { Nearest, Trilinear };
+
+DeformMode deform_mode_from_name(const std::string& name);  ///< "rigid" | "linear" | "dual_quaternion"
+Proximity proximity_from_name(const std::string& name);     ///< "power" | "nearest"
+Sampling sampling_from_name(const std::string& name);       ///< "nearest" | "trilinear"
+
+/// The bound reconstruction spheres (views; the Deformer copies what it keeps).
+struct BoundSpheres {
+    const std::int32_t* ijk = nullptr;    ///< n rows [z, y, x]: centre voxels of the source grid
+    const float* radius = nullptr;        ///< n radii, world units
+    std::size_t n = 0;
+    const std::int32_t* bone = nullptr;   ///< n owning bones (0 <= bone < bone_count)
+    std::size_t bone_count = 0;
+    /// Smooth weights as CSR rows (may be null: every sphere then has weight 1 on its owning bone).
+    const std::int64_t* weight_offsets = nullptr;  ///< n + 1
+    const std::int32_t* weight_bones = nullptr;
+    const float* weights = nullptr;
+};
+
+struct DeformOptions {
+    DeformMode mode = DeformMode::Rigid;
+    Proximity proximity = Proximity::Power;
+    Sampling sampling = Sampling::Trilinear;
+    std::vector<float> radius_scale;  ///< empty, or n factors (>= 0) for bulge and pinch
+    bool values = true;               ///< false: binary reconstruction (bone labels only, values left empty)
+};
+
+struct DeformStats {
+    std::int64_t covered = 0;        ///< output voxels covered by a sphere
+    std::int64_t exact_queries = 0;  ///< per-bone exact (k-d tree) queries the bounds did not settle
+    std::int64_t blended_spheres = 0;
+};
+
+/// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel
+/// (x, y, z) is source lattice index offset + (x, y, z), so grid.origin = source origin + spacing * offset.
+struct DeformedVolume {
+    Grid grid;
+    std::array<std::int64_t, 3> offset{0, 0, 0};
+    std::vector<float> values;       ///< source samples (0 where empty); empty when options.values is false
+    std::vector<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
+    DeformStats stats;
+};
+
+/// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
+using BoneMatrices = const double*;
+
+/// Per-rig precomputation (per-bone rest-space power diagrams and k-d trees) and per-frame reconstruction.
+/// Keeps a copy of the spheres and a view of the source samples (which must outlive the Deformer).
+class Deformer {
+public:
+    Deformer(const VolumeView& source, const BoundSpheres& spheres);
+    ~Deformer();
+    Deformer(const Deformer&) = delete;
+    Deformer& operator=(const Deformer&) = delete;
+
+    /// Reconstructs one frame. `box`, when given as {offset x, y, z, dims x, y, z}, fixes the output grid
+    /// (otherwise it grows to fit the posed spheres).
+    DeformedVolume frame(BoneMatrices matrices, const DeformOptions& options, const Progress& progress = {},
+                         const std::array<std::int64_t, 6>* box = nullptr);
+
+    std::size_t bone_count() const;
+    std::size_t sphere_count() const;
+    /// Bytes held by the per-rig data currently built (power-diagram labels, k-d trees, sphere copies).
+    std::size_t memory_bytes() const;
+
+    struct Impl;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The literal thesis algorithm, for tests and benchmarks: every sphere is transformed and scattered over the
+/// bounding box of its ball into an output buffer with a proximity buffer, in sphere index order. Same output
+/// conventions as Deformer::frame; `box` as there.
+DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& spheres, BoneMatrices matrices,
+                                const DeformOptions& options, const Progress& progress = {},
+                                const std::array<std::int64_t, 6>* box = nullptr);
+
+/// A plain inverse warp of the whole source grid by one rest-to-pose matrix onto the same grid (one gather per
+/// output voxel): the speed reference for deform.
+std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
+                                const Progress& progress = {});
+
+}  // namespace volrig

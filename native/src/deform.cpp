@@ -1,0 +1,1323 @@
+#include "volrig/deform.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <string>
+
+#include "volrig/reconstruct.hpp"
+
+namespace volrig {
+
+DeformMode deform_mode_from_name(const std::string& name) {
+    if (name == "rigid") return DeformMode::Rigid;
+    if (name == "linear") return DeformMode::Linear;
+    if (name == "dual_quaternion" || name == "dq") return DeformMode::DualQuaternion;
+    throw Error("unknown deform mode '" + name + "' (use \"rigid\", \"linear\" or \"dual_quaternion\")");
+}
+
+Proximity proximity_from_name(const std::string& name) {
+    if (name == "power") return Proximity::Power;
+    if (name == "nearest") return Proximity::Nearest;
+    throw Error("unknown proximity '" + name + "' (use \"power\" or \"nearest\")");
+}
+
+Sampling sampling_from_name(const std::string& name) {
+    if (name == "trilinear") return Sampling::Trilinear;
+    if (name == "nearest") return Sampling::Nearest;
+    throw Error("unknown sampling '" + name + "' (use \"trilinear\" or \"nearest\")");
+}
+
+namespace {
+
+constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+constexpr std::int64_t kBlock = 8;  // power-diagram and output blocks are 8³ voxels
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+using Vec3d = std::array<double, 3>;
+
+/// Squared world length of an index-space offset. Every distance test in this file goes through this one
+/// expression, so that the fast path and the reference round identically.
+inline double length2(double dx, double dy, double dz, const double* s2) {
+    return s2[0] * dx * dx + s2[1] * dy * dy + s2[2] * dz * dz;
+}
+
+// ---- transforms --------------------------------------------------------------------------------------------
+
+/// x -> A x + t, in the index space of the source lattice.
+struct Affine {
+    double a[9];
+    double t[3];
+    void apply(const double* x, double* y) const {
+        y[0] = a[0] * x[0] + a[1] * x[1] + a[2] * x[2] + t[0];
+        y[1] = a[3] * x[0] + a[4] * x[1] + a[5] * x[2] + t[1];
+        y[2] = a[6] * x[0] + a[7] * x[1] + a[8] * x[2] + t[2];
+    }
+};
+
+/// A world matrix (linear part L, translation d) as an index-space affine: m' = S⁻¹(L(o + S m) + d − o).
+Affine index_affine(const Eigen::Matrix3d& L, const Eigen::Vector3d& d, const Grid& g) {
+    Affine f;
+    const Eigen::Vector3d o(g.origin[0], g.origin[1], g.origin[2]);
+    const Eigen::Vector3d lo = L * o + d - o;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) f.a[3 * i + j] = L(i, j) * g.spacing[j] / g.spacing[i];
+        f.t[i] = lo[i] / g.spacing[i];
+    }
+    return f;
+}
+
+struct Motion {
+    Eigen::Matrix3d R;  // rotation (or a general linear part for linear blending)
+    Eigen::Vector3d d;
+    Affine forward;  // rest lattice -> posed lattice
+    Affine inverse;  // posed lattice -> rest lattice
+    bool valid = true;
+    bool rigid = true;  // distances are then measured in rest space: |T⁻¹q − c| (= |q − Tc|)
+};
+
+Motion motion_of(const Eigen::Matrix3d& L, const Eigen::Vector3d& d, const Grid& g, bool rigid) {
+    Motion m;
+    m.R = L;
+    m.d = d;
+    m.forward = index_affine(L, d, g);
+    m.rigid = rigid;
+    if (rigid) {
+        const Eigen::Matrix3d Lt = L.transpose();
+        m.inverse = index_affine(Lt, -(Lt * d), g);
+    } else {
+        const double det = L.determinant();
+        if (!(std::abs(det) > 1e-9)) {
+            m.valid = false;  // a blend of opposite rotations collapses the sphere: it covers nothing
+            return m;
+        }
+        const Eigen::Matrix3d Li = L.inverse();
+        m.inverse = index_affine(Li, -(Li * d), g);
+    }
+    return m;
+}
+
+/// Squared world distance between a posed lattice point q and a moved sphere (rest centre c, posed centre Tc):
+/// |T⁻¹q − c| in rest space for rigid motions (as the per-bone fields measure it), |q − Tc| otherwise.
+inline double moved_length2(const Motion& m, const double* c, const double* tc, const double* q, const double* s2) {
+    if (m.rigid) {
+        double p[3];
+        m.inverse.apply(q, p);
+        return length2(p[0] - c[0], p[1] - c[1], p[2] - c[2], s2);
+    }
+    return length2(q[0] - tc[0], q[1] - tc[1], q[2] - tc[2], s2);
+}
+
+/// Checks and orthonormalises the bone matrices (row-major 4x4).
+std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid& g) {
+    std::vector<Motion> out;
+    out.reserve(bones);
+    for (std::size_t b = 0; b < bones; ++b) {
+        const double* m = mat + 16 * b;
+        const std::string who = "bone matrix " + std::to_string(b);
+        for (int k = 0; k < 16; ++k)
+            if (!std::isfinite(m[k])) throw Error(who + " has a non-finite entry");
+        if (std::abs(m[12]) > 1e-6 || std::abs(m[13]) > 1e-6 || std::abs(m[14]) > 1e-6 || std::abs(m[15] - 1) > 1e-6)
+            throw Error(who + ": the last row must be (0, 0, 0, 1)");
+        Eigen::Matrix3d R;
+        R << m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10];
+        const Eigen::Vector3d d(m[3], m[7], m[11]);
+        const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+        if (err > 1e-3 || R.determinant() <= 0)
+            throw Error(who + " is not a rotation plus a translation (scale, shear or mirror): deform needs rigid "
+                              "bone motions (use radius_scale for bulge and pinch)");
+        if (err > 0) {  // polar decomposition: the nearest rotation
+            Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+            const Eigen::Matrix3d Q = svd.matrixU() * svd.matrixV().transpose();
+            if ((Q - R).cwiseAbs().maxCoeff() > 1e-15) R = Q;
+        }
+        out.push_back(motion_of(R, d, g, true));
+    }
+    return out;
+}
+
+/// The blended world transform of a sphere from its bones' weights.
+Motion blended_motion(const std::vector<Motion>& bones, const std::int32_t* wb, const float* w, std::int64_t count,
+                      std::int32_t owner, DeformMode mode, const Grid& g) {
+    double total = 0;
+    for (std::int64_t k = 0; k < count; ++k) total += w[k];
+    if (mode == DeformMode::Linear) {
+        Eigen::Matrix3d L = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        for (std::int64_t k = 0; k < count; ++k) {
+            L += (w[k] / total) * bones[static_cast<std::size_t>(wb[k])].R;
+            d += (w[k] / total) * bones[static_cast<std::size_t>(wb[k])].d;
+        }
+        return motion_of(L, d, g, false);
+    }
+    // Dual quaternions (Kavan et al.): blend, aligned with the owner's hemisphere, then normalise.
+    const Eigen::Quaterniond ref(bones[static_cast<std::size_t>(owner)].R);
+    Eigen::Vector4d real = Eigen::Vector4d::Zero(), dual = Eigen::Vector4d::Zero();
+    for (std::int64_t k = 0; k < count; ++k) {
+        const Motion& m = bones[static_cast<std::size_t>(wb[k])];
+        Eigen::Quaterniond q(m.R);
+        if (q.coeffs().dot(ref.coeffs()) < 0) q.coeffs() = -q.coeffs();
+        const Eigen::Quaterniond t(0, m.d[0], m.d[1], m.d[2]);
+        Eigen::Quaterniond qd = t * q;
+        qd.coeffs() *= 0.5;
+        real += (w[k] / total) * q.coeffs();
+        dual += (w[k] / total) * qd.coeffs();
+    }
+    const double n = real.norm();
+    Eigen::Quaterniond qr, qd;
+    qr.coeffs() = real / n;
+    qd.coeffs() = dual / n;
+    const Eigen::Quaterniond tq = qd * qr.conjugate();
+    const Eigen::Vector3d d = 2.0 * tq.vec();
+    return motion_of(qr.toRotationMatrix(), d, g, true);
+}
+
+// ---- sampling ----------------------------------------------------------------------------------------------
+
+template <class T>
+struct Sampler {
+    const T* data;
+    std::int64_t nx, ny, nz;
+
+    float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return static_cast<float>(data[(z * ny + y) * nx + x]);
+    }
+    static std::int64_t clamp_index(double v, std::int64_t n) {
+        const auto i = static_cast<std::int64_t>(std::floor(v + 0.5));
+        return i < 0 ? 0 : (i >= n ? n - 1 : i);
+    }
+    float nearest(const double* p) const {
+        return at(clamp_index(p[0], nx), clamp_index(p[1], ny), clamp_index(p[2], nz));
+    }
+    static void cell(double v, std::int64_t n, std::int64_t& i0, std::int64_t& i1, double& f) {
+        v = v < 0 ? 0 : (v > static_cast<double>(n - 1) ? static_cast<double>(n - 1) : v);
+        i0 = static_cast<std::int64_t>(v);
+        i1 = i0 + 1 < n ? i0 + 1 : i0;
+        f = v - static_cast<double>(i0);
+    }
+    float trilinear(const double* p) const {
+        std::int64_t x0, x1, y0, y1, z0, z1;
+        double fx, fy, fz;
+        cell(p[0], nx, x0, x1, fx);
+        cell(p[1], ny, y0, y1, fy);
+        cell(p[2], nz, z0, z1, fz);
+        const double c00 = at(x0, y0, z0) + fx * (at(x1, y0, z0) - at(x0, y0, z0));
+        const double c10 = at(x0, y1, z0) + fx * (at(x1, y1, z0) - at(x0, y1, z0));
+        const double c01 = at(x0, y0, z1) + fx * (at(x1, y0, z1) - at(x0, y0, z1));
+        const double c11 = at(x0, y1, z1) + fx * (at(x1, y1, z1) - at(x0, y1, z1));
+        const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
+        return static_cast<float>(c0 + fz * (c1 - c0));
+    }
+    float sample(const double* p, Sampling s) const { return s == Sampling::Nearest ? nearest(p) : trilinear(p); }
+};
+
+/// Calls f(Sampler<T>) for the source's element type.
+template <class F>
+void with_sampler(const VolumeView& v, F&& f) {
+    const std::int64_t nx = v.grid.dims[0], ny = v.grid.dims[1], nz = v.grid.dims[2];
+    switch (v.dtype) {
+        case DType::UInt8: return f(Sampler<std::uint8_t>{static_cast<const std::uint8_t*>(v.data), nx, ny, nz});
+        case DType::Int8: return f(Sampler<std::int8_t>{static_cast<const std::int8_t*>(v.data), nx, ny, nz});
+        case DType::UInt16: return f(Sampler<std::uint16_t>{static_cast<const std::uint16_t*>(v.data), nx, ny, nz});
+        case DType::Int16: return f(Sampler<std::int16_t>{static_cast<const std::int16_t*>(v.data), nx, ny, nz});
+        case DType::UInt32: return f(Sampler<std::uint32_t>{static_cast<const std::uint32_t*>(v.data), nx, ny, nz});
+        case DType::Int32: return f(Sampler<std::int32_t>{static_cast<const std::int32_t*>(v.data), nx, ny, nz});
+        case DType::UInt64: return f(Sampler<std::uint64_t>{static_cast<const std::uint64_t*>(v.data), nx, ny, nz});
+        case DType::Int64: return f(Sampler<std::int64_t>{static_cast<const std::int64_t*>(v.data), nx, ny, nz});
+        case DType::Float32: return f(Sampler<float>{static_cast<const float*>(v.data), nx, ny, nz});
+        case DType::Float64: return f(Sampler<double>{static_cast<const double*>(v.data), nx, ny, nz});
+    }
+}
+
+// ---- input checks ------------------------------------------------------------------------------------------
+
+void check_spheres(const Grid& g, const BoundSpheres& s) {
+    if (s.n > 0 && (!s.ijk || !s.radius || !s.bone)) throw Error("deform: missing sphere arrays");
+    if (s.bone_count == 0) throw Error("deform: the rig has no bones");
+    if (s.bone_count > 32767) throw Error("deform: at most 32,767 bones are supported");
+    if (s.n >= kNone) throw Error("deform: too many spheres");
+    for (std::size_t i = 0; i < s.n; ++i) {
+        const std::int32_t z = s.ijk[3 * i], y = s.ijk[3 * i + 1], x = s.ijk[3 * i + 2];
+        if (x < 0 || y < 0 || z < 0 || x >= g.dims[0] || y >= g.dims[1] || z >= g.dims[2])
+            throw Error("deform: sphere " + std::to_string(i) + " has its centre outside the source grid");
+        if (!std::isfinite(s.radius[i]) || s.radius[i] < 0)
+            throw Error("deform: sphere " + std::to_string(i) + " has a negative or non-finite radius");
+        if (s.bone[i] < 0 || static_cast<std::size_t>(s.bone[i]) >= s.bone_count)
+            throw Error("deform: sphere " + std::to_string(i) + " is bound to bone " + std::to_string(s.bone[i]) +
+                        " but the rig has " + std::to_string(s.bone_count) + " bones");
+    }
+    if (s.weight_offsets) {
+        if (s.weight_offsets[0] != 0) throw Error("deform: weight rows must start at 0");
+        for (std::size_t i = 0; i < s.n; ++i) {
+            if (s.weight_offsets[i + 1] < s.weight_offsets[i])
+                throw Error("deform: weight rows are not increasing");
+            double total = 0;
+            for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) {
+                if (s.weight_bones[k] < 0 || static_cast<std::size_t>(s.weight_bones[k]) >= s.bone_count)
+                    throw Error("deform: sphere " + std::to_string(i) + " has a weight on bone " +
+                                std::to_string(s.weight_bones[k]) + " outside the rig");
+                if (!std::isfinite(s.weights[k]) || s.weights[k] < 0)
+                    throw Error("deform: sphere " + std::to_string(i) + " has a negative or non-finite weight");
+                total += s.weights[k];
+            }
+            if (!(total > 0)) throw Error("deform: sphere " + std::to_string(i) + " has no positive weight");
+        }
+    }
+}
+
+void check_options(const DeformOptions& o, std::size_t n) {
+    if (!o.radius_scale.empty()) {
+        if (o.radius_scale.size() != n)
+            throw Error("deform: radius_scale has " + std::to_string(o.radius_scale.size()) + " entries for " +
+                        std::to_string(n) + " spheres");
+        for (float f : o.radius_scale)
+            if (!std::isfinite(f) || f < 0 || f > 100)
+                throw Error("deform: radius_scale entries must lie in [0, 100]");
+    }
+}
+
+std::vector<double> scaled_radii(const BoundSpheres& s, const DeformOptions& o) {
+    std::vector<double> r(s.n);
+    for (std::size_t i = 0; i < s.n; ++i)
+        r[i] = static_cast<double>(s.radius[i]) * (o.radius_scale.empty() ? 1.0 : o.radius_scale[i]);
+    return r;
+}
+
+/// A sphere moves with one bone alone when its weight row holds a single positive weight.
+std::int32_t single_bone(const BoundSpheres& s, std::size_t i) {
+    if (!s.weight_offsets) return s.bone[i];
+    std::int32_t b = -1;
+    for (std::int64_t k = s.weight_offsets[i]; k < s.weight_offsets[i + 1]; ++k) {
+        if (s.weights[k] <= 0) continue;
+        if (b >= 0 && s.weight_bones[k] != b) return -1;
+        b = s.weight_bones[k];
+    }
+    return b;
+}
+
+/// Output box {offset, dims} from a lattice-space AABB; checks its size.
+std::array<std::int64_t, 6> box_of(const Vec3d& lo, const Vec3d& hi) {
+    std::array<std::int64_t, 6> b{};
+    std::uint64_t count = 1;
+    for (int a = 0; a < 3; ++a) {
+        if (!(lo[a] <= hi[a])) {  // nothing to place
+            b[a] = 0;
+            b[3 + a] = 1;
+            continue;
+        }
+        b[a] = static_cast<std::int64_t>(std::floor(lo[a]));
+        b[3 + a] = static_cast<std::int64_t>(std::ceil(hi[a])) - b[a] + 1;
+        count *= static_cast<std::uint64_t>(b[3 + a]);
+    }
+    if (count > (std::uint64_t{1} << 31))
+        throw Error("deform: the posed spheres span " + std::to_string(count) +
+                    " voxels (more than 2^31): check the bone matrices' translations and units");
+    return b;
+}
+
+// ---- per-bone rest data: spheres in k-d order, k-d tree, power-diagram labels -------------------------------
+
+struct KdNode {
+    double lo[3], hi[3];
+    double max_lim;
+    std::uint32_t begin, end;
+    std::int32_t left = -1, right = -1;
+};
+
+struct BoneField {
+    // spheres in local (k-d) order
+    std::vector<std::uint32_t> global;
+    struct Sphere {
+        double c[3];  // centre, index space
+        double lim;   // open-ball squared radius (world units²)
+    };
+    std::vector<Sphere> sph;
+    std::vector<KdNode> nodes;
+    // power-diagram labels on the lattice over [lo, lo + dims), stored in allocated 8³ blocks
+    std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
+    std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
+    std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
+    std::vector<std::uint32_t> labels;            // 512 per allocated block
+    std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
+
+    /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
+    bool any_block(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t k0[3], k1[3];
+        for (int i = 0; i < 3; ++i) {
+            k0[i] = std::max<std::int64_t>(0, a[i] - lo[i]);
+            k1[i] = std::min<std::int64_t>(dims[i] - 1, b[i] - lo[i]);
+            if (k0[i] > k1[i]) return false;
+            k0[i] >>= 3;
+            k1[i] = (k1[i] >> 3) + 1;
+        }
+        const std::int64_t sx = bdims[0] + 1, sy = bdims[1] + 1;
+        auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            return static_cast<std::int64_t>(block_sat[static_cast<std::size_t>((z * sy + y) * sx + x)]);
+        };
+        const std::int64_t n = at(k1[0], k1[1], k1[2]) - at(k0[0], k1[1], k1[2]) - at(k1[0], k0[1], k1[2]) -
+                               at(k1[0], k1[1], k0[2]) + at(k0[0], k0[1], k1[2]) + at(k0[0], k1[1], k0[2]) +
+                               at(k1[0], k0[1], k0[2]) - at(k0[0], k0[1], k0[2]);
+        return n > 0;
+    }
+
+    std::size_t bytes() const {
+        return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
+               blocks.size() * 24 + labels.size() * 4 + block_sat.size() * 4;
+    }
+
+    std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        x -= lo[0];
+        y -= lo[1];
+        z -= lo[2];
+        if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return kNone;
+        const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
+        if (blk < 0) return kNone;
+        return labels[static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7))];
+    }
+};
+
+void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
+              const std::vector<double>& w3, const std::vector<double>& lims) {
+    KdNode node;
+    node.begin = begin;
+    node.end = end;
+    node.max_lim = 0;
+    for (int a = 0; a < 3; ++a) {
+        node.lo[a] = kInf;
+        node.hi[a] = -kInf;
+    }
+    for (std::uint32_t k = begin; k < end; ++k) {
+        const std::uint32_t i = order[k];
+        for (int a = 0; a < 3; ++a) {
+            node.lo[a] = std::min(node.lo[a], w3[3 * i + a]);
+            node.hi[a] = std::max(node.hi[a], w3[3 * i + a]);
+        }
+        node.max_lim = std::max(node.max_lim, lims[i]);
+    }
+    const auto self = static_cast<std::int32_t>(f.nodes.size());
+    f.nodes.push_back(node);
+    if (end - begin <= 8) return;
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+        if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
+    const std::uint32_t mid = begin + (end - begin) / 2;
+    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
+                     [&](std::uint32_t a, std::uint32_t b) {
+                         return w3[3 * a + axis] < w3[3 * b + axis] || (w3[3 * a + axis] == w3[3 * b + axis] && a < b);
+                     });
+    const auto left = static_cast<std::int32_t>(f.nodes.size());
+    build_kd(f, order, begin, mid, w3, lims);
+    const auto right = static_cast<std::int32_t>(f.nodes.size());
+    build_kd(f, order, mid, end, w3, lims);
+    f.nodes[static_cast<std::size_t>(self)].left = left;
+    f.nodes[static_cast<std::size_t>(self)].right = right;
+}
+
+/// One 1-D lower envelope of parabolas w·(q − p)² + f(p) over the finite samples of a line, carrying labels.
+struct LabelEnvelope {
+    std::vector<std::int64_t> v;
+    std::vector<double> z, fv;
+    std::vector<std::uint32_t> lv;
+
+    void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
+        v.resize(static_cast<std::size_t>(n));
+        z.resize(static_cast<std::size_t>(n) + 1);
+        fv.resize(static_cast<std::size_t>(n));
+        lv.resize(static_cast<std::size_t>(n));
+        std::int64_t k = -1;
+        for (std::int64_t q = 0; q < n; ++q) {
+            const double fq = f[q * stride];
+            if (!(fq < kInf)) continue;
+            double s = -kInf;
+            while (k >= 0) {
+                const std::int64_t p = v[static_cast<std::size_t>(k)];
+                s = ((fq - fv[static_cast<std::size_t>(k)]) / w + static_cast<double>(q * q - p * p)) /
+                    (2.0 * static_cast<double>(q - p));
+                if (s <= z[static_cast<std::size_t>(k)]) --k;
+                else break;
+            }
+            ++k;
+            v[static_cast<std::size_t>(k)] = q;
+            fv[static_cast<std::size_t>(k)] = fq;
+            lv[static_cast<std::size_t>(k)] = lab[q * stride];
+            z[static_cast<std::size_t>(k)] = k == 0 ? -kInf : s;
+        }
+        if (k < 0) return;
+        std::int64_t j = 0;
+        for (std::int64_t q = 0; q < n; ++q) {
+            while (j < k && z[static_cast<std::size_t>(j + 1)] <= static_cast<double>(q)) ++j;
+            const double d = static_cast<double>(q - v[static_cast<std::size_t>(j)]);
+            f[q * stride] = fv[static_cast<std::size_t>(j)] + w * d * d;
+            lab[q * stride] = lv[static_cast<std::size_t>(j)];
+        }
+    }
+};
+
+/// Builds one bone's field from its spheres (global indices) with radii r.
+BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                           const std::vector<double>& r, double T) {
+    BoneField f;
+    const std::size_t m = members.size();
+    std::vector<double> w3(3 * m), lims(m);
+    for (std::size_t k = 0; k < m; ++k) {
+        const std::uint32_t i = members[k];
+        for (int a = 0; a < 3; ++a) w3[3 * k + a] = static_cast<double>(s.ijk[3 * i + 2 - a]) * g.spacing[a];
+        lims[k] = r[i] > 0 ? open_ball_limit_sq(r[i]) : 0.0;
+    }
+    std::vector<std::uint32_t> order(m);
+    std::iota(order.begin(), order.end(), 0u);
+    if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims);
+    f.global.resize(m);
+    f.sph.resize(m);
+    std::array<std::int64_t, 3> lo{std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
+                                   std::numeric_limits<std::int64_t>::max()};
+    std::array<std::int64_t, 3> hi{std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min(),
+                                   std::numeric_limits<std::int64_t>::min()};
+    for (std::size_t k = 0; k < m; ++k) {
+        const std::uint32_t src = order[k];
+        const std::uint32_t i = members[src];
+        f.global[k] = i;
+        f.sph[k] = {{static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
+                     static_cast<double>(s.ijk[3 * i])},
+                    lims[src]};
+        const double* c = f.sph[k].c;
+        for (int a = 0; a < 3; ++a) {
+            // Beyond this margin the power of the sphere exceeds T: cells outside the box need no labels.
+            const auto e = static_cast<std::int64_t>(std::ceil(std::sqrt(r[i] * r[i] + T) / g.spacing[a])) + 1;
+            lo[a] = std::min(lo[a], static_cast<std::int64_t>(c[a]) - e);
+            hi[a] = std::max(hi[a], static_cast<std::int64_t>(c[a]) + e + 1);
+        }
+    }
+    if (m == 0) return f;
+    f.lo = lo;
+    for (int a = 0; a < 3; ++a) {
+        f.dims[a] = hi[a] - lo[a];
+        f.bdims[a] = (f.dims[a] + kBlock - 1) / kBlock;
+    }
+    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+    const auto count = static_cast<std::size_t>(nx * ny * nz);
+    std::vector<double> F(count, kInf);
+    std::vector<std::uint32_t> lab(count, kNone);
+    for (std::size_t k = 0; k < m; ++k) {
+        const auto& sp = f.sph[k];
+        if (!(sp.lim > 0)) continue;
+        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - lo[2]) * ny +
+                                                   (static_cast<std::int64_t>(sp.c[1]) - lo[1])) * nx +
+                                                  (static_cast<std::int64_t>(sp.c[0]) - lo[0]));
+        if (-sp.lim < F[idx]) {
+            F[idx] = -sp.lim;
+            lab[idx] = static_cast<std::uint32_t>(k);
+        }
+    }
+    const double s2[3] = {g.spacing[0] * g.spacing[0], g.spacing[1] * g.spacing[1], g.spacing[2] * g.spacing[2]};
+    tbb::enumerable_thread_specific<LabelEnvelope> envs;
+    // x rows, then y columns, then z columns; each pass parallel over the other two axes.
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
+        for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
+            for (std::int64_t y = 0; y < ny; ++y) {
+                const auto base = static_cast<std::size_t>((z * ny + y) * nx);
+                e.run(F.data() + base, lab.data() + base, nx, 1, s2[0]);
+            }
+            for (std::int64_t x = 0; x < nx; ++x) {
+                const auto base = static_cast<std::size_t>(z * ny * nx + x);
+                e.run(F.data() + base, lab.data() + base, ny, nx, s2[1]);
+            }
+        }
+    });
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
+        for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
+            for (std::int64_t x = 0; x < nx; ++x) {
+                const auto base = static_cast<std::size_t>(y * nx + x);
+                e.run(F.data() + base, lab.data() + base, nz, nx * ny, s2[2]);
+            }
+    });
+    // Keep the blocks where the power function dips below T (elsewhere no point can be covered).
+    const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
+    f.block_index.assign(static_cast<std::size_t>(bx * by * bz), -1);
+    for (std::int64_t kz = 0; kz < bz; ++kz)
+        for (std::int64_t ky = 0; ky < by; ++ky)
+            for (std::int64_t kx = 0; kx < bx; ++kx) {
+                bool any = false;
+                for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock) && !any; ++z)
+                    for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock) && !any; ++y)
+                        for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
+                            if (F[static_cast<std::size_t>((z * ny + y) * nx + x)] < T) {
+                                any = true;
+                                break;
+                            }
+                if (!any) continue;
+                const auto slot = static_cast<std::int32_t>(f.blocks.size());
+                f.block_index[static_cast<std::size_t>((kz * by + ky) * bx + kx)] = slot;
+                f.blocks.push_back({lo[0] + kx * kBlock, lo[1] + ky * kBlock, lo[2] + kz * kBlock});
+                f.labels.resize(f.labels.size() + 512, kNone);
+                std::uint32_t* out = f.labels.data() + static_cast<std::size_t>(slot) * 512;
+                for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock); ++z)
+                    for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y)
+                        for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
+                            out[((z & 7) * 8 + (y & 7)) * 8 + (x & 7)] = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
+            }
+    const std::int64_t sx = bx + 1, sy = by + 1;
+    f.block_sat.assign(static_cast<std::size_t>(sx * sy * (bz + 1)), 0);
+    for (std::int64_t z = 1; z <= bz; ++z)
+        for (std::int64_t y = 1; y <= by; ++y)
+            for (std::int64_t x = 1; x <= bx; ++x) {
+                auto at = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::int32_t& {
+                    return f.block_sat[static_cast<std::size_t>((k * sy + j) * sx + i)];
+                };
+                at(x, y, z) = (f.block_index[static_cast<std::size_t>(((z - 1) * by + (y - 1)) * bx + (x - 1))] >= 0) +
+                              at(x - 1, y, z) + at(x, y - 1, z) + at(x, y, z - 1) - at(x - 1, y - 1, z) -
+                              at(x - 1, y, z - 1) - at(x, y - 1, z - 1) + at(x - 1, y - 1, z - 1);
+            }
+    return f;
+}
+
+// ---- exact queries -----------------------------------------------------------------------------------------
+
+struct Best {
+    double key = kInf;
+    std::uint32_t local = kNone;
+    std::uint32_t global = kNone;
+    bool better(double k, std::uint32_t g) const { return k < key || (k == key && g < global); }
+};
+
+double mindist2(const KdNode& n, const double* p) {
+    double d = 0;
+    for (int a = 0; a < 3; ++a) {
+        const double e = p[a] < n.lo[a] ? n.lo[a] - p[a] : (p[a] > n.hi[a] ? p[a] - n.hi[a] : 0.0);
+        d += e * e;
+    }
+    return d;
+}
+
+/// Minimum over the bone's spheres of the power |p − c|² − lim (p in world offsets), or, with `nearest`, the
+/// minimum of |p − c|² over the spheres that cover p.
+/// `p` is in world offsets (for pruning, with a margin for rounding), `pi` the same point in index space.
+void query(const BoneField& f, std::int32_t node, const double* p, const double* pi, const double* s2, bool nearest,
+           Best& best) {
+    const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
+    const double md = mindist2(n, p);
+    const double slack = 1e-9 * (1.0 + std::abs(md) + n.max_lim + (best.key < kInf ? std::abs(best.key) : 0.0));
+    if (nearest) {
+        if (md > best.key + slack || md >= n.max_lim + slack) return;
+    } else if (md - n.max_lim > best.key + slack) {
+        return;
+    }
+    if (n.left < 0) {
+        for (std::uint32_t k = n.begin; k < n.end; ++k) {
+            const auto& sp = f.sph[k];
+            const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
+            if (nearest && !(d2 < sp.lim)) continue;
+            const double key = nearest ? d2 : d2 - sp.lim;
+            if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
+        }
+        return;
+    }
+    const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
+    const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
+    if (dl <= dr) {
+        query(f, n.left, p, pi, s2, nearest, best);
+        query(f, n.right, p, pi, s2, nearest, best);
+    } else {
+        query(f, n.right, p, pi, s2, nearest, best);
+        query(f, n.left, p, pi, s2, nearest, best);
+    }
+}
+
+Best exact(const BoneField& f, const double* p_index, const double* s, const double* s2, bool nearest) {
+    Best b;
+    if (f.nodes.empty()) return b;
+    const double pw[3] = {p_index[0] * s[0], p_index[1] * s[1], p_index[2] * s[2]};
+    query(f, 0, pw, p_index, s2, nearest, b);
+    return b;
+}
+
+/// The power-diagram labels of the lattice cube around a rest point p (index space) of one bone.
+struct Cube {
+    std::uint32_t lab[8];
+    double base[3];  // the cube's first corner
+    bool same;       // all eight corners carry one sphere
+};
+
+/// Reads the cube around p; false when no corner carries a label (then no sphere of the bone covers p).
+bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
+    const double fx = std::floor(p[0]), fy = std::floor(p[1]), fz = std::floor(p[2]);
+    if (!(fx >= -1e15 && fx <= 1e15 && fy >= -1e15 && fy <= 1e15 && fz >= -1e15 && fz <= 1e15)) return false;
+    const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy), z0 = static_cast<std::int64_t>(fz);
+    const std::int64_t lx = x0 - f.lo[0], ly = y0 - f.lo[1], lz = z0 - f.lo[2];
+    if (lx + 1 < 0 || ly + 1 < 0 || lz + 1 < 0 || lx >= f.dims[0] || ly >= f.dims[1] || lz >= f.dims[2]) return false;
+    std::uint32_t* lab = cube.lab;
+    if (lx >= 0 && ly >= 0 && lz >= 0 && (lx & 7) != 7 && (ly & 7) != 7 && (lz & 7) != 7 && lx + 1 < f.dims[0] &&
+        ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
+        // The whole cube lies in one block (most of the time).
+        const std::int32_t blk =
+            f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
+        if (blk < 0) return false;
+        const std::uint32_t* b0 =
+            f.labels.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
+        lab[0] = b0[0];
+        lab[1] = b0[1];
+        lab[2] = b0[8];
+        lab[3] = b0[9];
+        lab[4] = b0[64];
+        lab[5] = b0[65];
+        lab[6] = b0[72];
+        lab[7] = b0[73];
+    } else {
+        for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
+    }
+    bool same = true, any = false;
+    for (int c = 0; c < 8; ++c) {
+        same = same && lab[c] == lab[0];
+        any = any || lab[c] != kNone;
+    }
+    cube.base[0] = fx;
+    cube.base[1] = fy;
+    cube.base[2] = fz;
+    cube.same = same;
+    return any;
+}
+
+inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
+    const auto& sp = f.sph[k];
+    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// An upper bound of the bone's power at p: the least power at p among the cube's labels (a real sphere's, so
+/// a negative value proves coverage). With `any_negative` it stops at the first negative value.
+double upper_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, bool any_negative,
+                   std::uint32_t& local) {
+    double U = kInf;
+    local = kNone;
+    for (int c = 0; c < 8; ++c) {
+        const std::uint32_t k = cube.lab[c];
+        if (k == kNone || k == local) continue;
+        const double v = power_of(f, k, p, s2);
+        if (v < U || (v == U && f.global[k] < f.global[local])) {
+            U = v;
+            local = k;
+            if (any_negative && U < 0) break;
+        }
+    }
+    return U;
+}
+
+/// A lower bound of the bone's power at p. The power is |p|² plus a concave function (a minimum of linear
+/// ones), so the trilinear interpolation of the corner values minus Σ s²u(1−u) bounds it from below; corners
+/// without a label hold at least T.
+double lower_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, double T) {
+    const double u[3] = {p[0] - cube.base[0], p[1] - cube.base[1], p[2] - cube.base[2]};
+    double L = 0;
+    for (int c = 0; c < 8; ++c) {
+        const double lam = ((c & 1) ? u[0] : 1 - u[0]) * (((c >> 1) & 1) ? u[1] : 1 - u[1]) *
+                           (((c >> 2) & 1) ? u[2] : 1 - u[2]);
+        const double corner[3] = {cube.base[0] + (c & 1), cube.base[1] + ((c >> 1) & 1), cube.base[2] + ((c >> 2) & 1)};
+        L += lam * (cube.lab[c] == kNone ? T : power_of(f, cube.lab[c], corner, s2));
+    }
+    L -= s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]);
+    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
+}
+
+/// A bone (or, with bone -1, the blended sphere of the proximity buffer) that may cover an output voxel.
+struct Cand {
+    std::int32_t bone;
+    double L, U;          // bounds of its power at the voxel (equal when exact; the nearest-centre key later)
+    std::uint32_t local;  // the sphere achieving U (local index; for bone -1 the blended slot)
+    std::uint32_t global;
+    double p[3];          // the voxel's rest position under this bone's (or sphere's) motion
+    bool covered;
+    bool has_U, has_L;    // which bounds are computed yet
+    Cube cube;
+};
+
+}  // namespace
+
+// ---- the Deformer ------------------------------------------------------------------------------------------
+
+struct Deformer::Impl {
+    VolumeView source;
+    Grid grid;
+    std::size_t n = 0, bone_count = 0;
+    std::vector<std::int32_t> ijk, bone, weight_bones;
+    std::vector<float> radius, weights;
+    std::vector<std::int64_t> weight_offsets;
+    bool has_weights = false;
+
+    // per-rig data for one (partition, radii) key
+    bool built = false, built_smooth = false;
+    std::vector<float> built_scale;
+    std::vector<BoneField> fields;
+    std::vector<std::uint32_t> blended;  // spheres that blend several bones (smooth modes)
+    std::vector<double> radii;           // scaled radii
+
+    BoundSpheres view() const {
+        BoundSpheres s;
+        s.ijk = ijk.data();
+        s.radius = radius.data();
+        s.n = n;
+        s.bone = bone.data();
+        s.bone_count = bone_count;
+        if (has_weights) {
+            s.weight_offsets = weight_offsets.data();
+            s.weight_bones = weight_bones.data();
+            s.weights = weights.data();
+        }
+        return s;
+    }
+
+    double threshold() const {
+        const auto& sp = grid.spacing;
+        return 0.25 * (sp[0] * sp[0] + sp[1] * sp[1] + sp[2] * sp[2]) * (1 + 1e-9);
+    }
+
+    void build(bool smooth, const DeformOptions& o, const Progress& progress) {
+        if (built && built_smooth == smooth && built_scale == o.radius_scale) return;
+        built = false;
+        fields.clear();
+        blended.clear();
+        const BoundSpheres s = view();
+        radii = scaled_radii(s, o);
+        std::vector<std::vector<std::uint32_t>> members(bone_count);
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::int32_t b = smooth ? single_bone(s, i) : bone[i];
+            if (b >= 0) members[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(i));
+            else blended.push_back(static_cast<std::uint32_t>(i));
+        }
+        const double T = threshold();
+        fields.reserve(bone_count);
+        for (std::size_t b = 0; b < bone_count; ++b) {
+            fields.push_back(build_bone_field(grid, s, members[b], radii, T));
+            report(progress, 0.5 * static_cast<double>(b + 1) / static_cast<double>(bone_count));
+        }
+        built = true;
+        built_smooth = smooth;
+        built_scale = o.radius_scale;
+    }
+
+    DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress,
+                         const std::array<std::int64_t, 6>* fixed_box);
+};
+
+Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl_(std::make_unique<Impl>()) {
+    check_grid(source.grid, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "deform source");
+    check_spheres(source.grid, spheres);
+    Impl& m = *impl_;
+    m.source = source;
+    m.grid = source.grid;
+    m.n = spheres.n;
+    m.bone_count = spheres.bone_count;
+    m.ijk.assign(spheres.ijk, spheres.ijk + 3 * spheres.n);
+    m.radius.assign(spheres.radius, spheres.radius + spheres.n);
+    m.bone.assign(spheres.bone, spheres.bone + spheres.n);
+    if (spheres.weight_offsets) {
+        m.has_weights = true;
+        m.weight_offsets.assign(spheres.weight_offsets, spheres.weight_offsets + spheres.n + 1);
+        const auto nnz = static_cast<std::size_t>(spheres.weight_offsets[spheres.n]);
+        m.weight_bones.assign(spheres.weight_bones, spheres.weight_bones + nnz);
+        m.weights.assign(spheres.weights, spheres.weights + nnz);
+    }
+}
+
+Deformer::~Deformer() = default;
+
+std::size_t Deformer::bone_count() const { return impl_->bone_count; }
+std::size_t Deformer::sphere_count() const { return impl_->n; }
+
+std::size_t Deformer::memory_bytes() const {
+    std::size_t b = impl_->ijk.size() * 4 + impl_->radius.size() * 4 + impl_->bone.size() * 4 +
+                    impl_->weights.size() * 8 + impl_->weight_offsets.size() * 8 + impl_->radii.size() * 8 +
+                    impl_->blended.size() * 4;
+    for (const auto& f : impl_->fields) b += f.bytes();
+    return b;
+}
+
+DeformedVolume Deformer::frame(BoneMatrices matrices, const DeformOptions& options, const Progress& progress,
+                               const std::array<std::int64_t, 6>* box) {
+    return impl_->frame(matrices, options, progress, box);
+}
+
+DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress,
+                                     const std::array<std::int64_t, 6>* fixed_box) {
+    check_options(o, n);
+    const std::vector<Motion> motions = bone_motions(matrices, bone_count, grid);
+    const bool smooth = o.mode != DeformMode::Rigid && has_weights;
+    build(smooth, o, progress);
+    const double s2[3] = {grid.spacing[0] * grid.spacing[0], grid.spacing[1] * grid.spacing[1],
+                          grid.spacing[2] * grid.spacing[2]};
+    const double T = threshold();
+    const bool nearest = o.proximity == Proximity::Nearest;
+
+    // Blended spheres: their own motions and posed centres.
+    std::vector<Motion> bmot;
+    bmot.reserve(blended.size());
+    std::vector<std::array<double, 3>> bcentre(blended.size()), brest(blended.size());
+    for (std::size_t k = 0; k < blended.size(); ++k) {
+        const std::uint32_t i = blended[k];
+        const std::int64_t a = weight_offsets[i], e = weight_offsets[i + 1];
+        bmot.push_back(blended_motion(motions, weight_bones.data() + a, weights.data() + a, e - a, bone[i], o.mode, grid));
+        brest[k] = {static_cast<double>(ijk[3 * i + 2]), static_cast<double>(ijk[3 * i + 1]),
+                    static_cast<double>(ijk[3 * i])};
+        bmot.back().forward.apply(brest[k].data(), bcentre[k].data());
+    }
+
+    // Images of every allocated rest block (dilated by one cell: cube corners) in the posed lattice.
+    struct BlockBox {
+        std::uint32_t bone;
+        std::array<double, 6> box;
+    };
+    std::vector<BlockBox> images;
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    for (std::size_t b = 0; b < fields.size(); ++b) {
+        const Affine& fw = motions[b].forward;
+        for (const auto& blk : fields[b].blocks) {
+            BlockBox bb{static_cast<std::uint32_t>(b), {kInf, kInf, kInf, -kInf, -kInf, -kInf}};
+            for (int c = 0; c < 8; ++c) {
+                const double x[3] = {static_cast<double>(blk[0] + ((c & 1) ? kBlock : -1)),
+                                     static_cast<double>(blk[1] + (((c >> 1) & 1) ? kBlock : -1)),
+                                     static_cast<double>(blk[2] + (((c >> 2) & 1) ? kBlock : -1))};
+                double y[3];
+                fw.apply(x, y);
+                for (int a = 0; a < 3; ++a) {
+                    bb.box[a] = std::min(bb.box[a], y[a]);
+                    bb.box[3 + a] = std::max(bb.box[3 + a], y[a]);
+                }
+            }
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], bb.box[a]);
+                hi[a] = std::max(hi[a], bb.box[3 + a]);
+            }
+            images.push_back(bb);
+        }
+    }
+    for (std::size_t k = 0; k < blended.size(); ++k) {
+        if (!bmot[k].valid || !(radii[blended[k]] > 0)) continue;
+        for (int a = 0; a < 3; ++a) {
+            const double e = radii[blended[k]] / grid.spacing[a] + 1;
+            lo[a] = std::min(lo[a], bcentre[k][a] - e);
+            hi[a] = std::max(hi[a], bcentre[k][a] + e);
+        }
+    }
+    const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
+    for (int a = 0; a < 3; ++a)
+        if (bx[3 + a] <= 0) throw Error("deform: the output box must have positive dimensions");
+    DeformedVolume out;
+    out.offset = {bx[0], bx[1], bx[2]};
+    out.grid.dims = {bx[3], bx[4], bx[5]};
+    out.grid.spacing = grid.spacing;
+    for (int a = 0; a < 3; ++a) out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(bx[a]);
+    const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
+    const auto total = static_cast<std::size_t>(nx * ny * nz);
+    out.stats.blended_spheres = static_cast<std::int64_t>(blended.size());
+
+    // Scatter the blended spheres (proximity buffer over the output grid).
+    std::vector<double> bkey;
+    std::vector<std::int32_t> bslot;
+    if (!blended.empty()) {
+        bkey.assign(total, kInf);
+        bslot.assign(total, -1);
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            for (std::size_t k = 0; k < blended.size(); ++k) {
+                const double r = radii[blended[k]];
+                if (!bmot[k].valid || !(r > 0)) continue;
+                const double lim = open_ball_limit_sq(r);
+                const auto& c = bcentre[k];
+                const double cz = c[2] - static_cast<double>(bx[2]);
+                const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
+                const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
+                for (std::int64_t z = za; z <= zb; ++z) {
+                    const double dz = (static_cast<double>(z) - cz);
+                    const double cy = c[1] - static_cast<double>(bx[1]);
+                    const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
+                    const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
+                    for (std::int64_t y = ya; y <= yb; ++y) {
+                        const double dy = static_cast<double>(y) - cy;
+                        const double rest = lim - s2[2] * dz * dz - s2[1] * dy * dy;
+                        if (rest <= 0) continue;
+                        const double cx = c[0] - static_cast<double>(bx[0]);
+                        const double hw = std::sqrt(rest / s2[0]) + 1;
+                        const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - hw)));
+                        const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + hw)));
+                        for (std::int64_t x = xa; x <= xb; ++x) {
+                            const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                                 static_cast<double>(z + bx[2])};
+                            const double d2 = moved_length2(bmot[k], brest[k].data(), c.data(), q, s2);
+                            if (!(d2 < lim)) continue;
+                            const double key = nearest ? d2 : d2 - lim;
+                            const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                            const std::int32_t cur = bslot[idx];
+                            if (key < bkey[idx] || (key == bkey[idx] && cur >= 0 && blended[k] < blended[static_cast<std::size_t>(cur)])) {
+                                bkey[idx] = key;
+                                bslot[idx] = static_cast<std::int32_t>(k);
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    }
+    report(progress, 0.55);
+
+    // Candidate bones of each output block.
+    const std::int64_t obx = (nx + kBlock - 1) / kBlock, oby = (ny + kBlock - 1) / kBlock, obz = (nz + kBlock - 1) / kBlock;
+    const std::size_t words = (bone_count + 63) / 64;
+    std::vector<std::uint64_t> bits(static_cast<std::size_t>(obx * oby * obz) * words, 0);
+    for (const auto& im : images) {
+        std::int64_t a[3], e[3];
+        const std::int64_t ob[3] = {obx, oby, obz};
+        bool empty = false;
+        for (int k = 0; k < 3; ++k) {
+            a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(im.box[k])) - bx[k] - 1) / kBlock);
+            const std::int64_t top = static_cast<std::int64_t>(std::ceil(im.box[3 + k])) - bx[k] + 1;
+            if (top < 0) empty = true;
+            e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
+            if (e[k] < a[k]) empty = true;
+        }
+        if (empty) continue;
+        for (std::int64_t z = a[2]; z <= e[2]; ++z)
+            for (std::int64_t y = a[1]; y <= e[1]; ++y)
+                for (std::int64_t x = a[0]; x <= e[0]; ++x)
+                    bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + im.bone / 64] |= std::uint64_t{1} << (im.bone % 64);
+    }
+
+    // The bones whose rest data the preimage of output block (kx, ky, kz) meets.
+    auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb) {
+        cb.clear();
+        const std::size_t blk = static_cast<std::size_t>((kz * oby + ky) * obx + kx);
+        for (std::size_t w = 0; w < words; ++w) {
+            std::uint64_t m = bits[blk * words + w];
+            while (m) {
+                const int t = __builtin_ctzll(m);
+                const auto b = static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(t));
+                m &= m - 1;
+                double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
+                for (int c = 0; c < 8; ++c) {
+                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock : 0)),
+                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock : 0))};
+                    double r[3];
+                    motions[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    for (int a = 0; a < 3; ++a) {
+                        plo[a] = std::min(plo[a], r[a]);
+                        phi[a] = std::max(phi[a], r[a]);
+                    }
+                }
+                const std::int64_t ca[3] = {static_cast<std::int64_t>(std::floor(plo[0])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[1])) - 1,
+                                            static_cast<std::int64_t>(std::floor(plo[2])) - 1};
+                const std::int64_t cc[3] = {static_cast<std::int64_t>(std::floor(phi[0])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[1])) + 1,
+                                            static_cast<std::int64_t>(std::floor(phi[2])) + 1};
+                if (fields[static_cast<std::size_t>(b)].any_block(ca, cc)) cb.push_back(b);
+            }
+        }
+    };
+
+    auto exact_covered = [&](Cand& c, std::int64_t& n_q) {
+        if (c.bone < 0) return true;
+        ++n_q;
+        const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
+        c.L = c.U = e.key;
+        c.local = e.local;
+        c.global = e.global;
+        c.has_L = c.has_U = true;
+        return e.key < 0;
+    };
+    auto set_upper = [&](Cand& c, bool any_negative) {
+        const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
+        c.U = upper_bound(f, c.cube, c.p, s2, any_negative, c.local);
+        c.global = f.global[c.local];
+        c.has_U = !any_negative || !(c.U < 0);  // a cut-short minimum is only an upper bound of the upper bound
+    };
+    auto set_lower = [&](Cand& c) {
+        if (c.has_L) return;
+        c.L = lower_bound(fields[static_cast<std::size_t>(c.bone)], c.cube, c.p, s2, T);
+        c.has_L = true;
+    };
+    // Whether a candidate covers its point: from the bounds when they decide, else exactly.
+    auto covers = [&](Cand& c, std::int64_t& n_q) {
+        if (c.has_U && c.U < 0) return true;
+        if (!c.has_U) {
+            set_upper(c, true);
+            if (c.U < 0) return true;
+        }
+        set_lower(c);
+        if (!(c.L < 0)) return false;
+        return exact_covered(c, n_q);
+    };
+
+    // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
+    auto resolve = [&](const std::vector<std::int32_t>& cb, const double* m3, std::size_t idx,
+                       std::vector<Cand>& cands, std::int64_t& n_q) -> const Cand* {
+        cands.clear();
+        for (std::int32_t b : cb) {
+            Cand c;
+            c.bone = b;
+            motions[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
+            const BoneField& f = fields[static_cast<std::size_t>(b)];
+            if (!fetch_cube(f, c.p, c.cube)) continue;
+            c.has_U = c.has_L = false;
+            c.covered = false;
+            if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
+                c.local = c.cube.lab[0];
+                c.L = c.U = power_of(f, c.local, c.p, s2);
+                if (!(c.U < 0)) continue;
+                c.global = f.global[c.local];
+                c.has_U = c.has_L = true;
+            }
+            cands.push_back(c);
+        }
+        if (!bkey.empty() && bslot[idx] >= 0) {
+            Cand c;
+            c.bone = -1;
+            c.L = c.U = bkey[idx];
+            c.has_L = c.has_U = true;
+            c.local = static_cast<std::uint32_t>(bslot[idx]);
+            c.global = blended[c.local];
+            c.covered = true;
+            bmot[c.local].inverse.apply(m3, c.p);
+            cands.push_back(c);
+        }
+        if (cands.empty()) return nullptr;
+        if (cands.size() == 1) return covers(cands[0], n_q) ? &cands[0] : nullptr;
+        auto before = [](const Cand& a, const Cand& b) { return a.U < b.U || (a.U == b.U && a.global < b.global); };
+        if (!nearest) {
+            for (auto& c : cands)
+                if (!c.has_U) set_upper(c, false);
+            std::size_t bi = 0;
+            for (std::size_t k = 1; k < cands.size(); ++k)
+                if (before(cands[k], cands[bi])) bi = k;
+            // Certified when the best upper bound is negative and below every other candidate's lower bound.
+            bool certain = cands[bi].U < 0;
+            for (std::size_t k = 0; k < cands.size() && certain; ++k) {
+                if (k == bi) continue;
+                set_lower(cands[k]);
+                if (!(cands[bi].U < cands[k].L)) certain = false;
+            }
+            if (certain) return &cands[bi];
+            const double bound = cands[bi].U;
+            for (auto& c : cands) {
+                if (c.bone < 0) continue;
+                set_lower(c);
+                if (c.L == c.U || c.L > bound || !(c.L < 0)) continue;
+                exact_covered(c, n_q);
+            }
+            const Cand* win = nullptr;
+            for (const auto& c : cands)
+                if (c.U < 0 && (!win || before(c, *win))) win = &c;
+            return win;
+        }
+        // Nearest centre: coverage first, then the nearest covering centre.
+        std::size_t ncov = 0;
+        for (auto& c : cands) {
+            c.covered = c.covered || covers(c, n_q);
+            ncov += c.covered;
+        }
+        const Cand* win = nullptr;
+        for (auto& c : cands) {
+            if (!c.covered) continue;
+            if (ncov > 1 && c.bone >= 0) {
+                const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, true);
+                ++n_q;
+                c.U = e.key;
+                c.global = e.global;
+            }
+            if (!win || before(c, *win)) win = &c;
+        }
+        return win;
+    };
+
+    // Gather, row by row (contiguous writes); each 8-voxel run of a row shares its block's candidate bones.
+    if (o.values) out.values.resize(total);
+    out.bone.resize(total);
+    std::atomic<std::int64_t> covered{0}, queries{0};
+    const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
+    with_sampler(source, [&](auto sampler) {
+        for (std::int64_t ch = 0; ch < chunks; ++ch) {
+            const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
+            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby, z1 * oby), [&](const tbb::blocked_range<std::int64_t>& rg) {
+                std::vector<std::vector<std::int32_t>> row_cands(static_cast<std::size_t>(obx));
+                std::vector<Cand> cands;
+                std::int64_t n_cov = 0, n_q = 0;
+                for (std::int64_t brow = rg.begin(); brow != rg.end(); ++brow) {
+                    const std::int64_t ky = brow % oby, kz = brow / oby;
+                    for (std::int64_t kx = 0; kx < obx; ++kx)
+                        block_candidates(kx, ky, kz, row_cands[static_cast<std::size_t>(kx)]);
+                    for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock); ++z)
+                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y) {
+                            const auto row = static_cast<std::size_t>((z * ny + y) * nx);
+                            for (std::int64_t kx = 0; kx < obx; ++kx) {
+                                const auto& cb = row_cands[static_cast<std::size_t>(kx)];
+                                const std::int64_t xa = kx * kBlock, xb = std::min(nx, (kx + 1) * kBlock);
+                                const bool blend_here = !bkey.empty();
+                                if (cb.empty() && !blend_here) {
+                                    std::fill(out.bone.begin() + static_cast<std::ptrdiff_t>(row + xa),
+                                              out.bone.begin() + static_cast<std::ptrdiff_t>(row + xb), std::int16_t{0});
+                                    if (o.values)
+                                        std::fill(out.values.begin() + static_cast<std::ptrdiff_t>(row + xa),
+                                                  out.values.begin() + static_cast<std::ptrdiff_t>(row + xb), 0.0f);
+                                    continue;
+                                }
+                                for (std::int64_t x = xa; x < xb; ++x) {
+                                    const std::size_t idx = row + static_cast<std::size_t>(x);
+                                    const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                                          static_cast<double>(z + bx[2])};
+                                    const Cand* win = resolve(cb, m3, idx, cands, n_q);
+                                    if (!win) {
+                                        out.bone[idx] = 0;
+                                        if (o.values) out.values[idx] = 0.0f;
+                                        continue;
+                                    }
+                                    ++n_cov;
+                                    out.bone[idx] = static_cast<std::int16_t>((win->bone >= 0 ? win->bone : bone[win->global]) + 1);
+                                    if (o.values) out.values[idx] = sampler.sample(win->p, o.sampling);
+                                }
+                            }
+                        }
+                }
+                covered += n_cov;
+                queries += n_q;
+            });
+            report(progress, 0.55 + 0.45 * static_cast<double>(ch + 1) / static_cast<double>(chunks));
+        }
+    });
+    out.stats.covered = covered;
+    out.stats.exact_queries = queries;
+    return out;
+}
+
+// ---- the literal thesis algorithm --------------------------------------------------------------------------
+
+DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s, BoneMatrices matrices,
+                                const DeformOptions& o, const Progress& progress,
+                                const std::array<std::int64_t, 6>* fixed_box) {
+    const Grid& grid = source.grid;
+    check_spheres(grid, s);
+    check_options(o, s.n);
+    const std::vector<Motion> motions = bone_motions(matrices, s.bone_count, grid);
+    const std::vector<double> radii = scaled_radii(s, o);
+    const bool smooth = o.mode != DeformMode::Rigid && s.weight_offsets;
+    const double s2[3] = {grid.spacing[0] * grid.spacing[0], grid.spacing[1] * grid.spacing[1],
+                          grid.spacing[2] * grid.spacing[2]};
+    std::vector<Motion> mot(s.n);
+    std::vector<std::array<double, 3>> centre(s.n), rest(s.n);
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    for (std::size_t i = 0; i < s.n; ++i) {
+        const std::int32_t b = smooth ? single_bone(s, i) : s.bone[i];
+        if (b >= 0) {
+            mot[i] = motions[static_cast<std::size_t>(b)];
+        } else {
+            const std::int64_t a = s.weight_offsets[i], e = s.weight_offsets[i + 1];
+            mot[i] = blended_motion(motions, s.weight_bones + a, s.weights + a, e - a, s.bone[i], o.mode, grid);
+        }
+        rest[i] = {static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
+                   static_cast<double>(s.ijk[3 * i])};
+        mot[i].forward.apply(rest[i].data(), centre[i].data());
+        if (!mot[i].valid || !(radii[i] > 0)) continue;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], centre[i][a] - radii[i] / grid.spacing[a]);
+            hi[a] = std::max(hi[a], centre[i][a] + radii[i] / grid.spacing[a]);
+        }
+    }
+    const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
+    DeformedVolume out;
+    out.offset = {bx[0], bx[1], bx[2]};
+    out.grid.dims = {bx[3], bx[4], bx[5]};
+    out.grid.spacing = grid.spacing;
+    for (int a = 0; a < 3; ++a) out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(bx[a]);
+    const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
+    const auto total = static_cast<std::size_t>(nx * ny * nz);
+    std::vector<double> P(total, kInf);        // the proximity buffer
+    std::vector<std::int64_t> who(total, -1);  // the sphere that wrote each voxel
+    const bool nearest = o.proximity == Proximity::Nearest;
+    // Parallel over z slabs; within a slab the spheres are scattered in index order, as in the thesis.
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz, 4), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        for (std::size_t i = 0; i < s.n; ++i) {
+            const double r = radii[i];
+            if (!mot[i].valid || !(r > 0)) continue;
+            const double lim = open_ball_limit_sq(r);
+            const double cx = centre[i][0] - static_cast<double>(bx[0]), cy = centre[i][1] - static_cast<double>(bx[1]),
+                         cz = centre[i][2] - static_cast<double>(bx[2]);
+            const auto za = std::max<std::int64_t>(rg.begin(), static_cast<std::int64_t>(std::floor(cz - r / grid.spacing[2])));
+            const auto zb = std::min<std::int64_t>(rg.end() - 1, static_cast<std::int64_t>(std::ceil(cz + r / grid.spacing[2])));
+            const auto ya = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cy - r / grid.spacing[1])));
+            const auto yb = std::min<std::int64_t>(ny - 1, static_cast<std::int64_t>(std::ceil(cy + r / grid.spacing[1])));
+            const auto xa = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(cx - r / grid.spacing[0])));
+            const auto xb = std::min<std::int64_t>(nx - 1, static_cast<std::int64_t>(std::ceil(cx + r / grid.spacing[0])));
+            for (std::int64_t z = za; z <= zb; ++z)
+                for (std::int64_t y = ya; y <= yb; ++y)
+                    for (std::int64_t x = xa; x <= xb; ++x) {
+                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                             static_cast<double>(z + bx[2])};
+                        const double d2 = moved_length2(mot[i], rest[i].data(), centre[i].data(), q, s2);
+                        if (!(d2 < lim)) continue;
+                        const double key = nearest ? d2 : d2 - lim;
+                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                        if (key < P[idx]) {
+                            P[idx] = key;
+                            who[idx] = static_cast<std::int64_t>(i);
+                        }
+                    }
+        }
+    });
+    report(progress, 0.8);
+    if (o.values) out.values.assign(total, 0.0f);
+    out.bone.assign(total, 0);
+    with_sampler(source, [&](auto sampler) {
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
+                for (std::int64_t y = 0; y < ny; ++y)
+                    for (std::int64_t x = 0; x < nx; ++x) {
+                        const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
+                        const std::int64_t i = who[idx];
+                        if (i < 0) continue;
+                        out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
+                        if (!o.values) continue;
+                        const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
+                                              static_cast<double>(z + bx[2])};
+                        double p[3];
+                        mot[static_cast<std::size_t>(i)].inverse.apply(m3, p);
+                        out.values[idx] = sampler.sample(p, o.sampling);
+                    }
+        });
+    });
+    for (std::size_t k = 0; k < total; ++k) out.stats.covered += who[k] >= 0;
+    report(progress, 1.0);
+    return out;
+}
+
+std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, Sampling sampling,
+                                const Progress& progress) {
+    const Grid& g = source.grid;
+    check_grid(g, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "inverse_warp");
+    const Motion m = bone_motions(matrix, 1, g)[0];
+    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    std::vector<float> out(static_cast<std::size_t>(g.voxel_count()));
+    with_sampler(source, [&](auto sampler) {
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
+                for (std::int64_t y = 0; y < ny; ++y) {
+                    float* row = out.data() + (z * ny + y) * nx;
+                    for (std::int64_t x = 0; x < nx; ++x) {
+                        const double q[3] = {static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)};
+                        double p[3];
+                        m.inverse.apply(q, p);
+                        row[x] = sampler.sample(p, sampling);
+                    }
+                }
+        });
+    });
+    report(progress, 1.0);
+    return out;
+}
+
+}  // namespace volrig

@@ -1,0 +1,336 @@
+"""Per-frame sampled reconstruction (ALGORITHMS.md §7): volrig.deform / Deformer against the thesis' literal
+brute-force scatter, the thesis' bend and reversibility tests, and bad input."""
+import numpy as np
+import pytest
+from scipy import ndimage
+
+import volrig
+from conftest import shared
+
+
+# ---- small random rigs -------------------------------------------------------------------------------------
+
+def capsule_chain(seed, spacing=(1.0, 1.25, 0.8), origin=(-3.0, 2.0, 5.0)):
+    """A bent tube of three capsules with a brighter core (a random 'limb') and a three-bone chain rig along it."""
+    rng = np.random.default_rng(seed)
+    shape = (40, 36, 44)  # z, y, x
+    sp, org = np.asarray(spacing), np.asarray(origin)
+    ext = np.array(shape[::-1]) * sp
+    pts = [org + ext * (0.2 + 0.6 * rng.random(3))]
+    for _ in range(3):
+        step = rng.normal(size=3)
+        pts.append(np.clip(pts[-1] + 9.0 * step / np.linalg.norm(step), org + 0.2 * ext, org + 0.8 * ext))
+    z, y, x = np.indices(shape)
+    world = np.stack([x, y, z], -1) * sp + org
+    vol = np.zeros(shape, np.uint8)
+    for a, b in zip(pts[:-1], pts[1:]):
+        ab = b - a
+        t = np.clip(((world - a) @ ab) / (ab @ ab), 0, 1)
+        d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
+        vol[(d < 4.5) & (vol == 0)] = 90
+        vol[d < 2.0] = 210
+    volume = volrig.Volume(vol, spacing, origin)
+    rig = volrig.Rig(joints=np.array(pts), bones=[[0, 1], [1, 2], [2, 3]], names=["a", "b", "c"])
+    return volume, rig
+
+
+def random_pose(rig, rng, degrees=35.0, shift=2.0):
+    M = volrig.rest_pose(len(rig))
+    for b in range(len(rig)):
+        M[b] = volrig.rotation_about(rng.normal(size=3), rng.uniform(-degrees, degrees), rig.heads()[b])
+        M[b][:3, 3] += rng.normal(size=3) * shift
+    return M
+
+
+def rigged(volume, rig, count, bind="rigid"):
+    mask = volrig.segment(volume, lo=1)
+    pts = volrig.skeletonize(mask).top(count)
+    return mask, pts, volrig.bind(pts, rig, mask, mode=bind)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("proximity", ["power", "nearest"])
+def test_rigid_mode_equals_the_brute_force_scatter_voxel_for_voxel(seed, proximity):
+    volume, rig = capsule_chain(seed)
+    mask, pts, binding = rigged(volume, rig, 300)
+    d = volrig.Deformer(volume, pts, binding, proximity=proximity)
+    rng = np.random.default_rng(100 + seed)
+    for sampling in ("trilinear", "nearest"):
+        M = random_pose(rig, rng)
+        fast = d.frame(M, sampling=sampling)
+        ref = volrig.deform_reference(volume, pts, binding, M, proximity=proximity, sampling=sampling, like=fast)
+        assert fast.stats["covered"] > 1000
+        assert np.array_equal(fast.bone.array, ref.bone.array)
+        assert np.array_equal(fast.values.array, ref.values.array)
+        # the reference's own box is the tight one; the fast box holds it
+        own = volrig.deform_reference(volume, pts, binding, M, proximity=proximity, sampling=sampling)
+        assert own.stats["covered"] == fast.stats["covered"]
+
+
+@pytest.mark.parametrize("mode", ["linear", "dual_quaternion"])
+def test_smooth_modes_equal_the_brute_force_scatter(mode):
+    volume, rig = capsule_chain(7)
+    mask, pts, binding = rigged(volume, rig, 300, bind="smooth")
+    M = random_pose(rig, np.random.default_rng(5), degrees=25)
+    fast = volrig.deform(volume, pts, binding, M, mode=mode)
+    assert fast.stats["blended_spheres"] > 0
+    ref = volrig.deform_reference(volume, pts, binding, M, mode=mode, like=fast)
+    assert np.array_equal(fast.bone.array, ref.bone.array)
+    assert np.array_equal(fast.values.array, ref.values.array)
+
+
+def test_moving_one_bone_moves_only_its_voxels_and_the_box_grows():
+    volume, rig = capsule_chain(3)
+    mask, pts, binding = rigged(volume, rig, 300)
+    d = volrig.Deformer(volume, pts, binding)
+    rest = d.frame(volrig.rest_pose(3))
+    M = volrig.rest_pose(3)
+    M[2][:3, 3] = (60.0, 0.0, 0.0)  # the last bone's spheres travel far along +x
+    moved = d.frame(M)
+    assert moved.bone.dims[0] > rest.bone.dims[0] + 40
+    counts = lambda f: np.bincount(f.bone.array.ravel(), minlength=4)[1:]  # noqa: E731
+    assert counts(moved)[2] >= counts(rest)[2]  # the moved part is whole again, out of the others' way
+    assert moved.stats["covered"] >= rest.stats["covered"]
+    # voxels far from the moved bone keep their rest values
+    far = rest.bone.array == 1
+    ox = np.subtract(rest.offset, moved.offset)  # rest voxel (x, y, z) is moved voxel + ox
+    z, y, x = np.nonzero(far)
+    assert np.array_equal(moved.values.array[z + ox[2], y + ox[1], x + ox[0]], rest.values.array[z, y, x])
+
+
+def on_source_grid(array, offset, shape):
+    """A frame's array [z, y, x] (output voxel 0 at source lattice index `offset` (x, y, z)) on the source grid."""
+    out = np.zeros(shape, array.dtype)
+    o = np.asarray(offset)[::-1]
+    src, dst = np.maximum(-o, 0), np.maximum(o, 0)
+    n = np.minimum(np.array(array.shape) - src, np.array(shape) - dst)
+    if np.all(n > 0):
+        out[tuple(slice(d, d + k) for d, k in zip(dst, n))] = array[tuple(slice(a, a + k) for a, k in zip(src, n))]
+    return out
+
+
+# ---- the identity pose -------------------------------------------------------------------------------------
+
+def test_identity_pose_reproduces_the_rest_reconstruction_and_the_source(phantom_half):
+    volume = phantom_half.volume
+    mask = volrig.segment(volume)
+    pts = volrig.skeletonize(mask).top(15000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    binding = volrig.bind(pts, rig, mask)
+    d = volrig.Deformer(volume, pts, binding)
+    for sampling in ("trilinear", "nearest"):
+        f = d.frame(volrig.rest_pose(len(rig)), sampling=sampling)
+        inside = on_source_grid(f.bone.array, f.offset, mask.array.shape)
+        assert np.count_nonzero(f.bone.array) == np.count_nonzero(inside)  # nothing outside the source grid
+        covered = inside > 0
+        assert np.array_equal(covered, volrig.reconstruct(pts, like=mask).array)  # the same open balls
+        assert not np.any(covered & ~mask.array)  # never outside the object
+        assert covered.sum() > 0.97 * mask.array.sum()
+        vals = on_source_grid(f.values.array, f.offset, mask.array.shape)
+        assert np.array_equal(vals[covered], volume.array[covered].astype(np.float32))
+        # each voxel comes from a bone whose spheres cover it
+        labels = inside[covered] - 1
+        assert labels.min() >= 0 and labels.max() < len(rig)
+
+
+# ---- the thesis' bend test (§6.3.1) ------------------------------------------------------------------------
+
+def bend_phantom():
+    """64 x 64 x 128 grid: a cylinder of radius 16 and depth 70 holding a 12 x 12 x 70 cuboid of another intensity."""
+    Z, Y, X = 128, 64, 64
+    z, y, x = np.mgrid[0:Z, 0:Y, 0:X]
+    vol = np.zeros((Z, Y, X), np.uint8)
+    along = (z >= 29) & (z < 99)
+    vol[((x - 31.5) ** 2 + (y - 31.5) ** 2 < 16 ** 2) & along] = 100
+    cuboid = (np.abs(x - 31.5) < 6) & (np.abs(y - 31.5) < 6) & along
+    vol[cuboid] = 200
+    rig = volrig.Rig(joints=[[31.5, 31.5, 29], [31.5, 31.5, 64], [31.5, 31.5, 98]], bones=[[0, 1], [1, 2]],
+                     names=["lower", "upper"])
+    return volrig.Volume(vol), rig, int(cuboid.sum())
+
+
+def cuboid_parts(values):
+    lab, n = ndimage.label(values > 150, structure=np.ones((3, 3, 3)))
+    return n, (np.bincount(lab.ravel())[1:].max() if n else 0)
+
+
+def bend(rig, degrees):
+    M = volrig.rest_pose(2)
+    M[1] = volrig.rotation_about([1, 0, 0], degrees, rig.joints[1])
+    return M
+
+
+def naive_scatter(volume, pts, binding, M):
+    """The sampled reconstruction without the proximity buffer (the last sphere written wins): thesis Fig. 6.7."""
+    out = np.zeros((128, 64, 64), np.float32)
+    z, y, x = np.indices(out.shape)
+    q = np.stack([x, y, z], -1).astype(np.float64)
+    for c, r, b in zip(pts.centers, pts.radii, binding.bone):
+        tc = M[b][:3, :3] @ c + M[b][:3, 3]
+        lo = np.maximum(np.floor(tc - r).astype(int), 0)[::-1]
+        hi = np.minimum(np.ceil(tc + r).astype(int) + 1, (64, 64, 128))[::-1]
+        box = tuple(slice(a, e) for a, e in zip(lo, hi))
+        qq = q[box]
+        inside = ((qq - tc) ** 2).sum(-1) < r * r
+        rest = (qq[inside] - M[b][:3, 3]) @ M[b][:3, :3]  # R^T (q - t)
+        src = np.rint(rest).astype(int)
+        ok = np.all((src >= 0) & (src < (64, 64, 128)), axis=1)
+        vals = np.zeros(len(src), np.float32)
+        vals[ok] = volume.array[src[ok, 2], src[ok, 1], src[ok, 0]]
+        out[box][inside] = vals
+    return out
+
+
+def test_thesis_bend_keeps_the_cuboid_whole():
+    volume, rig, cuboid = bend_phantom()
+    mask = volrig.segment(volume)
+    pts = volrig.skeletonize(mask, metric="chamfer345").at(1.0)
+    assert 1200 < len(pts) < 2600  # the thesis' digitisation gives 1,629
+    rigid = volrig.bind(pts, rig, mask)
+    smooth = volrig.bind(pts, rig, mask, mode="smooth")
+    for proximity in ("power", "nearest"):
+        d_rigid = volrig.Deformer(volume, pts, rigid, proximity=proximity)
+        d_smooth = volrig.Deformer(volume, pts, smooth, proximity=proximity)
+        for degrees in (30, 60, 90, 120):
+            n, largest = cuboid_parts(d_rigid.frame(bend(rig, degrees)).values.array)
+            if degrees <= 90:
+                assert n == 1 and largest > 0.9 * cuboid, (proximity, degrees, n, largest)
+            for mode in ("linear", "dual_quaternion"):
+                n, largest = cuboid_parts(d_smooth.frame(bend(rig, degrees), mode=mode).values.array)
+                assert n == 1 and largest > 0.85 * cuboid, (proximity, mode, degrees, n, largest)
+    # The proximity buffer is what keeps it whole: without it, spheres from across the bend overwrite the bar.
+    n, largest = cuboid_parts(naive_scatter(volume, pts, rigid, bend(rig, 90)))
+    assert n > 1 or largest < 0.9 * cuboid
+
+
+# ---- the thesis' reversibility test (§6.3.2) ---------------------------------------------------------------
+
+def pull_back(rest, posed, M):
+    """Apply T⁻¹ to the deformed skeleton, sampling the deformed volume: the moved-back spheres are the rest
+    spheres, so the winner at q is the rest winner, and q takes the posed volume at T_winner(q) (nearest)."""
+    out = np.zeros(rest.bone.array.shape, np.float32)
+    sp = np.asarray(rest.bone.spacing)
+    for b in range(M.shape[0]):
+        idx = np.argwhere(rest.bone.array == b + 1)
+        if not len(idx):
+            continue
+        world = idx[:, ::-1] * sp + np.asarray(rest.bone.origin)
+        posed_ijk = ((world @ M[b][:3, :3].T + M[b][:3, 3]) - np.asarray(posed.bone.origin)) / sp
+        out[tuple(idx.T)] = ndimage.map_coordinates(posed.values.array, posed_ijk[:, ::-1].T, order=0, cval=0)
+    return out
+
+
+def reversibility(volume, pts, rig, binding, M, proximity):
+    d = volrig.Deformer(volume, pts, binding, proximity=proximity)
+    rest = d.frame(volrig.rest_pose(len(rig)), sampling="nearest")
+    posed = d.frame(M, sampling="nearest")
+    back = pull_back(rest, posed, M)
+    obj = rest.bone.array > 0
+    return np.count_nonzero((back != rest.values.array) & obj) / np.count_nonzero(obj)
+
+
+def test_reversibility_on_the_phantom(phantom_half):
+    volume = phantom_half.volume
+    mask = volrig.segment(volume)
+    pts = volrig.skeletonize(mask).top(15000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    binding = volrig.bind(pts, rig, mask)
+    M = rig.pose({"thigh.L": ([1, 0, 0], 25), "thigh.R": ([1, 0, 0], -20), "shin.L": ([1, 0, 0], -30),
+                  "upper_arm.L": ([1, 0, 0], -20), "upper_arm.R": ([1, 0, 0], 20), "forearm.R": ([1, 0, 0], 25)})
+    moved = volrig.deform(volume, pts, binding, M, sampling="nearest")
+    assert moved.stats["covered"] > 0.97 * mask.array.sum()
+    for proximity in ("power", "nearest"):
+        frac = reversibility(volume, pts, rig, binding, M, proximity)
+        assert 0 < frac < 0.015, (proximity, frac)  # the thesis: 3.39% on the Visible Human
+
+
+def test_reversibility_on_the_frog_labels_and_the_default_proximity():
+    volume = volrig.load(str(shared("frogtissue/frogtissue.mhd")))  # 26 tissue labels, used as intensities
+    mask = volrig.segment(volume)
+    pts = volrig.skeletonize(mask).top(40000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    binding = volrig.bind(pts, rig, mask)
+    M = rig.pose({"thigh.L": ([0, 0, 1], 25), "thigh.R": ([0, 0, 1], -20), "shin.L": ([0, 1, 0], -30),
+                  "upper_arm.L": ([0, 0, 1], -20), "upper_arm.R": ([0, 0, 1], 20), "head": ([0, 1, 0], 15)})
+    fractions = {p: reversibility(volume, pts, rig, binding, M, p) for p in ("power", "nearest")}
+    assert all(0 < f < 0.015 for f in fractions.values()), fractions
+    # the default proximity is the one that reverses better
+    assert fractions["power"] <= fractions["nearest"]
+    from volrig.deform import DEFAULT_PROXIMITY
+    assert DEFAULT_PROXIMITY == min(fractions, key=fractions.get)
+
+
+# ---- options, output, bad input ---------------------------------------------------------------------------
+
+def test_radius_scale_bulges_and_pinches():
+    volume, rig = capsule_chain(4)
+    mask, pts, binding = rigged(volume, rig, 300)
+    d = volrig.Deformer(volume, pts, binding)
+    pose = volrig.rest_pose(3)
+    base = d.frame(pose).stats["covered"]
+    scale = np.ones(len(pts), np.float32)
+    scale[binding.bone == 1] = 1.3
+    assert d.frame(pose, radius_scale=scale).stats["covered"] > base
+    scale[binding.bone == 1] = 0.0
+    pinched = d.frame(pose, radius_scale=scale)
+    assert pinched.stats["covered"] < base and not np.any(pinched.bone.array == 2)
+    assert d.frame(pose).stats["covered"] == base  # back to the plain radii
+
+
+def test_binary_reconstruction_and_vdb_output(tmp_path):
+    volume, rig = capsule_chain(5)
+    mask, pts, binding = rigged(volume, rig, 300)
+    d = volrig.Deformer(volume, pts, binding)
+    M = random_pose(rig, np.random.default_rng(9))
+    binary = d.frame(M, values=False)
+    full = d.frame(M)
+    assert binary.values is None and np.array_equal(binary.mask.array, full.bone.array > 0)
+    path = tmp_path / "frame_0001.vdb"
+    full.save(path)
+    grids = {g["name"]: g for g in volrig._volrig.vdb_grids(str(path))}
+    assert set(grids) == {"density", "bone"}
+    assert grids["bone"]["active_voxels"] == full.stats["covered"]
+    bone = volrig.load(str(path), grid="bone")
+    lo = grids["bone"]["bbox_min"]
+    assert np.allclose(bone.origin, np.asarray(full.bone.origin) + np.asarray(lo) * np.asarray(full.bone.spacing))
+    z0, y0, x0 = lo[::-1]
+    z1, y1, x1 = (np.asarray(grids["bone"]["bbox_max"][::-1]) + 1).tolist()
+    assert np.array_equal(bone.array, full.bone.array[z0:z1, y0:y1, x0:x1])
+    density = volrig.load(str(path), grid="density")
+    assert np.allclose(density.array, full.values.array[z0:z1, y0:y1, x0:x1], rtol=2e-3, atol=0.05)  # half floats
+
+
+def test_bad_input_gets_clear_errors():
+    volume, rig = capsule_chain(6)
+    mask, pts, binding = rigged(volume, rig, 200)
+    d = volrig.Deformer(volume, pts, binding)
+    with pytest.raises(ValueError, match="shape"):
+        d.frame(np.eye(4))
+    with pytest.raises(ValueError, match="2 bone matrices for a rig of 3"):
+        d.frame(volrig.rest_pose(2))
+    bad = volrig.rest_pose(3)
+    bad[1, 0, 3] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        d.frame(bad)
+    scaled = volrig.rest_pose(3)
+    scaled[2, :3, :3] *= 1.5
+    with pytest.raises(ValueError, match="rotation plus a translation"):
+        d.frame(scaled)
+    with pytest.raises(ValueError, match="mode"):
+        d.frame(volrig.rest_pose(3), mode="bendy")
+    with pytest.raises(ValueError, match="radius_scale"):
+        d.frame(volrig.rest_pose(3), radius_scale=np.ones(3))
+    with pytest.raises(ValueError, match=r"\[0, 100\]"):
+        d.frame(volrig.rest_pose(3), radius_scale=-1.0)
+    far = volrig.rest_pose(3)
+    far[0][:3, 3] = 1e7
+    with pytest.raises(ValueError, match="2\\^31"):
+        d.frame(far)
+    other = volrig.skeletonize(mask).top(150)
+    with pytest.raises(ValueError, match="bind the same points"):
+        volrig.Deformer(volume, other, binding)
+    nan_volume = volrig.Volume(np.full(volume.shape, np.nan, np.float32), volume.spacing, volume.origin)
+    with pytest.raises(ValueError, match="NaN"):
+        volrig.Deformer(nan_volume, pts, binding)
+    with pytest.raises(volrig.Cancelled):
+        volrig.Deformer(volume, pts, binding).frame(volrig.rest_pose(3), progress=lambda f: f < 0.5)
