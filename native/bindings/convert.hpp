@@ -5,8 +5,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "volrig/tree.hpp"
 #include "volrig/volume.hpp"
@@ -65,6 +68,16 @@ py::array_t<T> to_numpy_shaped(std::vector<T>&& data, std::vector<py::ssize_t> s
     auto* holder = new std::vector<T>(std::move(data));
     py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<T>*>(p); });
     return py::array_t<T>(shape, holder->data(), owner);
+}
+
+/// An (n, k) numpy array owning the flat storage of a vector of std::array<T, k> (no copy).
+template <class T, std::size_t K>
+py::array_t<T> rows(std::vector<std::array<T, K>>&& v) {
+    static_assert(sizeof(std::array<T, K>) == K * sizeof(T), "std::array must be packed");
+    auto* holder = new std::vector<std::array<T, K>>(std::move(v));
+    py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<std::array<T, K>>*>(p); });
+    const auto n = static_cast<py::ssize_t>(holder->size());
+    return py::array_t<T>({n, static_cast<py::ssize_t>(K)}, reinterpret_cast<const T*>(holder->data()), owner);
 }
 
 /// Grid of a C-contiguous 3-D array [z, y, x] with the given spacing and origin (x, y, z).
@@ -134,5 +147,6 @@ void bind_tree(py::module_& m);
 void bind_rig(py::module_& m);
 void bind_mesh(py::module_& m);
 void bind_deform(py::module_& m);
+void bind_bvh(py::module_& m);
 
 }  // namespace volrig::py

@@ -12,16 +12,6 @@ namespace {
 using Vertices = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using Faces = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
 
-/// An (n, k) numpy array owning the flat storage of a vector of std::array<T, k> (no copy).
-template <class T, std::size_t K>
-py::array_t<T> rows(std::vector<std::array<T, K>>&& v) {
-    static_assert(sizeof(std::array<T, K>) == K * sizeof(T), "std::array must be packed");
-    auto* holder = new std::vector<std::array<T, K>>(std::move(v));
-    py::capsule owner(holder, [](void* p) { delete static_cast<std::vector<std::array<T, K>>*>(p); });
-    const auto n = static_cast<py::ssize_t>(holder->size());
-    return py::array_t<T>({n, static_cast<py::ssize_t>(K)}, reinterpret_cast<const T*>(holder->data()), owner);
-}
-
 std::size_t rows_of(const py::array& a, const char* what) {
     if (a.ndim() != 2 || a.shape(1) != 3)
         throw Error(std::string("voxelize: ") + what + " must have shape (n, 3)");

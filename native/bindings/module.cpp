@@ -28,4 +28,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_rig(m);
     volrig::py::bind_mesh(m);
     volrig::py::bind_deform(m);
+    volrig::py::bind_bvh(m);
 }

@@ -281,6 +281,46 @@ std::vector<std::string_view> split_words(std::string_view s, bool commas) {
     return out;
 }
 
+std::string at_line(std::int64_t line) { return "line " + std::to_string(line) + ": "; }
+
+void refuse_binary(const std::string& name, std::int64_t line_no, std::string_view line, const char* format) {
+    if (line.find('\0') != std::string_view::npos)
+        fail(name, at_line(line_no) + "binary data (a NUL byte) where " + format + " text was expected");
+}
+
+bool LineReader::next(std::string_view& line) {
+    std::size_t scan = pos_;
+    for (;;) {
+        const void* nl = std::memchr(buf_.data() + scan, '\n', buf_.size() - scan);
+        if (nl) {
+            const auto end = static_cast<std::size_t>(static_cast<const char*>(nl) - buf_.data());
+            return take(line, end, end + 1);
+        }
+        if (buf_.size() - pos_ > kMaxLine)
+            fail(src_.name(), at_line(line_ + 1) + "line is longer than " + with_commas(kMaxLine) + " bytes");
+        if (base_ + buf_.size() >= size_) {  // the last line has no newline
+            if (pos_ == buf_.size()) return false;
+            return take(line, buf_.size(), buf_.size());
+        }
+        // Keep the unfinished line, read the next chunk after it.
+        buf_.erase(0, pos_);
+        base_ += pos_;
+        pos_ = 0;
+        scan = buf_.size();
+        const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(kTextChunk, size_ - base_ - buf_.size()));
+        buf_.resize(scan + n);
+        src_.read(base_ + scan, &buf_[scan], n);
+    }
+}
+
+bool LineReader::take(std::string_view& line, std::size_t end, std::size_t next) {
+    line = std::string_view(buf_.data() + pos_, end - pos_);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos_ = next;
+    ++line_;
+    return true;
+}
+
 bool parse_int(std::string_view s, std::int64_t& out) {
     s = trim(s);
     if (!s.empty() && s[0] == '+') s.remove_prefix(1);

@@ -1,5 +1,5 @@
-// io_detail.hpp: internals shared by the volume file readers and writers (io.cpp, io_nrrd.cpp,
-// io_metaimage.cpp, io_nifti.cpp). Not installed; not part of the public API.
+// io_detail.hpp: internals shared by the file readers and writers (io.cpp, io_nrrd.cpp, io_metaimage.cpp,
+// io_nifti.cpp; the text readers of mesh_io.cpp and bvh.cpp). Not installed; not part of the public API.
 #pragma once
 
 #include <array>
@@ -37,6 +37,43 @@ bool parse_int(std::string_view s, std::int64_t& out);
 bool parse_double(std::string_view s, double& out);
 /// Shortest text that reads back as exactly `v`.
 std::string format_double(double v);
+
+// ---- text files read line by line (OBJ, PLY headers, TGF, BVH) -------------------------------------------------
+
+/// Bytes read from the source at a time, and the longest line accepted.
+constexpr std::size_t kTextChunk = std::size_t(1) << 20;
+constexpr std::size_t kMaxLine = std::size_t(64) << 20;
+
+/// "line 12: ", the prefix of messages about one line.
+std::string at_line(std::int64_t line);
+/// Fails with "<name>: line N: binary data (a NUL byte) where <format> text was expected" when the line holds a NUL.
+void refuse_binary(const std::string& name, std::int64_t line_no, std::string_view line, const char* format);
+
+/// Lines of a text file read in chunks of kTextChunk (never the whole file at once); each line comes without its
+/// '\n' (and a '\r' before it). A line longer than kMaxLine fails naming the source and the line.
+class LineReader {
+public:
+    explicit LineReader(const ByteSource& src) : src_(src), size_(src.size()) {}
+
+    /// The next line; false at the end of the file. The view is valid until the next call.
+    bool next(std::string_view& line);
+    /// Number of the line last returned (1-based).
+    std::int64_t line_number() const { return line_; }
+    /// File offset of the first byte after the line last returned.
+    std::uint64_t offset() const { return base_ + pos_; }
+    /// Bytes of the file after the line last returned.
+    std::uint64_t remaining() const { return size_ - offset(); }
+
+private:
+    bool take(std::string_view& line, std::size_t end, std::size_t next);
+
+    const ByteSource& src_;
+    std::uint64_t size_;
+    std::string buf_;
+    std::uint64_t base_ = 0;  // file offset of buf_[0]
+    std::size_t pos_ = 0;     // start of the unread part of buf_
+    std::int64_t line_ = 0;
+};
 
 // ---- text headers (NRRD, MetaImage) ---------------------------------------------------------------------------
 

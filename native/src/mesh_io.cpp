@@ -21,71 +21,15 @@ using detail::fail;
 using detail::quoted;
 using detail::with_commas;
 
-constexpr std::size_t kChunk = std::size_t(1) << 20;
-constexpr std::size_t kMaxLine = std::size_t(64) << 20;
+using detail::at_line;
+using detail::LineReader;
+using detail::refuse_binary;
+
+constexpr std::size_t kChunk = detail::kTextChunk;
+constexpr std::size_t kMaxLine = detail::kMaxLine;
 constexpr std::uint64_t kMaxVertices = std::numeric_limits<std::uint32_t>::max();
 constexpr std::uint64_t kVertexBytes = sizeof(std::array<double, 3>);
 constexpr std::uint64_t kTriangleBytes = sizeof(std::array<std::uint32_t, 3>);
-
-std::string at_line(std::int64_t line) { return "line " + std::to_string(line) + ": "; }
-
-/// Lines of a text file read in chunks; each line comes without its '\n' (and a '\r' before it). The view is valid
-/// until the next call.
-class LineReader {
-public:
-    explicit LineReader(const ByteSource& src) : src_(src), size_(src.size()) {}
-
-    bool next(std::string_view& line) {
-        std::size_t scan = pos_;
-        for (;;) {
-            const void* nl = std::memchr(buf_.data() + scan, '\n', buf_.size() - scan);
-            if (nl) {
-                const auto end = static_cast<std::size_t>(static_cast<const char*>(nl) - buf_.data());
-                return take(line, end, end + 1);
-            }
-            if (buf_.size() - pos_ > kMaxLine)
-                fail(src_.name(), at_line(line_ + 1) + "line is longer than " + with_commas(kMaxLine) + " bytes");
-            if (base_ + buf_.size() >= size_) {  // the last line has no newline
-                if (pos_ == buf_.size()) return false;
-                return take(line, buf_.size(), buf_.size());
-            }
-            // Keep the unfinished line, read the next chunk after it.
-            buf_.erase(0, pos_);
-            base_ += pos_;
-            pos_ = 0;
-            scan = buf_.size();
-            const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(kChunk, size_ - base_ - buf_.size()));
-            buf_.resize(scan + n);
-            src_.read(base_ + scan, &buf_[scan], n);
-        }
-    }
-
-    /// Number of the line last returned (1-based).
-    std::int64_t line_number() const { return line_; }
-    /// File offset of the first byte after the line last returned.
-    std::uint64_t offset() const { return base_ + pos_; }
-
-private:
-    bool take(std::string_view& line, std::size_t end, std::size_t next) {
-        line = std::string_view(buf_.data() + pos_, end - pos_);
-        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-        pos_ = next;
-        ++line_;
-        return true;
-    }
-
-    const ByteSource& src_;
-    std::uint64_t size_;
-    std::string buf_;
-    std::uint64_t base_ = 0;  // file offset of buf_[0]
-    std::size_t pos_ = 0;     // start of the unread part of buf_
-    std::int64_t line_ = 0;
-};
-
-void refuse_binary(const std::string& name, std::int64_t line_no, std::string_view line, const char* format) {
-    if (line.find('\0') != std::string_view::npos)
-        fail(name, at_line(line_no) + "binary data (a NUL byte) where " + format + " text was expected");
-}
 
 /// Throws when a mesh of this many vertices and triangles would exceed the limits; `where()` gives the message's
 /// location prefix (built only on failure).

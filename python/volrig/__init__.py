@@ -2,7 +2,8 @@
 
 Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``skeleton_tree`` -> ``autorig``
 -> ``bind`` (and ``reconstruct``) -> per frame ``deform`` (``Deformer``); ``save_rig`` / ``load_rig`` keep the result in one file.
-Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s).
+Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s). Motion capture: ``read_bvh``
+-> ``animate(rig, motion)`` gives per-frame bone matrices.
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
@@ -15,6 +16,7 @@ from .tree import SkeletonTree, skeleton_tree
 from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
+from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
 
 __version__ = "0.1.0"
 
@@ -22,7 +24,8 @@ __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skelet
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
-           "deform_reference", "inverse_warp", "rest_pose", "rotation_about"]
+           "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",
+           "default_bone_map", "load_bone_map", "save_bone_map"]
 
 
 def __getattr__(name):

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,bake,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -114,6 +114,52 @@ def cmd_rig(args) -> int:
     return 0
 
 
+def _frame_range(text: str, count: int):
+    """'A-B' (1-based, inclusive) or 'N' -> 0-based frame indices of a clip of `count` frames."""
+    parts = text.split("-")
+    try:
+        if len(parts) == 1:
+            first = last = int(parts[0])
+        elif len(parts) == 2:
+            first, last = int(parts[0]), int(parts[1])
+        else:
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"--frames {text!r}: expected FIRST-LAST or N (1-based frame numbers)") from None
+    if not 1 <= first <= last <= count:
+        raise ValueError(f"--frames {text}: the clip has frames 1-{count}")
+    return np.arange(first - 1, last)
+
+
+def cmd_animate(args) -> int:
+    from .files import atomic_output
+    from .mocap import animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
+    from .rigfile import load_rig
+    if not args.output.endswith(".npz"):
+        raise ValueError(f"{args.output}: the output must be a .npz file")
+    t = time.perf_counter()
+    saved = load_rig(args.rig)
+    if saved.rig is None:
+        raise ValueError(f"{args.rig}: the file holds no rig")
+    motion = read_bvh(args.clip)
+    frames = _frame_range(args.frames, motion.frame_count) if args.frames else np.arange(motion.frame_count)
+    bone_map = load_bone_map(args.map) if args.map else default_bone_map(motion, saved.rig)
+    matrices = animate(saved.rig, motion, frames=frames, bone_map=bone_map, root_motion=args.root,
+                       up_axis=args.up, scale=args.scale)
+    with atomic_output(args.output, suffix=".npz") as tmp:
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, matrices=matrices, frames=frames, bone_names=np.array(saved.rig.names, np.str_),
+                                frame_time=np.array(motion.frame_time), root_motion=np.array(args.root),
+                                up_axis=np.array(args.up), bone_map=np.array(json.dumps(bone_map, sort_keys=True)),
+                                rig=np.array(args.rig), clip=np.array(args.clip))
+    if args.save_map:
+        save_bone_map(args.save_map, bone_map)
+    print(f"{len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} of {motion.frame_count}, "
+          f"{motion.fps:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, {args.root}; "
+          f"{time.perf_counter() - t:.2f} s -> {args.output}")
+    return 0
+
+
 def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
@@ -220,6 +266,20 @@ def main(argv=None) -> int:
     p.add_argument("--no-save", action="store_true", help="do not save the .blend after baking")
     p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
     p.set_defaults(run=cmd_bake)
+
+    p = sub.add_parser("animate", help="per-frame bone matrices driving a rig with a BVH clip")
+    p.add_argument("rig", help="rig file (.vrig, from `volrig rig`)")
+    p.add_argument("clip", help="motion capture (.bvh)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .npz: matrices (F, B, 4, 4) rest-to-pose in the rig's world, frames (0-based), "
+                        "bone_names, frame_time, bone_map (JSON), ...")
+    p.add_argument("--frames", help="BVH frames FIRST-LAST, 1-based and inclusive (default all)")
+    p.add_argument("--map", help="bone map JSON {BVH joint: rig bone} (default: automatic from the names)")
+    p.add_argument("--save-map", help="also write the bone map used as JSON (to edit and pass back with --map)")
+    p.add_argument("--root", choices=["in_place", "travel"], default="in_place", help="root motion")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the BVH's up axis (default y)")
+    p.add_argument("--scale", type=float, help="rig units per BVH unit (default: from the leg lengths)")
+    p.set_defaults(run=cmd_animate)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
