@@ -30,15 +30,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import volrig  # noqa: E402
 from volrig import phantom  # noqa: E402
-
-
-def best_of(repeat, f):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = f()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+from bench_rig import best_of  # noqa: E402  (this folder is on sys.path when run as a script)
 
 
 def walking_pose(rig):

@@ -1,12 +1,15 @@
 """The Blender objects of one rigged volume (DESIGN.md, Blender object model), all in the collection ``<name>``:
 
 - ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
+- ``<name>_mask``     preview Volume object (child of ``<name>``) showing the segmentation mask.
 - ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
 - ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
 - ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
                       skeleton-tree as edges, one vertex group per bone, an Armature modifier.
 Volume units (e.g. mm) are kept inside the objects; each object's matrix scales them into Blender units.
 """
+import os
+
 import bpy
 import numpy as np
 from mathutils import Matrix
@@ -69,6 +72,46 @@ def create_volume_object(context, name: str, vdb_path: str, unit_scale: float):
     obj.volrig.role = "VOLUME"
     obj.volrig.unit_scale = unit_scale
     return obj
+
+
+def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
+    """Shows ``mask`` as ``<name>_mask``: a Volume object over the scan (parented to it) whose grid is the mask,
+    written to the cache as mask_<key>.vdb (a new name per segmentation, so Blender reloads it)."""
+    import hashlib
+    from . import scans
+    folder = scans.cache_dir(volume_obj)
+    key = hashlib.sha1(repr(scans.segmentation_key(volume_obj)).encode()).hexdigest()[:10]
+    path = os.path.join(folder, f"mask_{key}.vdb")
+    if not os.path.exists(path):
+        volrig.write_vdb(path, {"density": mask})
+    for old in os.listdir(folder):  # earlier previews
+        if old.startswith("mask_") and old.endswith(".vdb") and old != os.path.basename(path):
+            os.remove(os.path.join(folder, old))
+    obj = members(volume_obj).get("MASK")
+    if obj is None:
+        obj = _new_object(volume_obj, volume_obj.name + "_mask", bpy.data.volumes.new(volume_obj.name + "_mask"),
+                          "MASK")
+        obj.parent = volume_obj
+        obj.matrix_parent_inverse.identity()
+        obj.data.materials.append(_mask_material())
+    rel = os.path.join(volume_obj.volrig.cache_dir, os.path.basename(path))
+    obj.data.filepath = rel
+    return obj
+
+
+def _mask_material():
+    mat = bpy.data.materials.get("volrig mask")
+    if mat is None:
+        mat = bpy.data.materials.new("volrig mask")
+        mat.use_nodes = True
+        nodes = mat.node_tree.nodes
+        nodes.clear()
+        vol = nodes.new("ShaderNodeVolumeScatter")
+        vol.inputs["Color"].default_value = (0.2, 0.8, 1.0, 1.0)
+        vol.inputs["Density"].default_value = 0.5
+        out = nodes.new("ShaderNodeOutputMaterial")
+        mat.node_tree.links.new(vol.outputs["Volume"], out.inputs["Volume"])
+    return mat
 
 
 # ---- spheres drawn by geometry nodes: an icosphere instanced on each vertex, scaled by its radius ----

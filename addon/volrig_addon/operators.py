@@ -177,6 +177,25 @@ def _looks_like_labels(a: np.ndarray) -> bool:
                 and 3 < some.max() <= 2 * len(some) + 8)
 
 
+class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
+    """Show the segmentation mask over the scan as <name>_mask (updated each time it is pressed)"""
+    bl_idname = "volrig.preview_mask"
+    bl_label = "Preview Mask"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @_reported
+    def execute(self, context):
+        vol = _active_volume(context)
+        mask = scans.mask(vol)
+        count = int(np.count_nonzero(mask.array))
+        if not count:
+            raise ValueError("the segmentation is empty: widen the range or pick other labels")
+        objects.update_mask_preview(vol, mask)
+        vol.volrig.mask_count = count
+        self.report({"INFO"}, f"volrig: mask of {count:,} voxels shown as {vol.name}_mask")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     """Segment the volume and compute its thinness skeleton once; the Thinness slider then re-thresholds it"""
     bl_idname = "volrig.skeletonize"
@@ -394,7 +413,7 @@ def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
-CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_bake,
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_bake,
            VOLRIG_OT_walk_cycle, VOLRIG_OT_show_rest)
 
 

@@ -57,6 +57,7 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
         layout.prop(s, "largest")
         layout.label(text=f"{s.mask_count:,} voxels in range" if s.mask_count >= 0 else "invalid segmentation",
                      icon="INFO" if s.mask_count > 0 else "ERROR")
+        layout.operator("volrig.preview_mask", icon="HIDE_OFF")
 
 
 class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):

@@ -127,6 +127,11 @@ def _segmentation(s):
     return ("range", float(s.low), float(s.high), bool(s.largest))
 
 
+def segmentation_key(volume_obj):
+    """The object's segmentation settings as a hashable value (ValueError when they are invalid)."""
+    return _segmentation(volume_obj.volrig)
+
+
 def mask(volume_obj) -> volrig.Volume:
     """The segmentation mask for the object's current settings (computed once per setting)."""
     key = _segmentation(volume_obj.volrig)

@@ -387,6 +387,18 @@ std::array<std::int64_t, 6> box_of(const Vec3d& lo, const Vec3d& hi) {
     return b;
 }
 
+/// An empty frame on the box {offset, dims} of the source lattice.
+DeformedVolume frame_on(const Grid& source, const std::array<std::int64_t, 6>& bx) {
+    for (int a = 0; a < 3; ++a)
+        if (bx[3 + a] <= 0) throw Error("deform: the output box must have positive dimensions");
+    DeformedVolume out;
+    out.offset = {bx[0], bx[1], bx[2]};
+    out.grid.dims = {bx[3], bx[4], bx[5]};
+    out.grid.spacing = source.spacing;
+    for (int a = 0; a < 3; ++a) out.grid.origin[a] = source.origin[a] + source.spacing[a] * static_cast<double>(bx[a]);
+    return out;
+}
+
 // ---- per-bone rest data: spheres in k-d order, k-d tree, power-diagram labels -------------------------------
 
 struct KdNode {
@@ -970,13 +982,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         }
     }
     const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
-    for (int a = 0; a < 3; ++a)
-        if (bx[3 + a] <= 0) throw Error("deform: the output box must have positive dimensions");
-    DeformedVolume out;
-    out.offset = {bx[0], bx[1], bx[2]};
-    out.grid.dims = {bx[3], bx[4], bx[5]};
-    out.grid.spacing = grid.spacing;
-    for (int a = 0; a < 3; ++a) out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(bx[a]);
+    DeformedVolume out = frame_on(grid, bx);
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     out.stats.blended_spheres = blended_spheres;
 
@@ -1284,11 +1290,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
         }
     }
     const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
-    DeformedVolume out;
-    out.offset = {bx[0], bx[1], bx[2]};
-    out.grid.dims = {bx[3], bx[4], bx[5]};
-    out.grid.spacing = grid.spacing;
-    for (int a = 0; a < 3; ++a) out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(bx[a]);
+    DeformedVolume out = frame_on(grid, bx);
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     const auto total = static_cast<std::size_t>(nx * ny * nz);
     std::vector<double> P(total, kInf);        // the proximity buffer

@@ -48,6 +48,28 @@ def test_import_places_the_volume_and_keeps_the_source(empty_scene, phantom_file
     assert (_sha(path), os.path.getmtime(path)) == before  # never touched
 
 
+def test_mask_preview_shows_the_segmentation(empty_scene, phantom_file):
+    path, ph = phantom_file
+    run_op(bpy.ops.volrig.import_volume, filepath=path)
+    vol = bpy.context.active_object
+    s = vol.volrig
+    s.low, s.high, s.largest = 150, 255, False  # all the bone
+    run_op(bpy.ops.volrig.preview_mask)
+    preview = _members(vol)["MASK"]
+    assert preview.name == "phantom_mask" and preview.type == "VOLUME" and preview.parent == vol
+    first = bpy.path.abspath(preview.data.filepath)
+    grids = {g["name"]: g for g in volrig._volrig.vdb_grids(first)}
+    assert grids["density"]["active_voxels"] == s.mask_count == np.count_nonzero(ph.volume.array >= 150)
+    s.low = 1  # a new segmentation: a new file, the old one gone
+    run_op(bpy.ops.volrig.preview_mask)
+    second = bpy.path.abspath(_members(vol)["MASK"].data.filepath)
+    assert second != first and not os.path.exists(first)
+    assert volrig._volrig.vdb_grids(second)[0]["active_voxels"] == np.count_nonzero(ph.volume.array)
+    s.low, s.high = 230, 250  # nothing in range: reported, not raised
+    with pytest.raises(RuntimeError, match="segmentation is empty"):
+        bpy.ops.volrig.preview_mask()
+
+
 def test_import_reports_bad_files_without_raising(empty_scene, tmp_path):
     bad = tmp_path / "broken.nrrd"
     bad.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 100 100 100\nencoding: raw\n\n" + b"\0" * 100)
