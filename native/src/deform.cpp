@@ -748,6 +748,23 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
         lab[5] = b0[65];
         lab[6] = b0[72];
         lab[7] = b0[73];
+    } else if (lx >= 0 && ly >= 0 && lz >= 0 && lx + 1 < f.dims[0] && ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
+        // Inside the field, across block faces: each corner from its own block.
+        const std::int64_t l[3] = {lx, ly, lz};
+        std::int64_t blk[3][2], off[3][2];
+        for (int a = 0; a < 3; ++a)
+            for (int k = 0; k < 2; ++k) {
+                blk[a][k] = (l[a] + k) >> 3;
+                off[a][k] = (l[a] + k) & 7;
+            }
+        for (int c = 0; c < 8; ++c) {
+            const int i = c & 1, j = (c >> 1) & 1, k = (c >> 2) & 1;
+            const std::int32_t b =
+                f.block_index[static_cast<std::size_t>((blk[2][k] * f.bdims[1] + blk[1][j]) * f.bdims[0] + blk[0][i])];
+            lab[c] = b < 0 ? kNone
+                           : f.labels[static_cast<std::size_t>(b) * 512 +
+                                      static_cast<std::size_t>((off[2][k] * 8 + off[1][j]) * 8 + off[0][i])];
+        }
     } else {
         for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
     }
@@ -805,6 +822,7 @@ double lower_bound(const BoneField& f, const Cube& cube, const double* p, const 
 
 /// A field (a bone, or a group of blended spheres) that may cover an output voxel.
 struct Cand {
+    Cand() {}  // members are set as they are computed: no zero-filling per voxel
     std::int32_t bone;    // the field
     double L, U;          // bounds of its power at the voxel (equal when exact; the nearest-centre key later)
     std::uint32_t local;  // the sphere achieving U (local index)
