@@ -44,7 +44,7 @@ def test_drive_with_bvh_matches_headless_animate_and_bakes(rigged, walk):
     run_op(bpy.ops.volrig.drive_with_bvh, filepath=WALK, first=1, last=61, step=5, frame_start=10,
            root_motion="travel")
     assert (scene.frame_start, scene.frame_end) == (10, 22)  # BVH frames 1, 6, ..., 61
-    assert scene.render.fps / scene.render.fps_base == pytest.approx(24.0)
+    assert scene.render.fps == 24 and scene.render.fps / scene.render.fps_base == pytest.approx(walk.fps / 5, rel=1e-6)
     # the bone map is on the Volume object, one line per BVH joint, the automatic map's bones
     pairs = {p.joint: p.bone for p in vol.volrig.bone_map}
     assert sorted(pairs) == sorted(walk.names)
@@ -81,20 +81,24 @@ def test_drive_with_bvh_matches_headless_animate_and_bakes(rigged, walk):
     run_op(bpy.ops.volrig.reset_bone_map)
     assert {p.joint: p.bone for p in vol.volrig.bone_map if p.bone} == auto
 
-    # the usual bake follows the keys: frame 1 (BVH frame 31) differs from the rest but keeps its voxels
+    # the usual bake follows the keys: frame 1 (BVH frame 31) is the headless Deformer's frame of animate's matrices
+    run_op(bpy.ops.volrig.drive_with_bvh, filepath=WALK, first=31, last=31, frame_start=1)
     vol.volrig.bake_frames = "1"
     run_op(bpy.ops.volrig.bake)
     path = bake.frame_path(vol, 1)
-    assert os.path.exists(path)
     baked = volrig.load(path, grid="bone")
     from volrig_addon import scans
     saved = volrig.load_rig(scans.rig_path(vol))
-    rest = volrig.Deformer(scans.source(vol), saved.points, saved.binding).frame(volrig.rest_pose(len(saved.rig)),
-                                                                                mode="linear")
-    rest_count = int(np.count_nonzero(rest.bone.array))
-    count = int(np.count_nonzero(baked.array))
-    assert abs(count - rest_count) <= 0.03 * rest_count, (count, rest_count)
-    assert baked.array.shape != rest.bone.array.shape or not np.array_equal(baked.array, rest.bone.array)
+    deformer = volrig.Deformer(scans.source(vol), saved.points, saved.binding)
+    rest = deformer.frame(volrig.rest_pose(len(saved.rig)), mode="linear").bone.array
+    headless = deformer.frame(volrig.animate(rig, walk, frames=[30])[0], mode="linear").bone.array
+    count, rest_count = int(np.count_nonzero(baked.array)), int(np.count_nonzero(rest))
+    # Blender's single-precision pose moves a few lattice-boundary voxels at most
+    assert baked.array.shape == headless.shape
+    assert np.count_nonzero(baked.array != headless) <= 1e-3 * count
+    # the hips swing the pelvis bones out of the spheres they overlap at rest: a few % more voxels
+    assert abs(count - rest_count) <= 0.05 * rest_count, (count, rest_count)
+    assert baked.array.shape != rest.shape or not np.array_equal(baked.array, rest)
 
 
 def test_drive_with_bvh_reports_errors(rigged, walk, tmp_path):

@@ -634,3 +634,20 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
                         ((tmp_path / "none.nrrd", rig_file, walk.source), "none.nrrd")]:
         r = run("bake-mocap", *args, "-o", tmp_path / "err")
         assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
+
+
+def test_basis_matrices_rebuild_blenders_pose_chain(phantom_rig, walk_matrices):
+    # Blender: pose_bone.matrix = parent.matrix @ (parent rest^-1 @ rest) @ matrix_basis; it must give M @ rest
+    rig, m = phantom_rig, walk_matrices[::200]
+    basis = rig.basis_matrices(m)
+    rest = rig.rest_matrices
+    for b, p in enumerate(rig.parents):
+        parent = m[:, p] @ rest[p] if p >= 0 else np.eye(4)
+        local_rest = np.linalg.inv(rest[p]) @ rest[b] if p >= 0 else rest[b]
+        np.testing.assert_allclose(parent @ local_rest @ basis[:, b], m[:, b] @ rest[b], atol=1e-9)
+    r = basis[..., :3, :3]
+    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-9)
+    np.testing.assert_allclose(basis[..., 3, :], np.broadcast_to([0, 0, 0, 1.0], basis[..., 3, :].shape))
+    np.testing.assert_allclose(rig.basis_matrices(volrig.rest_pose(len(rig))), volrig.rest_pose(len(rig)), atol=1e-12)
+    with pytest.raises(ValueError, match="shape"):
+        rig.basis_matrices(np.eye(4))
