@@ -166,11 +166,12 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
             layout.label(text=f"plays frames {s.baked_start} .. {s.baked_end}")
 
 
-CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_UL_bone_map, VOLRIG_PT_mocap,
-           VOLRIG_PT_look, VOLRIG_PT_bake)
+CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_PT_mocap, VOLRIG_PT_look,
+           VOLRIG_PT_bake)
 
 
 def register():
+    bpy.utils.register_class(VOLRIG_UL_bone_map)
     for c in CLASSES:
         bpy.utils.register_class(c)
 
@@ -178,3 +179,4 @@ def register():
 def unregister():
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
+    bpy.utils.unregister_class(VOLRIG_UL_bone_map)
