@@ -36,13 +36,14 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "operators", "panels"):
+    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "operators",
+               "panels"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import bake, materials, objects, operators, panels, properties, scans, staging  # noqa: E402,F401
+from . import bake, materials, mocap, objects, operators, panels, properties, scans, staging  # noqa: E402,F401
 
 
 def register():

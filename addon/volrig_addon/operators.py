@@ -12,7 +12,7 @@ import volrig
 from volrig.volume import FORMATS
 
 from . import bake as baking
-from . import materials, objects, scans
+from . import materials, mocap, objects, scans
 from .properties import UNIT_FACTOR, UNIT_SCALES
 
 #: What a user mistake or a bad file raises; reported in the UI, never as a traceback.
@@ -392,6 +392,92 @@ class VOLRIG_OT_walk_cycle(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _rigged_volume(context):
+    vol = _active_volume(context)
+    return vol if vol is not None and "RIG" in objects.members(vol) else None
+
+
+class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
+    """Drive the rig with a motion capture clip (.bvh): retarget it (volrig.animate) and key every pose bone, so
+    Bake and render follow. Uses the bone map in the panel when it was made for this clip's joints"""
+    bl_idname = "volrig.drive_with_bvh"
+    bl_label = "Drive with BVH"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filename_ext = ".bvh"
+    filter_glob: StringProperty(default="*.bvh", options={"HIDDEN"})
+    root_motion: EnumProperty(name="Root motion", items=[
+        ("in_place", "In place", "The rig walks on the spot (feet still touch the floor)"),
+        ("travel", "Travel", "The rig follows the clip's path over the floor, scaled"),
+    ], default="in_place")
+    up_axis: EnumProperty(name="Clip up axis", items=[("y", "Y", "Y-up clips (most BVH files)"),
+                                                      ("z", "Z", "Z-up clips")], default="y")
+    first: bpy.props.IntProperty(name="First BVH frame", default=1, min=1)
+    last: bpy.props.IntProperty(name="Last BVH frame", default=0, min=0, description="0 = the clip's last frame")
+    step: bpy.props.IntProperty(name="Step", default=1, min=1,
+                                description="Key every STEP-th clip frame (e.g. 5 plays a 120 fps clip at 24 fps)")
+    frame_start: bpy.props.IntProperty(name="Start frame", default=1, description="Scene frame of the first key")
+
+    @classmethod
+    def poll(cls, context):
+        return _rigged_volume(context) is not None and context.mode in ("OBJECT", "POSE")
+
+    @_reported
+    def execute(self, context):
+        vol = _rigged_volume(context)
+        if vol is None:
+            raise ValueError("select a rigged volrig volume (press Rig first)")
+        rig_obj = objects.members(vol)["RIG"]
+        path = bpy.path.abspath(self.filepath)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"{path}: no such file")
+        motion = volrig.read_bvh(path)
+        last = self.last or motion.frame_count
+        if not 1 <= self.first <= last <= motion.frame_count:
+            raise ValueError(f"{os.path.basename(path)} has frames 1-{motion.frame_count}; "
+                             f"asked for {self.first}-{last}")
+        rig = objects.armature_rig(rig_obj)
+        bone_map = mocap.stored_bone_map(vol, motion)
+        if bone_map is None:
+            bone_map = volrig.default_bone_map(motion, rig)
+            mocap.store_bone_map(vol, motion, bone_map)  # shown (and editable) even if the retarget fails
+        frames = np.arange(self.first - 1, last, self.step)
+        matrices = volrig.animate(rig, motion, frames=frames, bone_map=bone_map, root_motion=self.root_motion,
+                                  up_axis=self.up_axis)
+        mocap.key_pose(rig_obj, rig, matrices, self.frame_start + np.arange(len(frames)))
+        vol.volrig.bvh_file = path
+        scene = context.scene
+        scene.frame_start, scene.frame_end = self.frame_start, self.frame_start + len(frames) - 1
+        fps = motion.fps / self.step
+        scene.render.fps = max(1, round(fps))
+        scene.render.fps_base = scene.render.fps / fps
+        scene.frame_set(self.frame_start)
+        self.report({"INFO"}, f"volrig: {len(frames)} frames of {os.path.basename(path)} keyed on "
+                              f"{len(bone_map)} mapped bones of {len(rig)}, {fps:.4g} fps")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_reset_bone_map(bpy.types.Operator):
+    """Fill the bone map again from the names of the last clip's joints and the rig's bones"""
+    bl_idname = "volrig.reset_bone_map"
+    bl_label = "Map by Names"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        vol = _rigged_volume(context)
+        return vol is not None and bool(vol.volrig.bvh_file)
+
+    @_reported
+    def execute(self, context):
+        vol = _rigged_volume(context)
+        motion = volrig.read_bvh(bpy.path.abspath(vol.volrig.bvh_file))
+        bone_map = volrig.default_bone_map(motion, objects.armature_rig(objects.members(vol)["RIG"]))
+        mocap.store_bone_map(vol, motion, bone_map)
+        self.report({"INFO"}, f"volrig: {len(bone_map)} of {len(motion.names)} joints mapped by name")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_show_rest(bpy.types.Operator):
     """Show the imported volume again instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
@@ -413,8 +499,9 @@ def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
-CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_bake,
-           VOLRIG_OT_walk_cycle, VOLRIG_OT_show_rest)
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
+           VOLRIG_OT_bake, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh, VOLRIG_OT_reset_bone_map,
+           VOLRIG_OT_show_rest)
 
 
 def register():

@@ -1,5 +1,5 @@
-"""The "volrig" tab of the 3D view's sidebar: Volume, Segment, Skeleton, Rig, Look and Bake panels for the volrig
-set of the active object."""
+"""The "volrig" tab of the 3D view's sidebar: Volume, Segment, Skeleton, Rig, Motion capture, Look and Bake panels
+for the volrig set of the active object."""
 import bpy
 
 from . import objects
@@ -98,6 +98,40 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
                          icon="MESH_UVSPHERE")
 
 
+class VOLRIG_UL_bone_map(bpy.types.UIList):
+    """One line per BVH joint: its name and the rig bone it drives (pick from the armature's bones)."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        rig = objects.members(data.id_data).get("RIG")
+        row = layout.row(align=True)
+        row.label(text=item.joint, icon="BONE_DATA" if item.bone else "BLANK1")
+        if rig is not None:
+            row.prop_search(item, "bone", rig.data, "bones", text="")
+        else:
+            row.prop(item, "bone", text="")
+
+
+class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Motion capture"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        vol = objects.volume_of(context.active_object)
+        s = vol.volrig
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator("volrig.drive_with_bvh", icon="ARMATURE_DATA")
+        row.operator("volrig.reset_bone_map", icon="FILE_REFRESH")
+        if s.bvh_file:
+            layout.label(text=bpy.path.basename(s.bvh_file), icon="FILE")
+        if len(s.bone_map):
+            mapped = sum(1 for p in s.bone_map if p.bone)
+            layout.label(text=f"Bone map: {mapped} of {len(s.bone_map)} joints drive a bone")
+            layout.template_list("VOLRIG_UL_bone_map", "", s, "bone_map", s, "bone_map_index", rows=6)
+        else:
+            layout.label(text="Bone map: made from the names on the first drive")
+
+
 class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
     bl_label = "Look"
 
@@ -133,10 +167,12 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
             layout.label(text=f"plays frames {s.baked_start} .. {s.baked_end}")
 
 
-CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_PT_look, VOLRIG_PT_bake)
+CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_PT_mocap, VOLRIG_PT_look,
+           VOLRIG_PT_bake)
 
 
 def register():
+    bpy.utils.register_class(VOLRIG_UL_bone_map)
     for c in CLASSES:
         bpy.utils.register_class(c)
 
@@ -144,3 +180,4 @@ def register():
 def unregister():
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
+    bpy.utils.unregister_class(VOLRIG_UL_bone_map)

@@ -2,8 +2,8 @@
 imported, segmented, skeletonized and rigged. Every setting lives on the ``<name>`` Volume object; the rig, the
 sphere mesh and the skeleton preview point back to it."""
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty,
-                       IntVectorProperty, PointerProperty, StringProperty)
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 UNIT_SCALES = [
     ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
@@ -31,6 +31,12 @@ def _look_changed(self, context):
 
 def _volume_object(self, obj):
     return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
+
+
+class VolrigBonePair(bpy.types.PropertyGroup):
+    """One line of the motion capture bone map: a BVH joint and the rig bone it drives."""
+    joint: StringProperty(name="BVH joint", description="A joint of the BVH clip")
+    bone: StringProperty(name="Rig bone", description="The rig bone this joint drives (empty: not mapped)")
 
 
 class VolrigObject(bpy.types.PropertyGroup):
@@ -96,6 +102,12 @@ class VolrigObject(bpy.types.PropertyGroup):
     ], default="smooth")
     rig_file: StringProperty(name="Rig file", description="The .vrig file (points, tree, rig, binding) in the cache")
 
+    # --- motion capture ---
+    bvh_file: StringProperty(name="BVH", subtype="FILE_PATH", description="The clip that last drove the rig")
+    bone_map: CollectionProperty(type=VolrigBonePair, name="Bone map",
+                                 description="BVH joint -> rig bone; Drive with BVH uses it for the same clip")
+    bone_map_index: IntProperty(name="Bone map line", default=0)
+
     # --- look ---
     preset: EnumProperty(name="Transfer function", items=[
         ("CT_BONE", "CT bone", "Dense values opaque and bone-white, soft values transparent"),
@@ -128,6 +140,7 @@ class VolrigObject(bpy.types.PropertyGroup):
 
 
 def register():
+    bpy.utils.register_class(VolrigBonePair)
     bpy.utils.register_class(VolrigObject)
     bpy.types.Object.volrig = PointerProperty(type=VolrigObject)
 
@@ -135,3 +148,4 @@ def register():
 def unregister():
     del bpy.types.Object.volrig
     bpy.utils.unregister_class(VolrigObject)
+    bpy.utils.unregister_class(VolrigBonePair)

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -131,13 +131,11 @@ def _frame_range(text: str, count: int):
     return np.arange(first - 1, last)
 
 
-def cmd_animate(args) -> int:
-    from .files import atomic_output
-    from .mocap import animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
+def _mocap_matrices(args):
+    """What ``animate`` and ``bake-mocap`` share: the rig file, the clip, the BVH frames (0-based), the bone map and
+    the (F, B, 4, 4) rest-to-pose matrices of those frames."""
+    from .mocap import animate, default_bone_map, load_bone_map, read_bvh
     from .rigfile import load_rig
-    if not args.output.endswith(".npz"):
-        raise ValueError(f"{args.output}: the output must be a .npz file")
-    t = time.perf_counter()
     saved = load_rig(args.rig)
     if saved.rig is None:
         raise ValueError(f"{args.rig}: the file holds no rig")
@@ -146,6 +144,24 @@ def cmd_animate(args) -> int:
     bone_map = load_bone_map(args.map) if args.map else default_bone_map(motion, saved.rig)
     matrices = animate(saved.rig, motion, frames=frames, bone_map=bone_map, root_motion=args.root,
                        up_axis=args.up, scale=args.scale)
+    return saved, motion, frames, bone_map, matrices
+
+
+def _add_mocap_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", help="BVH frames FIRST-LAST, 1-based and inclusive (default all)")
+    p.add_argument("--map", help="bone map JSON {BVH joint: rig bone} (default: automatic from the names)")
+    p.add_argument("--root", choices=["in_place", "travel"], default="in_place", help="root motion")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the BVH's up axis (default y)")
+    p.add_argument("--scale", type=float, help="rig units per BVH unit (default: from the leg lengths)")
+
+
+def cmd_animate(args) -> int:
+    from .files import atomic_output
+    from .mocap import save_bone_map
+    if not args.output.endswith(".npz"):
+        raise ValueError(f"{args.output}: the output must be a .npz file")
+    t = time.perf_counter()
+    saved, motion, frames, bone_map, matrices = _mocap_matrices(args)
     with atomic_output(args.output, suffix=".npz") as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, matrices=matrices, frames=frames, bone_names=np.array(saved.rig.names, np.str_),
@@ -157,6 +173,50 @@ def cmd_animate(args) -> int:
     print(f"{len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} of {motion.frame_count}, "
           f"{motion.fps:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, {args.root}; "
           f"{time.perf_counter() - t:.2f} s -> {args.output}")
+    return 0
+
+
+def mocap_frame_path(folder: str, stem: str, bvh_frame: int, step: int) -> str:
+    """``<folder>/<stem>_NNNN.vdb`` of 0-based BVH frame ``bvh_frame`` baked every ``step`` frames: numbered from 1
+    over the whole clip (BVH frames 1, 1 + step, ... are files 1, 2, ...), so split ranges fit one sequence."""
+    import os
+    return os.path.join(folder, f"{stem}_{bvh_frame // step + 1:04d}.vdb")
+
+
+def cmd_bake_mocap(args) -> int:
+    import os
+    from .deform import Deformer
+    if args.step < 1:
+        raise ValueError(f"--step must be at least 1, got {args.step}")
+    t = time.perf_counter()
+    source = _load(args)
+    saved, motion, frames, bone_map, matrices = _mocap_matrices(args)
+    if saved.binding is None:
+        raise ValueError(f"{args.rig}: the file holds no binding (make it with `volrig rig`)")
+    keep = frames % args.step == 0  # BVH frames 1, 1 + step, ...: the same on every machine of a farm
+    frames, matrices = frames[keep], matrices[keep]
+    if not len(frames):
+        raise ValueError(f"--frames {args.frames}: no frame of the range falls on the --step {args.step} grid "
+                         f"(BVH frames 1, {1 + args.step}, ...)")
+    stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
+    os.makedirs(args.output, exist_ok=True)
+    deformer = Deformer(source, saved.points, saved.binding)
+    written = 0
+    for k, (f, m) in enumerate(zip(frames, matrices)):
+        path = mocap_frame_path(args.output, stem, int(f), args.step)
+        if args.skip_existing and os.path.exists(path):
+            sys.stderr.write(f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: {path} exists, skipped\n")
+            continue
+        started = time.perf_counter()
+        frame = deformer.frame(m, mode=args.mode, sampling=args.sampling)
+        frame.save(path, half=True)
+        written += 1
+        sys.stderr.write(f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: {frame.stats['covered']:,} voxels, "
+                         f"{time.perf_counter() - started:.2f} s -> {path}\n")
+        sys.stderr.flush()
+    print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
+          f"{motion.frame_count}, {motion.fps / args.step:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, "
+          f"{args.root}, {args.mode}; {time.perf_counter() - t:.1f} s -> {args.output}")
     return 0
 
 
@@ -273,13 +333,26 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", required=True,
                    help="output .npz: matrices (F, B, 4, 4) rest-to-pose in the rig's world, frames (0-based), "
                         "bone_names, frame_time, bone_map (JSON), ...")
-    p.add_argument("--frames", help="BVH frames FIRST-LAST, 1-based and inclusive (default all)")
-    p.add_argument("--map", help="bone map JSON {BVH joint: rig bone} (default: automatic from the names)")
+    _add_mocap_options(p)
     p.add_argument("--save-map", help="also write the bone map used as JSON (to edit and pass back with --map)")
-    p.add_argument("--root", choices=["in_place", "travel"], default="in_place", help="root motion")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="the BVH's up axis (default y)")
-    p.add_argument("--scale", type=float, help="rig units per BVH unit (default: from the leg lengths)")
     p.set_defaults(run=cmd_animate)
+
+    p = sub.add_parser("bake-mocap", help="bake a VDB sequence of a volume driven by a BVH clip (no Blender)")
+    _add_load_options(p)
+    p.add_argument("rig", help="rig file (.vrig, from `volrig rig` on the same volume, with its binding)")
+    p.add_argument("clip", help="motion capture (.bvh)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output folder: <name>_NNNN.vdb per frame (grids density and bone), written atomically")
+    _add_mocap_options(p)
+    p.add_argument("--step", type=int, default=1,
+                   help="bake every STEP-th BVH frame (1, 1+STEP, ...; files numbered 1, 2, ...), e.g. 5 for 120 fps "
+                        "-> 24 fps")
+    p.add_argument("--mode", choices=["rigid", "linear", "dual_quaternion"], default="linear", help="deform mode")
+    p.add_argument("--sampling", choices=["trilinear", "nearest"], default="trilinear",
+                   help="nearest for label maps")
+    p.add_argument("--name", help="file name stem (default: the volume file's)")
+    p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
+    p.set_defaults(run=cmd_bake_mocap)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

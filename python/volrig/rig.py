@@ -131,6 +131,18 @@ class Rig:
             world(b)
         return M
 
+    def basis_matrices(self, matrices) -> np.ndarray:
+        """Blender's ``pose_bone.matrix_basis`` (the bone's local pose, relative to its rest and its parent's pose)
+        for rest-to-pose matrices ``matrices`` (..., B, 4, 4): with R the rest matrices, the posed bone matrix is
+        ``M[b] @ R[b]`` = ``M[p] @ R[p] @ (R[p]^-1 @ R[b]) @ basis[b]``, so ``basis[b] = R[b]^-1 @ M[p]^-1 @ M[b] @
+        R[b]`` (``M[p]`` = identity for roots). Rigid matrices give rotation-plus-translation bases."""
+        m = np.asarray(matrices, dtype=np.float64)
+        if m.shape[-3:] != (len(self), 4, 4):
+            raise ValueError(f"matrices must have shape (..., {len(self)}, 4, 4), got {m.shape}")
+        rest = self.rest_matrices
+        parent = np.where(self.parents[:, None, None] >= 0, m[..., self.parents, :, :], np.eye(4))
+        return np.linalg.inv(rest) @ np.linalg.solve(parent, m) @ rest
+
     def snap(self, points: SkeletonPoints, joints: Optional[Sequence[int]] = None) -> "Rig":
         """A copy with the given joints (default: all) moved onto their nearest skeleton point."""
         idx = np.arange(len(self.joints)) if joints is None else np.asarray(joints, dtype=np.int64).reshape(-1)

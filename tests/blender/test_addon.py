@@ -252,6 +252,11 @@ class _Layout:
     def label(self, **kw):
         self.drawn.append(kw.get("text", ""))
 
+    def template_list(self, list_type, list_id, data, name, active_data, active_name, **kw):
+        assert hasattr(bpy.types, list_type), list_type
+        assert name in data.bl_rna.properties and active_name in active_data.bl_rna.properties
+        self.drawn.append(name)
+
     def row(self, **kw):
         return self
 
@@ -266,6 +271,6 @@ def test_panels_draw_every_stage(rigged):
         stub = type("PanelStub", (), {"layout": _Layout(drawn)})()
         cls.draw(stub, bpy.context)
     for expected in ("volrig.import_volume", "low", "thinness", "volrig.rig", "volrig.rebind", "volrig.walk_cycle",
-                     "preset", "highlight_bone", "volrig.bake", "deform_mode"):
+                     "volrig.drive_with_bvh", "preset", "highlight_bone", "volrig.bake", "deform_mode"):
         assert expected in drawn
     assert any("21 bones" in str(t) for t in drawn)

@@ -569,3 +569,85 @@ def test_cli_animate(tmp_path, phantom_points_and_rig, walk, walk_matrices):
     r = run("animate", rig_file, bad, "-o", out)
     assert r.returncode == 2 and "bad.bvh: line 25" in r.stderr and "Traceback" not in r.stderr
     assert out.read_bytes() == before
+
+
+def _vdb_active(path, grid):
+    return next(g["active_voxels"] for g in volrig._volrig.vdb_grids(str(path)) if g["name"] == grid)
+
+
+def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
+    ph = volrig.phantom.humanoid(0.3)
+    src = tmp_path / "phantom.nrrd"
+    ph.volume.save(src)
+    mask = volrig.segment(ph.volume)
+    pts = volrig.skeletonize(mask).top(6000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    assert rig.kind == "humanoid"
+    binding = volrig.bind(pts, rig, mask, mode="smooth")
+    rig_file = tmp_path / "phantom.vrig"
+    volrig.save_rig(rig_file, pts, rig=rig, binding=binding, source=str(src))
+    out = tmp_path / "frames"
+    # BVH frames 1, 31, 61 (every 30th of the 120 fps walk) -> files 1, 2, 3
+    r = run("bake-mocap", src, rig_file, walk.source, "-o", out, "--frames", "1-61", "--step", 30)
+    assert r.returncode == 0, r.stderr
+    assert "3 of 3 frames" in r.stdout and r.stderr.count("bake-mocap: ") == 3 and "3/3 BVH frame 61" in r.stderr
+    files = [out / f"phantom_{k:04d}.vdb" for k in (1, 2, 3)]
+    assert sorted(os.listdir(out)) == [f.name for f in files]  # nothing else (no temporary files left)
+    assert {g["name"] for g in volrig._volrig.vdb_grids(str(files[0]))} == {"density", "bone"}
+
+    deformer = volrig.Deformer(ph.volume, pts, binding)
+    rest = int(np.count_nonzero(deformer.frame(volrig.rest_pose(len(rig)), mode="linear").bone.array))
+    assert rest > 0.9 * np.count_nonzero(mask.array)
+    # the walk's hips swing the pelvis bones out of the spheres they overlap at rest: 3.0-3.5% more voxels here
+    counts = [_vdb_active(f, "bone") for f in files]
+    for c in counts:
+        assert abs(c - rest) <= 0.05 * rest, (c, rest)
+    bones = [volrig.load(str(f), grid="bone") for f in files]
+    for a, b in [(0, 1), (1, 2), (0, 2)]:
+        assert bones[a].array.shape != bones[b].array.shape or not np.array_equal(bones[a].array, bones[b].array)
+    # each file is the Deformer's frame for volrig.animate's matrices of that BVH frame
+    m = volrig.animate(rig, walk, frames=[30])[0]
+    expected = deformer.frame(m, mode="linear")
+    np.testing.assert_array_equal(bones[1].array, expected.bone.array)
+    np.testing.assert_allclose(bones[1].origin, expected.bone.origin, atol=1e-9)
+    density = volrig.load(str(files[1]), grid="density").array
+    np.testing.assert_allclose(density, expected.values.array, rtol=1e-3, atol=1e-3 * float(ph.volume.array.max()))
+
+    # a farm splits the range: another machine baking BVH frame 31 alone writes the same file 2
+    part = tmp_path / "part"
+    r = run("bake-mocap", src, rig_file, walk.source, "-o", part, "--frames", "20-40", "--step", 30, "--name",
+            "phantom", "--mode", "linear")
+    assert r.returncode == 0, r.stderr
+    assert os.listdir(part) == ["phantom_0002.vdb"]
+    np.testing.assert_array_equal(volrig.load(str(part / "phantom_0002.vdb"), grid="bone").array, bones[1].array)
+    r = run("bake-mocap", src, rig_file, walk.source, "-o", part, "--frames", "31", "--step", 30, "--name",
+            "phantom", "--skip-existing")
+    assert r.returncode == 0 and "exists, skipped" in r.stderr and "0 of 1 frames" in r.stdout
+
+    # clear errors: exit 2, no traceback
+    bare = tmp_path / "bare.vrig"
+    volrig.save_rig(bare, pts, rig=rig)
+    for args, words in [((src, bare, walk.source), "no binding"),
+                        ((src, rig_file, walk.source, "--step", 0), "--step"),
+                        ((src, rig_file, walk.source, "--frames", "2-20", "--step", 30), "step 30"),
+                        ((src, rig_file, walk.source, "--frames", "0-5"), "frames 1-994"),
+                        ((tmp_path / "none.nrrd", rig_file, walk.source), "none.nrrd")]:
+        r = run("bake-mocap", *args, "-o", tmp_path / "err")
+        assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
+
+
+def test_basis_matrices_rebuild_blenders_pose_chain(phantom_rig, walk_matrices):
+    # Blender: pose_bone.matrix = parent.matrix @ (parent rest^-1 @ rest) @ matrix_basis; it must give M @ rest
+    rig, m = phantom_rig, walk_matrices[::200]
+    basis = rig.basis_matrices(m)
+    rest = rig.rest_matrices
+    for b, p in enumerate(rig.parents):
+        parent = m[:, p] @ rest[p] if p >= 0 else np.eye(4)
+        local_rest = np.linalg.inv(rest[p]) @ rest[b] if p >= 0 else rest[b]
+        np.testing.assert_allclose(parent @ local_rest @ basis[:, b], m[:, b] @ rest[b], atol=1e-9)
+    r = basis[..., :3, :3]
+    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-9)
+    np.testing.assert_allclose(basis[..., 3, :], np.broadcast_to([0, 0, 0, 1.0], basis[..., 3, :].shape))
+    np.testing.assert_allclose(rig.basis_matrices(volrig.rest_pose(len(rig))), volrig.rest_pose(len(rig)), atol=1e-12)
+    with pytest.raises(ValueError, match="shape"):
+        rig.basis_matrices(np.eye(4))
