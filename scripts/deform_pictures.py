@@ -58,6 +58,20 @@ def bend_figure(path):
     plt.close(fig)
 
 
+def side_view(ax, frame, bones):
+    """Draws a frame seen along x (from -x): each pixel the first covered voxel, coloured by its bone and shaded
+    by depth, in world y/z units."""
+    cmap = plt.get_cmap("tab20", bones + 1)
+    lab = frame.bone.array  # [z, y, x]
+    depth = np.argmax(lab > 0, axis=2)
+    side = np.take_along_axis(lab, depth[..., None], axis=2)[..., 0]
+    shade = np.where(side > 0, 0.55 + 0.45 * (1 - depth / max(lab.shape[2], 1)), 1.0)
+    rgb = cmap(side)[..., :3] * shade[..., None]
+    rgb[side == 0] = 1.0
+    (_, sy, sz), (_, y0, z0) = frame.bone.spacing, frame.bone.origin
+    ax.imshow(rgb, origin="lower", extent=(y0, y0 + sy * lab.shape[1], z0, z0 + sz * lab.shape[0]))
+
+
 def phantom_figure(path):
     ph = phantom.humanoid(0.5)
     mask = volrig.segment(ph.volume)
@@ -65,17 +79,9 @@ def phantom_figure(path):
     rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
     d = volrig.Deformer(ph.volume, pts, volrig.bind(pts, rig, mask))
     frames = [("rest", d.frame(volrig.rest_pose(len(rig)))), ("walking stride", d.frame(walking_pose(rig)))]
-    cmap = plt.get_cmap("tab20", len(rig) + 1)
     fig, axes = plt.subplots(1, 2, figsize=(7.5, 7.5))
     for ax, (title, f) in zip(axes, frames):
-        lab = f.bone.array  # [z, y, x]; the side view looks along x
-        depth = np.argmax(lab > 0, axis=2)
-        side = np.take_along_axis(lab, depth[..., None], axis=2)[..., 0]
-        shade = np.where(side > 0, 0.55 + 0.45 * (1 - depth / max(lab.shape[2], 1)), 1.0)
-        rgb = cmap(side)[..., :3] * shade[..., None]
-        rgb[side == 0] = 1.0
-        y0, z0 = f.bone.origin[1], f.bone.origin[2]
-        ax.imshow(rgb, origin="lower", extent=(y0, y0 + lab.shape[1], z0, z0 + lab.shape[0]))
+        side_view(ax, f, len(rig))
         ax.set_title(f"{title}: {f.stats['covered']:,} voxels", fontsize=10)
         ax.set_xlabel("y")
         ax.set_ylabel("z")
