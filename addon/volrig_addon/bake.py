@@ -93,16 +93,11 @@ class Baker:
         """(B, 4, 4) rest-to-pose matrices of the evaluated armature, in the bone order of the binding."""
         arm = self.rig_obj.evaluated_get(depsgraph)
         out = np.empty((len(self.names), 4, 4))
-        reach = 1.0
         for b, name in enumerate(self.names):
             pb = arm.pose.bones[name]
             out[b] = np.array(pb.matrix @ pb.bone.matrix_local.inverted())
-            reach = max(reach, float(np.abs(np.array(pb.bone.head_local)).max()))
-        # Blender's single-precision pose leaves a bone at rest some 1e-7 (relative) off the identity; snap it
-        # back so a rest bone reconstructs exactly the rest spheres (their lattice-exact boundaries would flip)
-        dev = np.abs(out - np.eye(4))
-        at_rest = (dev[:, :3, :3].max(axis=(1, 2)) <= 1e-5) & (dev[:, :3, 3].max(axis=1) <= 1e-5 * reach)
-        out[at_rest] = np.eye(4)
+        # (bones at rest come out of Blender's single precision a hair off the identity: volrig.deform takes them as
+        # the identity itself)
         return out
 
     def pose_hash(self, matrices: np.ndarray) -> str:

@@ -129,8 +129,11 @@ std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid
         // A bone at rest, as single-precision pose matrices give it (off by ~1e-5): the identity, so that sphere
         // boundaries lying exactly on lattice points (every ball touches the background at exactly its radius)
         // do not flip inwards.
-        const double smin = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
-        if ((R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-5 && d.cwiseAbs().maxCoeff() < 1e-4 * smin) {
+        // A rotation that far from the identity moves points by up to 1e-5 of their distance from the origin.
+        double reach = 1.0;
+        for (int a = 0; a < 3; ++a)
+            reach = std::max(reach, std::abs(g.origin[a]) + g.spacing[a] * static_cast<double>(g.dims[a]));
+        if ((R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-5 && d.cwiseAbs().maxCoeff() <= 1e-5 * reach) {
             out.push_back(motion_of(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), g));
             continue;
         }
