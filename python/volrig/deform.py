@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from . import _volrig
-from .rig import Binding, rest_pose, rotation_about  # noqa: F401  (re-exported for convenience)
+from .rig import Binding
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
 

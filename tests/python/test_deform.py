@@ -112,12 +112,22 @@ def on_source_grid(array, offset, shape):
 
 # ---- the identity pose -------------------------------------------------------------------------------------
 
-def test_identity_pose_reproduces_the_rest_reconstruction_and_the_source(phantom_half):
-    volume = phantom_half.volume
+def rigged_volume(volume, count):
+    """Segment, skeletonize (the top `count` points), autorig and bind (rigid) a volume."""
     mask = volrig.segment(volume)
-    pts = volrig.skeletonize(mask).top(15000)
+    pts = volrig.skeletonize(mask).top(count)
     rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
-    binding = volrig.bind(pts, rig, mask)
+    return mask, pts, rig, volrig.bind(pts, rig, mask)
+
+
+@pytest.fixture(scope="module")
+def phantom_rigged(phantom_half):
+    return rigged_volume(phantom_half.volume, 15000)
+
+
+def test_identity_pose_reproduces_the_rest_reconstruction_and_the_source(phantom_half, phantom_rigged):
+    volume = phantom_half.volume
+    mask, pts, rig, binding = phantom_rigged
     d = volrig.Deformer(volume, pts, binding)
     for sampling in ("trilinear", "nearest"):
         f = d.frame(volrig.rest_pose(len(rig)), sampling=sampling)
@@ -235,12 +245,9 @@ def reversibility(volume, pts, rig, binding, M, proximity):
     return np.count_nonzero((back != rest.values.array) & obj) / np.count_nonzero(obj)
 
 
-def test_reversibility_on_the_phantom(phantom_half):
+def test_reversibility_on_the_phantom(phantom_half, phantom_rigged):
     volume = phantom_half.volume
-    mask = volrig.segment(volume)
-    pts = volrig.skeletonize(mask).top(15000)
-    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
-    binding = volrig.bind(pts, rig, mask)
+    mask, pts, rig, binding = phantom_rigged
     M = rig.pose({"thigh.L": ([1, 0, 0], 25), "thigh.R": ([1, 0, 0], -20), "shin.L": ([1, 0, 0], -30),
                   "upper_arm.L": ([1, 0, 0], -20), "upper_arm.R": ([1, 0, 0], 20), "forearm.R": ([1, 0, 0], 25)})
     moved = volrig.deform(volume, pts, binding, M, sampling="nearest")
@@ -252,10 +259,7 @@ def test_reversibility_on_the_phantom(phantom_half):
 
 def test_reversibility_on_the_frog_labels_and_the_default_proximity():
     volume = volrig.load(str(shared("frogtissue/frogtissue.mhd")))  # 26 tissue labels, used as intensities
-    mask = volrig.segment(volume)
-    pts = volrig.skeletonize(mask).top(40000)
-    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
-    binding = volrig.bind(pts, rig, mask)
+    mask, pts, rig, binding = rigged_volume(volume, 40000)
     M = rig.pose({"thigh.L": ([0, 0, 1], 25), "thigh.R": ([0, 0, 1], -20), "shin.L": ([0, 1, 0], -30),
                   "upper_arm.L": ([0, 0, 1], -20), "upper_arm.R": ([0, 0, 1], 20), "head": ([0, 1, 0], 15)})
     fractions = {p: reversibility(volume, pts, rig, binding, M, p) for p in ("power", "nearest")}
