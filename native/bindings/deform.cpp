@@ -91,6 +91,10 @@ py::dict frame_dict(DeformedVolume&& f) {
     d["covered"] = f.stats.covered;
     d["exact_queries"] = f.stats.exact_queries;
     d["blended_spheres"] = f.stats.blended_spheres;
+    d["by_block"] = f.stats.by_block;
+    d["by_cube"] = f.stats.by_cube;
+    d["by_sphere"] = f.stats.by_sphere;
+    d["by_search"] = f.stats.by_search;
     return d;
 }
 

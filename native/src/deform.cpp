@@ -15,6 +15,9 @@
 #include <numeric>
 #include <string>
 
+#include <stdlib.h>
+#include <sys/mman.h>
+
 #include "volrig/reconstruct.hpp"
 
 namespace volrig {
@@ -225,6 +228,26 @@ struct Sampler {
         f = v - static_cast<double>(i0);
     }
     float trilinear(const double* p) const {
+        if (p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < static_cast<double>(nx - 1) &&
+            p[1] < static_cast<double>(ny - 1) && p[2] < static_cast<double>(nz - 1)) {
+            // Inside the lattice (nearly always): the same arithmetic as below without clamping.
+            const auto x0 = static_cast<std::int64_t>(p[0]), y0 = static_cast<std::int64_t>(p[1]),
+                       z0 = static_cast<std::int64_t>(p[2]);
+            const double fx = p[0] - static_cast<double>(x0), fy = p[1] - static_cast<double>(y0),
+                         fz = p[2] - static_cast<double>(z0);
+            const T* d = data + (z0 * ny + y0) * nx + x0;
+            const std::int64_t sy = nx, sz = nx * ny;
+            const double v000 = static_cast<float>(d[0]), v100 = static_cast<float>(d[1]);
+            const double v010 = static_cast<float>(d[sy]), v110 = static_cast<float>(d[sy + 1]);
+            const double v001 = static_cast<float>(d[sz]), v101 = static_cast<float>(d[sz + 1]);
+            const double v011 = static_cast<float>(d[sz + sy]), v111 = static_cast<float>(d[sz + sy + 1]);
+            const double c00 = v000 + fx * (v100 - v000);
+            const double c10 = v010 + fx * (v110 - v010);
+            const double c01 = v001 + fx * (v101 - v001);
+            const double c11 = v011 + fx * (v111 - v011);
+            const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
+            return static_cast<float>(c0 + fz * (c1 - c0));
+        }
         std::int64_t x0, x1, y0, y1, z0, z1;
         double fx, fy, fz;
         cell(p[0], nx, x0, x1, fx);
@@ -411,6 +434,79 @@ struct KdNode {
     std::int32_t left = -1, right = -1;
 };
 
+/// An allocator for the large per-rig tables read at random every frame: 2 MiB aligned and marked for transparent
+/// huge pages (where the kernel offers them), so that lookups spread over hundreds of MB do not miss the TLB.
+template <class T>
+struct HugePageAllocator {
+    using value_type = T;
+    HugePageAllocator() = default;
+    template <class U>
+    HugePageAllocator(const HugePageAllocator<U>&) {}
+    T* allocate(std::size_t n) {
+        const std::size_t bytes = n * sizeof(T);
+        constexpr std::size_t kHuge = std::size_t{2} << 20;
+        if (bytes < 2 * kHuge) return static_cast<T*>(::operator new(bytes));
+        void* p = nullptr;
+        if (posix_memalign(&p, kHuge, bytes) != 0) throw std::bad_alloc();
+        madvise(p, bytes / kHuge * kHuge, MADV_HUGEPAGE);  // advice only: failure leaves ordinary pages
+        return static_cast<T*>(p);
+    }
+    void deallocate(T* p, std::size_t n) {
+        if (n * sizeof(T) < 2 * (std::size_t{2} << 20)) ::operator delete(p);
+        else std::free(p);
+    }
+    template <class U>
+    bool operator==(const HugePageAllocator<U>&) const { return true; }
+    template <class U>
+    bool operator!=(const HugePageAllocator<U>&) const { return false; }
+};
+template <class T>
+using HugeVector = std::vector<T, HugePageAllocator<T>>;
+
+/// Asks the kernel to back the 2 MiB-aligned interior of a large existing buffer (the source volume, sampled at
+/// random every frame) with huge pages, collapsing it now where the kernel can (Linux 6.1+). Contents are
+/// unchanged; any failure leaves ordinary pages.
+void advise_huge_pages(const void* data, std::size_t bytes) {
+    constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+    const auto a = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+    const auto b = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
+    if (b <= a) return;
+    void* p = reinterpret_cast<void*>(a);
+    madvise(p, b - a, MADV_HUGEPAGE);
+    madvise(p, b - a, 25 /* MADV_COLLAPSE, absent from older headers; EINVAL on older kernels */);
+}
+
+/// The power of a bone over one lattice cube (first corner at a cell), quantised outwards to int16 steps:
+/// lo <= power <= hi everywhere in the cube. kBoundMin as lo means -inf, kBoundMax as hi means +inf (and as lo,
+/// "not covered anywhere in the cube").
+struct CellBounds {
+    std::int16_t lo = 32767, hi = 32767;
+};
+constexpr std::int16_t kBoundMin = -32768, kBoundMax = 32767;
+
+inline std::int16_t quantize_down(double v, double step) {
+    const double q = std::floor(v / step);
+    if (!(q >= -32767)) return kBoundMin;
+    return static_cast<std::int16_t>(std::min(q, 32767.0));
+}
+inline std::int16_t quantize_up(double v, double step) {
+    const double q = std::ceil(v / step);
+    if (!(q <= 32766)) return kBoundMax;
+    return static_cast<std::int16_t>(std::max(q, -32767.0));
+}
+
+/// One lattice cell of a bone's field: the power-diagram label at the cell (top bit: the cube with this first
+/// corner has this label at all eight corners, so the power there is exactly this sphere's), and the power's
+/// quantised range over that cube.
+struct Cell {
+    CellBounds b;
+    std::uint32_t word = kNone;
+};
+constexpr std::uint32_t kSameBit = 0x80000000u;
+inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~kSameBit); }
+inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
+const Cell kNoCell{};
+
 struct BoneField {
     // spheres in local (k-d) order
     std::vector<std::uint32_t> global;
@@ -424,8 +520,53 @@ struct BoneField {
     std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
     std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
-    std::vector<std::uint32_t> labels;            // 512 per allocated block
+    HugeVector<Cell> cells;                       // 512 per allocated block
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
+    std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
+                                                  // (quantised in steps common to all fields, so that they compare)
+
+    /// The quantised range of the bone's power over the cubes whose first corners lie in cells [a, b] (absolute
+    /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be.
+    CellBounds range_bounds(const std::int64_t* a, const std::int64_t* b) const {
+        std::int16_t l = kBoundMax, h = kBoundMin;
+        std::int64_t s0[3], s1[3];
+        for (int i = 0; i < 3; ++i) {
+            const std::int64_t a0 = a[i] - lo[i], b0 = b[i] - lo[i];
+            if (a0 < 0 || b0 >= dims[i]) h = kBoundMax;
+            s0[i] = std::max<std::int64_t>(a0, 0);
+            s1[i] = std::min<std::int64_t>(b0, dims[i] - 1);
+            if (s1[i] < s0[i]) return CellBounds{};
+            s0[i] >>= 2;
+            s1[i] >>= 2;
+        }
+        for (std::int64_t z = s0[2]; z <= s1[2]; ++z)
+            for (std::int64_t y = s0[1]; y <= s1[1]; ++y)
+                for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
+                    const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 1) * bdims[1] + (y >> 1)) * bdims[0] + (x >> 1))];
+                    if (blk < 0) {
+                        h = kBoundMax;
+                        continue;
+                    }
+                    const CellBounds c = sub[static_cast<std::size_t>(blk) * 8 + static_cast<std::size_t>(((z & 1) * 2 + (y & 1)) * 2 + (x & 1))];
+                    l = std::min(l, c.lo);
+                    h = std::max(h, c.hi);
+                }
+        return CellBounds{l, h};
+    }
+
+    /// The cell at the first corner of the lattice cube holding p (index space), or kNoCell (b.lo >= 0: no point
+    /// of that cube can be covered). Returns its address, so that callers may issue many loads at once.
+    const Cell* cube_cell(const double* p) const {
+        if (!(p[0] >= -1e15 && p[0] <= 1e15 && p[1] >= -1e15 && p[1] <= 1e15 && p[2] >= -1e15 && p[2] <= 1e15))
+            return &kNoCell;
+        const std::int64_t x = static_cast<std::int64_t>(fast_floor(p[0])) - lo[0],
+                           y = static_cast<std::int64_t>(fast_floor(p[1])) - lo[1],
+                           z = static_cast<std::int64_t>(fast_floor(p[2])) - lo[2];
+        if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return &kNoCell;
+        const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
+        if (blk < 0) return &kNoCell;
+        return cells.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
+    }
 
     /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
     bool any_block(const std::int64_t* a, const std::int64_t* b) const {
@@ -449,7 +590,7 @@ struct BoneField {
 
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + labels.size() * 4 + block_sat.size() * 4;
+               blocks.size() * 24 + cells.size() * sizeof(Cell) + block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
     }
 
     std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
@@ -459,12 +600,20 @@ struct BoneField {
         if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return kNone;
         const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
         if (blk < 0) return kNone;
-        return labels[static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7))];
+        return label_of(cells[static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7))].word);
     }
 };
 
+inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
+    const auto& sp = f.sph[k];
+    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// A k-d tree over the spheres lifted to 4-D, (centre, sqrt(M − lim)): the power distance is the lifted Euclidean
+/// distance less M, so splitting on the fourth coordinate too separates big spheres from small ones and keeps each
+/// node's max_lim, which bounds its pruning, tight.
 void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
-              const std::vector<double>& w3, const std::vector<double>& lims) {
+              const std::vector<double>& w3, const std::vector<double>& lims, const std::vector<double>& lift) {
     KdNode node;
     node.begin = begin;
     node.end = end;
@@ -473,6 +622,7 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
         node.lo[a] = kInf;
         node.hi[a] = -kInf;
     }
+    double wlo = kInf, whi = -kInf;
     for (std::uint32_t k = begin; k < end; ++k) {
         const std::uint32_t i = order[k];
         for (int a = 0; a < 3; ++a) {
@@ -480,6 +630,8 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
             node.hi[a] = std::max(node.hi[a], w3[3 * i + a]);
         }
         node.max_lim = std::max(node.max_lim, lims[i]);
+        wlo = std::min(wlo, lift[i]);
+        whi = std::max(whi, lift[i]);
     }
     const auto self = static_cast<std::int32_t>(f.nodes.size());
     f.nodes.push_back(node);
@@ -487,15 +639,15 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
     int axis = 0;
     for (int a = 1; a < 3; ++a)
         if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
+    if (whi - wlo > node.hi[axis] - node.lo[axis]) axis = 3;
+    auto key = [&](std::uint32_t i) { return axis == 3 ? lift[i] : w3[3 * i + static_cast<std::size_t>(axis)]; };
     const std::uint32_t mid = begin + (end - begin) / 2;
     std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
-                     [&](std::uint32_t a, std::uint32_t b) {
-                         return w3[3 * a + axis] < w3[3 * b + axis] || (w3[3 * a + axis] == w3[3 * b + axis] && a < b);
-                     });
+                     [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b) || (key(a) == key(b) && a < b); });
     const auto left = static_cast<std::int32_t>(f.nodes.size());
-    build_kd(f, order, begin, mid, w3, lims);
+    build_kd(f, order, begin, mid, w3, lims, lift);
     const auto right = static_cast<std::int32_t>(f.nodes.size());
-    build_kd(f, order, mid, end, w3, lims);
+    build_kd(f, order, mid, end, w3, lims, lift);
     f.nodes[static_cast<std::size_t>(self)].left = left;
     f.nodes[static_cast<std::size_t>(self)].right = right;
 }
@@ -542,7 +694,7 @@ struct LabelEnvelope {
 
 /// Builds one bone's field from its spheres (global indices) with radii r.
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
-                           const std::vector<double>& r, double T) {
+                           const std::vector<double>& r, double T, double step) {
     BoneField f;
     const std::size_t m = members.size();
     std::vector<double> w3(3 * m), lims(m);
@@ -553,7 +705,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     }
     std::vector<std::uint32_t> order(m);
     std::iota(order.begin(), order.end(), 0u);
-    if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims);
+    const double top = m ? *std::max_element(lims.begin(), lims.end()) : 0.0;
+    std::vector<double> lift(m);
+    for (std::size_t k = 0; k < m; ++k) lift[k] = std::sqrt(top - lims[k]);
+    if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims, lift);
     f.global.resize(m);
     f.sph.resize(m);
     std::array<std::int64_t, 3> lo{std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
@@ -620,31 +775,97 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                 e.run(F.data() + base, lab.data() + base, nz, nx * ny, s2[2]);
             }
     });
-    // Keep the blocks where the power function dips below T (elsewhere no point can be covered).
+    // Keep the blocks where the power function dips below T at a cell or at the cells one step above (the far
+    // corners of the block's cubes): elsewhere no point can be covered, and a cube whose first corner lies in a
+    // block that is not kept has no corner below T.
     const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
     f.block_index.assign(static_cast<std::size_t>(bx * by * bz), -1);
-    for (std::int64_t kz = 0; kz < bz; ++kz)
-        for (std::int64_t ky = 0; ky < by; ++ky)
-            for (std::int64_t kx = 0; kx < bx; ++kx) {
-                bool any = false;
-                for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock) && !any; ++z)
-                    for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock) && !any; ++y)
-                        for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
-                            if (F[static_cast<std::size_t>((z * ny + y) * nx + x)] < T) {
-                                any = true;
-                                break;
+    std::vector<std::uint8_t> keep(static_cast<std::size_t>(bx * by * bz), 0);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, bz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        for (std::int64_t kz = rg.begin(); kz != rg.end(); ++kz)
+            for (std::int64_t ky = 0; ky < by; ++ky)
+                for (std::int64_t kx = 0; kx < bx; ++kx) {
+                    bool any = false;
+                    for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock + 1) && !any; ++z)
+                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock + 1) && !any; ++y) {
+                            const double* row = F.data() + static_cast<std::size_t>((z * ny + y) * nx);
+                            for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock + 1); ++x)
+                                if (row[x] < T) {
+                                    any = true;
+                                    break;
+                                }
+                        }
+                    keep[static_cast<std::size_t>((kz * by + ky) * bx + kx)] = any;
+                }
+    });
+    for (std::int64_t k = 0; k < bx * by * bz; ++k) {
+        if (!keep[static_cast<std::size_t>(k)]) continue;
+        const std::int64_t kx = k % bx, ky = (k / bx) % by, kz = k / (bx * by);
+        f.block_index[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(f.blocks.size());
+        f.blocks.push_back({lo[0] + kx * kBlock, lo[1] + ky * kBlock, lo[2] + kz * kBlock});
+    }
+    f.cells.assign(f.blocks.size() * 512, Cell{});
+    f.sub.assign(f.blocks.size() * 8, CellBounds{});
+    double maxlim = 0;
+    for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
+    const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
+    const double slack = 1e-9 * (maxlim + 4 * quarter);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
+            Cell* out = f.cells.data() + slot * 512;
+            const std::int64_t x0 = f.blocks[slot][0] - lo[0], y0 = f.blocks[slot][1] - lo[1], z0 = f.blocks[slot][2] - lo[2];
+            for (std::int64_t z = z0; z < std::min(nz, z0 + kBlock); ++z)
+                for (std::int64_t y = y0; y < std::min(ny, y0 + kBlock); ++y)
+                    for (std::int64_t x = x0; x < std::min(nx, x0 + kBlock); ++x) {
+                        const int li = static_cast<int>(((z - z0) * 8 + (y - y0)) * 8 + (x - x0));
+                        std::uint32_t word = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
+                        // The power over the cube with first corner (x, y, z): at least the least corner value
+                        // minus the concave term's largest value Σ s²/4 (corners outside the field hold at least
+                        // T); at most, for any sphere labelling a corner, its largest corner value (convexity).
+                        double fmin = kInf;
+                        std::uint32_t ks[8];
+                        int nk = 0;
+                        bool complete = true;  // all eight corners inside the field and labelled
+                        for (int c = 0; c < 8; ++c) {
+                            const std::int64_t cx = x + (c & 1), cy = y + ((c >> 1) & 1), cz = z + ((c >> 2) & 1);
+                            if (cx >= nx || cy >= ny || cz >= nz) {
+                                fmin = std::min(fmin, T);
+                                complete = false;
+                                continue;
                             }
-                if (!any) continue;
-                const auto slot = static_cast<std::int32_t>(f.blocks.size());
-                f.block_index[static_cast<std::size_t>((kz * by + ky) * bx + kx)] = slot;
-                f.blocks.push_back({lo[0] + kx * kBlock, lo[1] + ky * kBlock, lo[2] + kz * kBlock});
-                f.labels.resize(f.labels.size() + 512, kNone);
-                std::uint32_t* out = f.labels.data() + static_cast<std::size_t>(slot) * 512;
-                for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock); ++z)
-                    for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock); ++y)
-                        for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock); ++x)
-                            out[((z & 7) * 8 + (y & 7)) * 8 + (x & 7)] = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
+                            const auto i = static_cast<std::size_t>((cz * ny + cy) * nx + cx);
+                            fmin = std::min(fmin, F[i]);
+                            complete = complete && lab[i] != kNone;
+                            if (lab[i] != kNone && std::find(ks, ks + nk, lab[i]) == ks + nk) ks[nk++] = lab[i];
+                        }
+                        if (complete && nk == 1) word |= kSameBit;
+                        const double lower = fmin - quarter;
+                        if (!(lower < 0)) {
+                            out[li] = Cell{CellBounds{kBoundMax, kBoundMax}, word};
+                            continue;
+                        }
+                        double upper = kInf;
+                        const double rest[3] = {static_cast<double>(x + lo[0]), static_cast<double>(y + lo[1]),
+                                                static_cast<double>(z + lo[2])};
+                        for (int k = 0; k < nk; ++k) {
+                            double mx = -kInf;
+                            for (int c = 0; c < 8 && mx < upper; ++c) {
+                                const double corner[3] = {rest[0] + (c & 1), rest[1] + ((c >> 1) & 1), rest[2] + ((c >> 2) & 1)};
+                                mx = std::max(mx, power_of(f, ks[k], corner, s2));
+                            }
+                            upper = std::min(upper, mx);
+                        }
+                        out[li] = Cell{CellBounds{quantize_down(lower - slack, step), quantize_up(upper + slack, step)}, word};
+                    }
+            CellBounds* sb = f.sub.data() + slot * 8;
+            for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
+            for (int li = 0; li < 512; ++li) {
+                CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
+                t.lo = std::min(t.lo, out[li].b.lo);
+                t.hi = std::max(t.hi, out[li].b.hi);
             }
+        }
+    });
     const std::int64_t sx = bx + 1, sy = by + 1;
     f.block_sat.assign(static_cast<std::size_t>(sx * sy * (bz + 1)), 0);
     for (std::int64_t z = 1; z <= bz; ++z)
@@ -712,8 +933,29 @@ void query(const BoneField& f, std::int32_t node, const double* p, const double*
     }
 }
 
-Best exact(const BoneField& f, const double* p_index, const double* s, const double* s2, bool nearest) {
-    Best b;
+/// Whether any of the bone's spheres covers the point (|p − c|² < lim): a search that stops at the first one.
+bool any_cover(const BoneField& f, std::int32_t node, const double* p, const double* pi, const double* s2) {
+    const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
+    const double md = mindist2(n, p);
+    if (md >= n.max_lim + 1e-9 * (1.0 + md + n.max_lim)) return false;
+    if (n.left < 0) {
+        for (std::uint32_t k = n.begin; k < n.end; ++k) {
+            const auto& sp = f.sph[k];
+            if (length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2) < sp.lim) return true;
+        }
+        return false;
+    }
+    const bool left_first = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p) <=
+                            mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
+    return left_first ? any_cover(f, n.left, p, pi, s2) || any_cover(f, n.right, p, pi, s2)
+                      : any_cover(f, n.right, p, pi, s2) || any_cover(f, n.left, p, pi, s2);
+}
+
+/// `seed`: a sphere's (power, local, global) at the point when one is known (power proximity only): it prunes the
+/// search from the start and cannot change the result, the least (key, global) over all spheres.
+Best exact(const BoneField& f, const double* p_index, const double* s, const double* s2, bool nearest,
+           const Best& seed = Best{}) {
+    Best b = seed;
     if (f.nodes.empty()) return b;
     const double pw[3] = {p_index[0] * s[0], p_index[1] * s[1], p_index[2] * s[2]};
     query(f, 0, pw, p_index, s2, nearest, b);
@@ -741,16 +983,16 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
         const std::int32_t blk =
             f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
         if (blk < 0) return false;
-        const std::uint32_t* b0 =
-            f.labels.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
-        lab[0] = b0[0];
-        lab[1] = b0[1];
-        lab[2] = b0[8];
-        lab[3] = b0[9];
-        lab[4] = b0[64];
-        lab[5] = b0[65];
-        lab[6] = b0[72];
-        lab[7] = b0[73];
+        const Cell* b0 =
+            f.cells.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
+        lab[0] = label_of(b0[0].word);
+        lab[1] = label_of(b0[1].word);
+        lab[2] = label_of(b0[8].word);
+        lab[3] = label_of(b0[9].word);
+        lab[4] = label_of(b0[64].word);
+        lab[5] = label_of(b0[65].word);
+        lab[6] = label_of(b0[72].word);
+        lab[7] = label_of(b0[73].word);
     } else if (lx >= 0 && ly >= 0 && lz >= 0 && lx + 1 < f.dims[0] && ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
         // Inside the field, across block faces: each corner from its own block.
         const std::int64_t l[3] = {lx, ly, lz};
@@ -765,8 +1007,8 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
             const std::int32_t b =
                 f.block_index[static_cast<std::size_t>((blk[2][k] * f.bdims[1] + blk[1][j]) * f.bdims[0] + blk[0][i])];
             lab[c] = b < 0 ? kNone
-                           : f.labels[static_cast<std::size_t>(b) * 512 +
-                                      static_cast<std::size_t>((off[2][k] * 8 + off[1][j]) * 8 + off[0][i])];
+                           : label_of(f.cells[static_cast<std::size_t>(b) * 512 +
+                                              static_cast<std::size_t>((off[2][k] * 8 + off[1][j]) * 8 + off[0][i])].word);
         }
     } else {
         for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
@@ -781,11 +1023,6 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     cube.base[2] = fz;
     cube.same = same;
     return any;
-}
-
-inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
-    const auto& sp = f.sph[k];
-    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
 }
 
 /// An upper bound of the bone's power at p: the least power at p among the cube's labels (a real sphere's, so
@@ -859,6 +1096,7 @@ struct Deformer::Impl {
     SmoothGroups groups;                    // fields from bone_count on are its groups, in order
     std::int64_t blended_spheres = 0;
     std::vector<double> radii;              // scaled radii
+    double bound_step = 1;                  // the quantum of the fields' power bounds
 
     BoundSpheres view() const {
         BoundSpheres s;
@@ -905,9 +1143,14 @@ struct Deformer::Impl {
             members[f].push_back(static_cast<std::uint32_t>(i));
         }
         const double T = threshold();
+        // One quantum for every field's power bounds (they are compared across fields as integers).
+        double maxlim = 0;
+        for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
+        const double step = (maxlim + 4 * T) / 30000.0;
+        bound_step = step;
         fields.reserve(members.size());
         for (std::size_t f = 0; f < members.size(); ++f) {
-            fields.push_back(build_bone_field(grid, s, members[f], radii, T));
+            fields.push_back(build_bone_field(grid, s, members[f], radii, T, step));
             report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(members.size()));
         }
         built = true;
@@ -925,6 +1168,7 @@ Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl
     Impl& m = *impl_;
     m.source = source;
     m.grid = source.grid;
+    advise_huge_pages(source.data, static_cast<std::size_t>(source.grid.voxel_count()) * dtype_size(source.dtype));
     m.n = spheres.n;
     m.bone_count = spheres.bone_count;
     m.ijk.assign(spheres.ijk, spheres.ijk + 3 * spheres.n);
@@ -1032,8 +1276,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     }
 
     // The bones whose rest data the preimage of output block (kx, ky, kz) meets.
-    auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb) {
+    // With each, the range of its power over the block (from the rest cubes its preimage can reach).
+    auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb,
+                                std::vector<CellBounds>& range) {
         cb.clear();
+        range.clear();
         const std::size_t blk = static_cast<std::size_t>((kz * oby + ky) * obx + kx);
         for (std::size_t w = 0; w < words; ++w) {
             std::uint64_t m = bits[blk * words + w];
@@ -1059,14 +1306,39 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 const std::int64_t cc[3] = {static_cast<std::int64_t>(std::floor(phi[0])) + 1,
                                             static_cast<std::int64_t>(std::floor(phi[1])) + 1,
                                             static_cast<std::int64_t>(std::floor(phi[2])) + 1};
-                if (fields[static_cast<std::size_t>(b)].any_block(ca, cc)) cb.push_back(b);
+                const BoneField& f = fields[static_cast<std::size_t>(b)];
+                if (!f.any_block(ca, cc)) continue;
+                // The voxels span [0, kBlock - 1] in the block: their preimages' cells, with a rounding margin.
+                double rlo[3] = {kInf, kInf, kInf}, rhi[3] = {-kInf, -kInf, -kInf};
+                for (int c = 0; c < 8; ++c) {
+                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock - 1 : 0)),
+                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock - 1 : 0)),
+                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock - 1 : 0))};
+                    double r[3];
+                    fmot[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    for (int a = 0; a < 3; ++a) {
+                        rlo[a] = std::min(rlo[a], r[a]);
+                        rhi[a] = std::max(rhi[a], r[a]);
+                    }
+                }
+                std::int64_t ra[3], rb[3];
+                for (int a = 0; a < 3; ++a) {
+                    ra[a] = static_cast<std::int64_t>(std::floor(rlo[a] - 1e-6 * (1 + std::abs(rlo[a]))));
+                    rb[a] = static_cast<std::int64_t>(std::floor(rhi[a] + 1e-6 * (1 + std::abs(rhi[a]))));
+                }
+                const CellBounds rg = f.range_bounds(ra, rb);
+                if (rg.lo >= 0) continue;
+                cb.push_back(b);
+                range.push_back(rg);
             }
         }
     };
 
     auto exact_covered = [&](Cand& c, std::int64_t& n_q) {
         ++n_q;
-        const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false);
+        Best seed;
+        if (c.local != kNone) seed = {c.U, c.local, c.global};
+        const Best e = exact(fields[static_cast<std::size_t>(c.bone)], c.p, grid.spacing.data(), s2, false, seed);
         c.L = c.U = e.key;
         c.local = e.local;
         c.global = e.global;
@@ -1093,7 +1365,10 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         }
         set_lower(c);
         if (!(c.L < 0)) return false;
-        return exact_covered(c, n_q);
+        ++n_q;
+        const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
+        const double pw[3] = {c.p[0] * grid.spacing[0], c.p[1] * grid.spacing[1], c.p[2] * grid.spacing[2]};
+        return !f.nodes.empty() && any_cover(f, 0, pw, c.p, s2);
     };
 
     // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
@@ -1111,6 +1386,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 continue;
             }
             c.has_U = c.has_L = false;
+            c.local = kNone;
             c.covered = false;
             if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
                 c.local = c.cube.lab[0];
@@ -1178,56 +1454,200 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         float values[512];
         std::int16_t bone[512];
     };
+    struct Tier {
+        std::int32_t field;
+        double U, L;
+        std::uint32_t global;
+        bool exact;
+        double p[3];
+    };
+    static const Tier kUndecided{};
     struct Local {
+        std::vector<Tier> tiers;
         std::vector<Kept> kept;
         std::int64_t lo[3] = {std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
                               std::numeric_limits<std::int64_t>::max()};
         std::int64_t hi[3] = {-1, -1, -1};
-        std::int64_t covered = 0, queries = 0;
+        std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
+        // scratch
+        std::vector<std::int32_t> cb, running;
+        std::vector<CellBounds> range;
+        std::vector<Cand> cands;
+        std::vector<Cell> bk;  // per candidate, per voxel of the block: the cell of the cube holding its preimage
+        std::vector<const Cell*> at = std::vector<const Cell*>(512, &kNoCell);
+        Kept buf;
     };
     tbb::enumerable_thread_specific<Local> locals;
     const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
     with_sampler(source, [&](auto sampler) {
+        // One output block: candidates and block-level decisions, then per candidate the cube ranges of all its
+        // voxels (independent lookups, which the processor overlaps), then per voxel the winner: from the ranges
+        // when they decide, else through resolve() on the candidates still in the running.
+        // The second tier (power proximity): for the candidates in loc.running (indices into loc.cb), each one's
+        // power at posed point m3 from its cube's first-corner sphere: exact when the cube is that sphere's alone,
+        // else an upper bound, with the cube's quantised lower bound. Returns the winner, null when none covers,
+        // or &kUndecided.
+        auto second_tier = [&](Local& loc, const Cell* bv, const double* m3) -> const Tier* {
+            auto& tiers = loc.tiers;
+            tiers.clear();
+            bool all_exact = true;
+            for (std::int32_t k : loc.running) {
+                const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
+                const Cell c = bv[static_cast<std::size_t>(k) * 512];
+                const std::uint32_t lab = label_of(c.word);
+                if (lab == kNone) return &kUndecided;
+                Tier& t = tiers.emplace_back();
+                t.field = fi;
+                fmot[static_cast<std::size_t>(fi)].inverse.apply(m3, t.p);
+                const BoneField& f = fields[static_cast<std::size_t>(fi)];
+                t.U = power_of(f, lab, t.p, s2);
+                t.global = f.global[lab];
+                t.exact = same_of(c.word);
+                t.L = t.exact ? t.U : (c.b.lo == kBoundMin ? -kInf : c.b.lo * bound_step);
+                all_exact = all_exact && t.exact;
+            }
+            std::size_t a = 0;
+            for (std::size_t k = 1; k < tiers.size(); ++k)
+                if (tiers[k].U < tiers[a].U || (tiers[k].U == tiers[a].U && tiers[k].global < tiers[a].global)) a = k;
+            const Tier& w = tiers[a];
+            if (!(w.U < 0)) return all_exact ? nullptr : &kUndecided;
+            for (std::size_t k = 0; k < tiers.size(); ++k) {
+                if (k == a) continue;
+                const Tier& t = tiers[k];
+                const bool beaten = t.exact ? (w.U < t.U || (w.U == t.U && w.global < t.global)) : w.U < t.L;
+                if (!beaten) return &kUndecided;
+            }
+            return &w;
+        };
+        auto gather_block = [&](Local& loc, std::int64_t kx, std::int64_t ky, std::int64_t kz) {
+            auto& cb = loc.cb;
+            auto& range = loc.range;
+            block_candidates(kx, ky, kz, cb, range);
+            if (cb.empty()) return;
+            // A candidate whose least power exceeds another's greatest covering power never wins here.
+            if (!nearest && cb.size() > 1) {
+                std::int16_t u = kBoundMax;
+                for (const auto& r : range) u = std::min(u, r.hi);
+                if (u < 0) {
+                    std::size_t w = 0;
+                    for (std::size_t k = 0; k < cb.size(); ++k)
+                        if (!(range[k].lo > u)) {
+                            cb[w] = cb[k];
+                            range[w++] = range[k];
+                        }
+                    cb.resize(w);
+                    range.resize(w);
+                }
+            }
+            const std::int64_t ex = std::min(kBlock, nx - kx * kBlock), ey = std::min(kBlock, ny - ky * kBlock),
+                               ez = std::min(kBlock, nz - kz * kBlock);
+            const std::size_t K = cb.size();
+            // A lone candidate covering the whole block needs no lookups.
+            const bool whole = K == 1 && range[0].hi < 0;
+            if (!whole) {
+                loc.bk.resize(K * 512);
+                for (std::size_t k = 0; k < K; ++k) {
+                    const Affine& inv = fmot[static_cast<std::size_t>(cb[k])].inverse;
+                    const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
+                    Cell* bv = loc.bk.data() + k * 512;
+                    const Cell** at = loc.at.data();
+                    for (std::int64_t dz = 0; dz < ez; ++dz)
+                        for (std::int64_t dy = 0; dy < ey; ++dy)
+                            for (std::int64_t dx = 0; dx < ex; ++dx) {
+                                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
+                                const double m3[3] = {static_cast<double>(kx * kBlock + dx + bx[0]),
+                                                      static_cast<double>(ky * kBlock + dy + bx[1]),
+                                                      static_cast<double>(kz * kBlock + dz + bx[2])};
+                                double p[3];
+                                inv.apply(m3, p);
+                                at[li] = f.cube_cell(p);
+                            }
+                    // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
+                    for (std::int64_t dz = 0; dz < ez; ++dz)
+                        for (std::int64_t dy = 0; dy < ey; ++dy)
+                            for (std::int64_t dx = 0; dx < ex; ++dx) {
+                                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
+                                bv[li] = *at[li];
+                            }
+                }
+            }
+            Kept& buf = loc.buf;
+            std::fill(buf.bone, buf.bone + 512, std::int16_t{0});
+            std::fill(buf.values, buf.values + 512, 0.0f);
+            bool any = false;
+            for (std::int64_t dz = 0; dz < ez; ++dz)
+                for (std::int64_t dy = 0; dy < ey; ++dy)
+                    for (std::int64_t dx = 0; dx < ex; ++dx) {
+                        const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
+                        const std::int64_t v[3] = {kx * kBlock + dx, ky * kBlock + dy, kz * kBlock + dz};
+                        const double m3[3] = {static_cast<double>(v[0] + bx[0]), static_cast<double>(v[1] + bx[1]),
+                                              static_cast<double>(v[2] + bx[2])};
+                        std::int32_t win_field = cb[0];
+                        double pw[3];
+                        const double* win_p = pw;
+                        int how = 0;
+                        if (!whole) {
+                            const Cell* bv = loc.bk.data() + li;
+                            std::size_t a = 0, accepted = 0;
+                            for (std::size_t k = 0; k < K; ++k) {
+                                accepted += bv[k * 512].b.lo < 0;
+                                if (bv[k * 512].b.hi < bv[a * 512].b.hi) a = k;
+                            }
+                            if (!accepted) continue;
+                            const std::int16_t u = bv[a * 512].b.hi;
+                            bool certain = u < 0 && (!nearest || accepted == 1);
+                            for (std::size_t k = 0; k < K && certain; ++k)
+                                if (k != a && !(bv[k * 512].b.lo > u)) certain = false;
+                            how = 1;
+                            if (certain) {
+                                win_field = cb[a];
+                            } else {
+                                // Candidates whose least power exceeds a certain covering power cannot win.
+                                loc.running.clear();
+                                for (std::size_t k = 0; k < K; ++k) {
+                                    const std::int16_t l = bv[k * 512].b.lo;
+                                    if (l < 0 && (nearest || !(u < 0) || !(l > u))) loc.running.push_back(static_cast<std::int32_t>(k));
+                                }
+                                // Second tier: each one's power at the voxel from the sphere labelling its cube's
+                                // first corner, exact when that sphere holds the whole cube.
+                                const Tier* tw = nearest ? &kUndecided : second_tier(loc, bv, m3);
+                                how = tw == &kUndecided ? 3 : 2;
+                                if (tw == &kUndecided) {
+                                    for (auto& k : loc.running) k = cb[static_cast<std::size_t>(k)];
+                                    const Cand* win = resolve(loc.running, m3, loc.cands, loc.queries);
+                                    if (!win) continue;
+                                    win_field = win->bone;
+                                    win_p = win->p;
+                                } else {
+                                    if (!tw) continue;
+                                    win_field = tw->field;
+                                    win_p = tw->p;
+                                }
+                            }
+                        }
+                        if (win_p == pw) fmot[static_cast<std::size_t>(win_field)].inverse.apply(m3, pw);
+                        any = true;
+                        ++loc.covered;
+                        ++loc.by[how];
+                        buf.bone[li] = static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win_field)] + 1);
+                        if (o.values) buf.values[li] = sampler.sample(win_p, o.sampling);
+                        for (int k = 0; k < 3; ++k) {
+                            loc.lo[k] = std::min(loc.lo[k], v[k]);
+                            loc.hi[k] = std::max(loc.hi[k], v[k]);
+                        }
+                    }
+            if (!any) return;
+            buf.kx = kx;
+            buf.ky = ky;
+            buf.kz = kz;
+            loc.kept.push_back(buf);
+        };
         for (std::int64_t ch = 0; ch < chunks; ++ch) {
             const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
             tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby * obx, z1 * oby * obx), [&](const tbb::blocked_range<std::int64_t>& rg) {
                 Local& loc = locals.local();
-                std::vector<std::int32_t> cb;
-                std::vector<Cand> cands;
-                Kept blockbuf;
-                for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk) {
-                    const std::int64_t kx = blk % obx, ky = (blk / obx) % oby, kz = blk / (obx * oby);
-                    block_candidates(kx, ky, kz, cb);
-                    if (cb.empty()) continue;
-                    bool any = false;
-                    for (std::int64_t dz = 0; dz < kBlock; ++dz)
-                        for (std::int64_t dy = 0; dy < kBlock; ++dy)
-                            for (std::int64_t dx = 0; dx < kBlock; ++dx) {
-                                const int li = static_cast<int>((dz * 8 + dy) * 8 + dx);
-                                blockbuf.bone[li] = 0;
-                                blockbuf.values[li] = 0.0f;
-                                const std::int64_t x = kx * kBlock + dx, y = ky * kBlock + dy, z = kz * kBlock + dz;
-                                if (x >= nx || y >= ny || z >= nz) continue;
-                                const double m3[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                                      static_cast<double>(z + bx[2])};
-                                const Cand* win = resolve(cb, m3, cands, loc.queries);
-                                if (!win) continue;
-                                any = true;
-                                ++loc.covered;
-                                blockbuf.bone[li] = static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win->bone)] + 1);
-                                if (o.values) blockbuf.values[li] = sampler.sample(win->p, o.sampling);
-                                const std::int64_t v[3] = {x, y, z};
-                                for (int a = 0; a < 3; ++a) {
-                                    loc.lo[a] = std::min(loc.lo[a], v[a]);
-                                    loc.hi[a] = std::max(loc.hi[a], v[a]);
-                                }
-                            }
-                    if (!any) continue;
-                    blockbuf.kx = kx;
-                    blockbuf.ky = ky;
-                    blockbuf.kz = kz;
-                    loc.kept.push_back(blockbuf);
-                }
+                for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk)
+                    gather_block(loc, blk % obx, (blk / obx) % oby, blk / (obx * oby));
             });
             report(progress, 0.55 + 0.4 * static_cast<double>(ch + 1) / static_cast<double>(chunks));
         }
@@ -1237,6 +1657,10 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     for (const Local& loc : locals) {
         covered += loc.covered;
         queries += loc.queries;
+        out.stats.by_block += loc.by[0];
+        out.stats.by_cube += loc.by[1];
+        out.stats.by_sphere += loc.by[2];
+        out.stats.by_search += loc.by[3];
         for (int a = 0; a < 3; ++a) {
             lo3[a] = std::min(lo3[a], loc.lo[a]);
             hi3[a] = std::max(hi3[a], loc.hi[a]);

@@ -32,7 +32,9 @@ class Frame:
     values: Volume float32 with the source's spacing (0 outside the object); None for binary reconstructions.
     bone:   Volume int16 on the same grid: index + 1 of the bone each voxel came from, 0 = empty.
     offset: (x, y, z) source-lattice index of output voxel (0, 0, 0): the output grid lies on the source lattice.
-    stats:  covered voxels, exact queries the bounds did not settle, blended spheres.
+    stats:  covered voxels, exact queries the bounds did not settle, blended spheres, and how the covered voxels were
+            decided: by_block (whole blocks one bone covers alone), by_cube (per-cube power ranges), by_sphere (the
+            power of the sphere labelling the cube), by_search (the full per-voxel search).
     """
 
     values: Optional[Volume]
@@ -112,7 +114,8 @@ def _radius_scale(radius_scale, n: int):
 def _frame(d: dict, source: Volume) -> Frame:
     sp = source.spacing
     values = Volume(d["values"], sp, d["origin"]) if d["values"] is not None else None
-    stats = {k: int(d[k]) for k in ("covered", "exact_queries", "blended_spheres")}
+    stats = {k: int(d[k]) for k in ("covered", "exact_queries", "blended_spheres", "by_block", "by_cube", "by_sphere",
+                                     "by_search")}
     return Frame(values, Volume(d["bone"], sp, d["origin"]), tuple(int(x) for x in d["offset"]), stats)
 
 

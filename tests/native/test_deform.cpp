@@ -24,6 +24,7 @@ struct Limb {
     std::vector<std::int32_t> wbones;
     std::vector<float> weights;
     double joint[3] = {14, 12, 10};
+    std::array<std::int64_t, 3> dims{30, 24, 34};
 
     BoundSpheres spheres(bool with_weights) const {
         BoundSpheres s;
@@ -56,37 +57,41 @@ double segment_distance(const double* q, const double* a, const double* b) {
     return std::sqrt(r);
 }
 
-Limb make_limb(std::array<double, 3> spacing) {
+/// `thick` scales the limb (radius 5 * thick), its grid and its joint; spheres sit on every third voxel.
+Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
     Limb L;
-    L.grid.dims = {30, 24, 34};
+    L.dims = {30 * thick, 24 * thick, 34 * thick};
+    L.grid.dims = L.dims;
+    for (double& j : L.joint) j *= thick;
     L.grid.spacing = spacing;
     L.grid.origin = {-2.0, 1.5, 3.0};
     const auto n = static_cast<std::size_t>(L.grid.voxel_count());
     L.samples.assign(n, 0);
     std::vector<std::uint8_t> mask(n, 0);
-    const double a[3] = {14, 12, 26}, b[3] = {14, 12, 10}, c[3] = {26, 12, 8};  // voxel coordinates
-    for (std::int64_t z = 0; z < 34; ++z)
-        for (std::int64_t y = 0; y < 24; ++y)
-            for (std::int64_t x = 0; x < 30; ++x) {
+    const double t = thick;
+    const double a[3] = {14 * t, 12 * t, 26 * t}, b[3] = {14 * t, 12 * t, 10 * t}, c[3] = {26 * t, 12 * t, 8 * t};
+    for (std::int64_t z = 0; z < L.dims[2]; ++z)
+        for (std::int64_t y = 0; y < L.dims[1]; ++y)
+            for (std::int64_t x = 0; x < L.dims[0]; ++x) {
                 const double q[3] = {double(x), double(y), double(z)};
                 const double d = std::min(segment_distance(q, a, b), segment_distance(q, b, c));
                 const auto i = static_cast<std::size_t>(L.grid.index(x, y, z));
-                if (d < 5.0) {
+                if (d < 5.0 * t) {
                     mask[i] = 1;
-                    L.samples[i] = d < 2.0 ? 220 : 100;
+                    L.samples[i] = static_cast<std::uint8_t>(d < 2.0 * t ? 220 : 100 + (x * 7 + y * 3 + z) % 50);
                 }
             }
     const std::vector<float> dt = distance_transform(L.grid, mask.data(), Metric::Euclidean);
-    for (std::int64_t z = 0; z < 34; ++z)
-        for (std::int64_t y = 0; y < 24; ++y)
-            for (std::int64_t x = 0; x < 30; ++x) {
+    for (std::int64_t z = 0; z < L.dims[2]; ++z)
+        for (std::int64_t y = 0; y < L.dims[1]; ++y)
+            for (std::int64_t x = 0; x < L.dims[0]; ++x) {
                 const auto i = static_cast<std::size_t>(L.grid.index(x, y, z));
                 if (!mask[i] || (x + y + z) % 3 != 0) continue;
                 L.ijk.insert(L.ijk.end(), {std::int32_t(z), std::int32_t(y), std::int32_t(x)});
                 L.radius.push_back(dt[i]);
-                const std::int32_t owner = z >= 10 ? 0 : 1;
+                const std::int32_t owner = z >= 10 * thick ? 0 : 1;
                 L.bone.push_back(owner);
-                const double along = std::abs(double(z) - 10.0);
+                const double along = std::abs(double(z) - 10.0 * t) / t;
                 if (along < 3.0) {  // blend across the joint
                     const float w = static_cast<float>(0.5 + along / 6.0);
                     L.wbones.insert(L.wbones.end(), {owner, 1 - owner});
@@ -140,7 +145,7 @@ TEST_CASE("the identity pose reproduces reconstruct() and the source", "[deform]
                 for (std::int64_t x = 0; x < f.grid.dims[0]; ++x) {
                     const auto i = static_cast<std::size_t>(f.grid.index(x, y, z));
                     const std::int64_t sx = x + f.offset[0], sy = y + f.offset[1], sz = z + f.offset[2];
-                    const bool in = sx >= 0 && sy >= 0 && sz >= 0 && sx < 30 && sy < 24 && sz < 34;
+                    const bool in = sx >= 0 && sy >= 0 && sz >= 0 && sx < L.dims[0] && sy < L.dims[1] && sz < L.dims[2];
                     const auto si = in ? static_cast<std::size_t>(L.grid.index(sx, sy, sz)) : 0;
                     const bool want = in && rec[si];
                     REQUIRE((f.bone[i] > 0) == want);
@@ -185,6 +190,39 @@ TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[defor
                 }
         }
     }
+}
+
+TEST_CASE("every decision tier of the Deformer is used, and it still equals the brute-force scatter", "[deform]") {
+    // A limb three times as thick (radius 15): whole output blocks inside one bone, cubes inside two bones at the
+    // joint, cubes the power ranges cannot settle, and voxels only the full search settles.
+    const Limb L = make_limb({1.0, 1.0, 1.0}, 3);
+    Deformer d(L.view(), L.spheres(false));
+    const auto joint = world(L.grid, L.joint);
+    std::int64_t tiers[4] = {0, 0, 0, 0};
+    for (double deg : {0.0, 35.0, 80.0}) {
+        std::vector<double> mats;
+        const auto m0 = motion({0, 0, 1}, 0, joint, {0, 0, 0});
+        const auto m1 = motion({0.3, 1, 0.2}, deg, joint, {0, 0, 0});
+        mats.insert(mats.end(), m0.begin(), m0.end());
+        mats.insert(mats.end(), m1.begin(), m1.end());
+        DeformOptions o;
+        INFO("bend " << deg);
+        const DeformedVolume fast = d.frame(mats.data(), o);
+        const std::array<std::int64_t, 6> box{fast.offset[0], fast.offset[1], fast.offset[2],
+                                              fast.grid.dims[0], fast.grid.dims[1], fast.grid.dims[2]};
+        const DeformedVolume ref = deform_reference(L.view(), L.spheres(false), mats.data(), o, {}, &box);
+        REQUIRE(fast.stats.covered == ref.stats.covered);
+        REQUIRE(fast.bone == ref.bone);
+        REQUIRE(fast.values == ref.values);
+        REQUIRE(fast.stats.by_block + fast.stats.by_cube + fast.stats.by_sphere + fast.stats.by_search ==
+                fast.stats.covered);
+        tiers[0] += fast.stats.by_block;
+        tiers[1] += fast.stats.by_cube;
+        tiers[2] += fast.stats.by_sphere;
+        tiers[3] += fast.stats.by_search;
+    }
+    INFO("block " << tiers[0] << " cube " << tiers[1] << " sphere " << tiers[2] << " search " << tiers[3]);
+    for (std::int64_t t : tiers) REQUIRE(t > 0);
 }
 
 TEST_CASE("deform refuses non-rigid matrices and bad options, and can be cancelled", "[deform]") {

@@ -67,6 +67,9 @@ struct DeformStats {
     std::int64_t covered = 0;        ///< output voxels covered by a sphere
     std::int64_t exact_queries = 0;  ///< per-bone exact (k-d tree) queries the bounds did not settle
     std::int64_t blended_spheres = 0;  ///< spheres moved by a blend of bones (smooth modes)
+    /// How the covered voxels were decided (they sum to `covered`): by whole 8³ blocks one bone covers alone, by the
+    /// per-cube power ranges, by the power of the sphere labelling the cube, or by the full per-voxel search.
+    std::int64_t by_block = 0, by_cube = 0, by_sphere = 0, by_search = 0;
 };
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel
