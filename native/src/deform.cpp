@@ -86,11 +86,54 @@ Affine index_affine(const Eigen::Matrix3d& L, const Eigen::Vector3d& d, const Gr
     return f;
 }
 
+/// The posed-to-rest map of a motion on lattice points, in fixed point with 32 fractional bits: integer arithmetic
+/// is exact, so a block's points may be stepped by adding a column and land on the very values a direct evaluation
+/// gives. Every consumer (the fast path, the brute-force reference, the samples) goes through it. Its error against
+/// the exact map is below 1e-9 voxel per voxel of distance from the source's centre.
+struct Pull {
+    static constexpr int kBits = 32;
+    static constexpr double kUnit = 4294967296.0;  // 2^kBits
+    std::int64_t a[9], t[3];
+    /// p (rest index space, fixed point) of the posed lattice point q.
+    void fixed(const std::int64_t* q, std::int64_t* p) const {
+        p[0] = a[0] * q[0] + a[1] * q[1] + a[2] * q[2] + t[0];
+        p[1] = a[3] * q[0] + a[4] * q[1] + a[5] * q[2] + t[1];
+        p[2] = a[6] * q[0] + a[7] * q[1] + a[8] * q[2] + t[2];
+    }
+    static double to_double(std::int64_t v) { return static_cast<double>(v) * (1.0 / kUnit); }
+    void apply(const std::int64_t* q, double* p) const {
+        std::int64_t f[3];
+        fixed(q, f);
+        for (int i = 0; i < 3; ++i) p[i] = to_double(f[i]);
+    }
+};
+
+/// The largest lattice coordinate (posed or rest) the fixed-point map accepts, and the largest entry of its
+/// linear part (rotations scaled by spacing ratios): products and sums stay far inside 64 bits.
+constexpr std::int64_t kMaxCoordinate = std::int64_t{1} << 21;
+constexpr double kMaxRatio = 64;
+
+Pull pull_of(const Affine& f) {
+    Pull p;
+    for (int k = 0; k < 9; ++k) {
+        if (!(std::abs(f.a[k]) <= kMaxRatio))
+            throw Error("deform: the voxel spacing is too anisotropic (an axis more than 64 times another)");
+        p.a[k] = std::llround(f.a[k] * Pull::kUnit);
+    }
+    for (int k = 0; k < 3; ++k) {
+        if (!(std::abs(f.t[k]) <= 16.0 * kMaxRatio * static_cast<double>(kMaxCoordinate)))
+            throw Error("deform: a bone moves the volume millions of voxels away: check the bone matrices' "
+                        "translations and units");
+        p.t[k] = std::llround(f.t[k] * Pull::kUnit);
+    }
+    return p;
+}
+
 struct Motion {
     Eigen::Matrix3d R;  // rotation
     Eigen::Vector3d d;
     Affine forward;  // rest lattice -> posed lattice
-    Affine inverse;  // posed lattice -> rest lattice
+    Pull pull;       // posed lattice -> rest lattice
 };
 
 Motion motion_of(const Eigen::Matrix3d& R, const Eigen::Vector3d& d, const Grid& g) {
@@ -99,15 +142,23 @@ Motion motion_of(const Eigen::Matrix3d& R, const Eigen::Vector3d& d, const Grid&
     m.d = d;
     m.forward = index_affine(R, d, g);
     const Eigen::Matrix3d Rt = R.transpose();
-    m.inverse = index_affine(Rt, -(Rt * d), g);
+    m.pull = pull_of(index_affine(Rt, -(Rt * d), g));
     return m;
+}
+
+/// Throws unless every coordinate of the output box is one the fixed-point map accepts.
+void check_box_reach(const std::array<std::int64_t, 6>& bx) {
+    for (int a = 0; a < 3; ++a)
+        if (std::abs(bx[a]) > kMaxCoordinate || std::abs(bx[a] + bx[3 + a]) > kMaxCoordinate)
+            throw Error("deform: the posed volume lies millions of voxels away: check the bone matrices' "
+                        "translations and units");
 }
 
 /// Squared world distance between a posed lattice point q and a sphere of rest centre c moved rigidly by m,
 /// measured in rest space, |T⁻¹q − c| (= |q − Tc|), as the per-bone fields measure it.
-inline double moved_length2(const Motion& m, const double* c, const double* q, const double* s2) {
+inline double moved_length2(const Motion& m, const double* c, const std::int64_t* q, const double* s2) {
     double p[3];
-    m.inverse.apply(q, p);
+    m.pull.apply(q, p);
     return length2(p[0] - c[0], p[1] - c[1], p[2] - c[2], s2);
 }
 
@@ -425,6 +476,37 @@ DeformedVolume frame_on(const Grid& source, const std::array<std::int64_t, 6>& b
     return out;
 }
 
+/// Crops a frame to the sub-box {offset, dims} of its grid (relative to its own offset), in place when it already
+/// has that box. With the source grid, the origin is placed as frame_on() places it.
+void crop(DeformedVolume& f, const std::array<std::int64_t, 6>& sub, const Grid* source = nullptr) {
+    const std::int64_t nx = f.grid.dims[0], ny = f.grid.dims[1];
+    if (sub[0] == 0 && sub[1] == 0 && sub[2] == 0 && sub[3] == nx && sub[4] == ny && sub[5] == f.grid.dims[2]) return;
+    const std::int64_t ox = sub[3], oy = sub[4], oz = sub[5];
+    const auto total = static_cast<std::size_t>(ox * oy * oz);
+    ZeroedArray<float> values(f.values.empty() ? 0 : total);
+    ZeroedArray<std::int16_t> bone(total);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, oz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        for (std::int64_t z = rg.begin(); z != rg.end(); ++z)
+            for (std::int64_t y = 0; y < oy; ++y) {
+                const auto from = static_cast<std::size_t>(((z + sub[2]) * ny + y + sub[1]) * nx + sub[0]);
+                const auto to = static_cast<std::size_t>((z * oy + y) * ox);
+                const std::int16_t* b = f.bone.data() + from;
+                // Copy only rows with a covered voxel: the others stay untouched zero pages.
+                if (std::all_of(b, b + ox, [](std::int16_t v) { return v == 0; })) continue;
+                std::copy(b, b + ox, bone.data() + to);
+                if (!values.empty()) std::copy(f.values.data() + from, f.values.data() + from + ox, values.data() + to);
+            }
+    });
+    f.values = std::move(values);
+    f.bone = std::move(bone);
+    for (int a = 0; a < 3; ++a) {
+        f.offset[a] += sub[a];
+        f.grid.dims[a] = sub[3 + a];
+        f.grid.origin[a] = source ? source->origin[a] + source->spacing[a] * static_cast<double>(f.offset[a])
+                                  : f.grid.origin[a] + f.grid.spacing[a] * static_cast<double>(sub[a]);
+    }
+}
+
 // ---- per-bone rest data: spheres in k-d order, k-d tree, power-diagram labels -------------------------------
 
 struct KdNode {
@@ -554,15 +636,16 @@ struct BoneField {
         return CellBounds{l, h};
     }
 
-    /// The cell at the first corner of the lattice cube holding p (index space), or kNoCell (b.lo >= 0: no point
-    /// of that cube can be covered). Returns its address, so that callers may issue many loads at once.
-    const Cell* cube_cell(const double* p) const {
-        if (!(p[0] >= -1e15 && p[0] <= 1e15 && p[1] >= -1e15 && p[1] <= 1e15 && p[2] >= -1e15 && p[2] <= 1e15))
+    /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
+    /// it: the corner is the integer part), or kNoCell (b.lo >= 0: no point of that cube can be covered). Returns
+    /// its address, so that callers may issue many loads at once.
+    const Cell* cube_cell(const std::int64_t* p) const {
+        const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
+                           z = (p[2] >> Pull::kBits) - lo[2];
+        if (static_cast<std::uint64_t>(x) >= static_cast<std::uint64_t>(dims[0]) ||
+            static_cast<std::uint64_t>(y) >= static_cast<std::uint64_t>(dims[1]) ||
+            static_cast<std::uint64_t>(z) >= static_cast<std::uint64_t>(dims[2]))
             return &kNoCell;
-        const std::int64_t x = static_cast<std::int64_t>(fast_floor(p[0])) - lo[0],
-                           y = static_cast<std::int64_t>(fast_floor(p[1])) - lo[1],
-                           z = static_cast<std::int64_t>(fast_floor(p[2])) - lo[2];
-        if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return &kNoCell;
         const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
         if (blk < 0) return &kNoCell;
         return cells.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
@@ -1223,7 +1306,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::array<double, 6> box;
     };
     std::vector<BlockBox> images;
-    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (std::size_t b = 0; b < fields.size(); ++b) {
         const Affine& fw = fmot[b].forward;
         for (const auto& blk : fields[b].blocks) {
@@ -1239,17 +1321,45 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     bb.box[3 + a] = std::max(bb.box[3 + a], y[a]);
                 }
             }
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = std::min(lo[a], bb.box[a]);
-                hi[a] = std::max(hi[a], bb.box[3 + a]);
-            }
             images.push_back(bb);
         }
     }
+    // The output box: the bounding box of the lattice points the posed balls hold. Per sphere and axis, the nearest
+    // lattice line to the centre along the axis gives the extreme planes exactly (the squared distance is a sum of
+    // one term per axis). A tolerance far below the open balls' margin keeps it on the safe side; should a plane
+    // still be empty, the frame is cropped at the end.
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    const double smax = std::max({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    for (std::size_t b = 0; b < fields.size(); ++b) {
+        for (const auto& sp : fields[b].sph) {
+            if (!(sp.lim > 0)) continue;
+            double y[3], m[3];
+            fmot[b].forward.apply(sp.c, y);
+            for (int a = 0; a < 3; ++a) {
+                const double d = std::nearbyint(y[a]) - y[a];
+                m[a] = s2[a] * d * d;
+            }
+            // Tolerance: rounding, and the fixed-point map's error (Pull: below 1e-9 voxel per voxel of reach).
+            const double tol = 1e-9 * (2 + std::abs(y[0]) + std::abs(y[1]) + std::abs(y[2])) * smax;
+            const double lim = std::pow(std::sqrt(sp.lim) * (1 + 1e-9) + tol, 2);
+            if (!(m[0] + m[1] + m[2] < lim)) continue;  // no lattice point inside
+            for (int a = 0; a < 3; ++a) {
+                const double h = std::sqrt(std::max(0.0, lim - m[(a + 1) % 3] - m[(a + 2) % 3]) / s2[a]);
+                const double x0 = std::min(std::floor(y[a] - h) + 1, std::nearbyint(y[a])),
+                             x1 = std::max(std::ceil(y[a] + h) - 1, std::nearbyint(y[a]));
+                lo[a] = std::min(lo[a], x0);
+                hi[a] = std::max(hi[a], x1);
+            }
+        }
+    }
     const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
+    check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     out.stats.blended_spheres = blended_spheres;
+    const auto total = static_cast<std::size_t>(nx * ny * nz);
+    if (o.values) out.values = ZeroedArray<float>(total);
+    out.bone = ZeroedArray<std::int16_t>(total);
 
     report(progress, 0.55);
 
@@ -1290,11 +1400,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 m &= m - 1;
                 double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
                 for (int c = 0; c < 8; ++c) {
-                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock : 0)),
-                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock : 0)),
-                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock : 0))};
+                    const std::int64_t q[3] = {bx[0] + kx * kBlock + ((c & 1) ? kBlock : 0),
+                                               bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock : 0),
+                                               bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock : 0)};
                     double r[3];
-                    fmot[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    fmot[static_cast<std::size_t>(b)].pull.apply(q, r);
                     for (int a = 0; a < 3; ++a) {
                         plo[a] = std::min(plo[a], r[a]);
                         phi[a] = std::max(phi[a], r[a]);
@@ -1311,11 +1421,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 // The voxels span [0, kBlock - 1] in the block: their preimages' cells, with a rounding margin.
                 double rlo[3] = {kInf, kInf, kInf}, rhi[3] = {-kInf, -kInf, -kInf};
                 for (int c = 0; c < 8; ++c) {
-                    const double q[3] = {static_cast<double>(bx[0] + kx * kBlock + ((c & 1) ? kBlock - 1 : 0)),
-                                         static_cast<double>(bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock - 1 : 0)),
-                                         static_cast<double>(bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock - 1 : 0))};
+                    const std::int64_t q[3] = {bx[0] + kx * kBlock + ((c & 1) ? kBlock - 1 : 0),
+                                               bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock - 1 : 0),
+                                               bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock - 1 : 0)};
                     double r[3];
-                    fmot[static_cast<std::size_t>(b)].inverse.apply(q, r);
+                    fmot[static_cast<std::size_t>(b)].pull.apply(q, r);
                     for (int a = 0; a < 3; ++a) {
                         rlo[a] = std::min(rlo[a], r[a]);
                         rhi[a] = std::max(rhi[a], r[a]);
@@ -1372,14 +1482,14 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     };
 
     // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
-    auto resolve = [&](const std::vector<std::int32_t>& cb, const double* m3, std::vector<Cand>& cands,
+    auto resolve = [&](const std::vector<std::int32_t>& cb, const std::int64_t* m3, std::vector<Cand>& cands,
                        std::int64_t& n_q) -> const Cand* {
         cands.clear();
         for (std::int32_t b : cb) {
             cands.emplace_back();
             Cand& c = cands.back();
             c.bone = b;
-            fmot[static_cast<std::size_t>(b)].inverse.apply(m3, c.p);
+            fmot[static_cast<std::size_t>(b)].pull.apply(m3, c.p);
             const BoneField& f = fields[static_cast<std::size_t>(b)];
             if (!fetch_cube(f, c.p, c.cube)) {
                 cands.pop_back();
@@ -1447,13 +1557,9 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         return win;
     };
 
-    // Gather, block by block into block-local buffers; blocks with a covered voxel are kept, then copied into the
-    // output box (the covered voxels' bounding box unless a box was imposed).
-    struct Kept {
-        std::int64_t kx, ky, kz;
-        float values[512];
-        std::int16_t bone[512];
-    };
+    // Gather, block by block: the candidates' cube ranges of all the block's voxels first (independent loads), then
+    // the decisions over the whole block in int16 lanes, then the few undecided voxels one by one, then the samples,
+    // written straight into the output.
     struct Tier {
         std::int32_t field;
         double U, L;
@@ -1462,9 +1568,9 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         double p[3];
     };
     static const Tier kUndecided{};
+    constexpr std::int32_t kEmpty = -1, kOpen = -2;  // per voxel: no candidate covers it / the ranges do not decide
     struct Local {
         std::vector<Tier> tiers;
-        std::vector<Kept> kept;
         std::int64_t lo[3] = {std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
                               std::numeric_limits<std::int64_t>::max()};
         std::int64_t hi[3] = {-1, -1, -1};
@@ -1473,37 +1579,40 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::vector<std::int32_t> cb, running;
         std::vector<CellBounds> range;
         std::vector<Cand> cands;
-        std::vector<Cell> bk;  // per candidate, per voxel of the block: the cell of the cube holding its preimage
+        // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
+        std::vector<std::int16_t> clo, chi;
+        std::vector<std::uint32_t> cword;
         std::vector<const Cell*> at = std::vector<const Cell*>(512, &kNoCell);
-        Kept buf;
+        std::int16_t u[512], mo[512], ml[512];  // least hi, least lo of the others, least lo
+        std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
+        std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
+        float values[512];
     };
     tbb::enumerable_thread_specific<Local> locals;
     const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
     with_sampler(source, [&](auto sampler) {
-        // One output block: candidates and block-level decisions, then per candidate the cube ranges of all its
-        // voxels (independent lookups, which the processor overlaps), then per voxel the winner: from the ranges
-        // when they decide, else through resolve() on the candidates still in the running.
         // The second tier (power proximity): for the candidates in loc.running (indices into loc.cb), each one's
         // power at posed point m3 from its cube's first-corner sphere: exact when the cube is that sphere's alone,
         // else an upper bound, with the cube's quantised lower bound. Returns the winner, null when none covers,
         // or &kUndecided.
-        auto second_tier = [&](Local& loc, const Cell* bv, const double* m3) -> const Tier* {
+        auto second_tier = [&](Local& loc, std::size_t li, const std::int64_t* m3) -> const Tier* {
             auto& tiers = loc.tiers;
             tiers.clear();
             bool all_exact = true;
             for (std::int32_t k : loc.running) {
+                const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
                 const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
-                const Cell c = bv[static_cast<std::size_t>(k) * 512];
-                const std::uint32_t lab = label_of(c.word);
+                const std::uint32_t word = loc.cword[at];
+                const std::uint32_t lab = label_of(word);
                 if (lab == kNone) return &kUndecided;
                 Tier& t = tiers.emplace_back();
                 t.field = fi;
-                fmot[static_cast<std::size_t>(fi)].inverse.apply(m3, t.p);
+                fmot[static_cast<std::size_t>(fi)].pull.apply(m3, t.p);
                 const BoneField& f = fields[static_cast<std::size_t>(fi)];
                 t.U = power_of(f, lab, t.p, s2);
                 t.global = f.global[lab];
-                t.exact = same_of(c.word);
-                t.L = t.exact ? t.U : (c.b.lo == kBoundMin ? -kInf : c.b.lo * bound_step);
+                t.exact = same_of(word);
+                t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
                 all_exact = all_exact && t.exact;
             }
             std::size_t a = 0;
@@ -1541,106 +1650,182 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             }
             const std::int64_t ex = std::min(kBlock, nx - kx * kBlock), ey = std::min(kBlock, ny - ky * kBlock),
                                ez = std::min(kBlock, nz - kz * kBlock);
+            const bool full = ex == kBlock && ey == kBlock && ez == kBlock;
             const std::size_t K = cb.size();
-            // A lone candidate covering the whole block needs no lookups.
-            const bool whole = K == 1 && range[0].hi < 0;
-            if (!whole) {
-                loc.bk.resize(K * 512);
+            const std::int64_t base[3] = {kx * kBlock + bx[0], ky * kBlock + bx[1], kz * kBlock + bx[2]};
+            std::int32_t* const win = loc.win;
+            std::uint64_t* const layer = loc.layer;
+            std::fill(layer, layer + 8, std::uint64_t{0});
+            if (K == 1 && range[0].hi < 0) {  // a lone candidate covering the whole block: no lookups
+                std::fill(win, win + 512, full ? cb[0] : kEmpty);
+                if (!full)
+                    for (std::int64_t dz = 0; dz < ez; ++dz)
+                        for (std::int64_t dy = 0; dy < ey; ++dy)
+                            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + ex, cb[0]);
+                loc.by[0] += ex * ey * ez;
+            } else {
+                loc.clo.resize(K * 512);
+                loc.chi.resize(K * 512);
+                loc.cword.resize(K * 512);
+                const Cell** at = loc.at.data();
+                if (!full) std::fill(at, at + 512, &kNoCell);
                 for (std::size_t k = 0; k < K; ++k) {
-                    const Affine& inv = fmot[static_cast<std::size_t>(cb[k])].inverse;
+                    // Stepping the fixed-point preimage by the map's columns: exactly the direct evaluation.
+                    const Pull& pl = fmot[static_cast<std::size_t>(cb[k])].pull;
                     const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
-                    Cell* bv = loc.bk.data() + k * 512;
-                    const Cell** at = loc.at.data();
-                    for (std::int64_t dz = 0; dz < ez; ++dz)
-                        for (std::int64_t dy = 0; dy < ey; ++dy)
+                    std::int64_t pz[3];
+                    pl.fixed(base, pz);
+                    for (std::int64_t dz = 0; dz < ez; ++dz) {
+                        std::int64_t py[3] = {pz[0], pz[1], pz[2]};
+                        for (std::int64_t dy = 0; dy < ey; ++dy) {
+                            std::int64_t px[3] = {py[0], py[1], py[2]};
                             for (std::int64_t dx = 0; dx < ex; ++dx) {
-                                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                                const double m3[3] = {static_cast<double>(kx * kBlock + dx + bx[0]),
-                                                      static_cast<double>(ky * kBlock + dy + bx[1]),
-                                                      static_cast<double>(kz * kBlock + dz + bx[2])};
-                                double p[3];
-                                inv.apply(m3, p);
-                                at[li] = f.cube_cell(p);
+                                at[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
+                                px[0] += pl.a[0];
+                                px[1] += pl.a[3];
+                                px[2] += pl.a[6];
                             }
+                            py[0] += pl.a[1];
+                            py[1] += pl.a[4];
+                            py[2] += pl.a[7];
+                        }
+                        pz[0] += pl.a[2];
+                        pz[1] += pl.a[5];
+                        pz[2] += pl.a[8];
+                    }
                     // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
-                    for (std::int64_t dz = 0; dz < ez; ++dz)
-                        for (std::int64_t dy = 0; dy < ey; ++dy)
-                            for (std::int64_t dx = 0; dx < ex; ++dx) {
-                                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                                bv[li] = *at[li];
-                            }
+                    std::int16_t* klo = loc.clo.data() + k * 512;
+                    std::int16_t* khi = loc.chi.data() + k * 512;
+                    std::uint32_t* word = loc.cword.data() + k * 512;
+                    for (std::size_t li = 0; li < 512; ++li) {
+                        const Cell c = *at[li];
+                        klo[li] = c.b.lo;
+                        khi[li] = c.b.hi;
+                        word[li] = c.word;
+                    }
+                }
+                // Decisions in lanes: u = least hi (candidate a), mo = least lo of the others, ml = least lo.
+                std::int16_t* const u = loc.u;
+                std::int16_t* const mo = loc.mo;
+                std::int16_t* const ml = loc.ml;
+                {
+                    const std::int16_t* khi = loc.chi.data();
+                    const std::int16_t* klo = loc.clo.data();
+                    for (std::size_t li = 0; li < 512; ++li) {
+                        u[li] = khi[li];
+                        win[li] = 0;
+                        ml[li] = klo[li];
+                        mo[li] = kBoundMax;
+                    }
+                }
+                for (std::size_t k = 1; k < K; ++k) {
+                    const std::int16_t* khi = loc.chi.data() + k * 512;
+                    const std::int16_t* klo = loc.clo.data() + k * 512;
+                    const auto kk = static_cast<std::int32_t>(k);
+                    for (std::size_t li = 0; li < 512; ++li) {
+                        const bool lt = khi[li] < u[li];
+                        u[li] = lt ? khi[li] : u[li];
+                        win[li] = lt ? kk : win[li];
+                        ml[li] = std::min(ml[li], klo[li]);
+                    }
+                }
+                for (std::size_t k = 0; k < K && K > 1; ++k) {
+                    const std::int16_t* klo = loc.clo.data() + k * 512;
+                    const auto kk = static_cast<std::int32_t>(k);
+                    for (std::size_t li = 0; li < 512; ++li)
+                        mo[li] = win[li] == kk ? mo[li] : std::min(mo[li], klo[li]);
+                }
+                // Certain: the least hi is negative and below every other candidate's lo (nearest centre: no other
+                // candidate can cover at all).
+                std::int64_t certain = 0;
+                for (std::size_t li = 0; li < 512; ++li) {
+                    const bool sure = u[li] < 0 && (nearest ? mo[li] >= 0 : mo[li] > u[li]);
+                    const std::int32_t w = ml[li] >= 0 ? kEmpty : (sure ? cb[static_cast<std::size_t>(win[li])] : kOpen);
+                    certain += sure && ml[li] < 0;
+                    win[li] = w;
+                }
+                loc.by[1] += certain;
+                // The undecided voxels, one by one.
+                for (std::size_t li = 0; li < 512; ++li) {
+                    if (win[li] != kOpen) continue;
+                    const std::int64_t dx = static_cast<std::int64_t>(li & 7), dy = static_cast<std::int64_t>((li >> 3) & 7),
+                                       dz = static_cast<std::int64_t>(li >> 6);
+                    const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+                    // Candidates whose least power exceeds a certain covering power cannot win.
+                    loc.running.clear();
+                    for (std::size_t k = 0; k < K; ++k) {
+                        const std::int16_t l = loc.clo[k * 512 + li];
+                        if (l < 0 && (nearest || !(u[li] < 0) || !(l > u[li]))) loc.running.push_back(static_cast<std::int32_t>(k));
+                    }
+                    // Second tier: each one's power at the voxel from the sphere labelling its cube's first corner,
+                    // exact when that sphere holds the whole cube.
+                    const Tier* tw = nearest ? &kUndecided : second_tier(loc, li, m3);
+                    if (tw != &kUndecided) {
+                        win[li] = tw ? tw->field : kEmpty;
+                        loc.by[2] += tw != nullptr;
+                        continue;
+                    }
+                    for (auto& k : loc.running) k = cb[static_cast<std::size_t>(k)];
+                    const Cand* w = resolve(loc.running, m3, loc.cands, loc.queries);
+                    win[li] = w ? w->bone : kEmpty;
+                    loc.by[3] += w != nullptr;
                 }
             }
-            Kept& buf = loc.buf;
-            std::fill(buf.bone, buf.bone + 512, std::int16_t{0});
-            std::fill(buf.values, buf.values + 512, 0.0f);
-            bool any = false;
+            // The samples of the covered voxels (through the winning field's inverse, as the decisions saw it).
+            std::int64_t ncov = 0;
             for (std::int64_t dz = 0; dz < ez; ++dz)
                 for (std::int64_t dy = 0; dy < ey; ++dy)
                     for (std::int64_t dx = 0; dx < ex; ++dx) {
                         const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                        const std::int64_t v[3] = {kx * kBlock + dx, ky * kBlock + dy, kz * kBlock + dz};
-                        const double m3[3] = {static_cast<double>(v[0] + bx[0]), static_cast<double>(v[1] + bx[1]),
-                                              static_cast<double>(v[2] + bx[2])};
-                        std::int32_t win_field = cb[0];
-                        double pw[3];
-                        const double* win_p = pw;
-                        int how = 0;
-                        if (!whole) {
-                            const Cell* bv = loc.bk.data() + li;
-                            std::size_t a = 0, accepted = 0;
-                            for (std::size_t k = 0; k < K; ++k) {
-                                accepted += bv[k * 512].b.lo < 0;
-                                if (bv[k * 512].b.hi < bv[a * 512].b.hi) a = k;
-                            }
-                            if (!accepted) continue;
-                            const std::int16_t u = bv[a * 512].b.hi;
-                            bool certain = u < 0 && (!nearest || accepted == 1);
-                            for (std::size_t k = 0; k < K && certain; ++k)
-                                if (k != a && !(bv[k * 512].b.lo > u)) certain = false;
-                            how = 1;
-                            if (certain) {
-                                win_field = cb[a];
-                            } else {
-                                // Candidates whose least power exceeds a certain covering power cannot win.
-                                loc.running.clear();
-                                for (std::size_t k = 0; k < K; ++k) {
-                                    const std::int16_t l = bv[k * 512].b.lo;
-                                    if (l < 0 && (nearest || !(u < 0) || !(l > u))) loc.running.push_back(static_cast<std::int32_t>(k));
-                                }
-                                // Second tier: each one's power at the voxel from the sphere labelling its cube's
-                                // first corner, exact when that sphere holds the whole cube.
-                                const Tier* tw = nearest ? &kUndecided : second_tier(loc, bv, m3);
-                                how = tw == &kUndecided ? 3 : 2;
-                                if (tw == &kUndecided) {
-                                    for (auto& k : loc.running) k = cb[static_cast<std::size_t>(k)];
-                                    const Cand* win = resolve(loc.running, m3, loc.cands, loc.queries);
-                                    if (!win) continue;
-                                    win_field = win->bone;
-                                    win_p = win->p;
-                                } else {
-                                    if (!tw) continue;
-                                    win_field = tw->field;
-                                    win_p = tw->p;
-                                }
-                            }
-                        }
-                        if (win_p == pw) fmot[static_cast<std::size_t>(win_field)].inverse.apply(m3, pw);
-                        any = true;
-                        ++loc.covered;
-                        ++loc.by[how];
-                        buf.bone[li] = static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win_field)] + 1);
-                        if (o.values) buf.values[li] = sampler.sample(win_p, o.sampling);
-                        for (int k = 0; k < 3; ++k) {
-                            loc.lo[k] = std::min(loc.lo[k], v[k]);
-                            loc.hi[k] = std::max(loc.hi[k], v[k]);
-                        }
+                        const std::int32_t w = win[li];
+                        if (w < 0) continue;
+                        ++ncov;
+                        layer[dz] |= std::uint64_t{1} << (dy * 8 + dx);
+                        if (!o.values) continue;
+                        const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+                        double p[3];
+                        fmot[static_cast<std::size_t>(w)].pull.apply(m3, p);
+                        loc.values[li] = sampler.sample(p, o.sampling);
                     }
-            if (!any) return;
-            buf.kx = kx;
-            buf.ky = ky;
-            buf.kz = kz;
-            loc.kept.push_back(buf);
+            if (!ncov) return;
+            loc.covered += ncov;
+            // The block's covered extent, from the bit layers.
+            std::uint64_t all = 0;
+            std::int64_t z0 = -1, z1 = -1;
+            for (std::int64_t dz = 0; dz < ez; ++dz)
+                if (layer[dz]) {
+                    all |= layer[dz];
+                    if (z0 < 0) z0 = dz;
+                    z1 = dz;
+                }
+            std::uint64_t rows = 0, cols = 0;
+            for (int dy = 0; dy < 8; ++dy) {
+                const std::uint64_t r = (all >> (8 * dy)) & 0xff;
+                rows |= std::uint64_t{r != 0} << dy;
+                cols |= r;
+            }
+            const std::int64_t e0[3] = {__builtin_ctzll(cols), __builtin_ctzll(rows), z0},
+                               e1[3] = {63 - __builtin_clzll(cols), 63 - __builtin_clzll(rows), z1},
+                               b0[3] = {kx * kBlock, ky * kBlock, kz * kBlock};
+            for (int a = 0; a < 3; ++a) {
+                loc.lo[a] = std::min(loc.lo[a], b0[a] + e0[a]);
+                loc.hi[a] = std::max(loc.hi[a], b0[a] + e1[a]);
+            }
+            // Into the output, row by row.
+            for (std::int64_t dz = z0; dz <= z1; ++dz)
+                for (std::int64_t dy = 0; dy < ey; ++dy) {
+                    std::uint64_t xs = (layer[dz] >> (8 * dy)) & 0xff;
+                    if (!xs) continue;
+                    const auto row = static_cast<std::size_t>(((kz * kBlock + dz) * ny + ky * kBlock + dy) * nx + kx * kBlock);
+                    while (xs) {
+                        const int dx = __builtin_ctzll(xs);
+                        xs &= xs - 1;
+                        const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
+                        out.bone[row + static_cast<std::size_t>(dx)] =
+                            static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win[li])] + 1);
+                        if (o.values) out.values[row + static_cast<std::size_t>(dx)] = loc.values[li];
+                    }
+                }
         };
         for (std::int64_t ch = 0; ch < chunks; ++ch) {
             const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
@@ -1653,7 +1838,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         }
     });
     std::int64_t covered = 0, queries = 0, lo3[3] = {nx, ny, nz}, hi3[3] = {-1, -1, -1};
-    std::vector<const Kept*> kept;
     for (const Local& loc : locals) {
         covered += loc.covered;
         queries += loc.queries;
@@ -1665,42 +1849,36 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             lo3[a] = std::min(lo3[a], loc.lo[a]);
             hi3[a] = std::max(hi3[a], loc.hi[a]);
         }
-        for (const Kept& k : loc.kept) kept.push_back(&k);
     }
-    if (!fixed_box) {  // shrink to the covered voxels (one voxel when none is covered)
-        for (int a = 0; a < 3; ++a) {
+    if (!fixed_box) {  // crop to the covered voxels (one voxel when none is covered)
+        for (int a = 0; a < 3; ++a)
             if (hi3[a] < lo3[a]) lo3[a] = hi3[a] = 0;
-            out.offset[a] = bx[a] + lo3[a];
-            out.grid.dims[a] = hi3[a] - lo3[a] + 1;
-            out.grid.origin[a] = grid.origin[a] + grid.spacing[a] * static_cast<double>(out.offset[a]);
-        }
-    } else {
-        for (int a = 0; a < 3; ++a) lo3[a] = 0;
+        crop(out, {lo3[0], lo3[1], lo3[2], hi3[0] - lo3[0] + 1, hi3[1] - lo3[1] + 1, hi3[2] - lo3[2] + 1}, &grid);
     }
-    const std::int64_t ox = out.grid.dims[0], oy = out.grid.dims[1], oz = out.grid.dims[2];
-    const auto out_total = static_cast<std::size_t>(ox * oy * oz);
-    if (o.values) out.values = ZeroedArray<float>(out_total);
-    out.bone = ZeroedArray<std::int16_t>(out_total);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kept.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
-        for (std::size_t k = rg.begin(); k != rg.end(); ++k) {
-            const Kept& b = *kept[k];
-            for (std::int64_t dz = 0; dz < kBlock; ++dz)
-                for (std::int64_t dy = 0; dy < kBlock; ++dy)
-                    for (std::int64_t dx = 0; dx < kBlock; ++dx) {
-                        const int li = static_cast<int>((dz * 8 + dy) * 8 + dx);
-                        if (!b.bone[li]) continue;
-                        const std::int64_t x = b.kx * kBlock + dx - lo3[0], y = b.ky * kBlock + dy - lo3[1],
-                                           z = b.kz * kBlock + dz - lo3[2];
-                        const auto i = static_cast<std::size_t>((z * oy + y) * ox + x);
-                        out.bone[i] = b.bone[li];
-                        if (o.values) out.values[i] = b.values[li];
-                    }
-        }
-    });
     report(progress, 1.0);
     out.stats.covered = covered;
     out.stats.exact_queries = queries;
     return out;
+}
+
+void crop_to_covered(DeformedVolume& f) {
+    const std::int64_t nx = f.grid.dims[0], ny = f.grid.dims[1], nz = f.grid.dims[2];
+    std::int64_t lo[3] = {nx, ny, nz}, hi[3] = {-1, -1, -1};
+    for (std::int64_t z = 0; z < nz; ++z)
+        for (std::int64_t y = 0; y < ny; ++y) {
+            const std::int16_t* row = f.bone.data() + static_cast<std::size_t>((z * ny + y) * nx);
+            for (std::int64_t x = 0; x < nx; ++x) {
+                if (!row[x]) continue;
+                const std::int64_t v[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = std::min(lo[a], v[a]);
+                    hi[a] = std::max(hi[a], v[a]);
+                }
+            }
+        }
+    for (int a = 0; a < 3; ++a)
+        if (hi[a] < lo[a]) lo[a] = hi[a] = 0;
+    crop(f, {lo[0], lo[1], lo[2], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1});
 }
 
 // ---- the literal thesis algorithm --------------------------------------------------------------------------
@@ -1735,6 +1913,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
         }
     }
     const std::array<std::int64_t, 6> bx = fixed_box ? *fixed_box : box_of(lo, hi);
+    check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     const auto total = static_cast<std::size_t>(nx * ny * nz);
@@ -1762,8 +1941,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                 for (std::int64_t z = za; z <= zb; ++z)
                     for (std::int64_t y = ya; y <= yb; ++y)
                         for (std::int64_t x = xa; x <= xb; ++x) {
-                            const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                                 static_cast<double>(z + bx[2])};
+                            const std::int64_t q[3] = {x + bx[0], y + bx[1], z + bx[2]};
                             const double d2 = moved_length2(mot[i], rest[i].data(), q, s2);
                             if (!(d2 < lim)) continue;
                             const double key = nearest ? d2 : d2 - lim;
@@ -1774,7 +1952,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                                 out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
                                 if (o.values) {
                                     double p[3];
-                                    mot[i].inverse.apply(q, p);
+                                    mot[i].pull.apply(q, p);
                                     out.values[idx] = sampler.sample(p, o.sampling);
                                 }
                             }
@@ -1795,6 +1973,7 @@ std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, 
     const std::array<std::int64_t, 6> bx = box ? *box : std::array<std::int64_t, 6>{0, 0, 0, g.dims[0], g.dims[1], g.dims[2]};
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     if (nx <= 0 || ny <= 0 || nz <= 0) throw Error("inverse_warp: the output box must have positive dimensions");
+    check_box_reach(bx);
     std::vector<float> out(static_cast<std::size_t>(nx * ny * nz));
     with_sampler(source, [&](auto sampler) {
         tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
@@ -1802,10 +1981,9 @@ std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, 
                 for (std::int64_t y = 0; y < ny; ++y) {
                     float* row = out.data() + (z * ny + y) * nx;
                     for (std::int64_t x = 0; x < nx; ++x) {
-                        const double q[3] = {static_cast<double>(x + bx[0]), static_cast<double>(y + bx[1]),
-                                             static_cast<double>(z + bx[2])};
+                        const std::int64_t q[3] = {x + bx[0], y + bx[1], z + bx[2]};
                         double p[3];
-                        m.inverse.apply(q, p);
+                        m.pull.apply(q, p);
                         row[x] = sampler.sample(p, sampling);
                     }
                 }

@@ -159,6 +159,23 @@ TEST_CASE("the identity pose reproduces reconstruct() and the source", "[deform]
     }
 }
 
+/// Whether every face of the frame's box holds a covered voxel (the box is the covered voxels' bounding box).
+bool tight(const DeformedVolume& f) {
+    const std::int64_t n[3] = {f.grid.dims[0], f.grid.dims[1], f.grid.dims[2]};
+    bool face[6] = {false, false, false, false, false, false};
+    for (std::int64_t z = 0; z < n[2]; ++z)
+        for (std::int64_t y = 0; y < n[1]; ++y)
+            for (std::int64_t x = 0; x < n[0]; ++x) {
+                if (!f.bone[static_cast<std::size_t>((z * n[1] + y) * n[0] + x)]) continue;
+                const std::int64_t v[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    face[a] = face[a] || v[a] == 0;
+                    face[3 + a] = face[3 + a] || v[a] == n[a] - 1;
+                }
+            }
+    return std::all_of(face, face + 6, [](bool b) { return b; });
+}
+
 TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[deform]") {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -186,7 +203,18 @@ TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[defor
                     REQUIRE(fast.stats.covered == ref.stats.covered);
                     REQUIRE(fast.bone == ref.bone);
                     REQUIRE(fast.values == ref.values);
+                    REQUIRE(tight(fast));
                     if (mode != DeformMode::Rigid) REQUIRE(fast.stats.blended_spheres > 0);
+                    if (trial == 0) {  // the reference on its own box (every posed ball), cropped: the same frame
+                        DeformedVolume wide = deform_reference(L.view(), L.spheres(true), mats.data(), o);
+                        REQUIRE(wide.bone.size() > fast.bone.size());
+                        crop_to_covered(wide);
+                        REQUIRE(wide.offset == fast.offset);
+                        REQUIRE(wide.grid.dims == fast.grid.dims);
+                        for (int a = 0; a < 3; ++a) REQUIRE(wide.grid.origin[a] == Approx(fast.grid.origin[a]));
+                        REQUIRE(wide.bone == fast.bone);
+                        REQUIRE(wide.values == fast.values);
+                    }
                 }
         }
     }

@@ -111,6 +111,10 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
+/// Crops a frame, in place, to the bounding box of its covered voxels (one voxel at its offset when none is covered).
+/// Deformer::frame returns frames already cropped unless a box was imposed.
+void crop_to_covered(DeformedVolume& frame);
+
 /// The literal thesis algorithm, for tests and benchmarks: every sphere is transformed and scattered over the
 /// bounding box of its ball into an output buffer with a proximity buffer, in sphere index order. Same output
 /// conventions as Deformer::frame; `box` as there.
