@@ -264,28 +264,34 @@ struct Sampler {
     float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
         return static_cast<float>(data[(z * ny + y) * nx + x]);
     }
-    static std::int64_t clamp_index(double v, std::int64_t n) {
-        if (!(v > -1e15 && v < 1e15)) v = v > 0 ? 1e15 : -1e15;
-        const auto i = static_cast<std::int64_t>(fast_floor(v + 0.5));
+    /// Samples at a rest point in fixed point (Pull): the integer part is the lattice cell, the low bits the
+    /// fraction, so no rounding mode enters.
+    static double fraction(std::int64_t v) {
+        return static_cast<double>(v & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit);
+    }
+    static std::int64_t clamp_index(std::int64_t v, std::int64_t n) {
+        const std::int64_t i = (v >> Pull::kBits) + ((v >> (Pull::kBits - 1)) & 1);  // round half up
         return i < 0 ? 0 : (i >= n ? n - 1 : i);
     }
-    float nearest(const double* p) const {
+    float nearest(const std::int64_t* p) const {
         return at(clamp_index(p[0], nx), clamp_index(p[1], ny), clamp_index(p[2], nz));
     }
-    static void cell(double v, std::int64_t n, std::int64_t& i0, std::int64_t& i1, double& f) {
-        v = v < 0 ? 0 : (v > static_cast<double>(n - 1) ? static_cast<double>(n - 1) : v);
-        i0 = static_cast<std::int64_t>(v);
+    static void cell(std::int64_t v, std::int64_t n, std::int64_t& i0, std::int64_t& i1, double& f) {
+        i0 = v >> Pull::kBits;
+        f = fraction(v);
+        if (i0 < 0 || i0 >= n - 1) {  // clamped to the lattice
+            i0 = i0 < 0 ? 0 : n - 1;
+            f = 0;
+        }
         i1 = i0 + 1 < n ? i0 + 1 : i0;
-        f = v - static_cast<double>(i0);
     }
-    float trilinear(const double* p) const {
-        if (p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < static_cast<double>(nx - 1) &&
-            p[1] < static_cast<double>(ny - 1) && p[2] < static_cast<double>(nz - 1)) {
+    float trilinear(const std::int64_t* p) const {
+        const std::int64_t x0 = p[0] >> Pull::kBits, y0 = p[1] >> Pull::kBits, z0 = p[2] >> Pull::kBits;
+        if (static_cast<std::uint64_t>(x0) < static_cast<std::uint64_t>(nx - 1) &&
+            static_cast<std::uint64_t>(y0) < static_cast<std::uint64_t>(ny - 1) &&
+            static_cast<std::uint64_t>(z0) < static_cast<std::uint64_t>(nz - 1)) {
             // Inside the lattice (nearly always): the same arithmetic as below without clamping.
-            const auto x0 = static_cast<std::int64_t>(p[0]), y0 = static_cast<std::int64_t>(p[1]),
-                       z0 = static_cast<std::int64_t>(p[2]);
-            const double fx = p[0] - static_cast<double>(x0), fy = p[1] - static_cast<double>(y0),
-                         fz = p[2] - static_cast<double>(z0);
+            const double fx = fraction(p[0]), fy = fraction(p[1]), fz = fraction(p[2]);
             const T* d = data + (z0 * ny + y0) * nx + x0;
             const std::int64_t sy = nx, sz = nx * ny;
             const double v000 = static_cast<float>(d[0]), v100 = static_cast<float>(d[1]);
@@ -299,19 +305,21 @@ struct Sampler {
             const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
             return static_cast<float>(c0 + fz * (c1 - c0));
         }
-        std::int64_t x0, x1, y0, y1, z0, z1;
+        std::int64_t x1, y1, z1, xa, ya, za;
         double fx, fy, fz;
-        cell(p[0], nx, x0, x1, fx);
-        cell(p[1], ny, y0, y1, fy);
-        cell(p[2], nz, z0, z1, fz);
-        const double c00 = at(x0, y0, z0) + fx * (at(x1, y0, z0) - at(x0, y0, z0));
-        const double c10 = at(x0, y1, z0) + fx * (at(x1, y1, z0) - at(x0, y1, z0));
-        const double c01 = at(x0, y0, z1) + fx * (at(x1, y0, z1) - at(x0, y0, z1));
-        const double c11 = at(x0, y1, z1) + fx * (at(x1, y1, z1) - at(x0, y1, z1));
+        cell(p[0], nx, xa, x1, fx);
+        cell(p[1], ny, ya, y1, fy);
+        cell(p[2], nz, za, z1, fz);
+        const double c00 = at(xa, ya, za) + fx * (at(x1, ya, za) - at(xa, ya, za));
+        const double c10 = at(xa, y1, za) + fx * (at(x1, y1, za) - at(xa, y1, za));
+        const double c01 = at(xa, ya, z1) + fx * (at(x1, ya, z1) - at(xa, ya, z1));
+        const double c11 = at(xa, y1, z1) + fx * (at(x1, y1, z1) - at(xa, y1, z1));
         const double c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
         return static_cast<float>(c0 + fz * (c1 - c0));
     }
-    float sample(const double* p, Sampling s) const { return s == Sampling::Nearest ? nearest(p) : trilinear(p); }
+    float sample(const std::int64_t* p, Sampling s) const {
+        return s == Sampling::Nearest ? nearest(p) : trilinear(p);
+    }
 };
 
 /// Calls f(Sampler<T>) for the source's element type.
@@ -577,17 +585,14 @@ inline std::int16_t quantize_up(double v, double step) {
     return static_cast<std::int16_t>(std::max(q, -32767.0));
 }
 
-/// One lattice cell of a bone's field: the power-diagram label at the cell (top bit: the cube with this first
-/// corner has this label at all eight corners, so the power there is exactly this sphere's), and the power's
-/// quantised range over that cube.
-struct Cell {
-    CellBounds b;
-    std::uint32_t word = kNone;
-};
+/// A lattice cell of a bone's field holds the power's quantised range over the cube with that first corner
+/// (BoneField::bounds) and a word (BoneField::words): the power-diagram label at the cell, top bit set when the cube
+/// has this label at all eight corners (so the power there is exactly this sphere's). The two live in separate
+/// arrays, so that the lookups every voxel makes read only the ranges (4 bytes a cell). Cell index 0 is "no cell".
 constexpr std::uint32_t kSameBit = 0x80000000u;
+constexpr std::uint32_t kNoCell = 0;
 inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~kSameBit); }
 inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
-const Cell kNoCell{};
 
 struct BoneField {
     // spheres in local (k-d) order
@@ -602,7 +607,8 @@ struct BoneField {
     std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
     std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
-    HugeVector<Cell> cells;                       // 512 per allocated block
+    HugeVector<CellBounds> bounds;                // cell 0: none (no cover), then 512 per allocated block
+    HugeVector<std::uint32_t> words;              // likewise
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
                                                   // (quantised in steps common to all fields, so that they compare)
@@ -639,16 +645,21 @@ struct BoneField {
     /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
     /// it: the corner is the integer part), or kNoCell (b.lo >= 0: no point of that cube can be covered). Returns
     /// its address, so that callers may issue many loads at once.
-    const Cell* cube_cell(const std::int64_t* p) const {
+    std::uint32_t cube_cell(const std::int64_t* p) const {
         const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
                            z = (p[2] >> Pull::kBits) - lo[2];
         if (static_cast<std::uint64_t>(x) >= static_cast<std::uint64_t>(dims[0]) ||
             static_cast<std::uint64_t>(y) >= static_cast<std::uint64_t>(dims[1]) ||
             static_cast<std::uint64_t>(z) >= static_cast<std::uint64_t>(dims[2]))
-            return &kNoCell;
+            return kNoCell;
         const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
-        if (blk < 0) return &kNoCell;
-        return cells.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
+        if (blk < 0) return kNoCell;
+        return cell_of(blk, x, y, z);
+    }
+
+    /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
+    static std::uint32_t cell_of(std::int32_t blk, std::int64_t x, std::int64_t y, std::int64_t z) {
+        return 1 + static_cast<std::uint32_t>(blk) * 512 + static_cast<std::uint32_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
     }
 
     /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
@@ -673,7 +684,7 @@ struct BoneField {
 
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + cells.size() * sizeof(Cell) + block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
+               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
     }
 
     std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
@@ -683,7 +694,7 @@ struct BoneField {
         if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return kNone;
         const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
         if (blk < 0) return kNone;
-        return label_of(cells[static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7))].word);
+        return label_of(words[cell_of(blk, x, y, z)]);
     }
 };
 
@@ -887,7 +898,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         f.block_index[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(f.blocks.size());
         f.blocks.push_back({lo[0] + kx * kBlock, lo[1] + ky * kBlock, lo[2] + kz * kBlock});
     }
-    f.cells.assign(f.blocks.size() * 512, Cell{});
+    if (f.blocks.size() * 512 + 1 > std::numeric_limits<std::uint32_t>::max())
+        throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
+    f.bounds.assign(f.blocks.size() * 512 + 1, CellBounds{});
+    f.words.assign(f.blocks.size() * 512 + 1, kNone);
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
     double maxlim = 0;
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
@@ -895,7 +909,8 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     const double slack = 1e-9 * (maxlim + 4 * quarter);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
-            Cell* out = f.cells.data() + slot * 512;
+            CellBounds* out = f.bounds.data() + 1 + slot * 512;
+            std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
             const std::int64_t x0 = f.blocks[slot][0] - lo[0], y0 = f.blocks[slot][1] - lo[1], z0 = f.blocks[slot][2] - lo[2];
             for (std::int64_t z = z0; z < std::min(nz, z0 + kBlock); ++z)
                 for (std::int64_t y = y0; y < std::min(ny, y0 + kBlock); ++y)
@@ -924,7 +939,8 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                         if (complete && nk == 1) word |= kSameBit;
                         const double lower = fmin - quarter;
                         if (!(lower < 0)) {
-                            out[li] = Cell{CellBounds{kBoundMax, kBoundMax}, word};
+                            out[li] = CellBounds{kBoundMax, kBoundMax};
+                            out_word[li] = word;
                             continue;
                         }
                         double upper = kInf;
@@ -938,14 +954,15 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                             }
                             upper = std::min(upper, mx);
                         }
-                        out[li] = Cell{CellBounds{quantize_down(lower - slack, step), quantize_up(upper + slack, step)}, word};
+                        out[li] = CellBounds{quantize_down(lower - slack, step), quantize_up(upper + slack, step)};
+                        out_word[li] = word;
                     }
             CellBounds* sb = f.sub.data() + slot * 8;
             for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
             for (int li = 0; li < 512; ++li) {
                 CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
-                t.lo = std::min(t.lo, out[li].b.lo);
-                t.hi = std::max(t.hi, out[li].b.hi);
+                t.lo = std::min(t.lo, out[li].lo);
+                t.hi = std::max(t.hi, out[li].hi);
             }
         }
     });
@@ -1066,16 +1083,15 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
         const std::int32_t blk =
             f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
         if (blk < 0) return false;
-        const Cell* b0 =
-            f.cells.data() + static_cast<std::size_t>(blk) * 512 + static_cast<std::size_t>(((lz & 7) * 8 + (ly & 7)) * 8 + (lx & 7));
-        lab[0] = label_of(b0[0].word);
-        lab[1] = label_of(b0[1].word);
-        lab[2] = label_of(b0[8].word);
-        lab[3] = label_of(b0[9].word);
-        lab[4] = label_of(b0[64].word);
-        lab[5] = label_of(b0[65].word);
-        lab[6] = label_of(b0[72].word);
-        lab[7] = label_of(b0[73].word);
+        const std::uint32_t* b0 = f.words.data() + BoneField::cell_of(blk, lx, ly, lz);
+        lab[0] = label_of(b0[0]);
+        lab[1] = label_of(b0[1]);
+        lab[2] = label_of(b0[8]);
+        lab[3] = label_of(b0[9]);
+        lab[4] = label_of(b0[64]);
+        lab[5] = label_of(b0[65]);
+        lab[6] = label_of(b0[72]);
+        lab[7] = label_of(b0[73]);
     } else if (lx >= 0 && ly >= 0 && lz >= 0 && lx + 1 < f.dims[0] && ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
         // Inside the field, across block faces: each corner from its own block.
         const std::int64_t l[3] = {lx, ly, lz};
@@ -1089,9 +1105,7 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
             const int i = c & 1, j = (c >> 1) & 1, k = (c >> 2) & 1;
             const std::int32_t b =
                 f.block_index[static_cast<std::size_t>((blk[2][k] * f.bdims[1] + blk[1][j]) * f.bdims[0] + blk[0][i])];
-            lab[c] = b < 0 ? kNone
-                           : label_of(f.cells[static_cast<std::size_t>(b) * 512 +
-                                              static_cast<std::size_t>((off[2][k] * 8 + off[1][j]) * 8 + off[0][i])].word);
+            lab[c] = b < 0 ? kNone : label_of(f.words[BoneField::cell_of(b, off[0][i], off[1][j], off[2][k])]);
         }
     } else {
         for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
@@ -1581,8 +1595,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::vector<Cand> cands;
         // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
         std::vector<std::int16_t> clo, chi;
-        std::vector<std::uint32_t> cword;
-        std::vector<const Cell*> at = std::vector<const Cell*>(512, &kNoCell);
+        std::vector<std::uint32_t> cidx;  // the cells themselves, for their words
         std::int16_t u[512], mo[512], ml[512];  // least hi, least lo of the others, least lo
         std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
         std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
@@ -1602,13 +1615,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             for (std::int32_t k : loc.running) {
                 const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
                 const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
-                const std::uint32_t word = loc.cword[at];
+                const BoneField& f = fields[static_cast<std::size_t>(fi)];
+                const std::uint32_t word = f.words[loc.cidx[at]];
                 const std::uint32_t lab = label_of(word);
                 if (lab == kNone) return &kUndecided;
                 Tier& t = tiers.emplace_back();
                 t.field = fi;
                 fmot[static_cast<std::size_t>(fi)].pull.apply(m3, t.p);
-                const BoneField& f = fields[static_cast<std::size_t>(fi)];
                 t.U = power_of(f, lab, t.p, s2);
                 t.global = f.global[lab];
                 t.exact = same_of(word);
@@ -1666,13 +1679,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             } else {
                 loc.clo.resize(K * 512);
                 loc.chi.resize(K * 512);
-                loc.cword.resize(K * 512);
-                const Cell** at = loc.at.data();
-                if (!full) std::fill(at, at + 512, &kNoCell);
+                loc.cidx.resize(K * 512);
                 for (std::size_t k = 0; k < K; ++k) {
                     // Stepping the fixed-point preimage by the map's columns: exactly the direct evaluation.
                     const Pull& pl = fmot[static_cast<std::size_t>(cb[k])].pull;
                     const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
+                    std::uint32_t* at = loc.cidx.data() + k * 512;
+                    if (!full) std::fill(at, at + 512, kNoCell);
                     std::int64_t pz[3];
                     pl.fixed(base, pz);
                     for (std::int64_t dz = 0; dz < ez; ++dz) {
@@ -1696,12 +1709,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
                     std::int16_t* klo = loc.clo.data() + k * 512;
                     std::int16_t* khi = loc.chi.data() + k * 512;
-                    std::uint32_t* word = loc.cword.data() + k * 512;
+                    const CellBounds* cells = f.bounds.data();
                     for (std::size_t li = 0; li < 512; ++li) {
-                        const Cell c = *at[li];
-                        klo[li] = c.b.lo;
-                        khi[li] = c.b.hi;
-                        word[li] = c.word;
+                        const CellBounds c = cells[at[li]];
+                        klo[li] = c.lo;
+                        khi[li] = c.hi;
                     }
                 }
                 // Decisions in lanes: u = least hi (candidate a), mo = least lo of the others, ml = least lo.
@@ -1771,22 +1783,36 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     loc.by[3] += w != nullptr;
                 }
             }
-            // The samples of the covered voxels (through the winning field's inverse, as the decisions saw it).
+            // The samples of the covered voxels (through the winning field's map, as the decisions saw it; along a
+            // row, a run of one field steps its preimage by a column).
             std::int64_t ncov = 0;
             for (std::int64_t dz = 0; dz < ez; ++dz)
-                for (std::int64_t dy = 0; dy < ey; ++dy)
+                for (std::int64_t dy = 0; dy < ey; ++dy) {
+                    std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
+                    std::int64_t pf[3] = {0, 0, 0};
                     for (std::int64_t dx = 0; dx < ex; ++dx) {
                         const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
                         const std::int32_t w = win[li];
-                        if (w < 0) continue;
+                        if (w < 0) {
+                            run = -1;
+                            continue;
+                        }
                         ++ncov;
                         layer[dz] |= std::uint64_t{1} << (dy * 8 + dx);
                         if (!o.values) continue;
-                        const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
-                        double p[3];
-                        fmot[static_cast<std::size_t>(w)].pull.apply(m3, p);
-                        loc.values[li] = sampler.sample(p, o.sampling);
+                        const Pull& pl = fmot[static_cast<std::size_t>(w)].pull;
+                        if (w == run) {
+                            pf[0] += pl.a[0];
+                            pf[1] += pl.a[3];
+                            pf[2] += pl.a[6];
+                        } else {
+                            const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+                            pl.fixed(m3, pf);
+                            run = w;
+                        }
+                        loc.values[li] = sampler.sample(pf, o.sampling);
                     }
+                }
             if (!ncov) return;
             loc.covered += ncov;
             // The block's covered extent, from the bit layers.
@@ -1951,8 +1977,8 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                                 who[idx] = static_cast<std::int64_t>(i);
                                 out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
                                 if (o.values) {
-                                    double p[3];
-                                    mot[i].pull.apply(q, p);
+                                    std::int64_t p[3];
+                                    mot[i].pull.fixed(q, p);
                                     out.values[idx] = sampler.sample(p, o.sampling);
                                 }
                             }
@@ -1982,8 +2008,8 @@ std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, 
                     float* row = out.data() + (z * ny + y) * nx;
                     for (std::int64_t x = 0; x < nx; ++x) {
                         const std::int64_t q[3] = {x + bx[0], y + bx[1], z + bx[2]};
-                        double p[3];
-                        m.pull.apply(q, p);
+                        std::int64_t p[3];
+                        m.pull.fixed(q, p);
                         row[x] = sampler.sample(p, sampling);
                     }
                 }
