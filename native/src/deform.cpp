@@ -14,6 +14,7 @@
 #include <map>
 #include <numeric>
 #include <string>
+#include <type_traits>
 
 #include <stdlib.h>
 #include <sys/mman.h>
@@ -264,6 +265,11 @@ struct Sampler {
     float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
         return static_cast<float>(data[(z * ny + y) * nx + x]);
     }
+    /// A sample as a double: through float, as at() gives it (exactly, and in one conversion, for small integers).
+    static double value(T v) {
+        if constexpr (std::is_integral_v<T> && sizeof(T) <= 2) return static_cast<double>(v);
+        else return static_cast<double>(static_cast<float>(v));
+    }
     /// Samples at a rest point in fixed point (Pull): the integer part is the lattice cell, the low bits the
     /// fraction, so no rounding mode enters.
     static double fraction(std::int64_t v) {
@@ -294,10 +300,10 @@ struct Sampler {
             const double fx = fraction(p[0]), fy = fraction(p[1]), fz = fraction(p[2]);
             const T* d = data + (z0 * ny + y0) * nx + x0;
             const std::int64_t sy = nx, sz = nx * ny;
-            const double v000 = static_cast<float>(d[0]), v100 = static_cast<float>(d[1]);
-            const double v010 = static_cast<float>(d[sy]), v110 = static_cast<float>(d[sy + 1]);
-            const double v001 = static_cast<float>(d[sz]), v101 = static_cast<float>(d[sz + 1]);
-            const double v011 = static_cast<float>(d[sz + sy]), v111 = static_cast<float>(d[sz + sy + 1]);
+            const double v000 = value(d[0]), v100 = value(d[1]);
+            const double v010 = value(d[sy]), v110 = value(d[sy + 1]);
+            const double v001 = value(d[sz]), v101 = value(d[sz + 1]);
+            const double v011 = value(d[sz + sy]), v111 = value(d[sz + sy + 1]);
             const double c00 = v000 + fx * (v100 - v000);
             const double c10 = v010 + fx * (v110 - v010);
             const double c01 = v001 + fx * (v101 - v001);
@@ -609,6 +615,8 @@ struct BoneField {
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
     HugeVector<CellBounds> bounds;                // cell 0: none (no cover), then 512 per allocated block
     HugeVector<std::uint32_t> words;              // likewise
+    HugeVector<std::int16_t> corner;              // likewise: the power at the cell itself, quantised down
+    double step = 1, floor_T = 0;                 // the quantum; the least power outside allocated blocks (T)
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
                                                   // (quantised in steps common to all fields, so that they compare)
@@ -643,8 +651,7 @@ struct BoneField {
     }
 
     /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
-    /// it: the corner is the integer part), or kNoCell (b.lo >= 0: no point of that cube can be covered). Returns
-    /// its address, so that callers may issue many loads at once.
+    /// it: the corner is the integer part), or kNoCell (its range says no point of that cube can be covered).
     std::uint32_t cube_cell(const std::int64_t* p) const {
         const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
                            z = (p[2] >> Pull::kBits) - lo[2];
@@ -655,6 +662,47 @@ struct BoneField {
         const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
         if (blk < 0) return kNoCell;
         return cell_of(blk, x, y, z);
+    }
+
+    /// A lower bound of the power at p (fixed point, as Pull gives it) from the quantised powers at the eight
+    /// corners of its lattice cube: the power is |p|² plus a concave function, so their trilinear interpolation
+    /// less Σ s²u(1−u) bounds it from below. Corners outside the allocated blocks hold at least T.
+    double corner_lower(const std::int64_t* p, const double* s2) const {
+        const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
+                           z = (p[2] >> Pull::kBits) - lo[2];
+        double v[8];
+        auto value = [&](std::int16_t q) { return q == kBoundMin ? -kInf : q * step; };
+        if (x >= 0 && y >= 0 && z >= 0 && (x & 7) != 7 && (y & 7) != 7 && (z & 7) != 7 && x + 1 < dims[0] &&
+            y + 1 < dims[1] && z + 1 < dims[2]) {
+            const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
+            if (blk < 0) return floor_T;
+            const std::int16_t* c = corner.data() + cell_of(blk, x, y, z);
+            v[0] = value(c[0]);
+            v[1] = value(c[1]);
+            v[2] = value(c[8]);
+            v[3] = value(c[9]);
+            v[4] = value(c[64]);
+            v[5] = value(c[65]);
+            v[6] = value(c[72]);
+            v[7] = value(c[73]);
+        } else {
+            for (int k = 0; k < 8; ++k) {
+                const std::int64_t cx = x + (k & 1), cy = y + ((k >> 1) & 1), cz = z + ((k >> 2) & 1);
+                v[k] = floor_T;
+                if (cx < 0 || cy < 0 || cz < 0 || cx >= dims[0] || cy >= dims[1] || cz >= dims[2]) continue;
+                const std::int32_t blk = block_index[static_cast<std::size_t>(((cz >> 3) * bdims[1] + (cy >> 3)) * bdims[0] + (cx >> 3))];
+                if (blk >= 0) v[k] = value(corner[cell_of(blk, cx, cy, cz)]);
+            }
+        }
+        const double u[3] = {static_cast<double>(p[0] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
+                             static_cast<double>(p[1] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
+                             static_cast<double>(p[2] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit)};
+        const double c00 = v[0] + u[0] * (v[1] - v[0]), c10 = v[2] + u[0] * (v[3] - v[2]);
+        const double c01 = v[4] + u[0] * (v[5] - v[4]), c11 = v[6] + u[0] * (v[7] - v[6]);
+        const double c0 = c00 + u[1] * (c10 - c00), c1 = c01 + u[1] * (c11 - c01);
+        const double L = c0 + u[2] * (c1 - c0) -
+                         (s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]));
+        return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin (NaN from -inf - -inf: not a bound, callers test < 0)
     }
 
     /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
@@ -684,7 +732,8 @@ struct BoneField {
 
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
+               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
+               block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
     }
 
     std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
@@ -902,6 +951,9 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
     f.bounds.assign(f.blocks.size() * 512 + 1, CellBounds{});
     f.words.assign(f.blocks.size() * 512 + 1, kNone);
+    f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
+    f.step = step;
+    f.floor_T = T;
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
     double maxlim = 0;
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
@@ -911,12 +963,14 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
             CellBounds* out = f.bounds.data() + 1 + slot * 512;
             std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
+            std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
             const std::int64_t x0 = f.blocks[slot][0] - lo[0], y0 = f.blocks[slot][1] - lo[1], z0 = f.blocks[slot][2] - lo[2];
             for (std::int64_t z = z0; z < std::min(nz, z0 + kBlock); ++z)
                 for (std::int64_t y = y0; y < std::min(ny, y0 + kBlock); ++y)
                     for (std::int64_t x = x0; x < std::min(nx, x0 + kBlock); ++x) {
                         const int li = static_cast<int>(((z - z0) * 8 + (y - y0)) * 8 + (x - x0));
                         std::uint32_t word = lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
+                        out_corner[li] = quantize_down(F[static_cast<std::size_t>((z * ny + y) * nx + x)] - slack, step);
                         // The power over the cube with first corner (x, y, z): at least the least corner value
                         // minus the concave term's largest value Σ s²/4 (corners outside the field hold at least
                         // T); at most, for any sphere labelling a corner, its largest corner value (convexity).
@@ -1577,9 +1631,10 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     struct Tier {
         std::int32_t field;
         double U, L;
-        std::uint32_t global;
-        bool exact;
+        std::uint32_t local;  // the sphere giving U; its global index breaks ties (fetched only then)
+        bool exact, tight;
         double p[3];
+        std::int64_t pf[3];
     };
     static const Tier kUndecided{};
     constexpr std::int32_t kEmpty = -1, kOpen = -2;  // per voxel: no candidate covers it / the ranges do not decide
@@ -1611,7 +1666,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         auto second_tier = [&](Local& loc, std::size_t li, const std::int64_t* m3) -> const Tier* {
             auto& tiers = loc.tiers;
             tiers.clear();
-            bool all_exact = true;
             for (std::int32_t k : loc.running) {
                 const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
                 const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
@@ -1621,23 +1675,41 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 if (lab == kNone) return &kUndecided;
                 Tier& t = tiers.emplace_back();
                 t.field = fi;
-                fmot[static_cast<std::size_t>(fi)].pull.apply(m3, t.p);
+                fmot[static_cast<std::size_t>(fi)].pull.fixed(m3, t.pf);
+                for (int i = 0; i < 3; ++i) t.p[i] = Pull::to_double(t.pf[i]);
                 t.U = power_of(f, lab, t.p, s2);
-                t.global = f.global[lab];
+                t.local = lab;
                 t.exact = same_of(word);
                 t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
-                all_exact = all_exact && t.exact;
+                t.tight = t.exact;
             }
+            // The sharper lower bound from the cube's corner powers, when the cube's range is not enough.
+            auto lower = [&](Tier& t, double beat) {
+                if (t.tight || t.L > beat) return;
+                t.L = std::max(t.L, fields[static_cast<std::size_t>(t.field)].corner_lower(t.pf, s2));
+                t.tight = true;
+            };
+            auto global = [&](const Tier& t) { return fields[static_cast<std::size_t>(t.field)].global[t.local]; };
             std::size_t a = 0;
             for (std::size_t k = 1; k < tiers.size(); ++k)
-                if (tiers[k].U < tiers[a].U || (tiers[k].U == tiers[a].U && tiers[k].global < tiers[a].global)) a = k;
+                if (tiers[k].U < tiers[a].U || (tiers[k].U == tiers[a].U && global(tiers[k]) < global(tiers[a]))) a = k;
             const Tier& w = tiers[a];
-            if (!(w.U < 0)) return all_exact ? nullptr : &kUndecided;
+            if (!(w.U < 0)) {  // none covers when every lower bound is >= 0
+                for (Tier& t : tiers) {
+                    lower(t, 0.0);
+                    if (!(t.L >= 0)) return &kUndecided;
+                }
+                return nullptr;
+            }
             for (std::size_t k = 0; k < tiers.size(); ++k) {
                 if (k == a) continue;
-                const Tier& t = tiers[k];
-                const bool beaten = t.exact ? (w.U < t.U || (w.U == t.U && w.global < t.global)) : w.U < t.L;
-                if (!beaten) return &kUndecided;
+                Tier& t = tiers[k];
+                if (t.exact) {
+                    if (!(w.U < t.U || (w.U == t.U && global(w) < global(t)))) return &kUndecided;
+                    continue;
+                }
+                lower(t, w.U);
+                if (!(w.U < t.L)) return &kUndecided;
             }
             return &w;
         };
@@ -1757,6 +1829,22 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     win[li] = w;
                 }
                 loc.by[1] += certain;
+                // Ahead of the undecided voxels, their cubes' words, then their labels' spheres, fetched in bulk.
+                for (std::size_t li = 0; li < 512; ++li) {
+                    if (win[li] != kOpen) continue;
+                    for (std::size_t k = 0; k < K; ++k)
+                        if (loc.clo[k * 512 + li] < 0)
+                            __builtin_prefetch(fields[static_cast<std::size_t>(cb[k])].words.data() + loc.cidx[k * 512 + li]);
+                }
+                for (std::size_t li = 0; li < 512; ++li) {
+                    if (win[li] != kOpen) continue;
+                    for (std::size_t k = 0; k < K; ++k) {
+                        if (!(loc.clo[k * 512 + li] < 0)) continue;
+                        const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
+                        const std::uint32_t lab = label_of(f.words[loc.cidx[k * 512 + li]]);
+                        if (lab != kNone) __builtin_prefetch(f.sph.data() + lab);
+                    }
+                }
                 // The undecided voxels, one by one.
                 for (std::size_t li = 0; li < 512; ++li) {
                     if (win[li] != kOpen) continue;
