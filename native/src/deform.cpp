@@ -14,6 +14,7 @@
 #include <map>
 #include <numeric>
 #include <string>
+#include <thread>
 #include <type_traits>
 
 #include <stdlib.h>
@@ -1056,53 +1057,75 @@ double mindist2(const KdNode& n, const double* p) {
 /// Minimum over the bone's spheres of the power |p − c|² − lim (p in world offsets), or, with `nearest`, the
 /// minimum of |p − c|² over the spheres that cover p.
 /// `p` is in world offsets (for pruning, with a margin for rounding), `pi` the same point in index space.
-void query(const BoneField& f, std::int32_t node, const double* p, const double* pi, const double* s2, bool nearest,
-           Best& best) {
-    const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
-    const double md = mindist2(n, p);
-    const double slack = 1e-9 * (1.0 + std::abs(md) + n.max_lim + (best.key < kInf ? std::abs(best.key) : 0.0));
-    if (nearest) {
-        if (md > best.key + slack || md >= n.max_lim + slack) return;
-    } else if (md - n.max_lim > best.key + slack) {
-        return;
-    }
-    if (n.left < 0) {
-        for (std::uint32_t k = n.begin; k < n.end; ++k) {
-            const auto& sp = f.sph[k];
-            const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
-            if (nearest && !(d2 < sp.lim)) continue;
-            const double key = nearest ? d2 : d2 - sp.lim;
-            if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
+/// Depth first, nearer child first, with an explicit stack (the tree is balanced: depth below 64).
+void query(const BoneField& f, const double* p, const double* pi, const double* s2, bool nearest, Best& best) {
+    std::int32_t stack[64];
+    double dist[64];
+    int top = 0;
+    std::int32_t node = 0;
+    double md = mindist2(f.nodes[0], p);
+    for (;;) {
+        const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
+        const double slack = 1e-9 * (1.0 + std::abs(md) + n.max_lim + (best.key < kInf ? std::abs(best.key) : 0.0));
+        const bool pruned = nearest ? (md > best.key + slack || md >= n.max_lim + slack) : md - n.max_lim > best.key + slack;
+        if (!pruned) {
+            if (n.left < 0) {
+                for (std::uint32_t k = n.begin; k < n.end; ++k) {
+                    const auto& sp = f.sph[k];
+                    const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
+                    if (nearest && !(d2 < sp.lim)) continue;
+                    const double key = nearest ? d2 : d2 - sp.lim;
+                    if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
+                }
+            } else {
+                const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
+                const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
+                const bool left_first = dl <= dr;
+                stack[top] = left_first ? n.right : n.left;
+                dist[top++] = left_first ? dr : dl;
+                node = left_first ? n.left : n.right;
+                md = left_first ? dl : dr;
+                continue;
+            }
         }
-        return;
-    }
-    const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
-    const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
-    if (dl <= dr) {
-        query(f, n.left, p, pi, s2, nearest, best);
-        query(f, n.right, p, pi, s2, nearest, best);
-    } else {
-        query(f, n.right, p, pi, s2, nearest, best);
-        query(f, n.left, p, pi, s2, nearest, best);
+        if (top == 0) return;
+        --top;
+        node = stack[top];
+        md = dist[top];
     }
 }
 
 /// Whether any of the bone's spheres covers the point (|p − c|² < lim): a search that stops at the first one.
-bool any_cover(const BoneField& f, std::int32_t node, const double* p, const double* pi, const double* s2) {
-    const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
-    const double md = mindist2(n, p);
-    if (md >= n.max_lim + 1e-9 * (1.0 + md + n.max_lim)) return false;
-    if (n.left < 0) {
-        for (std::uint32_t k = n.begin; k < n.end; ++k) {
-            const auto& sp = f.sph[k];
-            if (length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2) < sp.lim) return true;
+bool any_cover(const BoneField& f, const double* p, const double* pi, const double* s2) {
+    std::int32_t stack[64];
+    double dist[64];
+    int top = 0;
+    std::int32_t node = 0;
+    double md = mindist2(f.nodes[0], p);
+    for (;;) {
+        const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
+        if (md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim)) {
+            if (n.left < 0) {
+                for (std::uint32_t k = n.begin; k < n.end; ++k) {
+                    const auto& sp = f.sph[k];
+                    if (length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2) < sp.lim) return true;
+                }
+            } else {
+                const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
+                const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
+                const bool left_first = dl <= dr;
+                stack[top] = left_first ? n.right : n.left;
+                dist[top++] = left_first ? dr : dl;
+                node = left_first ? n.left : n.right;
+                md = left_first ? dl : dr;
+                continue;
+            }
         }
-        return false;
+        if (top == 0) return false;
+        --top;
+        node = stack[top];
+        md = dist[top];
     }
-    const bool left_first = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p) <=
-                            mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
-    return left_first ? any_cover(f, n.left, p, pi, s2) || any_cover(f, n.right, p, pi, s2)
-                      : any_cover(f, n.right, p, pi, s2) || any_cover(f, n.left, p, pi, s2);
 }
 
 /// `seed`: a sphere's (power, local, global) at the point when one is known (power proximity only): it prunes the
@@ -1112,7 +1135,7 @@ Best exact(const BoneField& f, const double* p_index, const double* s, const dou
     Best b = seed;
     if (f.nodes.empty()) return b;
     const double pw[3] = {p_index[0] * s[0], p_index[1] * s[1], p_index[2] * s[2]};
-    query(f, 0, pw, p_index, s2, nearest, b);
+    query(f, pw, p_index, s2, nearest, b);
     return b;
 }
 
@@ -1546,7 +1569,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         ++n_q;
         const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
         const double pw[3] = {c.p[0] * grid.spacing[0], c.p[1] * grid.spacing[1], c.p[2] * grid.spacing[2]};
-        return !f.nodes.empty() && any_cover(f, 0, pw, c.p, s2);
+        return !f.nodes.empty() && any_cover(f, pw, c.p, s2);
     };
 
     // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
@@ -1657,7 +1680,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         float values[512];
     };
     tbb::enumerable_thread_specific<Local> locals;
-    const std::int64_t chunks = std::min<std::int64_t>(obz, 16);
     with_sampler(source, [&](auto sampler) {
         // The second tier (power proximity): for the candidates in loc.running (indices into loc.cb), each one's
         // power at posed point m3 from its cube's first-corner sphere: exact when the cube is that sphere's alone,
@@ -1941,15 +1963,23 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     }
                 }
         };
-        for (std::int64_t ch = 0; ch < chunks; ++ch) {
-            const std::int64_t z0 = obz * ch / chunks, z1 = obz * (ch + 1) / chunks;
-            tbb::parallel_for(tbb::blocked_range<std::int64_t>(z0 * oby * obx, z1 * oby * obx), [&](const tbb::blocked_range<std::int64_t>& rg) {
-                Local& loc = locals.local();
-                for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk)
-                    gather_block(loc, blk % obx, (blk / obx) % oby, blk / (obx * oby));
-            });
-            report(progress, 0.55 + 0.4 * static_cast<double>(ch + 1) / static_cast<double>(chunks));
-        }
+        // One pass over all blocks (no barriers); the calling thread reports progress as blocks complete, and a
+        // cancel from it unwinds the whole loop.
+        const std::int64_t total_blocks = obx * oby * obz;
+        std::atomic<std::int64_t> done{0};
+        const std::thread::id caller = std::this_thread::get_id();
+        std::int64_t next_report = total_blocks / 40;
+        tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, total_blocks, 64), [&](const tbb::blocked_range<std::int64_t>& rg) {
+            Local& loc = locals.local();
+            for (std::int64_t blk = rg.begin(); blk != rg.end(); ++blk)
+                gather_block(loc, blk % obx, (blk / obx) % oby, blk / (obx * oby));
+            const std::int64_t now = done.fetch_add(static_cast<std::int64_t>(rg.size())) + static_cast<std::int64_t>(rg.size());
+            if (progress && std::this_thread::get_id() == caller && now >= next_report) {
+                next_report = now + total_blocks / 40;
+                report(progress, 0.55 + 0.4 * static_cast<double>(now) / static_cast<double>(total_blocks));
+            }
+        });
+        report(progress, 0.95);
     });
     std::int64_t covered = 0, queries = 0, lo3[3] = {nx, ny, nz}, hi3[3] = {-1, -1, -1};
     for (const Local& loc : locals) {
