@@ -1675,6 +1675,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::vector<std::int16_t> clo, chi;
         std::vector<std::uint32_t> cidx;  // the cells themselves, for their words
         std::int16_t u[512], mo[512], ml[512];  // least hi, least lo of the others, least lo
+        std::int16_t arg[512];                  // the candidate with the least hi
         std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
         std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
         float values[512];
@@ -1759,6 +1760,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                                ez = std::min(kBlock, nz - kz * kBlock);
             const bool full = ex == kBlock && ey == kBlock && ez == kBlock;
             const std::size_t K = cb.size();
+            if (K > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
             const std::int64_t base[3] = {kx * kBlock + bx[0], ky * kBlock + bx[1], kz * kBlock + bx[2]};
             std::int32_t* const win = loc.win;
             std::uint64_t* const layer = loc.layer;
@@ -1814,12 +1816,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 std::int16_t* const u = loc.u;
                 std::int16_t* const mo = loc.mo;
                 std::int16_t* const ml = loc.ml;
+                std::int16_t* const arg = loc.arg;
                 {
                     const std::int16_t* khi = loc.chi.data();
                     const std::int16_t* klo = loc.clo.data();
                     for (std::size_t li = 0; li < 512; ++li) {
                         u[li] = khi[li];
-                        win[li] = 0;
+                        arg[li] = 0;
                         ml[li] = klo[li];
                         mo[li] = kBoundMax;
                     }
@@ -1827,26 +1830,26 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 for (std::size_t k = 1; k < K; ++k) {
                     const std::int16_t* khi = loc.chi.data() + k * 512;
                     const std::int16_t* klo = loc.clo.data() + k * 512;
-                    const auto kk = static_cast<std::int32_t>(k);
+                    const auto kk = static_cast<std::int16_t>(k);
                     for (std::size_t li = 0; li < 512; ++li) {
                         const bool lt = khi[li] < u[li];
                         u[li] = lt ? khi[li] : u[li];
-                        win[li] = lt ? kk : win[li];
+                        arg[li] = lt ? kk : arg[li];
                         ml[li] = std::min(ml[li], klo[li]);
                     }
                 }
                 for (std::size_t k = 0; k < K && K > 1; ++k) {
                     const std::int16_t* klo = loc.clo.data() + k * 512;
-                    const auto kk = static_cast<std::int32_t>(k);
+                    const auto kk = static_cast<std::int16_t>(k);
                     for (std::size_t li = 0; li < 512; ++li)
-                        mo[li] = win[li] == kk ? mo[li] : std::min(mo[li], klo[li]);
+                        mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], klo[li]);
                 }
                 // Certain: the least hi is negative and below every other candidate's lo (nearest centre: no other
                 // candidate can cover at all).
                 std::int64_t certain = 0;
                 for (std::size_t li = 0; li < 512; ++li) {
                     const bool sure = u[li] < 0 && (nearest ? mo[li] >= 0 : mo[li] > u[li]);
-                    const std::int32_t w = ml[li] >= 0 ? kEmpty : (sure ? cb[static_cast<std::size_t>(win[li])] : kOpen);
+                    const std::int32_t w = ml[li] >= 0 ? kEmpty : (sure ? cb[static_cast<std::size_t>(arg[li])] : kOpen);
                     certain += sure && ml[li] < 0;
                     win[li] = w;
                 }
