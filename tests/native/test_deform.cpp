@@ -271,6 +271,19 @@ TEST_CASE("deform refuses non-rigid matrices and bad options, and can be cancell
     o.radius_scale.clear();
     REQUIRE_THROWS_AS(d.frame(mats.data(), o, [](double f) { return f < 0.6; }), Cancelled);
     REQUIRE(d.frame(mats.data(), o).stats.covered > 0);  // still usable after a cancel
+    // A bone sent millions of voxels away, and a lattice more than 64 times finer along one axis: clear errors.
+    std::vector<double> far = mats;
+    far[3] = 5e7;
+    REQUIRE_THROWS_AS(d.frame(far.data(), o), Error);
+    REQUIRE_THROWS_AS(deform_reference(L.view(), L.spheres(false), far.data(), o), Error);
+    Limb flat = make_limb({1.0, 1.0, 100.0});
+    Deformer df(flat.view(), flat.spheres(false));
+    std::vector<double> turned = mats;  // bone 0 turned 60 degrees about x: mixes y with the coarse z
+    turned[5] = turned[10] = std::cos(M_PI / 3);
+    turned[6] = -std::sin(M_PI / 3);
+    turned[9] = std::sin(M_PI / 3);
+    REQUIRE_THROWS_WITH(df.frame(turned.data(), o), Catch::Contains("anisotropic"));
+    REQUIRE(df.frame(mats.data(), o).stats.covered > 0);  // at rest the axes do not mix
     std::vector<std::int32_t> bad_bone = L.bone;
     bad_bone[3] = 5;
     BoundSpheres s = L.spheres(false);
