@@ -70,6 +70,7 @@ def main() -> int:
     fig["output_voxels"] = int(np.prod(frame.bone.dims))
     fig["covered_voxels"] = frame.stats["covered"]
     fig["exact_queries"] = frame.stats["exact_queries"]
+    fig["decided_by"] = {k: frame.stats["by_" + k] for k in ("block", "cube", "sphere", "search")}
     fig["inverse_warp_s"], _ = best_of(args.repeat, lambda: volrig.inverse_warp(vol, M[0], like=frame))
     fig["ratio_to_warp"] = fig["rigid_frame_s"] / fig["inverse_warp_s"]
     fig["inverse_warp_source_grid_s"], _ = best_of(args.repeat, lambda: volrig.inverse_warp(vol, M[0]))
@@ -95,6 +96,8 @@ def main() -> int:
 
     print(f"output grid {frame.bone.dims} ({fig['output_voxels']:,} voxels), {fig['covered_voxels']:,} covered, "
           f"{fig['exact_queries']:,} exact queries; per-rig data {fig['per_rig_memory_mb']:.0f} MB")
+    print("covered voxels decided by " + ", ".join(f"{k} {v / max(1, fig['covered_voxels']):.1%}"
+                                                   for k, v in fig["decided_by"].items()))
     rows = [("Deformer build + first frame", fig["build_and_first_frame_s"], ""),
             ("rigid frame (power proximity)", fig["rigid_frame_s"], "<= 1.0 s"),
             ("inverse warp onto the same grid (reference)", fig["inverse_warp_s"], ""),

@@ -102,7 +102,8 @@ public:
 
     std::size_t bone_count() const;
     std::size_t sphere_count() const;
-    /// Bytes held by the per-rig data currently built (power-diagram labels, k-d trees, sphere copies).
+    /// Bytes held by the per-rig data currently built (per-cube power ranges, labels and corner powers, k-d trees,
+    /// sphere copies).
     std::size_t memory_bytes() const;
 
     struct Impl;
