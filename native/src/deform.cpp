@@ -601,6 +601,31 @@ constexpr std::uint32_t kNoCell = 0;
 inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~kSameBit); }
 inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
 
+/// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
+/// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
+/// convex combination of its corner values that represents p (the trilinear weights, or the barycentric weights of
+/// a tetrahedron of corners holding p), and |p|² less the same combination of the corners' is −Σ s²u(1−u) for all
+/// of them; the largest of the trilinear and the four Kuhn triangulations' (one per main diagonal) is taken.
+double concave_lower(const double* v, const double* u, const double* s2) {
+    for (int k = 0; k < 8; ++k)
+        if (!(v[k] > -kInf)) return -kInf;
+    const double c00 = v[0] + u[0] * (v[1] - v[0]), c10 = v[2] + u[0] * (v[3] - v[2]);
+    const double c01 = v[4] + u[0] * (v[5] - v[4]), c11 = v[6] + u[0] * (v[7] - v[6]);
+    const double c0 = c00 + u[1] * (c10 - c00), c1 = c01 + u[1] * (c11 - c01);
+    double best = c0 + u[2] * (c1 - c0);
+    for (int m : {0, 1, 2, 4}) {  // the diagonal from corner m to corner 7 ^ m
+        const double w[3] = {(m & 1) ? 1 - u[0] : u[0], (m & 2) ? 1 - u[1] : u[1], (m & 4) ? 1 - u[2] : u[2]};
+        int a = 0, b = 1, c = 2;  // axes by decreasing w
+        if (w[a] < w[b]) std::swap(a, b);
+        if (w[b] < w[c]) std::swap(b, c);
+        if (w[a] < w[b]) std::swap(a, b);
+        const int v1 = 1 << a, v2 = v1 | (1 << b);
+        best = std::max(best, (1 - w[a]) * v[m] + (w[a] - w[b]) * v[v1 ^ m] + (w[b] - w[c]) * v[v2 ^ m] + w[c] * v[7 ^ m]);
+    }
+    const double L = best - (s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]));
+    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
+}
+
 struct BoneField {
     // spheres in local (k-d) order
     std::vector<std::uint32_t> global;
@@ -666,8 +691,8 @@ struct BoneField {
     }
 
     /// A lower bound of the power at p (fixed point, as Pull gives it) from the quantised powers at the eight
-    /// corners of its lattice cube: the power is |p|² plus a concave function, so their trilinear interpolation
-    /// less Σ s²u(1−u) bounds it from below. Corners outside the allocated blocks hold at least T.
+    /// corners of its lattice cube (concave_lower: the power is |p|² plus a concave function). Corners outside the
+    /// allocated blocks hold at least T.
     double corner_lower(const std::int64_t* p, const double* s2) const {
         const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
                            z = (p[2] >> Pull::kBits) - lo[2];
@@ -698,12 +723,7 @@ struct BoneField {
         const double u[3] = {static_cast<double>(p[0] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
                              static_cast<double>(p[1] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
                              static_cast<double>(p[2] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit)};
-        const double c00 = v[0] + u[0] * (v[1] - v[0]), c10 = v[2] + u[0] * (v[3] - v[2]);
-        const double c01 = v[4] + u[0] * (v[5] - v[4]), c11 = v[6] + u[0] * (v[7] - v[6]);
-        const double c0 = c00 + u[1] * (c10 - c00), c1 = c01 + u[1] * (c11 - c01);
-        const double L = c0 + u[2] * (c1 - c0) -
-                         (s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]));
-        return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin (NaN from -inf - -inf: not a bound, callers test < 0)
+        return concave_lower(v, u, s2);
     }
 
     /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
@@ -1218,20 +1238,16 @@ double upper_bound(const BoneField& f, const Cube& cube, const double* p, const 
     return U;
 }
 
-/// A lower bound of the bone's power at p. The power is |p|² plus a concave function (a minimum of linear
-/// ones), so the trilinear interpolation of the corner values minus Σ s²u(1−u) bounds it from below; corners
-/// without a label hold at least T.
+/// A lower bound of the bone's power at p from its exact values at the cube's corners (concave_lower: the power
+/// is |p|² plus a concave function, a minimum of linear ones); corners without a label hold at least T.
 double lower_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, double T) {
     const double u[3] = {p[0] - cube.base[0], p[1] - cube.base[1], p[2] - cube.base[2]};
-    double L = 0;
+    double v[8];
     for (int c = 0; c < 8; ++c) {
-        const double lam = ((c & 1) ? u[0] : 1 - u[0]) * (((c >> 1) & 1) ? u[1] : 1 - u[1]) *
-                           (((c >> 2) & 1) ? u[2] : 1 - u[2]);
         const double corner[3] = {cube.base[0] + (c & 1), cube.base[1] + ((c >> 1) & 1), cube.base[2] + ((c >> 2) & 1)};
-        L += lam * (cube.lab[c] == kNone ? T : power_of(f, cube.lab[c], corner, s2));
+        v[c] = cube.lab[c] == kNone ? T : power_of(f, cube.lab[c], corner, s2);
     }
-    L -= s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]);
-    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
+    return concave_lower(v, u, s2);
 }
 
 /// A field (a bone, or a group of blended spheres) that may cover an output voxel.
