@@ -1700,8 +1700,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     with_sampler(source, [&](auto sampler) {
         // The second tier (power proximity): for the candidates in loc.running (indices into loc.cb), each one's
         // power at posed point m3 from its cube's first-corner sphere: exact when the cube is that sphere's alone,
-        // else an upper bound, with the cube's quantised lower bound. Returns the winner, null when none covers,
-        // or &kUndecided.
+        // else an upper bound; below it, the cube's quantised range, sharpened when needed from the corner powers
+        // (concave_lower). Returns the winner, null when none covers, or &kUndecided.
         auto second_tier = [&](Local& loc, std::size_t li, const std::int64_t* m3) -> const Tier* {
             auto& tiers = loc.tiers;
             tiers.clear();
