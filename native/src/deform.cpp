@@ -103,6 +103,10 @@ struct Pull {
         p[2] = a[6] * q[0] + a[7] * q[1] + a[8] * q[2] + t[2];
     }
     static double to_double(std::int64_t v) { return static_cast<double>(v) * (1.0 / kUnit); }
+    /// The fractional part of a fixed-point coordinate (its integer part, v >> kBits, is the lattice cell).
+    static double fraction(std::int64_t v) {
+        return static_cast<double>(v & ((std::int64_t{1} << kBits) - 1)) * (1.0 / kUnit);
+    }
     void apply(const std::int64_t* q, double* p) const {
         std::int64_t f[3];
         fixed(q, f);
@@ -271,11 +275,8 @@ struct Sampler {
         if constexpr (std::is_integral_v<T> && sizeof(T) <= 2) return static_cast<double>(v);
         else return static_cast<double>(static_cast<float>(v));
     }
-    /// Samples at a rest point in fixed point (Pull): the integer part is the lattice cell, the low bits the
-    /// fraction, so no rounding mode enters.
-    static double fraction(std::int64_t v) {
-        return static_cast<double>(v & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit);
-    }
+    // Samples at a rest point in fixed point (Pull): the integer part is the lattice cell, the low bits the
+    // fraction, so no rounding mode enters.
     static std::int64_t clamp_index(std::int64_t v, std::int64_t n) {
         const std::int64_t i = (v >> Pull::kBits) + ((v >> (Pull::kBits - 1)) & 1);  // round half up
         return i < 0 ? 0 : (i >= n ? n - 1 : i);
@@ -285,7 +286,7 @@ struct Sampler {
     }
     static void cell(std::int64_t v, std::int64_t n, std::int64_t& i0, std::int64_t& i1, double& f) {
         i0 = v >> Pull::kBits;
-        f = fraction(v);
+        f = Pull::fraction(v);
         if (i0 < 0 || i0 >= n - 1) {  // clamped to the lattice
             i0 = i0 < 0 ? 0 : n - 1;
             f = 0;
@@ -298,7 +299,7 @@ struct Sampler {
             static_cast<std::uint64_t>(y0) < static_cast<std::uint64_t>(ny - 1) &&
             static_cast<std::uint64_t>(z0) < static_cast<std::uint64_t>(nz - 1)) {
             // Inside the lattice (nearly always): the same arithmetic as below without clamping.
-            const double fx = fraction(p[0]), fy = fraction(p[1]), fz = fraction(p[2]);
+            const double fx = Pull::fraction(p[0]), fy = Pull::fraction(p[1]), fz = Pull::fraction(p[2]);
             const T* d = data + (z0 * ny + y0) * nx + x0;
             const std::int64_t sy = nx, sz = nx * ny;
             const double v000 = value(d[0]), v100 = value(d[1]);
@@ -679,50 +680,50 @@ struct BoneField {
     /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
     /// it: the corner is the integer part), or kNoCell (its range says no point of that cube can be covered).
     std::uint32_t cube_cell(const std::int64_t* p) const {
-        const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
-                           z = (p[2] >> Pull::kBits) - lo[2];
+        return cell_at((p[0] >> Pull::kBits) - lo[0], (p[1] >> Pull::kBits) - lo[1], (p[2] >> Pull::kBits) - lo[2]);
+    }
+
+    /// The allocated block (slot) holding cell (x, y, z) (relative to lo, inside the field), -1 when none is.
+    std::int32_t block_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
+    }
+
+    /// The index of cell (x, y, z) (relative to lo), kNoCell outside the field or its allocated blocks.
+    std::uint32_t cell_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
         if (static_cast<std::uint64_t>(x) >= static_cast<std::uint64_t>(dims[0]) ||
             static_cast<std::uint64_t>(y) >= static_cast<std::uint64_t>(dims[1]) ||
             static_cast<std::uint64_t>(z) >= static_cast<std::uint64_t>(dims[2]))
             return kNoCell;
-        const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
-        if (blk < 0) return kNoCell;
-        return cell_of(blk, x, y, z);
+        const std::int32_t blk = block_at(x, y, z);
+        return blk < 0 ? kNoCell : cell_of(blk, x, y, z);
+    }
+
+    /// The cells at the eight corners of the lattice cube with first corner (x, y, z) (relative to lo; corner k:
+    /// bits x, y, z), kNoCell where a corner lies outside the field or its allocated blocks.
+    void corner_cells(std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t* c) const {
+        if (x >= 0 && y >= 0 && z >= 0 && (x & 7) != 7 && (y & 7) != 7 && (z & 7) != 7 && x + 1 < dims[0] &&
+            y + 1 < dims[1] && z + 1 < dims[2]) {  // the whole cube in one block (most of the time)
+            const std::int32_t blk = block_at(x, y, z);
+            const std::uint32_t c0 = blk < 0 ? kNoCell : cell_of(blk, x, y, z);
+            const std::uint32_t offset[8] = {0, 1, 8, 9, 64, 65, 72, 73};
+            for (int k = 0; k < 8; ++k) c[k] = blk < 0 ? kNoCell : c0 + offset[k];
+            return;
+        }
+        for (int k = 0; k < 8; ++k) c[k] = cell_at(x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1));
     }
 
     /// A lower bound of the power at p (fixed point, as Pull gives it) from the quantised powers at the eight
     /// corners of its lattice cube (concave_lower: the power is |p|² plus a concave function). Corners outside the
     /// allocated blocks hold at least T.
     double corner_lower(const std::int64_t* p, const double* s2) const {
-        const std::int64_t x = (p[0] >> Pull::kBits) - lo[0], y = (p[1] >> Pull::kBits) - lo[1],
-                           z = (p[2] >> Pull::kBits) - lo[2];
+        std::uint32_t c[8];
+        corner_cells((p[0] >> Pull::kBits) - lo[0], (p[1] >> Pull::kBits) - lo[1], (p[2] >> Pull::kBits) - lo[2], c);
         double v[8];
-        auto value = [&](std::int16_t q) { return q == kBoundMin ? -kInf : q * step; };
-        if (x >= 0 && y >= 0 && z >= 0 && (x & 7) != 7 && (y & 7) != 7 && (z & 7) != 7 && x + 1 < dims[0] &&
-            y + 1 < dims[1] && z + 1 < dims[2]) {
-            const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
-            if (blk < 0) return floor_T;
-            const std::int16_t* c = corner.data() + cell_of(blk, x, y, z);
-            v[0] = value(c[0]);
-            v[1] = value(c[1]);
-            v[2] = value(c[8]);
-            v[3] = value(c[9]);
-            v[4] = value(c[64]);
-            v[5] = value(c[65]);
-            v[6] = value(c[72]);
-            v[7] = value(c[73]);
-        } else {
-            for (int k = 0; k < 8; ++k) {
-                const std::int64_t cx = x + (k & 1), cy = y + ((k >> 1) & 1), cz = z + ((k >> 2) & 1);
-                v[k] = floor_T;
-                if (cx < 0 || cy < 0 || cz < 0 || cx >= dims[0] || cy >= dims[1] || cz >= dims[2]) continue;
-                const std::int32_t blk = block_index[static_cast<std::size_t>(((cz >> 3) * bdims[1] + (cy >> 3)) * bdims[0] + (cx >> 3))];
-                if (blk >= 0) v[k] = value(corner[cell_of(blk, cx, cy, cz)]);
-            }
+        for (int k = 0; k < 8; ++k) {
+            const std::int16_t q = corner[c[k]];
+            v[k] = c[k] == kNoCell ? floor_T : (q == kBoundMin ? -kInf : q * step);
         }
-        const double u[3] = {static_cast<double>(p[0] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
-                             static_cast<double>(p[1] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit),
-                             static_cast<double>(p[2] & ((std::int64_t{1} << Pull::kBits) - 1)) * (1.0 / Pull::kUnit)};
+        const double u[3] = {Pull::fraction(p[0]), Pull::fraction(p[1]), Pull::fraction(p[2])};
         return concave_lower(v, u, s2);
     }
 
@@ -755,16 +756,6 @@ struct BoneField {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
                blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
                block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
-    }
-
-    std::uint32_t label_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
-        x -= lo[0];
-        y -= lo[1];
-        z -= lo[2];
-        if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) return kNone;
-        const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
-        if (blk < 0) return kNone;
-        return label_of(words[cell_of(blk, x, y, z)]);
     }
 };
 
@@ -1074,11 +1065,11 @@ double mindist2(const KdNode& n, const double* p) {
     return d;
 }
 
-/// Minimum over the bone's spheres of the power |p − c|² − lim (p in world offsets), or, with `nearest`, the
-/// minimum of |p − c|² over the spheres that cover p.
-/// `p` is in world offsets (for pruning, with a margin for rounding), `pi` the same point in index space.
-/// Depth first, nearer child first, with an explicit stack (the tree is balanced: depth below 64).
-void query(const BoneField& f, const double* p, const double* pi, const double* s2, bool nearest, Best& best) {
+/// Walks the bone's k-d tree depth first, nearer child first, with an explicit stack (the tree is balanced: its
+/// depth stays far below 64). `open(n, md)` says whether node n, at least squared distance md from p (world
+/// offsets), may still matter; `leaf(n)` visits a leaf's spheres and returns true to stop the walk.
+template <class Open, class Leaf>
+void walk_kd(const BoneField& f, const double* p, Open&& open, Leaf&& leaf) {
     std::int32_t stack[64];
     double dist[64];
     int top = 0;
@@ -1086,17 +1077,9 @@ void query(const BoneField& f, const double* p, const double* pi, const double* 
     double md = mindist2(f.nodes[0], p);
     for (;;) {
         const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
-        const double slack = 1e-9 * (1.0 + std::abs(md) + n.max_lim + (best.key < kInf ? std::abs(best.key) : 0.0));
-        const bool pruned = nearest ? (md > best.key + slack || md >= n.max_lim + slack) : md - n.max_lim > best.key + slack;
-        if (!pruned) {
+        if (open(n, md)) {
             if (n.left < 0) {
-                for (std::uint32_t k = n.begin; k < n.end; ++k) {
-                    const auto& sp = f.sph[k];
-                    const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
-                    if (nearest && !(d2 < sp.lim)) continue;
-                    const double key = nearest ? d2 : d2 - sp.lim;
-                    if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
-                }
+                if (leaf(n)) return;
             } else {
                 const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
                 const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
@@ -1115,37 +1098,41 @@ void query(const BoneField& f, const double* p, const double* pi, const double* 
     }
 }
 
+/// Minimum over the bone's spheres of the power |p − c|² − lim (p in world offsets), or, with `nearest`, the
+/// minimum of |p − c|² over the spheres that cover p.
+/// `p` is in world offsets (for pruning, with a margin for rounding), `pi` the same point in index space.
+void query(const BoneField& f, const double* p, const double* pi, const double* s2, bool nearest, Best& best) {
+    walk_kd(
+        f, p,
+        [&](const KdNode& n, double md) {
+            const double slack = 1e-9 * (1.0 + std::abs(md) + n.max_lim + (best.key < kInf ? std::abs(best.key) : 0.0));
+            return nearest ? !(md > best.key + slack || md >= n.max_lim + slack) : !(md - n.max_lim > best.key + slack);
+        },
+        [&](const KdNode& n) {
+            for (std::uint32_t k = n.begin; k < n.end; ++k) {
+                const auto& sp = f.sph[k];
+                const double d2 = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2);
+                if (nearest && !(d2 < sp.lim)) continue;
+                const double key = nearest ? d2 : d2 - sp.lim;
+                if (best.better(key, f.global[k])) best = {key, k, f.global[k]};
+            }
+            return false;
+        });
+}
+
 /// Whether any of the bone's spheres covers the point (|p − c|² < lim): a search that stops at the first one.
 bool any_cover(const BoneField& f, const double* p, const double* pi, const double* s2) {
-    std::int32_t stack[64];
-    double dist[64];
-    int top = 0;
-    std::int32_t node = 0;
-    double md = mindist2(f.nodes[0], p);
-    for (;;) {
-        const KdNode& n = f.nodes[static_cast<std::size_t>(node)];
-        if (md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim)) {
-            if (n.left < 0) {
-                for (std::uint32_t k = n.begin; k < n.end; ++k) {
-                    const auto& sp = f.sph[k];
-                    if (length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2) < sp.lim) return true;
-                }
-            } else {
-                const double dl = mindist2(f.nodes[static_cast<std::size_t>(n.left)], p);
-                const double dr = mindist2(f.nodes[static_cast<std::size_t>(n.right)], p);
-                const bool left_first = dl <= dr;
-                stack[top] = left_first ? n.right : n.left;
-                dist[top++] = left_first ? dr : dl;
-                node = left_first ? n.left : n.right;
-                md = left_first ? dl : dr;
-                continue;
+    bool found = false;
+    walk_kd(
+        f, p, [&](const KdNode& n, double md) { return md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim); },
+        [&](const KdNode& n) {
+            for (std::uint32_t k = n.begin; k < n.end && !found; ++k) {
+                const auto& sp = f.sph[k];
+                found = length2(pi[0] - sp.c[0], pi[1] - sp.c[1], pi[2] - sp.c[2], s2) < sp.lim;
             }
-        }
-        if (top == 0) return false;
-        --top;
-        node = stack[top];
-        md = dist[top];
-    }
+            return found;
+        });
+    return found;
 }
 
 /// `seed`: a sphere's (power, local, global) at the point when one is known (power proximity only): it prunes the
@@ -1173,40 +1160,10 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy), z0 = static_cast<std::int64_t>(fz);
     const std::int64_t lx = x0 - f.lo[0], ly = y0 - f.lo[1], lz = z0 - f.lo[2];
     if (lx + 1 < 0 || ly + 1 < 0 || lz + 1 < 0 || lx >= f.dims[0] || ly >= f.dims[1] || lz >= f.dims[2]) return false;
+    std::uint32_t cell[8];
+    f.corner_cells(lx, ly, lz, cell);
     std::uint32_t* lab = cube.lab;
-    if (lx >= 0 && ly >= 0 && lz >= 0 && (lx & 7) != 7 && (ly & 7) != 7 && (lz & 7) != 7 && lx + 1 < f.dims[0] &&
-        ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
-        // The whole cube lies in one block (most of the time).
-        const std::int32_t blk =
-            f.block_index[static_cast<std::size_t>(((lz >> 3) * f.bdims[1] + (ly >> 3)) * f.bdims[0] + (lx >> 3))];
-        if (blk < 0) return false;
-        const std::uint32_t* b0 = f.words.data() + BoneField::cell_of(blk, lx, ly, lz);
-        lab[0] = label_of(b0[0]);
-        lab[1] = label_of(b0[1]);
-        lab[2] = label_of(b0[8]);
-        lab[3] = label_of(b0[9]);
-        lab[4] = label_of(b0[64]);
-        lab[5] = label_of(b0[65]);
-        lab[6] = label_of(b0[72]);
-        lab[7] = label_of(b0[73]);
-    } else if (lx >= 0 && ly >= 0 && lz >= 0 && lx + 1 < f.dims[0] && ly + 1 < f.dims[1] && lz + 1 < f.dims[2]) {
-        // Inside the field, across block faces: each corner from its own block.
-        const std::int64_t l[3] = {lx, ly, lz};
-        std::int64_t blk[3][2], off[3][2];
-        for (int a = 0; a < 3; ++a)
-            for (int k = 0; k < 2; ++k) {
-                blk[a][k] = (l[a] + k) >> 3;
-                off[a][k] = (l[a] + k) & 7;
-            }
-        for (int c = 0; c < 8; ++c) {
-            const int i = c & 1, j = (c >> 1) & 1, k = (c >> 2) & 1;
-            const std::int32_t b =
-                f.block_index[static_cast<std::size_t>((blk[2][k] * f.bdims[1] + blk[1][j]) * f.bdims[0] + blk[0][i])];
-            lab[c] = b < 0 ? kNone : label_of(f.words[BoneField::cell_of(b, off[0][i], off[1][j], off[2][k])]);
-        }
-    } else {
-        for (int c = 0; c < 8; ++c) lab[c] = f.label_at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
-    }
+    for (int k = 0; k < 8; ++k) lab[k] = label_of(f.words[cell[k]]);
     bool same = true, any = false;
     for (int c = 0; c < 8; ++c) {
         same = same && lab[c] == lab[0];
@@ -1672,8 +1629,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         double U, L;
         std::uint32_t local;  // the sphere giving U; its global index breaks ties (fetched only then)
         bool exact, tight;
-        double p[3];
-        std::int64_t pf[3];
+        std::int64_t pf[3];  // the voxel's preimage (fixed point)
     };
     static const Tier kUndecided{};
     constexpr std::int32_t kEmpty = -1, kOpen = -2;  // per voxel: no candidate covers it / the ranges do not decide
@@ -1715,8 +1671,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 Tier& t = tiers.emplace_back();
                 t.field = fi;
                 fmot[static_cast<std::size_t>(fi)].pull.fixed(m3, t.pf);
-                for (int i = 0; i < 3; ++i) t.p[i] = Pull::to_double(t.pf[i]);
-                t.U = power_of(f, lab, t.p, s2);
+                const double p[3] = {Pull::to_double(t.pf[0]), Pull::to_double(t.pf[1]), Pull::to_double(t.pf[2])};
+                t.U = power_of(f, lab, p, s2);
                 t.local = lab;
                 t.exact = same_of(word);
                 t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
@@ -1870,22 +1826,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     win[li] = w;
                 }
                 loc.by[1] += certain;
-                // Ahead of the undecided voxels, their cubes' words, then their labels' spheres, fetched in bulk.
-                for (std::size_t li = 0; li < 512; ++li) {
-                    if (win[li] != kOpen) continue;
-                    for (std::size_t k = 0; k < K; ++k)
-                        if (loc.clo[k * 512 + li] < 0)
-                            __builtin_prefetch(fields[static_cast<std::size_t>(cb[k])].words.data() + loc.cidx[k * 512 + li]);
-                }
-                for (std::size_t li = 0; li < 512; ++li) {
-                    if (win[li] != kOpen) continue;
-                    for (std::size_t k = 0; k < K; ++k) {
-                        if (!(loc.clo[k * 512 + li] < 0)) continue;
-                        const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
-                        const std::uint32_t lab = label_of(f.words[loc.cidx[k * 512 + li]]);
-                        if (lab != kNone) __builtin_prefetch(f.sph.data() + lab);
-                    }
-                }
                 // The undecided voxels, one by one.
                 for (std::size_t li = 0; li < 512; ++li) {
                     if (win[li] != kOpen) continue;

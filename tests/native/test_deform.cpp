@@ -176,6 +176,18 @@ bool tight(const DeformedVolume& f) {
     return std::all_of(face, face + 6, [](bool b) { return b; });
 }
 
+/// The brute-force scatter on the fast frame's box equals it voxel for voxel, and that box is tight.
+void require_brute_force(const Limb& L, bool with_weights, const std::vector<double>& mats, const DeformOptions& o,
+                         const DeformedVolume& fast) {
+    const std::array<std::int64_t, 6> box{fast.offset[0], fast.offset[1], fast.offset[2],
+                                          fast.grid.dims[0], fast.grid.dims[1], fast.grid.dims[2]};
+    const DeformedVolume ref = deform_reference(L.view(), L.spheres(with_weights), mats.data(), o, {}, &box);
+    REQUIRE(fast.stats.covered == ref.stats.covered);
+    REQUIRE(fast.bone == ref.bone);
+    REQUIRE(fast.values == ref.values);
+    REQUIRE(tight(fast));
+}
+
 TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[deform]") {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -197,13 +209,7 @@ TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[defor
                     o.sampling = trial % 2 ? Sampling::Nearest : Sampling::Trilinear;
                     INFO("spacing " << spacing[2] << " trial " << trial << " mode " << int(mode) << " prox " << int(prox));
                     const DeformedVolume fast = d.frame(mats.data(), o);
-                    const std::array<std::int64_t, 6> box{fast.offset[0], fast.offset[1], fast.offset[2],
-                                                          fast.grid.dims[0], fast.grid.dims[1], fast.grid.dims[2]};
-                    const DeformedVolume ref = deform_reference(L.view(), L.spheres(true), mats.data(), o, {}, &box);
-                    REQUIRE(fast.stats.covered == ref.stats.covered);
-                    REQUIRE(fast.bone == ref.bone);
-                    REQUIRE(fast.values == ref.values);
-                    REQUIRE(tight(fast));
+                    require_brute_force(L, true, mats, o, fast);
                     if (mode != DeformMode::Rigid) REQUIRE(fast.stats.blended_spheres > 0);
                     if (trial == 0) {  // the reference on its own box (every posed ball), cropped: the same frame
                         DeformedVolume wide = deform_reference(L.view(), L.spheres(true), mats.data(), o);
@@ -236,12 +242,7 @@ TEST_CASE("every decision tier of the Deformer is used, and it still equals the 
         DeformOptions o;
         INFO("bend " << deg);
         const DeformedVolume fast = d.frame(mats.data(), o);
-        const std::array<std::int64_t, 6> box{fast.offset[0], fast.offset[1], fast.offset[2],
-                                              fast.grid.dims[0], fast.grid.dims[1], fast.grid.dims[2]};
-        const DeformedVolume ref = deform_reference(L.view(), L.spheres(false), mats.data(), o, {}, &box);
-        REQUIRE(fast.stats.covered == ref.stats.covered);
-        REQUIRE(fast.bone == ref.bone);
-        REQUIRE(fast.values == ref.values);
+        require_brute_force(L, false, mats, o, fast);
         REQUIRE(fast.stats.by_block + fast.stats.by_cube + fast.stats.by_sphere + fast.stats.by_search ==
                 fast.stats.covered);
         tiers[0] += fast.stats.by_block;
