@@ -1449,6 +1449,25 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + im.bone / 64] |= std::uint64_t{1} << (im.bone % 64);
     }
 
+    // The quantised range of field b's power over the preimages of the output voxels q0 + [0, side)³ (absolute
+    // lattice): over the rest cubes holding them, from the bounding box of the preimage in fixed point (exact: the
+    // lookups' cells are the integer parts of the very same values).
+    auto preimage_range = [&](std::int32_t b, const std::int64_t* q0, std::int64_t side) {
+        const Pull& pl = fmot[static_cast<std::size_t>(b)].pull;
+        std::int64_t p0[3], ra[3], rb[3];
+        pl.fixed(q0, p0);
+        for (int a = 0; a < 3; ++a) {
+            std::int64_t lo_f = p0[a], hi_f = p0[a];
+            for (int j = 0; j < 3; ++j) {
+                const std::int64_t d = pl.a[3 * a + j] * (side - 1);
+                (d < 0 ? lo_f : hi_f) += d;
+            }
+            ra[a] = lo_f >> Pull::kBits;
+            rb[a] = hi_f >> Pull::kBits;
+        }
+        return fields[static_cast<std::size_t>(b)].range_bounds(ra, rb);
+    };
+
     // The bones whose rest data the preimage of output block (kx, ky, kz) meets.
     // With each, the range of its power over the block (from the rest cubes its preimage can reach).
     auto block_candidates = [&](std::int64_t kx, std::int64_t ky, std::int64_t kz, std::vector<std::int32_t>& cb,
@@ -1480,27 +1499,9 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 const std::int64_t cc[3] = {static_cast<std::int64_t>(std::floor(phi[0])) + 1,
                                             static_cast<std::int64_t>(std::floor(phi[1])) + 1,
                                             static_cast<std::int64_t>(std::floor(phi[2])) + 1};
-                const BoneField& f = fields[static_cast<std::size_t>(b)];
-                if (!f.any_block(ca, cc)) continue;
-                // The voxels span [0, kBlock - 1] in the block: their preimages' cells, with a rounding margin.
-                double rlo[3] = {kInf, kInf, kInf}, rhi[3] = {-kInf, -kInf, -kInf};
-                for (int c = 0; c < 8; ++c) {
-                    const std::int64_t q[3] = {bx[0] + kx * kBlock + ((c & 1) ? kBlock - 1 : 0),
-                                               bx[1] + ky * kBlock + (((c >> 1) & 1) ? kBlock - 1 : 0),
-                                               bx[2] + kz * kBlock + (((c >> 2) & 1) ? kBlock - 1 : 0)};
-                    double r[3];
-                    fmot[static_cast<std::size_t>(b)].pull.apply(q, r);
-                    for (int a = 0; a < 3; ++a) {
-                        rlo[a] = std::min(rlo[a], r[a]);
-                        rhi[a] = std::max(rhi[a], r[a]);
-                    }
-                }
-                std::int64_t ra[3], rb[3];
-                for (int a = 0; a < 3; ++a) {
-                    ra[a] = static_cast<std::int64_t>(std::floor(rlo[a] - 1e-6 * (1 + std::abs(rlo[a]))));
-                    rb[a] = static_cast<std::int64_t>(std::floor(rhi[a] + 1e-6 * (1 + std::abs(rhi[a]))));
-                }
-                const CellBounds rg = f.range_bounds(ra, rb);
+                if (!fields[static_cast<std::size_t>(b)].any_block(ca, cc)) continue;
+                const std::int64_t q0[3] = {bx[0] + kx * kBlock, bx[1] + ky * kBlock, bx[2] + kz * kBlock};
+                const CellBounds rg = preimage_range(b, q0, kBlock);
                 if (rg.lo >= 0) continue;
                 cb.push_back(b);
                 range.push_back(rg);
@@ -1546,10 +1547,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     };
 
     // The winning candidate at posed lattice point m3 (output index idx), or null when no sphere covers it.
-    auto resolve = [&](const std::vector<std::int32_t>& cb, const std::int64_t* m3, std::vector<Cand>& cands,
+    auto resolve = [&](const std::int32_t* cb, std::size_t n_cb, const std::int64_t* m3, std::vector<Cand>& cands,
                        std::int64_t& n_q) -> const Cand* {
         cands.clear();
-        for (std::int32_t b : cb) {
+        for (std::size_t kb = 0; kb < n_cb; ++kb) {
+            const std::int32_t b = cb[kb];
             cands.emplace_back();
             Cand& c = cands.back();
             c.bone = b;
@@ -1640,8 +1642,10 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::int64_t hi[3] = {-1, -1, -1};
         std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
         // scratch
-        std::vector<std::int32_t> cb, running;
-        std::vector<CellBounds> range;
+        std::vector<std::int32_t> cb, running;  // running: n_running candidates (indices into cb, or fields)
+        std::size_t n_running = 0;
+        std::vector<CellBounds> range, range_sub;
+        std::vector<std::uint8_t> live;
         std::vector<Cand> cands;
         // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
         std::vector<std::int16_t> clo, chi;
@@ -1659,16 +1663,17 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         // else an upper bound; below it, the cube's quantised range, sharpened when needed from the corner powers
         // (concave_lower). Returns the winner, null when none covers, or &kUndecided.
         auto second_tier = [&](Local& loc, std::size_t li, const std::int64_t* m3) -> const Tier* {
-            auto& tiers = loc.tiers;
-            tiers.clear();
-            for (std::int32_t k : loc.running) {
+            Tier* const tiers = loc.tiers.data();
+            std::size_t n_t = 0;
+            for (std::size_t r = 0; r < loc.n_running; ++r) {
+                const std::int32_t k = loc.running[r];
                 const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
                 const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
                 const BoneField& f = fields[static_cast<std::size_t>(fi)];
                 const std::uint32_t word = f.words[loc.cidx[at]];
                 const std::uint32_t lab = label_of(word);
                 if (lab == kNone) return &kUndecided;
-                Tier& t = tiers.emplace_back();
+                Tier& t = tiers[n_t++];
                 t.field = fi;
                 fmot[static_cast<std::size_t>(fi)].pull.fixed(m3, t.pf);
                 const double p[3] = {Pull::to_double(t.pf[0]), Pull::to_double(t.pf[1]), Pull::to_double(t.pf[2])};
@@ -1686,17 +1691,18 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             };
             auto global = [&](const Tier& t) { return fields[static_cast<std::size_t>(t.field)].global[t.local]; };
             std::size_t a = 0;
-            for (std::size_t k = 1; k < tiers.size(); ++k)
+            for (std::size_t k = 1; k < n_t; ++k)
                 if (tiers[k].U < tiers[a].U || (tiers[k].U == tiers[a].U && global(tiers[k]) < global(tiers[a]))) a = k;
             const Tier& w = tiers[a];
             if (!(w.U < 0)) {  // none covers when every lower bound is >= 0
-                for (Tier& t : tiers) {
+                for (std::size_t k = 0; k < n_t; ++k) {
+                    Tier& t = tiers[k];
                     lower(t, 0.0);
                     if (!(t.L >= 0)) return &kUndecided;
                 }
                 return nullptr;
             }
-            for (std::size_t k = 0; k < tiers.size(); ++k) {
+            for (std::size_t k = 0; k < n_t; ++k) {
                 if (k == a) continue;
                 Tier& t = tiers[k];
                 if (t.exact) {
@@ -1745,7 +1751,46 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                             std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + ex, cb[0]);
                 loc.by[0] += ex * ey * ez;
             } else {
+                // Per 4³ sub-block, each candidate's range over the sub-block's preimage: a sub-block that no candidate
+                // can cover, or that one covers whole while every rival's least power exceeds its greatest, is
+                // decided without lookups; elsewhere the candidates that cannot cover or win there are skipped.
+                std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
+                auto& live = loc.live;    // per candidate and sub-block: whether its cells are looked up
+                live.assign(K * 8, 0);
+                bool any_open = false;
+                for (int sb = 0; sb < 8; ++sb) {
+                    const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
+                    sub_win[sb] = kEmpty;
+                    if (s0[0] >= ex || s0[1] >= ey || s0[2] >= ez) continue;
+                    const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
+                    auto& sr = loc.range_sub;
+                    sr.resize(K);
+                    std::size_t a = 0;
+                    for (std::size_t k = 0; k < K; ++k) {
+                        sr[k] = preimage_range(cb[k], q0, 4);
+                        if (sr[k].hi < sr[a].hi) a = k;
+                    }
+                    const std::int16_t ua = sr[a].hi;
+                    std::size_t n_live = 0;
+                    for (std::size_t k = 0; k < K; ++k) {
+                        const bool l = sr[k].lo < 0 && (nearest || !(ua < 0) || k == a || !(sr[k].lo > ua));
+                        live[k * 8 + static_cast<std::size_t>(sb)] = l;
+                        n_live += l;
+                    }
+                    if (n_live == 1 && ua < 0 && live[a * 8 + static_cast<std::size_t>(sb)]) {
+                        sub_win[sb] = cb[a];
+                        live[a * 8 + static_cast<std::size_t>(sb)] = 0;
+                    } else if (n_live) {
+                        sub_win[sb] = kOpen;
+                        any_open = true;
+                    }
+                }
+                if (any_open) {
                 loc.clo.resize(K * 512);
+                if (loc.running.size() < K) {
+                    loc.running.resize(K);
+                    loc.tiers.resize(K);
+                }
                 loc.chi.resize(K * 512);
                 loc.cidx.resize(K * 512);
                 for (std::size_t k = 0; k < K; ++k) {
@@ -1753,26 +1798,34 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     const Pull& pl = fmot[static_cast<std::size_t>(cb[k])].pull;
                     const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
                     std::uint32_t* at = loc.cidx.data() + k * 512;
-                    if (!full) std::fill(at, at + 512, kNoCell);
-                    std::int64_t pz[3];
-                    pl.fixed(base, pz);
-                    for (std::int64_t dz = 0; dz < ez; ++dz) {
-                        std::int64_t py[3] = {pz[0], pz[1], pz[2]};
-                        for (std::int64_t dy = 0; dy < ey; ++dy) {
-                            std::int64_t px[3] = {py[0], py[1], py[2]};
-                            for (std::int64_t dx = 0; dx < ex; ++dx) {
-                                at[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
-                                px[0] += pl.a[0];
-                                px[1] += pl.a[3];
-                                px[2] += pl.a[6];
+                    std::fill(at, at + 512, kNoCell);
+                    for (int sb = 0; sb < 8; ++sb) {
+                        if (!live[k * 8 + static_cast<std::size_t>(sb)]) continue;
+                        const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
+                        const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
+                        const std::int64_t e[3] = {std::min<std::int64_t>(4, ex - s0[0]), std::min<std::int64_t>(4, ey - s0[1]),
+                                                   std::min<std::int64_t>(4, ez - s0[2])};
+                        std::uint32_t* sat = at + (s0[2] * 8 + s0[1]) * 8 + s0[0];
+                        std::int64_t pz[3];
+                        pl.fixed(q0, pz);
+                        for (std::int64_t dz = 0; dz < e[2]; ++dz) {
+                            std::int64_t py[3] = {pz[0], pz[1], pz[2]};
+                            for (std::int64_t dy = 0; dy < e[1]; ++dy) {
+                                std::int64_t px[3] = {py[0], py[1], py[2]};
+                                for (std::int64_t dx = 0; dx < e[0]; ++dx) {
+                                    sat[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
+                                    px[0] += pl.a[0];
+                                    px[1] += pl.a[3];
+                                    px[2] += pl.a[6];
+                                }
+                                py[0] += pl.a[1];
+                                py[1] += pl.a[4];
+                                py[2] += pl.a[7];
                             }
-                            py[0] += pl.a[1];
-                            py[1] += pl.a[4];
-                            py[2] += pl.a[7];
+                            pz[0] += pl.a[2];
+                            pz[1] += pl.a[5];
+                            pz[2] += pl.a[8];
                         }
-                        pz[0] += pl.a[2];
-                        pz[1] += pl.a[5];
-                        pz[2] += pl.a[8];
                     }
                     // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
                     std::int16_t* klo = loc.clo.data() + k * 512;
@@ -1833,11 +1886,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                                        dz = static_cast<std::int64_t>(li >> 6);
                     const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
                     // Candidates whose least power exceeds a certain covering power cannot win.
-                    loc.running.clear();
+                    std::size_t n_run = 0;
                     for (std::size_t k = 0; k < K; ++k) {
                         const std::int16_t l = loc.clo[k * 512 + li];
-                        if (l < 0 && (nearest || !(u[li] < 0) || !(l > u[li]))) loc.running.push_back(static_cast<std::int32_t>(k));
+                        loc.running[n_run] = static_cast<std::int32_t>(k);
+                        n_run += l < 0 && (nearest || !(u[li] < 0) || !(l > u[li]));
                     }
+                    loc.n_running = n_run;
                     // Second tier: each one's power at the voxel from the sphere labelling its cube's first corner,
                     // exact when that sphere holds the whole cube.
                     const Tier* tw = nearest ? &kUndecided : second_tier(loc, li, m3);
@@ -1846,10 +1901,24 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                         loc.by[2] += tw != nullptr;
                         continue;
                     }
-                    for (auto& k : loc.running) k = cb[static_cast<std::size_t>(k)];
-                    const Cand* w = resolve(loc.running, m3, loc.cands, loc.queries);
+                    for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = cb[static_cast<std::size_t>(loc.running[r])];
+                    const Cand* w = resolve(loc.running.data(), n_run, m3, loc.cands, loc.queries);
                     win[li] = w ? w->bone : kEmpty;
                     loc.by[3] += w != nullptr;
+                }
+                } else {
+                    std::fill(win, win + 512, kEmpty);
+                }
+                for (int sb = 0; sb < 8; ++sb) {  // the sub-blocks decided whole
+                    if (sub_win[sb] == kOpen) continue;
+                    const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
+                    for (std::int64_t dz = s0[2]; dz < std::min(s0[2] + 4, ez); ++dz)
+                        for (std::int64_t dy = s0[1]; dy < std::min(s0[1] + 4, ey); ++dy) {
+                            const std::int64_t x1 = std::min(s0[0] + 4, ex);
+                            if (x1 <= s0[0]) continue;
+                            std::fill(win + (dz * 8 + dy) * 8 + s0[0], win + (dz * 8 + dy) * 8 + x1, sub_win[sb]);
+                            if (sub_win[sb] >= 0) loc.by[0] += x1 - s0[0];
+                        }
                 }
             }
             // The samples of the covered voxels (through the winning field's map, as the decisions saw it; along a
