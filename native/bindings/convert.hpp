@@ -52,14 +52,20 @@ py::array_t<T> to_numpy(std::vector<T>&& data, const Grid& grid) {
     return py::array_t<T>({nz, ny, nx}, {ny * nx * e, nx * e, e}, holder->data(), owner);
 }
 
-/// Same for a calloc'd ZeroedArray (its untouched pages stay shared zero pages).
+/// Same for a ZeroedArray (calloc'd: its untouched pages stay shared zero pages; or pooled: see ZeroedPool). The
+/// array is read-only, since a pool re-zeroes only the pages its writers marked.
 template <class T>
 py::array_t<T> to_numpy(ZeroedArray<T>&& data, const Grid& grid) {
     const py::ssize_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
     const auto e = static_cast<py::ssize_t>(sizeof(T));
-    T* p = data.release();
-    py::capsule owner(p, [](void* q) { std::free(q); });
-    return py::array_t<T>({nz, ny, nx}, {ny * nx * e, nx * e, e}, p, owner);
+    auto holder = std::make_unique<std::shared_ptr<void>>(data.owner());
+    T* p = data.data();
+    data = ZeroedArray<T>();
+    py::capsule owner(holder.get(), [](void* q) { delete static_cast<std::shared_ptr<void>*>(q); });
+    holder.release();
+    py::array_t<T> a({nz, ny, nx}, {ny * nx * e, nx * e, e}, p, owner);
+    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
 }
 
 /// A 1-D or N-D array owning a vector, with the given shape.

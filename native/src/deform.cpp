@@ -526,7 +526,8 @@ void crop(DeformedVolume& f, const std::array<std::int64_t, 6>& sub, const Grid*
 // ---- per-bone rest data: spheres in k-d order, k-d tree, power-diagram labels -------------------------------
 
 struct KdNode {
-    double lo[3], hi[3];
+    double lo[3], hi[3];  // the box of the centres (world offsets)
+    double blo[3], bhi[3];  // the box of the balls
     double max_lim;
     std::uint32_t begin, end;
     std::int32_t left = -1, right = -1;
@@ -774,8 +775,8 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
     node.end = end;
     node.max_lim = 0;
     for (int a = 0; a < 3; ++a) {
-        node.lo[a] = kInf;
-        node.hi[a] = -kInf;
+        node.lo[a] = node.blo[a] = kInf;
+        node.hi[a] = node.bhi[a] = -kInf;
     }
     double wlo = kInf, whi = -kInf;
     for (std::uint32_t k = begin; k < end; ++k) {
@@ -783,6 +784,9 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
         for (int a = 0; a < 3; ++a) {
             node.lo[a] = std::min(node.lo[a], w3[3 * i + a]);
             node.hi[a] = std::max(node.hi[a], w3[3 * i + a]);
+            const double r = std::sqrt(std::max(0.0, lims[i]));
+            node.blo[a] = std::min(node.blo[a], w3[3 * i + a] - r);
+            node.bhi[a] = std::max(node.bhi[a], w3[3 * i + a] + r);
         }
         node.max_lim = std::max(node.max_lim, lims[i]);
         wlo = std::min(wlo, lift[i]);
@@ -1124,7 +1128,15 @@ void query(const BoneField& f, const double* p, const double* pi, const double* 
 bool any_cover(const BoneField& f, const double* p, const double* pi, const double* s2) {
     bool found = false;
     walk_kd(
-        f, p, [&](const KdNode& n, double md) { return md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim); },
+        f, p,
+        [&](const KdNode& n, double md) {
+            if (!(md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim))) return false;
+            for (int a = 0; a < 3; ++a) {  // outside the box of the balls (with a margin for rounding)
+                const double tol = 1e-9 * (1.0 + std::abs(p[a]) + (n.bhi[a] - n.blo[a]));
+                if (p[a] < n.blo[a] - tol || p[a] > n.bhi[a] + tol) return false;
+            }
+            return true;
+        },
         [&](const KdNode& n) {
             for (std::uint32_t k = n.begin; k < n.end && !found; ++k) {
                 const auto& sp = f.sph[k];
@@ -1232,6 +1244,7 @@ struct Deformer::Impl {
     std::vector<float> radius, weights;
     std::vector<std::int64_t> weight_offsets;
     bool has_weights = false;
+    std::shared_ptr<ZeroedPool> pool = ZeroedPool::create();  // frames' output memory, recycled
 
     // per-rig data for one (partition, radii) key
     bool built = false, built_smooth = false;
@@ -1422,8 +1435,9 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     out.stats.blended_spheres = blended_spheres;
     const auto total = static_cast<std::size_t>(nx * ny * nz);
-    if (o.values) out.values = ZeroedArray<float>(total);
-    out.bone = ZeroedArray<std::int16_t>(total);
+    // Recycled output memory: only the pages earlier frames wrote are zeroed again (marked as they are written).
+    if (o.values) out.values = pool->take<float>(total);
+    out.bone = pool->take<std::int16_t>(total);
 
     report(progress, 0.55);
 
@@ -1981,6 +1995,9 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                     std::uint64_t xs = (layer[dz] >> (8 * dy)) & 0xff;
                     if (!xs) continue;
                     const auto row = static_cast<std::size_t>(((kz * kBlock + dz) * ny + ky * kBlock + dy) * nx + kx * kBlock);
+                    const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
+                    out.bone.mark_written(row + x0, row + x1);
+                    if (o.values) out.values.mark_written(row + x0, row + x1);
                     while (xs) {
                         const int dx = __builtin_ctzll(xs);
                         xs &= xs - 1;

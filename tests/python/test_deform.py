@@ -99,6 +99,32 @@ def test_moving_one_bone_moves_only_its_voxels_and_the_box_grows():
     assert np.array_equal(moved.values.array[z + ox[2], y + ox[1], x + ox[0]], rest.values.array[z, y, x])
 
 
+def test_frames_reuse_their_memory_and_are_read_only():
+    """A Deformer recycles the memory of frames that are gone (re-zeroing only what they wrote), so a frame after a
+    bigger one, in another pose, is exactly what a fresh Deformer gives; frames are read-only for that reason."""
+    volume, rig = capsule_chain(3)
+    mask, pts, binding = rigged(volume, rig, 300)
+    d = volrig.Deformer(volume, pts, binding)
+    M = volrig.rest_pose(3)
+    M[2][:3, 3] = (60.0, 0.0, 0.0)
+    big = d.frame(M)
+    assert not big.values.array.flags.writeable and not big.bone.array.flags.writeable
+    with pytest.raises(ValueError):
+        big.values.array[0, 0, 0] = 1.0
+    with pytest.raises(ValueError):
+        big.bone.array.setflags(write=True)
+    big_dims = big.bone.dims
+    del big
+    for pose in (volrig.rest_pose(3), M):
+        again = d.frame(pose)
+        fresh = volrig.Deformer(volume, pts, binding).frame(pose)
+        assert again.bone.dims == fresh.bone.dims
+        assert np.array_equal(again.bone.array, fresh.bone.array)
+        assert np.array_equal(again.values.array, fresh.values.array)
+        del again, fresh
+    assert d.frame(volrig.rest_pose(3)).bone.dims != big_dims
+
+
 def on_source_grid(array, offset, shape):
     """A frame's array [z, y, x] (output voxel 0 at source lattice index `offset` (x, y, z)) on the source grid."""
     out = np.zeros(shape, array.dtype)

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -12,6 +13,7 @@
 #include <new>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -43,37 +45,107 @@ struct UninitializedAllocator : std::allocator<T> {
 template <class T>
 using Buffer = std::vector<T, UninitializedAllocator<T>>;
 
-/// A zero-filled array from calloc: pages the program never writes stay shared zero pages, so a large, mostly
-/// empty output costs memory only where it is written. `release()` hands the buffer over (free it with std::free).
+/// A zero-filled array. By default from calloc: pages the program never writes stay shared zero pages, so a large,
+/// mostly empty output costs memory only where it is written. A ZeroedPool hands out arrays over recycled memory
+/// instead; writers then say which elements they wrote (mark_written), so that the pool zeroes only those pages
+/// before the memory is handed out again. Move-only; `owner()` keeps the memory alive (for views such as numpy's).
 template <class T>
 class ZeroedArray {
 public:
     ZeroedArray() = default;
-    explicit ZeroedArray(std::size_t n) : n_(n) {
+    explicit ZeroedArray(std::size_t n) {
         if (n == 0) return;
-        p_.reset(static_cast<T*>(std::calloc(n, sizeof(T))));
-        if (!p_) throw std::bad_alloc();
+        void* p = std::calloc(n, sizeof(T));
+        if (!p) throw std::bad_alloc();
+        owner_ = std::shared_ptr<void>(p, [](void* q) { std::free(q); });
+        p_ = static_cast<T*>(p);
+        n_ = n;
     }
-    T* data() { return p_.get(); }
-    const T* data() const { return p_.get(); }
+    /// n elements at p (zero-filled), kept alive by `owner`; `pages`, when given, holds one flag per 4 KiB page
+    /// from `page_base` on, which mark_written sets.
+    ZeroedArray(T* p, std::size_t n, std::shared_ptr<void> owner, std::atomic<std::uint8_t>* pages,
+                const void* page_base)
+        : owner_(std::move(owner)), p_(p), n_(n), pages_(pages), page_base_(static_cast<const char*>(page_base)) {}
+    ZeroedArray(ZeroedArray&& o) noexcept { *this = std::move(o); }
+    ZeroedArray& operator=(ZeroedArray&& o) noexcept {
+        if (this != &o) {
+            owner_ = std::move(o.owner_);
+            p_ = std::exchange(o.p_, nullptr);
+            n_ = std::exchange(o.n_, 0);
+            pages_ = std::exchange(o.pages_, nullptr);
+            page_base_ = std::exchange(o.page_base_, nullptr);
+        }
+        return *this;
+    }
+    ZeroedArray(const ZeroedArray&) = delete;
+    ZeroedArray& operator=(const ZeroedArray&) = delete;
+
+    T* data() { return p_; }
+    const T* data() const { return p_; }
     std::size_t size() const { return n_; }
     bool empty() const { return n_ == 0; }
-    T& operator[](std::size_t i) { return p_.get()[i]; }
-    const T& operator[](std::size_t i) const { return p_.get()[i]; }
+    T& operator[](std::size_t i) { return p_[i]; }
+    const T& operator[](std::size_t i) const { return p_[i]; }
     bool operator==(const ZeroedArray& o) const {
-        return n_ == o.n_ && (n_ == 0 || std::memcmp(p_.get(), o.p_.get(), n_ * sizeof(T)) == 0);
+        return n_ == o.n_ && (n_ == 0 || std::memcmp(p_, o.p_, n_ * sizeof(T)) == 0);
     }
-    T* release() {
-        n_ = 0;
-        return p_.release();
+    /// Notes that elements [i0, i1) were written (needed for pooled arrays; any thread may call it).
+    void mark_written(std::size_t i0, std::size_t i1) {
+        if (!pages_ || i1 <= i0) return;
+        const auto first = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i0) - page_base_) >> 12;
+        const auto last = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i1) - 1 - page_base_) >> 12;
+        for (std::size_t k = first; k <= last; ++k) pages_[k].store(1, std::memory_order_relaxed);
     }
+    /// Shares the ownership of the memory (it is freed, or recycled, when the last owner goes).
+    const std::shared_ptr<void>& owner() const { return owner_; }
 
 private:
-    struct Free {
-        void operator()(T* p) const { std::free(p); }
-    };
-    std::unique_ptr<T, Free> p_;
+    std::shared_ptr<void> owner_;
+    T* p_ = nullptr;
     std::size_t n_ = 0;
+    std::atomic<std::uint8_t>* pages_ = nullptr;
+    const char* page_base_ = nullptr;
+};
+
+/// Recycles the large zero-filled outputs of a sequence of frames: an array given back (when its last owner goes)
+/// keeps its pages, and the next take() re-zeroes only the pages marked written, instead of the kernel faulting in
+/// and zeroing fresh pages one by one. Keeps at most `keep` free blocks of memory; thread-safe.
+class ZeroedPool : public std::enable_shared_from_this<ZeroedPool> {
+public:
+    static std::shared_ptr<ZeroedPool> create(std::size_t keep = 2);
+    ~ZeroedPool();
+    ZeroedPool(const ZeroedPool&) = delete;
+    ZeroedPool& operator=(const ZeroedPool&) = delete;
+
+    /// n zeroed elements; writers must mark_written what they write.
+    template <class T>
+    ZeroedArray<T> take(std::size_t n) {
+        if (n == 0) return {};
+        if (n > static_cast<std::size_t>(-1) / 2 / sizeof(T)) throw std::bad_alloc();
+        Slab* s = acquire(n * sizeof(T));
+        std::weak_ptr<ZeroedPool> pool = weak_from_this();
+        std::shared_ptr<void> owner(s->p, [pool, s](void*) { give_back(pool, s); });
+        return ZeroedArray<T>(static_cast<T*>(s->p), n, std::move(owner), s->pages.get(), s->p);
+    }
+    /// Frees the memory kept for reuse.
+    void trim();
+    /// Bytes kept for reuse (mapped; resident only where earlier frames wrote).
+    std::size_t kept_bytes() const;
+
+    struct Slab {
+        void* p = nullptr;
+        std::size_t bytes = 0;
+        std::unique_ptr<std::atomic<std::uint8_t>[]> pages;
+        ~Slab();
+    };
+
+private:
+    explicit ZeroedPool(std::size_t keep) : keep_(keep) {}
+    Slab* acquire(std::size_t bytes);
+    static void give_back(const std::weak_ptr<ZeroedPool>& pool, Slab* s);
+    mutable std::mutex mutex_;
+    std::vector<std::unique_ptr<Slab>> free_;
+    std::size_t keep_;
 };
 
 /// Element types a volume may hold (numpy names in dtype_name()).
