@@ -214,6 +214,7 @@ def cmd_bake_mocap(args) -> int:
         sys.stderr.write(f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: {frame.stats['covered']:,} voxels, "
                          f"{time.perf_counter() - started:.2f} s -> {path}\n")
         sys.stderr.flush()
+        del frame  # its memory goes back to the Deformer for the next frame
     print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
           f"{motion.frame_count}, {motion.fps / args.step:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, "
           f"{args.root}, {args.mode}; {time.perf_counter() - t:.1f} s -> {args.output}")

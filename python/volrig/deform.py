@@ -35,6 +35,10 @@ class Frame:
     stats:  covered voxels, exact queries the bounds did not settle, blended spheres, and how the covered voxels were
             decided: by_block (whole blocks one bone covers alone), by_cube (per-cube power ranges), by_sphere (the
             power of the sphere labelling the cube), by_search (the full per-voxel search).
+
+    The arrays are read-only: once a frame is gone, its Deformer reuses the memory for the next one, re-zeroing only
+    what it wrote. Copy an array (``np.array(frame.values.array)``) to change it; drop frames you are done with
+    (as a bake loop does) so that the next frame finds the memory free.
     """
 
     values: Optional[Volume]

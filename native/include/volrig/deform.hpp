@@ -74,7 +74,8 @@ struct DeformStats {
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel
 /// (x, y, z) is source lattice index offset + (x, y, z), so grid.origin = source origin + spacing * offset.
-/// Unless a box is imposed, it is the bounding box of the covered voxels.
+/// Unless a box is imposed, it is the bounding box of the covered voxels. The Deformer's frames live in memory it
+/// recycles (ZeroedPool): whoever writes into their arrays must mark_written what they write.
 struct DeformedVolume {
     Grid grid;
     std::array<std::int64_t, 3> offset{0, 0, 0};
