@@ -351,6 +351,7 @@ class VOLRIG_OT_bake(bpy.types.Operator):
             self._timer = None
         wm.progress_end()
         context.scene.frame_set(self._current)
+        self._baker.deformer.release_frame_memory()  # the bake is over: no next frame will reuse it
         if self._next:
             self._baker.play(context.scene)
 

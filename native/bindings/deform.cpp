@@ -136,7 +136,9 @@ void bind_deform(py::module_& m) {
             py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
             py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
             py::arg("progress") = py::none(), py::arg("box") = py::none())
-        .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); });
+        .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); })
+        .def_property_readonly("kept_frame_bytes", [](const PyDeformer& d) { return d.deformer->kept_frame_bytes(); })
+        .def("release_frame_memory", [](PyDeformer& d) { d.deformer->release_frame_memory(); });
 
     m.def(
         "deform_reference",

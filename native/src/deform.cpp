@@ -1356,6 +1356,9 @@ std::size_t Deformer::memory_bytes() const {
     return b;
 }
 
+std::size_t Deformer::kept_frame_bytes() const { return impl_->pool->kept_bytes(); }
+void Deformer::release_frame_memory() { impl_->pool->trim(); }
+
 DeformedVolume Deformer::frame(BoneMatrices matrices, const DeformOptions& options, const Progress& progress,
                                const std::array<std::int64_t, 6>* box) {
     return impl_->frame(matrices, options, progress, box);

@@ -152,6 +152,16 @@ class Deformer:
         """Bytes of per-rig data currently held."""
         return int(self._native.memory_bytes)
 
+    @property
+    def kept_frame_bytes(self) -> int:
+        """Bytes of output memory kept from frames that are gone, for the next frame (resident only where they
+        wrote)."""
+        return int(self._native.kept_frame_bytes)
+
+    def release_frame_memory(self) -> None:
+        """Frees the output memory kept for the next frame (say, after a bake); frames still alive keep theirs."""
+        self._native.release_frame_memory()
+
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates."""

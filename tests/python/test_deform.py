@@ -123,6 +123,9 @@ def test_frames_reuse_their_memory_and_are_read_only():
         assert np.array_equal(again.values.array, fresh.values.array)
         del again, fresh
     assert d.frame(volrig.rest_pose(3)).bone.dims != big_dims
+    assert d.kept_frame_bytes > 0
+    d.release_frame_memory()
+    assert d.kept_frame_bytes == 0
 
 
 def on_source_grid(array, offset, shape):

@@ -106,6 +106,10 @@ public:
     /// Bytes held by the per-rig data currently built (per-cube power ranges, labels and corner powers, k-d trees,
     /// sphere copies).
     std::size_t memory_bytes() const;
+    /// Output memory of earlier frames kept for the next ones (mapped; resident where those frames wrote), and its
+    /// release.
+    std::size_t kept_frame_bytes() const;
+    void release_frame_memory();
 
     struct Impl;
 
