@@ -1659,8 +1659,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::int64_t hi[3] = {-1, -1, -1};
         std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
         // scratch
-        std::vector<std::int32_t> cb, running;  // running: n_running candidates (indices into cb, or fields)
-        std::size_t n_running = 0;
+        std::vector<std::int32_t> cb, running;  // candidates still in the running (indices into cb, or fields)
         std::vector<CellBounds> range, range_sub;
         std::vector<std::uint8_t> live;
         std::vector<Cand> cands;
@@ -1675,14 +1674,14 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     };
     tbb::enumerable_thread_specific<Local> locals;
     with_sampler(source, [&](auto sampler) {
-        // The second tier (power proximity): for the candidates in loc.running (indices into loc.cb), each one's
+        // The second tier (power proximity): for the n_run candidates in loc.running (indices into loc.cb), each one's
         // power at posed point m3 from its cube's first-corner sphere: exact when the cube is that sphere's alone,
         // else an upper bound; below it, the cube's quantised range, sharpened when needed from the corner powers
         // (concave_lower). Returns the winner, null when none covers, or &kUndecided.
-        auto second_tier = [&](Local& loc, std::size_t li, const std::int64_t* m3) -> const Tier* {
+        auto second_tier = [&](Local& loc, std::size_t n_run, std::size_t li, const std::int64_t* m3) -> const Tier* {
             Tier* const tiers = loc.tiers.data();
             std::size_t n_t = 0;
-            for (std::size_t r = 0; r < loc.n_running; ++r) {
+            for (std::size_t r = 0; r < n_run; ++r) {
                 const std::int32_t k = loc.running[r];
                 const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
                 const std::int32_t fi = loc.cb[static_cast<std::size_t>(k)];
@@ -1731,208 +1730,213 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             }
             return &w;
         };
+        // The decision over a block or sub-block from each candidate's power range r[k] over its preimage: whether
+        // candidate k can cover there and not lose to a certain cover (live[k * stride]); returns the index of a
+        // candidate that covers all of it and wins everywhere, kEmpty when none can cover, or kOpen.
+        auto settle = [&](const CellBounds* r, std::size_t K, std::uint8_t* live, std::size_t stride) -> std::int32_t {
+            std::size_t a = 0;
+            for (std::size_t k = 1; k < K; ++k)
+                if (r[k].hi < r[a].hi) a = k;
+            const std::int16_t ua = r[a].hi;
+            std::size_t n_live = 0;
+            for (std::size_t k = 0; k < K; ++k) {
+                const bool l = r[k].lo < 0 && (nearest || !(ua < 0) || k == a || !(r[k].lo > ua));
+                live[k * stride] = l;
+                n_live += l;
+            }
+            if (n_live == 1 && ua < 0 && live[a * stride]) return static_cast<std::int32_t>(a);
+            return n_live ? kOpen : kEmpty;
+        };
+        auto sub_origin = [](int sb) { return std::array<std::int64_t, 3>{(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; };
+        // Per voxel of the block, for the sub-blocks and candidates marked live: the cubes' range lookups, the
+        // decisions in int16 lanes, then the undecided voxels one by one (into win).
+        auto decide_voxels = [&](Local& loc, std::size_t K, const std::int64_t* base, std::int64_t ex, std::int64_t ey,
+                                 std::int64_t ez) {
+            const auto& cb = loc.cb;
+            const auto& live = loc.live;
+            std::int32_t* const win = loc.win;
+            loc.clo.resize(K * 512);
+            loc.chi.resize(K * 512);
+            loc.cidx.resize(K * 512);
+            if (loc.running.size() < K) {
+                loc.running.resize(K);
+                loc.tiers.resize(K);
+            }
+            for (std::size_t k = 0; k < K; ++k) {
+                // Stepping the fixed-point preimage by the map's columns: exactly the direct evaluation.
+                const Pull& pl = fmot[static_cast<std::size_t>(cb[k])].pull;
+                const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
+                std::uint32_t* at = loc.cidx.data() + k * 512;
+                std::fill(at, at + 512, kNoCell);
+                for (int sb = 0; sb < 8; ++sb) {
+                    if (!live[k * 8 + static_cast<std::size_t>(sb)]) continue;
+                    const auto s0 = sub_origin(sb);
+                    const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
+                    const std::int64_t e[3] = {std::min<std::int64_t>(4, ex - s0[0]), std::min<std::int64_t>(4, ey - s0[1]),
+                                               std::min<std::int64_t>(4, ez - s0[2])};
+                    std::uint32_t* sat = at + (s0[2] * 8 + s0[1]) * 8 + s0[0];
+                    std::int64_t pz[3];
+                    pl.fixed(q0, pz);
+                    for (std::int64_t dz = 0; dz < e[2]; ++dz) {
+                        std::int64_t py[3] = {pz[0], pz[1], pz[2]};
+                        for (std::int64_t dy = 0; dy < e[1]; ++dy) {
+                            std::int64_t px[3] = {py[0], py[1], py[2]};
+                            for (std::int64_t dx = 0; dx < e[0]; ++dx) {
+                                sat[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
+                                px[0] += pl.a[0];
+                                px[1] += pl.a[3];
+                                px[2] += pl.a[6];
+                            }
+                            py[0] += pl.a[1];
+                            py[1] += pl.a[4];
+                            py[2] += pl.a[7];
+                        }
+                        pz[0] += pl.a[2];
+                        pz[1] += pl.a[5];
+                        pz[2] += pl.a[8];
+                    }
+                }
+                // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
+                std::int16_t* klo = loc.clo.data() + k * 512;
+                std::int16_t* khi = loc.chi.data() + k * 512;
+                const CellBounds* cells = f.bounds.data();
+                for (std::size_t li = 0; li < 512; ++li) {
+                    const CellBounds c = cells[at[li]];
+                    klo[li] = c.lo;
+                    khi[li] = c.hi;
+                }
+            }
+            // Decisions in lanes: u = least hi (candidate a), mo = least lo of the others, ml = least lo.
+            std::int16_t* const u = loc.u;
+            std::int16_t* const mo = loc.mo;
+            std::int16_t* const ml = loc.ml;
+            std::int16_t* const arg = loc.arg;
+            {
+                const std::int16_t* khi = loc.chi.data();
+                const std::int16_t* klo = loc.clo.data();
+                for (std::size_t li = 0; li < 512; ++li) {
+                    u[li] = khi[li];
+                    arg[li] = 0;
+                    ml[li] = klo[li];
+                    mo[li] = kBoundMax;
+                }
+            }
+            for (std::size_t k = 1; k < K; ++k) {
+                const std::int16_t* khi = loc.chi.data() + k * 512;
+                const std::int16_t* klo = loc.clo.data() + k * 512;
+                const auto kk = static_cast<std::int16_t>(k);
+                for (std::size_t li = 0; li < 512; ++li) {
+                    const bool lt = khi[li] < u[li];
+                    u[li] = lt ? khi[li] : u[li];
+                    arg[li] = lt ? kk : arg[li];
+                    ml[li] = std::min(ml[li], klo[li]);
+                }
+            }
+            for (std::size_t k = 0; k < K && K > 1; ++k) {
+                const std::int16_t* klo = loc.clo.data() + k * 512;
+                const auto kk = static_cast<std::int16_t>(k);
+                for (std::size_t li = 0; li < 512; ++li)
+                    mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], klo[li]);
+            }
+            // Certain: the least hi is negative and below every other candidate's lo (nearest centre: no other
+            // candidate can cover at all).
+            std::int64_t certain = 0;
+            for (std::size_t li = 0; li < 512; ++li) {
+                const bool sure = u[li] < 0 && (nearest ? mo[li] >= 0 : mo[li] > u[li]);
+                const std::int32_t w = ml[li] >= 0 ? kEmpty : (sure ? cb[static_cast<std::size_t>(arg[li])] : kOpen);
+                certain += sure && ml[li] < 0;
+                win[li] = w;
+            }
+            loc.by[1] += certain;
+            // The undecided voxels, one by one.
+            for (std::size_t li = 0; li < 512; ++li) {
+                if (win[li] != kOpen) continue;
+                const std::int64_t dx = static_cast<std::int64_t>(li & 7), dy = static_cast<std::int64_t>((li >> 3) & 7),
+                                   dz = static_cast<std::int64_t>(li >> 6);
+                const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+                // Candidates whose least power exceeds a certain covering power cannot win.
+                std::size_t n_run = 0;
+                for (std::size_t k = 0; k < K; ++k) {
+                    const std::int16_t l = loc.clo[k * 512 + li];
+                    loc.running[n_run] = static_cast<std::int32_t>(k);
+                    n_run += l < 0 && (nearest || !(u[li] < 0) || !(l > u[li]));
+                }
+                // Second tier: each one's power at the voxel from the sphere labelling its cube's first corner,
+                // exact when that sphere holds the whole cube.
+                const Tier* tw = nearest ? &kUndecided : second_tier(loc, n_run, li, m3);
+                if (tw != &kUndecided) {
+                    win[li] = tw ? tw->field : kEmpty;
+                    loc.by[2] += tw != nullptr;
+                    continue;
+                }
+                for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = cb[static_cast<std::size_t>(loc.running[r])];
+                const Cand* w = resolve(loc.running.data(), n_run, m3, loc.cands, loc.queries);
+                win[li] = w ? w->bone : kEmpty;
+                loc.by[3] += w != nullptr;
+            }
+        };
         auto gather_block = [&](Local& loc, std::int64_t kx, std::int64_t ky, std::int64_t kz) {
             auto& cb = loc.cb;
             auto& range = loc.range;
+            auto& live = loc.live;
             block_candidates(kx, ky, kz, cb, range);
             if (cb.empty()) return;
-            // A candidate whose least power exceeds another's greatest covering power never wins here.
-            if (!nearest && cb.size() > 1) {
-                std::int16_t u = kBoundMax;
-                for (const auto& r : range) u = std::min(u, r.hi);
-                if (u < 0) {
-                    std::size_t w = 0;
-                    for (std::size_t k = 0; k < cb.size(); ++k)
-                        if (!(range[k].lo > u)) {
-                            cb[w] = cb[k];
-                            range[w++] = range[k];
-                        }
-                    cb.resize(w);
-                    range.resize(w);
-                }
-            }
             const std::int64_t ex = std::min(kBlock, nx - kx * kBlock), ey = std::min(kBlock, ny - ky * kBlock),
                                ez = std::min(kBlock, nz - kz * kBlock);
-            const bool full = ex == kBlock && ey == kBlock && ez == kBlock;
-            const std::size_t K = cb.size();
-            if (K > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
+            if (cb.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
             const std::int64_t base[3] = {kx * kBlock + bx[0], ky * kBlock + bx[1], kz * kBlock + bx[2]};
             std::int32_t* const win = loc.win;
             std::uint64_t* const layer = loc.layer;
             std::fill(layer, layer + 8, std::uint64_t{0});
-            if (K == 1 && range[0].hi < 0) {  // a lone candidate covering the whole block: no lookups
-                std::fill(win, win + 512, full ? cb[0] : kEmpty);
-                if (!full)
-                    for (std::int64_t dz = 0; dz < ez; ++dz)
-                        for (std::int64_t dy = 0; dy < ey; ++dy)
-                            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + ex, cb[0]);
+            // The whole block first: a candidate that cannot win anywhere in it drops out, and one covering all of it
+            // and winning everywhere fills it with no lookups.
+            live.resize(cb.size());
+            const std::int32_t whole = settle(range.data(), cb.size(), live.data(), 1);
+            if (whole >= 0) {
+                std::fill(win, win + 512, kEmpty);
+                for (std::int64_t dz = 0; dz < ez; ++dz)
+                    for (std::int64_t dy = 0; dy < ey; ++dy)
+                        std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + ex, cb[static_cast<std::size_t>(whole)]);
                 loc.by[0] += ex * ey * ez;
             } else {
-                // Per 4³ sub-block, each candidate's range over the sub-block's preimage: a sub-block that no candidate
-                // can cover, or that one covers whole while every rival's least power exceeds its greatest, is
-                // decided without lookups; elsewhere the candidates that cannot cover or win there are skipped.
+                std::size_t K = 0;
+                for (std::size_t k = 0; k < cb.size(); ++k)
+                    if (live[k]) cb[K++] = cb[k];
+                cb.resize(K);
+                // Then each 4³ sub-block, from each candidate's range over the sub-block's preimage: decided whole
+                // the same way, or looked up voxel by voxel for the candidates live there.
                 std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
-                auto& live = loc.live;    // per candidate and sub-block: whether its cells are looked up
                 live.assign(K * 8, 0);
                 bool any_open = false;
+                auto& sr = loc.range_sub;
+                sr.resize(K);
                 for (int sb = 0; sb < 8; ++sb) {
-                    const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
+                    const auto s0 = sub_origin(sb);
                     sub_win[sb] = kEmpty;
                     if (s0[0] >= ex || s0[1] >= ey || s0[2] >= ez) continue;
                     const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
-                    auto& sr = loc.range_sub;
-                    sr.resize(K);
-                    std::size_t a = 0;
-                    for (std::size_t k = 0; k < K; ++k) {
-                        sr[k] = preimage_range(cb[k], q0, 4);
-                        if (sr[k].hi < sr[a].hi) a = k;
-                    }
-                    const std::int16_t ua = sr[a].hi;
-                    std::size_t n_live = 0;
-                    for (std::size_t k = 0; k < K; ++k) {
-                        const bool l = sr[k].lo < 0 && (nearest || !(ua < 0) || k == a || !(sr[k].lo > ua));
-                        live[k * 8 + static_cast<std::size_t>(sb)] = l;
-                        n_live += l;
-                    }
-                    if (n_live == 1 && ua < 0 && live[a * 8 + static_cast<std::size_t>(sb)]) {
-                        sub_win[sb] = cb[a];
-                        live[a * 8 + static_cast<std::size_t>(sb)] = 0;
-                    } else if (n_live) {
-                        sub_win[sb] = kOpen;
-                        any_open = true;
+                    for (std::size_t k = 0; k < K; ++k) sr[k] = preimage_range(cb[k], q0, 4);
+                    std::uint8_t* lv = live.data() + sb;
+                    const std::int32_t w = settle(sr.data(), K, lv, 8);
+                    if (w >= 0) {
+                        sub_win[sb] = cb[static_cast<std::size_t>(w)];
+                        lv[static_cast<std::size_t>(w) * 8] = 0;
+                    } else {
+                        sub_win[sb] = w;
+                        any_open = any_open || w == kOpen;
                     }
                 }
-                if (any_open) {
-                loc.clo.resize(K * 512);
-                if (loc.running.size() < K) {
-                    loc.running.resize(K);
-                    loc.tiers.resize(K);
-                }
-                loc.chi.resize(K * 512);
-                loc.cidx.resize(K * 512);
-                for (std::size_t k = 0; k < K; ++k) {
-                    // Stepping the fixed-point preimage by the map's columns: exactly the direct evaluation.
-                    const Pull& pl = fmot[static_cast<std::size_t>(cb[k])].pull;
-                    const BoneField& f = fields[static_cast<std::size_t>(cb[k])];
-                    std::uint32_t* at = loc.cidx.data() + k * 512;
-                    std::fill(at, at + 512, kNoCell);
-                    for (int sb = 0; sb < 8; ++sb) {
-                        if (!live[k * 8 + static_cast<std::size_t>(sb)]) continue;
-                        const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
-                        const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
-                        const std::int64_t e[3] = {std::min<std::int64_t>(4, ex - s0[0]), std::min<std::int64_t>(4, ey - s0[1]),
-                                                   std::min<std::int64_t>(4, ez - s0[2])};
-                        std::uint32_t* sat = at + (s0[2] * 8 + s0[1]) * 8 + s0[0];
-                        std::int64_t pz[3];
-                        pl.fixed(q0, pz);
-                        for (std::int64_t dz = 0; dz < e[2]; ++dz) {
-                            std::int64_t py[3] = {pz[0], pz[1], pz[2]};
-                            for (std::int64_t dy = 0; dy < e[1]; ++dy) {
-                                std::int64_t px[3] = {py[0], py[1], py[2]};
-                                for (std::int64_t dx = 0; dx < e[0]; ++dx) {
-                                    sat[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
-                                    px[0] += pl.a[0];
-                                    px[1] += pl.a[3];
-                                    px[2] += pl.a[6];
-                                }
-                                py[0] += pl.a[1];
-                                py[1] += pl.a[4];
-                                py[2] += pl.a[7];
-                            }
-                            pz[0] += pl.a[2];
-                            pz[1] += pl.a[5];
-                            pz[2] += pl.a[8];
-                        }
-                    }
-                    // The loads, apart from the address arithmetic: independent, so that many are in flight at once.
-                    std::int16_t* klo = loc.clo.data() + k * 512;
-                    std::int16_t* khi = loc.chi.data() + k * 512;
-                    const CellBounds* cells = f.bounds.data();
-                    for (std::size_t li = 0; li < 512; ++li) {
-                        const CellBounds c = cells[at[li]];
-                        klo[li] = c.lo;
-                        khi[li] = c.hi;
-                    }
-                }
-                // Decisions in lanes: u = least hi (candidate a), mo = least lo of the others, ml = least lo.
-                std::int16_t* const u = loc.u;
-                std::int16_t* const mo = loc.mo;
-                std::int16_t* const ml = loc.ml;
-                std::int16_t* const arg = loc.arg;
-                {
-                    const std::int16_t* khi = loc.chi.data();
-                    const std::int16_t* klo = loc.clo.data();
-                    for (std::size_t li = 0; li < 512; ++li) {
-                        u[li] = khi[li];
-                        arg[li] = 0;
-                        ml[li] = klo[li];
-                        mo[li] = kBoundMax;
-                    }
-                }
-                for (std::size_t k = 1; k < K; ++k) {
-                    const std::int16_t* khi = loc.chi.data() + k * 512;
-                    const std::int16_t* klo = loc.clo.data() + k * 512;
-                    const auto kk = static_cast<std::int16_t>(k);
-                    for (std::size_t li = 0; li < 512; ++li) {
-                        const bool lt = khi[li] < u[li];
-                        u[li] = lt ? khi[li] : u[li];
-                        arg[li] = lt ? kk : arg[li];
-                        ml[li] = std::min(ml[li], klo[li]);
-                    }
-                }
-                for (std::size_t k = 0; k < K && K > 1; ++k) {
-                    const std::int16_t* klo = loc.clo.data() + k * 512;
-                    const auto kk = static_cast<std::int16_t>(k);
-                    for (std::size_t li = 0; li < 512; ++li)
-                        mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], klo[li]);
-                }
-                // Certain: the least hi is negative and below every other candidate's lo (nearest centre: no other
-                // candidate can cover at all).
-                std::int64_t certain = 0;
-                for (std::size_t li = 0; li < 512; ++li) {
-                    const bool sure = u[li] < 0 && (nearest ? mo[li] >= 0 : mo[li] > u[li]);
-                    const std::int32_t w = ml[li] >= 0 ? kEmpty : (sure ? cb[static_cast<std::size_t>(arg[li])] : kOpen);
-                    certain += sure && ml[li] < 0;
-                    win[li] = w;
-                }
-                loc.by[1] += certain;
-                // The undecided voxels, one by one.
-                for (std::size_t li = 0; li < 512; ++li) {
-                    if (win[li] != kOpen) continue;
-                    const std::int64_t dx = static_cast<std::int64_t>(li & 7), dy = static_cast<std::int64_t>((li >> 3) & 7),
-                                       dz = static_cast<std::int64_t>(li >> 6);
-                    const std::int64_t m3[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
-                    // Candidates whose least power exceeds a certain covering power cannot win.
-                    std::size_t n_run = 0;
-                    for (std::size_t k = 0; k < K; ++k) {
-                        const std::int16_t l = loc.clo[k * 512 + li];
-                        loc.running[n_run] = static_cast<std::int32_t>(k);
-                        n_run += l < 0 && (nearest || !(u[li] < 0) || !(l > u[li]));
-                    }
-                    loc.n_running = n_run;
-                    // Second tier: each one's power at the voxel from the sphere labelling its cube's first corner,
-                    // exact when that sphere holds the whole cube.
-                    const Tier* tw = nearest ? &kUndecided : second_tier(loc, li, m3);
-                    if (tw != &kUndecided) {
-                        win[li] = tw ? tw->field : kEmpty;
-                        loc.by[2] += tw != nullptr;
-                        continue;
-                    }
-                    for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = cb[static_cast<std::size_t>(loc.running[r])];
-                    const Cand* w = resolve(loc.running.data(), n_run, m3, loc.cands, loc.queries);
-                    win[li] = w ? w->bone : kEmpty;
-                    loc.by[3] += w != nullptr;
-                }
-                } else {
+                if (any_open)
+                    decide_voxels(loc, K, base, ex, ey, ez);
+                else
                     std::fill(win, win + 512, kEmpty);
-                }
                 for (int sb = 0; sb < 8; ++sb) {  // the sub-blocks decided whole
                     if (sub_win[sb] == kOpen) continue;
-                    const std::int64_t s0[3] = {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4};
+                    const auto s0 = sub_origin(sb);
+                    const std::int64_t x1 = std::min(s0[0] + 4, ex);
+                    if (x1 <= s0[0]) continue;
                     for (std::int64_t dz = s0[2]; dz < std::min(s0[2] + 4, ez); ++dz)
                         for (std::int64_t dy = s0[1]; dy < std::min(s0[1] + 4, ey); ++dy) {
-                            const std::int64_t x1 = std::min(s0[0] + 4, ex);
-                            if (x1 <= s0[0]) continue;
                             std::fill(win + (dz * 8 + dy) * 8 + s0[0], win + (dz * 8 + dy) * 8 + x1, sub_win[sb]);
                             if (sub_win[sb] >= 0) loc.by[0] += x1 - s0[0];
                         }
