@@ -596,12 +596,16 @@ inline std::int16_t quantize_up(double v, double step) {
 
 /// A lattice cell of a bone's field holds the power's quantised range over the cube with that first corner
 /// (BoneField::bounds) and a word (BoneField::words): the power-diagram label at the cell, top bit set when the cube
-/// has this label at all eight corners (so the power there is exactly this sphere's). The two live in separate
-/// arrays, so that the lookups every voxel makes read only the ranges (4 bytes a cell). Cell index 0 is "no cell".
-constexpr std::uint32_t kSameBit = 0x80000000u;
+/// has this label at all eight corners (so the power there is exactly this sphere's), the next bit set when the cube
+/// is closed: the least power over its corners' labels is the bone's power wherever that is negative (see
+/// closed_cube). The two live in separate arrays, so that the lookups every voxel makes read only the ranges (4 bytes
+/// a cell). Cell index 0 is "no cell".
+constexpr std::uint32_t kSameBit = 0x80000000u, kClosedBit = 0x40000000u;
 constexpr std::uint32_t kNoCell = 0;
-inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~kSameBit); }
+inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~(kSameBit | kClosedBit)); }
 inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
+/// Whether the cube's corner labels decide the power exactly where it is negative (same, or closed).
+inline bool exact_of(std::uint32_t w) { return w != kNone && (w & (kSameBit | kClosedBit)); }
 
 /// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
 /// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
@@ -852,10 +856,131 @@ struct LabelEnvelope {
 };
 
 /// Builds one bone's field from its spheres (global indices) with radii r.
+/// Whether sphere sp's open ball (with a margin for rounding, on the safe side) meets the box [lo, hi] (index space).
+inline bool ball_meets_box(const BoneField::Sphere& sp, const double* lo, const double* hi, const double* s2) {
+    double d2 = 0;
+    for (int a = 0; a < 3; ++a) {
+        const double e = sp.c[a] < lo[a] ? lo[a] - sp.c[a] : (sp.c[a] > hi[a] ? sp.c[a] - hi[a] : 0.0);
+        d2 += s2[a] * e * e;
+    }
+    return d2 < sp.lim + 1e-9 * (1.0 + d2 + sp.lim);
+}
+
+/// The spheres whose balls meet the box [lo, hi] (index space), into `out`.
+void spheres_meeting(const BoneField& f, const double* lo, const double* hi, const double* spacing, const double* s2,
+                     std::vector<std::uint32_t>& out) {
+    out.clear();
+    if (f.nodes.empty()) return;
+    double qlo[3], qhi[3];  // world offsets
+    for (int a = 0; a < 3; ++a) {
+        qlo[a] = lo[a] * spacing[a];
+        qhi[a] = hi[a] * spacing[a];
+    }
+    std::int32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top) {
+        const KdNode& n = f.nodes[static_cast<std::size_t>(stack[--top])];
+        double md = 0;
+        bool meets = true;
+        for (int a = 0; a < 3 && meets; ++a) {
+            const double tol = 1e-9 * (1.0 + std::abs(qlo[a]) + std::abs(qhi[a]) + (n.bhi[a] - n.blo[a]));
+            meets = n.blo[a] <= qhi[a] + tol && n.bhi[a] >= qlo[a] - tol;
+            const double e = n.hi[a] < qlo[a] ? qlo[a] - n.hi[a] : (n.lo[a] > qhi[a] ? n.lo[a] - qhi[a] : 0.0);
+            md += e * e;
+        }
+        if (!meets || !(md < n.max_lim + 1e-9 * (1.0 + md + n.max_lim))) continue;
+        if (n.left >= 0) {
+            stack[top++] = n.left;
+            stack[top++] = n.right;
+            continue;
+        }
+        for (std::uint32_t j = n.begin; j < n.end; ++j)
+            if (f.sph[j].lim > 0 && ball_meets_box(f.sph[j], lo, hi, s2)) out.push_back(j);
+    }
+}
+
+/// Whether the lattice cube with first corner `base` (index space) is closed for the bone: every sphere whose ball
+/// meets the cube, apart from its corners' labels S, has a larger power than one sphere of S all over the cube. The
+/// difference of two powers is affine, so its largest value on the cube is at a corner, found per axis; the margin is
+/// far above rounding. Then wherever the bone's power is negative in the cube its sphere is in S (that sphere's ball
+/// holds the point), so the least power over S, ties to the lower global index, is the bone's exact answer there.
+/// `near`: the spheres whose balls may meet the cube (a superset), coordinates apart so that the ball tests vectorise.
+struct NearSpheres {
+    std::vector<std::uint32_t> id;
+    std::vector<double> c[3], lim;
+    std::vector<double> gap;
+    void clear() {
+        id.clear();
+        for (auto& v : c) v.clear();
+        lim.clear();
+    }
+    void add(const BoneField& f, std::uint32_t j) {
+        id.push_back(j);
+        for (int a = 0; a < 3; ++a) c[a].push_back(f.sph[j].c[a]);
+        lim.push_back(f.sph[j].lim);
+    }
+};
+
+bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S, int ns, NearSpheres& near,
+                 const double* s2) {
+    if (ns == 0) return false;
+    // Per sphere: its power at the first corner and its change along each axis (the corners are sums of these).
+    auto affine = [&](std::uint32_t k, double& p0, double* st, double& mag) {
+        const auto& sp = f.sph[k];
+        p0 = power_of(f, k, base, s2);
+        mag = std::abs(p0) + sp.lim;
+        for (int a = 0; a < 3; ++a) {
+            st[a] = s2[a] * (2 * (base[a] - sp.c[a]) + 1);
+            mag += std::abs(st[a]);
+        }
+    };
+    double p0s[8], sts[8][3], mags[8];
+    for (int i = 0; i < ns; ++i) affine(S[i], p0s[i], sts[i], mags[i]);
+    // Which balls meet the cube (as ball_meets_box: a gap that is not >= 0), over all of them at once.
+    const std::size_t n = near.id.size();
+    near.gap.resize(n);
+    {
+        const double* cx = near.c[0].data();
+        const double* cy = near.c[1].data();
+        const double* cz = near.c[2].data();
+        const double* lim = near.lim.data();
+        double* gap = near.gap.data();
+        const double b0 = base[0], b1 = base[1], b2 = base[2], w0 = s2[0], w1 = s2[1], w2 = s2[2];
+        for (std::size_t k = 0; k < n; ++k) {
+            const double ex = std::max(0.0, std::max(b0 - cx[k], cx[k] - b0 - 1));
+            const double ey = std::max(0.0, std::max(b1 - cy[k], cy[k] - b1 - 1));
+            const double ez = std::max(0.0, std::max(b2 - cz[k], cz[k] - b2 - 1));
+            const double d2 = w0 * ex * ex + w1 * ey * ey + w2 * ez * ez;
+            gap[k] = d2 - (lim[k] + 1e-9 * (1.0 + d2 + lim[k]));
+        }
+    }
+    int last = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::uint32_t j = near.id[k];
+        if (near.gap[k] >= 0 || std::find(S, S + ns, j) != S + ns) continue;
+        double p0, st[3], mag;
+        affine(j, p0, st, mag);
+        bool dominated = false;
+        for (int t = 0; t < ns && !dominated; ++t) {
+            const int i = t + last < ns ? t + last : t + last - ns;  // the one that dominated the last sphere first
+            double mx = p0s[i] - p0;
+            for (int a = 0; a < 3; ++a) mx += std::max(0.0, sts[i][a] - st[a]);
+            if (mx < -1e-9 * (1.0 + mags[i] + mag)) {
+                dominated = true;
+                last = i;
+            }
+        }
+        if (!dominated) return false;
+    }
+    return true;
+}
+
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
                            const std::vector<double>& r, double T, double step) {
     BoneField f;
     const std::size_t m = members.size();
+    if (m >= kClosedBit) throw Error("deform: too many spheres bound to one bone");
     std::vector<double> w3(3 * m), lims(m);
     for (std::size_t k = 0; k < m; ++k) {
         const std::uint32_t i = members[k];
@@ -975,8 +1100,21 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
     const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
     const double slack = 1e-9 * (maxlim + 4 * quarter);
+    struct Pending {  // a cube to close: its cell in the block and its corners' labels
+        int li, nk;
+        std::uint32_t ks[8];
+    };
+    struct Scratch {
+        std::vector<Pending> pending = std::vector<Pending>(512);
+        std::vector<std::uint32_t> near;
+        NearSpheres near_sub;
+    };
+    tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        Scratch& sc = scratch.local();
+        Pending* const pending = sc.pending.data();
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
+            int n_pending = 0;
             CellBounds* out = f.bounds.data() + 1 + slot * 512;
             std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
             std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
@@ -1026,7 +1164,38 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                         }
                         out[li] = CellBounds{quantize_down(lower - slack, step), quantize_up(upper + slack, step)};
                         out_word[li] = word;
+                        // A cube the ranges leave undecided (it may or may not be covered) is worth closing.
+                        if (word != kNone && !(word & kSameBit) && out[li].hi >= 0) {
+                            Pending& pc = pending[n_pending++];
+                            pc.li = li;
+                            pc.nk = nk;
+                            std::copy(ks, ks + nk, pc.ks);
+                        }
                     }
+            if (n_pending) {  // close them, from the spheres whose balls meet the block's cubes
+                const double blo[3] = {static_cast<double>(f.blocks[slot][0]), static_cast<double>(f.blocks[slot][1]),
+                                       static_cast<double>(f.blocks[slot][2])};
+                const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
+                spheres_meeting(f, blo, bhi, g.spacing.data(), s2, sc.near);
+                for (int sb = 0; sb < 8; ++sb) {  // per 4³ sub-block, from the spheres that meet its cubes
+                    const int sx = (sb & 1) * 4, sy = ((sb >> 1) & 1) * 4, sz = (sb >> 2) * 4;
+                    auto in_sub = [&](int li) { return (li & 4) == sx && ((li >> 3) & 4) == sy && ((li >> 6) & 4) == sz; };
+                    bool any = false;
+                    for (int k = 0; k < n_pending && !any; ++k) any = in_sub(pending[k].li);
+                    if (!any) continue;
+                    const double slo[3] = {blo[0] + sx, blo[1] + sy, blo[2] + sz};
+                    const double shi[3] = {slo[0] + 5, slo[1] + 5, slo[2] + 5};
+                    sc.near_sub.clear();
+                    for (const std::uint32_t j : sc.near)
+                        if (ball_meets_box(f.sph[j], slo, shi, s2)) sc.near_sub.add(f, j);
+                    for (int k = 0; k < n_pending; ++k) {
+                        const Pending& pc = pending[k];
+                        if (!in_sub(pc.li)) continue;
+                        const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
+                        if (closed_cube(f, base, pc.ks, pc.nk, sc.near_sub, s2)) out_word[pc.li] |= kClosedBit;
+                    }
+                }
+            }
             CellBounds* sb = f.sub.data() + slot * 8;
             for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
             for (int li = 0; li < 512; ++li) {
@@ -1163,6 +1332,7 @@ struct Cube {
     std::uint32_t lab[8];
     double base[3];  // the cube's first corner
     bool same;       // all eight corners carry one sphere
+    bool closed;     // the least power over the labels is exact where negative (closed_cube)
 };
 
 /// Reads the cube around p; false when no corner carries a label (then no sphere of the bone covers p).
@@ -1176,6 +1346,7 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     f.corner_cells(lx, ly, lz, cell);
     std::uint32_t* lab = cube.lab;
     for (int k = 0; k < 8; ++k) lab[k] = label_of(f.words[cell[k]]);
+    cube.closed = exact_of(f.words[cell[0]]) && (f.words[cell[0]] & kClosedBit);
     bool same = true, any = false;
     for (int c = 0; c < 8; ++c) {
         same = same && lab[c] == lab[0];
@@ -1581,9 +1752,13 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             c.has_U = c.has_L = false;
             c.local = kNone;
             c.covered = false;
-            if (c.cube.same) {  // the power function is this sphere's on the whole cube: exact
-                c.local = c.cube.lab[0];
-                c.L = c.U = power_of(f, c.local, c.p, s2);
+            if (c.cube.same || c.cube.closed) {  // exact where negative: this sphere's on the whole cube, or closed
+                if (c.cube.same) {
+                    c.local = c.cube.lab[0];
+                    c.L = c.U = power_of(f, c.local, c.p, s2);
+                } else {
+                    c.L = c.U = upper_bound(f, c.cube, c.p, s2, false, c.local);
+                }
                 if (!(c.U < 0)) {
                     cands.pop_back();
                     continue;
@@ -1696,6 +1871,12 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 t.U = power_of(f, lab, p, s2);
                 t.local = lab;
                 t.exact = same_of(word);
+                if (!t.exact && (word & kClosedBit)) {  // closed: the least power over the corners' labels
+                    Cube cube;
+                    fetch_cube(f, p, cube);
+                    t.U = upper_bound(f, cube, p, s2, false, t.local);
+                    t.exact = true;
+                }
                 t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
                 t.tight = t.exact;
             }
