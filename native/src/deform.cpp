@@ -1845,7 +1845,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::int16_t arg[512];                  // the candidate with the least hi
         std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
         std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
-        float values[512];
     };
     tbb::enumerable_thread_specific<Local> locals;
     with_sampler(source, [&](auto sampler) {
@@ -2123,23 +2122,29 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                         }
                 }
             }
-            // The samples of the covered voxels (through the winning field's map, as the decisions saw it; along a
-            // row, a run of one field steps its preimage by a column).
+            // The covered voxels, straight into the output row by row: the bone label, and the sample through the
+            // winning field's map, as the decisions saw it (along a row, a run of one field steps its preimage by a
+            // column).
             std::int64_t ncov = 0;
+            std::int16_t* const bone_out = out.bone.data();
+            float* const value_out = o.values ? out.values.data() : nullptr;
             for (std::int64_t dz = 0; dz < ez; ++dz)
                 for (std::int64_t dy = 0; dy < ey; ++dy) {
+                    const std::int32_t* wrow = win + (dz * 8 + dy) * 8;
+                    const auto row = static_cast<std::size_t>(((kz * kBlock + dz) * ny + ky * kBlock + dy) * nx + kx * kBlock);
                     std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
                     std::int64_t pf[3] = {0, 0, 0};
+                    std::uint64_t xs = 0;
                     for (std::int64_t dx = 0; dx < ex; ++dx) {
-                        const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                        const std::int32_t w = win[li];
+                        const std::int32_t w = wrow[dx];
                         if (w < 0) {
                             run = -1;
                             continue;
                         }
-                        ++ncov;
-                        layer[dz] |= std::uint64_t{1} << (dy * 8 + dx);
-                        if (!o.values) continue;
+                        xs |= std::uint64_t{1} << dx;
+                        bone_out[row + static_cast<std::size_t>(dx)] =
+                            static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(w)] + 1);
+                        if (!value_out) continue;
                         const Pull& pl = fmot[static_cast<std::size_t>(w)].pull;
                         if (w == run) {
                             pf[0] += pl.a[0];
@@ -2150,8 +2155,14 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                             pl.fixed(m3, pf);
                             run = w;
                         }
-                        loc.values[li] = sampler.sample(pf, o.sampling);
+                        value_out[row + static_cast<std::size_t>(dx)] = sampler.sample(pf, o.sampling);
                     }
+                    if (!xs) continue;
+                    ncov += __builtin_popcountll(xs);
+                    layer[dz] |= xs << (8 * dy);
+                    const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
+                    out.bone.mark_written(row + x0, row + x1);
+                    if (value_out) out.values.mark_written(row + x0, row + x1);
                 }
             if (!ncov) return;
             loc.covered += ncov;
@@ -2177,24 +2188,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 loc.lo[a] = std::min(loc.lo[a], b0[a] + e0[a]);
                 loc.hi[a] = std::max(loc.hi[a], b0[a] + e1[a]);
             }
-            // Into the output, row by row.
-            for (std::int64_t dz = z0; dz <= z1; ++dz)
-                for (std::int64_t dy = 0; dy < ey; ++dy) {
-                    std::uint64_t xs = (layer[dz] >> (8 * dy)) & 0xff;
-                    if (!xs) continue;
-                    const auto row = static_cast<std::size_t>(((kz * kBlock + dz) * ny + ky * kBlock + dy) * nx + kx * kBlock);
-                    const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
-                    out.bone.mark_written(row + x0, row + x1);
-                    if (o.values) out.values.mark_written(row + x0, row + x1);
-                    while (xs) {
-                        const int dx = __builtin_ctzll(xs);
-                        xs &= xs - 1;
-                        const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                        out.bone[row + static_cast<std::size_t>(dx)] =
-                            static_cast<std::int16_t>(field_owner[static_cast<std::size_t>(win[li])] + 1);
-                        if (o.values) out.values[row + static_cast<std::size_t>(dx)] = loc.values[li];
-                    }
-                }
         };
         // One pass over all blocks (no barriers); the calling thread reports progress as blocks complete, and a
         // cancel from it unwinds the whole loop.
