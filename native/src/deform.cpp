@@ -732,6 +732,27 @@ struct BoneField {
         return concave_lower(v, u, s2);
     }
 
+    /// The least power at p (fixed point pf, as Pull gives it) over the labels of its cube's corners, ties to the
+    /// lower global index (the sphere in `local`): exact where negative in a closed cube (kClosedBit).
+    double least_over_corners(const std::int64_t* pf, const double* s2, std::uint32_t& local) const {
+        std::uint32_t c[8];
+        corner_cells((pf[0] >> Pull::kBits) - lo[0], (pf[1] >> Pull::kBits) - lo[1], (pf[2] >> Pull::kBits) - lo[2], c);
+        const double p[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
+        double U = kInf;
+        local = kNone;
+        for (int k = 0; k < 8; ++k) {
+            const std::uint32_t lab = label_of(words[c[k]]);
+            if (lab == kNone || lab == local) continue;
+            const auto& sp = sph[lab];
+            const double v = length2(p[0] - sp.c[0], p[1] - sp.c[1], p[2] - sp.c[2], s2) - sp.lim;
+            if (v < U || (v == U && global[lab] < global[local])) {
+                U = v;
+                local = lab;
+            }
+        }
+        return U;
+    }
+
     /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
     static std::uint32_t cell_of(std::int32_t blk, std::int64_t x, std::int64_t y, std::int64_t z) {
         return 1 + static_cast<std::uint32_t>(blk) * 512 + static_cast<std::uint32_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
@@ -1822,7 +1843,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
         std::int32_t field;
         double U, L;
         std::uint32_t local;  // the sphere giving U; its global index breaks ties (fetched only then)
-        bool exact, tight;
+        bool exact, tight, closed;
         std::int64_t pf[3];  // the voxel's preimage (fixed point)
     };
     static const Tier kUndecided{};
@@ -1870,45 +1891,63 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 t.U = power_of(f, lab, p, s2);
                 t.local = lab;
                 t.exact = same_of(word);
-                if (!t.exact && (word & kClosedBit)) {  // closed: the least power over the corners' labels
-                    Cube cube;
-                    fetch_cube(f, p, cube);
-                    t.U = upper_bound(f, cube, p, s2, false, t.local);
-                    t.exact = true;
-                }
+                t.closed = !t.exact && (word & kClosedBit);
                 t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
                 t.tight = t.exact;
             }
-            // The sharper lower bound from the cube's corner powers, when the cube's range is not enough.
+            // A closed cube's exact answer: the least power over its corners' labels.
+            auto sharpen = [&](Tier& t) {
+                t.U = t.L = fields[static_cast<std::size_t>(t.field)].least_over_corners(t.pf, s2, t.local);
+                t.exact = t.tight = true;
+            };
+            // The sharper lower bound, when the cube's range is not enough: exact in a closed cube, else from the
+            // cube's corner powers.
             auto lower = [&](Tier& t, double beat) {
                 if (t.tight || t.L > beat) return;
+                if (t.closed) return sharpen(t);
                 t.L = std::max(t.L, fields[static_cast<std::size_t>(t.field)].corner_lower(t.pf, s2));
                 t.tight = true;
             };
             auto global = [&](const Tier& t) { return fields[static_cast<std::size_t>(t.field)].global[t.local]; };
-            std::size_t a = 0;
-            for (std::size_t k = 1; k < n_t; ++k)
-                if (tiers[k].U < tiers[a].U || (tiers[k].U == tiers[a].U && global(tiers[k]) < global(tiers[a]))) a = k;
-            const Tier& w = tiers[a];
-            if (!(w.U < 0)) {  // none covers when every lower bound is >= 0
+            auto beats = [&](const Tier& w, const Tier& t) { return w.U < t.U || (w.U == t.U && global(w) < global(t)); };
+            auto pick = [&] {
+                std::size_t a = 0;
+                for (std::size_t k = 1; k < n_t; ++k)
+                    if (beats(tiers[k], tiers[a])) a = k;
+                return a;
+            };
+            std::size_t a = pick();
+            if (!(tiers[a].U < 0)) {  // none covers when every lower bound is >= 0
+                bool open = false;
                 for (std::size_t k = 0; k < n_t; ++k) {
+                    lower(tiers[k], 0.0);
+                    open = open || !(tiers[k].L >= 0);
+                }
+                a = pick();  // a closed cube's exact answer may cover
+                if (!(tiers[a].U < 0)) return open ? &kUndecided : nullptr;
+            }
+            // Certain when the least upper bound (negative: a cover) is below every rival's lower bound; failing
+            // that, once more with the closed cubes' exact answers (which may also lower the best upper bound).
+            for (int round = 0; round < 2; ++round) {
+                const Tier& w = tiers[a];
+                bool certain = true;
+                for (std::size_t k = 0; k < n_t && certain; ++k) {
+                    if (k == a) continue;
                     Tier& t = tiers[k];
-                    lower(t, 0.0);
-                    if (!(t.L >= 0)) return &kUndecided;
+                    if (!t.exact) lower(t, w.U);
+                    certain = t.exact ? beats(w, t) : w.U < t.L;
                 }
-                return nullptr;
+                if (certain) return &w;
+                bool sharper = false;
+                for (std::size_t k = 0; k < n_t; ++k)
+                    if (tiers[k].closed && !tiers[k].exact) {
+                        sharpen(tiers[k]);
+                        sharper = true;
+                    }
+                if (!sharper) break;
+                a = pick();
             }
-            for (std::size_t k = 0; k < n_t; ++k) {
-                if (k == a) continue;
-                Tier& t = tiers[k];
-                if (t.exact) {
-                    if (!(w.U < t.U || (w.U == t.U && global(w) < global(t)))) return &kUndecided;
-                    continue;
-                }
-                lower(t, w.U);
-                if (!(w.U < t.L)) return &kUndecided;
-            }
-            return &w;
+            return &kUndecided;
         };
         // The decision over a block or sub-block from each candidate's power range r[k] over its preimage: whether
         // candidate k can cover there and not lose to a certain cover (live[k * stride]); returns the index of a
