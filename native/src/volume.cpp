@@ -112,16 +112,22 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
             free_.erase(free_.begin() + static_cast<std::ptrdiff_t>(best));
         }
     }
-    if (s) {  // re-zero the pages written since it was handed out
+    if (s) {  // re-zero the granules written since it was handed out, a run of them at a time
         char* base = static_cast<char*>(s->p);
-        std::atomic<std::uint8_t>* pages = s->pages.get();
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s->bytes / kPage, 4096),
+        std::atomic<std::uint8_t>* flags = s->pages.get();
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s->bytes / kZeroGranule, 65536),
                           [&](const tbb::blocked_range<std::size_t>& rg) {
-                              for (std::size_t k = rg.begin(); k != rg.end(); ++k)
-                                  if (pages[k].load(std::memory_order_relaxed)) {
-                                      std::memset(base + k * kPage, 0, kPage);
-                                      pages[k].store(0, std::memory_order_relaxed);
+                              for (std::size_t k = rg.begin(); k != rg.end();) {
+                                  if (!flags[k].load(std::memory_order_relaxed)) {
+                                      ++k;
+                                      continue;
                                   }
+                                  std::size_t e = k;
+                                  for (; e != rg.end() && flags[e].load(std::memory_order_relaxed); ++e)
+                                      flags[e].store(0, std::memory_order_relaxed);
+                                  std::memset(base + k * kZeroGranule, 0, (e - k) * kZeroGranule);
+                                  k = e;
+                              }
                           });
         return s.release();
     }
@@ -132,7 +138,7 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
     s = std::make_unique<Slab>();
     s->p = p;
     s->bytes = cap;
-    s->pages.reset(new std::atomic<std::uint8_t>[cap / kPage]());
+    s->pages.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
     return s.release();
 }
 

@@ -45,9 +45,13 @@ struct UninitializedAllocator : std::allocator<T> {
 template <class T>
 using Buffer = std::vector<T, UninitializedAllocator<T>>;
 
+/// The granularity, in bytes, at which pooled arrays record their writes (ZeroedArray::mark_written) and the pool
+/// zeroes them again: finer than a 4 KiB page, because a frame's covered runs are short rows.
+constexpr std::size_t kZeroGranule = 256;
+
 /// A zero-filled array. By default from calloc: pages the program never writes stay shared zero pages, so a large,
 /// mostly empty output costs memory only where it is written. A ZeroedPool hands out arrays over recycled memory
-/// instead; writers then say which elements they wrote (mark_written), so that the pool zeroes only those pages
+/// instead; writers then say which elements they wrote (mark_written), so that the pool zeroes only those granules
 /// before the memory is handed out again. Move-only; `owner()` keeps the memory alive (for views such as numpy's).
 template <class T>
 class ZeroedArray {
@@ -61,8 +65,8 @@ public:
         p_ = static_cast<T*>(p);
         n_ = n;
     }
-    /// n elements at p (zero-filled), kept alive by `owner`; `pages`, when given, holds one flag per 4 KiB page
-    /// from `page_base` on, which mark_written sets.
+    /// n elements at p (zero-filled), kept alive by `owner`; `pages`, when given, holds one flag per kZeroGranule
+    /// bytes from `page_base` on, which mark_written sets.
     ZeroedArray(T* p, std::size_t n, std::shared_ptr<void> owner, std::atomic<std::uint8_t>* pages,
                 const void* page_base)
         : owner_(std::move(owner)), p_(p), n_(n), pages_(pages), page_base_(static_cast<const char*>(page_base)) {}
@@ -92,8 +96,8 @@ public:
     /// Notes that elements [i0, i1) were written (needed for pooled arrays; any thread may call it).
     void mark_written(std::size_t i0, std::size_t i1) {
         if (!pages_ || i1 <= i0) return;
-        const auto first = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i0) - page_base_) >> 12;
-        const auto last = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i1) - 1 - page_base_) >> 12;
+        const auto first = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i0) - page_base_) / kZeroGranule;
+        const auto last = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i1) - 1 - page_base_) / kZeroGranule;
         for (std::size_t k = first; k <= last; ++k) pages_[k].store(1, std::memory_order_relaxed);
     }
     /// Shares the ownership of the memory (it is freed, or recycled, when the last owner goes).
@@ -108,7 +112,7 @@ private:
 };
 
 /// Recycles the large zero-filled outputs of a sequence of frames: an array given back (when its last owner goes)
-/// keeps its pages, and the next take() re-zeroes only the pages marked written, instead of the kernel faulting in
+/// keeps its pages, and the next take() re-zeroes only the granules marked written, instead of the kernel faulting in
 /// and zeroing fresh pages one by one. Keeps at most `keep` free blocks of memory; thread-safe.
 class ZeroedPool : public std::enable_shared_from_this<ZeroedPool> {
 public:
