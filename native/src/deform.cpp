@@ -733,8 +733,10 @@ struct BoneField {
     }
 
     /// The least power at p (fixed point pf, as Pull gives it) over the labels of its cube's corners, ties to the
-    /// lower global index (the sphere in `local`): exact where negative in a closed cube (kClosedBit).
-    double least_over_corners(const std::int64_t* pf, const double* s2, std::uint32_t& local) const {
+    /// lower global index (the sphere in `local`): exact where negative in a closed cube (kClosedBit). With
+    /// `any_negative` it stops at the first negative power (enough to say whether the bone covers p).
+    double least_over_corners(const std::int64_t* pf, const double* s2, std::uint32_t& local,
+                              bool any_negative = false) const {
         std::uint32_t c[8];
         corner_cells((pf[0] >> Pull::kBits) - lo[0], (pf[1] >> Pull::kBits) - lo[1], (pf[2] >> Pull::kBits) - lo[2], c);
         const double p[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
@@ -748,6 +750,7 @@ struct BoneField {
             if (v < U || (v == U && global[lab] < global[local])) {
                 U = v;
                 local = lab;
+                if (any_negative && U < 0) break;
             }
         }
         return U;
@@ -1917,6 +1920,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 return a;
             };
             std::size_t a = pick();
+            if (n_t == 1 && tiers[0].closed && !(tiers[0].U < 0)) {  // alone in a closed cube: does it cover?
+                Tier& t = tiers[0];
+                t.U = fields[static_cast<std::size_t>(t.field)].least_over_corners(t.pf, s2, t.local, true);
+                return t.U < 0 ? &t : nullptr;
+            }
             if (!(tiers[a].U < 0)) {  // none covers when every lower bound is >= 0
                 bool open = false;
                 for (std::size_t k = 0; k < n_t; ++k) {
