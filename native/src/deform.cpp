@@ -604,8 +604,7 @@ constexpr std::uint32_t kSameBit = 0x80000000u, kClosedBit = 0x40000000u;
 constexpr std::uint32_t kNoCell = 0;
 inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~(kSameBit | kClosedBit)); }
 inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
-/// Whether the cube's corner labels decide the power exactly where it is negative (same, or closed).
-inline bool exact_of(std::uint32_t w) { return w != kNone && (w & (kSameBit | kClosedBit)); }
+inline bool closed_of(std::uint32_t w) { return w != kNone && (w & kClosedBit); }
 
 /// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
 /// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
@@ -924,12 +923,7 @@ void spheres_meeting(const BoneField& f, const double* lo, const double* hi, con
     }
 }
 
-/// Whether the lattice cube with first corner `base` (index space) is closed for the bone: every sphere whose ball
-/// meets the cube, apart from its corners' labels S, has a larger power than one sphere of S all over the cube. The
-/// difference of two powers is affine, so its largest value on the cube is at a corner, found per axis; the margin is
-/// far above rounding. Then wherever the bone's power is negative in the cube its sphere is in S (that sphere's ball
-/// holds the point), so the least power over S, ties to the lower global index, is the bone's exact answer there.
-/// `near`: the spheres whose balls may meet the cube (a superset), coordinates apart so that the ball tests vectorise.
+/// Spheres whose balls may meet a cube (for closed_cube), their coordinates apart so that the ball tests vectorise.
 struct NearSpheres {
     std::vector<std::uint32_t> id;
     std::vector<double> c[3], lim;
@@ -946,6 +940,12 @@ struct NearSpheres {
     }
 };
 
+/// Whether the lattice cube with first corner `base` (index space) is closed for the bone: every sphere whose ball
+/// meets the cube, apart from its corners' labels S, has a larger power than one sphere of S all over the cube. The
+/// difference of two powers is affine, so its largest value on the cube is at a corner, found per axis; the margin is
+/// far above rounding. Then wherever the bone's power is negative in the cube its sphere is in S (that sphere's ball
+/// holds the point), so the least power over S, ties to the lower global index, is the bone's exact answer there.
+/// `near`: a superset of the spheres whose balls meet the cube.
 bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S, int ns, NearSpheres& near,
                  const double* s2) {
     if (ns == 0) return false;
@@ -1370,7 +1370,7 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     f.corner_cells(lx, ly, lz, cell);
     std::uint32_t* lab = cube.lab;
     for (int k = 0; k < 8; ++k) lab[k] = label_of(f.words[cell[k]]);
-    cube.closed = exact_of(f.words[cell[0]]) && (f.words[cell[0]] & kClosedBit);
+    cube.closed = closed_of(f.words[cell[0]]);
     bool same = true, any = false;
     for (int c = 0; c < 8; ++c) {
         same = same && lab[c] == lab[0];
@@ -1894,7 +1894,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 t.U = power_of(f, lab, p, s2);
                 t.local = lab;
                 t.exact = same_of(word);
-                t.closed = !t.exact && (word & kClosedBit);
+                t.closed = !t.exact && closed_of(word);
                 t.L = t.exact ? t.U : (loc.clo[at] == kBoundMin ? -kInf : loc.clo[at] * bound_step);
                 t.tight = t.exact;
             }
