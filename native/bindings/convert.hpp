@@ -53,7 +53,7 @@ py::array_t<T> to_numpy(std::vector<T>&& data, const Grid& grid) {
 }
 
 /// Same for a ZeroedArray (calloc'd: its untouched pages stay shared zero pages; or pooled: see ZeroedPool). The
-/// array is read-only, since a pool re-zeroes only the pages its writers marked.
+/// array is read-only, since a pool re-zeroes only what its writers marked.
 template <class T>
 py::array_t<T> to_numpy(ZeroedArray<T>&& data, const Grid& grid) {
     const py::ssize_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];

@@ -731,30 +731,6 @@ struct BoneField {
         return concave_lower(v, u, s2);
     }
 
-    /// The least power at p (fixed point pf, as Pull gives it) over the labels of its cube's corners, ties to the
-    /// lower global index (the sphere in `local`): exact where negative in a closed cube (kClosedBit). With
-    /// `any_negative` it stops at the first negative power (enough to say whether the bone covers p).
-    double least_over_corners(const std::int64_t* pf, const double* s2, std::uint32_t& local,
-                              bool any_negative = false) const {
-        std::uint32_t c[8];
-        corner_cells((pf[0] >> Pull::kBits) - lo[0], (pf[1] >> Pull::kBits) - lo[1], (pf[2] >> Pull::kBits) - lo[2], c);
-        const double p[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
-        double U = kInf;
-        local = kNone;
-        for (int k = 0; k < 8; ++k) {
-            const std::uint32_t lab = label_of(words[c[k]]);
-            if (lab == kNone || lab == local) continue;
-            const auto& sp = sph[lab];
-            const double v = length2(p[0] - sp.c[0], p[1] - sp.c[1], p[2] - sp.c[2], s2) - sp.lim;
-            if (v < U || (v == U && global[lab] < global[local])) {
-                U = v;
-                local = lab;
-                if (any_negative && U < 0) break;
-            }
-        }
-        return U;
-    }
-
     /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
     static std::uint32_t cell_of(std::int32_t blk, std::int64_t x, std::int64_t y, std::int64_t z) {
         return 1 + static_cast<std::uint32_t>(blk) * 512 + static_cast<std::uint32_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
@@ -878,7 +854,6 @@ struct LabelEnvelope {
     }
 };
 
-/// Builds one bone's field from its spheres (global indices) with radii r.
 /// Whether sphere sp's open ball (with a margin for rounding, on the safe side) meets the box [lo, hi] (index space).
 inline bool ball_meets_box(const BoneField::Sphere& sp, const double* lo, const double* hi, const double* s2) {
     double d2 = 0;
@@ -889,9 +864,26 @@ inline bool ball_meets_box(const BoneField::Sphere& sp, const double* lo, const 
     return d2 < sp.lim + 1e-9 * (1.0 + d2 + sp.lim);
 }
 
+/// Spheres whose balls meeting a box (for closed_cube), their coordinates apart so that the ball tests vectorise.
+struct NearSpheres {
+    std::vector<std::uint32_t> id;
+    std::vector<double> c[3], lim;
+    std::vector<double> gap;
+    void clear() {
+        id.clear();
+        for (auto& v : c) v.clear();
+        lim.clear();
+    }
+    void add(const BoneField& f, std::uint32_t j) {
+        id.push_back(j);
+        for (int a = 0; a < 3; ++a) c[a].push_back(f.sph[j].c[a]);
+        lim.push_back(f.sph[j].lim);
+    }
+};
+
 /// The spheres whose balls meet the box [lo, hi] (index space), into `out`.
 void spheres_meeting(const BoneField& f, const double* lo, const double* hi, const double* spacing, const double* s2,
-                     std::vector<std::uint32_t>& out) {
+                     NearSpheres& out) {
     out.clear();
     if (f.nodes.empty()) return;
     double qlo[3], qhi[3];  // world offsets
@@ -919,26 +911,9 @@ void spheres_meeting(const BoneField& f, const double* lo, const double* hi, con
             continue;
         }
         for (std::uint32_t j = n.begin; j < n.end; ++j)
-            if (f.sph[j].lim > 0 && ball_meets_box(f.sph[j], lo, hi, s2)) out.push_back(j);
+            if (f.sph[j].lim > 0 && ball_meets_box(f.sph[j], lo, hi, s2)) out.add(f, j);
     }
 }
-
-/// Spheres whose balls may meet a cube (for closed_cube), their coordinates apart so that the ball tests vectorise.
-struct NearSpheres {
-    std::vector<std::uint32_t> id;
-    std::vector<double> c[3], lim;
-    std::vector<double> gap;
-    void clear() {
-        id.clear();
-        for (auto& v : c) v.clear();
-        lim.clear();
-    }
-    void add(const BoneField& f, std::uint32_t j) {
-        id.push_back(j);
-        for (int a = 0; a < 3; ++a) c[a].push_back(f.sph[j].c[a]);
-        lim.push_back(f.sph[j].lim);
-    }
-};
 
 /// Whether the lattice cube with first corner `base` (index space) is closed for the bone: every sphere whose ball
 /// meets the cube, apart from its corners' labels S, has a larger power than one sphere of S all over the cube. The
@@ -1000,6 +975,7 @@ bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S,
     return true;
 }
 
+/// Builds one bone's field from its spheres (global indices) with radii r.
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
                            const std::vector<double>& r, double T, double step) {
     BoneField f;
@@ -1130,8 +1106,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     };
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);
-        std::vector<std::uint32_t> near;
-        NearSpheres near_sub;
+        NearSpheres near;
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
@@ -1201,23 +1176,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                                        static_cast<double>(f.blocks[slot][2])};
                 const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
                 spheres_meeting(f, blo, bhi, g.spacing.data(), s2, sc.near);
-                for (int sb = 0; sb < 8; ++sb) {  // per 4³ sub-block, from the spheres that meet its cubes
-                    const int sx = (sb & 1) * 4, sy = ((sb >> 1) & 1) * 4, sz = (sb >> 2) * 4;
-                    auto in_sub = [&](int li) { return (li & 4) == sx && ((li >> 3) & 4) == sy && ((li >> 6) & 4) == sz; };
-                    bool any = false;
-                    for (int k = 0; k < n_pending && !any; ++k) any = in_sub(pending[k].li);
-                    if (!any) continue;
-                    const double slo[3] = {blo[0] + sx, blo[1] + sy, blo[2] + sz};
-                    const double shi[3] = {slo[0] + 5, slo[1] + 5, slo[2] + 5};
-                    sc.near_sub.clear();
-                    for (const std::uint32_t j : sc.near)
-                        if (ball_meets_box(f.sph[j], slo, shi, s2)) sc.near_sub.add(f, j);
-                    for (int k = 0; k < n_pending; ++k) {
-                        const Pending& pc = pending[k];
-                        if (!in_sub(pc.li)) continue;
-                        const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
-                        if (closed_cube(f, base, pc.ks, pc.nk, sc.near_sub, s2)) out_word[pc.li] |= kClosedBit;
-                    }
+                for (int k = 0; k < n_pending; ++k) {
+                    const Pending& pc = pending[k];
+                    const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
+                    if (closed_cube(f, base, pc.ks, pc.nk, sc.near, s2)) out_word[pc.li] |= kClosedBit;
                 }
             }
             CellBounds* sb = f.sub.data() + slot * 8;
@@ -1383,14 +1345,16 @@ bool fetch_cube(const BoneField& f, const double* p, Cube& cube) {
     return any;
 }
 
-/// An upper bound of the bone's power at p: the least power at p among the cube's labels (a real sphere's, so
-/// a negative value proves coverage). With `any_negative` it stops at the first negative value.
-double upper_bound(const BoneField& f, const Cube& cube, const double* p, const double* s2, bool any_negative,
-                   std::uint32_t& local) {
+/// The least power at p among the eight corner labels `lab` of its cube, ties to the lower global index (the sphere
+/// in `local`): a real sphere's, so an upper bound of the bone's power (a negative value proves coverage), and its
+/// exact value wherever negative when the cube is same or closed. With `any_negative` it stops at the first
+/// negative value.
+double least_over_labels(const BoneField& f, const std::uint32_t* lab, const double* p, const double* s2,
+                         bool any_negative, std::uint32_t& local) {
     double U = kInf;
     local = kNone;
     for (int c = 0; c < 8; ++c) {
-        const std::uint32_t k = cube.lab[c];
+        const std::uint32_t k = lab[c];
         if (k == kNone || k == local) continue;
         const double v = power_of(f, k, p, s2);
         if (v < U || (v == U && f.global[k] < f.global[local])) {
@@ -1400,6 +1364,16 @@ double upper_bound(const BoneField& f, const Cube& cube, const double* p, const 
         }
     }
     return U;
+}
+
+/// least_over_labels at a fixed-point preimage pf (as Pull gives it), from its cube's corner labels.
+double least_over_corners(const BoneField& f, const std::int64_t* pf, const double* s2, std::uint32_t& local) {
+    std::uint32_t cell[8], lab[8];
+    f.corner_cells((pf[0] >> Pull::kBits) - f.lo[0], (pf[1] >> Pull::kBits) - f.lo[1], (pf[2] >> Pull::kBits) - f.lo[2],
+                   cell);
+    for (int k = 0; k < 8; ++k) lab[k] = label_of(f.words[cell[k]]);
+    const double p[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
+    return least_over_labels(f, lab, p, s2, false, local);
 }
 
 /// A lower bound of the bone's power at p from its exact values at the cube's corners (concave_lower: the power
@@ -1633,7 +1607,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     out.stats.blended_spheres = blended_spheres;
     const auto total = static_cast<std::size_t>(nx * ny * nz);
-    // Recycled output memory: only the pages earlier frames wrote are zeroed again (marked as they are written).
+    // Recycled output memory: only what earlier frames wrote is zeroed again (marked as it is written).
     if (o.values) out.values = pool->take<float>(total);
     out.bone = pool->take<std::int16_t>(total);
 
@@ -1734,7 +1708,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     };
     auto set_upper = [&](Cand& c, bool any_negative) {
         const BoneField& f = fields[static_cast<std::size_t>(c.bone)];
-        c.U = upper_bound(f, c.cube, c.p, s2, any_negative, c.local);
+        c.U = least_over_labels(f, c.cube.lab, c.p, s2, any_negative, c.local);
         c.global = f.global[c.local];
         c.has_U = !any_negative || !(c.U < 0);  // a cut-short minimum is only an upper bound of the upper bound
     };
@@ -1776,13 +1750,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             c.has_U = c.has_L = false;
             c.local = kNone;
             c.covered = false;
-            if (c.cube.same || c.cube.closed) {  // exact where negative: this sphere's on the whole cube, or closed
-                if (c.cube.same) {
-                    c.local = c.cube.lab[0];
-                    c.L = c.U = power_of(f, c.local, c.p, s2);
-                } else {
-                    c.L = c.U = upper_bound(f, c.cube, c.p, s2, false, c.local);
-                }
+            if (c.cube.same || c.cube.closed) {  // exact where negative: one sphere's on the whole cube, or closed
+                c.L = c.U = least_over_labels(f, c.cube.lab, c.p, s2, false, c.local);
                 if (!(c.U < 0)) {
                     cands.pop_back();
                     continue;
@@ -1900,7 +1869,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
             }
             // A closed cube's exact answer: the least power over its corners' labels.
             auto sharpen = [&](Tier& t) {
-                t.U = t.L = fields[static_cast<std::size_t>(t.field)].least_over_corners(t.pf, s2, t.local);
+                t.U = t.L = least_over_corners(fields[static_cast<std::size_t>(t.field)], t.pf, s2, t.local);
                 t.exact = t.tight = true;
             };
             // The sharper lower bound, when the cube's range is not enough: exact in a closed cube, else from the
@@ -1920,11 +1889,6 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
                 return a;
             };
             std::size_t a = pick();
-            if (n_t == 1 && tiers[0].closed && !(tiers[0].U < 0)) {  // alone in a closed cube: does it cover?
-                Tier& t = tiers[0];
-                t.U = fields[static_cast<std::size_t>(t.field)].least_over_corners(t.pf, s2, t.local, true);
-                return t.U < 0 ? &t : nullptr;
-            }
             if (!(tiers[a].U < 0)) {  // none covers when every lower bound is >= 0
                 bool open = false;
                 for (std::size_t k = 0; k < n_t; ++k) {

@@ -114,7 +114,7 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
     }
     if (s) {  // re-zero the granules written since it was handed out, a run of them at a time
         char* base = static_cast<char*>(s->p);
-        std::atomic<std::uint8_t>* flags = s->pages.get();
+        std::atomic<std::uint8_t>* flags = s->written.get();
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s->bytes / kZeroGranule, 65536),
                           [&](const tbb::blocked_range<std::size_t>& rg) {
                               for (std::size_t k = rg.begin(); k != rg.end();) {
@@ -138,7 +138,7 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
     s = std::make_unique<Slab>();
     s->p = p;
     s->bytes = cap;
-    s->pages.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
+    s->written.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
     return s.release();
 }
 

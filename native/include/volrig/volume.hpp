@@ -65,19 +65,18 @@ public:
         p_ = static_cast<T*>(p);
         n_ = n;
     }
-    /// n elements at p (zero-filled), kept alive by `owner`; `pages`, when given, holds one flag per kZeroGranule
-    /// bytes from `page_base` on, which mark_written sets.
-    ZeroedArray(T* p, std::size_t n, std::shared_ptr<void> owner, std::atomic<std::uint8_t>* pages,
-                const void* page_base)
-        : owner_(std::move(owner)), p_(p), n_(n), pages_(pages), page_base_(static_cast<const char*>(page_base)) {}
+    /// n elements at p (zero-filled), kept alive by `owner`; `written`, when given, holds one flag per kZeroGranule
+    /// bytes from `base` on, which mark_written sets.
+    ZeroedArray(T* p, std::size_t n, std::shared_ptr<void> owner, std::atomic<std::uint8_t>* written, const void* base)
+        : owner_(std::move(owner)), p_(p), n_(n), written_(written), base_(static_cast<const char*>(base)) {}
     ZeroedArray(ZeroedArray&& o) noexcept { *this = std::move(o); }
     ZeroedArray& operator=(ZeroedArray&& o) noexcept {
         if (this != &o) {
             owner_ = std::move(o.owner_);
             p_ = std::exchange(o.p_, nullptr);
             n_ = std::exchange(o.n_, 0);
-            pages_ = std::exchange(o.pages_, nullptr);
-            page_base_ = std::exchange(o.page_base_, nullptr);
+            written_ = std::exchange(o.written_, nullptr);
+            base_ = std::exchange(o.base_, nullptr);
         }
         return *this;
     }
@@ -95,10 +94,10 @@ public:
     }
     /// Notes that elements [i0, i1) were written (needed for pooled arrays; any thread may call it).
     void mark_written(std::size_t i0, std::size_t i1) {
-        if (!pages_ || i1 <= i0) return;
-        const auto first = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i0) - page_base_) / kZeroGranule;
-        const auto last = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i1) - 1 - page_base_) / kZeroGranule;
-        for (std::size_t k = first; k <= last; ++k) pages_[k].store(1, std::memory_order_relaxed);
+        if (!written_ || i1 <= i0) return;
+        const auto first = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i0) - base_) / kZeroGranule;
+        const auto last = static_cast<std::size_t>(reinterpret_cast<const char*>(p_ + i1) - 1 - base_) / kZeroGranule;
+        for (std::size_t k = first; k <= last; ++k) written_[k].store(1, std::memory_order_relaxed);
     }
     /// Shares the ownership of the memory (it is freed, or recycled, when the last owner goes).
     const std::shared_ptr<void>& owner() const { return owner_; }
@@ -107,8 +106,8 @@ private:
     std::shared_ptr<void> owner_;
     T* p_ = nullptr;
     std::size_t n_ = 0;
-    std::atomic<std::uint8_t>* pages_ = nullptr;
-    const char* page_base_ = nullptr;
+    std::atomic<std::uint8_t>* written_ = nullptr;  // per granule (pooled arrays)
+    const char* base_ = nullptr;                    // where granule 0 starts
 };
 
 /// Recycles the large zero-filled outputs of a sequence of frames: an array given back (when its last owner goes)
@@ -129,7 +128,7 @@ public:
         Slab* s = acquire(n * sizeof(T));
         std::weak_ptr<ZeroedPool> pool = weak_from_this();
         std::shared_ptr<void> owner(s->p, [pool, s](void*) { give_back(pool, s); });
-        return ZeroedArray<T>(static_cast<T*>(s->p), n, std::move(owner), s->pages.get(), s->p);
+        return ZeroedArray<T>(static_cast<T*>(s->p), n, std::move(owner), s->written.get(), s->p);
     }
     /// Frees the memory kept for reuse.
     void trim();
@@ -139,7 +138,7 @@ public:
     struct Slab {
         void* p = nullptr;
         std::size_t bytes = 0;
-        std::unique_ptr<std::atomic<std::uint8_t>[]> pages;
+        std::unique_ptr<std::atomic<std::uint8_t>[]> written;  // a flag per kZeroGranule bytes
         ~Slab();
     };
 
