@@ -1,4 +1,5 @@
-// volrig/deform.hpp: per-frame sampled reconstruction from moved spheres (ALGORITHMS.md §7).
+// volrig/deform.hpp: per-frame sampled reconstruction from moved spheres (docs/ALGORITHMS.md §7; the stages are
+// in native/src/deform/, outlined in docs/ARCHITECTURE.md).
 //
 // Each skeleton point i is a sphere: centre cᵢ (a voxel of the source grid), radius rᵢ (world units), bound to one
 // or more bones. A frame gives one rest-to-pose matrix per bone (world coordinates of the source grid:
@@ -38,7 +39,12 @@ enum class DeformMode { Rigid, Linear, DualQuaternion };
 enum class Proximity { Power, Nearest };
 enum class Sampling { Nearest, Trilinear };
 
-DeformMode deform_mode_from_name(const std::string& name);  ///< "rigid" | "linear" | "dual_quaternion"
+/// The names of the options, in enum order: the one place they are spelled (the bindings hand them to Python).
+inline constexpr std::array<const char*, 3> kDeformModeNames = {"rigid", "linear", "dual_quaternion"};
+inline constexpr std::array<const char*, 2> kProximityNames = {"power", "nearest"};
+inline constexpr std::array<const char*, 2> kSamplingNames = {"nearest", "trilinear"};
+
+DeformMode deform_mode_from_name(const std::string& name);  ///< "rigid" | "linear" | "dual_quaternion" (or "dq")
 Proximity proximity_from_name(const std::string& name);     ///< "power" | "nearest"
 Sampling sampling_from_name(const std::string& name);       ///< "nearest" | "trilinear"
 

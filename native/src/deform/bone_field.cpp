@@ -1,0 +1,385 @@
+#include "deform/bone_field.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <limits>
+#include <numeric>
+
+#include "deform/closed_cubes.hpp"
+#include "volrig/reconstruct.hpp"
+
+namespace volrig::deform_detail {
+
+namespace {
+
+/// A k-d tree over the spheres lifted to 4-D, (centre, sqrt(M − lim)): the power distance is the lifted Euclidean
+/// distance less M, so splitting on the fourth coordinate too separates big spheres from small ones and keeps each
+/// node's max_lim, which bounds its pruning, tight.
+void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
+              const std::vector<double>& w3, const std::vector<double>& lims, const std::vector<double>& lift) {
+    KdNode node;
+    node.begin = begin;
+    node.end = end;
+    node.max_lim = 0;
+    for (int a = 0; a < 3; ++a) {
+        node.lo[a] = node.blo[a] = kInf;
+        node.hi[a] = node.bhi[a] = -kInf;
+    }
+    double wlo = kInf, whi = -kInf;
+    for (std::uint32_t k = begin; k < end; ++k) {
+        const std::uint32_t i = order[k];
+        for (int a = 0; a < 3; ++a) {
+            node.lo[a] = std::min(node.lo[a], w3[3 * i + a]);
+            node.hi[a] = std::max(node.hi[a], w3[3 * i + a]);
+            const double r = std::sqrt(std::max(0.0, lims[i]));
+            node.blo[a] = std::min(node.blo[a], w3[3 * i + a] - r);
+            node.bhi[a] = std::max(node.bhi[a], w3[3 * i + a] + r);
+        }
+        node.max_lim = std::max(node.max_lim, lims[i]);
+        wlo = std::min(wlo, lift[i]);
+        whi = std::max(whi, lift[i]);
+    }
+    const auto self = static_cast<std::int32_t>(f.nodes.size());
+    f.nodes.push_back(node);
+    if (end - begin <= 8) return;
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+        if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
+    if (whi - wlo > node.hi[axis] - node.lo[axis]) axis = 3;
+    auto key = [&](std::uint32_t i) { return axis == 3 ? lift[i] : w3[3 * i + static_cast<std::size_t>(axis)]; };
+    const std::uint32_t mid = begin + (end - begin) / 2;
+    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
+                     [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b) || (key(a) == key(b) && a < b); });
+    const auto left = static_cast<std::int32_t>(f.nodes.size());
+    build_kd(f, order, begin, mid, w3, lims, lift);
+    const auto right = static_cast<std::int32_t>(f.nodes.size());
+    build_kd(f, order, mid, end, w3, lims, lift);
+    f.nodes[static_cast<std::size_t>(self)].left = left;
+    f.nodes[static_cast<std::size_t>(self)].right = right;
+}
+
+/// One 1-D lower envelope of parabolas w·(q − p)² + f(p) over the finite samples of a line, carrying labels.
+struct LabelEnvelope {
+    std::vector<std::int64_t> v;
+    std::vector<double> z, fv;
+    std::vector<std::uint32_t> lv;
+
+    void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
+        v.resize(static_cast<std::size_t>(n));
+        z.resize(static_cast<std::size_t>(n) + 1);
+        fv.resize(static_cast<std::size_t>(n));
+        lv.resize(static_cast<std::size_t>(n));
+        std::int64_t k = -1;
+        for (std::int64_t q = 0; q < n; ++q) {
+            const double fq = f[q * stride];
+            if (!(fq < kInf)) continue;
+            double s = -kInf;
+            while (k >= 0) {
+                const std::int64_t p = v[static_cast<std::size_t>(k)];
+                s = ((fq - fv[static_cast<std::size_t>(k)]) / w + static_cast<double>(q * q - p * p)) /
+                    (2.0 * static_cast<double>(q - p));
+                if (s <= z[static_cast<std::size_t>(k)]) --k;
+                else break;
+            }
+            ++k;
+            v[static_cast<std::size_t>(k)] = q;
+            fv[static_cast<std::size_t>(k)] = fq;
+            lv[static_cast<std::size_t>(k)] = lab[q * stride];
+            z[static_cast<std::size_t>(k)] = k == 0 ? -kInf : s;
+        }
+        if (k < 0) return;
+        std::int64_t j = 0;
+        for (std::int64_t q = 0; q < n; ++q) {
+            while (j < k && z[static_cast<std::size_t>(j + 1)] <= static_cast<double>(q)) ++j;
+            const double d = static_cast<double>(q - v[static_cast<std::size_t>(j)]);
+            f[q * stride] = fv[static_cast<std::size_t>(j)] + w * d * d;
+            lab[q * stride] = lv[static_cast<std::size_t>(j)];
+        }
+    }
+};
+
+/// The field's spheres in k-d order (with the tree) and its lattice extent: beyond a margin of sqrt(r² + T) around
+/// each sphere its power exceeds T, so cells outside need no labels.
+void place_spheres(BoneField& f, const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                   const std::vector<double>& r, double T) {
+    const std::size_t m = members.size();
+    std::vector<double> w3(3 * m), lims(m);
+    for (std::size_t k = 0; k < m; ++k) {
+        const std::uint32_t i = members[k];
+        for (int a = 0; a < 3; ++a) w3[3 * k + a] = static_cast<double>(s.ijk[3 * i + 2 - a]) * g.spacing[a];
+        lims[k] = r[i] > 0 ? open_ball_limit_sq(r[i]) : 0.0;
+    }
+    std::vector<std::uint32_t> order(m);
+    std::iota(order.begin(), order.end(), 0u);
+    const double top = m ? *std::max_element(lims.begin(), lims.end()) : 0.0;
+    std::vector<double> lift(m);
+    for (std::size_t k = 0; k < m; ++k) lift[k] = std::sqrt(top - lims[k]);
+    if (m) build_kd(f, order, 0, static_cast<std::uint32_t>(m), w3, lims, lift);
+    f.global.resize(m);
+    f.sph.resize(m);
+    constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max(), kMin = std::numeric_limits<std::int64_t>::min();
+    std::array<std::int64_t, 3> lo{kMax, kMax, kMax}, hi{kMin, kMin, kMin};
+    for (std::size_t k = 0; k < m; ++k) {
+        const std::uint32_t src = order[k];
+        const std::uint32_t i = members[src];
+        f.global[k] = i;
+        f.sph[k] = {{static_cast<double>(s.ijk[3 * i + 2]), static_cast<double>(s.ijk[3 * i + 1]),
+                     static_cast<double>(s.ijk[3 * i])},
+                    lims[src]};
+        const double* c = f.sph[k].c;
+        for (int a = 0; a < 3; ++a) {
+            const auto e = static_cast<std::int64_t>(std::ceil(std::sqrt(r[i] * r[i] + T) / g.spacing[a])) + 1;
+            lo[a] = std::min(lo[a], static_cast<std::int64_t>(c[a]) - e);
+            hi[a] = std::max(hi[a], static_cast<std::int64_t>(c[a]) + e + 1);
+        }
+    }
+    if (m == 0) return;
+    f.lo = lo;
+    for (int a = 0; a < 3; ++a) {
+        f.dims[a] = hi[a] - lo[a];
+        f.bdims[a] = (f.dims[a] + kBlock - 1) / kBlock;
+    }
+}
+
+/// The power diagram on the field's lattice: F = min over the spheres of |v − c|² − lim and its argmin (local
+/// index, kNone where F is infinite), by separable lower envelopes of parabolas seeded at the centres.
+void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F, std::vector<std::uint32_t>& lab) {
+    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+    const auto count = static_cast<std::size_t>(nx * ny * nz);
+    F.assign(count, kInf);
+    lab.assign(count, kNone);
+    for (std::size_t k = 0; k < f.sph.size(); ++k) {
+        const auto& sp = f.sph[k];
+        if (!(sp.lim > 0)) continue;
+        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - f.lo[2]) * ny +
+                                                   (static_cast<std::int64_t>(sp.c[1]) - f.lo[1])) * nx +
+                                                  (static_cast<std::int64_t>(sp.c[0]) - f.lo[0]));
+        if (-sp.lim < F[idx]) {
+            F[idx] = -sp.lim;
+            lab[idx] = static_cast<std::uint32_t>(k);
+        }
+    }
+    tbb::enumerable_thread_specific<LabelEnvelope> envs;
+    // x rows, then y columns, then z columns; each pass parallel over the other two axes.
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
+        for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
+            for (std::int64_t y = 0; y < ny; ++y) {
+                const auto base = static_cast<std::size_t>((z * ny + y) * nx);
+                e.run(F.data() + base, lab.data() + base, nx, 1, s2[0]);
+            }
+            for (std::int64_t x = 0; x < nx; ++x) {
+                const auto base = static_cast<std::size_t>(z * ny * nx + x);
+                e.run(F.data() + base, lab.data() + base, ny, nx, s2[1]);
+            }
+        }
+    });
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
+        for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
+            for (std::int64_t x = 0; x < nx; ++x) {
+                const auto base = static_cast<std::size_t>(y * nx + x);
+                e.run(F.data() + base, lab.data() + base, nz, nx * ny, s2[2]);
+            }
+    });
+}
+
+/// Keeps the blocks where the power dips below T at a cell or at the cells one step above (the far corners of the
+/// block's cubes): elsewhere no point can be covered, and a cube whose first corner lies in a block that is not
+/// kept has no corner below T. Allocates the kept blocks' cells.
+void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
+    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+    const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
+    f.block_index.assign(static_cast<std::size_t>(bx * by * bz), -1);
+    std::vector<std::uint8_t> keep(static_cast<std::size_t>(bx * by * bz), 0);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, bz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        for (std::int64_t kz = rg.begin(); kz != rg.end(); ++kz)
+            for (std::int64_t ky = 0; ky < by; ++ky)
+                for (std::int64_t kx = 0; kx < bx; ++kx) {
+                    bool any = false;
+                    for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock + 1) && !any; ++z)
+                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock + 1) && !any; ++y) {
+                            const double* row = F.data() + static_cast<std::size_t>((z * ny + y) * nx);
+                            for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock + 1); ++x)
+                                if (row[x] < T) {
+                                    any = true;
+                                    break;
+                                }
+                        }
+                    keep[static_cast<std::size_t>((kz * by + ky) * bx + kx)] = any;
+                }
+    });
+    for (std::int64_t k = 0; k < bx * by * bz; ++k) {
+        if (!keep[static_cast<std::size_t>(k)]) continue;
+        const std::int64_t kx = k % bx, ky = (k / bx) % by, kz = k / (bx * by);
+        f.block_index[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(f.blocks.size());
+        f.blocks.push_back({f.lo[0] + kx * kBlock, f.lo[1] + ky * kBlock, f.lo[2] + kz * kBlock});
+    }
+    if (f.blocks.size() * 512 + 1 > std::numeric_limits<std::uint32_t>::max())
+        throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
+    f.bounds.assign(f.blocks.size() * 512 + 1, CellBounds{});
+    f.words.assign(f.blocks.size() * 512 + 1, kNone);
+    f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
+    f.sub.assign(f.blocks.size() * 8, CellBounds{});
+}
+
+/// A cube to close: its cell in the block and its corners' labels.
+struct Pending {
+    int li, nk;
+    std::uint32_t ks[8];
+};
+
+/// The inputs of the per-cell pass: the power diagram on the field's lattice and the constants of its bounds.
+struct CellPass {
+    const std::vector<double>& F;
+    const std::vector<std::uint32_t>& lab;
+    const double* s2;
+    double T, step;
+    double quarter;  // the concave term's largest value over a cube, Σ s²/4
+    double slack;    // rounding margin of the quantised bounds
+};
+
+/// One allocated block's cells: the corner power (quantised down), the label word (with the same bit), and the
+/// power's range over each cube with its first corner at the cell: at least the least corner value minus Σ s²/4
+/// (corners outside the field hold at least T); at most, for any sphere labelling a corner, its largest corner
+/// value (convexity). The cubes whose ranges leave coverage open go to `pending`; returns their count.
+int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Pending* pending) {
+    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+    int n_pending = 0;
+    CellBounds* out = f.bounds.data() + 1 + slot * 512;
+    std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
+    std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
+    const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
+    for (std::int64_t z = z0; z < std::min(nz, z0 + kBlock); ++z)
+        for (std::int64_t y = y0; y < std::min(ny, y0 + kBlock); ++y)
+            for (std::int64_t x = x0; x < std::min(nx, x0 + kBlock); ++x) {
+                const int li = static_cast<int>(((z - z0) * 8 + (y - y0)) * 8 + (x - x0));
+                std::uint32_t word = c.lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
+                out_corner[li] = quantize_down(c.F[static_cast<std::size_t>((z * ny + y) * nx + x)] - c.slack, c.step);
+                double fmin = kInf;
+                std::uint32_t ks[8];
+                int nk = 0;
+                bool complete = true;  // all eight corners inside the field and labelled
+                for (int k = 0; k < 8; ++k) {
+                    const std::int64_t cx = x + (k & 1), cy = y + ((k >> 1) & 1), cz = z + ((k >> 2) & 1);
+                    if (cx >= nx || cy >= ny || cz >= nz) {
+                        fmin = std::min(fmin, c.T);
+                        complete = false;
+                        continue;
+                    }
+                    const auto i = static_cast<std::size_t>((cz * ny + cy) * nx + cx);
+                    fmin = std::min(fmin, c.F[i]);
+                    complete = complete && c.lab[i] != kNone;
+                    if (c.lab[i] != kNone && std::find(ks, ks + nk, c.lab[i]) == ks + nk) ks[nk++] = c.lab[i];
+                }
+                if (complete && nk == 1) word |= kSameBit;
+                out_word[li] = word;
+                const double lower = fmin - c.quarter;
+                if (!(lower < 0)) {
+                    out[li] = CellBounds{kBoundMax, kBoundMax};
+                    continue;
+                }
+                double upper = kInf;
+                const double rest[3] = {static_cast<double>(x + f.lo[0]), static_cast<double>(y + f.lo[1]),
+                                        static_cast<double>(z + f.lo[2])};
+                for (int k = 0; k < nk; ++k) {
+                    double mx = -kInf;
+                    for (int q = 0; q < 8 && mx < upper; ++q) {
+                        const double corner[3] = {rest[0] + (q & 1), rest[1] + ((q >> 1) & 1), rest[2] + ((q >> 2) & 1)};
+                        mx = std::max(mx, power_of(f, ks[k], corner, c.s2));
+                    }
+                    upper = std::min(upper, mx);
+                }
+                out[li] = CellBounds{quantize_down(lower - c.slack, c.step), quantize_up(upper + c.slack, c.step)};
+                // A cube the ranges leave undecided (it may or may not be covered) is worth closing.
+                if (word != kNone && !(word & kSameBit) && out[li].hi >= 0) {
+                    Pending& pc = pending[n_pending++];
+                    pc.li = li;
+                    pc.nk = nk;
+                    std::copy(ks, ks + nk, pc.ks);
+                }
+            }
+    return n_pending;
+}
+
+/// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes.
+void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_pending, const Grid& g,
+                 const double* s2, NearSpheres& near) {
+    std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
+    const double blo[3] = {static_cast<double>(f.blocks[slot][0]), static_cast<double>(f.blocks[slot][1]),
+                           static_cast<double>(f.blocks[slot][2])};
+    const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
+    spheres_meeting(f, blo, bhi, g.spacing.data(), s2, near);
+    for (int k = 0; k < n_pending; ++k) {
+        const Pending& pc = pending[k];
+        const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
+        if (closed_cube(f, base, pc.ks, pc.nk, near, s2)) out_word[pc.li] |= kClosedBit;
+    }
+}
+
+/// The range of a block's cube ranges over each of its eight 4³ sub-blocks.
+void sub_block_ranges(BoneField& f, std::size_t slot) {
+    const CellBounds* cells = f.bounds.data() + 1 + slot * 512;
+    CellBounds* sb = f.sub.data() + slot * 8;
+    for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
+    for (int li = 0; li < 512; ++li) {
+        CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
+        t.lo = std::min(t.lo, cells[li].lo);
+        t.hi = std::max(t.hi, cells[li].hi);
+    }
+}
+
+/// The summed-area table of the allocated blocks, (bdims + 1)³, for any_block.
+void block_sums(BoneField& f) {
+    const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2], sx = bx + 1, sy = by + 1;
+    f.block_sat.assign(static_cast<std::size_t>(sx * sy * (bz + 1)), 0);
+    auto at = [&](std::int64_t i, std::int64_t j, std::int64_t k) -> std::int32_t& {
+        return f.block_sat[static_cast<std::size_t>((k * sy + j) * sx + i)];
+    };
+    for (std::int64_t z = 1; z <= bz; ++z)
+        for (std::int64_t y = 1; y <= by; ++y)
+            for (std::int64_t x = 1; x <= bx; ++x)
+                at(x, y, z) = (f.block_index[static_cast<std::size_t>(((z - 1) * by + (y - 1)) * bx + (x - 1))] >= 0) +
+                              at(x - 1, y, z) + at(x, y - 1, z) + at(x, y, z - 1) - at(x - 1, y - 1, z) -
+                              at(x - 1, y, z - 1) - at(x, y - 1, z - 1) + at(x - 1, y - 1, z - 1);
+}
+
+}  // namespace
+
+BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                           const std::vector<double>& r, double T, double step) {
+    BoneField f;
+    if (members.size() >= kClosedBit) throw Error("deform: too many spheres bound to one bone");
+    place_spheres(f, g, s, members, r, T);
+    if (members.empty()) return f;
+    const double s2[3] = {g.spacing[0] * g.spacing[0], g.spacing[1] * g.spacing[1], g.spacing[2] * g.spacing[2]};
+    std::vector<double> F;
+    std::vector<std::uint32_t> lab;
+    power_diagram(f, s2, F, lab);
+    keep_blocks(f, F, T);
+    f.step = step;
+    f.floor_T = T;
+    double maxlim = 0;
+    for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
+    const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
+    const CellPass pass{F, lab, s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter)};
+    struct Scratch {
+        std::vector<Pending> pending = std::vector<Pending>(512);
+        NearSpheres near;
+    };
+    tbb::enumerable_thread_specific<Scratch> scratch;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        Scratch& sc = scratch.local();
+        for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
+            const int n_pending = fill_block_cells(f, slot, pass, sc.pending.data());
+            if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near);
+            sub_block_ranges(f, slot);
+        }
+    });
+    block_sums(f);
+    return f;
+}
+
+}  // namespace volrig::deform_detail

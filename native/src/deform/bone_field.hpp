@@ -1,0 +1,227 @@
+// deform/bone_field.hpp: one bone's rest data, built once per rig: its spheres in k-d order with a k-d tree, and on
+// the lattice near them the power diagram's labels, each cube's quantised power range and its corner power, in
+// allocated 8³ blocks (docs/ALGORITHMS.md, deformation: "How it is fast").
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "deform/common.hpp"
+#include "deform/huge_pages.hpp"
+#include "deform/motion.hpp"
+#include "volrig/deform.hpp"
+
+namespace volrig::deform_detail {
+
+struct KdNode {
+    double lo[3], hi[3];  // the box of the centres (world offsets)
+    double blo[3], bhi[3];  // the box of the balls
+    double max_lim;
+    std::uint32_t begin, end;
+    std::int32_t left = -1, right = -1;
+};
+
+/// The power of a bone over one lattice cube (first corner at a cell), quantised outwards to int16 steps:
+/// lo <= power <= hi everywhere in the cube. kBoundMin as lo means -inf, kBoundMax as hi means +inf (and as lo,
+/// "not covered anywhere in the cube").
+struct CellBounds {
+    std::int16_t lo = 32767, hi = 32767;
+};
+constexpr std::int16_t kBoundMin = -32768, kBoundMax = 32767;
+
+inline std::int16_t quantize_down(double v, double step) {
+    const double q = std::floor(v / step);
+    if (!(q >= -32767)) return kBoundMin;
+    return static_cast<std::int16_t>(std::min(q, 32767.0));
+}
+inline std::int16_t quantize_up(double v, double step) {
+    const double q = std::ceil(v / step);
+    if (!(q <= 32766)) return kBoundMax;
+    return static_cast<std::int16_t>(std::max(q, -32767.0));
+}
+
+/// A lattice cell of a bone's field holds the power's quantised range over the cube with that first corner
+/// (BoneField::bounds) and a word (BoneField::words): the power-diagram label at the cell, top bit set when the cube
+/// has this label at all eight corners (so the power there is exactly this sphere's), the next bit set when the cube
+/// is closed: the least power over its corners' labels is the bone's power wherever that is negative (see
+/// closed_cube). The two live in separate arrays, so that the lookups every voxel makes read only the ranges (4 bytes
+/// a cell). Cell index 0 is "no cell".
+constexpr std::uint32_t kSameBit = 0x80000000u, kClosedBit = 0x40000000u;
+constexpr std::uint32_t kNoCell = 0;
+inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w & ~(kSameBit | kClosedBit)); }
+inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
+inline bool closed_of(std::uint32_t w) { return w != kNone && (w & kClosedBit); }
+
+
+/// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
+/// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
+/// convex combination of its corner values that represents p (the trilinear weights, or the barycentric weights of
+/// a tetrahedron of corners holding p), and |p|² less the same combination of the corners' is −Σ s²u(1−u) for all
+/// of them; the largest of the trilinear and the four Kuhn triangulations' (one per main diagonal) is taken.
+inline double concave_lower(const double* v, const double* u, const double* s2) {
+    for (int k = 0; k < 8; ++k)
+        if (!(v[k] > -kInf)) return -kInf;
+    const double c00 = v[0] + u[0] * (v[1] - v[0]), c10 = v[2] + u[0] * (v[3] - v[2]);
+    const double c01 = v[4] + u[0] * (v[5] - v[4]), c11 = v[6] + u[0] * (v[7] - v[6]);
+    const double c0 = c00 + u[1] * (c10 - c00), c1 = c01 + u[1] * (c11 - c01);
+    double best = c0 + u[2] * (c1 - c0);
+    for (int m : {0, 1, 2, 4}) {  // the diagonal from corner m to corner 7 ^ m
+        const double w[3] = {(m & 1) ? 1 - u[0] : u[0], (m & 2) ? 1 - u[1] : u[1], (m & 4) ? 1 - u[2] : u[2]};
+        int a = 0, b = 1, c = 2;  // axes by decreasing w
+        if (w[a] < w[b]) std::swap(a, b);
+        if (w[b] < w[c]) std::swap(b, c);
+        if (w[a] < w[b]) std::swap(a, b);
+        const int v1 = 1 << a, v2 = v1 | (1 << b);
+        best = std::max(best, (1 - w[a]) * v[m] + (w[a] - w[b]) * v[v1 ^ m] + (w[b] - w[c]) * v[v2 ^ m] + w[c] * v[7 ^ m]);
+    }
+    const double L = best - (s2[0] * u[0] * (1 - u[0]) + s2[1] * u[1] * (1 - u[1]) + s2[2] * u[2] * (1 - u[2]));
+    return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
+}
+
+struct BoneField {
+    // spheres in local (k-d) order
+    std::vector<std::uint32_t> global;
+    struct Sphere {
+        double c[3];  // centre, index space
+        double lim;   // open-ball squared radius (world units²)
+    };
+    std::vector<Sphere> sph;
+    std::vector<KdNode> nodes;
+    // power-diagram labels on the lattice over [lo, lo + dims), stored in allocated 8³ blocks
+    std::array<std::int64_t, 3> lo{0, 0, 0}, dims{0, 0, 0}, bdims{0, 0, 0};
+    std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
+    std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
+    HugeVector<CellBounds> bounds;                // cell 0: none (no cover), then 512 per allocated block
+    HugeVector<std::uint32_t> words;              // likewise
+    HugeVector<std::int16_t> corner;              // likewise: the power at the cell itself, quantised down
+    double step = 1, floor_T = 0;                 // the quantum; the least power outside allocated blocks (T)
+    std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
+    std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
+                                                  // (quantised in steps common to all fields, so that they compare)
+
+    /// The quantised range of the bone's power over the cubes whose first corners lie in cells [a, b] (absolute
+    /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be.
+    CellBounds range_bounds(const std::int64_t* a, const std::int64_t* b) const {
+        std::int16_t l = kBoundMax, h = kBoundMin;
+        std::int64_t s0[3], s1[3];
+        for (int i = 0; i < 3; ++i) {
+            const std::int64_t a0 = a[i] - lo[i], b0 = b[i] - lo[i];
+            if (a0 < 0 || b0 >= dims[i]) h = kBoundMax;
+            s0[i] = std::max<std::int64_t>(a0, 0);
+            s1[i] = std::min<std::int64_t>(b0, dims[i] - 1);
+            if (s1[i] < s0[i]) return CellBounds{};
+            s0[i] >>= 2;
+            s1[i] >>= 2;
+        }
+        for (std::int64_t z = s0[2]; z <= s1[2]; ++z)
+            for (std::int64_t y = s0[1]; y <= s1[1]; ++y)
+                for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
+                    const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 1) * bdims[1] + (y >> 1)) * bdims[0] + (x >> 1))];
+                    if (blk < 0) {
+                        h = kBoundMax;
+                        continue;
+                    }
+                    const CellBounds c = sub[static_cast<std::size_t>(blk) * 8 + static_cast<std::size_t>(((z & 1) * 2 + (y & 1)) * 2 + (x & 1))];
+                    l = std::min(l, c.lo);
+                    h = std::max(h, c.hi);
+                }
+        return CellBounds{l, h};
+    }
+
+    /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
+    /// it: the corner is the integer part), or kNoCell (its range says no point of that cube can be covered).
+    std::uint32_t cube_cell(const std::int64_t* p) const {
+        return cell_at((p[0] >> Pull::kBits) - lo[0], (p[1] >> Pull::kBits) - lo[1], (p[2] >> Pull::kBits) - lo[2]);
+    }
+
+    /// The allocated block (slot) holding cell (x, y, z) (relative to lo, inside the field), -1 when none is.
+    std::int32_t block_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return block_index[static_cast<std::size_t>(((z >> 3) * bdims[1] + (y >> 3)) * bdims[0] + (x >> 3))];
+    }
+
+    /// The index of cell (x, y, z) (relative to lo), kNoCell outside the field or its allocated blocks.
+    std::uint32_t cell_at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        if (static_cast<std::uint64_t>(x) >= static_cast<std::uint64_t>(dims[0]) ||
+            static_cast<std::uint64_t>(y) >= static_cast<std::uint64_t>(dims[1]) ||
+            static_cast<std::uint64_t>(z) >= static_cast<std::uint64_t>(dims[2]))
+            return kNoCell;
+        const std::int32_t blk = block_at(x, y, z);
+        return blk < 0 ? kNoCell : cell_of(blk, x, y, z);
+    }
+
+    /// The cells at the eight corners of the lattice cube with first corner (x, y, z) (relative to lo; corner k:
+    /// bits x, y, z), kNoCell where a corner lies outside the field or its allocated blocks.
+    void corner_cells(std::int64_t x, std::int64_t y, std::int64_t z, std::uint32_t* c) const {
+        if (x >= 0 && y >= 0 && z >= 0 && (x & 7) != 7 && (y & 7) != 7 && (z & 7) != 7 && x + 1 < dims[0] &&
+            y + 1 < dims[1] && z + 1 < dims[2]) {  // the whole cube in one block (most of the time)
+            const std::int32_t blk = block_at(x, y, z);
+            const std::uint32_t c0 = blk < 0 ? kNoCell : cell_of(blk, x, y, z);
+            const std::uint32_t offset[8] = {0, 1, 8, 9, 64, 65, 72, 73};
+            for (int k = 0; k < 8; ++k) c[k] = blk < 0 ? kNoCell : c0 + offset[k];
+            return;
+        }
+        for (int k = 0; k < 8; ++k) c[k] = cell_at(x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1));
+    }
+
+    /// A lower bound of the power at p (fixed point, as Pull gives it) from the quantised powers at the eight
+    /// corners of its lattice cube (concave_lower: the power is |p|² plus a concave function). Corners outside the
+    /// allocated blocks hold at least T.
+    double corner_lower(const std::int64_t* p, const double* s2) const {
+        std::uint32_t c[8];
+        corner_cells((p[0] >> Pull::kBits) - lo[0], (p[1] >> Pull::kBits) - lo[1], (p[2] >> Pull::kBits) - lo[2], c);
+        double v[8];
+        for (int k = 0; k < 8; ++k) {
+            const std::int16_t q = corner[c[k]];
+            v[k] = c[k] == kNoCell ? floor_T : (q == kBoundMin ? -kInf : q * step);
+        }
+        const double u[3] = {Pull::fraction(p[0]), Pull::fraction(p[1]), Pull::fraction(p[2])};
+        return concave_lower(v, u, s2);
+    }
+
+    /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
+    static std::uint32_t cell_of(std::int32_t blk, std::int64_t x, std::int64_t y, std::int64_t z) {
+        return 1 + static_cast<std::uint32_t>(blk) * 512 + static_cast<std::uint32_t>(((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
+    }
+
+    /// Whether any allocated block meets the cells [a, b] (absolute lattice, inclusive).
+    bool any_block(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t k0[3], k1[3];
+        for (int i = 0; i < 3; ++i) {
+            k0[i] = std::max<std::int64_t>(0, a[i] - lo[i]);
+            k1[i] = std::min<std::int64_t>(dims[i] - 1, b[i] - lo[i]);
+            if (k0[i] > k1[i]) return false;
+            k0[i] >>= 3;
+            k1[i] = (k1[i] >> 3) + 1;
+        }
+        const std::int64_t sx = bdims[0] + 1, sy = bdims[1] + 1;
+        auto at = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            return static_cast<std::int64_t>(block_sat[static_cast<std::size_t>((z * sy + y) * sx + x)]);
+        };
+        const std::int64_t n = at(k1[0], k1[1], k1[2]) - at(k0[0], k1[1], k1[2]) - at(k1[0], k0[1], k1[2]) -
+                               at(k1[0], k1[1], k0[2]) + at(k0[0], k0[1], k1[2]) + at(k0[0], k1[1], k0[2]) +
+                               at(k1[0], k0[1], k0[2]) - at(k0[0], k0[1], k0[2]);
+        return n > 0;
+    }
+
+    std::size_t bytes() const {
+        return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
+               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
+               block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
+    }
+};
+
+inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
+    const auto& sp = f.sph[k];
+    return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// Builds one bone's field from its spheres (global indices) with radii r: T is the power above which nothing is
+/// covered (a quarter of the lattice cell's squared diagonal, with a margin), step the quantum of the power ranges
+/// (shared by every field, so that fields compare as integers).
+BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                           const std::vector<double>& r, double T, double step);
+
+}  // namespace volrig::deform_detail

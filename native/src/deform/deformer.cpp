@@ -1,0 +1,204 @@
+// deform/deformer.cpp: the Deformer: per-rig fields built once, and per frame the outline of the algorithm
+// (docs/ALGORITHMS.md, deformation): motions, output box, gather, crop.
+#include <limits>
+#include <string>
+
+#include "deform/bone_field.hpp"
+#include "deform/frame_box.hpp"
+#include "deform/gather.hpp"
+#include "deform/motion.hpp"
+#include "deform/spheres.hpp"
+#include "volrig/deform.hpp"
+#include "volrig/reconstruct.hpp"
+
+namespace volrig {
+
+using namespace deform_detail;
+
+namespace {
+
+/// The enum value whose name (in `names`, enum order) is `name`; throws listing the names otherwise.
+template <class E, std::size_t N>
+E from_name(const std::string& name, const std::array<const char*, N>& names, const char* what) {
+    std::string list;
+    for (std::size_t k = 0; k < N; ++k) {
+        if (name == names[k]) return static_cast<E>(k);
+        list += std::string(k ? (k + 1 == N ? " or " : ", ") : "") + "\"" + names[k] + "\"";
+    }
+    throw Error("unknown " + std::string(what) + " '" + name + "' (use " + list + ")");
+}
+
+}  // namespace
+
+DeformMode deform_mode_from_name(const std::string& name) {
+    return from_name<DeformMode>(name == "dq" ? "dual_quaternion" : name, kDeformModeNames, "deform mode");
+}
+Proximity proximity_from_name(const std::string& name) { return from_name<Proximity>(name, kProximityNames, "proximity"); }
+Sampling sampling_from_name(const std::string& name) { return from_name<Sampling>(name, kSamplingNames, "sampling"); }
+
+struct Deformer::Impl {
+    VolumeView source;
+    Grid grid;
+    std::size_t n = 0, bone_count = 0;
+    std::vector<std::int32_t> ijk, bone, weight_bones;
+    std::vector<float> radius, weights;
+    std::vector<std::int64_t> weight_offsets;
+    bool has_weights = false;
+    std::shared_ptr<ZeroedPool> pool = ZeroedPool::create();  // frames' output memory, recycled
+
+    // per-rig data for one (partition, radii) key
+    bool built = false, built_smooth = false;
+    std::vector<float> built_scale;
+    // Fields: one per bone (its rigid spheres), then, in smooth modes, one per group of spheres whose rounded
+    // weights agree (they share one blended transform).
+    std::vector<BoneField> fields;
+    std::vector<std::int32_t> field_owner;  // the bone each field's voxels are labelled with
+    SmoothGroups groups;                    // fields from bone_count on are its groups, in order
+    std::int64_t blended_spheres = 0;
+    std::vector<double> radii;              // scaled radii
+    double bound_step = 1;                  // the quantum of the fields' power bounds
+
+    BoundSpheres view() const;
+    /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
+    double threshold() const {
+        const auto& sp = grid.spacing;
+        return 0.25 * (sp[0] * sp[0] + sp[1] * sp[1] + sp[2] * sp[2]) * (1 + 1e-9);
+    }
+    std::vector<std::vector<std::uint32_t>> partition(bool smooth);
+    void build(bool smooth, const DeformOptions& o, const Progress& progress);
+    void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
+    DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress, const Box* fixed_box);
+};
+
+BoundSpheres Deformer::Impl::view() const {
+    BoundSpheres s;
+    s.ijk = ijk.data();
+    s.radius = radius.data();
+    s.n = n;
+    s.bone = bone.data();
+    s.bone_count = bone_count;
+    if (has_weights) {
+        s.weight_offsets = weight_offsets.data();
+        s.weight_bones = weight_bones.data();
+        s.weights = weights.data();
+    }
+    return s;
+}
+
+/// The spheres of each field: per bone its rigid spheres, then (smooth) per group its blended ones.
+std::vector<std::vector<std::uint32_t>> Deformer::Impl::partition(bool smooth) {
+    std::vector<std::vector<std::uint32_t>> members(bone_count);
+    field_owner.clear();
+    for (std::size_t b = 0; b < bone_count; ++b) field_owner.push_back(static_cast<std::int32_t>(b));
+    groups = smooth ? smooth_groups(view(), grid) : SmoothGroups{};
+    for (std::size_t k = 0; k < groups.weights.size(); ++k) {
+        members.emplace_back();
+        field_owner.push_back(groups.owner[k]);
+    }
+    blended_spheres = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        std::size_t f = static_cast<std::size_t>(bone[i]);
+        if (smooth) {
+            f = groups.group_of[i] >= 0 ? bone_count + static_cast<std::size_t>(groups.group_of[i])
+                                        : static_cast<std::size_t>(groups.bone_of[i]);
+            blended_spheres += groups.group_of[i] >= 0;
+        }
+        members[f].push_back(static_cast<std::uint32_t>(i));
+    }
+    return members;
+}
+
+void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& progress) {
+    if (built && built_smooth == smooth && built_scale == o.radius_scale) return;
+    built = false;
+    fields.clear();
+    radii = scaled_radii(view(), o);
+    const auto members = partition(smooth);
+    const double T = threshold();
+    // One quantum for every field's power bounds (they are compared across fields as integers).
+    double maxlim = 0;
+    for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
+    bound_step = (maxlim + 4 * T) / 30000.0;
+    fields.reserve(members.size());
+    for (std::size_t f = 0; f < members.size(); ++f) {
+        fields.push_back(build_bone_field(grid, view(), members[f], radii, T, bound_step));
+        report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(members.size()));
+    }
+    built = true;
+    built_smooth = smooth;
+    built_scale = o.radius_scale;
+}
+
+/// After the bones' motions, each group's blend: every field's motion.
+void Deformer::Impl::add_group_motions(std::vector<Motion>& m, DeformMode mode) const {
+    for (std::size_t k = 0; k < groups.weights.size(); ++k)
+        m.push_back(blended_motion(m, groups.weights[k], groups.owner[k], mode, grid, groups.pivot[k]));
+}
+
+DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress,
+                                     const Box* fixed_box) {
+    check_options(o, n);
+    std::vector<Motion> motions = bone_motions(matrices, bone_count, grid);
+    build(o.mode != DeformMode::Rigid && has_weights, o, progress);
+    add_group_motions(motions, o.mode);
+    const Box bx = fixed_box ? *fixed_box : posed_box(fields, motions, grid);
+    check_box_reach(bx);
+    DeformedVolume out = frame_on(grid, bx);
+    const auto total = static_cast<std::size_t>(bx[3] * bx[4] * bx[5]);
+    // Recycled output memory: only what earlier frames wrote is zeroed again (marked as it is written).
+    if (o.values) out.values = pool->take<float>(total);
+    out.bone = pool->take<std::int16_t>(total);
+    report(progress, 0.55);
+    const auto& sp = grid.spacing;
+    const FieldSet set{fields, motions, sp.data(), {sp[0] * sp[0], sp[1] * sp[1], sp[2] * sp[2]}, threshold(),
+                       bound_step, o.proximity == Proximity::Nearest};
+    const GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
+    if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
+    report(progress, 1.0);
+    out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search};
+    return out;
+}
+
+Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl_(std::make_unique<Impl>()) {
+    check_grid(source.grid, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "deform source");
+    check_spheres(source.grid, spheres);
+    Impl& m = *impl_;
+    m.source = source;
+    m.grid = source.grid;
+    advise_huge_pages(source.data, static_cast<std::size_t>(source.grid.voxel_count()) * dtype_size(source.dtype));
+    m.n = spheres.n;
+    m.bone_count = spheres.bone_count;
+    m.ijk.assign(spheres.ijk, spheres.ijk + 3 * spheres.n);
+    m.radius.assign(spheres.radius, spheres.radius + spheres.n);
+    m.bone.assign(spheres.bone, spheres.bone + spheres.n);
+    if (spheres.weight_offsets) {
+        m.has_weights = true;
+        m.weight_offsets.assign(spheres.weight_offsets, spheres.weight_offsets + spheres.n + 1);
+        const auto nnz = static_cast<std::size_t>(spheres.weight_offsets[spheres.n]);
+        m.weight_bones.assign(spheres.weight_bones, spheres.weight_bones + nnz);
+        m.weights.assign(spheres.weights, spheres.weights + nnz);
+    }
+}
+
+Deformer::~Deformer() = default;
+
+std::size_t Deformer::bone_count() const { return impl_->bone_count; }
+std::size_t Deformer::sphere_count() const { return impl_->n; }
+
+std::size_t Deformer::memory_bytes() const {
+    std::size_t b = impl_->ijk.size() * 4 + impl_->radius.size() * 4 + impl_->bone.size() * 4 +
+                    impl_->weights.size() * 8 + impl_->weight_offsets.size() * 8 + impl_->radii.size() * 8 +
+                    impl_->groups.group_of.size() * 8 + impl_->groups.weights.size() * 64;
+    for (const auto& f : impl_->fields) b += f.bytes();
+    return b;
+}
+
+std::size_t Deformer::kept_frame_bytes() const { return impl_->pool->kept_bytes(); }
+void Deformer::release_frame_memory() { impl_->pool->trim(); }
+
+DeformedVolume Deformer::frame(BoneMatrices matrices, const DeformOptions& options, const Progress& progress,
+                               const std::array<std::int64_t, 6>* box) {
+    return impl_->frame(matrices, options, progress, box);
+}
+
+}  // namespace volrig

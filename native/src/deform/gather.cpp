@@ -1,0 +1,520 @@
+#include "deform/gather.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <thread>
+
+#include "deform/sampler.hpp"
+
+namespace volrig::deform_detail {
+
+std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
+    const std::int64_t obx = (bx[3] + kBlock - 1) / kBlock, oby = (bx[4] + kBlock - 1) / kBlock,
+                       obz = (bx[5] + kBlock - 1) / kBlock;
+    const std::size_t words = (set.fields.size() + 63) / 64;
+    std::vector<std::uint64_t> bits(static_cast<std::size_t>(obx * oby * obz) * words, 0);
+    const std::int64_t ob[3] = {obx, oby, obz};
+    for (std::size_t b = 0; b < set.fields.size(); ++b) {
+        const Affine& fw = set.motions[b].forward;
+        for (const auto& blk : set.fields[b].blocks) {
+            double box[6] = {kInf, kInf, kInf, -kInf, -kInf, -kInf};  // the image of the dilated rest block
+            for (int c = 0; c < 8; ++c) {
+                const double x[3] = {static_cast<double>(blk[0] + ((c & 1) ? kBlock : -1)),
+                                     static_cast<double>(blk[1] + (((c >> 1) & 1) ? kBlock : -1)),
+                                     static_cast<double>(blk[2] + (((c >> 2) & 1) ? kBlock : -1))};
+                double y[3];
+                fw.apply(x, y);
+                for (int a = 0; a < 3; ++a) {
+                    box[a] = std::min(box[a], y[a]);
+                    box[3 + a] = std::max(box[3 + a], y[a]);
+                }
+            }
+            std::int64_t a[3], e[3];
+            bool empty = false;
+            for (int k = 0; k < 3; ++k) {
+                a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(box[k])) - bx[k] - 1) / kBlock);
+                const std::int64_t top = static_cast<std::int64_t>(std::ceil(box[3 + k])) - bx[k] + 1;
+                if (top < 0) empty = true;
+                e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
+                if (e[k] < a[k]) empty = true;
+            }
+            if (empty) continue;
+            for (std::int64_t z = a[2]; z <= e[2]; ++z)
+                for (std::int64_t y = a[1]; y <= e[1]; ++y)
+                    for (std::int64_t x = a[0]; x <= e[0]; ++x)
+                        bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+        }
+    }
+    return bits;
+}
+
+namespace {
+
+/// One thread's scratch and tallies.
+struct Local {
+    std::vector<Candidate> cands;
+    std::int64_t lo[3] = {std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
+                          std::numeric_limits<std::int64_t>::max()};
+    std::int64_t hi[3] = {-1, -1, -1};
+    std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
+    std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
+    std::vector<CellBounds> range, range_sub;
+    std::vector<std::uint8_t> live;
+    // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
+    std::vector<std::int16_t> cube_lo, cube_hi;
+    std::vector<std::uint32_t> cube_cell;   // the cells themselves, for their words
+    std::int16_t least_hi[512];             // the least upper bound over the candidates
+    std::int16_t best[512];                 // the candidate giving it
+    std::int16_t rival_lo[512];             // the least lower bound over the others
+    std::int16_t least_lo[512];             // the least lower bound over all
+    std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
+    std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
+};
+
+/// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
+std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
+
+class Gather {
+public:
+    Gather(const FieldSet& set, const std::vector<std::int32_t>& owner, const Box& bx, const DeformOptions& o,
+           DeformedVolume& out)
+        : s_(set), decide_(set), owner_(owner), bx_(bx), o_(o), out_(out), bits_(candidate_bits(set, bx)) {
+        for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
+        words_ = (set.fields.size() + 63) / 64;
+    }
+
+    template <class S>
+    void run(const S& sampler, const Progress& progress);
+    GatherResult result() const;
+
+private:
+    /// One block's extent inside the box and its first voxel (absolute lattice).
+    struct Block {
+        std::int64_t k[3], e[3], base[3];
+    };
+    Block block(std::int64_t kx, std::int64_t ky, std::int64_t kz) const {
+        Block b{{kx, ky, kz}, {}, {}};
+        for (int a = 0; a < 3; ++a) {
+            b.e[a] = std::min(kBlock, bx_[3 + a] - b.k[a] * kBlock);
+            b.base[a] = b.k[a] * kBlock + bx_[a];
+        }
+        return b;
+    }
+    CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side) const;
+    void block_candidates(const Block& b, Local& loc) const;
+    void decide_block(const Block& b, Local& loc) const;
+    void decide_sub_blocks(const Block& b, Local& loc) const;
+    void lookups(const Block& b, Local& loc) const;
+    void lanes(Local& loc) const;
+    void undecided(const Block& b, Local& loc) const;
+    std::size_t load_first_labels(Local& loc, std::size_t n_run, std::size_t li, const std::int64_t* m3) const;
+    template <class S>
+    std::int64_t write_block(const Block& b, Local& loc, const S& sampler) const;
+    void add_extent(const Block& b, Local& loc) const;
+
+    const FieldSet& s_;
+    const Decider decide_;
+    const std::vector<std::int32_t>& owner_;
+    const Box bx_;
+    const DeformOptions& o_;
+    DeformedVolume& out_;
+    const std::vector<std::uint64_t> bits_;
+    std::int64_t nb_[3];
+    std::size_t words_;
+    tbb::enumerable_thread_specific<Local> locals_;
+};
+
+/// The quantised range of field f's power over the preimages of the output voxels q0 + [0, side)³ (absolute
+/// lattice): over the rest cubes holding them, from the bounding box of the preimage in fixed point (exact: the
+/// lookups' cells are the integer parts of the very same values).
+CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side) const {
+    const Pull& pl = s_.pull(f);
+    std::int64_t p0[3], ra[3], rb[3];
+    pl.fixed(q0, p0);
+    for (int a = 0; a < 3; ++a) {
+        std::int64_t lo_f = p0[a], hi_f = p0[a];
+        for (int j = 0; j < 3; ++j) {
+            const std::int64_t d = pl.a[3 * a + j] * (side - 1);
+            (d < 0 ? lo_f : hi_f) += d;
+        }
+        ra[a] = lo_f >> Pull::kBits;
+        rb[a] = hi_f >> Pull::kBits;
+    }
+    return s_.field(f).range_bounds(ra, rb);
+}
+
+/// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.
+void Gather::block_candidates(const Block& b, Local& loc) const {
+    loc.fields.clear();
+    loc.range.clear();
+    const std::size_t blk = static_cast<std::size_t>((b.k[2] * nb_[1] + b.k[1]) * nb_[0] + b.k[0]);
+    for (std::size_t w = 0; w < words_; ++w) {
+        std::uint64_t m = bits_[blk * words_ + w];
+        while (m) {
+            const auto f = static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(__builtin_ctzll(m)));
+            m &= m - 1;
+            double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
+            for (int c = 0; c < 8; ++c) {
+                const std::int64_t q[3] = {b.base[0] + ((c & 1) ? kBlock : 0), b.base[1] + (((c >> 1) & 1) ? kBlock : 0),
+                                           b.base[2] + (((c >> 2) & 1) ? kBlock : 0)};
+                double r[3];
+                s_.pull(f).apply(q, r);
+                for (int a = 0; a < 3; ++a) {
+                    plo[a] = std::min(plo[a], r[a]);
+                    phi[a] = std::max(phi[a], r[a]);
+                }
+            }
+            std::int64_t ca[3], cc[3];
+            for (int a = 0; a < 3; ++a) {
+                ca[a] = static_cast<std::int64_t>(std::floor(plo[a])) - 1;
+                cc[a] = static_cast<std::int64_t>(std::floor(phi[a])) + 1;
+            }
+            if (!s_.field(f).any_block(ca, cc)) continue;
+            const CellBounds rg = preimage_range(f, b.base, kBlock);
+            if (rg.lo >= 0) continue;
+            loc.fields.push_back(f);
+            loc.range.push_back(rg);
+        }
+    }
+}
+
+/// The whole block first: a candidate that cannot win anywhere in it drops out, and one covering all of it and
+/// winning everywhere fills it with no lookups; else the sub-blocks.
+void Gather::decide_block(const Block& b, Local& loc) const {
+    std::int32_t* const win = loc.win;
+    loc.live.resize(loc.fields.size());
+    const std::int32_t whole = decide_.settle(loc.range.data(), loc.fields.size(), loc.live.data(), 1);
+    if (whole < 0) return decide_sub_blocks(b, loc);
+    std::fill(win, win + 512, kEmpty);
+    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
+        for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
+            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + b.e[0], loc.fields[static_cast<std::size_t>(whole)]);
+    loc.by[0] += b.e[0] * b.e[1] * b.e[2];
+}
+
+/// Each 4³ sub-block, from each live candidate's range over the sub-block's preimage: decided whole the same way,
+/// or looked up voxel by voxel for the candidates live there.
+void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
+    auto& cand = loc.fields;
+    std::size_t K = 0;
+    for (std::size_t k = 0; k < cand.size(); ++k)
+        if (loc.live[k]) cand[K++] = cand[k];
+    cand.resize(K);
+    std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
+    loc.live.assign(K * 8, 0);
+    bool any_open = false;
+    auto& sr = loc.range_sub;
+    sr.resize(K);
+    for (int sb = 0; sb < 8; ++sb) {
+        const auto s0 = sub_origin(sb);
+        sub_win[sb] = kEmpty;
+        if (s0[0] >= b.e[0] || s0[1] >= b.e[1] || s0[2] >= b.e[2]) continue;
+        const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
+        for (std::size_t k = 0; k < K; ++k) sr[k] = preimage_range(cand[k], q0, 4);
+        std::uint8_t* lv = loc.live.data() + sb;
+        const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
+        if (w >= 0) {
+            sub_win[sb] = cand[static_cast<std::size_t>(w)];
+            lv[static_cast<std::size_t>(w) * 8] = 0;
+        } else {
+            sub_win[sb] = w;
+            any_open = any_open || w == kOpen;
+        }
+    }
+    std::int32_t* const win = loc.win;
+    if (any_open) {
+        lookups(b, loc);
+        lanes(loc);
+        undecided(b, loc);
+    } else {
+        std::fill(win, win + 512, kEmpty);
+    }
+    for (int sb = 0; sb < 8; ++sb) {  // the sub-blocks decided whole
+        if (sub_win[sb] == kOpen) continue;
+        const auto s0 = sub_origin(sb);
+        const std::int64_t x1 = std::min(s0[0] + 4, b.e[0]);
+        if (x1 <= s0[0]) continue;
+        for (std::int64_t dz = s0[2]; dz < std::min(s0[2] + 4, b.e[2]); ++dz)
+            for (std::int64_t dy = s0[1]; dy < std::min(s0[1] + 4, b.e[1]); ++dy) {
+                std::fill(win + (dz * 8 + dy) * 8 + s0[0], win + (dz * 8 + dy) * 8 + x1, sub_win[sb]);
+                if (sub_win[sb] >= 0) loc.by[0] += x1 - s0[0];
+            }
+    }
+}
+
+/// Per candidate and voxel of its live sub-blocks: the cell of the cube holding the voxel's preimage (stepping the
+/// fixed-point preimage by the map's columns: exactly the direct evaluation), then the cells' ranges, loaded apart
+/// from the address arithmetic so that many loads are in flight at once.
+void Gather::lookups(const Block& b, Local& loc) const {
+    const std::size_t K = loc.fields.size();
+    loc.cube_lo.resize(K * 512);
+    loc.cube_hi.resize(K * 512);
+    loc.cube_cell.resize(K * 512);
+    if (loc.running.size() < K) {
+        loc.running.resize(K);
+        loc.cands.resize(K);
+    }
+    for (std::size_t k = 0; k < K; ++k) {
+        const Pull& pl = s_.pull(loc.fields[k]);
+        const BoneField& f = s_.field(loc.fields[k]);
+        std::uint32_t* at = loc.cube_cell.data() + k * 512;
+        std::fill(at, at + 512, kNoCell);
+        for (int sb = 0; sb < 8; ++sb) {
+            if (!loc.live[k * 8 + static_cast<std::size_t>(sb)]) continue;
+            const auto s0 = sub_origin(sb);
+            const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
+            const std::int64_t e[3] = {std::min<std::int64_t>(4, b.e[0] - s0[0]), std::min<std::int64_t>(4, b.e[1] - s0[1]),
+                                       std::min<std::int64_t>(4, b.e[2] - s0[2])};
+            std::uint32_t* sat = at + (s0[2] * 8 + s0[1]) * 8 + s0[0];
+            std::int64_t pz[3];
+            pl.fixed(q0, pz);
+            for (std::int64_t dz = 0; dz < e[2]; ++dz, pl.step(pz, 2)) {
+                std::int64_t py[3] = {pz[0], pz[1], pz[2]};
+                for (std::int64_t dy = 0; dy < e[1]; ++dy, pl.step(py, 1)) {
+                    std::int64_t px[3] = {py[0], py[1], py[2]};
+                    for (std::int64_t dx = 0; dx < e[0]; ++dx, pl.step(px, 0)) sat[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
+                }
+            }
+        }
+        std::int16_t* klo = loc.cube_lo.data() + k * 512;
+        std::int16_t* khi = loc.cube_hi.data() + k * 512;
+        const CellBounds* cells = f.bounds.data();
+        for (std::size_t li = 0; li < 512; ++li) {
+            const CellBounds c = cells[at[li]];
+            klo[li] = c.lo;
+            khi[li] = c.hi;
+        }
+    }
+}
+
+/// Tier 2, over the block's voxels in int16 lanes: u = the least upper bound (candidate arg's), mo = the least
+/// lower bound of the others, ml = the least lower bound; a voxel is empty when ml >= 0, won for certain by arg
+/// when certain(u, mo), else open.
+void Gather::lanes(Local& loc) const {
+    const std::size_t K = loc.fields.size();
+    std::int16_t* const u = loc.least_hi;
+    std::int16_t* const mo = loc.rival_lo;
+    std::int16_t* const ml = loc.least_lo;
+    std::int16_t* const arg = loc.best;
+    const std::int16_t* khi = loc.cube_hi.data();
+    const std::int16_t* klo = loc.cube_lo.data();
+    for (std::size_t li = 0; li < 512; ++li) {
+        u[li] = khi[li];
+        arg[li] = 0;
+        ml[li] = klo[li];
+        mo[li] = kBoundMax;
+    }
+    for (std::size_t k = 1; k < K; ++k) {
+        const std::int16_t* hk = khi + k * 512;
+        const std::int16_t* lk = klo + k * 512;
+        const auto kk = static_cast<std::int16_t>(k);
+        for (std::size_t li = 0; li < 512; ++li) {
+            const bool lt = hk[li] < u[li];
+            u[li] = lt ? hk[li] : u[li];
+            arg[li] = lt ? kk : arg[li];
+            ml[li] = std::min(ml[li], lk[li]);
+        }
+    }
+    for (std::size_t k = 0; k < K && K > 1; ++k) {
+        const std::int16_t* lk = klo + k * 512;
+        const auto kk = static_cast<std::int16_t>(k);
+        for (std::size_t li = 0; li < 512; ++li) mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], lk[li]);
+    }
+    const bool nearest = s_.nearest;
+    std::int64_t sure_count = 0;
+    for (std::size_t li = 0; li < 512; ++li) {
+        const bool sure = certain(u[li], mo[li], nearest);
+        loc.win[li] = ml[li] >= 0 ? kEmpty : (sure ? loc.fields[static_cast<std::size_t>(arg[li])] : kOpen);
+        sure_count += sure && ml[li] < 0;
+    }
+    loc.by[1] += sure_count;
+}
+
+/// Tier 3's candidates at voxel li: the running candidates' first-corner spheres and cube ranges; returns how many
+/// were loaded, 0 when one has no label there (then tier 3 cannot decide).
+std::size_t Gather::load_first_labels(Local& loc, std::size_t n_run, std::size_t li, const std::int64_t* m3) const {
+    for (std::size_t r = 0; r < n_run; ++r) {
+        const std::int32_t k = loc.running[r];
+        const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
+        Candidate& c = loc.cands[r];
+        c.field = loc.fields[static_cast<std::size_t>(k)];
+        const BoneField& f = s_.field(c.field);
+        const std::uint32_t word = f.words[loc.cube_cell[at]];
+        const std::uint32_t lab = label_of(word);
+        if (lab == kNone) return 0;
+        s_.pull(c.field).fixed(m3, c.pf);
+        Pull::to_double(c.pf, c.p);
+        c.U = power_of(f, lab, c.p, s_.s2);
+        c.local = lab;
+        c.exact = same_of(word);
+        c.closed = !c.exact && closed_of(word);
+        c.L = c.exact ? c.U : (loc.cube_lo[at] == kBoundMin ? -kInf : loc.cube_lo[at] * s_.bound_step);
+        c.sharp_L = c.exact;
+    }
+    return n_run;
+}
+
+/// The voxels the lanes left open, one by one: tier 3, then tier 4.
+void Gather::undecided(const Block& b, Local& loc) const {
+    const std::size_t K = loc.fields.size();
+    std::int32_t* const win = loc.win;
+    for (std::size_t li = 0; li < 512; ++li) {
+        if (win[li] != kOpen) continue;
+        const std::int64_t m3[3] = {b.base[0] + static_cast<std::int64_t>(li & 7),
+                                    b.base[1] + static_cast<std::int64_t>((li >> 3) & 7),
+                                    b.base[2] + static_cast<std::int64_t>(li >> 6)};
+        std::size_t n_run = 0;  // the candidates that may still cover and win
+        for (std::size_t k = 0; k < K; ++k) {
+            loc.running[n_run] = static_cast<std::int32_t>(k);
+            n_run += in_running(loc.cube_lo[k * 512 + li], loc.least_hi[li], s_.nearest);
+        }
+        if (!s_.nearest && n_run && load_first_labels(loc, n_run, li, m3)) {
+            const std::int32_t w = decide_.by_first_label(loc.cands.data(), n_run);
+            if (w != kOpen) {
+                win[li] = w;
+                loc.by[2] += w >= 0;
+                continue;
+            }
+        }
+        for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = loc.fields[static_cast<std::size_t>(loc.running[r])];
+        win[li] = decide_.resolve(loc.running.data(), n_run, m3, loc.cands.data(), loc.queries);
+        loc.by[3] += win[li] >= 0;
+    }
+}
+
+/// The covered voxels, straight into the output row by row: the bone label, and the sample through the winning
+/// field's map, as the decisions saw it (along a row, a run of one field steps its preimage by a column). Marks
+/// what it writes, records the covered voxels in loc.layer, and returns their count.
+template <class S>
+std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) const {
+    const std::int64_t nx = bx_[3], ny = bx_[4];
+    std::int64_t ncov = 0;
+    std::int16_t* const bone_out = out_.bone.data();
+    float* const value_out = o_.values ? out_.values.data() : nullptr;
+    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
+        for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
+            const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
+            const auto row = static_cast<std::size_t>(((b.k[2] * kBlock + dz) * ny + b.k[1] * kBlock + dy) * nx + b.k[0] * kBlock);
+            std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
+            std::int64_t pf[3] = {0, 0, 0};
+            std::uint64_t xs = 0;
+            for (std::int64_t dx = 0; dx < b.e[0]; ++dx) {
+                const std::int32_t w = wrow[dx];
+                if (w < 0) {
+                    run = -1;
+                    continue;
+                }
+                xs |= std::uint64_t{1} << dx;
+                bone_out[row + static_cast<std::size_t>(dx)] = static_cast<std::int16_t>(owner_[static_cast<std::size_t>(w)] + 1);
+                if (!value_out) continue;
+                const Pull& pl = s_.pull(w);
+                if (w == run) {
+                    pl.step(pf, 0);
+                } else {
+                    const std::int64_t m3[3] = {b.base[0] + dx, b.base[1] + dy, b.base[2] + dz};
+                    pl.fixed(m3, pf);
+                    run = w;
+                }
+                value_out[row + static_cast<std::size_t>(dx)] = sampler.sample(pf, o_.sampling);
+            }
+            if (!xs) continue;
+            ncov += __builtin_popcountll(xs);
+            loc.layer[dz] |= xs << (8 * dy);
+            const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
+            out_.bone.mark_written(row + x0, row + x1);
+            if (value_out) out_.values.mark_written(row + x0, row + x1);
+        }
+    return ncov;
+}
+
+/// Grows the thread's covered extent by the block's, from its bit layers.
+void Gather::add_extent(const Block& b, Local& loc) const {
+    std::uint64_t all = 0;
+    std::int64_t z0 = -1, z1 = -1;
+    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
+        if (loc.layer[dz]) {
+            all |= loc.layer[dz];
+            if (z0 < 0) z0 = dz;
+            z1 = dz;
+        }
+    std::uint64_t rows = 0, cols = 0;
+    for (int dy = 0; dy < 8; ++dy) {
+        const std::uint64_t r = (all >> (8 * dy)) & 0xff;
+        rows |= std::uint64_t{r != 0} << dy;
+        cols |= r;
+    }
+    const std::int64_t e0[3] = {__builtin_ctzll(cols), __builtin_ctzll(rows), z0},
+                       e1[3] = {63 - __builtin_clzll(cols), 63 - __builtin_clzll(rows), z1};
+    for (int a = 0; a < 3; ++a) {
+        loc.lo[a] = std::min(loc.lo[a], b.k[a] * kBlock + e0[a]);
+        loc.hi[a] = std::max(loc.hi[a], b.k[a] * kBlock + e1[a]);
+    }
+}
+
+/// One pass over all blocks (no barriers); the calling thread reports progress as blocks complete, and a cancel
+/// from it unwinds the whole loop.
+template <class S>
+void Gather::run(const S& sampler, const Progress& progress) {
+    const std::int64_t total_blocks = nb_[0] * nb_[1] * nb_[2];
+    std::atomic<std::int64_t> done{0};
+    const std::thread::id caller = std::this_thread::get_id();
+    std::int64_t next_report = total_blocks / 40;
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, total_blocks, 64), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        Local& loc = locals_.local();
+        for (std::int64_t k = rg.begin(); k != rg.end(); ++k) {
+            const Block b = block(k % nb_[0], (k / nb_[0]) % nb_[1], k / (nb_[0] * nb_[1]));
+            block_candidates(b, loc);
+            if (loc.fields.empty()) continue;
+            if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
+            std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
+            decide_block(b, loc);
+            const std::int64_t ncov = write_block(b, loc, sampler);
+            if (!ncov) continue;
+            loc.covered += ncov;
+            add_extent(b, loc);
+        }
+        const std::int64_t now = done.fetch_add(static_cast<std::int64_t>(rg.size())) + static_cast<std::int64_t>(rg.size());
+        if (progress && std::this_thread::get_id() == caller && now >= next_report) {
+            next_report = now + total_blocks / 40;
+            report(progress, 0.55 + 0.4 * static_cast<double>(now) / static_cast<double>(total_blocks));
+        }
+    });
+    report(progress, 0.95);
+}
+
+GatherResult Gather::result() const {
+    GatherResult r;
+    for (int a = 0; a < 3; ++a) {
+        r.lo[a] = bx_[3 + a];
+        r.hi[a] = -1;
+    }
+    for (const Local& loc : locals_) {
+        r.covered += loc.covered;
+        r.queries += loc.queries;
+        r.by_block += loc.by[0];
+        r.by_cube += loc.by[1];
+        r.by_sphere += loc.by[2];
+        r.by_search += loc.by[3];
+        for (int a = 0; a < 3; ++a) {
+            r.lo[a] = std::min(r.lo[a], loc.lo[a]);
+            r.hi[a] = std::max(r.hi[a], loc.hi[a]);
+        }
+    }
+    return r;
+}
+
+}  // namespace
+
+GatherResult gather(const FieldSet& set, const std::vector<std::int32_t>& field_owner, const VolumeView& source,
+                    const Box& bx, const DeformOptions& o, DeformedVolume& out, const Progress& progress) {
+    Gather g(set, field_owner, bx, o, out);
+    with_sampler(source, [&](auto sampler) { g.run(sampler, progress); });
+    return g.result();
+}
+
+}  // namespace volrig::deform_detail

@@ -1,0 +1,453 @@
+// The deformation's stages alone (native/src/deform/): the fixed-point map, the sampler, the input checks and
+// smooth groups, the concave lower bound, the per-bone field (power diagram, cube ranges, corner powers), closed
+// cubes, the exact queries, the decision rules, the output box and the candidate blocks; each against a brute force
+// on small random inputs. The whole pipeline against the thesis' scatter is in test_deform.cpp.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+#include "deform/bone_field.hpp"
+#include "deform/closed_cubes.hpp"
+#include "deform/decide.hpp"
+#include "deform/frame_box.hpp"
+#include "deform/gather.hpp"
+#include "deform/motion.hpp"
+#include "deform/queries.hpp"
+#include "deform/sampler.hpp"
+#include "deform/spheres.hpp"
+#include "volrig/reconstruct.hpp"
+
+using namespace volrig;
+using namespace volrig::deform_detail;
+
+namespace {
+
+/// Random spheres on a small anisotropic grid, all bound to bone 0.
+struct RandomSpheres {
+    Grid grid;
+    std::vector<std::int32_t> ijk, bone;
+    std::vector<float> radius;
+    std::vector<double> radii;
+    std::vector<std::uint32_t> members;
+
+    RandomSpheres(std::uint32_t seed, std::size_t n, std::array<double, 3> spacing = {1.0, 1.25, 0.8}) {
+        std::mt19937 rng(seed);
+        grid.dims = {28, 24, 30};
+        grid.spacing = spacing;
+        grid.origin = {1.0, -2.0, 0.5};
+        std::uniform_int_distribution<int> x(4, 23), y(4, 19), z(4, 25);
+        std::uniform_real_distribution<float> r(0.6f, 4.5f);
+        for (std::size_t i = 0; i < n; ++i) {
+            const int zi = z(rng), yi = y(rng), xi = x(rng);
+            ijk.push_back(zi);
+            ijk.push_back(yi);
+            ijk.push_back(xi);
+            radius.push_back(r(rng));
+            radii.push_back(radius.back());
+            bone.push_back(0);
+            members.push_back(static_cast<std::uint32_t>(i));
+        }
+    }
+    BoundSpheres spheres() const {
+        BoundSpheres s;
+        s.ijk = ijk.data();
+        s.radius = radius.data();
+        s.n = radius.size();
+        s.bone = bone.data();
+        s.bone_count = 1;
+        return s;
+    }
+    double T() const {
+        const auto& sp = grid.spacing;
+        return 0.25 * (sp[0] * sp[0] + sp[1] * sp[1] + sp[2] * sp[2]) * (1 + 1e-9);
+    }
+    std::array<double, 3> s2() const {
+        return {grid.spacing[0] * grid.spacing[0], grid.spacing[1] * grid.spacing[1], grid.spacing[2] * grid.spacing[2]};
+    }
+    BoneField field() const {
+        double maxlim = 0;
+        for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
+        return build_bone_field(grid, spheres(), members, radii, T(), (maxlim + 4 * T()) / 30000.0);
+    }
+};
+
+/// The brute-force least (power, local index) of a field's spheres at p (index space), ties to the lower global.
+Best brute_power(const BoneField& f, const double* p, const double* s2) {
+    Best b;
+    for (std::uint32_t k = 0; k < f.sph.size(); ++k) {
+        const double v = power_of(f, k, p, s2);
+        if (b.better(v, f.global[k])) b = {v, k, f.global[k]};
+    }
+    return b;
+}
+
+std::array<double, 16> rotation_z(double deg, std::array<double, 3> shift) {
+    const double t = deg * M_PI / 180.0, c = std::cos(t), s = std::sin(t);
+    return {c, -s, 0, shift[0], s, c, 0, shift[1], 0, 0, 1, shift[2], 0, 0, 0, 1};
+}
+
+}  // namespace
+
+TEST_CASE("the fixed-point map steps exactly and inverts the forward map", "[deform][stages]") {
+    RandomSpheres rs(1, 1);
+    const auto M = rotation_z(33, {2.5, -1.0, 0.75});
+    const Motion m = bone_motions(M.data(), 1, rs.grid)[0];
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<std::int64_t> q(-40, 40);
+    for (int t = 0; t < 200; ++t) {
+        const std::int64_t a[3] = {q(rng), q(rng), q(rng)};
+        std::int64_t p[3], stepped[3];
+        m.pull.fixed(a, p);
+        for (int axis = 0; axis < 3; ++axis) {  // one step along each axis lands where a direct evaluation does
+            std::int64_t b[3] = {a[0], a[1], a[2]};
+            ++b[axis];
+            std::copy(p, p + 3, stepped);
+            m.pull.step(stepped, axis);
+            std::int64_t direct[3];
+            m.pull.fixed(b, direct);
+            CHECK(std::equal(direct, direct + 3, stepped));
+        }
+        double r[3], back[3];
+        Pull::to_double(p, r);
+        m.forward.apply(r, back);  // forward(pull(q)) = q within the map's error
+        for (int k = 0; k < 3; ++k) CHECK(std::abs(back[k] - static_cast<double>(a[k])) < 1e-7);
+    }
+    Grid skew = rs.grid;
+    skew.spacing = {1.0, 100.0, 1.0};
+    const auto R = rotation_z(45, {0, 0, 0});
+    CHECK_THROWS_WITH(bone_motions(R.data(), 1, skew), Catch::Contains("too anisotropic"));
+    auto far = rotation_z(0, {1e12, 0, 0});
+    CHECK_THROWS_WITH(bone_motions(far.data(), 1, rs.grid), Catch::Contains("millions of voxels"));
+    auto shear = rotation_z(0, {0, 0, 0});
+    shear[1] = 0.3;
+    CHECK_THROWS_WITH(bone_motions(shear.data(), 1, rs.grid), Catch::Contains("not a rotation"));
+    auto nearly = rotation_z(1e-7, {1e-9, 0, 0});  // float noise around the identity is the identity
+    const Motion id = bone_motions(nearly.data(), 1, rs.grid)[0];
+    CHECK(id.R == Eigen::Matrix3d::Identity());
+    CHECK(id.d == Eigen::Vector3d::Zero());
+}
+
+TEST_CASE("blended motions: equal bones blend to themselves, two rotations to the half-way one", "[deform][stages]") {
+    RandomSpheres rs(1, 1);
+    const auto A = rotation_z(40, {1, 2, 3}), B = rotation_z(80, {1, 2, 3}), Z = rotation_z(0, {0, 0, 0});
+    std::vector<double> mats(A.begin(), A.end());
+    mats.insert(mats.end(), A.begin(), A.end());
+    const auto same = bone_motions(mats.data(), 2, rs.grid);
+    const Weights half = {{0, 8}, {1, 8}};
+    for (DeformMode mode : {DeformMode::Linear, DeformMode::DualQuaternion}) {
+        const Motion m = blended_motion(same, half, 0, mode, rs.grid, Eigen::Vector3d(3, 4, 5));
+        CHECK((m.R - same[0].R).cwiseAbs().maxCoeff() < 1e-12);
+        CHECK((m.d - same[0].d).cwiseAbs().maxCoeff() < 1e-9);
+    }
+    std::vector<double> two(Z.begin(), Z.end());
+    two.insert(two.end(), B.begin(), B.end());
+    const auto ms = bone_motions(two.data(), 2, rs.grid);
+    const Motion dq = blended_motion(ms, half, 0, DeformMode::DualQuaternion, rs.grid, Eigen::Vector3d::Zero());
+    const double angle = std::atan2(dq.R(1, 0), dq.R(0, 0)) * 180 / M_PI;
+    CHECK(angle == Approx(40).margin(1e-9));
+}
+
+TEST_CASE("the sampler: lattice values, trilinear midpoints, clamping and rounding", "[deform][stages]") {
+    Grid g;
+    g.dims = {3, 2, 2};
+    std::vector<float> v(12);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<float>(i * i);
+    const Sampler<float> s{v.data(), 3, 2, 2};
+    auto fx = [](double x, double y, double z) {
+        return std::array<std::int64_t, 3>{std::llround(x * Pull::kUnit), std::llround(y * Pull::kUnit),
+                                           std::llround(z * Pull::kUnit)};
+    };
+    for (std::int64_t z = 0; z < 2; ++z)
+        for (std::int64_t y = 0; y < 2; ++y)
+            for (std::int64_t x = 0; x < 3; ++x) {
+                const auto p = fx(double(x), double(y), double(z));
+                CHECK(s.trilinear(p.data()) == s.at(x, y, z));
+                CHECK(s.nearest(p.data()) == s.at(x, y, z));
+            }
+    const auto mid = fx(0.5, 0.5, 0.5);
+    double mean = 0;
+    for (std::int64_t k : {0, 1, 3, 4, 6, 7, 9, 10}) mean += v[static_cast<std::size_t>(k)] / 8.0;
+    CHECK(s.trilinear(mid.data()) == Approx(mean));
+    const auto outside = fx(-3.0, 7.0, 0.0);  // clamped to the lattice
+    CHECK(s.trilinear(outside.data()) == s.at(0, 1, 0));
+    const auto half = fx(1.5, 0.0, 0.0);  // nearest rounds half up
+    CHECK(s.nearest(half.data()) == s.at(2, 0, 0));
+}
+
+TEST_CASE("sphere checks and smooth groups", "[deform][stages]") {
+    RandomSpheres rs(3, 6);
+    BoundSpheres s = rs.spheres();
+    CHECK_NOTHROW(check_spheres(rs.grid, s));
+    rs.radius[2] = std::nanf("");
+    CHECK_THROWS_WITH(check_spheres(rs.grid, s), Catch::Contains("sphere 2") && Catch::Contains("radius"));
+    rs.radius[2] = 1;
+    rs.bone[4] = 3;
+    CHECK_THROWS_WITH(check_spheres(rs.grid, s), Catch::Contains("bone 3"));
+    rs.bone[4] = 0;
+    DeformOptions o;
+    o.radius_scale = {1, 2};
+    CHECK_THROWS_WITH(check_options(o, 6), Catch::Contains("radius_scale has 2 entries"));
+    // Weights: spheres whose rounded weights agree share a group; a single bone is no group.
+    s.bone_count = 2;
+    std::vector<std::int64_t> off = {0, 2, 4, 5, 7, 8, 10};
+    std::vector<std::int32_t> wb = {0, 1, 0, 1, 0, 0, 1, 1, 0, 1};
+    std::vector<float> w = {0.5f, 0.5f, 0.52f, 0.48f, 1.0f, 0.25f, 0.75f, 1.0f, 0.9f, 0.1f};
+    s.weight_offsets = off.data();
+    s.weight_bones = wb.data();
+    s.weights = w.data();
+    CHECK_NOTHROW(check_spheres(rs.grid, s));
+    const SmoothGroups g = smooth_groups(s, rs.grid);
+    CHECK(g.group_of[0] == g.group_of[1]);  // 8/8 both (0.52 rounds to 8 sixteenths)
+    CHECK(g.group_of[2] == -1);
+    CHECK(g.group_of[4] == -1);
+    CHECK(g.bone_of[4] == 1);
+    CHECK(g.group_of[3] >= 0);
+    CHECK(g.group_of[3] != g.group_of[0]);
+    CHECK(g.weights.size() == 3);
+    CHECK(quantized_weights(s, 5) == Weights{{0, 14}, {1, 2}});
+}
+
+TEST_CASE("concave_lower bounds the power function from its corner values", "[deform][stages]") {
+    RandomSpheres rs(11, 12);
+    const auto s2 = rs.s2();
+    const BoneField f = rs.field();
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::uniform_int_distribution<int> cx(2, 24), cy(2, 20), cz(2, 26);
+    int tight = 0;
+    for (int t = 0; t < 3000; ++t) {
+        const double base[3] = {double(cx(rng)), double(cy(rng)), double(cz(rng))};
+        double v[8];
+        for (int c = 0; c < 8; ++c) {
+            const double corner[3] = {base[0] + (c & 1), base[1] + ((c >> 1) & 1), base[2] + ((c >> 2) & 1)};
+            v[c] = brute_power(f, corner, s2.data()).key;
+        }
+        const double w[3] = {u(rng), u(rng), u(rng)};
+        const double p[3] = {base[0] + w[0], base[1] + w[1], base[2] + w[2]};
+        const double exact_value = brute_power(f, p, s2.data()).key;
+        const double L = concave_lower(v, w, s2.data());
+        REQUIRE(L <= exact_value);
+        tight += exact_value - L < 1e-6 * (1 + std::abs(exact_value));
+    }
+    CHECK(tight > 100);  // exact where one sphere holds the whole cube
+    const double zero[3] = {0, 0, 0};
+    double v[8] = {1, 2, 3, 4, 5, 6, 7, -kInf};
+    CHECK(concave_lower(v, zero, s2.data()) == -kInf);
+}
+
+TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers against a brute force", "[deform][stages]") {
+    RandomSpheres rs(21, 40);
+    const auto s2 = rs.s2();
+    const BoneField f = rs.field();
+    REQUIRE(!f.blocks.empty());
+    REQUIRE(f.global.size() == 40);
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::int64_t labelled = 0, empty_checked = 0;
+    for (std::int64_t z = 0; z + 1 < f.dims[2]; ++z)
+        for (std::int64_t y = 0; y + 1 < f.dims[1]; ++y)
+            for (std::int64_t x = 0; x + 1 < f.dims[0]; ++x) {
+                const std::uint32_t cell = f.cell_at(x, y, z);
+                const double base[3] = {double(x + f.lo[0]), double(y + f.lo[1]), double(z + f.lo[2])};
+                if (cell == kNoCell) {  // no allocated block: nothing is covered anywhere in the cube
+                    const double p[3] = {base[0] + u(rng), base[1] + u(rng), base[2] + u(rng)};
+                    REQUIRE(!(brute_power(f, p, s2.data()).key < 0));
+                    ++empty_checked;
+                    continue;
+                }
+                const Best at_cell = brute_power(f, base, s2.data());
+                const std::uint32_t lab = label_of(f.words[cell]);
+                if (lab != kNone) {  // the label is a least-power sphere at the cell
+                    REQUIRE(power_of(f, lab, base, s2.data()) == Approx(at_cell.key).margin(1e-9));
+                    ++labelled;
+                }
+                const std::int16_t q = f.corner[cell];
+                if (q != kBoundMin) REQUIRE(q * f.step <= at_cell.key + 1e-9);
+                const CellBounds b = f.bounds[cell];
+                for (int t = 0; t < 3; ++t) {
+                    const double p[3] = {base[0] + u(rng), base[1] + u(rng), base[2] + u(rng)};
+                    const double v = brute_power(f, p, s2.data()).key;
+                    if (b.lo == kBoundMax) REQUIRE(!(v < 0));  // "covered nowhere in the cube"
+                    else if (b.lo != kBoundMin) REQUIRE(b.lo * f.step <= v);
+                    if (b.hi != kBoundMax) REQUIRE(v <= b.hi * f.step);
+                }
+            }
+    CHECK(labelled > 1000);
+    CHECK(empty_checked > 100);
+    // range_bounds over a region is the hull of the cubes' ranges; any_block agrees with the allocation.
+    const std::int64_t a[3] = {f.lo[0] + 4, f.lo[1] + 4, f.lo[2] + 4}, b[3] = {a[0] + 5, a[1] + 6, a[2] + 3};
+    const CellBounds r = f.range_bounds(a, b);
+    bool allocated = false;
+    for (std::int64_t z = a[2]; z <= b[2]; ++z)
+        for (std::int64_t y = a[1]; y <= b[1]; ++y)
+            for (std::int64_t x = a[0]; x <= b[0]; ++x) {
+                const std::uint32_t c = f.cell_at(x - f.lo[0], y - f.lo[1], z - f.lo[2]);
+                if (c == kNoCell) continue;
+                allocated = true;
+                CHECK(r.lo <= f.bounds[c].lo);
+                CHECK(r.hi >= f.bounds[c].hi);
+            }
+    CHECK(f.any_block(a, b) == allocated);
+}
+
+TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform][stages]") {
+    RandomSpheres rs(31, 60);
+    const auto s2 = rs.s2();
+    const BoneField f = rs.field();
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::int64_t closed = 0, checked = 0;
+    for (std::uint32_t cell = 1; cell < f.words.size(); ++cell) {
+        if (!closed_of(f.words[cell])) continue;
+        ++closed;
+        const std::uint32_t slot = (cell - 1) / 512, li = (cell - 1) % 512;
+        const double base[3] = {double(f.blocks[slot][0] + (li & 7)), double(f.blocks[slot][1] + ((li >> 3) & 7)),
+                                double(f.blocks[slot][2] + (li >> 6))};
+        for (int t = 0; t < 8; ++t) {
+            const double p[3] = {base[0] + u(rng), base[1] + u(rng), base[2] + u(rng)};
+            const Best e = brute_power(f, p, s2.data());
+            if (!(e.key < 0)) continue;
+            std::int64_t pf[3];
+            for (int k = 0; k < 3; ++k) pf[k] = std::llround(p[k] * Pull::kUnit);
+            double pd[3];
+            Pull::to_double(pf, pd);
+            const Best ed = brute_power(f, pd, s2.data());
+            std::uint32_t local;
+            REQUIRE(least_over_corners(f, pf, s2.data(), local) == ed.key);
+            REQUIRE(local == ed.local);
+            ++checked;
+        }
+    }
+    CHECK(closed > 50);
+    CHECK(checked > 50);
+    // A cube is not closed when a sphere outside its corner labels pokes in with a lower power somewhere.
+    // Sphere 1 (not a corner label) pokes into the cube [0, 1]³ and has the lower power at its centre; moved
+    // away so that its ball misses the cube, it cannot break closure; one that is everywhere dominated cannot either.
+    BoneField two;
+    two.global = {0, 1};
+    const double ones[3] = {1, 1, 1}, corner0[3] = {0, 0, 0};
+    const std::uint32_t S[1] = {0};
+    auto closed_with = [&](double x1, double lim1, double lim0 = 1.0) {
+        two.sph = {{{0.0, 0.0, 0.0}, lim0}, {{x1, 0.5, 0.5}, lim1}};
+        NearSpheres near;
+        for (std::uint32_t j = 0; j < 2; ++j) near.add(two, j);
+        return closed_cube(two, corner0, S, 1, near, ones);
+    };
+    CHECK(!closed_with(1.0, 1.0));
+    CHECK(closed_with(3.0, 1.0));
+    CHECK(closed_with(1.0, 0.2, 16.0));  // its power exceeds sphere 0's all over the cube
+}
+
+TEST_CASE("exact queries and cube bounds against a brute force", "[deform][stages]") {
+    RandomSpheres rs(41, 80, {0.9, 1.1, 1.3});
+    const auto s2 = rs.s2();
+    const BoneField f = rs.field();
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> x(2, 25), y(2, 21), z(2, 27);
+    for (int t = 0; t < 2000; ++t) {
+        const double p[3] = {x(rng), y(rng), z(rng)};
+        const Best b = brute_power(f, p, s2.data());
+        const Best e = exact(f, p, rs.grid.spacing.data(), s2.data(), false);
+        REQUIRE(e.key == b.key);
+        REQUIRE(e.global == b.global);
+        const double pw[3] = {p[0] * rs.grid.spacing[0], p[1] * rs.grid.spacing[1], p[2] * rs.grid.spacing[2]};
+        bool covered = false;
+        for (std::uint32_t k = 0; k < f.sph.size(); ++k)
+            covered = covered || length2(p[0] - f.sph[k].c[0], p[1] - f.sph[k].c[1], p[2] - f.sph[k].c[2], s2.data()) < f.sph[k].lim;
+        REQUIRE(any_cover(f, pw, p, s2.data()) == covered);
+        const Best near = exact(f, p, rs.grid.spacing.data(), s2.data(), true);
+        REQUIRE((near.local != kNone) == covered);
+        Cube cube;
+        if (!fetch_cube(f, p, cube)) {
+            REQUIRE(!(b.key < 0));
+            continue;
+        }
+        std::uint32_t local;
+        const double U = least_over_labels(f, cube.lab, p, s2.data(), false, local);
+        REQUIRE(U >= b.key);
+        if (cube.same || cube.closed) REQUIRE((!(b.key < 0) || U == b.key));
+        REQUIRE(lower_bound(f, cube, p, s2.data(), rs.T()) <= b.key);
+    }
+}
+
+TEST_CASE("the decision rules and settle", "[deform][stages]") {
+    CHECK(certain(-3.0, -2.0, false));
+    CHECK(!certain(-3.0, -3.0, false));   // a tie is not certain from bounds
+    CHECK(!certain(1.0, 5.0, false));     // not a cover
+    CHECK(!certain(-3.0, -9.0, true));    // nearest centre: a rival that may cover is never beaten by bounds
+    CHECK(certain(-3.0, 0.0, true));
+    CHECK(in_running<std::int16_t>(-5, 3, false));
+    CHECK(!in_running<std::int16_t>(-2, -4, false));
+    CHECK(in_running<std::int16_t>(-2, -4, true));
+    CHECK(!in_running<std::int16_t>(0, 7, false));
+    int asked = 0;
+    CHECK(beats(1.0, 2.0, [&] { return ++asked, false; }));
+    CHECK(!beats(1.0, 1.0, [&] { return ++asked, false; }));
+    CHECK(asked == 1);  // the index is looked up only on a tie
+    std::vector<BoneField> none;
+    std::vector<Motion> motions;
+    const double sp[3] = {1, 1, 1};
+    for (bool nearest : {false, true}) {
+        const FieldSet set{none, motions, sp, {1, 1, 1}, 0.75, 1.0, nearest};
+        const Decider d(set);
+        std::uint8_t live[3];
+        const CellBounds alone[2] = {{-9, -5}, {2, 9}};  // one certain cover, one that cannot cover
+        CHECK(d.settle(alone, 2, live, 1) == 0);
+        CHECK((live[0] == 1 && live[1] == 0));
+        const CellBounds rivals[2] = {{-9, -5}, {-7, 4}};  // a rival that may cover: open either way
+        CHECK(d.settle(rivals, 2, live, 1) == kOpen);
+        const CellBounds beaten[2] = {{-9, -6}, {-5, 4}};  // power: the rival's least power exceeds the cover's greatest
+        CHECK(d.settle(beaten, 2, live, 1) == (nearest ? kOpen : 0));
+        const CellBounds nobody[3] = {{0, 9}, {3, 5}, {kBoundMax, kBoundMax}};
+        CHECK(d.settle(nobody, 3, live, 1) == kEmpty);
+    }
+}
+
+TEST_CASE("the output box holds exactly the posed balls' lattice points; candidate blocks cover them", "[deform][stages]") {
+    RandomSpheres rs(51, 30, {1.0, 0.7, 1.4});
+    const auto s2 = rs.s2();
+    std::vector<BoneField> fields{rs.field()};
+    const auto M = rotation_z(27, {3.3, -4.1, 2.2});
+    std::vector<Motion> motions = bone_motions(M.data(), 1, rs.grid);
+    const Box bx = posed_box(fields, motions, rs.grid);
+    // Brute force: every lattice point q some posed ball holds (|pull(q) − c| < r).
+    std::int64_t lo[3] = {1 << 20, 1 << 20, 1 << 20}, hi[3] = {-(1 << 20), -(1 << 20), -(1 << 20)};
+    std::vector<std::array<std::int64_t, 3>> covered;
+    for (std::int64_t z = -20; z < 60; ++z)
+        for (std::int64_t y = -20; y < 60; ++y)
+            for (std::int64_t x = -20; x < 60; ++x) {
+                const std::int64_t q[3] = {x, y, z};
+                for (const auto& sp : fields[0].sph) {
+                    if (!(moved_length2(motions[0], sp.c, q, s2.data()) < sp.lim)) continue;
+                    for (int a = 0; a < 3; ++a) {
+                        lo[a] = std::min(lo[a], q[a]);
+                        hi[a] = std::max(hi[a], q[a]);
+                    }
+                    covered.push_back({x, y, z});
+                    break;
+                }
+            }
+    REQUIRE(!covered.empty());
+    for (int a = 0; a < 3; ++a) {
+        CHECK(bx[a] == lo[a]);
+        CHECK(bx[3 + a] == hi[a] - lo[a] + 1);
+    }
+    const std::vector<std::uint64_t> bits = candidate_bits(FieldSet{fields, motions, rs.grid.spacing.data(), {s2[0], s2[1], s2[2]}, rs.T(), 1.0, false}, bx);
+    const std::int64_t obx = (bx[3] + 7) / 8, oby = (bx[4] + 7) / 8;
+    for (const auto& q : covered) {
+        const std::int64_t k = (((q[2] - bx[2]) / 8) * oby + (q[1] - bx[1]) / 8) * obx + (q[0] - bx[0]) / 8;
+        REQUIRE((bits[static_cast<std::size_t>(k)] & 1u));
+    }
+    // crop_to_extent keeps the extent, one voxel when nothing is covered.
+    DeformedVolume f = frame_on(rs.grid, {0, 0, 0, 6, 5, 4});
+    f.bone = ZeroedArray<std::int16_t>(120);
+    f.bone.data()[(2 * 5 + 3) * 6 + 1] = 1;
+    const std::int64_t elo[3] = {1, 3, 2}, ehi[3] = {1, 3, 2};
+    crop_to_extent(f, elo, ehi, &rs.grid);
+    CHECK((f.grid.dims == std::array<std::int64_t, 3>{1, 1, 1}));
+    CHECK((f.offset == std::array<std::int64_t, 3>{1, 3, 2}));
+    CHECK(f.bone.data()[0] == 1);
+    CHECK(f.grid.origin[1] == Approx(rs.grid.origin[1] + 3 * rs.grid.spacing[1]));
+    CHECK_THROWS_WITH(box_of({0, 0, 0}, {3000, 3000, 3000}), Catch::Contains("more than 2^31"));
+}
