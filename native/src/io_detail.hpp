@@ -1,5 +1,7 @@
 // io_detail.hpp: internals shared by the file readers and writers (io.cpp, io_nrrd.cpp, io_metaimage.cpp,
 // io_nifti.cpp; the text readers of mesh_io.cpp and bvh.cpp). Not installed; not part of the public API.
+// Defined in io_detail.cpp (messages, text, LineReader), io_voxels.cpp (grids and voxels) and io_write.cpp
+// (writing); none of them depends on a format reader.
 #pragma once
 
 #include <array>
@@ -18,12 +20,14 @@ namespace volrig::detail {
 
 /// Throws FileFormatError("<name>: <what>").
 [[noreturn]] void fail(const std::string& name, const std::string& what);
-/// 1558882 -> "1,558,882".
+/// 1558802 -> "1,558,802".
 std::string with_commas(std::uint64_t n);
 /// A header value quoted for an error message: non-printable bytes shown as '?', long values cut.
 std::string quoted(std::string_view s);
 /// "103x94x161 uint8".
 std::string describe(const std::array<std::int64_t, 3>& dims, DType t);
+/// The system's text for an errno value.
+std::string errno_text(int e);
 
 // ---- text ----------------------------------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-// volrig/deform.hpp: per-frame sampled reconstruction from moved spheres (ALGORITHMS.md §7).
+// volrig/deform.hpp: per-frame sampled reconstruction from moved spheres (docs/ALGORITHMS.md §7).
 //
 // Each skeleton point i is a sphere: centre cᵢ (a voxel of the source grid), radius rᵢ (world units), bound to one
 // or more bones. A frame gives one rest-to-pose matrix per bone (world coordinates of the source grid:
@@ -30,6 +30,8 @@
 #include <string>
 #include <vector>
 
+#include "volrig/memory.hpp"
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {
