@@ -137,6 +137,11 @@ Volume read_ascii_voxels(const DataLocation& loc, const Grid& g, DType t);
 /// Subject for messages about the data: "<hdr>" or "<hdr> (data file <data>)".
 std::string data_subject(const DataLocation& loc);
 
+/// Moves loc.offset past `skip` bytes, failing "<subject>: <label> N runs past the end of the data (S bytes)" when
+/// they are not there; skip -1 moves it to the last bytes of the file that hold the grid's voxels (when the file
+/// is too short for them, the read that follows reports it). NRRD "byte skip", MetaImage HeaderSize.
+void skip_to_data(DataLocation& loc, std::int64_t skip, const char* label, const Grid& g, DType t);
+
 /// Offset of the first byte after `lines` newlines starting at `offset` (NRRD "line skip").
 std::uint64_t skip_lines(const ByteSource& src, const std::string& header, std::uint64_t offset, std::int64_t lines);
 

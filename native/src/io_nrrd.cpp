@@ -393,34 +393,19 @@ std::int64_t nrrd_byte_skip(const std::string& name, const Header& h, Enc encodi
 
 Volume read_data(detail::DataLocation loc, Enc encoding, std::int64_t byte_skip, const Grid& g, DType dtype,
                  bool big_endian) {
-    const std::uint64_t data_bytes = static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(dtype);
-    const std::uint64_t file_size = loc.src->size();
     switch (encoding) {
         case Enc::Raw:
-            if (byte_skip == -1) {
-                // The data are the last bytes of the file (when the file is too short, the read reports it).
-                if (data_bytes <= file_size - std::min(loc.offset, file_size)) loc.offset = file_size - data_bytes;
-            } else {
-                const auto skip = static_cast<std::uint64_t>(byte_skip);
-                if (skip > file_size - std::min(loc.offset, file_size))
-                    fail(detail::data_subject(loc), "byte skip " + with_commas(skip) +
-                                                        " runs past the end of the data (" + with_commas(file_size) +
-                                                        " bytes)");
-                loc.offset += skip;
-            }
+            detail::skip_to_data(loc, byte_skip, "byte skip", g, dtype);
             return detail::read_raw_voxels(loc, g, dtype, big_endian);
         case Enc::Gzip: {
+            const std::uint64_t file_size = loc.src->size();
             if (loc.offset > file_size) fail(detail::data_subject(loc), "no compressed data after the header");
             return detail::read_compressed_voxels(loc, file_size - loc.offset, static_cast<std::uint64_t>(byte_skip), g,
                                                   dtype, big_endian);
         }
-        case Enc::Ascii: {
-            const auto skip = static_cast<std::uint64_t>(byte_skip);
-            if (skip > file_size - std::min(loc.offset, file_size))
-                fail(detail::data_subject(loc), "byte skip " + with_commas(skip) + " runs past the end of the data");
-            loc.offset += skip;
+        case Enc::Ascii:
+            detail::skip_to_data(loc, byte_skip, "byte skip", g, dtype);
             return detail::read_ascii_voxels(loc, g, dtype);
-        }
     }
     fail(loc.header, "unreachable encoding");
 }

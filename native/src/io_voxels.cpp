@@ -224,6 +224,21 @@ Volume read_ascii_voxels(const DataLocation& loc, const Grid& g, DType t) {
     return v;
 }
 
+void skip_to_data(DataLocation& loc, std::int64_t skip, const char* label, const Grid& g, DType t) {
+    const std::uint64_t file_size = loc.src->size();
+    const std::uint64_t available = file_size - std::min(loc.offset, file_size);
+    if (skip == -1) {
+        const std::uint64_t data_bytes = static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(t);
+        if (data_bytes <= available) loc.offset = file_size - data_bytes;
+        return;
+    }
+    const auto bytes = static_cast<std::uint64_t>(skip);
+    if (bytes > available)
+        fail(data_subject(loc), std::string(label) + " " + with_commas(bytes) + " runs past the end of the data (" +
+                                    with_commas(file_size) + " bytes)");
+    loc.offset += bytes;
+}
+
 std::uint64_t skip_lines(const ByteSource& src, const std::string& header, std::uint64_t offset, std::int64_t lines) {
     if (lines < 0) fail(header, "line skip " + std::to_string(lines) + " must not be negative");
     const std::uint64_t size = src.size();

@@ -634,6 +634,34 @@ TEST_CASE("NRRD: per-axis fields give one entry per axis", "[io][nrrd][errors]")
     CHECK(w.data == std::vector<std::uint8_t>{4, 8});
 }
 
+TEST_CASE("NRRD and MetaImage: of several bad fields, the first in reading order is named", "[io][errors]") {
+    // NRRD: type, then dimension and sizes, per-axis fields, grid, encoding, endian, data file, skips.
+    auto nrrd = [](const std::string& fields) { return bytes("NRRD0004\n" + fields + "\n") + Bytes(8, 0); };
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: quux\ndimension: 0\nencoding: zip\n"), "o.nrrd"); },
+                 {"o.nrrd", "type 'quux'"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: uchar\ndimension: 1\nsizes: 2\nspacings: 1 1\nencoding: zip\n"),
+                                "o.nrrd"); },
+                 {"o.nrrd", "spacings"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: short\ndimension: 1\nsizes: 2\nencoding: zip\n"), "o.nrrd"); },
+                 {"o.nrrd", "encoding 'zip'"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: short\ndimension: 1\nsizes: 2\nencoding: raw\nbyte skip: -7\n"),
+                                "o.nrrd"); },
+                 {"o.nrrd", "missing field 'endian'"});
+    // MetaImage: NDims, DimSize, ElementType, spacing and origin, encoding flags, data file.
+    auto meta = [](const std::string& fields) { return bytes(fields + "ElementDataFile = LOCAL\n") + Bytes(8, 0); };
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 3\nDimSize = 2 0 2\nElementType = MET_NONE\n"), "o.mha"); },
+                 {"o.mha", "DimSize"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_NONE\nOffset = x\n"),
+                                "o.mha"); },
+                 {"o.mha", "ElementType = 'MET_NONE'"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_UCHAR\nOffset = inf\n"
+                                                     "BinaryData = perhaps\n"), "o.mha"); },
+                 {"o.mha", "line 4", "Offset = 'inf'", "must be finite"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_UCHAR\n"
+                                                     "BinaryData = perhaps\nHeaderSize = -3\n"), "o.mha"); },
+                 {"o.mha", "BinaryData = 'perhaps'", "True or False"});
+}
+
 TEST_CASE("NRRD: data shorter than the header says", "[io][nrrd][errors]") {
     const Bytes b = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 103 94 161\nencoding: raw\n\n" + Bytes(1000000, 3);
     expect_error([&] { read_mem(read_nrrd, b, "tooth.nrrd"); },
