@@ -1,4 +1,4 @@
-"""The Blender objects of one rigged volume (DESIGN.md, Blender object model), all in the collection ``<name>``:
+"""The Blender objects of one rigged volume (docs/DESIGN.md, Blender object model), all in the collection ``<name>``:
 
 - ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
 - ``<name>_mask``     preview Volume object (child of ``<name>``) showing the segmentation mask.

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "volrig/memory.hpp"
 #include "volrig/tree.hpp"
 #include "volrig/volume.hpp"
 

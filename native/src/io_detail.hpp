@@ -1,5 +1,7 @@
 // io_detail.hpp: internals shared by the file readers and writers (io.cpp, io_nrrd.cpp, io_metaimage.cpp,
 // io_nifti.cpp; the text readers of mesh_io.cpp and bvh.cpp). Not installed; not part of the public API.
+// Defined in io_detail.cpp (messages, text, LineReader), io_voxels.cpp (grids and voxels) and io_write.cpp
+// (writing); none of them depends on a format reader.
 #pragma once
 
 #include <array>
@@ -18,12 +20,14 @@ namespace volrig::detail {
 
 /// Throws FileFormatError("<name>: <what>").
 [[noreturn]] void fail(const std::string& name, const std::string& what);
-/// 1558882 -> "1,558,882".
+/// 1558802 -> "1,558,802".
 std::string with_commas(std::uint64_t n);
 /// A header value quoted for an error message: non-printable bytes shown as '?', long values cut.
 std::string quoted(std::string_view s);
 /// "103x94x161 uint8".
 std::string describe(const std::array<std::int64_t, 3>& dims, DType t);
+/// The system's text for an errno value.
+std::string errno_text(int e);
 
 // ---- text ----------------------------------------------------------------------------------------------------
 
@@ -132,6 +136,11 @@ Volume read_ascii_voxels(const DataLocation& loc, const Grid& g, DType t);
 
 /// Subject for messages about the data: "<hdr>" or "<hdr> (data file <data>)".
 std::string data_subject(const DataLocation& loc);
+
+/// Moves loc.offset past `skip` bytes, failing "<subject>: <label> N runs past the end of the data (S bytes)" when
+/// they are not there; skip -1 moves it to the last bytes of the file that hold the grid's voxels (when the file
+/// is too short for them, the read that follows reports it). NRRD "byte skip", MetaImage HeaderSize.
+void skip_to_data(DataLocation& loc, std::int64_t skip, const char* label, const Grid& g, DType t);
 
 /// Offset of the first byte after `lines` newlines starting at `offset` (NRRD "line skip").
 std::uint64_t skip_lines(const ByteSource& src, const std::string& header, std::uint64_t offset, std::int64_t lines);

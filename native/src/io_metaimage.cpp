@@ -110,139 +110,175 @@ const char* met_type_name(DType t) {
     return "?";
 }
 
-}  // namespace
+// Fails with "<file>: line N: <label> = '<value>' <why>".
+[[noreturn]] void bad(const std::string& name, const Field& f, const char* label, const std::string& why) {
+    fail(name, "line " + std::to_string(f.line) + ": " + label + " = " + quoted(f.value) + " " + why);
+}
 
-Volume read_metaimage(const ByteSource& src, const ReadOptions& opt) {
-    const std::string& name = src.name();
-    const Header h = read_header(src);
-    auto find = [&](const char* key) { return h.fields.get(key); };
-    auto need = [&](const char* key, const char* label) -> const Field& { return h.fields.need(name, key, label); };
-    auto bad = [&](const Field& f, const char* label, const std::string& why) {
-        fail(name, "line " + std::to_string(f.line) + ": " + label + " = " + quoted(f.value) + " " + why);
-    };
-    auto flag = [&](const char* key, const char* label, bool fallback) {
-        const Field* f = find(key);
-        if (!f) return fallback;
-        if (detail::iequals(f->value, "true") || f->value == "1") return true;
-        if (detail::iequals(f->value, "false") || f->value == "0") return false;
-        bad(*f, label, "must be True or False");
-        return fallback;
-    };
+// A True/False field (also 1/0); `fallback` when absent.
+bool flag(const std::string& name, const Header& h, const char* key, const char* label, bool fallback) {
+    const Field* f = h.fields.get(key);
+    if (!f) return fallback;
+    if (detail::iequals(f->value, "true") || f->value == "1") return true;
+    if (detail::iequals(f->value, "false") || f->value == "0") return false;
+    bad(name, *f, label, "must be True or False");
+}
 
-    if (const Field* f = find("objecttype"))
-        if (!detail::iequals(f->value, "image")) bad(*f, "ObjectType", "is not supported (only Image)");
-
-    const Field& fnd = need("ndims", "NDims");
+// NDims, checked (ObjectType, when given, must be Image).
+std::size_t met_ndims(const std::string& name, const Header& h) {
+    if (const Field* f = h.fields.get("objecttype"))
+        if (!detail::iequals(f->value, "image")) bad(name, *f, "ObjectType", "is not supported (only Image)");
+    const Field& fnd = h.fields.need(name, "ndims", "NDims");
     std::int64_t ndims = 0;
-    if (!detail::parse_int(fnd.value, ndims) || ndims < 1 || ndims > 16) bad(fnd, "NDims", "must be 1 to 16");
-    const auto n = static_cast<std::size_t>(ndims);
+    if (!detail::parse_int(fnd.value, ndims) || ndims < 1 || ndims > 16) bad(name, fnd, "NDims", "must be 1 to 16");
+    return static_cast<std::size_t>(ndims);
+}
 
-    const Field& fsize = need("dimsize", "DimSize");
+// DimSize: n positive sizes, those beyond the third equal to 1.
+std::array<std::int64_t, 3> met_dims(const std::string& name, const Header& h, std::size_t n) {
+    const Field& fsize = h.fields.need(name, "dimsize", "DimSize");
     const auto size_words = detail::split_words(fsize.value);
-    if (size_words.size() < n) bad(fsize, "DimSize", "must give " + std::to_string(n) + " sizes (NDims)");
-    Grid g;
+    if (size_words.size() < n) bad(name, fsize, "DimSize", "must give " + std::to_string(n) + " sizes (NDims)");
+    std::array<std::int64_t, 3> dims{1, 1, 1};
     for (std::size_t a = 0; a < n; ++a) {
         std::int64_t d = 0;
-        if (!detail::parse_int(size_words[a], d) || d <= 0) bad(fsize, "DimSize", "must be positive integers");
+        if (!detail::parse_int(size_words[a], d) || d <= 0) bad(name, fsize, "DimSize", "must be positive integers");
         if (a < 3) {
-            g.dims[a] = d;
+            dims[a] = d;
         } else if (d != 1) {
             fail(name, std::to_string(n) + "-D image (DimSize " + quoted(fsize.value) +
                            ") is not supported: only 2-D and 3-D volumes");
         }
     }
-    for (std::size_t a = n; a < 3; ++a) g.dims[a] = 1;
+    return dims;
+}
 
-    const Field& ftype = need("elementtype", "ElementType");
+// ElementType, with at most one channel.
+DType met_dtype(const std::string& name, const Header& h) {
+    const Field& ftype = h.fields.need(name, "elementtype", "ElementType");
     DType dtype{};
-    if (!met_type(ftype.value, dtype)) bad(ftype, "ElementType", "is not supported");
-    if (const Field* f = find("elementnumberofchannels")) {
+    if (!met_type(ftype.value, dtype)) bad(name, ftype, "ElementType", "is not supported");
+    if (const Field* f = h.fields.get("elementnumberofchannels")) {
         std::int64_t c = 0;
-        if (!detail::parse_int(f->value, c) || c < 1) bad(*f, "ElementNumberOfChannels", "must be a positive integer");
-        if (c > 1) bad(*f, "ElementNumberOfChannels", "is not supported: multi-channel images cannot be read");
+        if (!detail::parse_int(f->value, c) || c < 1)
+            bad(name, *f, "ElementNumberOfChannels", "must be a positive integer");
+        if (c > 1) bad(name, *f, "ElementNumberOfChannels", "is not supported: multi-channel images cannot be read");
     }
+    return dtype;
+}
 
-    auto vec = [&](const Field& f, const char* label, bool positive, std::array<double, 3>& out) {
-        const auto words = detail::split_words(f.value);
-        if (words.size() < n) bad(f, label, "must give " + std::to_string(n) + " numbers (NDims)");
-        for (std::size_t a = 0; a < n && a < 3; ++a) {
-            double d = 0;
-            if (!detail::parse_double(words[a], d)) bad(f, label, "must be numbers");
-            if (positive) {
-                d = std::fabs(d);
-                if (!std::isfinite(d) || d == 0) bad(f, label, "must be finite and non-zero");
-            } else if (!std::isfinite(d)) {
-                bad(f, label, "must be finite");
-            }
-            out[a] = d;
+// The first min(n, 3) numbers of a field into `out`: finite, and non-zero (taken as magnitudes) when `positive`.
+void met_vector(const std::string& name, const Field& f, const char* label, std::size_t n, bool positive,
+                std::array<double, 3>& out) {
+    const auto words = detail::split_words(f.value);
+    if (words.size() < n) bad(name, f, label, "must give " + std::to_string(n) + " numbers (NDims)");
+    for (std::size_t a = 0; a < n && a < 3; ++a) {
+        double d = 0;
+        if (!detail::parse_double(words[a], d)) bad(name, f, label, "must be numbers");
+        if (positive) {
+            d = std::fabs(d);
+            if (!std::isfinite(d) || d == 0) bad(name, f, label, "must be finite and non-zero");
+        } else if (!std::isfinite(d)) {
+            bad(name, f, label, "must be finite");
         }
-    };
-    if (const Field* f = find("elementspacing"))
-        vec(*f, "ElementSpacing", true, g.spacing);
-    else if (const Field* fs = find("elementsize"))
-        vec(*fs, "ElementSize", true, g.spacing);
-    if (const Field* f = find("offset"))
-        vec(*f, "Offset", false, g.origin);
-    else if (const Field* fo = find("origin"))
-        vec(*fo, "Origin", false, g.origin);
-    else if (const Field* fp = find("position"))
-        vec(*fp, "Position", false, g.origin);
-    detail::check_volume(name, g, dtype, opt.max_bytes);
+        out[a] = d;
+    }
+}
 
-    const bool big_endian = find("binarydatabyteordermsb") ? flag("binarydatabyteordermsb", "BinaryDataByteOrderMSB", false)
-                                                           : flag("elementbyteordermsb", "ElementByteOrderMSB", false);
-    const bool binary = flag("binarydata", "BinaryData", true);
-    const bool compressed = flag("compresseddata", "CompressedData", false);
-    std::int64_t header_size = 0;
-    if (const Field* f = find("headersize"))
-        if (!detail::parse_int(f->value, header_size) || header_size < -1) bad(*f, "HeaderSize", "must be -1 or more");
-    if (header_size == -1 && (compressed || !binary))
-        bad(*find("headersize"), "HeaderSize", "(data at the end of the file) is only valid for uncompressed binary data");
+// Spacing (ElementSpacing, else ElementSize) and origin (Offset, else Origin, else Position) into g.
+void met_spacing_and_origin(const std::string& name, const Header& h, std::size_t n, Grid& g) {
+    if (const Field* f = h.fields.get("elementspacing"))
+        met_vector(name, *f, "ElementSpacing", n, true, g.spacing);
+    else if (const Field* fs = h.fields.get("elementsize"))
+        met_vector(name, *fs, "ElementSize", n, true, g.spacing);
+    if (const Field* f = h.fields.get("offset"))
+        met_vector(name, *f, "Offset", n, false, g.origin);
+    else if (const Field* fo = h.fields.get("origin"))
+        met_vector(name, *fo, "Origin", n, false, g.origin);
+    else if (const Field* fp = h.fields.get("position"))
+        met_vector(name, *fp, "Position", n, false, g.origin);
+}
 
-    // where the data is
-    std::unique_ptr<ByteSource> detached;
+// How the voxels are stored.
+struct Encoding {
+    bool big_endian = false;
+    bool binary = true;
+    bool compressed = false;
+    std::int64_t header_size = 0;  // bytes before the data; -1: the data are the last bytes of the file
+};
+
+Encoding met_encoding(const std::string& name, const Header& h) {
+    Encoding e;
+    e.big_endian = h.fields.get("binarydatabyteordermsb")
+                       ? flag(name, h, "binarydatabyteordermsb", "BinaryDataByteOrderMSB", false)
+                       : flag(name, h, "elementbyteordermsb", "ElementByteOrderMSB", false);
+    e.binary = flag(name, h, "binarydata", "BinaryData", true);
+    e.compressed = flag(name, h, "compresseddata", "CompressedData", false);
+    if (const Field* f = h.fields.get("headersize")) {
+        if (!detail::parse_int(f->value, e.header_size) || e.header_size < -1)
+            bad(name, *f, "HeaderSize", "must be -1 or more");
+        if (e.header_size == -1 && (e.compressed || !e.binary))
+            bad(name, *f, "HeaderSize", "(data at the end of the file) is only valid for uncompressed binary data");
+    }
+    return e;
+}
+
+// Where the data starts: after the ElementDataFile line (LOCAL) or in the data file (opened into `detached`).
+detail::DataLocation met_data_location(const ByteSource& src, const Header& h, std::unique_ptr<ByteSource>& detached) {
+    const std::string& name = src.name();
     detail::DataLocation loc;
     loc.src = &src;
     loc.header = name;
     const Field fdata{h.data_file, h.data_file_line};
-    if (h.data_file.empty()) bad(fdata, "ElementDataFile", "is empty");
+    if (h.data_file.empty()) bad(name, fdata, "ElementDataFile", "is empty");
     if (detail::iequals(h.data_file, "LOCAL")) {
         loc.offset = h.data_start;
     } else {
         if (detail::names_several_files(h.data_file))
-            bad(fdata, "ElementDataFile", "names several files: multi-file MetaImage data is not supported");
+            bad(name, fdata, "ElementDataFile", "names several files: multi-file MetaImage data is not supported");
         detached = src.open_sibling(h.data_file);
         loc.src = detached.get();
         loc.detached = true;
     }
-    const std::uint64_t file_size = loc.src->size();
-    const std::uint64_t data_bytes = static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(dtype);
-    if (header_size == -1) {
-        if (data_bytes <= file_size - std::min(loc.offset, file_size)) loc.offset = file_size - data_bytes;
-    } else if (header_size > 0) {
-        const auto skip = static_cast<std::uint64_t>(header_size);
-        if (skip > file_size - std::min(loc.offset, file_size))
-            fail(detail::data_subject(loc), "HeaderSize " + with_commas(skip) + " runs past the end of the data (" +
-                                                with_commas(file_size) + " bytes)");
-        loc.offset += skip;
-    }
+    return loc;
+}
 
-    if (!binary) return detail::read_ascii_voxels(loc, g, dtype);
-    if (!compressed) return detail::read_raw_voxels(loc, g, dtype, big_endian);
-    // The stream runs from the data offset to its own end marker. CompressedDataSize is checked against the file
-    // but not trusted as the stream's length: real files understate it (VTK's frogtissue.mhd says 260,020 for
-    // a 262,087-byte stream), and MetaIO readers decode them anyway.
+// The stream runs from the data offset to its own end marker. CompressedDataSize is checked against the file but
+// not trusted as the stream's length: real files understate it (VTK's frogtissue.mhd says 260,020 for a
+// 262,087-byte stream), and MetaIO readers decode them anyway.
+Volume read_compressed(const Header& h, const detail::DataLocation& loc, const Grid& g, DType dtype, bool big_endian) {
+    const std::uint64_t file_size = loc.src->size();
     const std::uint64_t available = file_size - std::min(loc.offset, file_size);
-    if (const Field* f = find("compresseddatasize")) {
+    if (const Field* f = h.fields.get("compresseddatasize")) {
         std::int64_t c = 0;
-        if (!detail::parse_int(f->value, c) || c <= 0) bad(*f, "CompressedDataSize", "must be a positive integer");
+        if (!detail::parse_int(f->value, c) || c <= 0)
+            bad(loc.header, *f, "CompressedDataSize", "must be a positive integer");
         if (static_cast<std::uint64_t>(c) > available)
             fail(detail::data_subject(loc), "header declares CompressedDataSize " +
                                                 with_commas(static_cast<std::uint64_t>(c)) + " but the file holds " +
                                                 with_commas(available) + " bytes of data");
     }
-    const std::uint64_t csize = available;
-    return detail::read_compressed_voxels(loc, csize, 0, g, dtype, big_endian);
+    return detail::read_compressed_voxels(loc, available, 0, g, dtype, big_endian);
+}
+
+}  // namespace
+
+Volume read_metaimage(const ByteSource& src, const ReadOptions& opt) {
+    const std::string& name = src.name();
+    const Header h = read_header(src);
+    const std::size_t n = met_ndims(name, h);
+    Grid g;
+    g.dims = met_dims(name, h, n);
+    const DType dtype = met_dtype(name, h);
+    met_spacing_and_origin(name, h, n, g);
+    detail::check_volume(name, g, dtype, opt.max_bytes);
+    const Encoding e = met_encoding(name, h);
+    std::unique_ptr<ByteSource> detached;
+    detail::DataLocation loc = met_data_location(src, h, detached);
+    detail::skip_to_data(loc, e.header_size, "HeaderSize", g, dtype);
+    if (!e.binary) return detail::read_ascii_voxels(loc, g, dtype);
+    if (!e.compressed) return detail::read_raw_voxels(loc, g, dtype, e.big_endian);
+    return read_compressed(h, loc, g, dtype, e.big_endian);
 }
 
 void write_metaimage(const std::string& path, const VolumeView& v, bool compress) {

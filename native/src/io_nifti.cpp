@@ -145,16 +145,13 @@ std::string image_name_for(const std::string& header_name) {
     return {};
 }
 
-}  // namespace
-
-Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
+// Reads the 348 header bytes into hdr; a .nii.gz is inflated, and `inf` stays open for the voxels. True for gzip.
+bool read_header_bytes(const ByteSource& src, std::uint8_t* hdr, std::unique_ptr<detail::Inflater>& inf) {
     const std::string& name = src.name();
     const std::uint64_t size = src.size();
-    std::uint8_t hdr[kHeaderSize];
     std::uint8_t magic2[2] = {0, 0};
     if (size >= 2) src.read(0, magic2, 2);
     const bool gz = magic2[0] == 0x1f && magic2[1] == 0x8b;
-    std::unique_ptr<detail::Inflater> inf;
     if (gz) {
         inf = std::make_unique<detail::Inflater>(src, 0, size, name, kHeaderSize);
         inf->read(hdr, kHeaderSize);
@@ -163,47 +160,39 @@ Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
             fail(name, "the file holds " + with_commas(size) + " bytes, less than the 348-byte NIfTI-1 header");
         src.read(0, hdr, kHeaderSize);
     }
+    return gz;
+}
 
-    // Byte order from sizeof_hdr.
+// Whether the header's byte order differs from the host's, from sizeof_hdr.
+bool needs_swap(const std::string& name, const std::uint8_t* hdr) {
     std::int32_t sizeof_hdr = 0;
     std::memcpy(&sizeof_hdr, hdr, 4);
     const std::int32_t swapped = static_cast<std::int32_t>(__builtin_bswap32(static_cast<std::uint32_t>(sizeof_hdr)));
-    bool swap = false;
-    if (sizeof_hdr == 348) {
-        swap = false;
-    } else if (swapped == 348) {
-        swap = true;
-    } else if (sizeof_hdr == 540 || swapped == 540) {
-        fail(name, "NIfTI-2 files are not supported (convert to NIfTI-1)");
-    } else {
-        fail(name, "not a NIfTI-1 file (sizeof_hdr is " + std::to_string(sizeof_hdr) + ", not 348)");
-    }
-    const bool big_endian = swap != detail::host_is_big_endian();
-    const HeaderFields f(hdr, swap);
+    if (sizeof_hdr == 348) return false;
+    if (swapped == 348) return true;
+    if (sizeof_hdr == 540 || swapped == 540) fail(name, "NIfTI-2 files are not supported (convert to NIfTI-1)");
+    fail(name, "not a NIfTI-1 file (sizeof_hdr is " + std::to_string(sizeof_hdr) + ", not 348)");
+}
 
-    const bool single = std::memcmp(hdr + 344, "n+1", 3) == 0 && hdr[347] == 0;
-    const bool pair = std::memcmp(hdr + 344, "ni1", 3) == 0 && hdr[347] == 0;
-    if (!single && !pair)
-        fail(name, "no NIfTI-1 magic ('n+1' or 'ni1'): Analyze 7.5 files are not supported");
-
-    // dims
+// dim[1..3] into g.dims (1 beyond dim[0]); dims 4..7 must be 1. Returns dim[0].
+int nifti_dims(const std::string& name, const HeaderFields& f, Grid& g) {
     std::int16_t dim[8];
     for (int i = 0; i < 8; ++i) dim[i] = f.i16(40 + 2 * static_cast<std::size_t>(i));
-    if (dim[0] < 1 || dim[0] > 7)
-        fail(name, "dim[0] = " + std::to_string(dim[0]) + " must be 1 to 7");
+    if (dim[0] < 1 || dim[0] > 7) fail(name, "dim[0] = " + std::to_string(dim[0]) + " must be 1 to 7");
     std::int64_t volumes = 1;
     for (int i = 1; i <= dim[0]; ++i) {
-        if (dim[i] < 1)
-            fail(name, "dim[" + std::to_string(i) + "] = " + std::to_string(dim[i]) + " must be positive");
+        if (dim[i] < 1) fail(name, "dim[" + std::to_string(i) + "] = " + std::to_string(dim[i]) + " must be positive");
         if (i >= 4) volumes *= dim[i];
     }
     if (volumes > 1)
         fail(name, std::to_string(dim[0]) + "-D NIfTI (" + std::to_string(volumes) +
                        " volumes) not supported: only single 3-D volumes");
-    Grid g;
     for (int a = 0; a < 3; ++a) g.dims[a] = a + 1 <= dim[0] ? dim[a + 1] : 1;
+    return dim[0];
+}
 
-    // element type
+// datatype, with a matching bitpix.
+DType nifti_dtype(const std::string& name, const HeaderFields& f) {
     const int code = f.i16(70);
     const int bitpix = f.i16(72);
     DType dtype{};
@@ -215,12 +204,15 @@ Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
     if (bitpix != static_cast<int>(8 * dtype_size(dtype)))
         fail(name, "bitpix " + std::to_string(bitpix) + " disagrees with datatype " + std::to_string(code) + " (" +
                        dtype_name(dtype) + ", " + std::to_string(8 * dtype_size(dtype)) + " bits)");
+    return dtype;
+}
 
-    // geometry
+// Spacing = |pixdim[1..3]| (1 for unused axes); origin from the sform (sform_code > 0), else the qform offsets.
+void nifti_geometry(const std::string& name, const HeaderFields& f, int ndim, Grid& g) {
     for (int a = 0; a < 3; ++a) {
         const double p = std::fabs(static_cast<double>(f.f32(76 + 4 * static_cast<std::size_t>(a + 1))));
         const bool ok = std::isfinite(p) && p > 0;
-        if (a + 1 <= dim[0] && !ok)
+        if (a + 1 <= ndim && !ok)
             fail(name, "pixdim[" + std::to_string(a + 1) + "] = " + detail::format_double(p) +
                            ": voxel spacing must be finite and non-zero");
         g.spacing[a] = ok ? p : 1.0;
@@ -233,55 +225,100 @@ Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
         if (!std::isfinite(g.origin[a]))
             fail(name, std::string(sform_code > 0 ? "srow_" : "qoffset_") + "xyz"[a] + " is " +
                            detail::format_double(g.origin[a]) + ": the origin must be finite");
-    const std::uint64_t data_bytes = detail::check_volume(name, g, dtype, opt.max_bytes);
+}
 
-    // scaling
-    const double slope = f.f32(112), inter = f.f32(116);
-    const bool scaled = slope != 0 && !(slope == 1 && inter == 0);
-    if (scaled) {
-        if (!std::isfinite(slope))
-            fail(name, "scl_slope is " + detail::format_double(slope) + ": must be finite (or 0 for no scaling)");
-        if (!std::isfinite(inter)) fail(name, "scl_inter is " + detail::format_double(inter) + ": must be finite");
-        detail::check_volume(name, g, dtype == DType::Float64 ? DType::Float64 : DType::Float32, opt.max_bytes);
+struct Scaling {
+    double slope = 1, inter = 0;
+    bool on = false;  // false when the slope is 0 or (slope, inter) = (1, 0)
+};
+
+// scl_slope/scl_inter, checked; a scaled result (float32, or float64) must fit max_bytes too.
+Scaling nifti_scaling(const std::string& name, const HeaderFields& f, const Grid& g, DType dtype,
+                      std::uint64_t max_bytes) {
+    Scaling s;
+    s.slope = f.f32(112);
+    s.inter = f.f32(116);
+    s.on = s.slope != 0 && !(s.slope == 1 && s.inter == 0);
+    if (s.on) {
+        if (!std::isfinite(s.slope))
+            fail(name, "scl_slope is " + detail::format_double(s.slope) + ": must be finite (or 0 for no scaling)");
+        if (!std::isfinite(s.inter)) fail(name, "scl_inter is " + detail::format_double(s.inter) + ": must be finite");
+        detail::check_volume(name, g, dtype == DType::Float64 ? DType::Float64 : DType::Float32, max_bytes);
     }
+    return s;
+}
 
-    // data offset
+// vox_offset: where the voxels start (past the header and its extensions in a single file).
+std::uint64_t nifti_data_offset(const std::string& name, const HeaderFields& f, bool single) {
     const double vox = f.f32(108);
     if (!std::isfinite(vox) || vox < 0 || vox > 1e15)
         fail(name, "vox_offset " + detail::format_double(vox) + " is not a valid byte offset");
     const auto offset = static_cast<std::uint64_t>(vox);
     if (single && offset < 352)
         fail(name, "vox_offset " + detail::format_double(vox) + " is inside the header (must be at least 352)");
+    return offset;
+}
 
-    Volume v;
-    if (gz) {
-        if (pair) fail(name, "a gzip-compressed 'ni1' header (.hdr.gz) is not supported");
-        const std::uint64_t total = offset + data_bytes;
-        detail::check_inflate_bound(name, total, size);
-        v = detail::allocate(g, dtype);
-        inf->expect(total);
-        inf->skip(offset - kHeaderSize);
-        inf->read(v.data.data(), v.data.size());
-        inf->finish();
-        if (big_endian != detail::host_is_big_endian())
-            detail::swap_bytes(v.data.data(), v.data.size() / dtype_size(dtype), dtype_size(dtype));
-    } else {
-        detail::DataLocation loc;
-        loc.src = &src;
-        loc.header = name;
-        loc.offset = offset;
-        std::unique_ptr<ByteSource> image;
-        if (pair) {
-            const std::string img = image_name_for(name);
-            if (img.empty())
-                fail(name, "header has the 'ni1' magic (separate .img file) but its name does not end in .hdr");
-            image = src.open_sibling(img);
-            loc.src = image.get();
-            loc.detached = true;
-        }
-        v = detail::read_raw_voxels(loc, g, dtype, big_endian);
+// The voxels of a .nii.gz, inflated straight into the volume after the header.
+Volume read_gzip_voxels(const ByteSource& src, detail::Inflater& inf, std::uint64_t offset, const Grid& g, DType dtype,
+                        bool big_endian) {
+    const std::uint64_t total = offset + static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(dtype);
+    detail::check_inflate_bound(src.name(), total, src.size());
+    Volume v = detail::allocate(g, dtype);
+    inf.expect(total);
+    inf.skip(offset - kHeaderSize);
+    inf.read(v.data.data(), v.data.size());
+    inf.finish();
+    if (big_endian != detail::host_is_big_endian())
+        detail::swap_bytes(v.data.data(), v.data.size() / dtype_size(dtype), dtype_size(dtype));
+    return v;
+}
+
+// Uncompressed voxels at `offset` of this file ('n+1') or of the .img beside this .hdr ('ni1').
+Volume read_file_voxels(const ByteSource& src, bool pair, std::uint64_t offset, const Grid& g, DType dtype,
+                        bool big_endian) {
+    const std::string& name = src.name();
+    detail::DataLocation loc;
+    loc.src = &src;
+    loc.header = name;
+    loc.offset = offset;
+    std::unique_ptr<ByteSource> image;
+    if (pair) {
+        const std::string img = image_name_for(name);
+        if (img.empty())
+            fail(name, "header has the 'ni1' magic (separate .img file) but its name does not end in .hdr");
+        image = src.open_sibling(img);
+        loc.src = image.get();
+        loc.detached = true;
     }
-    if (scaled) v = apply_scaling(std::move(v), slope, inter);
+    return detail::read_raw_voxels(loc, g, dtype, big_endian);
+}
+
+}  // namespace
+
+Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
+    const std::string& name = src.name();
+    std::uint8_t hdr[kHeaderSize];
+    std::unique_ptr<detail::Inflater> inf;
+    const bool gz = read_header_bytes(src, hdr, inf);
+    const bool swap = needs_swap(name, hdr);
+    const bool big_endian = swap != detail::host_is_big_endian();
+    const HeaderFields f(hdr, swap);
+    const bool single = std::memcmp(hdr + 344, "n+1", 3) == 0 && hdr[347] == 0;
+    const bool pair = std::memcmp(hdr + 344, "ni1", 3) == 0 && hdr[347] == 0;
+    if (!single && !pair) fail(name, "no NIfTI-1 magic ('n+1' or 'ni1'): Analyze 7.5 files are not supported");
+
+    Grid g;
+    const int ndim = nifti_dims(name, f, g);
+    const DType dtype = nifti_dtype(name, f);
+    nifti_geometry(name, f, ndim, g);
+    detail::check_volume(name, g, dtype, opt.max_bytes);
+    const Scaling scaling = nifti_scaling(name, f, g, dtype, opt.max_bytes);
+    const std::uint64_t offset = nifti_data_offset(name, f, single);
+    if (gz && pair) fail(name, "a gzip-compressed 'ni1' header (.hdr.gz) is not supported");
+    Volume v = gz ? read_gzip_voxels(src, *inf, offset, g, dtype, big_endian)
+                  : read_file_voxels(src, pair, offset, g, dtype, big_endian);
+    if (scaling.on) v = apply_scaling(std::move(v), scaling.slope, scaling.inter);
     return v;
 }
 

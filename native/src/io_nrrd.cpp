@@ -181,86 +181,100 @@ Header read_header(const ByteSource& src) {
     return h;
 }
 
-}  // namespace
+// Fails with "<file>: line N: <label> '<value>' <why>".
+[[noreturn]] void bad(const std::string& name, const Field& f, const char* label, const std::string& why) {
+    fail(name, "line " + std::to_string(f.line) + ": " + label + " " + quoted(f.value) + " " + why);
+}
 
-Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
-    const std::string& name = src.name();
-    const Header h = read_header(src);
-    auto find = [&](const char* key) { return h.fields.get(key); };
-    auto need = [&](const char* key, const char* label) -> const Field& { return h.fields.need(name, key, label); };
-    auto bad = [&](const Field& f, const char* label, const std::string& why) {
-        fail(name, "line " + std::to_string(f.line) + ": " + label + " " + quoted(f.value) + " " + why);
-    };
-
-    // type
-    const Field& ftype = need("type", "type");
+DType nrrd_dtype(const std::string& name, const Header& h) {
+    const Field& ftype = h.fields.need(name, "type", "type");
     DType dtype{};
     if (detail::iequals(detail::trim(ftype.value), "block"))
-        bad(ftype, "type", "is not supported (opaque blocks are not voxels)");
-    if (!nrrd_type(ftype.value, dtype)) bad(ftype, "type", "is not a NRRD scalar type");
+        bad(name, ftype, "type", "is not supported (opaque blocks are not voxels)");
+    if (!nrrd_type(ftype.value, dtype)) bad(name, ftype, "type", "is not a NRRD scalar type");
+    return dtype;
+}
 
-    // dimension and sizes
-    const Field& fdim = need("dimension", "dimension");
+struct Axis {
+    std::int64_t size = 1;
+    bool has_spacing = false;
+    double spacing = 1.0;
+    double min = 0.0;
+    std::string kind = "domain";
+};
+
+// The axes "dimension" and "sizes" declare.
+std::vector<Axis> nrrd_sizes(const std::string& name, const Header& h) {
+    const Field& fdim = h.fields.need(name, "dimension", "dimension");
     std::int64_t dim = 0;
     if (!detail::parse_int(fdim.value, dim) || dim < 1 || dim > 16)
-        bad(fdim, "dimension", "must be an integer from 1 to 16");
-    const Field& fsizes = need("sizes", "sizes");
+        bad(name, fdim, "dimension", "must be an integer from 1 to 16");
+    const Field& fsizes = h.fields.need(name, "sizes", "sizes");
     const auto size_words = detail::split_words(fsizes.value);
     if (static_cast<std::int64_t>(size_words.size()) != dim)
-        bad(fsizes, "sizes", "must list " + std::to_string(dim) + " sizes (dimension " + std::to_string(dim) + ")");
-
-    struct Axis {
-        std::int64_t size = 1;
-        bool has_spacing = false;
-        double spacing = 1.0;
-        double min = 0.0;
-        std::string kind = "domain";
-    };
+        bad(name, fsizes, "sizes",
+            "must list " + std::to_string(dim) + " sizes (dimension " + std::to_string(dim) + ")");
     std::vector<Axis> axes(static_cast<std::size_t>(dim));
     for (std::size_t a = 0; a < axes.size(); ++a)
         if (!detail::parse_int(size_words[a], axes[a].size) || axes[a].size <= 0)
-            bad(fsizes, "sizes", "must be positive integers");
+            bad(name, fsizes, "sizes", "must be positive integers");
+    return axes;
+}
 
-    if (const Field* f = find("spacedirections")) {
+// The words of a per-axis field; fails unless there is one per axis.
+std::vector<std::string_view> per_axis(const std::string& name, const Field& f, const char* label, const char* what,
+                                       std::size_t axes) {
+    auto words = detail::split_words(f.value);
+    if (words.size() != axes)
+        bad(name, f, label, std::string("must give ") + what + " per axis (" + std::to_string(axes) + ")");
+    return words;
+}
+
+// Spacing from "space directions" (vector norms), else from "spacings".
+void nrrd_spacings(const std::string& name, const Header& h, std::vector<Axis>& axes) {
+    if (const Field* f = h.fields.get("spacedirections")) {
         const auto items = vector_items(f->value);
         if (items.size() != axes.size())
-            bad(*f, "space directions", "must give one vector or 'none' per axis (" + std::to_string(dim) + ")");
+            bad(name, *f, "space directions",
+                "must give one vector or 'none' per axis (" + std::to_string(axes.size()) + ")");
         std::vector<double> v;
         for (std::size_t a = 0; a < axes.size(); ++a) {
             if (detail::iequals(items[a], "none")) continue;
-            if (!parse_vector(items[a], v)) bad(*f, "space directions", "must be vectors like (1,0,0) or 'none'");
+            if (!parse_vector(items[a], v))
+                bad(name, *f, "space directions", "must be vectors like (1,0,0) or 'none'");
             double n2 = 0;
             for (double c : v) n2 += c * c;
             axes[a].has_spacing = true;
             axes[a].spacing = std::sqrt(n2);
         }
-    } else if (const Field* fs = find("spacings")) {
-        const auto words = detail::split_words(fs->value);
-        if (words.size() != axes.size())
-            bad(*fs, "spacings", "must give one number per axis (" + std::to_string(dim) + ")");
+    } else if (const Field* fs = h.fields.get("spacings")) {
+        const auto words = per_axis(name, *fs, "spacings", "one number", axes.size());
         for (std::size_t a = 0; a < axes.size(); ++a) {
-            if (!detail::parse_double(words[a], axes[a].spacing)) bad(*fs, "spacings", "must be numbers");
+            if (!detail::parse_double(words[a], axes[a].spacing)) bad(name, *fs, "spacings", "must be numbers");
             axes[a].spacing = std::fabs(axes[a].spacing);
             axes[a].has_spacing = true;
         }
     }
+}
+
+// Reads "axis mins" (true when given) and "kinds" into the axes.
+bool nrrd_mins_and_kinds(const std::string& name, const Header& h, std::vector<Axis>& axes) {
     bool have_mins = false;
-    if (const Field* f = find("axismins")) {
-        const auto words = detail::split_words(f->value);
-        if (words.size() != axes.size())
-            bad(*f, "axis mins", "must give one number per axis (" + std::to_string(dim) + ")");
+    if (const Field* f = h.fields.get("axismins")) {
+        const auto words = per_axis(name, *f, "axis mins", "one number", axes.size());
         for (std::size_t a = 0; a < axes.size(); ++a)
-            if (!detail::parse_double(words[a], axes[a].min)) bad(*f, "axis mins", "must be numbers");
+            if (!detail::parse_double(words[a], axes[a].min)) bad(name, *f, "axis mins", "must be numbers");
         have_mins = true;
     }
-    if (const Field* f = find("kinds")) {
-        const auto words = detail::split_words(f->value);
-        if (words.size() != axes.size())
-            bad(*f, "kinds", "must give one kind per axis (" + std::to_string(dim) + ")");
+    if (const Field* f = h.fields.get("kinds")) {
+        const auto words = per_axis(name, *f, "kinds", "one kind", axes.size());
         for (std::size_t a = 0; a < axes.size(); ++a) axes[a].kind = std::string(words[a]);
     }
+    return have_mins;
+}
 
-    // Drop component axes of size 1, refuse larger ones; then drop size-1 axes beyond the third.
+// Drops component axes of size 1, refuses larger ones; then drops size-1 axes beyond the third.
+std::vector<Axis> spatial_axes(const std::string& name, const std::vector<Axis>& axes) {
     std::vector<Axis> kept;
     for (std::size_t a = 0; a < axes.size(); ++a) {
         if (domain_kind(axes[a].kind)) {
@@ -281,7 +295,11 @@ Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
         kept.erase(it);
     }
     if (kept.empty()) fail(name, "no spatial axes (every axis is a component axis)");
+    return kept;
+}
 
+// The grid of the (at most three) spatial axes; the origin from "space origin", else "axis mins".
+Grid nrrd_grid(const std::string& name, const Header& h, const std::vector<Axis>& kept, bool have_mins) {
     Grid g;
     for (std::size_t a = 0; a < 3; ++a) {
         if (a >= kept.size()) {
@@ -297,55 +315,53 @@ Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
         }
         if (have_mins && std::isfinite(kept[a].min)) g.origin[a] = kept[a].min;
     }
-    if (const Field* f = find("spaceorigin")) {
+    if (const Field* f = h.fields.get("spaceorigin")) {
         std::vector<double> v;
         if (!detail::iequals(f->value, "none")) {
-            if (!parse_vector(f->value, v)) bad(*f, "space origin", "must be a vector like (0,0,0)");
+            if (!parse_vector(f->value, v)) bad(name, *f, "space origin", "must be a vector like (0,0,0)");
             g.origin = {0, 0, 0};
             for (std::size_t a = 0; a < 3 && a < v.size(); ++a) g.origin[a] = v[a];
             for (std::size_t a = 0; a < 3 && a < v.size(); ++a)
-                if (!std::isfinite(v[a])) bad(*f, "space origin", "must be finite");
+                if (!std::isfinite(v[a])) bad(name, *f, "space origin", "must be finite");
         }
     }
-    const std::uint64_t bytes = detail::check_volume(name, g, dtype, opt.max_bytes);
-    (void)bytes;
+    return g;
+}
 
-    // encoding and endianness
-    const Field& fenc = need("encoding", "encoding");
+enum class Enc { Raw, Gzip, Ascii };
+
+Enc nrrd_encoding(const std::string& name, const Header& h) {
+    const Field& fenc = h.fields.need(name, "encoding", "encoding");
     const std::string enc = detail::lower(fenc.value);
-    enum class Enc { Raw, Gzip, Ascii } encoding = Enc::Raw;
-    if (enc == "raw")
-        encoding = Enc::Raw;
-    else if (enc == "gzip" || enc == "gz")
-        encoding = Enc::Gzip;
-    else if (enc == "ascii" || enc == "text" || enc == "txt")
-        encoding = Enc::Ascii;
-    else if (enc == "bzip2" || enc == "bz2")
-        bad(fenc, "encoding", "is not supported: re-save the file with gzip or raw encoding");
-    else if (enc == "hex")
-        bad(fenc, "encoding", "is not supported: re-save the file with gzip or raw encoding");
-    else
-        bad(fenc, "encoding", "is not a known NRRD encoding (raw, gzip, ascii)");
+    if (enc == "raw") return Enc::Raw;
+    if (enc == "gzip" || enc == "gz") return Enc::Gzip;
+    if (enc == "ascii" || enc == "text" || enc == "txt") return Enc::Ascii;
+    if (enc == "bzip2" || enc == "bz2" || enc == "hex")
+        bad(name, fenc, "encoding", "is not supported: re-save the file with gzip or raw encoding");
+    bad(name, fenc, "encoding", "is not a known NRRD encoding (raw, gzip, ascii)");
+}
 
-    bool big_endian = false;
-    if (const Field* f = find("endian")) {
+bool nrrd_big_endian(const std::string& name, const Header& h, DType dtype, Enc encoding) {
+    if (const Field* f = h.fields.get("endian")) {
         const std::string e = detail::lower(f->value);
-        if (e == "big")
-            big_endian = true;
-        else if (e != "little")
-            bad(*f, "endian", "must be 'little' or 'big'");
+        if (e == "big") return true;
+        if (e != "little") bad(name, *f, "endian", "must be 'little' or 'big'");
     } else if (dtype_size(dtype) > 1 && encoding != Enc::Ascii) {
         fail(name, std::string("missing field 'endian' (required for ") + dtype_name(dtype) + " data)");
     }
+    return false;
+}
 
-    // where the data is
-    std::unique_ptr<ByteSource> detached;
+// Where the data starts: after the header's blank line or at the start of the "data file" (opened into
+// `detached`), after "line skip" lines; "byte skip" is left to read_data.
+detail::DataLocation nrrd_data_location(const ByteSource& src, const Header& h, std::unique_ptr<ByteSource>& detached) {
+    const std::string& name = src.name();
     detail::DataLocation loc;
     loc.src = &src;
     loc.header = name;
-    if (const Field* f = find("datafile")) {
+    if (const Field* f = h.fields.get("datafile")) {
         if (detail::names_several_files(f->value))
-            bad(*f, "data file", "names several files: multi-file NRRD data is not supported");
+            bad(name, *f, "data file", "names several files: multi-file NRRD data is not supported");
         detached = src.open_sibling(f->value);
         loc.src = detached.get();
         loc.detached = true;
@@ -355,47 +371,61 @@ Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
             fail(name, "no data: the header has neither a blank line followed by data nor a 'data file' field");
         loc.offset = h.data_start;
     }
-    if (const Field* f = find("lineskip")) {
+    if (const Field* f = h.fields.get("lineskip")) {
         std::int64_t lines = 0;
-        if (!detail::parse_int(f->value, lines) || lines < 0) bad(*f, "line skip", "must be a non-negative integer");
+        if (!detail::parse_int(f->value, lines) || lines < 0)
+            bad(name, *f, "line skip", "must be a non-negative integer");
         loc.offset = detail::skip_lines(*loc.src, name, loc.offset, lines);
     }
-    std::int64_t byte_skip = 0;
-    if (const Field* f = find("byteskip")) {
-        if (!detail::parse_int(f->value, byte_skip) || byte_skip < -1) bad(*f, "byte skip", "must be -1 or more");
-        if (byte_skip == -1 && encoding != Enc::Raw) bad(*f, "byte skip", "(data at the end of the file) is only valid with raw encoding");
-    }
-    const std::uint64_t data_bytes = static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(dtype);
-    const std::uint64_t file_size = loc.src->size();
+    return loc;
+}
 
+// "byte skip": 0 when absent; -1 (raw data only) means the data are the last bytes of the file.
+std::int64_t nrrd_byte_skip(const std::string& name, const Header& h, Enc encoding) {
+    std::int64_t byte_skip = 0;
+    if (const Field* f = h.fields.get("byteskip")) {
+        if (!detail::parse_int(f->value, byte_skip) || byte_skip < -1) bad(name, *f, "byte skip", "must be -1 or more");
+        if (byte_skip == -1 && encoding != Enc::Raw)
+            bad(name, *f, "byte skip", "(data at the end of the file) is only valid with raw encoding");
+    }
+    return byte_skip;
+}
+
+Volume read_data(detail::DataLocation loc, Enc encoding, std::int64_t byte_skip, const Grid& g, DType dtype,
+                 bool big_endian) {
     switch (encoding) {
         case Enc::Raw:
-            if (byte_skip == -1) {
-                // The data are the last bytes of the file (when the file is too short, the read reports it).
-                if (data_bytes <= file_size - std::min(loc.offset, file_size)) loc.offset = file_size - data_bytes;
-            } else {
-                const auto skip = static_cast<std::uint64_t>(byte_skip);
-                if (skip > file_size - std::min(loc.offset, file_size))
-                    fail(detail::data_subject(loc), "byte skip " + with_commas(skip) +
-                                                        " runs past the end of the data (" + with_commas(file_size) +
-                                                        " bytes)");
-                loc.offset += skip;
-            }
+            detail::skip_to_data(loc, byte_skip, "byte skip", g, dtype);
             return detail::read_raw_voxels(loc, g, dtype, big_endian);
         case Enc::Gzip: {
+            const std::uint64_t file_size = loc.src->size();
             if (loc.offset > file_size) fail(detail::data_subject(loc), "no compressed data after the header");
             return detail::read_compressed_voxels(loc, file_size - loc.offset, static_cast<std::uint64_t>(byte_skip), g,
                                                   dtype, big_endian);
         }
-        case Enc::Ascii: {
-            const auto skip = static_cast<std::uint64_t>(byte_skip);
-            if (skip > file_size - std::min(loc.offset, file_size))
-                fail(detail::data_subject(loc), "byte skip " + with_commas(skip) + " runs past the end of the data");
-            loc.offset += skip;
+        case Enc::Ascii:
+            detail::skip_to_data(loc, byte_skip, "byte skip", g, dtype);
             return detail::read_ascii_voxels(loc, g, dtype);
-        }
     }
-    fail(name, "unreachable encoding");
+    fail(loc.header, "unreachable encoding");
+}
+
+}  // namespace
+
+Volume read_nrrd(const ByteSource& src, const ReadOptions& opt) {
+    const std::string& name = src.name();
+    const Header h = read_header(src);
+    const DType dtype = nrrd_dtype(name, h);
+    std::vector<Axis> axes = nrrd_sizes(name, h);
+    nrrd_spacings(name, h, axes);
+    const bool have_mins = nrrd_mins_and_kinds(name, h, axes);
+    const Grid g = nrrd_grid(name, h, spatial_axes(name, axes), have_mins);
+    detail::check_volume(name, g, dtype, opt.max_bytes);
+    const Enc encoding = nrrd_encoding(name, h);
+    const bool big_endian = nrrd_big_endian(name, h, dtype, encoding);
+    std::unique_ptr<ByteSource> detached;
+    const detail::DataLocation loc = nrrd_data_location(src, h, detached);
+    return read_data(loc, encoding, nrrd_byte_skip(name, h, encoding), g, dtype, big_endian);
 }
 
 void write_nrrd(const std::string& path, const VolumeView& v, bool gzip) {

@@ -11,7 +11,7 @@
 //
 // Transform: a linear transform whose index (i, j, k) maps to origin + spacing * (i, j, k) (createLinearTransform
 // with the per-axis scale, then postTranslate(origin)). OpenVDB (and Blender's volume import) put voxel centres at
-// integer index coordinates, so voxel (x, y, z) of the array is centred at the world position DESIGN.md gives it.
+// integer index coordinates, so voxel (x, y, z) of the array is centred at the world position docs/DESIGN.md gives it.
 // Background 0; exactly the non-zero voxels are active; a leaf-sized 8^3 block whose 512 voxels are all non-zero and
 // equal is stored as an active tile (as openvdb::tools::copyFromDense does).
 //

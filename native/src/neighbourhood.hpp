@@ -1,4 +1,4 @@
-// The 26-neighbourhood of a voxel (ALGORITHMS.md §1): 6 face (F), 12 edge (E), 8 vertex (V) neighbours.
+// The 26-neighbourhood of a voxel (docs/ALGORITHMS.md §1): 6 face (F), 12 edge (E), 8 vertex (V) neighbours.
 // Internal to the core; one definition shared by the chamfer transform, the thinness score and labelling.
 #pragma once
 

@@ -3,11 +3,6 @@
 #include <cmath>
 #include <sstream>
 
-#include <sys/mman.h>
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 namespace volrig {
 
 std::size_t dtype_size(DType t) {
@@ -50,10 +45,6 @@ DType dtype_from_name(const std::string& n) {
     throw Error("unsupported element type '" + n + "'");
 }
 
-void report(const Progress& progress, double fraction) {
-    if (progress && !progress(fraction)) throw Cancelled("cancelled");
-}
-
 void check_grid(const Grid& g, std::size_t element_size, std::uint64_t max_bytes, const std::string& what) {
     for (int a = 0; a < 3; ++a) {
         if (g.dims[a] <= 0) {
@@ -78,90 +69,6 @@ void check_grid(const Grid& g, std::size_t element_size, std::uint64_t max_bytes
           << " bytes (raise max_bytes if this is intended)";
         throw Error(s.str());
     }
-}
-
-}  // namespace volrig
-
-// ---- ZeroedPool ---------------------------------------------------------------------------------------------
-
-namespace volrig {
-
-namespace {
-constexpr std::size_t kPage = 4096;
-}
-
-ZeroedPool::Slab::~Slab() {
-    if (p) munmap(p, bytes);
-}
-
-std::shared_ptr<ZeroedPool> ZeroedPool::create(std::size_t keep) {
-    return std::shared_ptr<ZeroedPool>(new ZeroedPool(keep));
-}
-
-ZeroedPool::~ZeroedPool() = default;
-
-ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
-    std::unique_ptr<Slab> s;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        std::size_t best = free_.size();
-        for (std::size_t k = 0; k < free_.size(); ++k)
-            if (free_[k]->bytes >= bytes && (best == free_.size() || free_[k]->bytes < free_[best]->bytes)) best = k;
-        if (best < free_.size()) {
-            s = std::move(free_[best]);
-            free_.erase(free_.begin() + static_cast<std::ptrdiff_t>(best));
-        }
-    }
-    if (s) {  // re-zero the granules written since it was handed out, a run of them at a time
-        char* base = static_cast<char*>(s->p);
-        std::atomic<std::uint8_t>* flags = s->written.get();
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s->bytes / kZeroGranule, 65536),
-                          [&](const tbb::blocked_range<std::size_t>& rg) {
-                              for (std::size_t k = rg.begin(); k != rg.end();) {
-                                  if (!flags[k].load(std::memory_order_relaxed)) {
-                                      ++k;
-                                      continue;
-                                  }
-                                  std::size_t e = k;
-                                  for (; e != rg.end() && flags[e].load(std::memory_order_relaxed); ++e)
-                                      flags[e].store(0, std::memory_order_relaxed);
-                                  std::memset(base + k * kZeroGranule, 0, (e - k) * kZeroGranule);
-                                  k = e;
-                              }
-                          });
-        return s.release();
-    }
-    // Fresh memory, with headroom: the frames of a sequence differ in size, and pages never written cost nothing.
-    const std::size_t cap = (bytes + bytes / 4 + kPage - 1) / kPage * kPage;
-    void* p = mmap(nullptr, cap, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    s = std::make_unique<Slab>();
-    s->p = p;
-    s->bytes = cap;
-    s->written.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
-    return s.release();
-}
-
-void ZeroedPool::give_back(const std::weak_ptr<ZeroedPool>& pool, Slab* s) {
-    std::unique_ptr<Slab> owned(s);
-    if (auto p = pool.lock()) {
-        std::lock_guard<std::mutex> lock(p->mutex_);
-        p->free_.push_back(std::move(owned));
-        if (p->free_.size() > p->keep_) p->free_.erase(p->free_.begin());  // the oldest goes
-    }
-}
-
-void ZeroedPool::trim() {
-    std::vector<std::unique_ptr<Slab>> gone;
-    std::lock_guard<std::mutex> lock(mutex_);
-    gone.swap(free_);
-}
-
-std::size_t ZeroedPool::kept_bytes() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::size_t n = 0;
-    for (const auto& s : free_) n += s->bytes;
-    return n;
 }
 
 }  // namespace volrig

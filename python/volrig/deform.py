@@ -1,4 +1,4 @@
-"""Per-frame sampled reconstruction: ``Deformer``, ``deform`` and ``Frame`` (ALGORITHMS.md §7).
+"""Per-frame sampled reconstruction: ``Deformer``, ``deform`` and ``Frame`` (docs/ALGORITHMS.md §7).
 
 Every skeleton point is a sphere bound to bones. Given one rest-to-pose matrix per bone, each output voxel covered
 by a moved sphere takes the source value at the inverse-transformed position, from the covering sphere that wins

@@ -1,4 +1,4 @@
-"""The articulated skeleton: ``Rig``, ``autorig`` and ``bind`` (ALGORITHMS.md §6).
+"""The articulated skeleton: ``Rig``, ``autorig`` and ``bind`` (docs/ALGORITHMS.md §6).
 
 ``autorig`` reduces a skeleton-tree to a small set of joints and bones (spurs pruned, joints at branch points,
 end points and bends), naming bones by role when the shape is humanoid- or quadruped-like (Rigify's names: hips,

@@ -1,4 +1,4 @@
-"""The skeleton-tree: skeleton points joined by edges that stay inside the object (ALGORITHMS.md §5).
+"""The skeleton-tree: skeleton points joined by edges that stay inside the object (docs/ALGORITHMS.md §5).
 
 An edge i-j exists only when |i - j| <= E and every voxel of the discrete 3D line between them is an object voxel;
 it weighs alpha * |i - j| + (1 - alpha) * |r_i - r_j|. The tree is the minimum spanning forest of that graph

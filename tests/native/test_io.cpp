@@ -603,6 +603,65 @@ TEST_CASE("NRRD: bad headers name the file and the problem", "[io][nrrd][errors]
     err(bytes("NRRD0004\n") + Bytes(2 << 20, 'a'), {"bad.nrrd", "longer than 1 MiB"});
 }
 
+TEST_CASE("NRRD: per-axis fields give one entry per axis", "[io][nrrd][errors]") {
+    auto hdr = [](const std::string& fields) {
+        return bytes("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 1 1\n" + fields + "encoding: raw\n\n") + Bytes{7, 9};
+    };
+    auto err = [&](const std::string& fields, std::initializer_list<std::string> parts) {
+        expect_error([&] { read_mem(read_nrrd, hdr(fields), "axes.nrrd"); }, parts);
+    };
+    err("spacings: 1 1\n", {"axes.nrrd", "line 5", "spacings '1 1'", "one number per axis (3)"});
+    err("spacings: 1 x 1\n", {"axes.nrrd", "spacings '1 x 1'", "must be numbers"});
+    err("axis mins: 0 0\n", {"axes.nrrd", "axis mins '0 0'", "one number per axis (3)"});
+    err("axis mins: 0 y 0\n", {"axes.nrrd", "axis mins '0 y 0'", "must be numbers"});
+    err("kinds: domain domain\n", {"axes.nrrd", "kinds 'domain domain'", "one kind per axis (3)"});
+    expect_error([&] {
+        read_mem(read_nrrd, bytes("NRRD0004\ntype: uchar\ndimension: 2\nsizes: 1 1\nkinds: vector vector\n"
+                                  "encoding: raw\n\n") + Bytes{1},
+                 "axes.nrrd");
+    }, {"axes.nrrd", "no spatial axes"});
+
+    // Well-formed: the axis mins give the origin, a unit component axis is dropped, spacings keep their magnitude.
+    const Volume v = read_mem(read_nrrd, hdr("axis mins: 5 6 7\nspacings: -0.5 2 3\n"), "axes.nrrd");
+    CHECK(v.grid.dims == std::array<std::int64_t, 3>{2, 1, 1});
+    CHECK(v.grid.origin == std::array<double, 3>{5, 6, 7});
+    CHECK(v.grid.spacing == std::array<double, 3>{0.5, 2, 3});
+    CHECK(v.data == std::vector<std::uint8_t>{7, 9});
+    const Bytes comp = bytes("NRRD0004\ntype: uchar\ndimension: 4\nsizes: 1 2 1 1\nkinds: vector domain domain domain\n"
+                             "encoding: raw\n\n") + Bytes{4, 8};
+    const Volume w = read_mem(read_nrrd, comp, "axes.nrrd");
+    CHECK(w.grid.dims == std::array<std::int64_t, 3>{2, 1, 1});
+    CHECK(w.data == std::vector<std::uint8_t>{4, 8});
+}
+
+TEST_CASE("NRRD and MetaImage: of several bad fields, the first in reading order is named", "[io][errors]") {
+    // NRRD: type, then dimension and sizes, per-axis fields, grid, encoding, endian, data file, skips.
+    auto nrrd = [](const std::string& fields) { return bytes("NRRD0004\n" + fields + "\n") + Bytes(8, 0); };
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: quux\ndimension: 0\nencoding: zip\n"), "o.nrrd"); },
+                 {"o.nrrd", "type 'quux'"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: uchar\ndimension: 1\nsizes: 2\nspacings: 1 1\nencoding: zip\n"),
+                                "o.nrrd"); },
+                 {"o.nrrd", "spacings"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: short\ndimension: 1\nsizes: 2\nencoding: zip\n"), "o.nrrd"); },
+                 {"o.nrrd", "encoding 'zip'"});
+    expect_error([&] { read_mem(read_nrrd, nrrd("type: short\ndimension: 1\nsizes: 2\nencoding: raw\nbyte skip: -7\n"),
+                                "o.nrrd"); },
+                 {"o.nrrd", "missing field 'endian'"});
+    // MetaImage: NDims, DimSize, ElementType, spacing and origin, encoding flags, data file.
+    auto meta = [](const std::string& fields) { return bytes(fields + "ElementDataFile = LOCAL\n") + Bytes(8, 0); };
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 3\nDimSize = 2 0 2\nElementType = MET_NONE\n"), "o.mha"); },
+                 {"o.mha", "DimSize"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_NONE\nOffset = x\n"),
+                                "o.mha"); },
+                 {"o.mha", "ElementType = 'MET_NONE'"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_UCHAR\nOffset = inf\n"
+                                                     "BinaryData = perhaps\n"), "o.mha"); },
+                 {"o.mha", "line 4", "Offset = 'inf'", "must be finite"});
+    expect_error([&] { read_mem(read_metaimage, meta("NDims = 1\nDimSize = 2\nElementType = MET_UCHAR\n"
+                                                     "BinaryData = perhaps\nHeaderSize = -3\n"), "o.mha"); },
+                 {"o.mha", "BinaryData = 'perhaps'", "True or False"});
+}
+
 TEST_CASE("NRRD: data shorter than the header says", "[io][nrrd][errors]") {
     const Bytes b = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 103 94 161\nencoding: raw\n\n" + Bytes(1000000, 3);
     expect_error([&] { read_mem(read_nrrd, b, "tooth.nrrd"); },

@@ -1,9 +1,10 @@
-// volrig/components.hpp: connected components of a mask (object voxels 26-connected, ALGORITHMS.md §1).
+// volrig/components.hpp: connected components of a mask (object voxels 26-connected, docs/ALGORITHMS.md §1).
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

@@ -31,6 +31,8 @@
 #include <string>
 #include <vector>
 
+#include "volrig/memory.hpp"
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

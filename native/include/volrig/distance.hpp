@@ -1,4 +1,4 @@
-// volrig/distance.hpp: distance transforms of a binary mask (ALGORITHMS.md §2).
+// volrig/distance.hpp: distance transforms of a binary mask (docs/ALGORITHMS.md §2).
 //
 // DT(p) = distance from object voxel p to the nearest background voxel; background voxels get 0. Voxels outside
 // the array count as background, so DT is finite everywhere and a voxel on the array border has DT of one step.
@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

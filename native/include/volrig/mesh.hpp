@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "volrig/io.hpp"
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

@@ -1,4 +1,4 @@
-// volrig/reconstruct.hpp: binary reconstruction from skeleton points (ALGORITHMS.md §4).
+// volrig/reconstruct.hpp: binary reconstruction from skeleton points (docs/ALGORITHMS.md §4).
 //
 // The ball of a point p with radius r is every voxel q with d(p, q) < r, strictly, in the point's metric:
 // Euclidean world distance (spacing honoured) or the <3,4,5> chamfer length of the grid offset. The
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "volrig/distance.hpp"
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

@@ -1,4 +1,4 @@
-// volrig/rig.hpp: the articulated skeleton (ALGORITHMS.md §6): automatic rigging from a skeleton-tree, Blender's
+// volrig/rig.hpp: the articulated skeleton (docs/ALGORITHMS.md §6): automatic rigging from a skeleton-tree, Blender's
 // rest-matrix convention, and binding skeleton points to bones.
 #pragma once
 
@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "volrig/progress.hpp"
 #include "volrig/tree.hpp"
 #include "volrig/volume.hpp"
 

@@ -1,4 +1,4 @@
-// volrig/skeleton.hpp: the thinness score and the parameter-controlled skeleton (ALGORITHMS.md §3).
+// volrig/skeleton.hpp: the thinness score and the parameter-controlled skeleton (docs/ALGORITHMS.md §3).
 //
 // MNT(p) = mean of DT over the 26 neighbours of p (out-of-array and background neighbours contribute 0).
 // Score s(p) = DT(p) - MNT(p). Condition 1: p is in the skeleton at thinness TP iff s(p) > TP. The object voxels
@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "volrig/distance.hpp"
+#include "volrig/memory.hpp"
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

@@ -1,4 +1,4 @@
-// volrig/tree.hpp: the skeleton-tree (ALGORITHMS.md §5).
+// volrig/tree.hpp: the skeleton-tree (docs/ALGORITHMS.md §5).
 //
 // Skeleton points are connected by edges that stay inside the object: an edge i-j exists only when every voxel of
 // the discrete 3D line from i to j is an object voxel and |i - j| <= E (the maximum edge length). Each edge weighs
@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {

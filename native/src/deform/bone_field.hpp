@@ -1,6 +1,6 @@
 // deform/bone_field.hpp: one bone's rest data, built once per rig: its spheres in k-d order with a k-d tree, and on
 // the lattice near them the power diagram's labels, each cube's quantised power range and its corner power, in
-// allocated 8³ blocks (docs/ALGORITHMS.md, deformation: "How it is fast").
+// allocated 8³ blocks (docs/ALGORITHMS.md §7).
 #pragma once
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // deform/common.hpp: what every deformation stage shares: constants, the one distance expression, and the two
-// rules every tier decides by (docs/ALGORITHMS.md, deformation).
+// rules every tier decides by (docs/ALGORITHMS.md §7).
 #pragma once
 
 #include <array>

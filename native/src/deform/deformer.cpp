@@ -1,5 +1,5 @@
 // deform/deformer.cpp: the Deformer: per-rig fields built once, and per frame the outline of the algorithm
-// (docs/ALGORITHMS.md, deformation): motions, output box, gather, crop.
+// (docs/ALGORITHMS.md §7): motions, output box, gather, crop.
 #include <limits>
 #include <string>
 
