@@ -451,3 +451,34 @@ TEST_CASE("the output box holds exactly the posed balls' lattice points; candida
     CHECK(f.grid.origin[1] == Approx(rs.grid.origin[1] + 3 * rs.grid.spacing[1]));
     CHECK_THROWS_WITH(box_of({0, 0, 0}, {3000, 3000, 3000}), Catch::Contains("more than 2^31"));
 }
+
+TEST_CASE("rebind rebuilds only the fields whose spheres changed, and frames stay equal to a fresh Deformer's", "[deform][stages]") {
+    RandomSpheres rs(61, 90);
+    std::vector<std::uint8_t> samples(static_cast<std::size_t>(rs.grid.voxel_count()));
+    for (std::size_t i = 0; i < samples.size(); ++i) samples[i] = static_cast<std::uint8_t>(i * 37 % 251);
+    const VolumeView v{rs.grid, DType::UInt8, samples.data()};
+    for (std::size_t i = 0; i < rs.bone.size(); ++i) rs.bone[i] = static_cast<std::int32_t>(i % 3);
+    BoundSpheres s = rs.spheres();
+    s.bone_count = 3;
+    std::vector<double> mats;
+    for (double deg : {0.0, 20.0, -35.0}) {
+        const auto m = rotation_z(deg, {1.0, 0.5, -0.5});
+        mats.insert(mats.end(), m.begin(), m.end());
+    }
+    Deformer d(v, s);
+    const DeformOptions o;
+    d.frame(mats.data(), o);
+    CHECK(d.reused_fields() == 0);
+    for (std::size_t i = 0; i < rs.bone.size(); i += 9)  // "repaint": some of bone 0's spheres go to bone 1
+        if (rs.bone[i] == 0) rs.bone[i] = 1;
+    d.rebind(s);
+    const DeformedVolume a = d.frame(mats.data(), o);
+    CHECK(d.reused_fields() == 1);  // bone 2's field is taken over
+    Deformer fresh(v, s);
+    const DeformedVolume b = fresh.frame(mats.data(), o);
+    REQUIRE(a.grid.dims == b.grid.dims);
+    CHECK(std::equal(a.bone.data(), a.bone.data() + a.bone.size(), b.bone.data()));
+    CHECK(std::equal(a.values.data(), a.values.data() + a.values.size(), b.values.data()));
+    rs.radius[0] += 1;
+    CHECK_THROWS_WITH(d.rebind(s), Catch::Contains("make a new Deformer"));
+}

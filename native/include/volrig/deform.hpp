@@ -109,6 +109,13 @@ public:
     DeformedVolume frame(BoneMatrices matrices, const DeformOptions& options, const Progress& progress = {},
                          const std::array<std::int64_t, 6>* box = nullptr);
 
+    /// Replaces the binding of the same spheres (same count, centres and radii; bones and weights may change). The
+    /// next frame rebuilds only the fields whose spheres changed: repainting one bone's weights rebuilds the fields
+    /// of the bones (and blend groups) whose spheres moved, not the whole rig.
+    void rebind(const BoundSpheres& spheres);
+    /// How many fields the last build took over from the build before (the rest were built anew).
+    std::size_t reused_fields() const;
+
     std::size_t bone_count() const;
     std::size_t sphere_count() const;
     /// Bytes held by the per-rig data currently built (per-cube power ranges, labels and corner powers, k-d trees,

@@ -1,6 +1,8 @@
 // deform/deformer.cpp: the Deformer: per-rig fields built once, and per frame the outline of the algorithm
 // (docs/ALGORITHMS.md §7): motions, output box, gather, crop.
+#include <algorithm>
 #include <limits>
+#include <map>
 #include <string>
 
 #include "deform/bone_field.hpp"
@@ -16,6 +18,9 @@ namespace volrig {
 using namespace deform_detail;
 
 namespace {
+
+/// What a field stands for: a bone (weights empty), or a blend group (its owner and rounded weights).
+using FieldKey = std::pair<std::int32_t, Weights>;
 
 /// The enum value whose name (in `names`, enum order) is `name`; throws listing the names otherwise.
 template <class E, std::size_t N>
@@ -50,8 +55,12 @@ struct Deformer::Impl {
     bool built = false, built_smooth = false;
     std::vector<float> built_scale;
     // Fields: one per bone (its rigid spheres), then, in smooth modes, one per group of spheres whose rounded
-    // weights agree (they share one blended transform).
+    // weights agree (they share one blended transform). A field is identified by its key (its bone, or its group's
+    // owner and weights) and its members; a rebuild takes over every field whose key and members are unchanged.
     std::vector<BoneField> fields;
+    std::vector<FieldKey> field_keys;
+    std::vector<std::vector<std::uint32_t>> field_members;
+    std::size_t reused = 0;
     std::vector<std::int32_t> field_owner;  // the bone each field's voxels are labelled with
     SmoothGroups groups;                    // fields from bone_count on are its groups, in order
     std::int64_t blended_spheres = 0;
@@ -59,6 +68,7 @@ struct Deformer::Impl {
     double bound_step = 1;                  // the quantum of the fields' power bounds
 
     BoundSpheres view() const;
+    void set_binding(const BoundSpheres& s);
     /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
     double threshold() const {
         const auto& sp = grid.spacing;
@@ -66,6 +76,7 @@ struct Deformer::Impl {
     }
     std::vector<std::vector<std::uint32_t>> partition(bool smooth);
     void build(bool smooth, const DeformOptions& o, const Progress& progress);
+    std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
     DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress, const Box* fixed_box);
 };
@@ -83,6 +94,20 @@ BoundSpheres Deformer::Impl::view() const {
         s.weights = weights.data();
     }
     return s;
+}
+
+/// Copies the spheres' bones and weights.
+void Deformer::Impl::set_binding(const BoundSpheres& s) {
+    bone.assign(s.bone, s.bone + s.n);
+    has_weights = s.weight_offsets != nullptr;
+    weight_offsets.clear();
+    weight_bones.clear();
+    weights.clear();
+    if (!has_weights) return;
+    weight_offsets.assign(s.weight_offsets, s.weight_offsets + s.n + 1);
+    const auto nnz = static_cast<std::size_t>(s.weight_offsets[s.n]);
+    weight_bones.assign(s.weight_bones, s.weight_bones + nnz);
+    weights.assign(s.weights, s.weights + nnz);
 }
 
 /// The spheres of each field: per bone its rigid spheres, then (smooth) per group its blended ones.
@@ -108,21 +133,45 @@ std::vector<std::vector<std::uint32_t>> Deformer::Impl::partition(bool smooth) {
     return members;
 }
 
+/// The fields of the last build when the radii are unchanged (their data stays valid), indexed by key; else none.
+std::vector<BoneField> Deformer::Impl::take_reusable(const std::vector<double>& new_radii,
+                                                     std::map<FieldKey, std::size_t>& index) {
+    std::vector<BoneField> old;
+    if (fields.empty() || new_radii != radii) return old;
+    old = std::move(fields);
+    for (std::size_t j = 0; j < field_keys.size(); ++j) index.emplace(field_keys[j], j);
+    return old;
+}
+
 void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& progress) {
     if (built && built_smooth == smooth && built_scale == o.radius_scale) return;
     built = false;
+    std::vector<double> new_radii = scaled_radii(view(), o);
+    std::map<FieldKey, std::size_t> old_index;
+    std::vector<BoneField> old = take_reusable(new_radii, old_index);
+    std::vector<std::vector<std::uint32_t>> old_members = std::move(field_members);
     fields.clear();
-    radii = scaled_radii(view(), o);
-    const auto members = partition(smooth);
+    radii = std::move(new_radii);
+    field_members = partition(smooth);
+    field_keys.clear();
+    for (std::size_t b = 0; b < bone_count; ++b) field_keys.push_back({static_cast<std::int32_t>(b), {}});
+    for (std::size_t k = 0; k < groups.weights.size(); ++k) field_keys.push_back({groups.owner[k], groups.weights[k]});
     const double T = threshold();
     // One quantum for every field's power bounds (they are compared across fields as integers).
     double maxlim = 0;
     for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
     bound_step = (maxlim + 4 * T) / 30000.0;
-    fields.reserve(members.size());
-    for (std::size_t f = 0; f < members.size(); ++f) {
-        fields.push_back(build_bone_field(grid, view(), members[f], radii, T, bound_step));
-        report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(members.size()));
+    fields.reserve(field_members.size());
+    reused = 0;
+    for (std::size_t f = 0; f < field_members.size(); ++f) {
+        const auto it = old_index.find(field_keys[f]);
+        if (it != old_index.end() && old_members[it->second] == field_members[f]) {
+            fields.push_back(std::move(old[it->second]));
+            ++reused;
+        } else {
+            fields.push_back(build_bone_field(grid, view(), field_members[f], radii, T, bound_step));
+        }
+        report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
     }
     built = true;
     built_smooth = smooth;
@@ -170,17 +219,23 @@ Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl
     m.bone_count = spheres.bone_count;
     m.ijk.assign(spheres.ijk, spheres.ijk + 3 * spheres.n);
     m.radius.assign(spheres.radius, spheres.radius + spheres.n);
-    m.bone.assign(spheres.bone, spheres.bone + spheres.n);
-    if (spheres.weight_offsets) {
-        m.has_weights = true;
-        m.weight_offsets.assign(spheres.weight_offsets, spheres.weight_offsets + spheres.n + 1);
-        const auto nnz = static_cast<std::size_t>(spheres.weight_offsets[spheres.n]);
-        m.weight_bones.assign(spheres.weight_bones, spheres.weight_bones + nnz);
-        m.weights.assign(spheres.weights, spheres.weights + nnz);
-    }
+    m.set_binding(spheres);
 }
 
 Deformer::~Deformer() = default;
+
+void Deformer::rebind(const BoundSpheres& spheres) {
+    Impl& m = *impl_;
+    check_spheres(m.grid, spheres);
+    if (spheres.n != m.n || spheres.bone_count != m.bone_count || !std::equal(m.ijk.begin(), m.ijk.end(), spheres.ijk) ||
+        !std::equal(m.radius.begin(), m.radius.end(), spheres.radius))
+        throw Error("rebind: the spheres or the bone count differ from the Deformer's (only bones and weights may "
+                    "change): make a new Deformer");
+    m.set_binding(spheres);
+    m.built = false;  // the next frame rebuilds what changed
+}
+
+std::size_t Deformer::reused_fields() const { return impl_->reused; }
 
 std::size_t Deformer::bone_count() const { return impl_->bone_count; }
 std::size_t Deformer::sphere_count() const { return impl_->n; }
