@@ -1,5 +1,6 @@
-"""Operators: thin over the volrig package. Each reports user mistakes (bad files, empty segmentations, missing
-rigs) in the UI instead of raising, is undoable, and never writes to the user's source file."""
+"""Operators: thin over the volrig package, whose pipeline (``volrig.pipeline``) does every step. Each reports
+user mistakes (volrig's own errors: bad files, empty segmentations, missing rigs; and OSError) in the UI instead
+of raising, lets anything else (a bug) raise, is undoable, and never writes to the user's source file."""
 import os
 import uuid
 
@@ -9,14 +10,16 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntVecto
 from bpy_extras.io_utils import ImportHelper
 
 import volrig
-from volrig.volume import FORMATS
+from volrig import pipeline
+from volrig.volume import FORMATS, format_of
 
 from . import bake as baking
 from . import materials, mocap, objects, scans
 from .properties import UNIT_FACTOR, UNIT_SCALES
 
-#: What a user mistake or a bad file raises; reported in the UI, never as a traceback.
-USER_ERRORS = (ValueError, KeyError, IndexError, OSError, RuntimeError, volrig.VolrigError, volrig.Cancelled)
+#: What a user mistake or a bad file raises (volrig.Cancelled and volrig.FileFormatError are VolrigErrors); reported
+#: in the UI, never as a traceback. Other exceptions are bugs and propagate.
+USER_ERRORS = (volrig.VolrigError, OSError)
 
 
 def _reported(method):
@@ -46,8 +49,8 @@ def _active_volume(context):
 
 
 class _ProgressBar:
-    """The window manager's progress bar (0..100) for a with-block; ``part(start, end)`` is a volrig progress
-    callback mapped onto [start, end]."""
+    """The window manager's progress bar (0..100) for a with-block; ``steps(spans)`` reports a pipeline's steps
+    each on its part of the bar."""
 
     def __init__(self, context):
         self.wm = context.window_manager
@@ -59,8 +62,10 @@ class _ProgressBar:
     def __exit__(self, *exc):
         self.wm.progress_end()
 
-    def part(self, start: float, end: float):
-        def show(f):
+    def steps(self, spans):
+        """A pipeline StepProgress: step name -> its (start, end) span of the bar."""
+        def show(step, f):
+            start, end = spans[step]
             self.wm.progress_update(start + (end - start) * float(f))
             return True
         return show
@@ -113,18 +118,10 @@ class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"{path}: no such file")
-        if volrig.volume.format_of(path) == "raw":
-            if min(self.raw_dims) <= 0:
-                raise ValueError(f"{os.path.basename(path)}: a raw file needs its size (Raw size x, y, z)")
-            vol = volrig.load(path, dims=tuple(self.raw_dims), dtype=self.raw_dtype, spacing=tuple(self.raw_spacing),
-                              byte_order="big" if self.raw_big_endian else "little")
-        else:
-            vol = volrig.load(path, grid=self.grid)
-        samples = vol.array.astype(np.float32, copy=False)
-        finite = np.isfinite(samples)
-        if not finite.all():
-            samples = np.where(finite, samples, np.float32(0))
-        vol = volrig.Volume(samples, vol.spacing, vol.origin)
+        raw = format_of(path) == "raw" and min(self.raw_dims) > 0
+        vol = pipeline.float_samples(pipeline.load_source(
+            path, dims=tuple(self.raw_dims) if raw else None, dtype=self.raw_dtype, spacing=tuple(self.raw_spacing),
+            big_endian=self.raw_big_endian, grid=self.grid))
         scale = self.custom_scale if self.unit == "CUSTOM" else UNIT_FACTOR[self.unit]
         base = self.name or os.path.basename(path).split(".")[0] or "volume"
         obj = import_samples(context, vol, base, scale, source=path)
@@ -148,17 +145,11 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     s.source, s.cache_dir = source, rel
     scans.remember_source(obj, vol)
     s.dims, s.spacing, s.origin = vol.dims, vol.spacing, vol.origin
-    a = vol.array
-    s.value_min, s.value_max = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
-    nonzero = a[a != 0]
-    s.low = float(np.percentile(nonzero, 5)) if nonzero.size else 1.0
-    s.high = s.value_max
-    s.preset = "SOFT_TISSUE"
-    if _looks_like_labels(a):
-        s.preset, s.sampling, s.segment_by = "LABELS", "nearest", "LABELS"
-        s.labels = f"1-{int(s.value_max)}"
-    extent = max(np.asarray(vol.dims) * np.asarray(vol.spacing)) * unit_scale
-    s.density_scale = round(40.0 / max(extent, 1e-6), 3)
+    d = pipeline.import_defaults(vol, unit_scale)
+    s.value_min, s.value_max, s.low, s.high = d.value_min, d.value_max, d.low, d.high
+    s.preset, s.sampling, s.density_scale = "LABELS" if d.label_map else "SOFT_TISSUE", d.sampling, d.density_scale
+    if d.label_map:
+        s.segment_by, s.labels = "LABELS", d.labels
     scans.update_mask_count(obj)
     materials.update_volume_material(obj)
     for o in context.view_layer.objects:
@@ -166,15 +157,6 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     obj.select_set(True)
     context.view_layer.objects.active = obj
     return obj
-
-
-def _looks_like_labels(a: np.ndarray) -> bool:
-    """A label map: a few small non-negative integers numbered from about 1 up (not a scan's intensity levels)."""
-    if not a.size:
-        return False
-    some = np.unique(a[:: max(1, a.shape[0] // 32)])
-    return bool(len(some) <= 64 and some.min() >= 0 and np.array_equal(some, np.round(some))
-                and 3 < some.max() <= 2 * len(some) + 8)
 
 
 class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
@@ -188,8 +170,6 @@ class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
         vol = _active_volume(context)
         mask = scans.mask(vol)
         count = int(np.count_nonzero(mask.array))
-        if not count:
-            raise ValueError("the segmentation is empty: widen the range or pick other labels")
         objects.update_mask_preview(vol, mask)
         vol.volrig.mask_count = count
         self.report({"INFO"}, f"volrig: mask of {count:,} voxels shown as {vol.name}_mask")
@@ -206,12 +186,16 @@ class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
         vol = _active_volume(context)
         with _ProgressBar(context) as bar:
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=bar.part(0, 100))
+            sk = scans.skeleton(vol, progress=bar.steps({"skeletonize": (0, 100)}))
         vol.volrig.mask_count = int(np.count_nonzero(mask.array))
         objects.update_skeleton_preview(vol)
         self.report({"INFO"}, f"volrig: {sk.object_count:,} object voxels; {vol.volrig.point_count:,} skeleton points "
                               f"at thinness {vol.volrig.thinness:g}")
         return {"FINISHED"}
+
+
+#: The Rig button's progress bar: each pipeline step's share.
+_RIG_STEPS = {"skeletonize": (0, 30), "skeleton-tree": (30, 55), "autorig": (55, 85), "bind": (85, 100)}
 
 
 class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
@@ -225,23 +209,20 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         vol = _active_volume(context)
         s = vol.volrig
         with _ProgressBar(context) as bar:
+            progress = bar.steps(_RIG_STEPS)
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=bar.part(0, 30))
-            pts = sk.at(scans.thinness(vol))
-            if len(pts) < 2:
-                raise ValueError(f"only {len(pts)} skeleton point(s) at thinness {s.thinness:g}: lower the thinness")
-            tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=bar.part(30, 55))
-            rig = volrig.autorig(pts, tree, mask, bones=s.bones, roles=s.roles, progress=bar.part(55, 85))
-            binding = volrig.bind(pts, rig, mask, mode=s.bind_mode, progress=bar.part(85, 100))
-        _save_rig(vol, pts, tree, rig, binding)
-        rig_obj = objects.build_armature(vol, rig)
-        objects.build_spheres(vol, rig_obj, pts, tree, binding)
+            pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
+            r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
+                                      progress=progress)
+        _save_rig(vol, r.points, r.tree, r.rig, r.binding)
+        rig_obj = objects.build_armature(vol, r.rig)
+        objects.build_spheres(vol, rig_obj, r.points, r.tree, r.binding)
         objects.attach_volume(vol, rig_obj)
         preview = objects.members(vol).get("SKELETON")
         if preview is not None:
             preview.hide_set(True)
         materials.update_volume_material(vol)
-        self.report({"INFO"}, f"volrig: {rig.kind} rig of {len(rig)} bones on {len(pts):,} spheres")
+        self.report({"INFO"}, f"volrig: {r.rig.kind} rig of {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
 
@@ -269,7 +250,7 @@ class VOLRIG_OT_rebind(bpy.types.Operator):
         vol = _active_volume(context)
         parts = objects.members(vol)
         if "SPHERES" not in parts:
-            raise ValueError(f"{vol.name} has no sphere mesh: press Rig")
+            raise volrig.VolrigError(f"{vol.name} has no sphere mesh: press Rig")
         if context.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")  # edit bones reach the armature on leaving edit mode
         saved = volrig.load_rig(scans.rig_path(vol))
@@ -427,24 +408,21 @@ class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
     def execute(self, context):
         vol = _rigged_volume(context)
         if vol is None:
-            raise ValueError("select a rigged volrig volume (press Rig first)")
+            raise volrig.VolrigError("select a rigged volrig volume (press Rig first)")
         rig_obj = objects.members(vol)["RIG"]
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"{path}: no such file")
         motion = volrig.read_bvh(path)
-        last = self.last or motion.frame_count
-        if not 1 <= self.first <= last <= motion.frame_count:
-            raise ValueError(f"{os.path.basename(path)} has frames 1-{motion.frame_count}; "
-                             f"asked for {self.first}-{last}")
+        frames = pipeline.clip_frames(motion.frame_count, f"{self.first}-{self.last or motion.frame_count}",
+                                      self.step, anchor=self.first, what=os.path.basename(path))
         rig = objects.armature_rig(rig_obj)
         bone_map = mocap.stored_bone_map(vol, motion)
         if bone_map is None:
             bone_map = volrig.default_bone_map(motion, rig)
             mocap.store_bone_map(vol, motion, bone_map)  # shown (and editable) even if the retarget fails
-        frames = np.arange(self.first - 1, last, self.step)
-        matrices = volrig.animate(rig, motion, frames=frames, bone_map=bone_map, root_motion=self.root_motion,
-                                  up_axis=self.up_axis)
+        _, matrices = pipeline.mocap_poses(rig, motion, frames, bone_map, root_motion=self.root_motion,
+                                           up_axis=self.up_axis)
         mocap.key_pose(rig_obj, rig, matrices, self.frame_start + np.arange(len(frames)))
         vol.volrig.bvh_file = path
         scene = context.scene

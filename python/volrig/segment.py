@@ -6,6 +6,7 @@ from typing import Iterable, Optional
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .volume import Volume
 
 
@@ -22,9 +23,9 @@ def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = No
     a = volume.array
     for name, v in (("lo", lo), ("hi", hi)):
         if v is not None and not np.isfinite(v):
-            raise ValueError(f"{name} must be finite, got {v}")
+            raise VolrigError(f"{name} must be finite, got {v}")
     if lo is not None and hi is not None and lo > hi:
-        raise ValueError(f"lo ({lo}) is above hi ({hi})")
+        raise VolrigError(f"lo ({lo}) is above hi ({hi})")
     mask = None
     if lo is not None:
         mask = a >= lo
@@ -33,7 +34,7 @@ def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = No
     if labels is not None:
         labels = np.asarray(list(labels))
         if labels.size == 0:
-            raise ValueError("labels is empty")
+            raise VolrigError("labels is empty")
         m = np.isin(a, labels)
         mask = m if mask is None else (mask & m)
     if mask is None:

@@ -13,6 +13,11 @@ from mathutils import Euler
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+def _cli_env():
+    """``python -m volrig`` finding the add-on as an importable package (as an installed one would be)."""
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(os.path.join(REPO, d) for d in ("python", "addon")))
+
+
 def _members(vol):
     from volrig_addon.objects import members
     return members(vol)
@@ -144,7 +149,7 @@ def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     for f in (1, 2, 3):
         os.remove(bake.frame_path(vol, f))
-    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    env = _cli_env()
     out = subprocess.run(["/usr/bin/python3", "-m", "volrig", "bake", blend, "--frames", "1-3"], env=env,
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout + out.stderr
@@ -157,7 +162,7 @@ def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
 def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
     blend = str(tmp_path / "plain.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
-    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    env = _cli_env()
     run = ["/usr/bin/python3", "-m", "volrig", "bake"]
     out = subprocess.run(run + [blend], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]
