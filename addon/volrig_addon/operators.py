@@ -71,13 +71,29 @@ class _ProgressBar:
         return show
 
 
+def _rigged_volume(context):
+    vol = _active_volume(context)
+    return vol if vol is not None and "RIG" in objects.members(vol) else None
+
+
 class _OnVolume:
-    """Operators on the active object's volrig volume, in object mode."""
+    """Undoable operators on the active object's volrig volume, offered in the context modes ``modes`` (None: any)
+    and, when ``rigged``, once the volume has a rig."""
     bl_options = {"REGISTER", "UNDO"}
+    modes = ("OBJECT",)
+    rigged = False
 
     @classmethod
     def poll(cls, context):
-        return _active_volume(context) is not None and context.mode == "OBJECT"
+        return cls.volume(context) is not None and (cls.modes is None or context.mode in cls.modes)
+
+    @classmethod
+    def volume(cls, context):
+        return _rigged_volume(context) if cls.rigged else _active_volume(context)
+
+    @_reported
+    def execute(self, context):
+        return self.run(context, self.volume(context))
 
 
 class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
@@ -163,11 +179,8 @@ class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
     """Show the segmentation mask over the scan as <name>_mask (updated each time it is pressed)"""
     bl_idname = "volrig.preview_mask"
     bl_label = "Preview Mask"
-    bl_options = {"REGISTER", "UNDO"}
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         mask = scans.mask(vol)
         count = int(np.count_nonzero(mask.array))
         objects.update_mask_preview(vol, mask)
@@ -181,9 +194,7 @@ class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     bl_idname = "volrig.skeletonize"
     bl_label = "Skeletonize"
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         with _ProgressBar(context) as bar:
             mask = scans.mask(vol)
             sk = scans.skeleton(vol, progress=bar.steps({"skeletonize": (0, 100)}))
@@ -204,9 +215,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
     bl_idname = "volrig.rig"
     bl_label = "Rig"
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         s = vol.volrig
         with _ProgressBar(context) as bar:
             progress = bar.steps(_RIG_STEPS)
@@ -233,21 +242,14 @@ def _save_rig(vol, pts, tree, rig, binding) -> None:
     vol.volrig.rig_file = name
 
 
-class VOLRIG_OT_rebind(bpy.types.Operator):
+class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
     """Bind the spheres again to the armature as it is now (after moving, adding or deleting bones in edit mode);
     replaces the vertex groups"""
     bl_idname = "volrig.rebind"
     bl_label = "Rebind"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = None, True
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and "RIG" in objects.members(vol)
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         parts = objects.members(vol)
         if "SPHERES" not in parts:
             raise volrig.VolrigError(f"{vol.name} has no sphere mesh: press Rig")
@@ -264,25 +266,18 @@ class VOLRIG_OT_rebind(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_bake(bpy.types.Operator):
+class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
     """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
     bl_idname = "volrig.bake"
     bl_label = "Bake"
-    bl_options = {"REGISTER", "UNDO"}
+    modes = ("OBJECT", "POSE")
 
     force: bpy.props.BoolProperty(name="All frames", default=False,
                                   description="Bake every frame, also those whose pose did not change")
 
     _timer = None
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
         n = baking.bake(vol, context.scene, frames, vol.volrig.deform_mode, self.force, report=lambda m: None)
         self.report({"INFO"}, f"volrig: baked {n} of {len(frames)} frames (the others were up to date)")
@@ -290,7 +285,7 @@ class VOLRIG_OT_bake(bpy.types.Operator):
 
     @_reported
     def invoke(self, context, event):
-        vol = _active_volume(context)
+        vol = self.volume(context)
         self._frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
         self._baker = baking.Baker(vol, vol.volrig.deform_mode)
         self._next = 0
@@ -337,27 +332,20 @@ class VOLRIG_OT_bake(bpy.types.Operator):
             self._baker.play(context.scene)
 
 
-class VOLRIG_OT_walk_cycle(bpy.types.Operator):
+class VOLRIG_OT_walk_cycle(_OnVolume, bpy.types.Operator):
     """Keyframe a procedural walk on a humanoid rig (thighs, shins, feet, arms swing about its left-right axis)"""
     bl_idname = "volrig.walk_cycle"
     bl_label = "Add Walk Cycle"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = ("OBJECT", "POSE"), True
 
     frame_start: bpy.props.IntProperty(name="Start", default=1)
     frames: bpy.props.IntProperty(name="Frames", default=24, min=1, max=100000)
     period: FloatProperty(name="Stride", default=24.0, min=1.0, description="Frames per stride")
     amplitude: FloatProperty(name="Amplitude", default=1.0, min=0.0, soft_max=2.0, description="Angle scale")
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and "RIG" in objects.members(vol) and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
+    def run(self, context, vol):
         from mathutils import Quaternion, Vector
         from volrig.walk import walk_cycle
-        vol = _active_volume(context)
         rig_obj = objects.members(vol)["RIG"]
         axis, angles = walk_cycle(objects.armature_rig(rig_obj), self.frames, self.period, self.amplitude)
         for name, values in angles.items():
@@ -374,17 +362,12 @@ class VOLRIG_OT_walk_cycle(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _rigged_volume(context):
-    vol = _active_volume(context)
-    return vol if vol is not None and "RIG" in objects.members(vol) else None
-
-
-class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
+class VOLRIG_OT_drive_with_bvh(_OnVolume, bpy.types.Operator, ImportHelper):
     """Drive the rig with a motion capture clip (.bvh): retarget it (volrig.animate) and key every pose bone, so
     Bake and render follow. Uses the bone map in the panel when it was made for this clip's joints"""
     bl_idname = "volrig.drive_with_bvh"
     bl_label = "Drive with BVH"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = ("OBJECT", "POSE"), True
 
     filename_ext = ".bvh"
     filter_glob: StringProperty(default="*.bvh", options={"HIDDEN"})
@@ -400,15 +383,7 @@ class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
                                 description="Key every STEP-th clip frame (e.g. 5 plays a 120 fps clip at 24 fps)")
     frame_start: bpy.props.IntProperty(name="Start frame", default=1, description="Scene frame of the first key")
 
-    @classmethod
-    def poll(cls, context):
-        return _rigged_volume(context) is not None and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
-        vol = _rigged_volume(context)
-        if vol is None:
-            raise volrig.VolrigError("select a rigged volrig volume (press Rig first)")
+    def run(self, context, vol):
         rig_obj = objects.members(vol)["RIG"]
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):
@@ -436,20 +411,17 @@ class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_reset_bone_map(bpy.types.Operator):
+class VOLRIG_OT_reset_bone_map(_OnVolume, bpy.types.Operator):
     """Fill the bone map again from the names of the last clip's joints and the rig's bones"""
     bl_idname = "volrig.reset_bone_map"
     bl_label = "Map by Names"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = None, True
 
     @classmethod
     def poll(cls, context):
-        vol = _rigged_volume(context)
-        return vol is not None and bool(vol.volrig.bvh_file)
+        return super().poll(context) and bool(cls.volume(context).volrig.bvh_file)
 
-    @_reported
-    def execute(self, context):
-        vol = _rigged_volume(context)
+    def run(self, context, vol):
         motion = volrig.read_bvh(bpy.path.abspath(vol.volrig.bvh_file))
         bone_map = volrig.default_bone_map(motion, objects.armature_rig(objects.members(vol)["RIG"]))
         mocap.store_bone_map(vol, motion, bone_map)
@@ -457,19 +429,13 @@ class VOLRIG_OT_reset_bone_map(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_show_rest(bpy.types.Operator):
+class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
     """Show the imported volume again instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
     bl_label = "Show Source"
-    bl_options = {"REGISTER", "UNDO"}
+    modes = None
 
-    @classmethod
-    def poll(cls, context):
-        return _active_volume(context) is not None
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         objects.point_volume_at(vol, os.path.join(vol.volrig.cache_dir, "source.vdb"))
         return {"FINISHED"}
 
