@@ -5,6 +5,11 @@ import bpy
 from . import objects
 
 
+def _settings(panel, context):
+    """(the volrig settings of the active object's volume, the panel's layout)."""
+    return objects.volume_of(context.active_object).volrig, panel.layout
+
+
 def _props(layout, settings, *names) -> None:
     for name in names:
         layout.prop(settings, name)
@@ -18,10 +23,6 @@ class _VolrigPanel:
     @classmethod
     def poll(cls, context):
         return objects.volume_of(context.active_object) is not None
-
-    def settings(self, context):
-        """(the volrig settings of the active object's volume, the layout)."""
-        return objects.volume_of(context.active_object).volrig, self.layout
 
 
 class VOLRIG_PT_volume(_VolrigPanel, bpy.types.Panel):
@@ -54,7 +55,7 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
     bl_label = "Segment"
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         layout.prop(s, "segment_by", expand=True)
         if s.segment_by == "RANGE":
             row = layout.row(align=True)
@@ -72,7 +73,7 @@ class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):
     bl_label = "Skeleton"
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         layout.prop(s, "metric")
         layout.operator("volrig.skeletonize", icon="OUTLINER_OB_POINTCLOUD")
         layout.prop(s, "thinness", slider=True)
@@ -85,7 +86,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
     bl_label = "Rig"
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         vol = s.id_data
         _props(layout.column(align=True), s, "alpha", "bones", "roles")
         layout.prop(s, "bind_mode")
@@ -119,7 +120,7 @@ class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         vol = s.id_data
         row = layout.row(align=True)
         row.operator("volrig.drive_with_bvh", icon="ARMATURE_DATA")
@@ -138,7 +139,7 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
     bl_label = "Look"
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         vol = s.id_data
         layout.prop(s, "preset")
         layout.prop(s, "density_scale")
@@ -156,7 +157,7 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
     bl_label = "Bake"
 
     def draw(self, context):
-        s, layout = self.settings(context)
+        s, layout = _settings(self, context)
         _props(layout, s, "deform_mode", "sampling", "bake_frames")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
