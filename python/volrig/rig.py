@@ -373,8 +373,6 @@ def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: 
     that have one (so a hand resting on a thigh binds to the arm). ``mode="smooth"`` adds weights across each joint:
     within one radius of the joint plane the neighbouring bone takes up to half (summing to 1 with the owner).
     """
-    if mode not in ("rigid", "smooth"):
-        raise VolrigError(f"mode must be 'rigid' or 'smooth', got {mode!r}")
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
     bone, wb, w, unreachable = _volrig.bind(arr, points.spacing, points.origin, ijk, radii, rig.joints, rig.bones,

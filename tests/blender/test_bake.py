@@ -170,3 +170,11 @@ def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
     assert out.returncode == 2 and "none.blend: no such file" in out.stderr
     out = subprocess.run(run + [blend, "--frames", "5-x"], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 2 and "'5-x' is not a frame" in out.stderr, out.stderr[-2000:]
+    # the add-on is found as a package, not beside the volrig package: without it on PYTHONPATH and with no add-on
+    # installed in Blender, a clear error; --addon names it (here the checkout's folder)
+    bare = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"), BLENDER_USER_SCRIPTS=str(tmp_path / "scripts"))
+    out = subprocess.run(run + [blend], env=bare, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "volrig add-on is not installed" in out.stderr, out.stderr[-2000:]
+    out = subprocess.run(run + [blend, "--addon", os.path.join(REPO, "addon")], env=bare, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]
