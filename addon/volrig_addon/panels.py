@@ -121,7 +121,6 @@ class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
 
     def draw(self, context):
         s, layout = _settings(self, context)
-        vol = s.id_data
         row = layout.row(align=True)
         row.operator("volrig.drive_with_bvh", icon="ARMATURE_DATA")
         row.operator("volrig.reset_bone_map", icon="FILE_REFRESH")

@@ -294,3 +294,17 @@ def test_mocap_poses_default_to_the_automatic_map():
     bone_map, m = pipeline.mocap_poses(rig, motion, frames)
     assert bone_map == volrig.default_bone_map(motion, rig)
     np.testing.assert_allclose(m, volrig.animate(rig, motion, frames=[0, 30, 60], bone_map=bone_map))
+
+
+def test_every_mode_and_sampling_the_menus_offer_is_the_cores():
+    """The CLI's choices and the add-on's menus come from volrig.deform.MODE_INFO / SAMPLING_INFO; the core parses
+    the names: each one offered must be one it takes."""
+    from volrig.deform import MODE_INFO, MODES, SAMPLING_INFO, SAMPLINGS
+    assert MODES == tuple(MODE_INFO) and SAMPLINGS == tuple(SAMPLING_INFO)
+    assert set(MODES) == {"rigid", "linear", "dual_quaternion"} and set(SAMPLINGS) == {"trilinear", "nearest"}
+    deformer, rig = _tiny_bake_inputs()[3:]
+    for mode in MODES:
+        for sampling in SAMPLINGS:
+            assert deformer.frame(volrig.rest_pose(2), mode=mode, sampling=sampling).stats["covered"] > 0
+    with pytest.raises(volrig.VolrigError, match="unknown sampling 'cubic'"):
+        deformer.frame(volrig.rest_pose(2), sampling="cubic")
