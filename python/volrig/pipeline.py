@@ -110,17 +110,22 @@ def import_defaults(volume: Volume, unit_scale: float = 1.0) -> ImportDefaults:
 
 # ---- segmentation -----------------------------------------------------------------------------------------------
 
-def parse_labels(text: str) -> List[int]:
-    """'1 4 7-9' -> [1, 4, 7, 8, 9] (commas and semicolons separate too); VolrigError naming the bad part."""
-    out: List[int] = []
+def _ranges(text: str, what: str, example: str):
+    """(part, first, last) for each 'N' or 'A-B' of ``text`` (separated by spaces, commas or semicolons);
+    VolrigError naming a part that is neither."""
     for part in re.split(r"[\s,;]+", text.strip()):
         if not part:
             continue
         m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
         if not m:
-            raise VolrigError(f"labels: {part!r} is not a number or a range like 7-9")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) else a
+            raise VolrigError(f"{what}: {part!r} is not {example}")
+        yield part, int(m.group(1)), int(m.group(2) or m.group(1))
+
+
+def parse_labels(text: str) -> List[int]:
+    """'1 4 7-9' -> [1, 4, 7, 8, 9] (commas and semicolons separate too); VolrigError naming the bad part."""
+    out: List[int] = []
+    for part, a, b in _ranges(text, "labels", "a number or a range like 7-9"):
         if b < a or b - a > 100000:
             raise VolrigError(f"labels: bad range {part!r}")
         out.extend(range(a, b + 1))
@@ -239,12 +244,7 @@ def parse_frames(text: str, default: Optional[Tuple[int, int]] = None,
             raise VolrigError("frames: none given")
         return list(range(default[0], default[1] + 1))
     frames = set()
-    for part in re.split(r"[\s,]+", text.strip()):
-        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
-        if not m:
-            raise VolrigError(f"frames: {part!r} is not a frame or a range FIRST-LAST like 1-48")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) else a
+    for part, a, b in _ranges(text, "frames", "a frame or a range FIRST-LAST like 1-48"):
         if bounds is not None and not bounds[0] <= a <= b <= bounds[1]:
             raise VolrigError(f"{bounds[2]} has frames {bounds[0]}-{bounds[1]}; asked for {part}")
         if b < a:
