@@ -25,7 +25,7 @@ from .deform import Deformer
 from .files import atomic_output
 from .rig import Binding, Rig, autorig, bind
 from .rigfile import RiggedSkeleton, load_rig
-from .segment import segment
+from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
 from .tree import skeleton_tree
 from .volume import Volume, format_of, load
@@ -144,8 +144,7 @@ class Segmentation:
     largest: bool = False
 
     def __post_init__(self):
-        if self.lo is not None and self.hi is not None and self.lo > self.hi:
-            raise VolrigError(f"segmentation: the low value ({self.lo:g}) is above the high value ({self.hi:g})")
+        check_range(self.lo, self.hi)
         if self.labels is not None:
             object.__setattr__(self, "labels", tuple(int(x) for x in self.labels))
 
@@ -214,9 +213,8 @@ def voxels_from_thinness(tp: float, metric: str, spacing) -> float:
 def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, max_edge: Optional[float] = None,
                  bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
                  progress: StepProgress = None, source: Optional[str] = None) -> RiggedSkeleton:
-    """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes)."""
-    if len(points) < 2:
-        raise VolrigError(f"only {len(points)} skeleton point(s): lower the thinness or ask for more points")
+    """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). Fewer than two
+    points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
     rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"))
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"))

@@ -10,6 +10,15 @@ from ._volrig import VolrigError
 from .volume import Volume
 
 
+def check_range(lo: Optional[float], hi: Optional[float]) -> None:
+    """VolrigError unless each given bound is finite and lo <= hi."""
+    for name, v in (("lo", lo), ("hi", hi)):
+        if v is not None and not np.isfinite(v):
+            raise VolrigError(f"{name} must be finite, got {v}")
+    if lo is not None and hi is not None and lo > hi:
+        raise VolrigError(f"lo ({lo:g}) is above hi ({hi:g})")
+
+
 def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = None,
             labels: Optional[Iterable[int]] = None, largest_component: bool = False) -> Volume:
     """Boolean mask of the object.
@@ -21,11 +30,7 @@ def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = No
     With no criteria at all, every non-zero voxel is object. Raises ValueError for NaN bounds or lo > hi.
     """
     a = volume.array
-    for name, v in (("lo", lo), ("hi", hi)):
-        if v is not None and not np.isfinite(v):
-            raise VolrigError(f"{name} must be finite, got {v}")
-    if lo is not None and hi is not None and lo > hi:
-        raise VolrigError(f"lo ({lo}) is above hi ({hi})")
+    check_range(lo, hi)
     mask = None
     if lo is not None:
         mask = a >= lo

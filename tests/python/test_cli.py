@@ -119,7 +119,7 @@ def test_bake_finds_the_addon_as_a_package(tmp_path, monkeypatch):
 def test_cli_errors_are_volrigs_or_os_errors(tmp_path, cube_file):
     """User mistakes exit 2 with the message; the frame syntax is the add-on's."""
     r = run("skeletonize", cube_file, "--lo", 100, "--hi", 50, "-t", 0.3, "-o", tmp_path / "x.npz")
-    assert r.returncode == 2 and "low value (100) is above the high value (50)" in r.stderr
+    assert r.returncode == 2 and "lo (100) is above hi (50)" in r.stderr
     r = run("skeletonize", cube_file, "--dims", 4, 4, 4, "-t", 0.3, "-o", tmp_path / "x.npz")
     assert r.returncode == 2 and "element type" in r.stderr and "Traceback" not in r.stderr
     r = run("bake", tmp_path / "none.blend", "--blender", "/bin/true")

@@ -136,7 +136,7 @@ def test_segmentation_mask_and_live_count_agree():
     assert hash(seg) == hash(Segmentation(lo=1.0, largest=True))  # a cache key
     with pytest.raises(volrig.VolrigError, match="segmentation is empty"):
         Segmentation(lo=250).mask(v, name="scan")
-    with pytest.raises(volrig.VolrigError, match=r"low value \(5\) is above the high value \(2\)"):
+    with pytest.raises(volrig.VolrigError, match=r"lo \(5\) is above hi \(2\)"):
         Segmentation(lo=5, hi=2)
 
 
@@ -184,7 +184,7 @@ def test_rig_skeleton_is_the_three_steps_and_reports_them():
     assert r.rig.names == rig.names and r.rig.kind == "humanoid" and r.source == "p.nrrd"
     np.testing.assert_allclose(r.rig.joints, rig.joints)
     assert (r.binding.weights != binding.weights).nnz == 0 and r.binding.mode == "smooth"
-    with pytest.raises(volrig.VolrigError, match="only 1 skeleton point"):
+    with pytest.raises(volrig.VolrigError, match="needs at least 2 skeleton points, got 1"):
         pipeline.rig_skeleton(sk.top(1), mask)
     with pytest.raises(volrig.Cancelled):
         pipeline.rig_skeleton(pts, mask, progress=lambda step, f: step != "autorig")
