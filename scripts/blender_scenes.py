@@ -55,7 +55,8 @@ def rigged_volume(path, name, thinness=None, points=None, unit="MM", **settings)
     if points is not None:
         from volrig_addon import scans
         sk = scans.skeleton(vol, compute=False)
-        thinness = sk.tp_for_count(points) / (min(vol.volrig.spacing) if vol.volrig.metric == "euclidean" else 1)
+        thinness = volrig.pipeline.voxels_from_thinness(sk.tp_for_count(points), vol.volrig.metric,
+                                                        vol.volrig.spacing)
     vol.volrig.thinness = thinness
     log(f"{name}: {vol.volrig.point_count:,} skeleton points at thinness {vol.volrig.thinness:.3f} voxels")
     ok(bpy.ops.volrig.rig(), "rig")

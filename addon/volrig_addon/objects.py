@@ -246,7 +246,7 @@ def armature_rig(rig_obj) -> volrig.Rig:
     """The rig the armature describes now (after the user's edits), bones in the armature's order."""
     bones = list(rig_obj.data.bones)
     if not bones:
-        raise ValueError(f"{rig_obj.name} has no bones")
+        raise volrig.VolrigError(f"{rig_obj.name} has no bones")
     index = {b.name: i for i, b in enumerate(bones)}
     heads = np.array([tuple(b.head_local) for b in bones])
     tails = np.array([tuple(b.tail_local) for b in bones])

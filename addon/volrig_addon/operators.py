@@ -1,5 +1,6 @@
-"""Operators: thin over the volrig package. Each reports user mistakes (bad files, empty segmentations, missing
-rigs) in the UI instead of raising, is undoable, and never writes to the user's source file."""
+"""Operators: thin over the volrig package, whose pipeline (``volrig.pipeline``) does every step. Each reports
+user mistakes (volrig's own errors: bad files, empty segmentations, missing rigs; and OSError) in the UI instead
+of raising, lets anything else (a bug) raise, is undoable, and never writes to the user's source file."""
 import os
 import uuid
 
@@ -9,14 +10,16 @@ from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntVecto
 from bpy_extras.io_utils import ImportHelper
 
 import volrig
-from volrig.volume import FORMATS
+from volrig import pipeline
+from volrig.volume import FORMATS, format_of
 
 from . import bake as baking
 from . import materials, mocap, objects, scans
 from .properties import UNIT_FACTOR, UNIT_SCALES
 
-#: What a user mistake or a bad file raises; reported in the UI, never as a traceback.
-USER_ERRORS = (ValueError, KeyError, IndexError, OSError, RuntimeError, volrig.VolrigError, volrig.Cancelled)
+#: What a user mistake or a bad file raises (volrig.Cancelled and volrig.FileFormatError are VolrigErrors); reported
+#: in the UI, never as a traceback. Other exceptions are bugs and propagate.
+USER_ERRORS = (volrig.VolrigError, OSError)
 
 
 def _reported(method):
@@ -46,8 +49,8 @@ def _active_volume(context):
 
 
 class _ProgressBar:
-    """The window manager's progress bar (0..100) for a with-block; ``part(start, end)`` is a volrig progress
-    callback mapped onto [start, end]."""
+    """The window manager's progress bar (0..100) for a with-block; ``steps(spans)`` reports a pipeline's steps
+    each on its part of the bar."""
 
     def __init__(self, context):
         self.wm = context.window_manager
@@ -59,20 +62,38 @@ class _ProgressBar:
     def __exit__(self, *exc):
         self.wm.progress_end()
 
-    def part(self, start: float, end: float):
-        def show(f):
+    def steps(self, spans):
+        """A pipeline StepProgress: step name -> its (start, end) span of the bar."""
+        def show(step, f):
+            start, end = spans[step]
             self.wm.progress_update(start + (end - start) * float(f))
             return True
         return show
 
 
+def _rigged_volume(context):
+    vol = _active_volume(context)
+    return vol if vol is not None and "RIG" in objects.members(vol) else None
+
+
 class _OnVolume:
-    """Operators on the active object's volrig volume, in object mode."""
+    """Undoable operators on the active object's volrig volume, offered in the context modes ``modes`` (None: any)
+    and, when ``rigged``, once the volume has a rig."""
     bl_options = {"REGISTER", "UNDO"}
+    modes = ("OBJECT",)
+    rigged = False
 
     @classmethod
     def poll(cls, context):
-        return _active_volume(context) is not None and context.mode == "OBJECT"
+        return cls.volume(context) is not None and (cls.modes is None or context.mode in cls.modes)
+
+    @classmethod
+    def volume(cls, context):
+        return _rigged_volume(context) if cls.rigged else _active_volume(context)
+
+    @_reported
+    def execute(self, context):
+        return self.run(context, self.volume(context))
 
 
 class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
@@ -113,18 +134,10 @@ class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"{path}: no such file")
-        if volrig.volume.format_of(path) == "raw":
-            if min(self.raw_dims) <= 0:
-                raise ValueError(f"{os.path.basename(path)}: a raw file needs its size (Raw size x, y, z)")
-            vol = volrig.load(path, dims=tuple(self.raw_dims), dtype=self.raw_dtype, spacing=tuple(self.raw_spacing),
-                              byte_order="big" if self.raw_big_endian else "little")
-        else:
-            vol = volrig.load(path, grid=self.grid)
-        samples = vol.array.astype(np.float32, copy=False)
-        finite = np.isfinite(samples)
-        if not finite.all():
-            samples = np.where(finite, samples, np.float32(0))
-        vol = volrig.Volume(samples, vol.spacing, vol.origin)
+        raw = format_of(path) == "raw" and min(self.raw_dims) > 0
+        vol = pipeline.float_samples(pipeline.load_source(
+            path, dims=tuple(self.raw_dims) if raw else None, dtype=self.raw_dtype, spacing=tuple(self.raw_spacing),
+            big_endian=self.raw_big_endian, grid=self.grid))
         scale = self.custom_scale if self.unit == "CUSTOM" else UNIT_FACTOR[self.unit]
         base = self.name or os.path.basename(path).split(".")[0] or "volume"
         obj = import_samples(context, vol, base, scale, source=path)
@@ -148,17 +161,11 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     s.source, s.cache_dir = source, rel
     scans.remember_source(obj, vol)
     s.dims, s.spacing, s.origin = vol.dims, vol.spacing, vol.origin
-    a = vol.array
-    s.value_min, s.value_max = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
-    nonzero = a[a != 0]
-    s.low = float(np.percentile(nonzero, 5)) if nonzero.size else 1.0
-    s.high = s.value_max
-    s.preset = "SOFT_TISSUE"
-    if _looks_like_labels(a):
-        s.preset, s.sampling, s.segment_by = "LABELS", "nearest", "LABELS"
-        s.labels = f"1-{int(s.value_max)}"
-    extent = max(np.asarray(vol.dims) * np.asarray(vol.spacing)) * unit_scale
-    s.density_scale = round(40.0 / max(extent, 1e-6), 3)
+    d = pipeline.import_defaults(vol, unit_scale)
+    s.value_min, s.value_max, s.low, s.high = d.value_min, d.value_max, d.low, d.high
+    s.preset, s.sampling, s.density_scale = "LABELS" if d.label_map else "SOFT_TISSUE", d.sampling, d.density_scale
+    if d.label_map:
+        s.segment_by, s.labels = "LABELS", d.labels
     scans.update_mask_count(obj)
     materials.update_volume_material(obj)
     for o in context.view_layer.objects:
@@ -168,28 +175,14 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     return obj
 
 
-def _looks_like_labels(a: np.ndarray) -> bool:
-    """A label map: a few small non-negative integers numbered from about 1 up (not a scan's intensity levels)."""
-    if not a.size:
-        return False
-    some = np.unique(a[:: max(1, a.shape[0] // 32)])
-    return bool(len(some) <= 64 and some.min() >= 0 and np.array_equal(some, np.round(some))
-                and 3 < some.max() <= 2 * len(some) + 8)
-
-
 class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
     """Show the segmentation mask over the scan as <name>_mask (updated each time it is pressed)"""
     bl_idname = "volrig.preview_mask"
     bl_label = "Preview Mask"
-    bl_options = {"REGISTER", "UNDO"}
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         mask = scans.mask(vol)
         count = int(np.count_nonzero(mask.array))
-        if not count:
-            raise ValueError("the segmentation is empty: widen the range or pick other labels")
         objects.update_mask_preview(vol, mask)
         vol.volrig.mask_count = count
         self.report({"INFO"}, f"volrig: mask of {count:,} voxels shown as {vol.name}_mask")
@@ -201,17 +194,19 @@ class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     bl_idname = "volrig.skeletonize"
     bl_label = "Skeletonize"
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         with _ProgressBar(context) as bar:
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=bar.part(0, 100))
+            sk = scans.skeleton(vol, progress=bar.steps({"skeletonize": (0, 100)}))
         vol.volrig.mask_count = int(np.count_nonzero(mask.array))
         objects.update_skeleton_preview(vol)
         self.report({"INFO"}, f"volrig: {sk.object_count:,} object voxels; {vol.volrig.point_count:,} skeleton points "
                               f"at thinness {vol.volrig.thinness:g}")
         return {"FINISHED"}
+
+
+#: The Rig button's progress bar: each pipeline step's share.
+_RIG_STEPS = {"skeletonize": (0, 30), "skeleton-tree": (30, 55), "autorig": (55, 85), "bind": (85, 100)}
 
 
 class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
@@ -220,28 +215,23 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
     bl_idname = "volrig.rig"
     bl_label = "Rig"
 
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         s = vol.volrig
         with _ProgressBar(context) as bar:
+            progress = bar.steps(_RIG_STEPS)
             mask = scans.mask(vol)
-            sk = scans.skeleton(vol, progress=bar.part(0, 30))
-            pts = sk.at(scans.thinness(vol))
-            if len(pts) < 2:
-                raise ValueError(f"only {len(pts)} skeleton point(s) at thinness {s.thinness:g}: lower the thinness")
-            tree = volrig.skeleton_tree(pts, mask, alpha=s.alpha, progress=bar.part(30, 55))
-            rig = volrig.autorig(pts, tree, mask, bones=s.bones, roles=s.roles, progress=bar.part(55, 85))
-            binding = volrig.bind(pts, rig, mask, mode=s.bind_mode, progress=bar.part(85, 100))
-        _save_rig(vol, pts, tree, rig, binding)
-        rig_obj = objects.build_armature(vol, rig)
-        objects.build_spheres(vol, rig_obj, pts, tree, binding)
+            pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
+            r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
+                                      progress=progress)
+        _save_rig(vol, r.points, r.tree, r.rig, r.binding)
+        rig_obj = objects.build_armature(vol, r.rig)
+        objects.build_spheres(vol, rig_obj, r.points, r.tree, r.binding)
         objects.attach_volume(vol, rig_obj)
         preview = objects.members(vol).get("SKELETON")
         if preview is not None:
             preview.hide_set(True)
         materials.update_volume_material(vol)
-        self.report({"INFO"}, f"volrig: {rig.kind} rig of {len(rig)} bones on {len(pts):,} spheres")
+        self.report({"INFO"}, f"volrig: {r.rig.kind} rig of {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
 
@@ -252,24 +242,17 @@ def _save_rig(vol, pts, tree, rig, binding) -> None:
     vol.volrig.rig_file = name
 
 
-class VOLRIG_OT_rebind(bpy.types.Operator):
+class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
     """Bind the spheres again to the armature as it is now (after moving, adding or deleting bones in edit mode);
     replaces the vertex groups"""
     bl_idname = "volrig.rebind"
     bl_label = "Rebind"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = None, True
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and "RIG" in objects.members(vol)
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         parts = objects.members(vol)
         if "SPHERES" not in parts:
-            raise ValueError(f"{vol.name} has no sphere mesh: press Rig")
+            raise volrig.VolrigError(f"{vol.name} has no sphere mesh: press Rig")
         if context.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")  # edit bones reach the armature on leaving edit mode
         saved = volrig.load_rig(scans.rig_path(vol))
@@ -283,25 +266,18 @@ class VOLRIG_OT_rebind(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_bake(bpy.types.Operator):
+class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
     """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
     bl_idname = "volrig.bake"
     bl_label = "Bake"
-    bl_options = {"REGISTER", "UNDO"}
+    modes = ("OBJECT", "POSE")
 
     force: bpy.props.BoolProperty(name="All frames", default=False,
                                   description="Bake every frame, also those whose pose did not change")
 
     _timer = None
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
         n = baking.bake(vol, context.scene, frames, vol.volrig.deform_mode, self.force, report=lambda m: None)
         self.report({"INFO"}, f"volrig: baked {n} of {len(frames)} frames (the others were up to date)")
@@ -309,7 +285,7 @@ class VOLRIG_OT_bake(bpy.types.Operator):
 
     @_reported
     def invoke(self, context, event):
-        vol = _active_volume(context)
+        vol = self.volume(context)
         self._frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
         self._baker = baking.Baker(vol, vol.volrig.deform_mode)
         self._next = 0
@@ -356,27 +332,20 @@ class VOLRIG_OT_bake(bpy.types.Operator):
             self._baker.play(context.scene)
 
 
-class VOLRIG_OT_walk_cycle(bpy.types.Operator):
+class VOLRIG_OT_walk_cycle(_OnVolume, bpy.types.Operator):
     """Keyframe a procedural walk on a humanoid rig (thighs, shins, feet, arms swing about its left-right axis)"""
     bl_idname = "volrig.walk_cycle"
     bl_label = "Add Walk Cycle"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = ("OBJECT", "POSE"), True
 
     frame_start: bpy.props.IntProperty(name="Start", default=1)
     frames: bpy.props.IntProperty(name="Frames", default=24, min=1, max=100000)
     period: FloatProperty(name="Stride", default=24.0, min=1.0, description="Frames per stride")
     amplitude: FloatProperty(name="Amplitude", default=1.0, min=0.0, soft_max=2.0, description="Angle scale")
 
-    @classmethod
-    def poll(cls, context):
-        vol = _active_volume(context)
-        return vol is not None and "RIG" in objects.members(vol) and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
+    def run(self, context, vol):
         from mathutils import Quaternion, Vector
         from volrig.walk import walk_cycle
-        vol = _active_volume(context)
         rig_obj = objects.members(vol)["RIG"]
         axis, angles = walk_cycle(objects.armature_rig(rig_obj), self.frames, self.period, self.amplitude)
         for name, values in angles.items():
@@ -393,17 +362,12 @@ class VOLRIG_OT_walk_cycle(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _rigged_volume(context):
-    vol = _active_volume(context)
-    return vol if vol is not None and "RIG" in objects.members(vol) else None
-
-
-class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
+class VOLRIG_OT_drive_with_bvh(_OnVolume, bpy.types.Operator, ImportHelper):
     """Drive the rig with a motion capture clip (.bvh): retarget it (volrig.animate) and key every pose bone, so
     Bake and render follow. Uses the bone map in the panel when it was made for this clip's joints"""
     bl_idname = "volrig.drive_with_bvh"
     bl_label = "Drive with BVH"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = ("OBJECT", "POSE"), True
 
     filename_ext = ".bvh"
     filter_glob: StringProperty(default="*.bvh", options={"HIDDEN"})
@@ -419,32 +383,21 @@ class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
                                 description="Key every STEP-th clip frame (e.g. 5 plays a 120 fps clip at 24 fps)")
     frame_start: bpy.props.IntProperty(name="Start frame", default=1, description="Scene frame of the first key")
 
-    @classmethod
-    def poll(cls, context):
-        return _rigged_volume(context) is not None and context.mode in ("OBJECT", "POSE")
-
-    @_reported
-    def execute(self, context):
-        vol = _rigged_volume(context)
-        if vol is None:
-            raise ValueError("select a rigged volrig volume (press Rig first)")
+    def run(self, context, vol):
         rig_obj = objects.members(vol)["RIG"]
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):
             raise FileNotFoundError(f"{path}: no such file")
         motion = volrig.read_bvh(path)
-        last = self.last or motion.frame_count
-        if not 1 <= self.first <= last <= motion.frame_count:
-            raise ValueError(f"{os.path.basename(path)} has frames 1-{motion.frame_count}; "
-                             f"asked for {self.first}-{last}")
+        frames = pipeline.clip_frames(motion.frame_count, f"{self.first}-{self.last or motion.frame_count}",
+                                      self.step, anchor=self.first, what=os.path.basename(path))
         rig = objects.armature_rig(rig_obj)
         bone_map = mocap.stored_bone_map(vol, motion)
         if bone_map is None:
             bone_map = volrig.default_bone_map(motion, rig)
             mocap.store_bone_map(vol, motion, bone_map)  # shown (and editable) even if the retarget fails
-        frames = np.arange(self.first - 1, last, self.step)
-        matrices = volrig.animate(rig, motion, frames=frames, bone_map=bone_map, root_motion=self.root_motion,
-                                  up_axis=self.up_axis)
+        _, matrices = pipeline.mocap_poses(rig, motion, frames, bone_map, root_motion=self.root_motion,
+                                           up_axis=self.up_axis)
         mocap.key_pose(rig_obj, rig, matrices, self.frame_start + np.arange(len(frames)))
         vol.volrig.bvh_file = path
         scene = context.scene
@@ -458,20 +411,17 @@ class VOLRIG_OT_drive_with_bvh(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_reset_bone_map(bpy.types.Operator):
+class VOLRIG_OT_reset_bone_map(_OnVolume, bpy.types.Operator):
     """Fill the bone map again from the names of the last clip's joints and the rig's bones"""
     bl_idname = "volrig.reset_bone_map"
     bl_label = "Map by Names"
-    bl_options = {"REGISTER", "UNDO"}
+    modes, rigged = None, True
 
     @classmethod
     def poll(cls, context):
-        vol = _rigged_volume(context)
-        return vol is not None and bool(vol.volrig.bvh_file)
+        return super().poll(context) and bool(cls.volume(context).volrig.bvh_file)
 
-    @_reported
-    def execute(self, context):
-        vol = _rigged_volume(context)
+    def run(self, context, vol):
         motion = volrig.read_bvh(bpy.path.abspath(vol.volrig.bvh_file))
         bone_map = volrig.default_bone_map(motion, objects.armature_rig(objects.members(vol)["RIG"]))
         mocap.store_bone_map(vol, motion, bone_map)
@@ -479,19 +429,13 @@ class VOLRIG_OT_reset_bone_map(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_OT_show_rest(bpy.types.Operator):
+class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
     """Show the imported volume again instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
     bl_label = "Show Source"
-    bl_options = {"REGISTER", "UNDO"}
+    modes = None
 
-    @classmethod
-    def poll(cls, context):
-        return _active_volume(context) is not None
-
-    @_reported
-    def execute(self, context):
-        vol = _active_volume(context)
+    def run(self, context, vol):
         objects.point_volume_at(vol, os.path.join(vol.volrig.cache_dir, "source.vdb"))
         return {"FINISHED"}
 

@@ -5,6 +5,16 @@ import bpy
 from . import objects
 
 
+def _settings(panel, context):
+    """(the volrig settings of the active object's volume, the panel's layout)."""
+    return objects.volume_of(context.active_object).volrig, panel.layout
+
+
+def _props(layout, settings, *names) -> None:
+    for name in names:
+        layout.prop(settings, name)
+
+
 class _VolrigPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -45,8 +55,7 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
     bl_label = "Segment"
 
     def draw(self, context):
-        s = objects.volume_of(context.active_object).volrig
-        layout = self.layout
+        s, layout = _settings(self, context)
         layout.prop(s, "segment_by", expand=True)
         if s.segment_by == "RANGE":
             row = layout.row(align=True)
@@ -64,8 +73,7 @@ class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):
     bl_label = "Skeleton"
 
     def draw(self, context):
-        s = objects.volume_of(context.active_object).volrig
-        layout = self.layout
+        s, layout = _settings(self, context)
         layout.prop(s, "metric")
         layout.operator("volrig.skeletonize", icon="OUTLINER_OB_POINTCLOUD")
         layout.prop(s, "thinness", slider=True)
@@ -78,13 +86,9 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
     bl_label = "Rig"
 
     def draw(self, context):
-        vol = objects.volume_of(context.active_object)
-        s = vol.volrig
-        layout = self.layout
-        col = layout.column(align=True)
-        col.prop(s, "alpha")
-        col.prop(s, "bones")
-        col.prop(s, "roles")
+        s, layout = _settings(self, context)
+        vol = s.id_data
+        _props(layout.column(align=True), s, "alpha", "bones", "roles")
         layout.prop(s, "bind_mode")
         row = layout.row(align=True)
         row.operator("volrig.rig", icon="ARMATURE_DATA")
@@ -116,9 +120,7 @@ class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        vol = objects.volume_of(context.active_object)
-        s = vol.volrig
-        layout = self.layout
+        s, layout = _settings(self, context)
         row = layout.row(align=True)
         row.operator("volrig.drive_with_bvh", icon="ARMATURE_DATA")
         row.operator("volrig.reset_bone_map", icon="FILE_REFRESH")
@@ -136,9 +138,8 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
     bl_label = "Look"
 
     def draw(self, context):
-        vol = objects.volume_of(context.active_object)
-        s = vol.volrig
-        layout = self.layout
+        s, layout = _settings(self, context)
+        vol = s.id_data
         layout.prop(s, "preset")
         layout.prop(s, "density_scale")
         rig = objects.members(vol).get("RIG")
@@ -155,11 +156,8 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
     bl_label = "Bake"
 
     def draw(self, context):
-        s = objects.volume_of(context.active_object).volrig
-        layout = self.layout
-        layout.prop(s, "deform_mode")
-        layout.prop(s, "sampling")
-        layout.prop(s, "bake_frames")
+        s, layout = _settings(self, context)
+        _props(layout, s, "deform_mode", "sampling", "bake_frames")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
         row.operator("volrig.show_rest", icon="VOLUME_DATA")

@@ -5,6 +5,8 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
+from volrig.deform import MODE_INFO, SAMPLING_INFO
+
 UNIT_SCALES = [
     ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
     ("CM", "cm to m", "Volume units are centimetres; 1 cm = 0.01 Blender units", 1),
@@ -12,6 +14,11 @@ UNIT_SCALES = [
     ("CUSTOM", "Custom", "Blender units per volume unit", 3),
 ]
 UNIT_FACTOR = {"MM": 0.001, "CM": 0.01, "M": 1.0}
+
+
+def _menu(info):
+    """EnumProperty items from volrig's {name: (label, description)} (volrig.deform.MODE_INFO, SAMPLING_INFO)."""
+    return [(name, label, description) for name, (label, description) in info.items()]
 
 
 def _segmentation_changed(self, context):
@@ -124,15 +131,8 @@ class VolrigObject(bpy.types.PropertyGroup):
                                          min=0.0, max=1.0, update=_look_changed)
 
     # --- bake ---
-    deform_mode: EnumProperty(name="Deform", items=[
-        ("linear", "Linear blend", "Blend the bones' matrices by the weights (smooth near joints)"),
-        ("dual_quaternion", "Dual quaternion", "Blend as dual quaternions (keeps volume at twisted joints)"),
-        ("rigid", "Rigid", "Each sphere follows its heaviest bone"),
-    ], default="linear")
-    sampling: EnumProperty(name="Sampling", items=[
-        ("trilinear", "Trilinear", "Interpolate the scan's samples (intensities)"),
-        ("nearest", "Nearest", "Take the nearest sample (label maps)"),
-    ], default="trilinear")
+    deform_mode: EnumProperty(name="Deform", items=_menu(MODE_INFO), default="linear")
+    sampling: EnumProperty(name="Sampling", items=_menu(SAMPLING_INFO), default="trilinear")
     bake_frames: StringProperty(name="Frames", default="",
                                 description="Frames to bake, e.g. '1-48' or '1-10,20'; empty = the scene range")
     baked_start: IntProperty(name="Baked from", default=0)

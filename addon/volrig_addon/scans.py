@@ -12,13 +12,12 @@ undo and redo never show a stale one; after reopening a .blend they are rebuilt 
 """
 import json
 import os
-import re
 import tempfile
 
 import bpy
-import numpy as np
 
 import volrig
+from volrig import pipeline
 
 _memory = {}  # cache folder -> {"source": Volume, "mask": (settings, Volume), "skeleton": (settings, Skeleton)}
 
@@ -45,7 +44,7 @@ def cache_dir(volume_obj) -> str:
     """Absolute path of the object's cache folder (created if missing)."""
     path = bpy.path.abspath(volume_obj.volrig.cache_dir)
     if not volume_obj.volrig.cache_dir:
-        raise ValueError(f"{volume_obj.name} has no volrig cache folder (import it with volrig)")
+        raise volrig.VolrigError(f"{volume_obj.name} has no volrig cache folder (import it with volrig)")
     os.makedirs(path, exist_ok=True)
     return path
 
@@ -55,10 +54,10 @@ def source_path(volume_obj) -> str:
 
 
 def rig_path(volume_obj) -> str:
-    """Absolute path of the object's current .vrig file; ValueError when it has not been rigged."""
+    """Absolute path of the object's current .vrig file; VolrigError when it has not been rigged."""
     s = volume_obj.volrig
     if not s.rig_file:
-        raise ValueError(f"{volume_obj.name} has no rig yet: press Rig first")
+        raise volrig.VolrigError(f"{volume_obj.name} has no rig yet: press Rig first")
     return os.path.join(cache_dir(volume_obj), s.rig_file)
 
 
@@ -100,35 +99,14 @@ def source(volume_obj) -> volrig.Volume:
     return v
 
 
-def parse_labels(text: str):
-    """'1 4 7-9' -> [1, 4, 7, 8, 9]; ValueError naming the bad part."""
-    out = []
-    for part in re.split(r"[\s,;]+", text.strip()):
-        if not part:
-            continue
-        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
-        if not m:
-            raise ValueError(f"labels: {part!r} is not a number or a range like 7-9")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) else a
-        if b < a or b - a > 100000:
-            raise ValueError(f"labels: bad range {part!r}")
-        out.extend(range(a, b + 1))
-    if not out:
-        raise ValueError("labels: none given")
-    return out
-
-
-def _segmentation(s):
+def _segmentation(s) -> pipeline.Segmentation:
     if s.segment_by == "LABELS":
-        return ("labels", tuple(parse_labels(s.labels)), bool(s.largest))
-    if s.low > s.high:
-        raise ValueError(f"segmentation: Low ({s.low:g}) is above High ({s.high:g})")
-    return ("range", float(s.low), float(s.high), bool(s.largest))
+        return pipeline.Segmentation.of_labels(s.labels, largest=bool(s.largest))
+    return pipeline.Segmentation(lo=float(s.low), hi=float(s.high), largest=bool(s.largest))
 
 
-def segmentation_key(volume_obj):
-    """The object's segmentation settings as a hashable value (ValueError when they are invalid)."""
+def segmentation_key(volume_obj) -> pipeline.Segmentation:
+    """The object's segmentation settings (hashable; VolrigError when they are invalid)."""
     return _segmentation(volume_obj.volrig)
 
 
@@ -138,14 +116,7 @@ def mask(volume_obj) -> volrig.Volume:
     entry = _entry(volume_obj)
     cached = entry.get("mask")
     if cached is None or cached[0] != key:
-        v = source(volume_obj)
-        if key[0] == "labels":
-            m = volrig.segment(v, labels=key[1], largest_component=key[2])
-        else:
-            m = volrig.segment(v, lo=key[1], hi=key[2], largest_component=key[3])
-        if not m.array.any():
-            raise ValueError(f"{volume_obj.name}: the segmentation is empty (check Low/High or the labels)")
-        entry["mask"] = cached = (key, m)
+        entry["mask"] = cached = (key, key.mask(source(volume_obj), name=volume_obj.name))
         entry.pop("skeleton", None)
     return cached[1]
 
@@ -157,24 +128,22 @@ def skeleton(volume_obj, progress=None, compute: bool = True):
     entry = _entry(volume_obj)
     try:
         key = (_segmentation(s), s.metric)
-    except ValueError:
+    except volrig.VolrigError:
         return None
     cached = entry.get("skeleton")
     if cached is not None and cached[0] == key:
         return cached[1]
     if not compute:
         return None
-    m = mask(volume_obj)
-    sk = volrig.skeletonize(m, s.metric, progress=progress)
+    sk = pipeline.skeleton_of(mask(volume_obj), s.metric, progress=progress)
     entry["skeleton"] = (key, sk)
     return sk
 
 
 def thinness(volume_obj) -> float:
-    """The skeleton's thinness TP for the slider's value: the slider counts voxels, a Euclidean score is in world
-    units (so TP = value * smallest spacing), a chamfer score in grid steps (TP = value)."""
+    """The skeleton's thinness TP for the slider's value (in voxels)."""
     s = volume_obj.volrig
-    return float(s.thinness) * (min(s.spacing) if s.metric == "euclidean" else 1.0)
+    return pipeline.thinness_from_voxels(s.thinness, s.metric, s.spacing)
 
 
 def update_mask_count(volume_obj) -> None:
@@ -182,13 +151,6 @@ def update_mask_count(volume_obj) -> None:
     applies when skeletonizing). -1 when the settings are invalid or the source is unavailable."""
     s = volume_obj.volrig
     try:
-        key = _segmentation(s)
-        a = source(volume_obj).array
-    except (ValueError, OSError, volrig.VolrigError):
+        s.mask_count = _segmentation(s).count(source(volume_obj).array)
+    except (volrig.VolrigError, OSError):
         s.mask_count = -1
-        return
-    if key[0] == "labels":
-        count = int(np.count_nonzero(np.isin(a, key[1])))
-    else:
-        count = int(np.count_nonzero((a >= key[1]) & (a <= key[2])))
-    s.mask_count = count

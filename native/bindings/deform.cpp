@@ -30,7 +30,7 @@ struct SphereArrays {
         const PointSet p = point_set(ijk, &radius, "deform");
         if (bone.ndim() != 1 || bone.shape(0) != static_cast<py::ssize_t>(p.n))
             throw Error("deform: the binding has " + std::to_string(bone.size()) + " entries for " +
-                        std::to_string(p.n) + " points");
+                        std::to_string(p.n) + " points: bind the same points you deform");
         BoundSpheres s;
         s.ijk = p.ijk;
         s.radius = p.radius;
@@ -88,13 +88,16 @@ py::dict frame_dict(DeformedVolume&& f) {
     d["bone"] = to_numpy(std::move(f.bone), f.grid);
     d["offset"] = py::make_tuple(f.offset[0], f.offset[1], f.offset[2]);
     d["origin"] = py::make_tuple(f.grid.origin[0], f.grid.origin[1], f.grid.origin[2]);
-    d["covered"] = f.stats.covered;
-    d["exact_queries"] = f.stats.exact_queries;
-    d["blended_spheres"] = f.stats.blended_spheres;
-    d["by_block"] = f.stats.by_block;
-    d["by_cube"] = f.stats.by_cube;
-    d["by_sphere"] = f.stats.by_sphere;
-    d["by_search"] = f.stats.by_search;
+    // Frame.stats: these names are the only place Python spells them (volrig/deform.hpp, DeformStats)
+    py::dict stats;
+    stats["covered"] = f.stats.covered;
+    stats["exact_queries"] = f.stats.exact_queries;
+    stats["blended_spheres"] = f.stats.blended_spheres;
+    stats["by_block"] = f.stats.by_block;
+    stats["by_cube"] = f.stats.by_cube;
+    stats["by_sphere"] = f.stats.by_sphere;
+    stats["by_search"] = f.stats.by_search;
+    d["stats"] = stats;
     return d;
 }
 

@@ -2,6 +2,7 @@
 
 Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> ``skeleton_tree`` -> ``autorig``
 -> ``bind`` (and ``reconstruct``) -> per frame ``deform`` (``Deformer``); ``save_rig`` / ``load_rig`` keep the result in one file.
+``volrig.pipeline`` chains these steps as the command line, the Blender add-on and the demo use them.
 Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s). Motion capture: ``read_bvh``
 -> ``animate(rig, motion)`` gives per-frame bone matrices.
 """
@@ -17,6 +18,7 @@ from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
+from . import pipeline
 
 __version__ = "0.1.0"
 
@@ -25,7 +27,7 @@ __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skelet
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
            "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",
-           "default_bone_map", "load_bone_map", "save_bone_map"]
+           "default_bone_map", "load_bone_map", "save_bone_map", "pipeline"]
 
 
 def __getattr__(name):

@@ -3,10 +3,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 
 import numpy as np
+
+from ._volrig import VolrigError
+from .deform import MODES, SAMPLINGS
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
@@ -20,14 +24,15 @@ def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grid", default="", help="VDB files: grid name (default: density, else the first)")
 
 
+def _hints(args) -> dict:
+    """The load options as ``pipeline.load_source``'s keywords."""
+    return dict(dims=args.dims, dtype=args.dtype, spacing=args.spacing, big_endian=args.big_endian,
+                offset=args.offset, grid=args.grid)
+
+
 def _load(args):
-    from .volume import load
-    if args.dims:
-        if not args.dtype:
-            raise ValueError("--dims needs --dtype")
-        return load(args.file, dims=args.dims, dtype=args.dtype, spacing=args.spacing,
-                    byte_order="big" if args.big_endian else "little", offset=args.offset)
-    return load(args.file, grid=args.grid)
+    from .pipeline import load_source
+    return load_source(args.file, **_hints(args))
 
 
 def cmd_info(args) -> int:
@@ -62,7 +67,7 @@ def cmd_skeletonize(args) -> int:
     elapsed = time.perf_counter() - t
     out = args.output
     if not out.endswith(".npz"):
-        raise ValueError(f"{out}: the output must be a .npz file")
+        raise VolrigError(f"{out}: the output must be a .npz file")
     with atomic_output(out, suffix=".npz") as tmp:
         np.savez_compressed(tmp, ijk=pts.ijk, centers=pts.centers, radii=pts.radii, dt=pts.dt, scores=pts.scores,
                             metric=pts.metric, thinness=np.nan if pts.thinness is None else pts.thinness,
@@ -77,78 +82,45 @@ def cmd_skeletonize(args) -> int:
 
 def _mask_and_skeleton(args):
     """The mask (segmented volume, or voxelized mesh) and its skeleton points, as the options say."""
-    from .segment import segment
-    from .skeleton import skeletonize
-    if args.file.lower().endswith((".obj", ".ply")):
-        from .mesh import read_mesh, voxelize
-        if not args.voxel_size:
-            raise ValueError(f"{args.file}: meshes need --voxel-size")
-        mask = voxelize(*read_mesh(args.file), args.voxel_size)
-    else:
-        mask = segment(_load(args), lo=args.lo, hi=args.hi, labels=args.labels, largest_component=args.largest)
-    if not mask.array.any():
-        raise ValueError(f"{args.file}: the segmentation is empty (check --lo/--hi/--labels)")
-    sk = skeletonize(mask, args.metric, progress=_progress_bar("skeletonize") if args.progress else None)
-    pts = sk.top(args.count) if args.count is not None else sk.at(args.thinness)
-    return mask, sk, pts
+    from .pipeline import Segmentation, load_mask, skeleton_of, skeleton_points
+    seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
+    mask = load_mask(args.file, seg, voxel_size=args.voxel_size, **_hints(args))
+    sk = skeleton_of(mask, args.metric, progress=_progress_bar if args.progress else None)
+    return mask, sk, skeleton_points(sk, thinness=args.thinness, count=args.count)
 
 
 def cmd_rig(args) -> int:
-    from .rig import autorig, bind
+    from .pipeline import rig_skeleton
     from .rigfile import save_rig
-    from .tree import skeleton_tree
     if not args.output.endswith(".vrig"):
-        raise ValueError(f"{args.output}: the output must be a .vrig file")
+        raise VolrigError(f"{args.output}: the output must be a .vrig file")
     t = time.perf_counter()
     mask, sk, pts = _mask_and_skeleton(args)
-    show = args.progress
-    tree = skeleton_tree(pts, mask, alpha=args.alpha, max_edge=args.max_edge,
-                         progress=_progress_bar("skeleton-tree") if show else None)
-    rig = autorig(pts, tree, mask, bones=args.bones, roles=not args.no_roles,
-                  progress=_progress_bar("autorig") if show else None)
-    binding = bind(pts, rig, mask, mode=args.bind, progress=_progress_bar("bind") if show else None)
-    save_rig(args.output, pts, tree, rig, binding, source=args.file)
-    print(f"{len(pts):,} skeleton points, tree of {tree.component_count} part(s), {rig.kind} rig of {len(rig)} bones "
-          f"({', '.join(rig.names[:8])}{', ...' if len(rig) > 8 else ''}), {args.bind} binding; "
+    r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
+                     bind_mode=args.bind, progress=_progress_bar if args.progress else None, source=args.file)
+    save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
+    rig = r.rig
+    print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {rig.kind} rig of {len(rig)} "
+          f"bones ({', '.join(rig.names[:8])}{', ...' if len(rig) > 8 else ''}), {args.bind} binding; "
           f"{time.perf_counter() - t:.1f} s -> {args.output}")
     return 0
 
 
-def _frame_range(text: str, count: int):
-    """'A-B' (1-based, inclusive) or 'N' -> 0-based frame indices of a clip of `count` frames."""
-    parts = text.split("-")
-    try:
-        if len(parts) == 1:
-            first = last = int(parts[0])
-        elif len(parts) == 2:
-            first, last = int(parts[0]), int(parts[1])
-        else:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"--frames {text!r}: expected FIRST-LAST or N (1-based frame numbers)") from None
-    if not 1 <= first <= last <= count:
-        raise ValueError(f"--frames {text}: the clip has frames 1-{count}")
-    return np.arange(first - 1, last)
-
-
-def _mocap_matrices(args):
-    """What ``animate`` and ``bake-mocap`` share: the rig file, the clip, the BVH frames (0-based), the bone map and
-    the (F, B, 4, 4) rest-to-pose matrices of those frames."""
-    from .mocap import animate, default_bone_map, load_bone_map, read_bvh
-    from .rigfile import load_rig
-    saved = load_rig(args.rig)
-    if saved.rig is None:
-        raise ValueError(f"{args.rig}: the file holds no rig")
+def _mocap_matrices(args, step: int = 1, binding: bool = False):
+    """What ``animate`` and ``bake-mocap`` share: the rig file, the clip, the BVH frames (0-based; every ``step``-th
+    from the clip's first), the bone map and the (F, B, 4, 4) rest-to-pose matrices of those frames."""
+    from .mocap import load_bone_map, read_bvh
+    from .pipeline import clip_frames, load_rigged, mocap_poses
+    saved = load_rigged(args.rig, binding=binding)
     motion = read_bvh(args.clip)
-    frames = _frame_range(args.frames, motion.frame_count) if args.frames else np.arange(motion.frame_count)
-    bone_map = load_bone_map(args.map) if args.map else default_bone_map(motion, saved.rig)
-    matrices = animate(saved.rig, motion, frames=frames, bone_map=bone_map, root_motion=args.root,
-                       up_axis=args.up, scale=args.scale)
+    frames = clip_frames(motion.frame_count, args.frames or "", step, what=os.path.basename(args.clip))
+    bone_map, matrices = mocap_poses(saved.rig, motion, frames, load_bone_map(args.map) if args.map else None,
+                                     root_motion=args.root, up_axis=args.up, scale=args.scale)
     return saved, motion, frames, bone_map, matrices
 
 
 def _add_mocap_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--frames", help="BVH frames FIRST-LAST, 1-based and inclusive (default all)")
+    p.add_argument("--frames", help="BVH frames FIRST-LAST (1-based, inclusive; also 1-10,20; default all)")
     p.add_argument("--map", help="bone map JSON {BVH joint: rig bone} (default: automatic from the names)")
     p.add_argument("--root", choices=["in_place", "travel"], default="in_place", help="root motion")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the BVH's up axis (default y)")
@@ -159,7 +131,7 @@ def cmd_animate(args) -> int:
     from .files import atomic_output
     from .mocap import save_bone_map
     if not args.output.endswith(".npz"):
-        raise ValueError(f"{args.output}: the output must be a .npz file")
+        raise VolrigError(f"{args.output}: the output must be a .npz file")
     t = time.perf_counter()
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args)
     with atomic_output(args.output, suffix=".npz") as tmp:
@@ -176,45 +148,25 @@ def cmd_animate(args) -> int:
     return 0
 
 
-def mocap_frame_path(folder: str, stem: str, bvh_frame: int, step: int) -> str:
-    """``<folder>/<stem>_NNNN.vdb`` of 0-based BVH frame ``bvh_frame`` baked every ``step`` frames: numbered from 1
-    over the whole clip (BVH frames 1, 1 + step, ... are files 1, 2, ...), so split ranges fit one sequence."""
-    import os
-    return os.path.join(folder, f"{stem}_{bvh_frame // step + 1:04d}.vdb")
-
-
 def cmd_bake_mocap(args) -> int:
-    import os
-    from .deform import Deformer
-    if args.step < 1:
-        raise ValueError(f"--step must be at least 1, got {args.step}")
+    from .pipeline import FolderBake, sequence_number
     t = time.perf_counter()
     source = _load(args)
-    saved, motion, frames, bone_map, matrices = _mocap_matrices(args)
-    if saved.binding is None:
-        raise ValueError(f"{args.rig}: the file holds no binding (make it with `volrig rig`)")
-    keep = frames % args.step == 0  # BVH frames 1, 1 + step, ...: the same on every machine of a farm
-    frames, matrices = frames[keep], matrices[keep]
-    if not len(frames):
-        raise ValueError(f"--frames {args.frames}: no frame of the range falls on the --step {args.step} grid "
-                         f"(BVH frames 1, {1 + args.step}, ...)")
+    saved, motion, frames, bone_map, matrices = _mocap_matrices(args, args.step, binding=True)
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
-    os.makedirs(args.output, exist_ok=True)
-    deformer = Deformer(source, saved.points, saved.binding)
+    bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling)
     written = 0
     for k, (f, m) in enumerate(zip(frames, matrices)):
-        path = mocap_frame_path(args.output, stem, int(f), args.step)
+        path = bake.path(sequence_number(f, args.step))
+        head = f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: "
         if args.skip_existing and os.path.exists(path):
-            sys.stderr.write(f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: {path} exists, skipped\n")
+            sys.stderr.write(head + f"{path} exists, skipped\n")
             continue
         started = time.perf_counter()
-        frame = deformer.frame(m, mode=args.mode, sampling=args.sampling)
-        frame.save(path, half=True)
+        stats = bake.bake(sequence_number(f, args.step), m)
         written += 1
-        sys.stderr.write(f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: {frame.stats['covered']:,} voxels, "
-                         f"{time.perf_counter() - started:.2f} s -> {path}\n")
+        sys.stderr.write(head + f"{stats['covered']:,} voxels, {time.perf_counter() - started:.2f} s -> {path}\n")
         sys.stderr.flush()
-        del frame  # its memory goes back to the Deformer for the next frame
     print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
           f"{motion.frame_count}, {motion.fps / args.step:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, "
           f"{args.root}, {args.mode}; {time.perf_counter() - t:.1f} s -> {args.output}")
@@ -234,55 +186,81 @@ def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument("-o", "--output", required=True, help=what)
 
 
-def _progress_bar(label: str):
-    def show(f: float) -> bool:
-        sys.stderr.write(f"\r{label}: {100 * f:5.1f}%")
-        if f >= 1.0:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-        return True
-    return show
+def _progress_bar(step: str, f: float) -> bool:
+    """A pipeline StepProgress on stderr: one line per step."""
+    sys.stderr.write(f"\r{step}: {100 * f:5.1f}%")
+    if f >= 1.0:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+    return True
 
 
-#: Runs inside Blender for ``bake``: enables the add-on (from the checkout, else as installed), bakes, exits with
-#: 0, or 2 and a message for a user error (Python errors exit 1 through --python-exit-code).
-_BAKE_IN_BLENDER = """
-import json, os, sys
-args = json.loads(sys.argv[sys.argv.index("--") + 1])
-sys.path[:0] = args["paths"]
+def _at_least_one(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+#: Runs inside Blender for ``bake``: puts the folders found for volrig and the add-on first on sys.path, enables
+#: the add-on and hands over to its headless entry (``volrig_addon.bake.command_line``), which bakes and exits 0,
+#: or 2 with a message for a user error.
+_BOOTSTRAP = """
+import os, sys
+sys.path[:0] = {paths!r}
 import addon_utils
 addon_utils.enable("volrig_addon", default_set=False)
-from volrig_addon import bake
 try:
-    n = bake.bake_saved_scene(args["frames"], args["objects"], args["mode"], args["force"], args["save"])
-    print(f"volrig: baked {n} frame(s) of {os.path.basename(args['blend'])}")
-    code = 0
-except (ValueError, OSError, RuntimeError) as e:
-    print(f"error: {e}", file=sys.stderr)
-    code = 2
-sys.stdout.flush(); sys.stderr.flush()
-os._exit(code)
+    from volrig_addon import bake
+except ImportError as e:
+    print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip, "
+          "or pass --addon", file=sys.stderr)
+    sys.stderr.flush()
+    os._exit(2)
+bake.command_line()
 """
 
 
+def addon_folder(addon: str = "", unpack_to: str = "") -> str:
+    """The folder holding the ``volrig_addon`` package for Blender's sys.path: ``addon`` (that folder, the package
+    folder itself, or the add-on zip, unpacked into ``unpack_to``), else where Python finds an installed
+    ``volrig_addon`` (on PYTHONPATH or in site-packages); "" when neither, leaving it to Blender's installed
+    add-ons."""
+    import importlib.util
+    if addon:
+        if addon.lower().endswith(".zip") and os.path.isfile(addon):
+            import zipfile
+            with zipfile.ZipFile(addon) as z:
+                z.extractall(unpack_to)
+            addon = unpack_to
+        if os.path.isfile(os.path.join(addon, "__init__.py")) and os.path.basename(os.path.normpath(addon)) == \
+                "volrig_addon":
+            return os.path.dirname(os.path.abspath(addon))
+        if not os.path.isfile(os.path.join(addon, "volrig_addon", "__init__.py")):
+            raise FileNotFoundError(f"{addon}: neither the add-on zip nor a folder holding volrig_addon")
+        return os.path.abspath(addon)
+    spec = importlib.util.find_spec("volrig_addon")
+    return os.path.dirname(os.path.dirname(spec.origin)) if spec is not None and spec.origin else ""
+
+
 def cmd_bake(args) -> int:
-    import os
     import shutil
     import subprocess
+    import tempfile
     blender = args.blender or os.environ.get("BLENDER") or shutil.which("blender")
     if not blender:
         raise FileNotFoundError("blender not found: install it (apt-get install blender) or pass --blender PATH")
     if not os.path.isfile(args.blend):
         raise FileNotFoundError(f"{args.blend}: no such file")
-    here = os.path.dirname(os.path.abspath(__file__))
-    checkout_addon = os.path.normpath(os.path.join(here, "..", "..", "addon"))
-    paths = [os.path.dirname(here)] + ([checkout_addon] if os.path.isdir(checkout_addon) else [])
-    payload = json.dumps({"paths": paths, "frames": args.frames or "", "objects": args.object or [],
-                          "mode": args.mode or "", "force": args.force, "save": not args.no_save,
-                          "blend": args.blend})
-    cmd = [blender, "-b", "--factory-startup", os.path.abspath(args.blend), "--python-exit-code", "1",
-           "--python-expr", _BAKE_IN_BLENDER, "--", payload]
-    return subprocess.run(cmd).returncode
+    payload = json.dumps({"frames": args.frames or "", "objects": args.object or [], "mode": args.mode or "",
+                          "force": args.force, "save": not args.no_save})
+    with tempfile.TemporaryDirectory(prefix="volrig_addon_") as unpacked:
+        found = addon_folder(args.addon or "", unpacked)
+        package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this volrig, for the add-on
+        paths = [package_parent] + ([found] if found else [])
+        cmd = [blender, "-b", "--factory-startup", os.path.abspath(args.blend), "--python-exit-code", "1",
+               "--python-expr", _BOOTSTRAP.format(paths=paths), "--", payload]
+        return subprocess.run(cmd).returncode
 
 
 def cmd_demo(args) -> int:
@@ -322,10 +300,12 @@ def main(argv=None) -> int:
     p.add_argument("--frames", help="frames to bake, e.g. 1-48 or 1-10,20 (default: the scene's range); split a "
                                     "range across machines sharing the cache folder")
     p.add_argument("--object", action="append", help="bake only this volrig Volume object (repeatable)")
-    p.add_argument("--mode", choices=["rigid", "linear", "dual_quaternion"], help="override the deform mode")
+    p.add_argument("--mode", choices=MODES, help="override the deform mode")
     p.add_argument("--force", action="store_true", help="bake frames whose pose did not change, too")
     p.add_argument("--no-save", action="store_true", help="do not save the .blend after baking")
     p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
+    p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
+                                   "volrig_addon Python finds, else the one installed in Blender)")
     p.set_defaults(run=cmd_bake)
 
     p = sub.add_parser("animate", help="per-frame bone matrices driving a rig with a BVH clip")
@@ -345,11 +325,11 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", required=True,
                    help="output folder: <name>_NNNN.vdb per frame (grids density and bone), written atomically")
     _add_mocap_options(p)
-    p.add_argument("--step", type=int, default=1,
+    p.add_argument("--step", type=_at_least_one, default=1,
                    help="bake every STEP-th BVH frame (1, 1+STEP, ...; files numbered 1, 2, ...), e.g. 5 for 120 fps "
                         "-> 24 fps")
-    p.add_argument("--mode", choices=["rigid", "linear", "dual_quaternion"], default="linear", help="deform mode")
-    p.add_argument("--sampling", choices=["trilinear", "nearest"], default="trilinear",
+    p.add_argument("--mode", choices=MODES, default="linear", help="deform mode")
+    p.add_argument("--sampling", choices=SAMPLINGS, default="trilinear",
                    help="nearest for label maps")
     p.add_argument("--name", help="file name stem (default: the volume file's)")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
@@ -362,13 +342,9 @@ def main(argv=None) -> int:
     p.set_defaults(run=cmd_demo)
 
     args = parser.parse_args(argv)
-    from . import Cancelled, VolrigError
     try:
         return args.run(args)
-    except FileNotFoundError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except (VolrigError, ValueError, Cancelled) as e:
+    except (VolrigError, OSError) as e:  # user mistakes and bad files; anything else is a bug: a traceback
         print(f"error: {e}", file=sys.stderr)
         return 2
 

@@ -13,13 +13,26 @@ from typing import Optional, Tuple
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .rig import Binding
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
 
-MODES = ("rigid", "linear", "dual_quaternion")
+#: The deform modes (the core's names), each with a label and a description for menus: the one list the command
+#: line's choices and the add-on's menu come from. The add-on stores a choice by its position: append only.
+MODE_INFO = {
+    "linear": ("Linear blend", "Blend the bones' matrices by the weights (smooth near joints)"),
+    "dual_quaternion": ("Dual quaternion", "Blend as dual quaternions (keeps volume at twisted joints)"),
+    "rigid": ("Rigid", "Each sphere follows its heaviest bone"),
+}
+MODES = tuple(MODE_INFO)
 PROXIMITIES = ("power", "nearest")
-SAMPLINGS = ("trilinear", "nearest")
+#: Sampling names with their label and description (the add-on stores a choice by its position: append only).
+SAMPLING_INFO = {
+    "trilinear": ("Trilinear", "Interpolate the scan's samples (intensities)"),
+    "nearest": ("Nearest", "Take the nearest sample (label maps)"),
+}
+SAMPLINGS = tuple(SAMPLING_INFO)
 #: The default proximity: the power distance |q - c|² - r² (the sphere q lies deepest inside). It keeps the
 #: thesis' bend test unbroken further and reverses more exactly than the nearest centre; see the README.
 DEFAULT_PROXIMITY = "power"
@@ -59,38 +72,20 @@ class Frame:
                   self.bone.origin, half=half)
 
 
-def _check_choice(name, value, allowed):
-    if value not in allowed:
-        raise ValueError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
-
-
-def _sphere_arrays(points: SkeletonPoints, binding: Binding, bone_count: Optional[int] = None):
+def _sphere_arrays(points: SkeletonPoints, binding: Binding):
+    """The arrays the core's BoundSpheres views (conversion only: the bindings and the core check them)."""
     if not isinstance(points, SkeletonPoints):
         raise TypeError(f"points must be volrig.SkeletonPoints, got {type(points).__name__}")
-    n = len(points)
-    bone = np.ascontiguousarray(binding.bone, dtype=np.int32)
-    if bone.shape != (n,):
-        raise ValueError(f"the binding has {bone.shape[0] if bone.ndim else 0} points but there are {n} skeleton "
-                         "points: bind the same points you deform")
     w = binding.weights.tocsr()
-    if w.shape[0] != n:
-        raise ValueError(f"the binding's weights have {w.shape[0]} rows for {n} skeleton points")
-    bones = int(bone_count if bone_count is not None else w.shape[1])
     return (np.ascontiguousarray(points.ijk, dtype=np.int32), np.ascontiguousarray(points.radii, dtype=np.float32),
-            bone, bones, np.ascontiguousarray(w.indptr, dtype=np.int64),
-            np.ascontiguousarray(w.indices, dtype=np.int32), np.ascontiguousarray(w.data, dtype=np.float32))
+            np.ascontiguousarray(binding.bone, dtype=np.int32), int(w.shape[1]),
+            np.ascontiguousarray(w.indptr, dtype=np.int64), np.ascontiguousarray(w.indices, dtype=np.int32),
+            np.ascontiguousarray(w.data, dtype=np.float32))
 
 
-def _matrices(bone_matrices, bones: int) -> np.ndarray:
-    m = np.asarray(bone_matrices, dtype=np.float64)
-    if m.ndim != 3 or m.shape[1:] != (4, 4):
-        raise ValueError(f"bone_matrices must have shape (B, 4, 4), got {m.shape}")
-    if m.shape[0] != bones:
-        raise ValueError(f"got {m.shape[0]} bone matrices for a rig of {bones} bones")
-    if not np.all(np.isfinite(m)):
-        bad = np.flatnonzero(~np.isfinite(m).all(axis=(1, 2)))
-        raise ValueError(f"bone matrices {bad.tolist()} hold non-finite values")
-    return np.ascontiguousarray(m)
+def _matrices(m) -> np.ndarray:
+    """(B, 4, 4) float64, C order; shape, count, finiteness and rigidity are the bindings' and the core's checks."""
+    return np.ascontiguousarray(m, dtype=np.float64)
 
 
 def _source_array(source: Volume) -> np.ndarray:
@@ -100,27 +95,22 @@ def _source_array(source: Volume) -> np.ndarray:
     if a.dtype == np.bool_:
         a = a.view(np.uint8)
     if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
-        raise ValueError("the source volume holds NaN or infinite samples")
+        raise VolrigError("the source volume holds NaN or infinite samples")  # (not checked by the core yet)
     return np.ascontiguousarray(a)
 
 
 def _radius_scale(radius_scale, n: int):
+    """None, or one factor per point (a number is repeated); the core checks the count and the range."""
     if radius_scale is None:
         return None
     s = np.asarray(radius_scale, dtype=np.float32)
-    if s.ndim == 0:
-        s = np.full(n, float(s), dtype=np.float32)
-    if s.shape != (n,):
-        raise ValueError(f"radius_scale must be a number or one factor per point ({n}), got shape {s.shape}")
-    return s
+    return np.full(n, float(s), dtype=np.float32) if s.ndim == 0 else s
 
 
 def _frame(d: dict, source: Volume) -> Frame:
     sp = source.spacing
     values = Volume(d["values"], sp, d["origin"]) if d["values"] is not None else None
-    stats = {k: int(d[k]) for k in ("covered", "exact_queries", "blended_spheres", "by_block", "by_cube", "by_sphere",
-                                     "by_search")}
-    return Frame(values, Volume(d["bone"], sp, d["origin"]), tuple(int(x) for x in d["offset"]), stats)
+    return Frame(values, Volume(d["bone"], sp, d["origin"]), tuple(int(x) for x in d["offset"]), dict(d["stats"]))
 
 
 class Deformer:
@@ -131,12 +121,12 @@ class Deformer:
     """
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, proximity: str = DEFAULT_PROXIMITY):
-        _check_choice("proximity", proximity, PROXIMITIES)
+        # the core sees the points' voxel indices only, not the grid they were taken on: checked here
         if tuple(points.spacing) != tuple(source.spacing):
-            raise ValueError(f"the skeleton points were taken on a grid of spacing {points.spacing} but the source "
+            raise VolrigError(f"the skeleton points were taken on a grid of spacing {points.spacing} but the source "
                              f"has spacing {source.spacing}")
         if tuple(points.origin) != tuple(source.origin):
-            raise ValueError(f"the skeleton points were taken on a grid with origin {points.origin} but the source "
+            raise VolrigError(f"the skeleton points were taken on a grid with origin {points.origin} but the source "
                              f"has origin {source.origin}")
         self.source = source
         self.points = points
@@ -165,13 +155,8 @@ class Deformer:
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates."""
-        _check_choice("mode", mode, MODES)
-        _check_choice("sampling", sampling, SAMPLINGS)
-        prox = proximity or self.proximity
-        _check_choice("proximity", prox, PROXIMITIES)
-        m = _matrices(bone_matrices, self.bone_count)
-        d = self._native.frame(m, mode, prox, sampling, _radius_scale(radius_scale, len(self.points)), bool(values),
-                               progress)
+        d = self._native.frame(_matrices(bone_matrices), mode, proximity or self.proximity, sampling,
+                               _radius_scale(radius_scale, len(self.points)), bool(values), progress)
         return _frame(d, self.source)
 
 
@@ -200,13 +185,10 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     """The literal thesis algorithm (every moved sphere scattered over its bounding box with a proximity buffer,
     in point order): the reference that tests and benchmarks compare ``deform`` with. ``like`` fixes the output
     grid to another frame's."""
-    _check_choice("mode", mode, MODES)
-    _check_choice("proximity", proximity, PROXIMITIES)
-    _check_choice("sampling", sampling, SAMPLINGS)
     ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
     box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
     d = _volrig.deform_reference(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb, off, wb,
-                                 w, _matrices(bone_matrices, nb), mode, proximity, sampling,
+                                 w, _matrices(bone_matrices), mode, proximity, sampling,
                                  _radius_scale(radius_scale, len(points)), bool(values), box)
     return _frame(d, source)
 
@@ -214,8 +196,7 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
 def inverse_warp(source: Volume, matrix, sampling: str = "trilinear", like: Optional[Frame] = None) -> Volume:
     """The source resampled through one rest-to-pose matrix (one gather per output voxel): the speed reference of
     ``deform``. The output grid is the source's, or ``like``'s (a Frame) to compare per output voxel."""
-    _check_choice("sampling", sampling, SAMPLINGS)
-    m = np.ascontiguousarray(matrix, dtype=np.float64)
+    m = _matrices(matrix)
     box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
     arr = _volrig.inverse_warp(_source_array(source), source.spacing, source.origin, m, sampling, box)
     if like is None:

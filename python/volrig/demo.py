@@ -68,19 +68,20 @@ def skeleton_figure(path: str, volume, mask, skeleton, thinness: float, recon, c
 def run_demo(out_dir: str = "out/demo", scale: float = 0.5, thinness: float = 0.3) -> dict:
     """Phantom -> mask -> skeleton -> reconstruction; writes skeleton.png, report.json and report.md to
     ``out_dir``; returns the report."""
-    from . import phantom, reconstruct, reconstruction_loss, segment, skeletonize
+    from . import phantom, reconstruct, reconstruction_loss
     from .files import atomic_output
+    from .pipeline import Segmentation, skeleton_of, skeleton_points
 
     os.makedirs(out_dir, exist_ok=True)
     t0 = time.perf_counter()
     ph = phantom.humanoid(scale=scale)
     t_phantom = time.perf_counter() - t0
-    mask = segment(ph.volume)
+    mask = Segmentation().mask(ph.volume, name="the phantom")
     t0 = time.perf_counter()
-    sk = skeletonize(mask)
+    sk = skeleton_of(mask)
     t_skel = time.perf_counter() - t0
     t0 = time.perf_counter()
-    pts = sk.at(thinness)
+    pts = skeleton_points(sk, thinness=thinness)
     t_at = time.perf_counter() - t0
     recon = reconstruct(pts, mask)
     loss = reconstruction_loss(recon, mask)

@@ -13,6 +13,7 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .volume import Volume
 
 ProgressFn = Optional[Callable[[float], Optional[bool]]]
@@ -40,10 +41,10 @@ def read_tgf(path) -> Tuple[np.ndarray, np.ndarray]:
 
 def _number(value, what: str) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{what} must be a number, got {value!r}")
+        raise VolrigError(f"{what} must be a number, got {value!r}")
     value = float(value)
     if not np.isfinite(value):
-        raise ValueError(f"{what} must be finite, got {value}")
+        raise VolrigError(f"{what} must be finite, got {value}")
     return value
 
 
@@ -67,33 +68,33 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     v = np.asarray(vertices)
     f = np.asarray(faces)
     if v.ndim != 2 or v.shape[1] != 3:
-        raise ValueError(f"vertices must have shape (V, 3), got {v.shape}")
+        raise VolrigError(f"vertices must have shape (V, 3), got {v.shape}")
     if f.ndim != 2 or f.shape[1] != 3:
-        raise ValueError(f"faces must have shape (F, 3) (triangles), got {f.shape}")
+        raise VolrigError(f"faces must have shape (F, 3) (triangles), got {f.shape}")
     if len(v) == 0:
-        raise ValueError("vertices is empty")
+        raise VolrigError("vertices is empty")
     if len(f) == 0:
-        raise ValueError("faces is empty")
+        raise VolrigError("faces is empty")
     if v.dtype == np.bool_ or not (np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer)):
-        raise ValueError(f"vertices must be real numbers, got dtype {v.dtype}")
+        raise VolrigError(f"vertices must be real numbers, got dtype {v.dtype}")
     if f.dtype == np.bool_ or not np.issubdtype(f.dtype, np.integer):
-        raise ValueError(f"faces must be integer vertex indices, got dtype {f.dtype}")
+        raise VolrigError(f"faces must be integer vertex indices, got dtype {f.dtype}")
     v = np.ascontiguousarray(v, dtype=np.float64)
     if not np.isfinite(v).all():
         bad = int(np.argmin(np.isfinite(v).all(axis=1)))
-        raise ValueError(f"vertices must be finite: vertex {bad} is {v[bad].tolist()}")
+        raise VolrigError(f"vertices must be finite: vertex {bad} is {v[bad].tolist()}")
     if f.min() < 0 or f.max() >= len(v):
         bad = f.min() if f.min() < 0 else f.max()
-        raise ValueError(f"faces index vertex {int(bad)}, out of range for {len(v)} vertices")
+        raise VolrigError(f"faces index vertex {int(bad)}, out of range for {len(v)} vertices")
     f = np.ascontiguousarray(f, dtype=np.int64)
     size = _number(voxel_size, "voxel_size")
     if size <= 0:
-        raise ValueError(f"voxel_size must be positive, got {size}")
+        raise VolrigError(f"voxel_size must be positive, got {size}")
     pad = _number(padding, "padding")
     if not 0 <= pad <= 1000:
-        raise ValueError(f"padding must be between 0 and 1000 voxels, got {pad}")
+        raise VolrigError(f"padding must be between 0 and 1000 voxels, got {pad}")
     closing = _number(closing_radius, "closing_radius")
     if not (closing == 0 or 0.5 <= closing <= 4):
-        raise ValueError(f"closing_radius must be 0 or between 0.5 and 4 voxels, got {closing}")
+        raise VolrigError(f"closing_radius must be 0 or between 0.5 and 4 voxels, got {closing}")
     mask, spacing, origin = _volrig.voxelize(v, f, size, pad, closing, progress)
     return Volume(mask.view(np.bool_), spacing, origin)

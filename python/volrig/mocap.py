@@ -44,6 +44,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .files import atomic_output
 from .rig import Rig
 
@@ -267,7 +268,7 @@ def default_bone_map(motion: Motion, rig) -> Dict[str, str]:
     rig_roles = body_roles(rig.names)  # a rig's root is not taken for hips: neutral chains map nothing
     m = {bvh_roles[r]: rig_roles[r] for r in bvh_roles if r in rig_roles}
     if not m:
-        raise ValueError(f"no automatic bone map: the BVH's joints ({', '.join(motion.names[:12])}"
+        raise VolrigError(f"no automatic bone map: the BVH's joints ({', '.join(motion.names[:12])}"
                          f"{', ...' if len(motion.names) > 12 else ''}) and the rig's bones "
                          f"({', '.join(rig.names[:12])}{', ...' if len(rig.names) > 12 else ''}) share no body "
                          "roles; pass bone_map={BVH joint: rig bone}")
@@ -284,16 +285,16 @@ def check_bone_map(bone_map, motion: Motion, rig) -> Dict[str, str]:
         if not isinstance(j, str) or not isinstance(b, str):
             raise TypeError(f"bone map entries must be names (str: str), got {j!r}: {b!r}")
         if j not in motion.names:
-            raise ValueError(f"bone map: unknown BVH joint {j!r}; the BVH's joints: {', '.join(motion.names)}")
+            raise VolrigError(f"bone map: unknown BVH joint {j!r}; the BVH's joints: {', '.join(motion.names)}")
         if b not in rig.names:
-            raise ValueError(f"bone map: unknown rig bone {b!r} (for BVH joint {j!r}); the rig's bones: "
+            raise VolrigError(f"bone map: unknown rig bone {b!r} (for BVH joint {j!r}); the rig's bones: "
                              f"{', '.join(rig.names)}")
         if b in driver:
-            raise ValueError(f"bone map: rig bone {b!r} is mapped from both {driver[b]!r} and {j!r}")
+            raise VolrigError(f"bone map: rig bone {b!r} is mapped from both {driver[b]!r} and {j!r}")
         driver[b] = j
         out[j] = b
     if not out:
-        raise ValueError("bone map is empty: nothing would move")
+        raise VolrigError("bone map is empty: nothing would move")
     return out
 
 
@@ -315,9 +316,9 @@ def load_bone_map(path) -> Dict[str, str]:
         with open(path, encoding="utf-8") as f:
             m = json.load(f)
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ValueError(f"{path}: not a JSON bone map ({e})") from None
+        raise VolrigError(f"{path}: not a JSON bone map ({e})") from None
     if not isinstance(m, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in m.items()):
-        raise ValueError(f"{path}: a bone map is a JSON object {{\"BVH joint\": \"rig bone\", ...}} of names")
+        raise VolrigError(f"{path}: a bone map is a JSON object {{\"BVH joint\": \"rig bone\", ...}} of names")
     return m
 
 
@@ -355,7 +356,7 @@ def _up_axis_matrix(up_axis: str) -> np.ndarray:
         return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # +90 degrees about X
     if up_axis == "z":
         return np.eye(3)
-    raise ValueError(f"up_axis must be 'y' (BVH's usual) or 'z', got {up_axis!r}")
+    raise VolrigError(f"up_axis must be 'y' (BVH's usual) or 'z', got {up_axis!r}")
 
 
 def _bone_order(rig: Rig) -> List[int]:
@@ -368,7 +369,7 @@ def _bone_order(rig: Rig) -> List[int]:
                 order.append(b)
                 placed[b] = True
         if len(order) == before:
-            raise ValueError("the rig's bone parents form a cycle")
+            raise VolrigError("the rig's bone parents form a cycle")
     return order
 
 
@@ -477,7 +478,7 @@ def animate(rig, motion, frames=None, bone_map: Optional[Dict[str, str]] = None,
     if not isinstance(motion, Motion):
         motion = read_bvh(motion)
     if root_motion not in ("in_place", "travel"):
-        raise ValueError(f"root_motion must be 'in_place' or 'travel', got {root_motion!r}")
+        raise VolrigError(f"root_motion must be 'in_place' or 'travel', got {root_motion!r}")
     axes = _up_axis_matrix(up_axis)
     bone_map = check_bone_map(default_bone_map(motion, rig) if bone_map is None else bone_map, motion, rig)
     idx = frame_indices(motion, frames)
@@ -485,12 +486,12 @@ def animate(rig, motion, frames=None, bone_map: Optional[Dict[str, str]] = None,
     legs = _legs(motion, rig, bone_map)
     if scale is None:
         if not legs:
-            raise ValueError("cannot scale by leg length: no leg (thigh and foot) is mapped on both skeletons; "
+            raise VolrigError("cannot scale by leg length: no leg (thigh and foot) is mapped on both skeletons; "
                              "map the legs or pass scale=")
         scale = float(np.mean([g.rig_length for g in legs]) / np.mean([g.bvh_length for g in legs]))
     scale = float(scale)
     if not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"scale must be a positive number, got {scale}")
+        raise VolrigError(f"scale must be a positive number, got {scale}")
 
     rest, rest_ends = motion.rest_positions()
     # Heading: turn about the up axis so the BVH's hip line (left thigh joint to right) runs along the rig's.

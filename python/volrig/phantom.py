@@ -21,6 +21,7 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
+from ._volrig import VolrigError
 from .volume import Volume
 
 BACKGROUND, SKIN, FLESH, BONE = 0, 80, 100, 220
@@ -272,9 +273,9 @@ def humanoid(scale: float = 1.0, spacing: float = 1.0) -> Phantom:
     scale = float(scale)
     spacing = float(spacing)
     if not (np.isfinite(scale) and scale > 0):
-        raise ValueError(f"scale must be positive, got {scale}")
+        raise VolrigError(f"scale must be positive, got {scale}")
     if not (np.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"spacing must be positive, got {spacing}")
+        raise VolrigError(f"spacing must be positive, got {spacing}")
     dims = tuple(max(1, int(np.floor(d * scale + 0.5))) for d in BASE_DIMS)  # round half up: 169 * 0.5 -> 85
     nx, ny, nz = dims
     place = _place(scale, dims)

@@ -13,6 +13,7 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .skeleton import ProgressFn, SkeletonPoints
 from .tree import SkeletonTree, _mask_for, _point_arrays
 
@@ -52,7 +53,7 @@ class Rig:
             self.joint_points = np.full(len(self.joints), -1, dtype=np.int64)
         self.joint_points = np.array(self.joint_points, dtype=np.int64, copy=True).reshape(-1)
         if len(self.joint_points) != len(self.joints):
-            raise ValueError(f"joint_points has {len(self.joint_points)} entries for {len(self.joints)} joints")
+            raise VolrigError(f"joint_points has {len(self.joint_points)} entries for {len(self.joints)} joints")
         _volrig.check_rig(self.joints, self.bones, self.names, self.parents)
 
     def __len__(self) -> int:
@@ -89,10 +90,10 @@ class Rig:
         heads = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
         tails = np.asarray(tails, dtype=np.float64).reshape(-1, 3)
         if len(heads) != len(tails):
-            raise ValueError(f"{len(heads)} heads but {len(tails)} tails")
+            raise VolrigError(f"{len(heads)} heads but {len(tails)} tails")
         ends = np.concatenate([heads, tails])
         if not np.isfinite(ends).all():
-            raise ValueError("bone ends must be finite")
+            raise VolrigError("bone ends must be finite")
         size = float(np.ptp(ends, axis=0).max()) if len(ends) else 0.0
         eps = tolerance * max(size, 1.0)
         joints: List[np.ndarray] = []
@@ -138,7 +139,7 @@ class Rig:
         R[b]`` (``M[p]`` = identity for roots). Rigid matrices give rotation-plus-translation bases."""
         m = np.asarray(matrices, dtype=np.float64)
         if m.shape[-3:] != (len(self), 4, 4):
-            raise ValueError(f"matrices must have shape (..., {len(self)}, 4, 4), got {m.shape}")
+            raise VolrigError(f"matrices must have shape (..., {len(self)}, 4, 4), got {m.shape}")
         rest = self.rest_matrices
         parent = np.where(self.parents[:, None, None] >= 0, m[..., self.parents, :, :], np.eye(4))
         return np.linalg.inv(rest) @ np.linalg.solve(parent, m) @ rest
@@ -149,7 +150,7 @@ class Rig:
         if len(idx) and (idx.min() < 0 or idx.max() >= len(self.joints)):
             raise IndexError(f"joint indices must lie in 0..{len(self.joints) - 1}")
         if len(points) == 0:
-            raise ValueError("no skeleton points to snap to")
+            raise VolrigError("no skeleton points to snap to")
         new = self.joints.copy()
         jp = self.joint_points.copy()
         for k in idx:
@@ -175,7 +176,7 @@ def rotation_about(axis, angle_degrees: float, pivot) -> np.ndarray:
     a = np.asarray(axis, dtype=np.float64)
     n = np.linalg.norm(a)
     if a.shape != (3,) or not np.isfinite(n) or n == 0:
-        raise ValueError(f"axis must be a non-zero 3-vector, got {axis!r}")
+        raise VolrigError(f"axis must be a non-zero 3-vector, got {axis!r}")
     a = a / n
     t = np.radians(float(angle_degrees))
     K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
@@ -315,11 +316,11 @@ class Binding:
             idx = np.asarray(idx, dtype=np.int64).reshape(-1)
             w = np.asarray(w, dtype=np.float64).reshape(-1)
             if len(idx) != len(w):
-                raise ValueError(f"group {name!r}: {len(idx)} indices but {len(w)} weights")
+                raise VolrigError(f"group {name!r}: {len(idx)} indices but {len(w)} weights")
             if len(idx) and (idx.min() < 0 or idx.max() >= count):
                 raise IndexError(f"group {name!r} refers to points outside 0..{count - 1}")
             if not np.isfinite(w).all() or (w < 0).any():
-                raise ValueError(f"group {name!r} has negative or non-finite weights")
+                raise VolrigError(f"group {name!r} has negative or non-finite weights")
             keep = w > 0
             rows.append(idx[keep])
             cols.append(np.full(int(keep.sum()), b, dtype=np.int64))
@@ -334,9 +335,9 @@ class Binding:
         unreachable = np.zeros(count, dtype=bool)
         if len(empty):
             if fallback is None:
-                raise ValueError(f"{len(empty)} of {count} points have no weight on any bone")
+                raise VolrigError(f"{len(empty)} of {count} points have no weight on any bone")
             if len(fallback) != count or fallback.weights.shape[1] != nb:
-                raise ValueError(f"the fallback binding ({fallback.weights.shape}) does not match {count} points "
+                raise VolrigError(f"the fallback binding ({fallback.weights.shape}) does not match {count} points "
                                  f"and {nb} bones")
             w = w.tolil()
             fw = fallback.weights.tocsr()
@@ -372,8 +373,6 @@ def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: 
     that have one (so a hand resting on a thigh binds to the arm). ``mode="smooth"`` adds weights across each joint:
     within one radius of the joint plane the neighbouring bone takes up to half (summing to 1 with the owner).
     """
-    if mode not in ("rigid", "smooth"):
-        raise ValueError(f"mode must be 'rigid' or 'smooth', got {mode!r}")
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
     bone, wb, w, unreachable = _volrig.bind(arr, points.spacing, points.origin, ijk, radii, rig.joints, rig.bones,

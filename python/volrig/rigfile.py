@@ -40,12 +40,12 @@ def save_rig(path, points: SkeletonPoints, tree: Optional[SkeletonTree] = None, 
     (stored as given; relative paths are resolved against the rig file's folder by ``load_rig``)."""
     n = len(points)
     if tree is not None and len(tree.component) != n:
-        raise ValueError(f"the tree has {len(tree.component)} points, the skeleton {n}")
+        raise VolrigError(f"the tree has {len(tree.component)} points, the skeleton {n}")
     if binding is not None:
         if rig is None:
-            raise ValueError("a binding needs its rig")
+            raise VolrigError("a binding needs its rig")
         if len(binding.bone) != n or binding.weights.shape != (n, len(rig.bones)):
-            raise ValueError(f"the binding ({binding.weights.shape}) does not match {n} points and "
+            raise VolrigError(f"the binding ({binding.weights.shape}) does not match {n} points and "
                              f"{len(rig.bones)} bones")
     a = dict(format=np.array(FORMAT), version=np.array(VERSION, np.int64),
              ijk=points.ijk, centers=points.centers, radii=points.radii, dt=points.dt, scores=points.scores,

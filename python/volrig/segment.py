@@ -6,7 +6,17 @@ from typing import Iterable, Optional
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .volume import Volume
+
+
+def check_range(lo: Optional[float], hi: Optional[float]) -> None:
+    """VolrigError unless each given bound is finite and lo <= hi."""
+    for name, v in (("lo", lo), ("hi", hi)):
+        if v is not None and not np.isfinite(v):
+            raise VolrigError(f"{name} must be finite, got {v}")
+    if lo is not None and hi is not None and lo > hi:
+        raise VolrigError(f"lo ({lo:g}) is above hi ({hi:g})")
 
 
 def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = None,
@@ -20,11 +30,7 @@ def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = No
     With no criteria at all, every non-zero voxel is object. Raises ValueError for NaN bounds or lo > hi.
     """
     a = volume.array
-    for name, v in (("lo", lo), ("hi", hi)):
-        if v is not None and not np.isfinite(v):
-            raise ValueError(f"{name} must be finite, got {v}")
-    if lo is not None and hi is not None and lo > hi:
-        raise ValueError(f"lo ({lo}) is above hi ({hi})")
+    check_range(lo, hi)
     mask = None
     if lo is not None:
         mask = a >= lo
@@ -33,7 +39,7 @@ def segment(volume: Volume, lo: Optional[float] = None, hi: Optional[float] = No
     if labels is not None:
         labels = np.asarray(list(labels))
         if labels.size == 0:
-            raise ValueError("labels is empty")
+            raise VolrigError("labels is empty")
         m = np.isin(a, labels)
         mask = m if mask is None else (mask & m)
     if mask is None:

@@ -12,6 +12,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .volume import Volume
 
 #: Largest useful thinness for each metric: the score of a voxel whose 26 neighbours all lie one step downhill.
@@ -26,7 +27,7 @@ ProgressFn = Optional[Callable[[float], Optional[bool]]]
 def _mask_array(mask) -> np.ndarray:
     arr = mask.array if isinstance(mask, Volume) else np.asarray(mask)
     if arr.ndim != 3:
-        raise ValueError(f"mask must be 3-D [z, y, x], got shape {arr.shape}")
+        raise VolrigError(f"mask must be 3-D [z, y, x], got shape {arr.shape}")
     if arr.dtype != np.bool_ and arr.dtype != np.uint8:
         arr = arr != 0
     return np.ascontiguousarray(arr).view(np.uint8)
@@ -100,7 +101,7 @@ class Skeleton:
     def tp_for_count(self, n: int) -> float:
         """The smallest thinness whose skeleton has at most ``n`` points (exactly ``n`` unless scores tie there)."""
         if n < 0:
-            raise ValueError("n must be >= 0")
+            raise VolrigError("n must be >= 0")
         return self._native.tp_for_count(int(n))
 
     def at(self, tp: float) -> SkeletonPoints:
@@ -108,7 +109,7 @@ class Skeleton:
         voxels of world size for Euclidean (useful range 0 to 1.416 on unit grids), chamfer units for <3,4,5>
         (0 to 4.077). Larger ``tp`` gives a thinner skeleton; each is a subset of any thicker one."""
         if not np.isfinite(tp):
-            raise ValueError(f"thinness must be finite, got {tp}")
+            raise VolrigError(f"thinness must be finite, got {tp}")
         return self._points(self.count(tp), float(tp))
 
     def top(self, n: int) -> SkeletonPoints:
@@ -155,7 +156,7 @@ def reconstruct(points: SkeletonPoints, like, progress: ProgressFn = None) -> Vo
     Volume."""
     shape = (like.array if isinstance(like, Volume) else np.asarray(like)).shape
     if len(shape) != 3:
-        raise ValueError(f"like must be 3-D, got shape {shape}")
+        raise VolrigError(f"like must be 3-D, got shape {shape}")
     out = _volrig.reconstruct(points.ijk, points.dt, tuple(int(s) for s in shape), points.spacing, points.metric,
                               progress)
     return Volume(out.view(np.bool_), points.spacing, points.origin)
@@ -166,5 +167,5 @@ def reconstruction_loss(a, b) -> int:
     x = a.array if isinstance(a, Volume) else np.asarray(a)
     y = b.array if isinstance(b, Volume) else np.asarray(b)
     if x.shape != y.shape:
-        raise ValueError(f"masks differ in shape: {x.shape} vs {y.shape}")
+        raise VolrigError(f"masks differ in shape: {x.shape} vs {y.shape}")
     return int(np.count_nonzero((x != 0) != (y != 0)))

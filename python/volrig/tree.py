@@ -12,6 +12,7 @@ from typing import Optional
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 from .skeleton import ProgressFn, SkeletonPoints, _mask_array
 from .volume import Volume
 
@@ -54,7 +55,7 @@ def _mask_for(points: SkeletonPoints, mask) -> np.ndarray:
     arr = _mask_array(mask)
     if isinstance(mask, Volume):
         if not (np.allclose(mask.spacing, points.spacing) and np.allclose(mask.origin, points.origin)):
-            raise ValueError(f"mask geometry (spacing {mask.spacing}, origin {mask.origin}) differs from the "
+            raise VolrigError(f"mask geometry (spacing {mask.spacing}, origin {mask.origin}) differs from the "
                              f"skeleton's (spacing {points.spacing}, origin {points.origin})")
     return arr
 
@@ -71,9 +72,7 @@ def skeleton_tree(points: SkeletonPoints, mask, alpha: float = 0.9, max_edge: Op
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
     if max_edge is not None and not (np.isfinite(max_edge) and max_edge > 0):
-        raise ValueError(f"max_edge must be a positive number, got {max_edge}")
-    if not (0.0 <= alpha <= 1.0):
-        raise ValueError(f"alpha must lie in [0, 1], got {alpha}")
+        raise VolrigError(f"max_edge must be a positive number, got {max_edge}")
     edges, weights, bridged, component, count, e = _volrig.skeleton_tree(
         arr, points.spacing, points.origin, ijk, radii, float(alpha), float(max_edge or 0.0), bool(bridge), progress)
     return SkeletonTree(edges, weights, bridged.view(np.bool_), component, int(count), float(alpha), float(e))

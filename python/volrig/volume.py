@@ -13,6 +13,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from . import _volrig
+from ._volrig import VolrigError
 
 Vec3 = Tuple[float, float, float]
 
@@ -29,7 +30,7 @@ FORMATS = {
 def _vec3(v, what: str) -> Vec3:
     t = tuple(float(x) for x in (v if np.ndim(v) else (v, v, v)))
     if len(t) != 3 or not all(np.isfinite(t)):
-        raise ValueError(f"{what} must be three finite numbers (x, y, z), got {v!r}")
+        raise VolrigError(f"{what} must be three finite numbers (x, y, z), got {v!r}")
     return t  # type: ignore[return-value]
 
 
@@ -39,7 +40,7 @@ def format_of(path: str) -> str:
     for ending in sorted(FORMATS, key=len, reverse=True):
         if low.endswith(ending):
             return FORMATS[ending]
-    raise ValueError(f"{path}: unknown volume format (known endings: {', '.join(sorted(FORMATS))})")
+    raise VolrigError(f"{path}: unknown volume format (known endings: {', '.join(sorted(FORMATS))})")
 
 
 @dataclass
@@ -60,10 +61,10 @@ class Volume:
     def __post_init__(self):
         self.array = np.asarray(self.array)
         if self.array.ndim != 3:
-            raise ValueError(f"a Volume needs a 3-D array [z, y, x], got shape {self.array.shape}")
+            raise VolrigError(f"a Volume needs a 3-D array [z, y, x], got shape {self.array.shape}")
         self.spacing = _vec3(self.spacing, "spacing")
         if min(self.spacing) <= 0:
-            raise ValueError(f"spacing must be positive, got {self.spacing}")
+            raise VolrigError(f"spacing must be positive, got {self.spacing}")
         self.origin = _vec3(self.origin, "origin")
 
     @property
@@ -85,7 +86,7 @@ class Volume:
     def like(self, array: np.ndarray) -> "Volume":
         """A Volume with this one's geometry holding ``array`` (same shape)."""
         if array.shape != self.array.shape:
-            raise ValueError(f"shape {array.shape} does not match the volume's {self.array.shape}")
+            raise VolrigError(f"shape {array.shape} does not match the volume's {self.array.shape}")
         return Volume(array, self.spacing, self.origin)
 
     def on_grid(self, origin, dims) -> "Volume":
@@ -96,11 +97,11 @@ class Volume:
         origin = np.asarray(_vec3(origin, "origin"))
         dims = tuple(int(d) for d in dims)
         if len(dims) != 3 or min(dims) < 0:
-            raise ValueError(f"dims must be three sizes (x, y, z), got {dims}")
+            raise VolrigError(f"dims must be three sizes (x, y, z), got {dims}")
         shift = (np.asarray(self.origin) - origin) / np.asarray(self.spacing)
         step = np.round(shift)
         if np.abs(shift - step).max() > 1e-3:
-            raise ValueError(f"origin {tuple(origin)} is not a whole number of voxels from {self.origin}")
+            raise VolrigError(f"origin {tuple(origin)} is not a whole number of voxels from {self.origin}")
         out = np.zeros(dims[::-1], dtype=self.array.dtype)
         dst, src = [], []
         for axis, off in enumerate(step.astype(np.int64)[::-1]):  # z, y, x
@@ -126,12 +127,12 @@ class Volume:
             _volrig.write_nrrd(path, arr, self.spacing, self.origin, compress)
         elif fmt == "metaimage":
             if path.lower().endswith(".mhd"):
-                raise ValueError(f"{path}: write MetaImage as a single .mha file")
+                raise VolrigError(f"{path}: write MetaImage as a single .mha file")
             _volrig.write_metaimage(path, arr, self.spacing, self.origin, compress)
         elif fmt == "vdb":
             _volrig.write_vdb(path, [(grid, arr)], self.spacing, self.origin, half)
         else:
-            raise ValueError(f"{path}: cannot write {fmt} files (write .nrrd, .mha or .vdb)")
+            raise VolrigError(f"{path}: cannot write {fmt} files (write .nrrd, .mha or .vdb)")
 
     def __repr__(self) -> str:
         x, y, z = self.dims
@@ -160,9 +161,9 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
     limit = -1 if max_bytes is None else int(max_bytes)
     if fmt == "raw":
         if dims is None or dtype is None:
-            raise ValueError(f"{path}: raw files need dims=(x, y, z) and dtype=...")
+            raise VolrigError(f"{path}: raw files need dims=(x, y, z) and dtype=...")
         if byte_order not in ("little", "big"):
-            raise ValueError(f"byte_order must be 'little' or 'big', got {byte_order!r}")
+            raise VolrigError(f"byte_order must be 'little' or 'big', got {byte_order!r}")
         arr, sp, org = _volrig.read_raw(path, tuple(int(d) for d in dims), np.dtype(dtype).name,
                                         _vec3(spacing, "spacing"), _vec3(origin, "origin"),
                                         byte_order == "big", int(offset), limit)
@@ -185,7 +186,7 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) ->
     """
     items = list(grids.items()) if hasattr(grids, "items") else list(grids)
     if not items:
-        raise ValueError(f"{path}: no grids to write")
+        raise VolrigError(f"{path}: no grids to write")
     first = next((g for _, g in items if isinstance(g, Volume)), None)
     spacing = _vec3(spacing if spacing is not None else (first.spacing if first else 1.0), "spacing")
     origin = _vec3(origin if origin is not None else (first.origin if first else 0.0), "origin")

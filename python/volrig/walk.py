@@ -7,6 +7,7 @@ from typing import Dict, Tuple
 
 import numpy as np
 
+from ._volrig import VolrigError
 from .rig import Rig
 
 #: bone -> (mean angle, amplitude, phase in cycles), degrees; phase 0.5 is the opposite side's swing.
@@ -28,13 +29,13 @@ def walk_cycle(rig: Rig, frames: int, period: float = 24.0, amplitude: float = 1
     try:
         left, right = rig.heads()[rig.index("thigh.L")], rig.heads()[rig.index("thigh.R")]
     except KeyError:
-        raise ValueError(f"a walk needs a humanoid rig with thigh.L and thigh.R (this one is {rig.kind}: "
+        raise VolrigError(f"a walk needs a humanoid rig with thigh.L and thigh.R (this one is {rig.kind}: "
                          f"{', '.join(rig.names[:6])}...)") from None
     axis = left - right
     if not np.linalg.norm(axis) > 0:
-        raise ValueError("thigh.L and thigh.R start at the same point")
+        raise VolrigError("thigh.L and thigh.R start at the same point")
     if frames < 1 or not period > 0:
-        raise ValueError(f"need frames >= 1 and period > 0, got {frames}, {period}")
+        raise VolrigError(f"need frames >= 1 and period > 0, got {frames}, {period}")
     t = np.arange(frames) / float(period)
     angles = {name: np.radians(amplitude * (mean + amp * np.sin(2 * np.pi * (t - phase))))
               for name, (mean, amp, phase) in _WALK.items() if name in rig.names}

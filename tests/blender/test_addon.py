@@ -274,3 +274,24 @@ def test_panels_draw_every_stage(rigged):
                      "volrig.drive_with_bvh", "preset", "highlight_bone", "volrig.bake", "deform_mode"):
         assert expected in drawn
     assert any("21 bones" in str(t) for t in drawn)
+
+
+def test_only_volrigs_errors_are_reported_bugs_raise(rigged, monkeypatch):
+    """A user mistake (volrig.VolrigError, OSError) becomes a status-bar report; a programming error (say a
+    KeyError) is not swallowed: it reaches the caller with its traceback."""
+    from volrig import pipeline
+
+    def mistake(*args, **kwargs):
+        raise volrig.VolrigError("only 1 skeleton point(s): lower the thinness")
+
+    def bug(*args, **kwargs):
+        return {}["no such key"]
+
+    monkeypatch.setattr(pipeline, "rig_skeleton", mistake)
+    with pytest.raises(RuntimeError, match=r"volrig: only 1 skeleton point") as report:
+        bpy.ops.volrig.rig()
+    assert "Traceback" not in str(report.value)
+    monkeypatch.setattr(pipeline, "rig_skeleton", bug)
+    with pytest.raises(RuntimeError, match="Traceback") as trace:
+        bpy.ops.volrig.rig()
+    assert "KeyError" in str(trace.value) and "volrig: " not in str(trace.value).split("\n")[0]

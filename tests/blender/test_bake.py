@@ -13,6 +13,11 @@ from mathutils import Euler
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+def _cli_env():
+    """``python -m volrig`` finding the add-on as an importable package (as an installed one would be)."""
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(os.path.join(REPO, d) for d in ("python", "addon")))
+
+
 def _members(vol):
     from volrig_addon.objects import members
     return members(vol)
@@ -144,7 +149,7 @@ def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     for f in (1, 2, 3):
         os.remove(bake.frame_path(vol, f))
-    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    env = _cli_env()
     out = subprocess.run(["/usr/bin/python3", "-m", "volrig", "bake", blend, "--frames", "1-3"], env=env,
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout + out.stderr
@@ -157,7 +162,7 @@ def test_saved_blend_bakes_headless_with_the_same_result(posed, tmp_path):
 def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
     blend = str(tmp_path / "plain.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
-    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+    env = _cli_env()
     run = ["/usr/bin/python3", "-m", "volrig", "bake"]
     out = subprocess.run(run + [blend], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]
@@ -165,3 +170,11 @@ def test_headless_bake_reports_user_errors(empty_scene, tmp_path):
     assert out.returncode == 2 and "none.blend: no such file" in out.stderr
     out = subprocess.run(run + [blend, "--frames", "5-x"], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 2 and "'5-x' is not a frame" in out.stderr, out.stderr[-2000:]
+    # the add-on is found as a package, not beside the volrig package: without it on PYTHONPATH and with no add-on
+    # installed in Blender, a clear error; --addon names it (here the checkout's folder)
+    bare = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"), BLENDER_USER_SCRIPTS=str(tmp_path / "scripts"))
+    out = subprocess.run(run + [blend], env=bare, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "volrig add-on is not installed" in out.stderr, out.stderr[-2000:]
+    out = subprocess.run(run + [blend, "--addon", os.path.join(REPO, "addon")], env=bare, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 2 and "holds no volrig volume" in out.stderr, out.stderr[-2000:]

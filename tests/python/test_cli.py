@@ -90,3 +90,37 @@ def test_rig_writes_a_rig_file(tmp_path):
     assert bad.returncode == 2 and ".vrig" in bad.stderr
     mesh = run("rig", tmp_path / "arm.obj", "--count", 100, "-o", out)
     assert mesh.returncode == 2 and "voxel-size" in mesh.stderr
+
+
+def test_bake_finds_the_addon_as_a_package(tmp_path, monkeypatch):
+    """`volrig bake` hands Blender the folder holding volrig_addon: given (a folder, the package, the zip), else
+    wherever Python's import system finds it; never a path relative to the volrig package."""
+    import sys
+    import zipfile
+    from volrig.cli import addon_folder
+    addon = REPO / "addon"
+    assert addon_folder(str(addon)) == str(addon)
+    assert addon_folder(str(addon / "volrig_addon")) == str(addon)
+    zip_path = tmp_path / "volrig_addon.zip"
+    with zipfile.ZipFile(zip_path, "w") as z:
+        for f in sorted((addon / "volrig_addon").glob("*.py")):
+            z.write(f, f"volrig_addon/{f.name}")
+    unpacked = tmp_path / "unpacked"
+    assert addon_folder(str(zip_path), str(unpacked)) == str(unpacked)
+    assert (unpacked / "volrig_addon" / "bake.py").read_bytes() == (addon / "volrig_addon" / "bake.py").read_bytes()
+    with pytest.raises(FileNotFoundError, match="neither the add-on zip nor a folder holding volrig_addon"):
+        addon_folder(str(tmp_path))
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if os.path.abspath(p) != str(addon)] + [str(addon)])
+    assert addon_folder() == str(addon)  # found as an importable package (PYTHONPATH=python:addon)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if os.path.abspath(p) != str(addon)])
+    assert addon_folder() == ""  # not installed for Python: left to the add-ons installed in Blender
+
+
+def test_cli_errors_are_volrigs_or_os_errors(tmp_path, cube_file):
+    """User mistakes exit 2 with the message; the frame syntax is the add-on's."""
+    r = run("skeletonize", cube_file, "--lo", 100, "--hi", 50, "-t", 0.3, "-o", tmp_path / "x.npz")
+    assert r.returncode == 2 and "lo (100) is above hi (50)" in r.stderr
+    r = run("skeletonize", cube_file, "--dims", 4, 4, 4, "-t", 0.3, "-o", tmp_path / "x.npz")
+    assert r.returncode == 2 and "element type" in r.stderr and "Traceback" not in r.stderr
+    r = run("bake", tmp_path / "none.blend", "--blender", "/bin/true")
+    assert r.returncode == 2 and "none.blend: no such file" in r.stderr

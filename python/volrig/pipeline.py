@@ -1,0 +1,351 @@
+"""The one pipeline from a volume file to baked frames, shared by the command line, the Blender add-on and the demo.
+
+    load_source -> import_defaults (label map? value window, density) -> Segmentation.mask -> skeletonize
+    -> skeleton_points -> rig_skeleton (skeleton-tree, autorig, bind) -> save_rig
+    -> pose matrices per frame (mocap_poses, or Blender's armature) -> FolderBake.bake (Deformer -> <stem>_NNNN.vdb)
+
+Every step here has exactly one implementation: ``python -m volrig rig / bake-mocap``, the add-on's operators and
+``volrig.demo`` call these functions and add only their own input and output (argument parsing, progress bars,
+Blender objects). User mistakes raise ``volrig.VolrigError`` (a ``ValueError``) or ``OSError`` with a message to
+show as it is; anything else is a bug.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+from dataclasses import dataclass
+from typing import Callable, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ._volrig import VolrigError
+from .deform import Deformer
+from .files import atomic_output
+from .rig import Binding, Rig, autorig, bind
+from .rigfile import RiggedSkeleton, load_rig
+from .segment import check_range, segment
+from .skeleton import Skeleton, SkeletonPoints, skeletonize
+from .tree import skeleton_tree
+from .volume import Volume, format_of, load
+
+#: progress(step, fraction) -> False cancels; step is one of STEPS.
+StepProgress = Optional[Callable[[str, float], Optional[bool]]]
+#: The steps reporting progress, in order.
+STEPS = ("skeletonize", "skeleton-tree", "autorig", "bind")
+MESH_ENDINGS = (".obj", ".ply")
+
+
+def _step(progress: StepProgress, name: str):
+    """A volrig progress callback reporting ``name``'s fraction to a StepProgress (None when there is none)."""
+    if progress is None:
+        return None
+    return lambda f: progress(name, f)
+
+
+# ---- import -----------------------------------------------------------------------------------------------------
+
+def load_source(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=(1.0, 1.0, 1.0),
+                big_endian: bool = False, offset: int = 0, grid: str = "") -> Volume:
+    """``volrig.load`` with the raw-file hints the command line and the import dialog take: with ``dims`` the file
+    is read as raw voxels of ``dtype``; a raw file (.raw .bin .img) without them is refused."""
+    if dims is None:
+        if format_of(path) == "raw":
+            raise VolrigError(f"{os.path.basename(path)}: a raw file needs its size in voxels (x, y, z) and its "
+                              "element type")
+        return load(path, grid=grid)
+    if not dtype:
+        raise VolrigError(f"{os.path.basename(path)}: a raw file needs its element type besides its size")
+    return load(path, dims=tuple(int(d) for d in dims), dtype=dtype, spacing=spacing,
+                byte_order="big" if big_endian else "little", offset=offset)
+
+
+def float_samples(volume: Volume) -> Volume:
+    """The samples as float32 with NaN and infinities set to 0 (what a VDB grid for Blender holds)."""
+    samples = volume.array.astype(np.float32, copy=False)
+    finite = np.isfinite(samples)
+    if not finite.all():
+        samples = np.where(finite, samples, np.float32(0))
+    return Volume(samples, volume.spacing, volume.origin)
+
+
+def looks_like_labels(array: np.ndarray) -> bool:
+    """A label map: a few small non-negative integers numbered from about 1 up (not a scan's intensity levels).
+    Judged on every 32nd slice along z."""
+    if not array.size:
+        return False
+    some = np.unique(array[:: max(1, array.shape[0] // 32)])
+    some = some[np.isfinite(some)] if some.dtype.kind == "f" else some
+    return bool(0 < len(some) <= 64 and some.min() >= 0 and np.array_equal(some, np.round(some))
+                and 3 < some.max() <= 2 * len(some) + 8)
+
+
+@dataclass(frozen=True)
+class ImportDefaults:
+    """The settings an imported volume starts with."""
+    value_min: float
+    value_max: float
+    low: float           #: segmentation range: the 5th percentile of the non-zero samples ...
+    high: float          #: ... up to the maximum
+    label_map: bool      #: segment by labels, sample nearest, colour per label
+    labels: str          #: "1-N" for label maps, else ""
+    sampling: str        #: "nearest" for label maps, else "trilinear"
+    density_scale: float  #: render density per scene unit: 40 / the largest extent in scene units
+
+
+def import_defaults(volume: Volume, unit_scale: float = 1.0) -> ImportDefaults:
+    """Import heuristics: the value window, whether the volume is a label map, and a density that makes the
+    object about equally opaque whatever its size (``unit_scale``: scene units per volume unit)."""
+    a = volume.array
+    lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
+    nonzero = a[a != 0]
+    labels = looks_like_labels(a)
+    extent = float(max(np.asarray(volume.dims) * np.asarray(volume.spacing))) * unit_scale
+    return ImportDefaults(value_min=lo, value_max=hi, low=float(np.percentile(nonzero, 5)) if nonzero.size else 1.0,
+                          high=hi, label_map=labels, labels=f"1-{int(hi)}" if labels else "",
+                          sampling="nearest" if labels else "trilinear",
+                          density_scale=round(40.0 / max(extent, 1e-6), 3))
+
+
+# ---- segmentation -----------------------------------------------------------------------------------------------
+
+def _ranges(text: str, what: str, example: str):
+    """(part, first, last) for each 'N' or 'A-B' of ``text`` (separated by spaces, commas or semicolons);
+    VolrigError naming a part that is neither."""
+    for part in re.split(r"[\s,;]+", text.strip()):
+        if not part:
+            continue
+        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+))?", part)
+        if not m:
+            raise VolrigError(f"{what}: {part!r} is not {example}")
+        yield part, int(m.group(1)), int(m.group(2) or m.group(1))
+
+
+def parse_labels(text: str) -> List[int]:
+    """'1 4 7-9' -> [1, 4, 7, 8, 9] (commas and semicolons separate too); VolrigError naming the bad part."""
+    out: List[int] = []
+    for part, a, b in _ranges(text, "labels", "a number or a range like 7-9"):
+        if b < a or b - a > 100000:
+            raise VolrigError(f"labels: bad range {part!r}")
+        out.extend(range(a, b + 1))
+    if not out:
+        raise VolrigError("labels: none given")
+    return out
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """What is object: values in [lo, hi] (either may be None) and/or one of ``labels``; ``largest`` keeps the
+    largest 26-connected part. Hashable, so a cache can key on it; invalid settings raise at construction."""
+    lo: Optional[float] = None
+    hi: Optional[float] = None
+    labels: Optional[Tuple[int, ...]] = None
+    largest: bool = False
+
+    def __post_init__(self):
+        check_range(self.lo, self.hi)
+        if self.labels is not None:
+            object.__setattr__(self, "labels", tuple(int(x) for x in self.labels))
+
+    @classmethod
+    def of_labels(cls, text: str, largest: bool = False) -> "Segmentation":
+        return cls(labels=tuple(parse_labels(text)), largest=largest)
+
+    def mask(self, volume: Volume, name: str = "the volume") -> Volume:
+        """The object mask; VolrigError when it is empty."""
+        m = segment(volume, lo=self.lo, hi=self.hi, labels=self.labels, largest_component=self.largest)
+        if not m.array.any():
+            raise VolrigError(f"{name}: the segmentation is empty (check the value range or the labels)")
+        return m
+
+    def count(self, array: np.ndarray) -> int:
+        """Object voxels by the value criteria alone (fast, for a live count: ``largest`` is not applied)."""
+        keep = np.ones(array.shape, bool) if self.labels is None else np.isin(array, self.labels)
+        if self.lo is not None:
+            keep &= array >= self.lo
+        if self.hi is not None:
+            keep &= array <= self.hi
+        if self.lo is None and self.hi is None and self.labels is None:
+            keep &= array != 0
+        return int(np.count_nonzero(keep))
+
+
+def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float] = None, **hints) -> Volume:
+    """The object mask of a file: a mesh (.obj .ply) voxelized at ``voxel_size``, else the volume (``hints`` as
+    for ``load_source``) segmented."""
+    if path.lower().endswith(MESH_ENDINGS):
+        from .mesh import read_mesh, voxelize
+        if not voxel_size:
+            raise VolrigError(f"{path}: meshes need a voxel size (--voxel-size)")
+        return voxelize(*read_mesh(path), voxel_size)
+    return segmentation.mask(load_source(path, **hints), name=path)
+
+
+# ---- skeleton ---------------------------------------------------------------------------------------------------
+
+def skeleton_of(mask: Volume, metric: str = "euclidean", progress: StepProgress = None) -> Skeleton:
+    """The skeleton (thinness scores sorted once) of a mask."""
+    return skeletonize(mask, metric, progress=_step(progress, "skeletonize"))
+
+
+def skeleton_points(skeleton: Skeleton, thinness: Optional[float] = None, count: Optional[int] = None) \
+        -> SkeletonPoints:
+    """The points at ``thinness`` or the ``count`` highest-scoring ones (exactly one of the two)."""
+    if (thinness is None) == (count is None):
+        raise VolrigError("give a thinness or a point count (one of the two)")
+    return skeleton.top(count) if count is not None else skeleton.at(thinness)
+
+
+def thinness_from_voxels(value: float, metric: str, spacing) -> float:
+    """The thinness TP of a value in voxels (the add-on's slider): a Euclidean score is in world units (TP = value
+    * the smallest spacing), a chamfer score in grid steps (TP = value)."""
+    return float(value) * (min(spacing) if metric == "euclidean" else 1.0)
+
+
+def voxels_from_thinness(tp: float, metric: str, spacing) -> float:
+    """The inverse of ``thinness_from_voxels``."""
+    return float(tp) / (min(spacing) if metric == "euclidean" else 1.0)
+
+
+# ---- rig --------------------------------------------------------------------------------------------------------
+
+def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, max_edge: Optional[float] = None,
+                 bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
+                 progress: StepProgress = None, source: Optional[str] = None) -> RiggedSkeleton:
+    """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). Fewer than two
+    points are refused by autorig (lower the thinness)."""
+    tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
+    rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"))
+    binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"))
+    return RiggedSkeleton(points, tree, rig, binding, source)
+
+
+def load_rigged(path: str, binding: bool = False) -> RiggedSkeleton:
+    """A rig file that holds a rig (and a binding, when ``binding``); VolrigError saying what is missing."""
+    saved = load_rig(path)
+    if saved.rig is None:
+        raise VolrigError(f"{path}: the file holds no rig")
+    if binding and saved.binding is None:
+        raise VolrigError(f"{path}: the file holds no binding (make it with `volrig rig`)")
+    return saved
+
+
+# ---- frames -----------------------------------------------------------------------------------------------------
+
+def parse_frames(text: str, default: Optional[Tuple[int, int]] = None,
+                 bounds: Optional[Tuple[int, int, str]] = None) -> List[int]:
+    """'1-48', '5', '1-10,20-30' -> the sorted frame numbers. Empty text gives ``default`` (first, last), or an
+    error without one. ``bounds`` (first, last, what) refuses frames outside first..last, naming ``what``."""
+    if not text.strip():
+        if default is None:
+            raise VolrigError("frames: none given")
+        return list(range(default[0], default[1] + 1))
+    frames = set()
+    for part, a, b in _ranges(text, "frames", "a frame or a range FIRST-LAST like 1-48"):
+        if bounds is not None and not bounds[0] <= a <= b <= bounds[1]:
+            raise VolrigError(f"{bounds[2]} has frames {bounds[0]}-{bounds[1]}; asked for {part}")
+        if b < a:
+            raise VolrigError(f"frames: empty range {part!r}")
+        frames.update(range(a, b + 1))
+    return sorted(frames)
+
+
+def clip_frames(frame_count: int, text: str = "", step: int = 1, anchor: int = 1, what: str = "the clip") \
+        -> np.ndarray:
+    """0-based indices of a clip's frames: those ``text`` names (1-based as players number them; empty = all)
+    that fall on every ``step``-th frame counted from frame ``anchor``. Farm machines given different ranges with
+    anchor 1 pick frames of one sequence."""
+    if step < 1:
+        raise VolrigError(f"the frame step must be at least 1, got {step}")
+    numbers = np.array(parse_frames(text, default=(1, frame_count), bounds=(1, frame_count, what)), np.int64)
+    kept = numbers[(numbers - anchor) % step == 0]
+    if not len(kept):
+        raise VolrigError(f"frames {text}: none falls on the step {step} grid (frames {anchor}, {anchor + step}, "
+                          "...)")
+    return kept - 1
+
+
+def sequence_number(clip_frame: int, step: int = 1) -> int:
+    """The file number of 0-based clip frame ``clip_frame`` baked every ``step`` frames from the clip's first:
+    files 1, 2, ... over the whole clip, so split ranges fit one sequence."""
+    return int(clip_frame) // step + 1
+
+
+def mocap_poses(rig: Rig, motion, frames, bone_map=None, root_motion: str = "in_place", up_axis: str = "y",
+                scale: Optional[float] = None):
+    """(bone map, (F, B, 4, 4) rest-to-pose matrices) driving ``rig`` with ``motion`` at 0-based ``frames``; the
+    bone map defaults to the automatic one from the names."""
+    from .mocap import animate, default_bone_map
+    if bone_map is None:
+        bone_map = default_bone_map(motion, rig)
+    return bone_map, animate(rig, motion, frames=frames, bone_map=bone_map, root_motion=root_motion,
+                             up_axis=up_axis, scale=scale)
+
+
+# ---- baking to a folder -----------------------------------------------------------------------------------------
+
+def frame_file(folder: str, stem: str, number: int) -> str:
+    """``<folder>/<stem>_NNNN.vdb``: frame ``number`` of a VDB sequence."""
+    return os.path.join(folder, f"{stem}_{number:04d}.vdb")
+
+
+class FolderBake:
+    """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
+    and ``bone``; written atomically). The Deformer is built once.
+
+    ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
+    result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
+    re-bake; machines baking other frames into the same folder merge their entries."""
+
+    def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
+                 mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = ""):
+        self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
+        self.deformer = Deformer(source, points, binding)
+        self.poses_path = os.path.join(folder, "poses.json") if track else None
+        w = binding.weights.tocsr()
+        h = hashlib.sha1()
+        for a in (w.indptr, w.indices, w.data):
+            h.update(np.ascontiguousarray(a).tobytes())
+        h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]).encode())
+        self.setup_hash = h.hexdigest()
+        self.poses = self._read_poses()
+
+    def path(self, number: int) -> str:
+        return frame_file(self.folder, self.stem, number)
+
+    def pose_hash(self, matrices) -> str:
+        return hashlib.sha1(np.round(np.asarray(matrices, np.float64), 6).tobytes()
+                            + self.setup_hash.encode()).hexdigest()
+
+    def up_to_date(self, number: int, matrices) -> bool:
+        """The frame's file exists and was baked from this pose and setup (always False without ``track``)."""
+        return (self.poses_path is not None and self.poses.get(str(number)) == self.pose_hash(matrices)
+                and os.path.exists(self.path(number)))
+
+    def bake(self, number: int, matrices, progress=None) -> dict:
+        """Reconstructs one pose ((B, 4, 4) rest-to-pose matrices) into frame ``number``'s file; returns the
+        frame's stats. The frame's memory goes back to the Deformer for the next one."""
+        os.makedirs(self.folder, exist_ok=True)
+        frame = self.deformer.frame(matrices, mode=self.mode, sampling=self.sampling, progress=progress)
+        frame.save(self.path(number), half=True)
+        if self.poses_path is not None:
+            self.poses[str(number)] = self.pose_hash(matrices)
+            self._write_poses()
+        return frame.stats
+
+    def _read_poses(self) -> dict:
+        if self.poses_path is None:
+            return {}
+        try:
+            with open(self.poses_path) as f:
+                return json.load(f)
+        except (OSError, ValueError):
+            return {}
+
+    def _write_poses(self) -> None:
+        on_disk = self._read_poses()  # other machines may bake other frames into the same folder
+        on_disk.update(self.poses)
+        with atomic_output(self.poses_path) as tmp:
+            with open(tmp, "w") as f:
+                json.dump(on_disk, f, indent=0, sort_keys=True)
