@@ -141,7 +141,27 @@ void bind_deform(py::module_& m) {
             py::arg("progress") = py::none(), py::arg("box") = py::none())
         .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); })
         .def_property_readonly("kept_frame_bytes", [](const PyDeformer& d) { return d.deformer->kept_frame_bytes(); })
-        .def("release_frame_memory", [](PyDeformer& d) { d.deformer->release_frame_memory(); });
+        .def("release_frame_memory", [](PyDeformer& d) { d.deformer->release_frame_memory(); })
+        .def(
+            "rebind",
+            [](PyDeformer& d, const IjkArray& ijk, const FloatArray& radius, const Int32Array& bone, std::size_t bone_count,
+               std::optional<Int64Array> offsets, std::optional<Int32Array> wbones, std::optional<FloatArray> weights) {
+                SphereArrays next{ijk, radius, bone, bone_count, std::move(offsets), std::move(wbones), std::move(weights)};
+                d.deformer->rebind(next.view());
+                d.spheres = std::move(next);
+            },
+            py::arg("ijk"), py::arg("radius"), py::arg("bone"), py::arg("bone_count"),
+            py::arg("weight_offsets") = py::none(), py::arg("weight_bones") = py::none(), py::arg("weights") = py::none())
+        .def_property_readonly("reused_fields", [](const PyDeformer& d) { return d.deformer->reused_fields(); });
+    // The option names, spelled once in the core (volrig/deform.hpp), in enum order.
+    auto names = [](const auto& list) {
+        py::tuple t(list.size());
+        for (std::size_t k = 0; k < list.size(); ++k) t[k] = py::str(list[k]);
+        return t;
+    };
+    m.attr("DEFORM_MODES") = names(kDeformModeNames);
+    m.attr("PROXIMITIES") = names(kProximityNames);
+    m.attr("SAMPLINGS") = names(kSamplingNames);
 
     m.def(
         "deform_reference",

@@ -18,15 +18,16 @@ from .rig import Binding
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
 
-#: The deform modes (the core's names), each with a label and a description for menus: the one list the command
-#: line's choices and the add-on's menu come from. The add-on stores a choice by its position: append only.
+#: The deform modes (the core's names, ``_volrig.DEFORM_MODES``), each with a label and a description for menus:
+#: the one list the command line's choices and the add-on's menu come from. The add-on stores a choice by its
+#: position: append only.
 MODE_INFO = {
     "linear": ("Linear blend", "Blend the bones' matrices by the weights (smooth near joints)"),
     "dual_quaternion": ("Dual quaternion", "Blend as dual quaternions (keeps volume at twisted joints)"),
     "rigid": ("Rigid", "Each sphere follows its heaviest bone"),
 }
 MODES = tuple(MODE_INFO)
-PROXIMITIES = ("power", "nearest")
+PROXIMITIES = tuple(_volrig.PROXIMITIES)
 #: Sampling names with their label and description (the add-on stores a choice by its position: append only).
 SAMPLING_INFO = {
     "trilinear": ("Trilinear", "Interpolate the scan's samples (intensities)"),
@@ -151,6 +152,18 @@ class Deformer:
     def release_frame_memory(self) -> None:
         """Frees the output memory kept for the next frame (say, after a bake); frames still alive keep theirs."""
         self._native.release_frame_memory()
+
+    def rebind(self, binding: Binding) -> None:
+        """Takes a new binding of the same points (say, weights repainted). The next frame rebuilds only the per-rig
+        data of the bones and blend groups whose spheres changed (``reused_fields`` says how many it kept)."""
+        ijk, radii, bone, nb, off, wb, w = _sphere_arrays(self.points, binding)
+        self._native.rebind(ijk, radii, bone, nb, off, wb, w)
+        self.binding = binding
+
+    @property
+    def reused_fields(self) -> int:
+        """How many bones' and blend groups' per-rig data the last build took over unchanged."""
+        return int(self._native.reused_fields)
 
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:

@@ -142,6 +142,26 @@ def on_source_grid(array, offset, shape):
 
 # ---- the identity pose -------------------------------------------------------------------------------------
 
+def test_rebind_after_repainting_rebuilds_only_what_changed(phantom_half, phantom_rigged):
+    """Weight painting moves some spheres from one bone to another: after Deformer.rebind, only the fields of the
+    bones whose spheres changed are rebuilt, and every frame equals a fresh Deformer's, rigid and smooth."""
+    mask, pts, rig, binding = phantom_rigged
+    d = volrig.Deformer(phantom_half.volume, pts, binding)
+    pose = rig.pose({"forearm.L": ([1, 0, 0], 40), "thigh.R": ([1, 0, 0], -25)})
+    hand = rig.names.index("hand.L") + 1
+    before = int((d.frame(pose).bone.array == hand).sum())
+    assert d.reused_fields == 0
+    forearm = np.flatnonzero(binding.bone == rig.names.index("forearm.L"))
+    painted = binding.reassign(forearm[: len(forearm) // 3], "hand.L")
+    d.rebind(painted)
+    again = d.frame(pose)
+    assert d.reused_fields == len(rig.names) - 2  # all but forearm.L and hand.L
+    fresh = volrig.Deformer(phantom_half.volume, pts, painted).frame(pose)
+    assert np.array_equal(again.bone.array, fresh.bone.array)
+    assert np.array_equal(again.values.array, fresh.values.array)
+    assert (again.bone.array == hand).sum() > before  # the repainted spheres now follow the hand
+
+
 def rigged_volume(volume, count):
     """Segment, skeletonize (the top `count` points), autorig and bind (rigid) a volume."""
     mask = volrig.segment(volume)

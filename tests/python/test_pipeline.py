@@ -299,9 +299,11 @@ def test_mocap_poses_default_to_the_automatic_map():
 def test_every_mode_and_sampling_the_menus_offer_is_the_cores():
     """The CLI's choices and the add-on's menus come from volrig.deform.MODE_INFO / SAMPLING_INFO; the core parses
     the names: each one offered must be one it takes."""
+    from volrig import _volrig
     from volrig.deform import MODE_INFO, MODES, SAMPLING_INFO, SAMPLINGS
     assert MODES == tuple(MODE_INFO) and SAMPLINGS == tuple(SAMPLING_INFO)
-    assert set(MODES) == {"rigid", "linear", "dual_quaternion"} and set(SAMPLINGS) == {"trilinear", "nearest"}
+    assert set(MODES) == set(_volrig.DEFORM_MODES) == {"rigid", "linear", "dual_quaternion"}
+    assert set(SAMPLINGS) == set(_volrig.SAMPLINGS) == {"trilinear", "nearest"}
     deformer, rig = _tiny_bake_inputs()[3:]
     for mode in MODES:
         for sampling in SAMPLINGS:
