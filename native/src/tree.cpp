@@ -83,7 +83,7 @@ double default_max_edge(const Grid& g) {
 namespace {
 
 double resolve_max_edge(const Grid& g, double e) {
-    if (!std::isfinite(e)) throw Error("skeleton_tree: max_edge must be finite");
+    if (!std::isfinite(e) || e < 0) throw Error("skeleton_tree: max_edge must be positive (0 for the default)");
     return e > 0 ? e : default_max_edge(g);
 }
 

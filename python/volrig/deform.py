@@ -95,8 +95,6 @@ def _source_array(source: Volume) -> np.ndarray:
     a = source.array
     if a.dtype == np.bool_:
         a = a.view(np.uint8)
-    if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
-        raise VolrigError("the source volume holds NaN or infinite samples")  # (not checked by the core yet)
     return np.ascontiguousarray(a)
 
 

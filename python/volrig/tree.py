@@ -71,8 +71,6 @@ def skeleton_tree(points: SkeletonPoints, mask, alpha: float = 0.9, max_edge: Op
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
-    if max_edge is not None and not (np.isfinite(max_edge) and max_edge > 0):
-        raise VolrigError(f"max_edge must be a positive number, got {max_edge}")
     edges, weights, bridged, component, count, e = _volrig.skeleton_tree(
-        arr, points.spacing, points.origin, ijk, radii, float(alpha), float(max_edge or 0.0), bool(bridge), progress)
+        arr, points.spacing, points.origin, ijk, radii, float(alpha), 0.0 if max_edge is None else float(max_edge), bool(bridge), progress)
     return SkeletonTree(edges, weights, bridged.view(np.bool_), component, int(count), float(alpha), float(e))

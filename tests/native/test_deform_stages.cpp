@@ -206,6 +206,11 @@ TEST_CASE("sphere checks and smooth groups", "[deform][stages]") {
     CHECK(g.group_of[3] != g.group_of[0]);
     CHECK(g.weights.size() == 3);
     CHECK(quantized_weights(s, 5) == Weights{{0, 14}, {1, 2}});
+    std::vector<float> samples(static_cast<std::size_t>(rs.grid.voxel_count()), 1.0f);
+    const VolumeView v{rs.grid, DType::Float32, samples.data()};
+    CHECK_NOTHROW(check_source(v, "deform"));
+    samples[samples.size() / 2] = std::numeric_limits<float>::infinity();
+    CHECK_THROWS_WITH(check_source(v, "deform"), Catch::Contains("deform: the source volume holds NaN or infinite"));
 }
 
 TEST_CASE("concave_lower bounds the power function from its corner values", "[deform][stages]") {

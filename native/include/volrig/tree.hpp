@@ -50,7 +50,7 @@ struct SkeletonGraph {
     std::size_t edge_count() const { return targets.size() / 2; }
 };
 
-/// The contained 26-cone neighbour graph (see the header comment). max_edge <= 0 selects default_max_edge.
+/// The contained 26-cone neighbour graph (see the header comment). max_edge 0 selects default_max_edge; a negative one is refused.
 SkeletonGraph skeleton_graph(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, double max_edge,
                              const Progress& progress = {});
 
@@ -66,7 +66,7 @@ void shortest_paths(const SkeletonGraph& graph, std::vector<double>& dist, std::
 
 struct TreeOptions {
     double alpha = 0.9;     ///< connectivity parameter, 0..1
-    double max_edge = 0.0;  ///< E in world units; <= 0 selects default_max_edge
+    double max_edge = 0.0;  ///< E in world units; 0 selects default_max_edge, < 0 is refused
     bool bridge = false;    ///< join the components of the forest by their closest point pairs
 };
 

@@ -210,6 +210,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
 
 Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl_(std::make_unique<Impl>()) {
     check_grid(source.grid, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "deform source");
+    check_source(source, "deform");
     check_spheres(source.grid, spheres);
     Impl& m = *impl_;
     m.source = source;

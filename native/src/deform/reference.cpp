@@ -22,6 +22,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                                 const DeformOptions& o, const Progress& progress,
                                 const Box* fixed_box) {
     const Grid& grid = source.grid;
+    check_source(source, "deform_reference");
     check_spheres(grid, s);
     check_options(o, s.n);
     const std::vector<Motion> motions = bone_motions(matrices, s.bone_count, grid);
@@ -104,6 +105,7 @@ std::vector<float> inverse_warp(const VolumeView& source, const double* matrix, 
                                 const Progress& progress, const std::array<std::int64_t, 6>* box) {
     const Grid& g = source.grid;
     check_grid(g, dtype_size(source.dtype), std::numeric_limits<std::uint64_t>::max(), "inverse_warp");
+    check_source(source, "inverse_warp");
     const Motion m = bone_motions(matrix, 1, g)[0];
     const Box bx = box ? *box : Box{0, 0, 0, g.dims[0], g.dims[1], g.dims[2]};
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];

@@ -1,11 +1,39 @@
 #include "deform/spheres.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <string>
 
 namespace volrig::deform_detail {
+
+namespace {
+
+template <class T>
+bool all_finite(const T* data, std::size_t n) {
+    std::atomic<bool> ok{true};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 16), [&](const tbb::blocked_range<std::size_t>& r) {
+        if (!ok.load(std::memory_order_relaxed)) return;
+        bool good = true;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) good &= std::isfinite(data[i]);
+        if (!good) ok = false;
+    });
+    return ok;
+}
+
+}  // namespace
+
+void check_source(const VolumeView& v, const char* who) {
+    const auto n = static_cast<std::size_t>(v.grid.voxel_count());
+    const bool ok = v.dtype == DType::Float32   ? all_finite(static_cast<const float*>(v.data), n)
+                    : v.dtype == DType::Float64 ? all_finite(static_cast<const double*>(v.data), n)
+                                                : true;
+    if (!ok) throw Error(std::string(who) + ": the source volume holds NaN or infinite samples");
+}
 
 void check_spheres(const Grid& g, const BoundSpheres& s) {
     if (s.n > 0 && (!s.ijk || !s.radius || !s.bone)) throw Error("deform: missing sphere arrays");

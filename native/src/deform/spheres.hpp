@@ -1,4 +1,4 @@
-// deform/spheres.hpp: the bound spheres as the deformation takes them: input checks, scaled radii, and the
+// deform/spheres.hpp: the deformation's inputs: the source's samples and the bound spheres checked, scaled radii, and the
 // smooth-mode groups (spheres whose rounded weights agree share one blended transform, so that smooth modes use
 // the per-bone machinery).
 #pragma once
@@ -13,6 +13,8 @@
 
 namespace volrig::deform_detail {
 
+/// Throws when a floating-point source holds a NaN or an infinite sample (`who` names the caller).
+void check_source(const VolumeView& v, const char* who);
 /// Throws unless the spheres fit the grid: centres inside, radii finite and >= 0, bones and weights valid.
 void check_spheres(const Grid& g, const BoundSpheres& s);
 /// Throws unless the options fit n spheres (radius_scale: empty or n factors in [0, 100]).
