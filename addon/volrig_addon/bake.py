@@ -104,6 +104,7 @@ def bake(volume_obj, scene, frames, mode: str = "linear", force: bool = False, r
             report(f"volrig: {volume_obj.name} frame {frame} ({i + 1}/{len(frames)})")
     finally:
         scene.frame_set(current)
+        baker.folder.finish()
     baker.play(scene)
     return written
 

@@ -327,7 +327,10 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
             self._timer = None
         wm.progress_end()
         context.scene.frame_set(self._current)
-        self._baker.deformer.release_frame_memory()  # the bake is over: no next frame will reuse it
+        try:
+            self._baker.folder.finish()  # the last file written; the frames' memory freed
+        except USER_ERRORS as e:
+            self.report({"ERROR"}, f"volrig: {e}")
         if self._next:
             self._baker.play(context.scene)
 

@@ -155,18 +155,23 @@ def cmd_bake_mocap(args) -> int:
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args, args.step, binding=True)
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
     bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling)
-    written = 0
-    for k, (f, m) in enumerate(zip(frames, matrices)):
-        path = bake.path(sequence_number(f, args.step))
-        head = f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: "
-        if args.skip_existing and os.path.exists(path):
-            sys.stderr.write(head + f"{path} exists, skipped\n")
-            continue
-        started = time.perf_counter()
-        stats = bake.bake(sequence_number(f, args.step), m)
-        written += 1
-        sys.stderr.write(head + f"{stats['covered']:,} voxels, {time.perf_counter() - started:.2f} s -> {path}\n")
-        sys.stderr.flush()
+    written, first = 0, time.perf_counter()
+    try:
+        for k, (f, m) in enumerate(zip(frames, matrices)):
+            path = bake.path(sequence_number(f, args.step))
+            head = f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: "
+            if args.skip_existing and os.path.exists(path):
+                sys.stderr.write(head + f"{path} exists, skipped\n")
+                continue
+            started = time.perf_counter()
+            stats = bake.bake(sequence_number(f, args.step), m)
+            written += 1
+            now = time.perf_counter()
+            sys.stderr.write(head + f"{stats['covered']:,} voxels, {now - started:.2f} s, "
+                             f"{written / (now - first):.2f} frames/s -> {path}\n")
+            sys.stderr.flush()
+    finally:
+        bake.finish()
     print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
           f"{motion.frame_count}, {motion.fps / args.step:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, "
           f"{args.root}, {args.mode}; {time.perf_counter() - t:.1f} s -> {args.output}")

@@ -11,6 +11,7 @@ show as it is; anything else is a bug.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import json
 import os
@@ -296,7 +297,11 @@ class FolderBake:
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
     result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
-    re-bake; machines baking other frames into the same folder merge their entries."""
+    re-bake; machines baking other frames into the same folder merge their entries.
+
+    A frame's file is written on a thread of its own while the next frame computes (the Deformer and the VDB
+    writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
+    calls at its end (it waits for the last write and frees the frames' memory)."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = ""):
@@ -310,6 +315,8 @@ class FolderBake:
         h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]).encode())
         self.setup_hash = h.hexdigest()
         self.poses = self._read_poses()
+        self._writer = None   # the thread writing files, while a bake runs
+        self._pending = None  # the last frame's write
 
     def path(self, number: int) -> str:
         return frame_file(self.folder, self.stem, number)
@@ -328,11 +335,32 @@ class FolderBake:
         frame's stats. The frame's memory goes back to the Deformer for the next one."""
         os.makedirs(self.folder, exist_ok=True)
         frame = self.deformer.frame(matrices, mode=self.mode, sampling=self.sampling, progress=progress)
+        self._wait()
+        if self._writer is None:
+            self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")
+        self._pending = self._writer.submit(self._write, number, matrices, frame)
+        return frame.stats
+
+    def finish(self) -> None:
+        """Waits for the last frame's file (raising its error, if any) and frees the frames' memory."""
+        try:
+            self._wait()
+        finally:
+            if self._writer is not None:
+                self._writer.shutdown(wait=True)
+                self._writer = None
+            self.deformer.release_frame_memory()
+
+    def _wait(self) -> None:
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
+    def _write(self, number: int, matrices, frame) -> None:
         frame.save(self.path(number), half=True)
         if self.poses_path is not None:
             self.poses[str(number)] = self.pose_hash(matrices)
             self._write_poses()
-        return frame.stats
 
     def _read_poses(self) -> dict:
         if self.poses_path is None:

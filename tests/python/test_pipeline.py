@@ -257,7 +257,8 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     bake = pipeline.FolderBake(source, pts, binding, folder, "bar", mode="linear", track=True, setup="rig-1")
     assert not bake.up_to_date(1, bent)
     stats = bake.bake(1, bent)
-    bake.bake(2, volrig.rest_pose(2))
+    bake.bake(2, volrig.rest_pose(2))  # while frame 1's file is written
+    bake.finish()
     assert sorted(os.listdir(folder)) == ["bar_0001.vdb", "bar_0002.vdb", "poses.json"]
     expected = deformer.frame(bent, mode="linear")
     assert stats == expected.stats and stats["covered"] == int(np.count_nonzero(expected.bone.array))
@@ -276,12 +277,22 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     assert not again.up_to_date(2, volrig.rest_pose(2))  # a missing file is never up to date
     # frames baked elsewhere into the same folder are merged into the record, not overwritten
     again.bake(3, bent)
+    again.finish()
     record = json.loads((tmp_path / "frames" / "poses.json").read_text())
     assert sorted(record) == ["1", "2", "3"]
     # without tracking nothing is recorded and nothing is up to date
     plain = pipeline.FolderBake(source, pts, binding, str(tmp_path / "plain"), "bar")
     plain.bake(1, bent)
+    plain.finish()
     assert os.listdir(tmp_path / "plain") == ["bar_0001.vdb"] and not plain.up_to_date(1, bent)
+    # a file that cannot be written (a folder stands in its place) fails the bake at the next frame or at finish
+    os.makedirs(plain.path(5))
+    plain.bake(5, bent)
+    with pytest.raises((OSError, volrig.VolrigError)):
+        plain.finish()
+    plain.bake(6, bent)  # the bake goes on after a reported failure
+    plain.finish()
+    assert os.path.isfile(plain.path(6)) and plain.deformer.kept_frame_bytes == 0
 
 
 def test_mocap_poses_default_to_the_automatic_map():
