@@ -150,7 +150,7 @@ private:
             if (!detail::iequals(tok, "vertex"))
                 fail(name_, tokens_.here() + "expected 'vertex' or 'endloop', got " + quoted(tok));
             detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size() + 1,
-                                    m_.triangles.size() + poly_.size(), opt_.max_bytes);
+                                    m_.triangles.size() + std::max<std::size_t>(poly_.size(), 1) - 1, opt_.max_bytes);
             poly_.push_back(weld_.add(vertex()));
         }
         if (poly_.size() < 3) fail(name_, tokens_.here() + "facet has " + std::to_string(poly_.size()) +
