@@ -144,16 +144,19 @@ Mesh icosphere(int levels, double r = 1.0, Vec3 c = {0, 0, 0}) {
     return out;
 }
 
-/// Exact volume of a closed, consistently oriented mesh (divergence theorem).
-double volume_of(const Mesh& m) {
+/// Six times the signed volume of a closed mesh (positive when its triangles face outward).
+double signed_volume6(const Mesh& m) {
     double s = 0;
-    for (const auto& t : m.triangles) {
+    for (const Tri& t : m.triangles) {
         const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
         s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
              a[2] * (b[0] * c[1] - b[1] * c[0]);
     }
-    return std::abs(s) / 6;
+    return s;
 }
+
+/// Exact volume of a closed, consistently oriented mesh (divergence theorem).
+double volume_of(const Mesh& m) { return std::abs(signed_volume6(m)) / 6; }
 
 std::int64_t count(const Volume& v) { return std::count(v.data.begin(), v.data.end(), std::uint8_t(1)); }
 
@@ -583,17 +586,6 @@ std::size_t open_edges(const Mesh& m) {
     for (const Tri& t : m.triangles)
         for (std::size_t k = 0; k < 3; ++k) ++uses[std::minmax(t[k], t[(k + 1) % 3])];
     return static_cast<std::size_t>(std::count_if(uses.begin(), uses.end(), [](const auto& e) { return e.second == 1; }));
-}
-
-/// Six times the signed volume of a closed mesh (positive when its triangles face outward).
-double signed_volume6(const Mesh& m) {
-    double s = 0;
-    for (const Tri& t : m.triangles) {
-        const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
-        s += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-             a[2] * (b[0] * c[1] - b[1] * c[0]);
-    }
-    return s;
 }
 
 /// The corners of every triangle, as coordinates (what survives welding and renumbering).

@@ -8,17 +8,7 @@
 
 namespace volrig {
 
-using detail::at_line;
-using detail::check_mesh_size;
-using detail::fan;
-using detail::parse_xyz;
-using detail::fail;
-using detail::LineReader;
-using detail::quoted;
-using detail::refuse_binary;
-using detail::with_commas;
-using detail::kMaxLine;
-using detail::kMaxVertices;
+using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
 
 namespace {
 

@@ -11,21 +11,11 @@
 
 namespace volrig {
 
-using detail::at_line;
-using detail::check_mesh_size;
-using detail::fan;
-using detail::parse_xyz;
-using detail::fail;
-using detail::LineReader;
-using detail::quoted;
-using detail::refuse_binary;
-using detail::with_commas;
-using detail::kMaxVertices;
-using detail::TokenReader;
-
-constexpr std::size_t kChunk = detail::kTextChunk;
+using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
 
 namespace {
+
+constexpr std::size_t kChunk = kTextChunk;
 
 enum class PlyType : std::uint8_t { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
 

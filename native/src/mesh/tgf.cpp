@@ -7,15 +7,7 @@
 
 namespace volrig {
 
-using detail::at_line;
-using detail::check_mesh_size;
-using detail::fan;
-using detail::parse_xyz;
-using detail::fail;
-using detail::LineReader;
-using detail::quoted;
-using detail::refuse_binary;
-using detail::with_commas;
+using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
 
 TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
