@@ -1,5 +1,5 @@
-// volrig/mesh.hpp: triangle meshes in: OBJ, PLY, OFF, STL and Medit readers, libigl TGF skeletons, and voxelization of a closed (or nearly closed)
-// surface into a volume mask.
+// volrig/mesh.hpp: triangle meshes in: OBJ, PLY, OFF, STL and Medit readers, libigl TGF skeletons, and voxelization
+// of a closed (or nearly closed) surface into a volume mask.
 //
 // Readers follow volrig/io.hpp's rules: counts are checked against the bytes present before anything is
 // allocated, absurd sizes are refused (ReadOptions::max_bytes bounds the decoded mesh: 24 bytes per vertex, 12 per

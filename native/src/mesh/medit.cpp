@@ -60,7 +60,8 @@ std::vector<Tri> tet_boundary(const std::vector<std::uint32_t>& tets) {
 
 bool is_keyword(std::string_view tok) {
     return !tok.empty() && std::isalpha(static_cast<unsigned char>(tok[0])) &&
-           std::all_of(tok.begin(), tok.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+           std::all_of(tok.begin(), tok.end(),
+                       [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
 }
 
 class MeditReader {
@@ -152,7 +153,8 @@ private:
         const std::string what = std::string("a vertex index of ") + kind.keyword;
         const std::uint64_t n = count(kind.keyword, kind.corners + 1);
         triangle_cost_ += n * kind.triangle_cost;
-        detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size(), triangle_cost_, opt_.max_bytes);
+        detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size(), triangle_cost_,
+                                opt_.max_bytes);
         cells.reserve(cells.size() + static_cast<std::size_t>(n * kind.corners));
         for (std::uint64_t i = 0; i < n; ++i) {
             for (std::size_t c = 0; c < kind.corners; ++c) {
@@ -173,7 +175,8 @@ private:
         double ignored = 0;
         while (tokens_.next(tok))
             if (!detail::parse_double(tok, ignored)) {
-                if (!is_keyword(tok)) fail(name_, tokens_.here() + "expected a number or a keyword, got " + quoted(tok));
+                if (!is_keyword(tok))
+                    fail(name_, tokens_.here() + "expected a number or a keyword, got " + quoted(tok));
                 pending_ = std::string(tok);
                 return;
             }
