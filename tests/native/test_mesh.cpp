@@ -1,6 +1,6 @@
-// Tests for volrig/mesh.hpp: OBJ/PLY/OFF/STL/Medit/TGF readers (round trips of meshes written here in every encoding, every kind
-// of malformed input), voxelization against analytic volumes and voxel-by-voxel geometry, hole closing, and the
-// arm mesh and skeleton in ../shared/data when present.
+// Tests for volrig/mesh.hpp: OBJ/PLY/OFF/STL/Medit/TGF readers (round trips of meshes written here in every
+// encoding, every kind of malformed input), voxelization against analytic volumes and voxel-by-voxel geometry, hole
+// closing, and the arm and hand meshes and the arm's skeleton in ../shared/data when present.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -585,7 +585,8 @@ std::size_t open_edges(const Mesh& m) {
     std::map<std::pair<std::uint32_t, std::uint32_t>, int> uses;
     for (const Tri& t : m.triangles)
         for (std::size_t k = 0; k < 3; ++k) ++uses[std::minmax(t[k], t[(k + 1) % 3])];
-    return static_cast<std::size_t>(std::count_if(uses.begin(), uses.end(), [](const auto& e) { return e.second == 1; }));
+    return static_cast<std::size_t>(
+        std::count_if(uses.begin(), uses.end(), [](const auto& e) { return e.second == 1; }));
 }
 
 /// The corners of every triangle, as coordinates (what survives welding and renumbering).
@@ -625,7 +626,8 @@ std::string medit_text(const std::vector<Vec3>& v, const std::string& cells) {
     return s + cells + "End\n";
 }
 
-const std::string kTetVertices = "MeshVersionFormatted 1\nDimension 3\nVertices 4\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n";
+const std::string kTetVertices =
+    "MeshVersionFormatted 1\nDimension 3\nVertices 4\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n";
 
 }  // namespace
 
@@ -654,7 +656,8 @@ TEST_CASE("OFF: keyword variants, counts, comments, colours, polygons", "[mesh][
 TEST_CASE("OFF: bad input names the file, the line and the problem", "[mesh][off][errors]") {
     const std::string head = "OFF\n3 1 0\n0 0 0\n1 0 0\n";
     const std::string pad = "# padding so that the counts fit in the bytes that follow\n";
-    expect_error([&] { off(head + "0 nan 0\n3 0 1 2\n" + pad, "c.off"); }, {"c.off: line 5: vertex y 'nan' is not finite"});
+    expect_error([&] { off(head + "0 nan 0\n3 0 1 2\n" + pad, "c.off"); },
+                 {"c.off: line 5: vertex y 'nan' is not finite"});
     expect_error([&] { off(head + "0 1 -inf\n3 0 1 2\n" + pad); }, {"line 5", "z '-inf' is not finite"});
     expect_error([&] { off(head + "0 1 zero\n3 0 1 2\n" + pad); }, {"line 5", "'zero' is not a number"});
     expect_error([&] { off(head + "0 1\n3 0 1 2\n" + pad); }, {"line 5", "vertex needs x y z, got 2"});
@@ -748,7 +751,8 @@ TEST_CASE("STL: bad input names the file, where, and the problem", "[mesh][stl][
     const float bad = std::nanf("");
     std::memcpy(nan.data() + 84 + 2 * 50 + 12 + 12 + 4, &bad, 4);  // triangle 2, corner 1, y
     expect_error([&] { stl(nan); }, {"triangle 2 (byte 184): corner 1 has y = nan (not finite)"});
-    const std::string facet = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+    const std::string facet =
+        "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
     CHECK(stl(bytes("solid x\n" + facet + "endsolid x\n")).triangles.size() == 1);
     auto with = [&](const std::string& from, const std::string& to) {
         std::string f = "solid x\n" + facet + "endsolid x\n";
@@ -795,7 +799,8 @@ TEST_CASE("Medit: triangles and quadrilaterals, skipped sections, any case, comm
                          "triangles 1 1 2 5 0 QUADRILATERALS 1 1 2 3 4 0");
     CHECK(t.triangles == std::vector<Tri>{{0, 1, 4}, {0, 1, 2}, {0, 2, 3}});
     // triangles win over tetrahedra
-    CHECK(medit(kTetVertices + "Tetrahedra 1 1 2 3 4 0\nTriangles 1 1 2 3 0\n").triangles == std::vector<Tri>{{0, 1, 2}});
+    CHECK(medit(kTetVertices + "Tetrahedra 1 1 2 3 4 0\nTriangles 1 1 2 3 0\n").triangles ==
+          std::vector<Tri>{{0, 1, 2}});
 }
 
 TEST_CASE("Medit: a tetrahedra-only file gives the boundary of its tetrahedra, facing out", "[mesh][medit]") {
@@ -844,13 +849,15 @@ TEST_CASE("Medit: bad input names the file, the line and the problem", "[mesh][m
     expect_error([&] { medit(v4 + "Vertices 1 0 0 0 0\n"); }, {"line 8", "a second Vertices section"});
     expect_error([&] { medit(v4 + "Edges 1 1 2 0\nEnd\n"); }, {"no Triangles, Quadrilaterals or Tetrahedra"});
     const std::string v0 = "MeshVersionFormatted 1\nDimension 3\n";
-    expect_error([&] { medit(v0 + "Vertices 2\n0 0 0 0\n0 nan 0 0\n" + pad); }, {"line 5", "vertex y 'nan' is not finite"});
+    expect_error([&] { medit(v0 + "Vertices 2\n0 0 0 0\n0 nan 0 0\n" + pad); },
+                 {"line 5", "vertex y 'nan' is not finite"});
     expect_error([&] { medit(v0 + "Vertices 1\n0 0 inf 0\n" + pad); }, {"line 4", "z 'inf' is not finite"});
     expect_error([&] { medit(v0 + "Vertices 1\n0 0 0 0.5\n" + pad); }, {"a vertex reference '0.5' is not an integer"});
     expect_error([&] { medit(v0 + "Vertices 0\nTriangles 0\n"); }, {"line 3", "no vertices (Vertices 0)"});
     expect_error([&] { medit(v0 + "Triangles 1 1 2 3 0\n"); }, {"line 3", "Triangles before Vertices"});
     expect_error([&] { medit(v0 + "End\n"); }, {"no Vertices section"});
-    expect_error([&] { medit("MeshVersionFormatted 1\nVertices 1 0 0 0 0\n"); }, {"line 2", "Vertices before 'Dimension 3'"});
+    expect_error([&] { medit("MeshVersionFormatted 1\nVertices 1 0 0 0 0\n"); },
+                 {"line 2", "Vertices before 'Dimension 3'"});
     expect_error([&] { medit("MeshVersionFormatted 1\nDimension 2\n"); }, {"line 2", "Dimension 2: only 3-D"});
     expect_error([&] { medit("MeshVersionFormatted 5\n"); }, {"line 1", "MeshVersionFormatted 5 (known: 1 to 4)"});
     expect_error([&] { medit("MeshVersionFormatted one\n"); }, {"the version 'one' is not an integer"});

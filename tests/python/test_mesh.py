@@ -155,7 +155,8 @@ def test_read_errors_name_the_file_and_line(tmp_path):
     assert time.perf_counter() - start < 1.0
     with pytest.raises(FileNotFoundError):
         volrig.read_mesh(tmp_path / "missing.obj")
-    with pytest.raises(volrig.FileFormatError, match=r"unknown mesh format \(known endings: .obj .ply .off .stl .mesh\)"):
+    with pytest.raises(volrig.FileFormatError,
+                       match=r"unknown mesh format \(known endings: .obj .ply .off .stl .mesh\)"):
         volrig.read_mesh(tmp_path / "mesh.3ds")
     with pytest.raises(volrig.FileFormatError, match=r"binary Medit meshes \(.meshb\) are not supported"):
         volrig.read_mesh(tmp_path / "mesh.meshb")
@@ -163,9 +164,11 @@ def test_read_errors_name_the_file_and_line(tmp_path):
 
 
 @pytest.mark.parametrize("name, text, message", [
-    ("bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", r"bad\.off: line 6: face index 3 out of range \(3 vertices"),
+    ("bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+     r"bad\.off: line 6: face index 3 out of range \(3 vertices"),
     ("bad.off", "OFF\n3000000000 1 0\n0 0 0\n", r"line 2: 3,000,000,000 vertices declared \(at least 6 bytes each\)"),
-    ("bad.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 nan\n", r"bad\.stl: line 4: vertex z 'nan' is not finite"),
+    ("bad.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 nan\n",
+     r"bad\.stl: line 4: vertex z 'nan' is not finite"),
     ("bad.stl", b"solid but binary".ljust(80, b"\0") + struct.pack("<I", 2) + bytes(60),
      r"84 \+ 50 x 2 = 184 bytes, but the file holds 144"),
     ("bad.mesh", "MeshVersionFormatted 1\nDimension 3\nVertices 3\n0 0 0 0\n1 0 0 0\n0 1 0 0\nTriangles 1\n1 2 4 0\n",
