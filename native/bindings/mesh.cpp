@@ -32,8 +32,12 @@ void bind_mesh(py::module_& m) {
             return py::make_tuple(rows(std::move(mesh.vertices)), rows(std::move(mesh.triangles)));
         },
         py::arg("path"),
-        "read_mesh(path) -> (vertices (V, 3) float64, triangles (F, 3) uint32): .obj or .ply, polygons "
-        "fan-triangulated.");
+        "read_mesh(path) -> (vertices (V, 3) float64, triangles (F, 3) uint32): .obj .ply .off .stl .mesh, "
+        "polygons fan-triangulated.");
+
+    py::tuple endings(mesh_extensions().size());
+    for (std::size_t i = 0; i < mesh_extensions().size(); ++i) endings[i] = mesh_extensions()[i];
+    m.attr("MESH_EXTENSIONS") = endings;
 
     m.def(
         "read_tgf",

@@ -291,7 +291,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("rig", help="skeleton, skeleton-tree, automatic rig and binding, saved as one .vrig file")
     _add_load_options(p)
     _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
-    p.add_argument("--voxel-size", type=float, help="meshes (.obj, .ply): voxel size in the mesh's units")
+    p.add_argument("--voxel-size", type=float, help="meshes (.obj .ply .off .stl .mesh): voxel size, mesh units")
     p.add_argument("--alpha", type=float, default=0.9, help="skeleton-tree connectivity parameter (0..1)")
     p.add_argument("--max-edge", type=float, help="longest tree edge in world units (default 4 voxel diagonals)")
     p.add_argument("--bones", type=int, help="bone count target (default 24; role rigs use 21)")

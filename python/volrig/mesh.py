@@ -1,4 +1,4 @@
-"""Meshes in: read OBJ/PLY triangle meshes and TGF skeletons, and voxelize a mesh into a mask ``Volume``.
+"""Meshes in: read OBJ/PLY/OFF/STL/Medit triangle meshes and TGF skeletons, and voxelize a mesh into a mask ``Volume``.
 
 ``voxelize`` fills the solid a surface encloses. It tolerates small holes: the exterior is flood-filled from the
 grid border through voxels farther than ``closing_radius`` voxels from the surface, so holes narrower than about
@@ -19,12 +19,20 @@ from .volume import Volume
 ProgressFn = Optional[Callable[[float], Optional[bool]]]
 
 
+#: File endings ``read_mesh`` reads (lower-case; matched case-insensitively): the one list, from the native core.
+MESH_EXTENSIONS: Tuple[str, ...] = tuple(_volrig.MESH_EXTENSIONS)
+
+
 def read_mesh(path) -> Tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh from ``.obj`` or ``.ply`` (ascii or binary).
+    """Read a triangle mesh; the reader is chosen by the file's ending (``MESH_EXTENSIONS``).
+
+    ``.obj`` (Wavefront), ``.ply`` (ascii or binary), ``.off`` (Geomview OFF, COFF, NOFF...), ``.stl`` (ASCII or
+    binary; identical corners welded into shared vertices) and ``.mesh`` (Medit ASCII: its Triangles and
+    Quadrilaterals, or when it has none the boundary of its Tetrahedra; binary ``.meshb`` is not read).
 
     Returns ``(vertices, faces)``: vertices (V, 3) float64 positions, faces (F, 3) int64 0-based vertex indices.
     Polygons are fan-triangulated. Raises FileNotFoundError, or ``volrig.FileFormatError`` (a ValueError) naming
-    the file, the line (text formats) and what is wrong.
+    the file, the line (text formats) or byte (binary) and what is wrong.
     """
     vertices, faces = _volrig.read_mesh(os.fspath(path))
     return vertices, faces.astype(np.int64)

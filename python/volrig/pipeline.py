@@ -24,6 +24,7 @@ import numpy as np
 from ._volrig import VolrigError
 from .deform import Deformer
 from .files import atomic_output
+from .mesh import MESH_EXTENSIONS
 from .rig import Binding, Rig, autorig, bind
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
@@ -35,7 +36,6 @@ from .volume import Volume, format_of, load
 StepProgress = Optional[Callable[[str, float], Optional[bool]]]
 #: The steps reporting progress, in order.
 STEPS = ("skeletonize", "skeleton-tree", "autorig", "bind")
-MESH_ENDINGS = (".obj", ".ply")
 
 
 def _step(progress: StepProgress, name: str):
@@ -173,9 +173,9 @@ class Segmentation:
 
 
 def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float] = None, **hints) -> Volume:
-    """The object mask of a file: a mesh (.obj .ply) voxelized at ``voxel_size``, else the volume (``hints`` as
+    """The object mask of a file: a mesh (``volrig.mesh.MESH_EXTENSIONS``) voxelized at ``voxel_size``, else the volume (``hints`` as
     for ``load_source``) segmented."""
-    if path.lower().endswith(MESH_ENDINGS):
+    if path.lower().endswith(MESH_EXTENSIONS):
         from .mesh import read_mesh, voxelize
         if not voxel_size:
             raise VolrigError(f"{path}: meshes need a voxel size (--voxel-size)")

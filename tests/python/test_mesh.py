@@ -1,17 +1,22 @@
-"""Meshes in through the Python API: read_mesh / read_tgf / voxelize, their errors, and the arm in ../shared/data.
+"""Meshes in through the Python API: read_mesh (OBJ, PLY, OFF, STL, Medit) / read_tgf / voxelize, their errors, the
+arm, knight, cow, lion and hand in ../shared/data, and `python -m volrig rig` on a mesh.
 
 Run: PYTHONPATH=python /usr/bin/python3 -m pytest tests/python/test_mesh.py
 """
 from __future__ import annotations
 
+import os
 import struct
+import subprocess
+import sys
 import time
 
 import numpy as np
 import pytest
 
 import volrig
-from conftest import shared
+from conftest import REPO, shared
+from volrig.segment import label_components
 
 # ---- meshes made here ------------------------------------------------------------------------------------------
 
@@ -81,14 +86,47 @@ def write_ply(path, v, f, encoding):
     path.write_bytes(("\n".join(head) + "\n").encode() + body)
 
 
+def write_off(path, v, f, quads=False):
+    faces = [f"4 {' '.join(map(str, q))} 0.5 0.5 0.5" for q in BOX_QUADS] if quads else \
+        [f"3 {a} {b} {c}" for a, b, c in f.tolist()]
+    path.write_text(f"COFF\n# test mesh\n{len(v)} {len(faces)} 0\n" +
+                    "".join(f"{x!r} {y!r} {z!r} 255 255 255 255\n" for x, y, z in v.tolist()) + "\n".join(faces) + "\n")
+
+
+def write_medit(path, v, f, quads=False):
+    cells = ("Quadrilaterals\n6\n" + "".join(" ".join(str(i + 1) for i in q) + " 1\n" for q in BOX_QUADS)) if quads \
+        else f"Triangles\n{len(f)}\n" + "".join(f"{a + 1} {b + 1} {c + 1} 0\n" for a, b, c in f.tolist())
+    path.write_text(f"MeshVersionFormatted 2\nDimension 3\nVertices\n{len(v)}\n" +
+                    "".join(f"{x!r} {y!r} {z!r} 0\n" for x, y, z in v.tolist()) + cells + "End\n")
+
+
+def write_stl(path, v, f, binary, header=b"binary STL from test_mesh.py"):
+    if binary:
+        records = b"".join(struct.pack("<12fH", 0, 0, 1, *v[t].ravel(), 0) for t in f)
+        path.write_bytes(header.ljust(80, b" ") + struct.pack("<I", len(f)) + records)
+        return
+    facets = "".join("facet normal 0 0 0\n outer loop\n" + "".join(f"  vertex {x!r} {y!r} {z!r}\n" for x, y, z in
+                                                                     v[t].tolist()) + " endloop\nendfacet\n" for t in f)
+    path.write_text(f"solid test\n{facets}endsolid test\n")
+
+
+def boundary_edges(f):
+    """Edges used by exactly one triangle."""
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges, uses = np.unique(e, axis=0, return_counts=True)
+    return edges[uses == 1]
+
+
 # ---- reading ---------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("fmt", ["obj", "obj-quads", "ascii", "binary_little_endian", "binary_big_endian"])
+@pytest.mark.parametrize("fmt", ["obj", "obj-quads", "ascii", "binary_little_endian", "binary_big_endian", "off",
+                                 "off-quads", "mesh", "mesh-quads"])
 def test_read_mesh_round_trip(tmp_path, fmt):
     v, f = box((-1.5, 0.25, 2.0), (3.125, 1e-3, 7.5))
-    if fmt.startswith("obj"):
-        path = tmp_path / "box.obj"
-        write_obj(path, v, f, quads=fmt == "obj-quads")
+    writers = {"obj": write_obj, "off": write_off, "mesh": write_medit}
+    if fmt.split("-")[0] in writers:
+        path = tmp_path / f"box.{fmt.split('-')[0]}"
+        writers[fmt.split("-")[0]](path, v, f, quads=fmt.endswith("-quads"))
     else:
         path = tmp_path / "box.ply"
         write_ply(path, v, f, fmt)
@@ -117,8 +155,44 @@ def test_read_errors_name_the_file_and_line(tmp_path):
     assert time.perf_counter() - start < 1.0
     with pytest.raises(FileNotFoundError):
         volrig.read_mesh(tmp_path / "missing.obj")
-    with pytest.raises(volrig.FileFormatError, match="unknown mesh format"):
-        volrig.read_mesh(tmp_path / "mesh.stl")
+    with pytest.raises(volrig.FileFormatError,
+                       match=r"unknown mesh format \(known endings: .obj .ply .off .stl .mesh\)"):
+        volrig.read_mesh(tmp_path / "mesh.3ds")
+    with pytest.raises(volrig.FileFormatError, match=r"binary Medit meshes \(.meshb\) are not supported"):
+        volrig.read_mesh(tmp_path / "mesh.meshb")
+    assert volrig.mesh.MESH_EXTENSIONS == (".obj", ".ply", ".off", ".stl", ".mesh")
+
+
+@pytest.mark.parametrize("name, text, message", [
+    ("bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+     r"bad\.off: line 6: face index 3 out of range \(3 vertices"),
+    ("bad.off", "OFF\n3000000000 1 0\n0 0 0\n", r"line 2: 3,000,000,000 vertices declared \(at least 6 bytes each\)"),
+    ("bad.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 nan\n",
+     r"bad\.stl: line 4: vertex z 'nan' is not finite"),
+    ("bad.stl", b"solid but binary".ljust(80, b"\0") + struct.pack("<I", 2) + bytes(60),
+     r"84 \+ 50 x 2 = 184 bytes, but the file holds 144"),
+    ("bad.mesh", "MeshVersionFormatted 1\nDimension 3\nVertices 3\n0 0 0 0\n1 0 0 0\n0 1 0 0\nTriangles 1\n1 2 4 0\n",
+     r"bad\.mesh: line 8: Triangles 1: vertex index 4 out of range \(3 vertices, numbered from 1\)"),
+    ("bad.mesh", "MeshVersionFormatted 1\nDimension 2\n", r"line 2: Dimension 2: only 3-D meshes are read"),
+])
+def test_new_formats_name_the_file_line_and_problem(tmp_path, name, text, message):
+    p = tmp_path / name
+    p.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(volrig.FileFormatError, match=message):
+        volrig.read_mesh(p)
+
+
+@pytest.mark.parametrize("binary", [False, True], ids=["ascii", "binary"])
+def test_stl_round_trip_welds_a_closed_surface(tmp_path, binary):
+    v, f = icosphere(3, 2.5, (1.0, -3.0, 0.5))
+    v = v.astype(np.float32).astype(np.float64)  # exact in binary STL's float32 too
+    p = tmp_path / "ball.stl"
+    write_stl(p, v, f, binary, header=b"solid ball (binary all the same)")
+    rv, rf = volrig.read_mesh(p)
+    assert rv.shape == v.shape and rf.shape == f.shape  # every corner welded onto its one vertex
+    np.testing.assert_array_equal(rv[rf], v[f])  # the same triangles, corner for corner
+    assert len(boundary_edges(rf)) == 0
+    np.testing.assert_array_equal(volrig.voxelize(rv, rf, 0.2).array, volrig.voxelize(v, f, 0.2).array)
 
 
 def test_read_tgf(tmp_path):
@@ -259,3 +333,82 @@ def test_arm_voxelized_at_0_01():
     obj = m.world(np.argwhere(m.array))
     for j in joints:
         assert np.min(np.linalg.norm(obj - j, axis=1)) <= 0.03
+
+
+# ---- the OFF and Medit meshes of ../shared/data (libigl's tutorial data) ------------------------------------------
+
+# name: vertices, triangles, boundary edges, voxel size (~1/100 of the longest side)
+REAL_MESHES = {
+    "decimated-knight.off": (502, 1000, 0, 0.009),
+    "cow.off": (2762, 5520, 0, 0.0105),
+    "lion.off": (8356, 16674, 36, 0.0097),
+    "hand.mesh": (7234, 9556, 0, 0.0157),
+}
+
+
+def cap_holes(v, f):
+    """Closes each boundary loop with a fan from its centroid (enough for lion.off's one open back)."""
+    edges = boundary_edges(f)
+    if len(edges) == 0:
+        return v, f
+    nxt = {}
+    for a, b, c in f.tolist():  # boundary edges in the direction their triangle uses them
+        for x, y in ((a, b), (b, c), (c, a)):
+            if (min(x, y), max(x, y)) in {tuple(e) for e in edges.tolist()}:
+                nxt[x] = y
+    v, caps = list(v), []
+    while nxt:
+        start = next(iter(nxt))
+        loop = [start]
+        while nxt[loop[-1]] != start:
+            loop.append(nxt.pop(loop[-1]))
+        nxt.pop(loop[-1])
+        v.append(np.mean([v[i] for i in loop], axis=0))
+        caps += [(len(v) - 1, b, a) for a, b in zip(loop, loop[1:] + loop[:1])]
+    return np.array(v), np.concatenate([f, np.array(caps, np.int64)])
+
+
+@pytest.mark.parametrize("name", sorted(REAL_MESHES))
+def test_real_meshes_read_and_voxelize_into_one_solid(name):
+    nv, nf, open_edges, h = REAL_MESHES[name]
+    v, f = volrig.read_mesh(shared(f"meshes/{name}"))
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    print(f"\n{name}: {len(v)} vertices, {len(f)} triangles, {len(boundary_edges(f))} boundary edges, "
+          f"box {np.round(lo, 3).tolist()} .. {np.round(hi, 3).tolist()} (size {np.round(hi - lo, 3).tolist()})")
+    assert v.shape == (nv, 3) and f.shape == (nf, 3)
+    assert len(boundary_edges(f)) == open_edges
+    if open_edges:  # lion.off is a lion's head with an open back (one loop): voxelize cannot fill it as it is
+        assert len(label_components(volrig.voxelize(v, f, h))[1]) > 1
+        v, f = cap_holes(v, f)
+        assert len(boundary_edges(f)) == 0
+    m = volrig.voxelize(v, f, h)
+    sizes = label_components(m)[1]
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    volume = abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6
+    print(f"  at voxel {h}: grid {m.dims}, {int(sizes.sum())} voxels in {len(sizes)} component(s); "
+          f"the surface encloses {volume / h ** 3:.0f} voxels' worth")
+    assert len(sizes) == 1
+    assert sizes[0] == pytest.approx(volume / h ** 3, rel=0.03)
+
+
+@pytest.mark.parametrize("name, low, high", [("decimated-knight.off", 2, 1), ("cow.off", 4, 1), ("hand.mesh", 1, 3)])
+def test_real_meshes_are_y_up(name, low, high):
+    """+Y is up in these files: the lowest tenth (in y) of the knight is its two feet, of the cow its four hooves;
+    the hand points its fingers to +Y (several separate fingertips in the top fifth, one palm at the bottom)."""
+    nv, nf, open_edges, h = REAL_MESHES[name]
+    m = volrig.voxelize(*volrig.read_mesh(shared(f"meshes/{name}")), h)
+    ny = m.array.shape[1]
+    k = ny // 10 if low > 1 else ny // 5
+    assert len(label_components(m.array[:, :k])[1]) == low
+    assert len(label_components(m.array[:, ny - k:])[1]) >= high
+
+
+def test_rig_command_reads_an_off_mesh(tmp_path):
+    out = tmp_path / "knight.vrig"
+    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
+    r = subprocess.run([sys.executable, "-m", "volrig", "rig", str(shared("meshes/decimated-knight.off")),
+                        "--voxel-size", "0.008", "--count", "4000", "-o", str(out)], capture_output=True, text=True,
+                       env=env)
+    assert r.returncode == 0, r.stderr
+    assert "humanoid rig of 21 bones" in r.stdout
+    assert len(volrig.load_rig(out).points) == 4000

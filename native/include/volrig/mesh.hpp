@@ -1,5 +1,5 @@
-// volrig/mesh.hpp: triangle meshes in: OBJ, PLY and TGF readers, and voxelization of a closed (or nearly closed)
-// surface into a volume mask.
+// volrig/mesh.hpp: triangle meshes in: OBJ, PLY, OFF, STL and Medit readers, libigl TGF skeletons, and voxelization
+// of a closed (or nearly closed) surface into a volume mask.
 //
 // Readers follow volrig/io.hpp's rules: counts are checked against the bytes present before anything is
 // allocated, absurd sizes are refused (ReadOptions::max_bytes bounds the decoded mesh: 24 bytes per vertex, 12 per
@@ -46,7 +46,35 @@ Mesh read_ply(const ByteSource& src, const ReadOptions& opt = {});
 /// (1-based joint numbers), optionally a second `#` after which everything is ignored.
 TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt = {});
 
-/// Picks the reader from the file name: .obj or .ply (case-insensitive).
+/// Geomview OFF: a header keyword `OFF` (optionally prefixed ST, C, N: `COFF`, `NOFF`, `CNOFF`, `STOFF` ...; the
+/// keyword may be left out), a counts line `vertices faces [edges]` (edges ignored; the counts may also follow the
+/// keyword on its line), one vertex per line (x y z, further columns such as colours or normals ignored), one face
+/// per line (`n i1 .. in`, 0-based, optionally followed by a colour), `#` comments. Faces of 3 or more vertices
+/// are fan-triangulated; anything after the declared faces is ignored. 4OFF/nOFF and `OFF BINARY` are refused.
+Mesh read_off(const ByteSource& src, const ReadOptions& opt = {});
+
+/// STL, ASCII or binary. Binary when the file size is 84 + 50 x (the uint32 triangle count at byte 80), whatever
+/// its 80-byte header says (binary files may start with "solid" too); else ASCII, which must start with `solid`:
+/// `facet normal nx ny nz / outer loop / vertex x y z` (3 or more; more are fan-triangulated) `/ endloop /
+/// endfacet`, `endsolid`, keywords case-insensitive, several solids in one file allowed. Normals are ignored.
+/// STL stores each triangle's corners separately: vertices with identical coordinates are welded (exactly; -0 and
+/// 0 are the same), so a closed surface comes out closed, with vertices in order of first use.
+Mesh read_stl(const ByteSource& src, const ReadOptions& opt = {});
+
+/// Medit ASCII .mesh (INRIA, version 1 to 4): `MeshVersionFormatted v`, `Dimension 3`, `Vertices n` (x y z ref),
+/// `Triangles n` (i j k ref), `Quadrilaterals n` (i j k l ref), `Tetrahedra n` (i j k l ref), `End`; 1-based
+/// indices, keywords case-insensitive, `#` comments; other sections (Edges, Corners, Ridges, Normals, ...) are
+/// skipped. The surface is the Triangles and Quadrilaterals (fan-split) when the file has any; otherwise the
+/// boundary of the Tetrahedra (the faces that belong to exactly one tetrahedron, oriented as the tetrahedron's
+/// outward face when it is positively oriented). All vertices are kept (interior ones too). Binary .meshb is not
+/// read.
+Mesh read_medit(const ByteSource& src, const ReadOptions& opt = {});
+
+/// The file endings read_mesh knows, lower-case: .obj .ply .off .stl .mesh.
+std::vector<std::string> mesh_extensions();
+
+/// Picks the reader from the file name's ending (case-insensitive; see mesh_extensions). .meshb is refused with
+/// a message saying binary Medit is not supported.
 Mesh read_mesh(const std::string& path, const ReadOptions& opt = {});
 
 /// Builds a Mesh from flat arrays (xyz per vertex; three 0-based indices per triangle), refusing non-finite

@@ -1,246 +1,21 @@
-// mesh_io.cpp: the OBJ, PLY and TGF readers of volrig/mesh.hpp, and mesh validation.
+// mesh/ply.cpp: the Stanford PLY reader of volrig/mesh.hpp (ascii, binary little- and big-endian).
 //
-// All three read through a ByteSource in 1 MiB chunks (never the whole file at once). Text formats report line
-// numbers; binary PLY reports the element and its byte offset. Sizes: a PLY header's element counts are checked
-// against the bytes that follow it before anything is allocated; every reader stops once the decoded mesh would
-// exceed ReadOptions::max_bytes (24 bytes per vertex, 12 per triangle) or 2^32 - 1 vertices.
+// The header's element counts are checked against the bytes that follow it before anything is allocated; text
+// data reports line numbers, binary data the element and its byte offset.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <optional>
 
-#include "io_detail.hpp"
-#include "volrig/mesh.hpp"
+#include "mesh/mesh_detail.hpp"
 
 namespace volrig {
 
-namespace {
-
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
-
-using detail::at_line;
-using detail::LineReader;
-using detail::refuse_binary;
-
-constexpr std::size_t kChunk = detail::kTextChunk;
-constexpr std::size_t kMaxLine = detail::kMaxLine;
-constexpr std::uint64_t kMaxVertices = std::numeric_limits<std::uint32_t>::max();
-constexpr std::uint64_t kVertexBytes = sizeof(std::array<double, 3>);
-constexpr std::uint64_t kTriangleBytes = sizeof(std::array<std::uint32_t, 3>);
-
-/// Throws when a mesh of this many vertices and triangles would exceed the limits; `where()` gives the message's
-/// location prefix (built only on failure).
-template <class Where>
-void check_mesh_size(const std::string& name, const Where& where, std::uint64_t vertices, std::uint64_t triangles,
-                     std::uint64_t max_bytes) {
-    const long double bytes = static_cast<long double>(vertices) * kVertexBytes +
-                              static_cast<long double>(triangles) * kTriangleBytes;
-    if (vertices <= kMaxVertices && bytes <= static_cast<long double>(max_bytes)) return;
-    if (vertices > kMaxVertices)
-        fail(name, where() + "more than " + with_commas(kMaxVertices) + " vertices (indices are 32-bit)");
-    fail(name, where() + with_commas(vertices) + " vertices and " + with_commas(triangles) + " triangles take " +
-                   with_commas(static_cast<std::uint64_t>(std::min<long double>(bytes, 1.8e19L))) +
-                   " bytes, above the limit of " + with_commas(max_bytes) +
-                   " bytes (raise max_bytes if this is intended)");
-}
-
-/// Parses three finite coordinates; the message names what is wrong.
-bool parse_xyz(const std::vector<std::string_view>& w, std::size_t first, std::array<double, 3>& p, std::string& why) {
-    for (int a = 0; a < 3; ++a) {
-        const std::string_view tok = w[first + static_cast<std::size_t>(a)];
-        if (!detail::parse_double(tok, p[static_cast<std::size_t>(a)])) {
-            why = std::string(1, "xyz"[a]) + " " + quoted(tok) + " is not a number";
-            return false;
-        }
-        if (!std::isfinite(p[static_cast<std::size_t>(a)])) {
-            why = std::string(1, "xyz"[a]) + " " + quoted(tok) + " is not finite";
-            return false;
-        }
-    }
-    return true;
-}
-
-/// Appends the fan triangulation of polygon `poly` (v0 v1 v2, v0 v2 v3, ...).
-void fan(const std::vector<std::uint32_t>& poly, std::vector<std::array<std::uint32_t, 3>>& out) {
-    for (std::size_t i = 1; i + 1 < poly.size(); ++i) out.push_back({poly[0], poly[i], poly[i + 1]});
-}
-
-}  // namespace
-
-// =================================================================================================================
-// OBJ
-// =================================================================================================================
+using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
 
 namespace {
 
-/// The vertex part of an OBJ face entry ("7", "7/2", "7//3", "7/2/3"); false when malformed.
-bool obj_vertex_index(std::string_view tok, std::int64_t& index) {
-    const std::size_t s1 = tok.find('/');
-    if (!detail::parse_int(tok.substr(0, s1), index)) return false;
-    if (s1 == std::string_view::npos) return true;
-    std::string_view rest = tok.substr(s1 + 1);
-    const std::size_t s2 = rest.find('/');
-    std::int64_t ignored = 0;
-    const std::string_view t = rest.substr(0, s2);
-    if (!t.empty() && !detail::parse_int(t, ignored)) return false;
-    if (s2 == std::string_view::npos) return true;
-    const std::string_view n = rest.substr(s2 + 1);
-    return !n.empty() && detail::parse_int(n, ignored);
-}
-
-}  // namespace
-
-Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
-    const std::string& name = src.name();
-    LineReader lines(src);
-    Mesh m;
-    std::vector<std::uint32_t> poly;
-    std::string joined;
-    std::int64_t max_index = 0, max_index_line = 0;  // largest positive index: checked once all vertices are known
-    std::string_view line;
-    while (lines.next(line)) {
-        const std::int64_t line_no = lines.line_number();
-        refuse_binary(name, line_no, line, "OBJ");
-        // A backslash at the end continues the statement on the next line.
-        if (!detail::trim(line).empty() && detail::trim(line).back() == '\\') {
-            joined.clear();
-            std::string_view part = line;
-            for (;;) {
-                std::string_view t = detail::trim(part);
-                if (t.empty() || t.back() != '\\') {
-                    joined.append(part);
-                    break;
-                }
-                t.remove_suffix(1);
-                joined.append(t);
-                joined += ' ';
-                if (joined.size() > kMaxLine) fail(name, at_line(line_no) + "continued line is too long");
-                if (!lines.next(part)) break;
-                refuse_binary(name, lines.line_number(), part, "OBJ");
-            }
-            line = joined;
-        }
-        const std::size_t hash = line.find('#');
-        if (hash != std::string_view::npos) line = line.substr(0, hash);
-        const auto w = detail::split_words(line);
-        if (w.empty()) continue;
-        if (w[0] == "v") {
-            if (w.size() < 4) fail(name, at_line(line_no) + "vertex needs x y z, got " + quoted(detail::trim(line)));
-            std::array<double, 3> p{};
-            std::string why;
-            if (!parse_xyz(w, 1, p, why)) fail(name, at_line(line_no) + "vertex " + why);
-            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size() + 1, m.triangles.size(),
-                            opt.max_bytes);
-            m.vertices.push_back(p);
-        } else if (w[0] == "f") {
-            if (w.size() < 4)
-                fail(name, at_line(line_no) + "face has " + std::to_string(w.size() - 1) +
-                               (w.size() == 2 ? " vertex" : " vertices") + " (a face needs at least 3)");
-            poly.clear();
-            const auto count = static_cast<std::int64_t>(m.vertices.size());
-            for (std::size_t i = 1; i < w.size(); ++i) {
-                std::int64_t k = 0;
-                if (!obj_vertex_index(w[i], k))
-                    fail(name, at_line(line_no) + "face entry " + quoted(w[i]) +
-                                   " is not an index (expected i, i/t, i//n or i/t/n)");
-                if (k == 0) fail(name, at_line(line_no) + "face index 0 is invalid (OBJ indices start at 1)");
-                if (k < 0) {
-                    if (-k > count)
-                        fail(name, at_line(line_no) + "relative face index " + std::to_string(k) +
-                                       " refers before the first vertex (" +
-                                       with_commas(static_cast<std::uint64_t>(count)) + " vertices so far)");
-                    k = count + k + 1;
-                }
-                if (static_cast<std::uint64_t>(k) > kMaxVertices)
-                    fail(name, at_line(line_no) + "face index " + std::to_string(k) + " out of range (" +
-                                   with_commas(m.vertices.size()) + " vertices)");
-                if (k > max_index) {
-                    max_index = k;
-                    max_index_line = line_no;
-                }
-                poly.push_back(static_cast<std::uint32_t>(k - 1));
-            }
-            check_mesh_size(name, [&] { return at_line(line_no); }, m.vertices.size(),
-                            m.triangles.size() + poly.size() - 2, opt.max_bytes);
-            fan(poly, m.triangles);
-        }
-        // Everything else (vt vn vp g o s usemtl mtllib l p and unknown statements) is ignored.
-    }
-    if (m.vertices.empty()) fail(name, "no vertices ('v' lines): not an OBJ mesh");
-    if (m.triangles.empty()) fail(name, "no faces ('f' lines): nothing to voxelize");
-    if (static_cast<std::uint64_t>(max_index) > m.vertices.size())
-        fail(name, at_line(max_index_line) + "face index " + std::to_string(max_index) + " out of range (" +
-                       with_commas(m.vertices.size()) + " vertices)");
-    return m;
-}
-
-// =================================================================================================================
-// TGF
-// =================================================================================================================
-
-TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
-    const std::string& name = src.name();
-    LineReader lines(src);
-    TgfSkeleton s;
-    struct PendingEdge {
-        std::int64_t a, b, line;
-    };
-    std::vector<PendingEdge> edges;
-    int section = 0;  // 0 joints, 1 edges, 2 ignored
-    std::string_view line;
-    while (section < 2 && lines.next(line)) {
-        const std::int64_t line_no = lines.line_number();
-        refuse_binary(name, line_no, line, "TGF");
-        const auto w = detail::split_words(line);
-        if (w.empty()) continue;
-        if (w[0][0] == '#') {
-            ++section;
-            continue;
-        }
-        if (section == 0) {
-            std::int64_t index = 0;
-            if (w.size() < 4)
-                fail(name, at_line(line_no) + "joint needs 'index x y z', got " + quoted(detail::trim(line)));
-            if (!detail::parse_int(w[0], index))
-                fail(name, at_line(line_no) + "joint index " + quoted(w[0]) + " is not an integer");
-            std::array<double, 3> p{};
-            std::string why;
-            if (!parse_xyz(w, 1, p, why)) fail(name, at_line(line_no) + "joint " + why);
-            check_mesh_size(name, [&] { return at_line(line_no); }, s.joints.size() + 1, edges.size(), opt.max_bytes);
-            s.joints.push_back(p);
-        } else {
-            std::int64_t a = 0, b = 0;
-            if (w.size() < 2)
-                fail(name, at_line(line_no) + "edge needs two joint numbers, got " + quoted(detail::trim(line)));
-            if (!detail::parse_int(w[0], a) || !detail::parse_int(w[1], b))
-                fail(name, at_line(line_no) + "edge " + quoted(detail::trim(line)) +
-                               " does not start with two integers");
-            check_mesh_size(name, [&] { return at_line(line_no); }, s.joints.size(), edges.size() + 1, opt.max_bytes);
-            edges.push_back({a, b, line_no});
-        }
-    }
-    if (s.joints.empty()) fail(name, "no joints: not a TGF skeleton");
-    const auto n = static_cast<std::int64_t>(s.joints.size());
-    s.edges.reserve(edges.size());
-    for (const PendingEdge& e : edges) {
-        for (std::int64_t j : {e.a, e.b})
-            if (j < 1 || j > n)
-                fail(name, at_line(e.line) + "edge joint " + std::to_string(j) + " out of range (" +
-                               with_commas(static_cast<std::uint64_t>(n)) + " joints, numbered from 1)");
-        if (e.a == e.b) fail(name, at_line(e.line) + "edge joins joint " + std::to_string(e.a) + " to itself");
-        s.edges.push_back({static_cast<std::uint32_t>(e.a - 1), static_cast<std::uint32_t>(e.b - 1)});
-    }
-    return s;
-}
-
-// =================================================================================================================
-// PLY
-// =================================================================================================================
-
-namespace {
+constexpr std::size_t kChunk = kTextChunk;
 
 enum class PlyType : std::uint8_t { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
 
@@ -507,28 +282,6 @@ private:
     std::size_t at_ = 0;
 };
 
-/// Whitespace-separated ascii values after the header, with the line each came from.
-class TokenReader {
-public:
-    explicit TokenReader(LineReader& lines) : lines_(lines) {}
-    bool next(std::string_view& tok) {
-        while (i_ == words_.size()) {
-            std::string_view line;
-            if (!lines_.next(line)) return false;
-            words_ = detail::split_words(line);  // views into the line, valid until the next line is read
-            i_ = 0;
-        }
-        tok = words_[i_++];
-        return true;
-    }
-    std::int64_t line() const { return lines_.line_number(); }
-
-private:
-    LineReader& lines_;
-    std::vector<std::string_view> words_;
-    std::size_t i_ = 0;
-};
-
 bool ascii_number(std::string_view tok, PlyType t, double& out) {
     if (ply_integer(t)) {
         std::int64_t v = 0;
@@ -723,9 +476,7 @@ private:
                 continue;
             }
             const std::uint64_t n = list_count(p);
-            if (n < 3)
-                fail(name_, where() + "face has " + std::to_string(n) + (n == 1 ? " vertex" : " vertices") +
-                                " (a face needs at least 3)");
+            if (n < 3) fail(name_, where() + detail::too_few_corners(n));
             check_mesh_size(name_, [&] { return where(); }, vertices_known ? m_.vertices.size() : 0,
                             m_.triangles.size() + (n - 2), opt_.max_bytes);
             poly_.clear();
@@ -767,65 +518,6 @@ Mesh read_ply(const ByteSource& src, const ReadOptions& opt) {
     const PlyHeader h = read_ply_header(src, lines);
     const PlyLayout L = ply_layout(src.name(), h);
     return PlyBody(src, h, L, lines, opt).read();
-}
-
-// =================================================================================================================
-// Dispatch and validation
-// =================================================================================================================
-
-Mesh read_mesh(const std::string& path, const ReadOptions& opt) {
-    const std::string low = detail::lower(path);
-    auto ends = [&](const char* e) {
-        const std::size_t n = std::strlen(e);
-        return low.size() >= n && low.compare(low.size() - n, n, e) == 0;
-    };
-    if (!ends(".obj") && !ends(".ply"))
-        throw FileFormatError(path + ": unknown mesh format (known endings: .obj .ply)");
-    auto src = open_file(path);
-    return ends(".obj") ? read_obj(*src, opt) : read_ply(*src, opt);
-}
-
-void check_mesh(const Mesh& mesh, const std::string& what) {
-    if (mesh.vertices.empty()) throw Error(what + ": no vertices");
-    if (mesh.triangles.empty()) throw Error(what + ": no triangles");
-    if (mesh.vertices.size() > kMaxVertices)
-        throw Error(what + ": more than " + with_commas(kMaxVertices) + " vertices (indices are 32-bit)");
-    for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
-        for (double c : mesh.vertices[i])
-            if (!std::isfinite(c)) throw Error(what + ": vertex " + std::to_string(i) + " has a non-finite coordinate");
-    for (std::size_t i = 0; i < mesh.triangles.size(); ++i)
-        for (std::uint32_t k : mesh.triangles[i])
-            if (k >= mesh.vertices.size())
-                throw Error(what + ": triangle " + std::to_string(i) + " uses vertex " + std::to_string(k) +
-                            " out of range (" + with_commas(mesh.vertices.size()) + " vertices)");
-}
-
-Mesh make_mesh(const double* xyz, std::size_t vertex_count, const std::int64_t* triangles, std::size_t triangle_count,
-               const std::string& what) {
-    if (vertex_count == 0) throw Error(what + ": no vertices");
-    if (triangle_count == 0) throw Error(what + ": no triangles");
-    if (vertex_count > kMaxVertices)
-        throw Error(what + ": more than " + with_commas(kMaxVertices) + " vertices (indices are 32-bit)");
-    Mesh m;
-    m.vertices.resize(vertex_count);
-    for (std::size_t i = 0; i < vertex_count; ++i)
-        for (std::size_t a = 0; a < 3; ++a) {
-            const double c = xyz[3 * i + a];
-            if (!std::isfinite(c))
-                throw Error(what + ": vertex " + std::to_string(i) + " has a non-finite coordinate (" +
-                            std::string(1, "xyz"[a]) + " = " + detail::format_double(c) + ")");
-            m.vertices[i][a] = c;
-        }
-    m.triangles.resize(triangle_count);
-    for (std::size_t i = 0; i < triangle_count; ++i)
-        for (std::size_t a = 0; a < 3; ++a) {
-            const std::int64_t k = triangles[3 * i + a];
-            if (k < 0 || static_cast<std::uint64_t>(k) >= vertex_count)
-                throw Error(what + ": triangle " + std::to_string(i) + " uses vertex " + std::to_string(k) +
-                            " out of range (" + with_commas(vertex_count) + " vertices)");
-            m.triangles[i][a] = static_cast<std::uint32_t>(k);
-        }
-    return m;
 }
 
 }  // namespace volrig
