@@ -127,21 +127,42 @@ def _read_any_mesh(path: Path):
 #: mesh subjects: file, TGF, expected kind, up and head direction in the file's frame. Up and head were read off
 #: silhouettes rendered along the three axes (benchmarks/autorig_eval.py --pictures draws them).
 MESHES = {
-    # arm: a straight-ish arm lying along x, shoulder at -x, fingers at +x; "up" taken as the hand's direction
+    # arm: lies along x, shoulder (thick end) at -x, hand at +x (silhouette along z); no body plan
     "arm": ("meshes/arm.obj", "meshes/arm.tgf", "chains", (1, 0, 0), (1, 0, 0)),
-    # hand: palm in the x-y plane, fingers toward +y (TGF root joint at -y)
+    # hand: palm in the x-y plane, fingers toward +y (silhouette along z)
     "hand": ("meshes/hand.mesh", "meshes/hand.tgf", "chains", (0, 1, 0), (0, 1, 0)),
-    # knight: standing, arms out; silhouettes show the head at +y, face toward +z
+    # knight: standing along +y, head at +y, arms out along x (silhouette along z)
     "knight": ("meshes/decimated-knight.off", None, "humanoid", (0, 1, 0), (0, 1, 0)),
-    # cow: legs toward -y (up +y), head toward -x in the side silhouette
-    "cow": ("meshes/cow.off", None, "quadruped", (0, 1, 0), (-1, 0, 0)),
-    # lion: legs toward -z (up +z), head toward +x
-    "lion": ("meshes/lion.off", None, "quadruped", (0, 0, 1), (1, 0, 0)),
-    # horse: legs toward -y (up +y), head toward +z
-    "horse": ("meshes/horse_quad.obj", None, "quadruped", (0, 1, 0), (0, 0, 1)),
-    # camel: legs toward -y (up +y), head toward +z
+    # cow: legs toward -y, head at +x (silhouette along z)
+    "cow": ("meshes/cow.off", None, "quadruped", (0, 1, 0), (1, 0, 0)),
+    # lion: only a HEAD (a bust open at the neck; vertex scatter in three views): ears +y, face toward -z. Not a
+    # quadruped, whatever issue 16 says: expected "chains"
+    "lion": ("meshes/lion.off", None, "chains", (0, 1, 0), (0, 0, -1)),
+    # horse: legs toward -y, head at -x (silhouette along z)
+    "horse": ("meshes/horse_quad.obj", None, "quadruped", (0, 1, 0), (-1, 0, 0)),
+    # camel: legs toward -y, neck and head at +z (silhouette along x)
     "camel": ("meshes/camel_b.obj", None, "quadruped", (0, 1, 0), (0, 0, 1)),
 }
+
+
+def _close_holes(v, f):
+    """Caps every boundary loop of a triangle mesh with a fan around the loop's centroid (the lion statue is open
+    at its base: a hole far wider than voxelize's hole closing)."""
+    directed = {(int(a), int(b)) for a, b in np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])}
+    nxt = {b: a for a, b in directed if (b, a) not in directed}  # boundary edges, reversed: walks each loop
+    v, faces = [v], [f]
+    count = len(v[0])
+    while nxt:
+        start = next(iter(nxt))
+        loop = [start]
+        while nxt.get(loop[-1], start) != start and len(loop) <= len(nxt):
+            loop.append(nxt[loop[-1]])
+        for k in loop:
+            nxt.pop(k, None)
+        v.append(v[0][loop].mean(axis=0, keepdims=True))
+        faces.append(np.array([[loop[i], loop[(i + 1) % len(loop)], count] for i in range(len(loop))]))
+        count += 1
+    return np.concatenate(v), np.concatenate(faces).astype(np.int64)
 
 
 def mesh_subject(name: str, voxels: int = MESH_VOXELS) -> Subject:
@@ -150,7 +171,7 @@ def mesh_subject(name: str, voxels: int = MESH_VOXELS) -> Subject:
         raise KeyError(f"no mesh subject {name!r} (known: {', '.join(MESHES)})")
     rel, tgf, kind, up, head = MESHES[name]
     path = _data(rel)
-    v, f = _read_any_mesh(path)
+    v, f = _close_holes(*_read_any_mesh(path))
     size = float((v.max(0) - v.min(0)).max()) / voxels
     mask = voxelize(v, f, voxel_size=size)
     joints, bones = {}, None
