@@ -99,9 +99,6 @@ def quadruped_checks(subject, rig):
     return head_ok, len(tail)
 
 
-ROTATIONS = [r for r in itertools.product(*[[-1, 1]] * 3)]
-
-
 def rotations24():
     """The 24 proper axis permutations with signs: (perm, signs) acting on (x, y, z)."""
     out = []
@@ -140,32 +137,43 @@ def rotate_mask(mask, m):
     return new, to_rot
 
 
-def rotation_check(subject, points, rig0, dt):
-    """How many of the 24 rotations give the same kind and joints mapping back within half a local radius."""
+def bone_ends(rig):
+    """Bone name -> (head, tail) world positions."""
+    return {n: (rig.joints[h], rig.joints[t]) for n, (h, t) in zip(rig.names, rig.bones)}
+
+
+def rotation_check(subject, points, rig0, dt, verbose=False):
+    """How many of the 24 rotations give the expected kind, and how many give the same bones (by name) whose
+    ends map back within half a local radius of the unrotated rig's."""
     same_kind = same_joints = 0
-    for m in rotations24():
+    ends0 = bone_ends(rig0)
+    for k, m in enumerate(rotations24()):
         rmask, to_rot = rotate_mask(subject.mask, m)
-        up = m @ subject.up
-        _, _, rig, _ = rig_pipeline(rmask, points, up=up)
-        if rig.kind != subject.kind:
-            continue
-        same_kind += 1
-        if rig.kind == rig0.kind and len(rig) == len(rig0) and list(rig.names) == list(rig0.names):
-            j0 = to_rot(rig0.joints)
-            r = np.array([S.local_radius(dt, subject.mask, p) for p in rig0.joints])
-            if np.all(np.linalg.norm(rig.joints - j0, axis=1) <= 0.5 * r):
-                same_joints += 1
+        _, _, rig, _ = rig_pipeline(rmask, points, up=m @ subject.up)
+        same_kind += rig.kind == subject.kind
+        ends = bone_ends(rig)
+        worst = np.inf
+        if sorted(ends) == sorted(ends0):
+            worst = 0.0
+            for name, (h0, t0) in ends0.items():
+                for p0, p in zip((h0, t0), ends[name]):
+                    r = S.local_radius(dt, subject.mask, p0)
+                    worst = max(worst, float(np.linalg.norm(p - to_rot(p0))) / r)
+        same_joints += worst <= 0.5
+        if verbose:
+            print(f"    rotation {k:2d} {m.astype(int).tolist()}: {rig.kind}, {len(rig)} bones, worst end "
+                  f"{worst:.2f} radii")
     return same_kind, same_joints
 
 
-def evaluate(subject, points, rotations=False):
+def evaluate(subject, points, rotations=False, verbose=False):
     sk, pts, rig, t = rig_pipeline(subject.mask, points, up=subject.up)
     dt = sk.dt
     row = dict(subject=subject.name, voxels=int(sk.object_count), points=len(pts), expected=subject.kind,
                kind=rig.kind, fit=getattr(rig, "fit", None), bones=len(rig), times=t,
                joints=joint_errors(subject, rig, dt), quadruped=quadruped_checks(subject, rig))
     if rotations:
-        row["rotations"] = rotation_check(subject, points, rig, dt)
+        row["rotations"] = rotation_check(subject, points, rig, dt, verbose)
     return row
 
 
@@ -237,7 +245,7 @@ def main() -> int:
                 print(f"{name:<11} skipped: {e}")
                 continue
             for n in counts:
-                row = evaluate(subject, n, args.rotations)
+                row = evaluate(subject, n, args.rotations, args.joints)
                 print_row(row)
                 if args.joints:
                     detail(row)
