@@ -15,7 +15,6 @@ Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1
 """
 import argparse
 import inspect
-import itertools
 import json
 import os
 import sys
@@ -30,7 +29,7 @@ import volrig  # noqa: E402
 from volrig import subjects as S  # noqa: E402
 
 DEFAULT = ["phantom", "vhm4", "vhm2", "arm", "hand", "knight", "cow", "lion", "horse", "camel"]
-LIMB_JOINTS = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
+LIMB_JOINTS = S.LIMB_JOINTS
 
 
 def autorig_accepts(name: str) -> bool:
@@ -86,55 +85,8 @@ def joint_errors(subject, rig, dt):
 
 
 def quadruped_checks(subject, rig):
-    """(head bone at the head end, tail chain present) for a quadruped subject; None when not applicable."""
-    if subject.kind != "quadruped":
-        return None
-    along = rig.joints @ subject.head
-    span = along.max() - along.min() if len(along) else 0.0
-    head_ok = False
-    if "head" in rig.names:
-        tip = rig.joints[rig.bones[rig.names.index("head")][1]] @ subject.head
-        head_ok = bool(tip > along.min() + 0.75 * span)
-    tail = [n for n in rig.names if n.startswith("tail")]
-    return head_ok, len(tail)
-
-
-def rotations24():
-    """The 24 proper axis permutations with signs: (perm, signs) acting on (x, y, z)."""
-    out = []
-    for perm in itertools.permutations(range(3)):
-        for signs in itertools.product([-1, 1], repeat=3):
-            m = np.zeros((3, 3))
-            for i, (p, s) in enumerate(zip(perm, signs)):
-                m[i, p] = s
-            if np.linalg.det(m) > 0:
-                out.append(m)
-    return out
-
-
-def rotate_mask(mask, m):
-    """The mask's array rotated by m (acting on world xyz, x' = m x about the grid's corner) and the map taking a
-    world point of the original to the rotated grid's world."""
-    a = mask.array.transpose(2, 1, 0)  # [x, y, z]
-    perm = [int(np.nonzero(m[i])[0][0]) for i in range(3)]
-    signs = [int(m[i, perm[i]]) for i in range(3)]
-    b = a.transpose(perm)
-    for i, s in enumerate(signs):
-        if s < 0:
-            b = np.flip(b, axis=i)
-    sp = np.asarray(mask.spacing)
-    org = np.asarray(mask.origin)
-    dims = np.asarray(a.shape)
-    new = volrig.Volume(np.ascontiguousarray(b.transpose(2, 1, 0)), tuple(sp[perm]), (0.0, 0.0, 0.0))
-
-    def to_rot(p):
-        idx = (np.asarray(p) - org) / sp
-        out = np.empty_like(idx)
-        for i in range(3):
-            v = idx[..., perm[i]]
-            out[..., i] = v if signs[i] > 0 else dims[perm[i]] - 1 - v
-        return out * sp[perm]
-    return new, to_rot
+    """Problems with a quadruped's rig (kind, head end, tail chain); None for other subjects."""
+    return S.quadruped_problems(subject, rig) if subject.kind == "quadruped" else None
 
 
 def bone_ends(rig):
@@ -143,31 +95,36 @@ def bone_ends(rig):
 
 
 def rotation_check(subject, points, rig0, dt, verbose=False):
-    """How many of the 24 rotations give the expected kind, and how many give the same bones (by name) whose
-    ends map back within half a local radius of the unrotated rig's."""
-    same_kind = same_joints = 0
+    """Over the 24 rotations (the rotated up passed): how many give the expected kind, how many the same bones
+    (by name) whose ends map back within half a local radius of the unrotated rig's, and how many give the
+    expected kind with up=None (the same rigs when autorig takes no up=)."""
+    kind = same = free = 0
     ends0 = bone_ends(rig0)
-    for k, m in enumerate(rotations24()):
-        rmask, to_rot = rotate_mask(subject.mask, m)
-        _, _, rig, _ = rig_pipeline(rmask, points, up=m @ subject.up)
-        same_kind += rig.kind == subject.kind
+    for k, m in enumerate(S.rotations24()):
+        rmask, to_rot = S.rotate_mask(subject.mask, m)
+        _, pts, rig, _ = rig_pipeline(rmask, points, up=m @ subject.up)
+        kind += rig.kind == subject.kind
+        free_rig = rig
+        if autorig_accepts("up"):
+            free_rig = run_autorig(pts, volrig.skeleton_tree(pts, rmask), rmask)
+        free += free_rig.kind == subject.kind
         ends = bone_ends(rig)
         worst = np.inf
         if sorted(ends) == sorted(ends0):
-            worst = 0.0
-            for name, (h0, t0) in ends0.items():
-                for p0, p in zip((h0, t0), ends[name]):
-                    r = S.local_radius(dt, subject.mask, p0)
-                    worst = max(worst, float(np.linalg.norm(p - to_rot(p0))) / r)
-        same_joints += worst <= 0.5
+            worst = max(float(np.linalg.norm(p - to_rot(p0))) / S.local_radius(dt, subject.mask, p0)
+                        for name, e0 in ends0.items() for p0, p in zip(e0, ends[name]))
+        same += worst <= 0.5
         if verbose:
-            print(f"    rotation {k:2d} {m.astype(int).tolist()}: {rig.kind}, {len(rig)} bones, worst end "
-                  f"{worst:.2f} radii")
-    return same_kind, same_joints
+            print(f"    rotation {k:2d} {m.astype(int).tolist()}: {rig.kind} ({free_rig.kind} with up=None), "
+                  f"{len(rig)} bones, worst bone end {worst:.2f} radii")
+    return kind, same, free
 
 
-def evaluate(subject, points, rotations=False, verbose=False):
+def evaluate(subject, points, rotations=False, verbose=False, pictures=None):
     sk, pts, rig, t = rig_pipeline(subject.mask, points, up=subject.up)
+    if pictures:
+        os.makedirs(pictures, exist_ok=True)
+        draw(subject, rig, os.path.join(pictures, f"{subject.name}_{len(pts)}.png"))
     dt = sk.dt
     row = dict(subject=subject.name, voxels=int(sk.object_count), points=len(pts), expected=subject.kind,
                kind=rig.kind, fit=getattr(rig, "fit", None), bones=len(rig), times=t,
@@ -175,6 +132,37 @@ def evaluate(subject, points, rotations=False, verbose=False):
     if rotations:
         row["rotations"] = rotation_check(subject, points, rig, dt, verbose)
     return row
+
+
+def draw(subject, rig, path):
+    """Silhouettes along the three axes with the rig (red), the reference joints (green dots) and the up (blue)
+    and head (orange) directions drawn from the centre: how the mesh metadata were read and rigs are inspected."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    m = subject.mask
+    sp, org = np.asarray(m.spacing), np.asarray(m.origin)
+    hi = org + (np.asarray(m.array.shape[::-1]) - 1) * sp
+    centre = 0.5 * (org + hi)
+    arrow = 0.3 * (hi - org).max()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 6))
+    for ax, (a, b, along) in zip(axes, ((0, 1, 0), (0, 2, 1), (1, 2, 2))):
+        ax.imshow(m.array.any(axis=along), origin="lower", cmap="gray_r", alpha=0.5,
+                  extent=(org[a], hi[a], org[b], hi[b]))
+        for h, t in rig.bones:
+            ax.plot(rig.joints[[h, t], a], rig.joints[[h, t], b], "r-", lw=2)
+        ax.plot(rig.joints[:, a], rig.joints[:, b], "r.", ms=6)
+        if subject.joints:
+            ref = np.array(list(subject.joints.values()))
+            ax.plot(ref[:, a], ref[:, b], "go", ms=5, mfc="none")
+        for v, c in ((subject.up, "blue"), (subject.head, "orange")):
+            ax.annotate("", xy=(centre[a] + arrow * v[a], centre[b] + arrow * v[b]), xytext=(centre[a], centre[b]),
+                        arrowprops=dict(color=c, width=2))
+        ax.set_title(f"{subject.name}: {'xyz'[a]} right, {'xyz'[b]} up ({rig.kind})")
+        ax.set_aspect("equal")
+    fig.tight_layout()
+    fig.savefig(path, dpi=60)
+    plt.close(fig)
 
 
 def fmt_fit(fit):
@@ -198,14 +186,14 @@ def print_row(row):
     else:
         js = "-"
     q = row["quadruped"]
-    qs = "-" if q is None else f"head {'ok' if q[0] else 'NO'}, tail {q[1]}"
+    qs = "-" if q is None else ("ok" if not q else "; ".join(q))
     rot = row.get("rotations")
-    rs = "-" if rot is None else f"{rot[0]}/24 kind {rot[1]}/24 joints"
+    rs = "-" if rot is None else f"{rot[0]} kind {rot[1]} same {rot[2]} free"
     t = row["times"]
     ok = "ok" if row["kind"] == row["expected"] else "WRONG"
     print(f"{row['subject']:<11} {row['voxels']:>10,} {row['points']:>7,} {row['expected']:>9}/{row['kind']:<9} "
           f"{ok:<5} {fmt_fit(row['fit']):>6} {row['bones']:>3}  {t['tree']:5.2f} {t['autorig']:5.2f} "
-          f"{t['bind']:5.2f}  {qs:<17} {rs:<22} {js}")
+          f"{t['bind']:5.2f}  {qs:<22} {rs:<24} {js}")
 
 
 def detail(row):
@@ -223,6 +211,7 @@ def main() -> int:
     ap.add_argument("--voxels", type=int, default=S.MESH_VOXELS, help="mesh voxels along the longest side")
     ap.add_argument("--joints", action="store_true", help="print each reference joint's error")
     ap.add_argument("--json", help="write the rows to this JSON file")
+    ap.add_argument("--pictures", help="draw each subject's silhouettes, rig and reference joints into this folder")
     args = ap.parse_args()
 
     names = [s for s in args.subjects.split(",") if s]
@@ -233,7 +222,7 @@ def main() -> int:
     counts = [int(p) for p in args.points.split(",") if p]
     print(f"autorig accepts up={autorig_accepts('up')} kind={autorig_accepts('kind')}")
     print(f"{'subject':<11} {'voxels':>10} {'points':>7} {'expected/got':>19} {'':<5} {'fit':>6} {'B':>3}  "
-          f"{'tree':>5} {'rig':>5} {'bind':>5}  {'quadruped':<17} {'rotations':<22} reference joints (r = local radius)")
+          f"{'tree':>5} {'rig':>5} {'bind':>5}  {'quadruped':<22} {'rotations (of 24)':<24} reference joints (r = local radius)")
     rows = []
     for name in names:
         loads = [dict(scale=s) for s in scales] if name == "phantom" else \
@@ -245,7 +234,7 @@ def main() -> int:
                 print(f"{name:<11} skipped: {e}")
                 continue
             for n in counts:
-                row = evaluate(subject, n, args.rotations, args.joints)
+                row = evaluate(subject, n, args.rotations, args.joints, args.pictures)
                 print_row(row)
                 if args.joints:
                     detail(row)

@@ -16,6 +16,7 @@ FileNotFoundError naming it. Meshes are voxelized with about ``MESH_VOXELS`` vox
 """
 from __future__ import annotations
 
+import itertools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,7 +126,8 @@ def _read_any_mesh(path: Path):
 
 
 #: mesh subjects: file, TGF, expected kind, up and head direction in the file's frame. Up and head were read off
-#: silhouettes rendered along the three axes (benchmarks/autorig_eval.py --pictures draws them).
+#: silhouettes of the voxelized meshes rendered along the three axes (benchmarks/autorig_eval.py --pictures DIR
+#: draws them with the up and head arrows).
 MESHES = {
     # arm: lies along x, shoulder (thick end) at -x, hand at +x (silhouette along z); no body plan
     "arm": ("meshes/arm.obj", "meshes/arm.tgf", "chains", (1, 0, 0), (1, 0, 0)),
@@ -233,6 +235,59 @@ def rig_joint(rig, name: str) -> Optional[np.ndarray]:
     if bone not in rig.names:
         return None
     return np.asarray(rig.joints[rig.bones[rig.names.index(bone)][0]], dtype=np.float64)
+
+
+LIMB_JOINTS = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
+
+
+def rotations24():
+    """The 24 axis-aligned rotations, as signed permutation matrices (3, 3) acting on (x, y, z)."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product([-1, 1], repeat=3):
+            m = np.zeros((3, 3))
+            m[range(3), perm] = signs
+            if np.linalg.det(m) > 0:
+                out.append(m)
+    return out
+
+
+def rotate_mask(mask: Volume, m):
+    """The mask turned by the axis-aligned rotation ``m`` (from ``rotations24``), on a grid with origin 0, and a
+    function mapping world points (..., 3) of the original onto the turned grid's world (a direction ``d`` maps
+    to ``m @ d``)."""
+    m = np.asarray(m)
+    perm = [int(np.nonzero(m[i])[0][0]) for i in range(3)]
+    signs = [int(m[i, perm[i]]) for i in range(3)]
+    a = np.asarray(mask.array).transpose(2, 1, 0).transpose(perm)     # [x', y', z']
+    a = np.flip(a, axis=[i for i in range(3) if signs[i] < 0])
+    sp, org = np.asarray(mask.spacing), np.asarray(mask.origin)
+    dims = np.asarray(mask.array.shape[::-1])
+    turned = Volume(np.ascontiguousarray(a.transpose(2, 1, 0)), tuple(sp[perm]), (0.0, 0.0, 0.0))
+
+    def to_turned(p):
+        idx = (np.asarray(p, dtype=np.float64) - org) / sp
+        out = [idx[..., perm[i]] if signs[i] > 0 else dims[perm[i]] - 1 - idx[..., perm[i]] for i in range(3)]
+        return np.stack(out, axis=-1) * sp[perm]
+    return turned, to_turned
+
+
+def quadruped_problems(subject: Subject, rig) -> list:
+    """What is wrong with a quadruped's rig: the kind, the head bone not at the head end (its tail in the last
+    quarter of the body along ``subject.head``), fewer than two tail bones, or a tail not in the back half."""
+    if rig.kind != "quadruped":
+        return [f"rigged as {rig.kind}"]
+    bad = []
+    along = rig.joints @ subject.head
+    lo, span = along.min(), along.max() - along.min()
+    if "head" not in rig.names or rig.joints[rig.bones[rig.names.index("head")][1]] @ subject.head < lo + 0.75 * span:
+        bad.append("the head bone is not at the head end")
+    tail = [b for b, n in enumerate(rig.names) if n.startswith("tail")]
+    if len(tail) < 2:
+        bad.append(f"{len(tail)} tail bones")
+    elif (rig.joints[rig.bones[tail]] @ subject.head).max() > lo + 0.5 * span:
+        bad.append("the tail is not at the back")
+    return bad
 
 
 def local_radius(dt: np.ndarray, mask: Volume, point) -> float:
