@@ -89,17 +89,11 @@ def quadruped_checks(subject, rig):
     return S.quadruped_problems(subject, rig) if subject.kind == "quadruped" else None
 
 
-def bone_ends(rig):
-    """Bone name -> (head, tail) world positions."""
-    return {n: (rig.joints[h], rig.joints[t]) for n, (h, t) in zip(rig.names, rig.bones)}
-
-
 def rotation_check(subject, points, rig0, dt, verbose=False):
     """Over the 24 rotations (the rotated up passed): how many give the expected kind, how many the same bones
     (by name) whose ends map back within half a local radius of the unrotated rig's, and how many give the
     expected kind with up=None (the same rigs when autorig takes no up=)."""
     kind = same = free = 0
-    ends0 = bone_ends(rig0)
     for k, m in enumerate(S.rotations24()):
         rmask, to_rot = S.rotate_mask(subject.mask, m)
         _, pts, rig, _ = rig_pipeline(rmask, points, up=m @ subject.up)
@@ -108,11 +102,7 @@ def rotation_check(subject, points, rig0, dt, verbose=False):
         if autorig_accepts("up"):
             free_rig = run_autorig(pts, volrig.skeleton_tree(pts, rmask), rmask)
         free += free_rig.kind == subject.kind
-        ends = bone_ends(rig)
-        worst = np.inf
-        if sorted(ends) == sorted(ends0):
-            worst = max(float(np.linalg.norm(p - to_rot(p0))) / S.local_radius(dt, subject.mask, p0)
-                        for name, e0 in ends0.items() for p0, p in zip(e0, ends[name]))
+        worst = S.rig_difference(rig0, rig, to_rot, lambda p: S.local_radius(dt, subject.mask, p))
         same += worst <= 0.5
         if verbose:
             print(f"    rotation {k:2d} {m.astype(int).tolist()}: {rig.kind} ({free_rig.kind} with up=None), "
@@ -222,7 +212,8 @@ def main() -> int:
     counts = [int(p) for p in args.points.split(",") if p]
     print(f"autorig accepts up={autorig_accepts('up')} kind={autorig_accepts('kind')}")
     print(f"{'subject':<11} {'voxels':>10} {'points':>7} {'expected/got':>19} {'':<5} {'fit':>6} {'B':>3}  "
-          f"{'tree':>5} {'rig':>5} {'bind':>5}  {'quadruped':<22} {'rotations (of 24)':<24} reference joints (r = local radius)")
+          f"{'tree':>5} {'rig':>5} {'bind':>5}  {'quadruped':<22} {'rotations (of 24)':<24} "
+          "reference joints (r = local radius)")
     rows = []
     for name in names:
         loads = [dict(scale=s) for s in scales] if name == "phantom" else \

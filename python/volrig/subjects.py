@@ -272,6 +272,26 @@ def rotate_mask(mask: Volume, m):
     return turned, to_turned
 
 
+def rig_difference(rig0, rig, to_turned, radius) -> float:
+    """How far ``rig`` (of a turned mask) is from ``rig0`` turned by ``to_turned``: the largest distance of a bone
+    end from its counterpart, in local radii (``radius(p)`` at rig0's end p); inf when the kinds, bone names (rigs
+    with roles) or bone counts differ. Bones of rigs without roles ("chains", named in traversal order) are paired
+    each with the nearest bone of the other rig."""
+    if rig.kind != rig0.kind or len(rig) != len(rig0):
+        return float("inf")
+    ends0 = [to_turned(rig0.joints[list(b)]) for b in rig0.bones]
+    r0 = [np.array([radius(p) for p in rig0.joints[list(b)]]) for b in rig0.bones]
+    ends = [rig.joints[list(b)] for b in rig.bones]
+    if rig0.kind in ("humanoid", "quadruped"):
+        if sorted(rig.names) != sorted(rig0.names):
+            return float("inf")
+        pairs = [[ends[rig.names.index(n)]] for n in rig0.names]
+    else:
+        pairs = [ends] * len(ends0)
+    return max(min(float((np.linalg.norm(e - e0, axis=1) / r).max()) for e in cand)
+               for e0, r, cand in zip(ends0, r0, pairs))
+
+
 def quadruped_problems(subject: Subject, rig) -> list:
     """What is wrong with a quadruped's rig: the kind, the head bone not at the head end (its tail in the last
     quarter of the body along ``subject.head``), fewer than two tail bones, or a tail not in the back half."""

@@ -92,3 +92,32 @@ def test_rig_joint_maps_reference_names():
     np.testing.assert_allclose(subjects.rig_joint(rig, "elbow.L"), [0, 0, -1])
     np.testing.assert_allclose(subjects.rig_joint(rig, "shoulder.L"), [0, 0, 0])
     assert subjects.rig_joint(rig, "knee.L") is None
+
+
+def test_rotate_mask_maps_points_exactly():
+    from volrig import Volume, subjects
+    mask = Volume(np.zeros((5, 4, 3), bool), (1.0, 2.0, 3.0), (10.0, 0.0, 0.0))
+    mask.array[4, 3, 2] = True   # x=2, y=3, z=4
+    p = np.array([10 + 2 * 1.0, 3 * 2.0, 4 * 3.0])
+    rots = subjects.rotations24()
+    assert len(rots) == 24 and len({m.tobytes() for m in rots}) == 24
+    for m in rots:
+        vol, to_turned = subjects.rotate_mask(mask, m)
+        z, y, x = np.argwhere(vol.array)[0]
+        np.testing.assert_allclose(to_turned(p), np.array([x, y, z]) * np.asarray(vol.spacing))
+
+
+def test_rig_difference_pairs_bones():
+    from volrig import Rig, subjects
+    a = Rig(joints=[[0, 0, 0], [0, 0, 10], [0, 5, 15]], bones=[[0, 1], [1, 2]], names=["chain0", "chain0.001"],
+            kind="chains")
+    b = Rig(joints=[[0, 5, 15], [0, 0, 10], [0, 0, 0]], bones=[[1, 0], [2, 1]], names=["chain0", "chain0.001"],
+            kind="chains")  # the same bones, listed the other way round
+    same = subjects.rig_difference(a, b, lambda p: p, lambda p: 2.0)
+    assert same == 0.0
+    shifted = Rig(joints=b.joints + [0, 0, 3], bones=b.bones, names=b.names, kind="chains")
+    assert subjects.rig_difference(a, shifted, lambda p: p, lambda p: 2.0) == 1.5
+    humanoid = Rig(joints=a.joints, bones=a.bones, names=["upper_arm.L", "forearm.L"], kind="humanoid")
+    swapped = Rig(joints=a.joints, bones=a.bones, names=["forearm.L", "upper_arm.L"], kind="humanoid")
+    assert subjects.rig_difference(humanoid, swapped, lambda p: p, lambda p: 2.0) > 1
+    assert subjects.rig_difference(a, humanoid, lambda p: p, lambda p: 2.0) == float("inf")
