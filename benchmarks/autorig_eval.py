@@ -116,7 +116,8 @@ def evaluate(subject, points, rotations=False, verbose=False, pictures=None):
         os.makedirs(pictures, exist_ok=True)
         draw(subject, rig, os.path.join(pictures, f"{subject.name}_{len(pts)}.png"))
     dt = sk.dt
-    row = dict(subject=subject.name, voxels=int(sk.object_count), points=len(pts), expected=subject.kind,
+    row = dict(subject=subject.name, voxels=int(sk.object_count), voxel=float(min(subject.mask.spacing)),
+               points=len(pts), expected=subject.kind,
                kind=rig.kind, fit=getattr(rig, "fit", None), bones=len(rig), times=t,
                joints=joint_errors(subject, rig, dt), quadruped=quadruped_checks(subject, rig))
     if rotations:
@@ -188,7 +189,7 @@ def print_row(row):
 
 def detail(row):
     for name, (r, d, lr) in row["joints"].items():
-        print(f"    {name:<12} {r:6.2f} radii  {d:10.4g} (local radius {lr:.4g})")
+        print(f"    {name:<12} {r:6.2f} radii  {d:10.4g} = {d / row['voxel']:6.1f} voxels (local radius {lr:.4g})")
 
 
 def main() -> int:
