@@ -10,7 +10,7 @@ joints; VHM: vs its bone-derived joints; hand/arm: each TGF joint vs the nearest
 up=) and the row says how many gave the same kind and joints mapping back within half a local radius.
 
 Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/autorig_eval.py [--subjects phantom,vhm4,cow] [--scales 0.5,1]
-      [--points 15000,40000] [--rotations] [--json out.json]
+      [--points 5000,40000] [--rotations] [--joints] [--pictures DIR] [--json out.json]
 Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1 and phantom scale 2).
 """
 import argparse
@@ -196,7 +196,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--subjects", default=",".join(DEFAULT), help=f"comma list from {', '.join(S.SUBJECTS)}")
     ap.add_argument("--scales", default="0.5,1", help="phantom scales")
-    ap.add_argument("--points", default="15000", help="comma list of skeleton point counts")
+    ap.add_argument("--points", default="5000,15000,40000", help="comma list of skeleton point counts")
     ap.add_argument("--rotations", action="store_true", help="also rig the 24 axis-aligned rotations (slow)")
     ap.add_argument("--slow", action="store_true", help="add vhm1 and phantom scale 2")
     ap.add_argument("--voxels", type=int, default=S.MESH_VOXELS, help="mesh voxels along the longest side")
