@@ -11,6 +11,7 @@ up=) and the row says how many gave the same kind and joints mapping back within
 
 Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/autorig_eval.py [--subjects phantom,vhm4,cow] [--scales 0.5,1]
       [--points 5000,40000] [--rotations] [--joints] [--pictures DIR] [--json out.json]
+--pictures also draws the Visible Human's bone with its bone-derived joints (to check them by eye).
 Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1 and phantom scale 2).
 """
 import argparse
@@ -115,6 +116,8 @@ def evaluate(subject, points, rotations=False, verbose=False, pictures=None):
     if pictures:
         os.makedirs(pictures, exist_ok=True)
         draw(subject, rig, os.path.join(pictures, f"{subject.name}_{len(pts)}.png"))
+        if subject.name.startswith("vhm"):
+            draw_bone_joints(subject, os.path.join(pictures, f"{subject.name}_bone_joints.png"))
     dt = sk.dt
     row = dict(subject=subject.name, voxels=int(sk.object_count), voxel=float(min(subject.mask.spacing)),
                points=len(pts), expected=subject.kind,
@@ -153,6 +156,26 @@ def draw(subject, rig, path):
         ax.set_aspect("equal")
     fig.tight_layout()
     fig.savefig(path, dpi=60)
+    plt.close(fig)
+
+
+def draw_bone_joints(subject, path):
+    """The Visible Human's bone (max projections, front and side) with its bone-derived joints: to check them."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    labels = S.visible_human_labels(int(subject.name[3:]))
+    bone = np.isin(labels.array, S.BONE_LABELS)
+    sp = np.asarray(labels.spacing)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 14))
+    for ax, (a, along) in zip(axes, ((0, 1), (1, 2))):
+        ax.imshow(bone.sum(axis=along), origin="lower", cmap="gray",
+                  extent=(0, bone.shape[2 - a] * sp[a], 0, bone.shape[0] * sp[2]))
+        for name, p in subject.joints.items():
+            ax.plot(p[a], p[2], "+", color="r" if name.endswith(".L") else "c", ms=14, mew=2)
+        ax.set_title(f"{subject.name} bone, {'xy'[a]} right, z up: joints .L red, .R cyan")
+    fig.tight_layout()
+    fig.savefig(path, dpi=55)
     plt.close(fig)
 
 
