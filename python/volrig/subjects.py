@@ -6,7 +6,7 @@ mask's world frame, and reference joints (world positions, named) where there ar
 
 - ``phantom`` (scale): ``volrig.phantom.humanoid``; its true joints.
 - ``vhm4``, ``vhm2``, ``vhm1``: the Visible Human Male (AustinMan labels) at 4, 2 and 1 mm; the body is every
-  labelled voxel (internal air, i.e. airways and gut gas, included so the body is solid); its shoulders, elbows,
+  labelled voxel (InternalAir, the airways, included so the body is solid); its shoulders, elbows,
   wrists, hips, knees and ankles derived from the bone labels by ``visible_human_joints``.
 - ``arm``, ``hand``: libigl's meshes with their TGF skeletons (``joints`` named "j0", "j1", ...; ``bones`` the
   TGF edges), voxelized; ``knight``, ``cow``, ``lion``, ``horse``, ``camel``: meshes without reference joints.
@@ -216,7 +216,7 @@ SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES)
 
 def load_subject(name: str, **kw) -> Subject:
     """Any subject by name: "phantom" (scale=...), "vhm4"/"vhm2"/"vhm1", or a mesh name (voxels=...)."""
-    if name == "phantom" or name.startswith("phantom"):
+    if name.startswith("phantom"):
         scale = kw.get("scale", float(name[7:]) if len(name) > 7 else 0.5)
         return phantom_subject(scale)
     if name.startswith("vhm"):
