@@ -82,49 +82,6 @@ def _unit(v) -> np.ndarray:
 
 # ---- meshes ----------------------------------------------------------------------------------------------------
 
-# FALLBACK: OFF and Medit .mesh readers until volrig.read_mesh reads them (the mesh readers' branch adds both
-# natively). Delete _read_off, _read_medit and _read_any_mesh's fallback once read_mesh accepts .off and .mesh.
-def _read_off(path: Path):
-    tokens = path.read_text().split()
-    if not tokens or tokens[0] != "OFF":
-        raise ValueError(f"{path}: not an OFF file")
-    nv, nf = int(tokens[1]), int(tokens[2])
-    v = np.array(tokens[4:4 + 3 * nv], dtype=np.float64).reshape(nv, 3)
-    faces, i = [], 4 + 3 * nv
-    for _ in range(nf):
-        k = int(tokens[i])
-        poly = [int(t) for t in tokens[i + 1:i + 1 + k]]
-        faces += [[poly[0], poly[j], poly[j + 1]] for j in range(1, k - 1)]
-        i += 1 + k
-    return v, np.array(faces, dtype=np.int64)
-
-
-def _read_medit(path: Path):
-    lines = [ln.split() for ln in path.read_text().splitlines()]
-    lines = [ln for ln in lines if ln and not ln[0].startswith("#")]
-
-    def section(name, width):
-        at = next(i for i, ln in enumerate(lines) if ln[0] == name)
-        n = int(lines[at + 1][0])
-        return np.array([ln[:width] for ln in lines[at + 2:at + 2 + n]], dtype=np.float64)
-
-    v = section("Vertices", 3)
-    f = section("Triangles", 3).astype(np.int64) - 1
-    return v, f
-
-
-def _read_any_mesh(path: Path):
-    try:
-        return read_mesh(path)
-    except ValueError:
-        if path.suffix.lower() == ".off":
-            return _read_off(path)
-        if path.suffix.lower() == ".mesh":
-            return _read_medit(path)
-        raise
-# END FALLBACK
-
-
 #: mesh subjects: file, TGF, expected kind, up and head direction in the file's frame. Up and head were read off
 #: silhouettes of the voxelized meshes rendered along the three axes (benchmarks/autorig_eval.py --pictures DIR
 #: draws them with the up and head arrows).
@@ -173,7 +130,7 @@ def mesh_subject(name: str, voxels: int = MESH_VOXELS) -> Subject:
         raise KeyError(f"no mesh subject {name!r} (known: {', '.join(MESHES)})")
     rel, tgf, kind, up, head = MESHES[name]
     path = _data(rel)
-    v, f = _close_holes(*_read_any_mesh(path))
+    v, f = _close_holes(*read_mesh(str(path)))
     size = float((v.max(0) - v.min(0)).max()) / voxels
     mask = voxelize(v, f, voxel_size=size)
     joints, bones = {}, None

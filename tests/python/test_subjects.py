@@ -69,14 +69,14 @@ def test_mesh_subjects_voxelize_to_size():
     assert np.isclose(np.linalg.norm(hand.up), 1)
 
 
-def test_off_fallback_reader_and_hole_capping(tmp_path):
+def test_hole_capping_closes_an_open_off_mesh(tmp_path):
     from volrig import subjects
     p = tmp_path / "box.off"
     # a unit cube without its top face: five quads; the hole is capped by a fan
     v = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n1 0 1\n1 1 1\n0 1 1\n"
     f = "4 0 3 2 1\n4 0 1 5 4\n4 1 2 6 5\n4 2 3 7 6\n4 3 0 4 7\n"
     p.write_text(f"OFF\n8 5 0\n{v}{f}")
-    verts, faces = subjects._read_off(p)
+    verts, faces = __import__("volrig").read_mesh(str(p))
     assert verts.shape == (8, 3) and faces.shape == (10, 3)
     v2, f2 = subjects._close_holes(verts, faces)
     assert v2.shape == (9, 3) and f2.shape == (14, 3)
