@@ -1,5 +1,11 @@
 // autorig: from a skeleton-tree to an articulated skeleton (see volrig/rig.hpp). The stages, each in its own file:
 //
+// 0. coarse: when the volume is finer than autorig's own scale (kCoarseCells voxels along the object's longest
+//    extent), the rig is made there, not from the caller's points: the object is resampled (a coarse voxel is object
+//    when half its voxels are); the 1% of its voxels of highest thinness score and their skeleton-tree replace the
+//    caller's points and tree. Finer volumes and any point count then give about the same rig; the caller's points
+//    only name the point each joint sits on (the nearest one). At or below that scale the caller's points are
+//    rigged (the rig then depends on how many were kept). AutorigOptions::own_scale = false always rigs them.
 // 1. shape_tree: the points that carry the shape are the scale axis (a point goes when its ball lies inside the
 //    1.25x ball of a point at least twice as large: near-surface noise). They are joined by the tree's edges, by
 //    contained cone edges reaching across each point's ball and by bridges between fragments; the part with the
@@ -22,6 +28,7 @@
 //    bend nearby. End joints are extended along their bone to the object's surface.
 #include <cmath>
 
+#include "autorig/coarse.hpp"
 #include "autorig/templates.hpp"
 
 namespace volrig {
@@ -80,12 +87,40 @@ std::vector<Candidate> candidates(const rigging::RigContext& c, const AutorigOpt
     return out;
 }
 
-void fill_detail(const PointSet& pts, const rigging::LevelSetTree& lst, const rigging::NodeTree& tree,
-                 AutorigDetail& d) {
+Vec position(const Grid& g, const PointSet& pts, std::size_t i) {
+    const auto p = point_position(g, pts, i);
+    return Vec(p[0], p[1], p[2]);
+}
+
+/// Per position: the nearest of the caller's points (brute force: few positions).
+std::vector<std::uint32_t> nearest_points(const Grid& g, const PointSet& pts, const std::vector<Vec>& at) {
+    std::vector<std::uint32_t> out(at.size(), 0);
+    std::vector<double> best(at.size(), std::numeric_limits<double>::infinity());
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        const Vec p = position(g, pts, i);
+        for (std::size_t k = 0; k < at.size(); ++k)
+            if (const double d = (p - at[k]).squaredNorm(); d < best[k]) {
+                best[k] = d;
+                out[k] = static_cast<std::uint32_t>(i);
+            }
+    }
+    return out;
+}
+
+/// What was kept, for the caller's points: a point is kept when the nearest node is (the nodes are few).
+void fill_detail(const Grid& g, const PointSet& pts, const rigging::LevelSetTree& lst,
+                 const rigging::NodeTree& tree, AutorigDetail& d) {
     d.kept.assign(pts.n, 0);
-    for (std::size_t i = 0; i < pts.n; ++i)
-        d.kept[i] = lst.node_of_point[i] != rigging::kNone && tree.kept()[lst.node_of_point[i]];
-    d.root = lst.rep.empty() ? -1 : lst.rep[tree.root()];
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        const Vec p = position(g, pts, i);
+        double best = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k < lst.centroid.size(); ++k)
+            if (const double dk = (p - lst.centroid[k]).squaredNorm(); dk < best) {
+                best = dk;
+                d.kept[i] = tree.kept()[k];
+            }
+    }
+    d.root = lst.centroid.empty() ? -1 : nearest_points(g, pts, {lst.centroid[tree.root()]})[0];
     for (const Vec& c : lst.centroid) d.nodes.push_back({c.x(), c.y(), c.z()});
     d.node_radius = lst.radius;
     d.node_edges = lst.edges;
@@ -102,17 +137,32 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     if (pts.n < 2) throw Error("autorig: needs at least 2 skeleton points, got " + std::to_string(pts.n));
     check_options(pts, edges, opt);
 
-    const rigging::LevelSetTree lst = rigging::shape_tree(g, mask, pts, edges, progress);
+    rigging::CoarseShape coarse;
+    if (opt.own_scale) coarse = rigging::coarse_shape(g, mask);
+    const bool own = coarse.radius.size() >= 2;  // else the object is too small to resample: the caller's points
+    const Grid& rg = own ? coarse.grid : g;
+    const std::uint8_t* rmask = own ? coarse.mask.data() : mask;
+    const PointSet rpts = own ? coarse.points() : pts;
+    report(progress, 0.3);
+    const rigging::LevelSetTree lst = rigging::shape_tree(rg, rmask, rpts, own ? coarse.edges : edges, progress);
     report(progress, 0.5);
     rigging::NodeTree tree(lst.centroid, lst.radius, lst.edges);
     tree.prune(opt.prune_scale);
     tree.root_path_at_thicker_end();
     report(progress, 0.7);
-    if (detail) fill_detail(pts, lst, tree, *detail);
-    const rigging::RigContext ctx{g, mask, pts, tree, lst.rep};
+    if (detail) fill_detail(g, pts, lst, tree, *detail);
+    const rigging::RigContext ctx{rg, rmask, rpts, tree, lst.rep};
     std::vector<Candidate> found = candidates(ctx, opt);
     if (found.empty()) throw Error("autorig: the skeleton-tree has no branch to make a bone of");
     Rig rig = std::move(found[0].rig);
+    if (own) {  // joints sit on the caller's nearest points
+        std::vector<Vec> on;
+        for (std::size_t j = 0; j < rig.joints.size(); ++j)
+            if (rig.joint_points[j] >= 0) on.emplace_back(rig.joints[j][0], rig.joints[j][1], rig.joints[j][2]);
+        const std::vector<std::uint32_t> near = nearest_points(g, pts, on);
+        for (std::size_t j = 0, k = 0; j < rig.joints.size(); ++j)
+            if (rig.joint_points[j] >= 0) rig.joint_points[j] = near[k++];
+    }
     rig.fit = found[0].fit;
     Vec up = found[0].up;
     rig.up_confidence = found[0].up_confidence;
