@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "autorig/chain_fit.hpp"
+#include "autorig/coarse.hpp"
 #include "autorig/node_tree.hpp"
 #include "autorig/shape_tree.hpp"
 #include "autorig/templates.hpp"
@@ -201,4 +202,39 @@ TEST_CASE("search_plans reads four legs under a horizontal spine as a quadruped"
     }
     // Upside down (told up is -z) the legs point up: no quadruped.
     CHECK_FALSE(search_plans(t, Vec(0, 0, -1)).quadruped.score < kPlanLimit);
+}
+
+TEST_CASE("coarse: the object's box, factors to its own scale, and a majority downsampling", "[autorig]") {
+    Grid g;
+    g.dims = {40, 12, 10};
+    g.spacing = {0.5, 0.5, 1.0};
+    g.origin = {10, 20, 30};
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 0);
+    // A bar x 4..35, y 2..9, z 3..6 (exclusive ends), and one stray voxel beside it.
+    for (int z = 3; z < 7; ++z)
+        for (int y = 2; y < 10; ++y)
+            for (int x = 4; x < 36; ++x) mask[static_cast<std::size_t>(g.index(x, y, z))] = 1;
+    const auto box = object_box(g, mask.data());
+    CHECK(box == std::array<std::int64_t, 6>{4, 2, 3, 36, 10, 7});
+    // Longest extent 32 x 0.5 = 16: 8 cells of 2 world units, i.e. 4, 4 and 2 voxels.
+    const auto f = coarse_factor(g, box, 8);
+    CHECK(f == std::array<std::int64_t, 3>{4, 4, 2});
+    CHECK(coarse_factor(g, box, 1000) == std::array<std::int64_t, 3>{1, 1, 1});  // never finer than the volume
+    mask[static_cast<std::size_t>(g.index(20, 10, 7))] = 1;  // a stray voxel: a minority of its block
+    const CoarseShape c = downsample(g, mask.data(), object_box(g, mask.data()), f);
+    CHECK(c.grid.dims == std::array<std::int64_t, 3>{10, 5, 5});
+    std::size_t object = 0;
+    for (std::int64_t z = 0; z < c.grid.dims[2]; ++z)
+        for (std::int64_t y = 0; y < c.grid.dims[1]; ++y)
+            for (std::int64_t x = 0; x < c.grid.dims[0]; ++x) {
+                const bool in = c.mask[static_cast<std::size_t>(c.grid.index(x, y, z))];
+                object += in;
+                // The bar covers coarse x 1..8, y 1..2, z 1..2 whole; the stray voxel's block stays empty.
+                CHECK(in == (x >= 1 && x <= 8 && y >= 1 && y <= 2 && z >= 1 && z <= 2));
+            }
+    CHECK(object == 8 * 2 * 2);
+    // Coarse voxel (1, 1, 1) is the mean of fine voxels x 4..7, y 2..5, z 3..4.
+    CHECK(c.grid.origin[0] + c.grid.spacing[0] == Approx(10 + 5.5 * 0.5));
+    CHECK(c.grid.origin[1] + c.grid.spacing[1] == Approx(20 + 3.5 * 0.5));
+    CHECK(c.grid.origin[2] + c.grid.spacing[2] == Approx(30 + 3.5 * 1.0));
 }
