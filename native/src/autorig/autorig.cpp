@@ -72,7 +72,7 @@ std::vector<Candidate> candidates(const rigging::RigContext& c, const AutorigOpt
             const bool forced = opt.kind == kind;
             const bool acceptable = plan.score < rigging::kPlanLimit || (forced && std::isfinite(plan.score));
             if ((!opt.kind.empty() && !forced) || !acceptable) continue;
-            Candidate cand = rigging::build_plan(c, plan, std::string(kind) == "humanoid");
+            Candidate cand = rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance);
             if (!cand.rig.bones.empty()) out.push_back(std::move(cand));
         }
         std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.fit > b.fit; });

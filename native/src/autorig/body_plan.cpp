@@ -83,7 +83,7 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
     return best;
 }
 
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid) {
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance) {
     const NodeTree& t = c.tree;
     const std::uint32_t H = plan.head;
     const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
@@ -141,6 +141,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid) {
         const std::string sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
         b.chain(leg[s], leg_fit[s].cuts, {"pelvis" + sfx, "thigh" + sfx, "shin" + sfx, "foot" + sfx});
     }
+    add_extra_chains(c, b, !humanoid, tolerance);
     out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;

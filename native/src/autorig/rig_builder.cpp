@@ -39,12 +39,19 @@ std::int32_t RigBuilder::joint(std::uint32_t node) {
     return j;
 }
 
+std::int32_t RigBuilder::bone_of(std::uint32_t node) const {
+    const auto it = bone_of_node_.find(node);
+    return it == bone_of_node_.end() ? -1 : it->second;
+}
+
 void RigBuilder::chain(const std::vector<std::uint32_t>& nodes, const std::vector<std::size_t>& cuts,
-                       const std::vector<std::string>& names) {
-    std::int32_t prev = -1;
+                       const std::vector<std::string>& names, std::int32_t parent) {
+    std::int32_t prev = parent;
     const std::int32_t start = joint(nodes[cuts[0]]);
-    if (auto it = bone_ending_at_.find(start); it != bone_ending_at_.end()) prev = it->second;
-    else if (auto it2 = bone_starting_at_.find(start); it2 != bone_starting_at_.end()) prev = it2->second;
+    if (prev < 0) {
+        if (auto it = bone_ending_at_.find(start); it != bone_ending_at_.end()) prev = it->second;
+        else if (auto it2 = bone_starting_at_.find(start); it2 != bone_starting_at_.end()) prev = it2->second;
+    }
     for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
         const std::int32_t h = joint(nodes[cuts[c]]), t = joint(nodes[cuts[c + 1]]);
         const auto b = static_cast<std::int32_t>(rig_.bones.size());
@@ -53,6 +60,7 @@ void RigBuilder::chain(const std::vector<std::uint32_t>& nodes, const std::vecto
         rig_.parents.push_back(prev);
         bone_ending_at_.emplace(t, b);
         bone_starting_at_.emplace(h, b);
+        for (std::size_t k = cuts[c]; k <= cuts[c + 1]; ++k) bone_of_node_.emplace(nodes[k], b);
         prev = b;
     }
 }

@@ -27,9 +27,12 @@ class RigBuilder {
 public:
     explicit RigBuilder(const RigContext& c) : c_(c) {}
     /// Adds the bones of a chain of nodes cut at `cuts` (indices into `nodes`), named names[0..]; the first bone's
-    /// parent is the bone ending (else the first bone starting) at the chain's first joint.
+    /// parent is `parent` when given, else the bone ending (else the first bone starting) at the chain's first joint.
     void chain(const std::vector<std::uint32_t>& nodes, const std::vector<std::size_t>& cuts,
-               const std::vector<std::string>& names);
+               const std::vector<std::string>& names, std::int32_t parent = -1);
+    /// The bone whose span of its chain holds `node`, or -1.
+    std::int32_t bone_of(std::uint32_t node) const;
+    const Rig& rig() const { return rig_; }
     /// The rig of the given kind, its end joints (tails no bone starts from) moved outward along their bone to the
     /// object's surface, up to twice the end point's radius.
     Rig finish(const std::string& kind);
@@ -42,6 +45,7 @@ private:
     std::unordered_map<std::uint32_t, std::int32_t> joint_of_node_;
     std::unordered_map<std::int32_t, std::int32_t> bone_ending_at_;    // joint -> bone whose tail it is
     std::unordered_map<std::int32_t, std::int32_t> bone_starting_at_;  // joint -> first bone with that head
+    std::unordered_map<std::uint32_t, std::int32_t> bone_of_node_;
 };
 
 /// Bone names of a chain: base, base.001, base.002, ... (Blender's numbering).

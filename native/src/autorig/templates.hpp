@@ -38,9 +38,17 @@ struct PlanSearch {
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
 
 /// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
-/// hand and pelvis / thigh / shin / foot with .L/.R), or a candidate without bones when its chains are too short
-/// to cut.
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid);
+/// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
+/// bones when its chains are too short to cut.
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
+
+/// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
+/// (at most kMaxExtraChains), whose tip lies beyond kExtraReach radii of the node they hang from, become chains
+/// parented to the bone holding that node, cut at bends like neutral chains (at most 4 bones). Named tail, tail.001,
+/// ... when a quadruped's hang from its hips or pelvis, else chain.<parent bone>, chain.<parent bone>.001, ...
+constexpr int kMaxExtraChains = 6;
+constexpr double kExtraReach = 2.0;
+void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
 
 /// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
 /// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
