@@ -238,3 +238,49 @@ TEST_CASE("coarse: the object's box, factors to its own scale, and a majority do
     CHECK(c.grid.origin[1] + c.grid.spacing[1] == Approx(20 + 3.5 * 0.5));
     CHECK(c.grid.origin[2] + c.grid.spacing[2] == Approx(30 + 3.5 * 1.0));
 }
+
+TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; the thicker end is the head",
+          "[autorig]") {
+    // The quadruped of the case above, shifted into a grid, with a tail behind the hips.
+    const Vec o(40, 30, 50);
+    Figure f(o, 8.0);
+    const std::uint32_t chest = f.limb(0, o + Vec(40, 0, 0), 8, 8);
+    f.limb(f.limb(chest, o + Vec(52, 0, 10), 4, 4), o + Vec(60, 0, 14), 5, 4);
+    for (double s : {-1.0, 1.0}) {
+        f.limb(f.limb(0, o + Vec(0, s * 8, -15), 4, 4), o + Vec(0, s * 8, -35), 4, 3);
+        f.limb(f.limb(chest, o + Vec(40, s * 8, -15), 4, 4), o + Vec(40, s * 8, -35), 4, 3);
+    }
+    f.limb(f.limb(0, o + Vec(-15, 0, 8), 3, 2.5), o + Vec(-30, 0, 4), 2.5, 1.5);
+    // Each node is a skeleton point at its rounded position, in a solid grid.
+    Grid g;
+    g.dims = {120, 60, 80};
+    const std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
+    std::vector<std::int32_t> ijk;
+    std::vector<float> r;
+    std::vector<std::uint32_t> rep;
+    for (std::size_t k = 0; k < f.pos.size(); ++k) {
+        for (int a = 2; a >= 0; --a) ijk.push_back(static_cast<std::int32_t>(std::lround(f.pos[k][a])));
+        r.push_back(static_cast<float>(f.rad[k]));
+        rep.push_back(static_cast<std::uint32_t>(k));
+    }
+    const PointSet pts{ijk.data(), r.data(), r.size()};
+    const NodeTree t = f.tree();
+    const RigContext ctx{g, mask.data(), pts, t, rep};
+    const PlanSearch s = search_plans(t, Vec(0, 0, 1));
+    REQUIRE(s.quadruped.score < kPlanLimit);
+    const Candidate c = build_plan(ctx, s.quadruped, false, 0.35);
+    REQUIRE(c.rig.bones.size() > 21);
+    const auto& names = c.rig.names;
+    const auto tail = std::find(names.begin(), names.end(), "tail");
+    REQUIRE(tail != names.end());
+    const auto b = static_cast<std::size_t>(tail - names.begin());
+    CHECK(names[static_cast<std::size_t>(c.rig.parents[b])] == "hips");
+    // the tail's chain ends at the tail's tip (extended to the grid's edge along its last bone at most 2 radii)
+    double far = 0;
+    for (std::size_t k = 0; k < names.size(); ++k)
+        if (names[k].rfind("tail", 0) == 0) far = std::max(far, o.x() - c.rig.joints[c.rig.bones[k][1]][0]);
+    CHECK(far >= 29);
+    CHECK(far <= 30 + 2 * 1.5 + 1);
+    CHECK(std::count(names.begin(), names.end(), "head") == 1);
+    CHECK(c.up.z() > 0.9);
+}

@@ -23,7 +23,7 @@ double mirror(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, std::uin
 
 /// Every assignment of five extremities to head, legs, arms, kept in `best` when better than its kind's.
 void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double leave_penalty,
-              const std::optional<Vec>& up, PlanSearch& best) {
+              double left_out_thickness, const std::optional<Vec>& up, PlanSearch& best) {
     for (int h = 0; h < 5; ++h)
         for (int a = 0; a < 5; ++a)
             for (int b = a + 1; b < 5; ++b) {
@@ -41,6 +41,7 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 const double rl = 0.5 * (t.mean_radius(t.path(pelvis, A)) + t.mean_radius(t.path(pelvis, B)));
                 const double ra = 0.5 * (t.mean_radius(t.path(chest, C)) + t.mean_radius(t.path(chest, D)));
                 if (rl < ra) score += 0.25;  // legs carry the body: thicker than arms
+                if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
                 const Vec spine = (t.at(chest) - t.at(pelvis)).normalized();
                 const Vec legs = (0.5 * (t.at(A) + t.at(B)) - t.at(pelvis)).normalized();
                 const bool humanoid = legs.dot(spine) < -0.5;
@@ -71,14 +72,19 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
         // A body plan includes the two most prominent extremities.
         if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
         std::array<std::uint32_t, 5> leaf{};
-        double left_out = 0;
+        double left_out = 0, left_out_thickness = 0;
         for (int i = 0, k = 0; i < m; ++i) {
-            if (mask5 & (1 << i)) leaf[static_cast<std::size_t>(k++)] = ext[static_cast<std::size_t>(i)].second;
-            else left_out += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+            const auto& [significance, node] = ext[static_cast<std::size_t>(i)];
+            if (mask5 & (1 << i)) {
+                leaf[static_cast<std::size_t>(k++)] = node;
+            } else {
+                left_out += std::max(significance, 0.0);
+                left_out_thickness = std::max(left_out_thickness, t.end_radius(node));
+            }
         }
         // A body spans the object: five fingers at the end of an arm are no body plan.
         if (t.extent(std::vector<std::uint32_t>(leaf.begin(), leaf.end())) < 0.5 * whole_extent) continue;
-        consider(t, leaf, total > 0 ? left_out / total : 0.0, up, best);
+        consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, up, best);
     }
     return best;
 }

@@ -32,7 +32,8 @@ struct PlanSearch {
 
 /// Discrete search over the assignments of five of the seven most significant extremities (the two most
 /// significant always in) to head, legs and arms. Penalties: pairs not mirroring each other across the spine
-/// (tip height along the spine and distance from it), significant extremities left out, legs thinner than arms.
+/// (tip height along the spine and distance from it), significant extremities left out, legs thinner than arms, a
+/// head thinner than an extremity left out (a tail).
 /// A humanoid's legs point away from its head (and, with `up`, its spine points up); a quadruped's do not (and,
 /// with `up`, its limbs hang down). The best assignment of each kind.
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
