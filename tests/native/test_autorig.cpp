@@ -77,7 +77,7 @@ TEST_CASE("level_set_tree follows a Y with nodes a band apart, whatever the poin
         std::vector<std::int32_t> ijk;
         std::vector<float> r;
         auto add = [&](int x, int y) {
-            ijk.insert(ijk.end(), {1, y, x});
+            for (const std::int32_t v : {1, y, x}) ijk.push_back(v);
             r.push_back(3.f);
         };
         add(40, 40);
