@@ -37,31 +37,6 @@ MESHES = {
 }
 
 
-def read_any_mesh(path: str):
-    """volrig.read_mesh, or a plain OFF / Medit reader where it does not know the format yet."""
-    try:
-        return volrig.read_mesh(path)
-    except ValueError:
-        words = [w for line in open(path) for w in line.split("#")[0].split()]
-    if path.endswith(".off"):
-        nv, nf = int(words[1]), int(words[2])
-        v = np.array(words[4:4 + 3 * nv], dtype=np.float64).reshape(nv, 3)
-        faces, i = [], 4 + 3 * nv
-        for _ in range(nf):
-            k = int(words[i])
-            poly = [int(t) for t in words[i + 1:i + 1 + k]]
-            faces += [[poly[0], poly[j], poly[j + 1]] for j in range(1, k - 1)]
-            i += 1 + k
-        return v, np.array(faces, dtype=np.int64)
-    at = words.index("Vertices")
-    nv = int(words[at + 1])
-    v = np.array(words[at + 2:at + 2 + 4 * nv], dtype=np.float64).reshape(nv, 4)[:, :3]
-    at = words.index("Triangles")
-    nf = int(words[at + 1])
-    f = np.array(words[at + 2:at + 2 + 4 * nf], dtype=np.int64).reshape(nf, 4)[:, :3] - 1
-    return v, f
-
-
 def rig_case(name: str, mask: volrig.Volume, count: int, reference=None):
     """Skeleton at `count` points, tree, autorig, rigid binding; returns everything the picture needs."""
     sk = volrig.skeletonize(mask)
@@ -161,7 +136,11 @@ def main(argv=None):
         if not os.path.exists(path):
             print(f"skipping the {name}: {path} is absent")
             continue
-        v, f = read_any_mesh(path)
+        try:
+            v, f = volrig.read_mesh(path)
+        except ValueError as e:  # OFF and Medit come with the mesh readers' branch
+            print(f"skipping the {name}: {e}")
+            continue
         ref = volrig.read_tgf(os.path.join(SHARED, "meshes", tgf))[0] if tgf else None
         mask = volrig.voxelize(v, f, float(np.ptp(v, axis=0).max()) / 160)
         draw(rig_case(f"{name} ({file}, 160 voxels long)", mask, 15000, ref),
