@@ -224,6 +224,9 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
 
     Every template (humanoid, quadruped, neutral chains) is fitted and scored; the best wins. The result's
     ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
+    When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent), the rig
+    is made from the object resampled there, whatever ``points`` and ``tree`` hold (they then only give each joint's
+    ``joint_points``, the nearest point): the same object gives the same rig at any point count.
 
     bones:       bone count target (default 24). Humanoid and quadruped shapes get their 21 role bones when the
                  target allows at least 21; other shapes get at most this many bones along their chains.

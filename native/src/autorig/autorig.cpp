@@ -83,7 +83,8 @@ std::vector<Candidate> candidates(const rigging::RigContext& c, const AutorigOpt
     }
     if (out.empty() && !opt.kind.empty() && opt.kind != "chains")
         throw Error("autorig: no " + opt.kind + " body plan fits this shape (it needs five extremities: head, two "
-                    "arms, two legs, spread over the object)");
+                    "arms, two legs, spread over the object" +
+                    (opt.up ? std::string(", with the spine up for a humanoid, the limbs down for a quadruped)") : ")"));
     return out;
 }
 
