@@ -1,9 +1,11 @@
 #!/usr/bin/python3
 """Pictures of automatic rigs: skeleton points, the level-set tree autorig works on, and the rig, over maximum
 intensity projections of the mask. Writes docs/images/rig_<name>.png for the phantom humanoid, the frog
-(../shared/data/frogtissue) and the libigl arm mesh (../shared/data/meshes/arm.obj, voxelized), when present.
+(../shared/data/frogtissue), the Visible Human at 4 mm (../shared/data/visible-human) and every shared mesh
+(../shared/data/meshes: arm, hand, knight, cow, lion, horse, camel; voxelized with 160 voxels along the longest
+side), when present. The title gives the kind, the fit and the runner-up.
 
-    PYTHONPATH=python /usr/bin/python3 scripts/rig_pictures.py [--out docs/images] [--only phantom,frog,arm]
+    PYTHONPATH=python /usr/bin/python3 scripts/rig_pictures.py [--out docs/images] [--only phantom,frog,arm,...]
 """
 from __future__ import annotations
 
@@ -21,6 +23,18 @@ SHARED = os.path.join(ROOT, "..", "shared", "data")
 import volrig  # noqa: E402
 from volrig.rig import autorig, bind  # noqa: E402
 from volrig.tree import skeleton_tree  # noqa: E402
+
+
+#: shared meshes: file, TGF with reference joints (or None), the two world axes to draw (horizontal, vertical)
+MESHES = {
+    "arm": ("arm.obj", "arm.tgf", ((0, 1), (0, 2))),
+    "hand": ("hand.mesh", "hand.tgf", ((0, 1), (0, 2))),
+    "knight": ("decimated-knight.off", None, ((0, 1), (2, 1))),
+    "cow": ("cow.off", None, ((0, 1), (0, 2))),
+    "lion": ("lion.off", None, ((0, 1), (2, 1))),
+    "horse": ("horse_quad.obj", None, ((0, 1), (0, 2))),
+    "camel": ("camel_b.obj", None, ((2, 1), (0, 2))),
+}
 
 
 def rig_case(name: str, mask: volrig.Volume, count: int, reference=None):
@@ -75,7 +89,8 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
                     ax.annotate(name, (m[i], m[j]), fontsize=6, color="black")
         ax.set_xlabel(axis_names[i])
         ax.set_ylabel(axis_names[j])
-    fig.suptitle(f"{case['name']}: {len(pts):,} skeleton points, {rig.kind} rig of {len(rig)} bones "
+    fig.suptitle(f"{case['name']}: {len(pts):,} skeleton points, {rig.kind} rig of {len(rig)} bones, fit "
+                 f"{rig.fit:.2f} (runner-up {rig.runner_up or 'none'} {rig.runner_up_fit:.2f})\n"
                  f"(points coloured by bone; blue: level-set tree; red: rig" +
                  ("; green +: reference joints)" if case["reference"] is not None else ")"), fontsize=9)
     fig.tight_layout()
@@ -114,6 +129,32 @@ def main(argv=None):
                  os.path.join(args.out, "rig_arm.png"), views=((0, 1), (0, 2)))
         else:
             print("skipping the arm: arm.obj or volrig.voxelize is absent")
+    for name, (file, tgf, views) in MESHES.items():
+        path = os.path.join(SHARED, "meshes", file)
+        if name == "arm" or name not in only:
+            continue
+        if not os.path.exists(path):
+            print(f"skipping the {name}: {path} is absent")
+            continue
+        try:
+            v, f = volrig.read_mesh(path)
+        except ValueError as e:  # OFF and Medit come with the mesh readers' branch
+            print(f"skipping the {name}: {e}")
+            continue
+        ref = volrig.read_tgf(os.path.join(SHARED, "meshes", tgf))[0] if tgf else None
+        mask = volrig.voxelize(v, f, float(np.ptp(v, axis=0).max()) / 160)
+        draw(rig_case(f"{name} ({file}, 160 voxels long)", mask, 15000, ref),
+             os.path.join(args.out, f"rig_{name}.png"), views=views)
+    vhm = os.path.join(SHARED, "visible-human", "austinman_4mm_labels.nii.gz")
+    if "vhm4" in only:
+        if os.path.exists(vhm):
+            labels = volrig.load(vhm)
+            body = volrig.Volume(((labels.array != 0) & (labels.array != 2)).astype(np.uint8), labels.spacing,
+                                 labels.origin)
+            draw(rig_case("Visible Human (AustinMan 4 mm, labels other than 0 and air)", body, 15000),
+                 os.path.join(args.out, "rig_vhm4.png"), views=((0, 2), (1, 2)))
+        else:
+            print(f"skipping the Visible Human: {vhm} is absent")
 
 
 if __name__ == "__main__":

@@ -51,6 +51,11 @@ py::dict dict_of(Rig&& r) {
     d["parents"] = to_numpy_shaped(std::move(r.parents), {nb});
     d["kind"] = r.kind;
     d["joint_points"] = to_numpy_shaped(std::move(r.joint_points), {nj});
+    d["fit"] = r.fit;
+    d["up"] = py::make_tuple(r.up[0], r.up[1], r.up[2]);
+    d["up_confidence"] = r.up_confidence;
+    d["runner_up"] = r.runner_up;
+    d["runner_up_fit"] = r.runner_up_fit;
     return d;
 }
 
@@ -61,7 +66,7 @@ void bind_rig(py::module_& m) {
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
            const EdgeArray& edges, int bones, double prune_scale, double tolerance, bool roles,
-           const py::object& progress) {
+           const std::string& kind, const std::optional<Vec3>& up, const py::object& progress) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             const PointSet pts = point_set(ijk, &radius, "autorig");
             const auto e = edges_of(edges);
@@ -70,6 +75,8 @@ void bind_rig(py::module_& m) {
             opt.prune_scale = prune_scale;
             opt.tolerance = tolerance;
             opt.roles = roles;
+            opt.kind = kind;
+            if (up) opt.up = std::array<double, 3>{(*up)[0], (*up)[1], (*up)[2]};
             Progress p = progress_of(progress);
             Rig r;
             AutorigDetail detail;
@@ -92,8 +99,8 @@ void bind_rig(py::module_& m) {
             return d;
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
-        py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"),
-        py::arg("progress") = py::none());
+        py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"), py::arg("kind") = "",
+        py::arg("up") = py::none(), py::arg("progress") = py::none());
 
     m.def(
         "bind",

@@ -30,6 +30,10 @@ class Rig:
     kind:    "humanoid", "quadruped", "chains" (from ``autorig``) or "custom".
     joint_points: (K,) int64 skeleton point each joint sits on, -1 when none (end joints moved to the surface,
              joints placed by hand and not snapped).
+    fit:     how well autorig's template fits the shape, 0..1 (0 for other rigs).
+    up:      (3,) the up direction autorig used (given) or inferred (unit; zeros when unknown).
+    up_confidence: 1 when up was given, else how clearly the shape showed it (0..1).
+    runner_up: the second-best template's kind ("" when there was none); runner_up_fit its fit.
     """
 
     joints: np.ndarray
@@ -38,6 +42,11 @@ class Rig:
     parents: Optional[np.ndarray] = None
     kind: str = "custom"
     joint_points: Optional[np.ndarray] = None
+    fit: float = 0.0
+    up: Optional[np.ndarray] = None
+    up_confidence: float = 0.0
+    runner_up: str = ""
+    runner_up_fit: float = 0.0
 
     def __post_init__(self):
         self.joints = np.array(self.joints, dtype=np.float64, copy=True).reshape(-1, 3) if np.size(self.joints) \
@@ -54,6 +63,7 @@ class Rig:
         self.joint_points = np.array(self.joint_points, dtype=np.int64, copy=True).reshape(-1)
         if len(self.joint_points) != len(self.joints):
             raise VolrigError(f"joint_points has {len(self.joint_points)} entries for {len(self.joints)} joints")
+        self.up = np.zeros(3) if self.up is None else np.array(self.up, dtype=np.float64, copy=True).reshape(3)
         _volrig.check_rig(self.joints, self.bones, self.names, self.parents)
 
     def __len__(self) -> int:
@@ -205,10 +215,19 @@ class AutorigResult:
     node_kept: np.ndarray
 
 
+KINDS = ("humanoid", "quadruped", "chains")
+
+
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
             prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
-            detail: Optional[list] = None) -> Rig:
+            detail: Optional[list] = None, kind: Optional[str] = None, up=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
+
+    Every template (humanoid, quadruped, neutral chains) is fitted and scored; the best wins. The result's
+    ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
+    When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent), the rig
+    is made from the object resampled there, whatever ``points`` and ``tree`` hold (they then only give each joint's
+    ``joint_points``, the nearest point): the same object gives the same rig at any point count.
 
     bones:       bone count target (default 24). Humanoid and quadruped shapes get their 21 role bones when the
                  target allows at least 21; other shapes get at most this many bones along their chains.
@@ -219,21 +238,26 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     roles:       try the humanoid / quadruped body plans (a guess from the shape's five main extremities: a molar
                  with four roots passes for a quadruped); False gives neutral chains.
     detail:      pass a list to receive an ``AutorigResult`` appended to it.
+    kind:        force a template: "humanoid", "quadruped" or "chains" (None: the best fit). A forced body plan is
+                 built whatever its score; ValueError when the shape has no five extremities for it.
+    up:          the world's up direction in the volume's frame (x, y, z), when known (e.g. the scene's +Z). A
+                 humanoid's spine must then point up and a quadruped's limbs down. None: inferred.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
     if not isinstance(tree, SkeletonTree):
         raise TypeError(f"tree must be a SkeletonTree (from skeleton_tree), got {type(tree).__name__}")
     if len(tree.component) != len(points):
-        raise ValueError(f"the tree has {len(tree.component)} points but {len(points)} points were given")
-    if bones is not None and not (1 <= int(bones) <= 10000):
-        raise ValueError(f"bones must lie in 1..10000, got {bones}")
+        raise VolrigError(f"the tree has {len(tree.component)} points but {len(points)} points were given")
+    if up is not None:  # bones, kind and up are checked by the core
+        up = tuple(float(u) for u in np.asarray(up, dtype=np.float64).reshape(3))
     d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
-                        float(prune_scale), float(tolerance), bool(roles), progress)
+                        float(prune_scale), float(tolerance), bool(roles), kind or "", up, progress)
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"]))
-    return Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"])
+    return Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
+               np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]))
 
 
 @dataclass

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,12 @@ struct Rig {
     std::string kind = "custom";  ///< "humanoid", "quadruped", "chains" (autorig) or "custom"
     /// Per joint: the skeleton point it sits on, or -1 (an end joint extended to the surface, a user joint).
     std::vector<std::int64_t> joint_points;
+    // What autorig found (left at their defaults for other rigs):
+    double fit = 0;                          ///< how well the template fits, 0..1
+    std::array<double, 3> up{0, 0, 0};       ///< the up direction used or inferred (unit; zero when unknown)
+    double up_confidence = 0;                ///< 1 when given, else how clearly the shape shows it (0..1)
+    std::string runner_up;                   ///< the second-best template's kind ("" when there was none)
+    double runner_up_fit = 0;
 };
 
 /// Checks a rig's consistency (indices in range, finite joints, no zero-length bones, parents acyclic, names
@@ -45,6 +52,16 @@ struct AutorigOptions {
     double tolerance = 0.35;
     /// Try the humanoid / quadruped body plans; false gives neutral chains whatever the shape.
     bool roles = true;
+    /// Force a template: "humanoid", "quadruped" or "chains" ("" = the best fit). A forced body plan is built
+    /// whatever its score (an error when the shape has no five extremities for it).
+    std::string kind;
+    /// The world's up direction in the volume's frame, when known: a humanoid's spine must point up, a quadruped's
+    /// limbs down. Without it, up is inferred from the winning template.
+    std::optional<std::array<double, 3>> up;
+    /// When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent),
+    /// rig a skeleton of the object resampled to that scale instead of the given points: finer volumes and any
+    /// point count give about the same rig. False always rigs the given points and tree.
+    bool own_scale = true;
 };
 
 /// What autorig kept, for pictures and diagnostics.
@@ -58,13 +75,10 @@ struct AutorigDetail {
     std::vector<std::uint8_t> node_kept;
 };
 
-/// Reduces a skeleton-tree (edges over the points) of the object in `mask` to an articulated skeleton: spurs
-/// pruned, joints at branch points, end points and bends, root at the largest-radius junction; bones named by role
-/// for humanoid-like (five extremities: head, two arms, two legs) and quadruped-like shapes. Uses the tree
-/// part with the largest ball volume. The points that carry the shape are the scale axis (points whose ball is
-/// not inside the 1.25x ball of a point twice as large: near-surface noise goes), joined by the tree's edges and
-/// by contained edges reaching across each point's ball; its geometry comes from the level sets of geodesic
-/// distance over that graph (the tree's own paths wander inside a skeleton several voxels thick).
+/// Reduces a skeleton-tree (edges over the points) of the object in `mask` to an articulated skeleton (the stages
+/// are described in native/src/autorig/autorig.cpp): the points' scale axis and its level-set tree, spurs pruned,
+/// then every template (humanoid, quadruped: role-named bones; neutral chains) fitted and scored; the best wins
+/// (rig.kind, rig.fit, rig.runner_up). Uses the part with the largest ball volume.
 Rig autorig(const Grid& grid, const std::uint8_t* mask, const PointSet& pts,
             const std::vector<std::array<std::uint32_t, 2>>& tree_edges, const AutorigOptions& opt = {},
             const Progress& progress = {}, AutorigDetail* detail = nullptr);

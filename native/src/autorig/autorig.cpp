@@ -1,0 +1,184 @@
+// autorig: from a skeleton-tree to an articulated skeleton (see volrig/rig.hpp). The stages, each in its own file:
+//
+// 0. coarse: when the volume is finer than autorig's own scale (kCoarseCells voxels along the object's longest
+//    extent), the rig is made there, not from the caller's points: the object is resampled (a coarse voxel is object
+//    when half its voxels are); the 1% of its voxels of highest thinness score and their skeleton-tree replace the
+//    caller's points and tree. Finer volumes and any point count then give about the same rig; the caller's points
+//    only name the point each joint sits on (the nearest one). At or below that scale the caller's points are
+//    rigged (the rig then depends on how many were kept). AutorigOptions::own_scale = false always rigs them.
+// 1. shape_tree: the points that carry the shape are the scale axis (a point goes when its ball lies inside the
+//    1.25x ball of a point at least twice as large: near-surface noise). They are joined by the tree's edges, by
+//    contained cone edges reaching across each point's ball and by bridges between fragments; the part with the
+//    largest ball volume is kept. Its level-set tree (bands of geodesic distance a fifth of the median radius
+//    wide, split into connected pieces) follows the middle of each branch; node sizes follow the object's radii,
+//    not the number of points kept.
+// 2. node_tree: the nodes rooted at the largest-radius node; spurs pruned (a leaf branch goes when the leaf's ball
+//    lies inside the ball, scaled by prune_scale, of a node between its junction and the root); a path is rerooted
+//    at its thicker end. Leaves are ranked by significance: how far each leaf's branch (in the longest-path
+//    decomposition) sticks out of the ball where it attaches.
+// 3. templates: body plans are fitted and scored. Humanoid and quadruped: a discrete search over assignments of
+//    five of the seven most significant extremities to head, legs and arms, penalising pairs that do not mirror
+//    each other across the spine, significant extremities left out and legs thinner than arms; legs pointing away
+//    from the head make a humanoid, otherwise a quadruped; a given up direction excludes humanoids whose spine
+//    does not point up and quadrupeds whose limbs do not hang down. Neutral chains: chains between branch points.
+//    Every template that can be built is a candidate; body plans within their score limit win over chains; the
+//    runner-up is reported, and AutorigOptions::kind forces one.
+// 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in
+//    (position, radius); a humanoid's elbows, wrists and knees near their anatomical proportions, moved to a clear
+//    bend nearby. End joints are extended along their bone to the object's surface.
+#include <cmath>
+
+#include "autorig/coarse.hpp"
+#include "autorig/templates.hpp"
+
+namespace volrig {
+
+namespace {
+
+using rigging::Candidate;
+using rigging::Vec;
+
+void check_options(const PointSet& pts, const std::vector<std::array<std::uint32_t, 2>>& edges,
+                   const AutorigOptions& opt) {
+    if (!(opt.prune_scale >= 1.0 && std::isfinite(opt.prune_scale)))
+        throw Error("autorig: prune_scale must be >= 1");
+    if (!(opt.tolerance > 0 && std::isfinite(opt.tolerance))) throw Error("autorig: tolerance must be > 0");
+    if (opt.bones < 0 || opt.bones > 10000) throw Error("autorig: bones must lie in 1..10000 (0 = default)");
+    if (!opt.kind.empty() && opt.kind != "humanoid" && opt.kind != "quadruped" && opt.kind != "chains")
+        throw Error("autorig: kind must be 'humanoid', 'quadruped' or 'chains', got '" + opt.kind + "'");
+    if (opt.up) {
+        const Vec u((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]);
+        if (!std::isfinite(u.norm()) || u.norm() == 0) throw Error("autorig: up must be a finite non-zero vector");
+    }
+    for (const auto& e : edges)
+        if (e[0] >= pts.n || e[1] >= pts.n || e[0] == e[1])
+            throw Error("autorig: tree edge (" + std::to_string(e[0]) + ", " + std::to_string(e[1]) +
+                        ") is not between two of the " + std::to_string(pts.n) + " points");
+    std::size_t parts = 0;
+    forest_components(pts.n, edges, &parts);
+    if (edges.size() + parts != pts.n) throw Error("autorig: the tree edges contain a cycle");
+}
+
+/// Every template's candidate, best first: body plans within their limit (or forced) by fit, then chains.
+std::vector<Candidate> candidates(const rigging::RigContext& c, const AutorigOptions& opt) {
+    const int target = opt.bones > 0 ? opt.bones : 24;
+    std::optional<Vec> up;
+    if (opt.up) up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
+    std::vector<Candidate> out;
+    const bool plans = opt.kind.empty() ? opt.roles && target >= 21 : opt.kind != "chains";
+    if (plans) {
+        const rigging::PlanSearch s = rigging::search_plans(c.tree, up);
+        for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}}) {
+            const bool forced = opt.kind == kind;
+            const bool acceptable = plan.score < rigging::kPlanLimit || (forced && std::isfinite(plan.score));
+            if ((!opt.kind.empty() && !forced) || !acceptable) continue;
+            Candidate cand = rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance);
+            if (!cand.rig.bones.empty()) out.push_back(std::move(cand));
+        }
+        std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.fit > b.fit; });
+    }
+    if (opt.kind.empty() || opt.kind == "chains") {
+        Candidate chains = rigging::chain_rig(c, target, opt.tolerance);
+        if (!chains.rig.bones.empty()) out.push_back(std::move(chains));
+    }
+    if (out.empty() && !opt.kind.empty() && opt.kind != "chains")
+        throw Error("autorig: no " + opt.kind + " body plan fits this shape (it needs five extremities: head, two "
+                    "arms, two legs, spread over the object" +
+                    (opt.up ? std::string(", with the spine up for a humanoid, the limbs down for a quadruped)") : ")"));
+    return out;
+}
+
+Vec position(const Grid& g, const PointSet& pts, std::size_t i) {
+    const auto p = point_position(g, pts, i);
+    return Vec(p[0], p[1], p[2]);
+}
+
+/// Per position: the nearest of the caller's points (brute force: few positions).
+std::vector<std::uint32_t> nearest_points(const Grid& g, const PointSet& pts, const std::vector<Vec>& at) {
+    std::vector<std::uint32_t> out(at.size(), 0);
+    std::vector<double> best(at.size(), std::numeric_limits<double>::infinity());
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        const Vec p = position(g, pts, i);
+        for (std::size_t k = 0; k < at.size(); ++k)
+            if (const double d = (p - at[k]).squaredNorm(); d < best[k]) {
+                best[k] = d;
+                out[k] = static_cast<std::uint32_t>(i);
+            }
+    }
+    return out;
+}
+
+/// What was kept, for the caller's points: a point is kept when the nearest node is (the nodes are few).
+void fill_detail(const Grid& g, const PointSet& pts, const rigging::LevelSetTree& lst,
+                 const rigging::NodeTree& tree, AutorigDetail& d) {
+    d.kept.assign(pts.n, 0);
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        const Vec p = position(g, pts, i);
+        double best = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k < lst.centroid.size(); ++k)
+            if (const double dk = (p - lst.centroid[k]).squaredNorm(); dk < best) {
+                best = dk;
+                d.kept[i] = tree.kept()[k];
+            }
+    }
+    d.root = lst.centroid.empty() ? -1 : nearest_points(g, pts, {lst.centroid[tree.root()]})[0];
+    for (const Vec& c : lst.centroid) d.nodes.push_back({c.x(), c.y(), c.z()});
+    d.node_radius = lst.radius;
+    d.node_edges = lst.edges;
+    d.node_kept = tree.kept();
+}
+
+}  // namespace
+
+Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
+            const std::vector<std::array<std::uint32_t, 2>>& edges, const AutorigOptions& opt,
+            const Progress& progress, AutorigDetail* detail) {
+    if (!pts.radius) throw Error("autorig: radii are required");
+    check_points(g, mask, pts, "autorig");
+    if (pts.n < 2) throw Error("autorig: needs at least 2 skeleton points, got " + std::to_string(pts.n));
+    check_options(pts, edges, opt);
+
+    rigging::CoarseShape coarse;
+    if (opt.own_scale) coarse = rigging::coarse_shape(g, mask);
+    const bool own = coarse.radius.size() >= 2;  // else the object is too small to resample: the caller's points
+    const Grid& rg = own ? coarse.grid : g;
+    const std::uint8_t* rmask = own ? coarse.mask.data() : mask;
+    const PointSet rpts = own ? coarse.points() : pts;
+    report(progress, 0.3);
+    const rigging::LevelSetTree lst = rigging::shape_tree(rg, rmask, rpts, own ? coarse.edges : edges, progress);
+    report(progress, 0.5);
+    rigging::NodeTree tree(lst.centroid, lst.radius, lst.edges);
+    tree.prune(opt.prune_scale);
+    tree.root_path_at_thicker_end();
+    report(progress, 0.7);
+    if (detail) fill_detail(g, pts, lst, tree, *detail);
+    const rigging::RigContext ctx{rg, rmask, rpts, tree, lst.rep};
+    std::vector<Candidate> found = candidates(ctx, opt);
+    if (found.empty()) throw Error("autorig: the skeleton-tree has no branch to make a bone of");
+    Rig rig = std::move(found[0].rig);
+    if (own) {  // joints sit on the caller's nearest points
+        std::vector<Vec> on;
+        for (std::size_t j = 0; j < rig.joints.size(); ++j)
+            if (rig.joint_points[j] >= 0) on.emplace_back(rig.joints[j][0], rig.joints[j][1], rig.joints[j][2]);
+        const std::vector<std::uint32_t> near = nearest_points(g, pts, on);
+        for (std::size_t j = 0, k = 0; j < rig.joints.size(); ++j)
+            if (rig.joint_points[j] >= 0) rig.joint_points[j] = near[k++];
+    }
+    rig.fit = found[0].fit;
+    Vec up = found[0].up;
+    rig.up_confidence = found[0].up_confidence;
+    if (opt.up) {
+        up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
+        rig.up_confidence = 1.0;
+    }
+    rig.up = {up.x(), up.y(), up.z()};
+    if (found.size() > 1) {
+        rig.runner_up = found[1].rig.kind;
+        rig.runner_up_fit = found[1].fit;
+    }
+    check_rig(rig);
+    report(progress, 1.0);
+    return rig;
+}
+
+}  // namespace volrig

@@ -1,0 +1,156 @@
+// autorig/body_plan.cpp: the humanoid and quadruped templates: a scored discrete search over which extremities
+// are head, legs and arms, then the role-named rig of the best (see templates.hpp).
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "autorig/templates.hpp"
+
+namespace volrig::rigging {
+
+namespace {
+
+/// How far two limb tips x, y (meeting at `base`) are from mirroring each other across the body's midplane: both
+/// tips at the same place along the spine's line (through `pelvis` along `axis`) and at the same distance from it,
+/// relative to the limbs' length. Straight-line measures: paths through a cluttered trunk wander.
+double mirror(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, std::uint32_t x, std::uint32_t y,
+              std::uint32_t base) {
+    const Vec px = t.at(x) - t.at(pelvis), py = t.at(y) - t.at(pelvis);
+    const double tx = px.dot(axis), ty = py.dot(axis);
+    const double rx = (px - tx * axis).norm(), ry = (py - ty * axis).norm();
+    return (std::abs(tx - ty) + std::abs(rx - ry)) / std::max((t.at(x) - t.at(base)).norm() + (t.at(y) - t.at(base)).norm(), 1e-12);
+}
+
+/// Every assignment of five extremities to head, legs, arms, kept in `best` when better than its kind's.
+void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double leave_penalty,
+              double left_out_thickness, const std::optional<Vec>& up, PlanSearch& best) {
+    for (int h = 0; h < 5; ++h)
+        for (int a = 0; a < 5; ++a)
+            for (int b = a + 1; b < 5; ++b) {
+                if (a == h || b == h) continue;
+                int rest[2], r = 0;
+                for (int i = 0; i < 5; ++i)
+                    if (i != h && i != a && i != b) rest[r++] = i;
+                const std::uint32_t H = leaf[h], A = leaf[a], B = leaf[b], C = leaf[rest[0]], D = leaf[rest[1]];
+                // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where that
+                // branch joins the spine.
+                const std::uint32_t pelvis = t.median(A, B, H), chest = t.median(pelvis, t.median(C, D, H), H);
+                if (pelvis == chest) continue;
+                const Vec axis = (t.at(H) - t.at(pelvis)).normalized();
+                double score = mirror(t, pelvis, axis, A, B, pelvis) + mirror(t, pelvis, axis, C, D, chest) + leave_penalty;
+                const double rl = 0.5 * (t.mean_radius(t.path(pelvis, A)) + t.mean_radius(t.path(pelvis, B)));
+                const double ra = 0.5 * (t.mean_radius(t.path(chest, C)) + t.mean_radius(t.path(chest, D)));
+                if (rl < ra) score += 0.25;  // legs carry the body: thicker than arms
+                if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
+                const Vec spine = (t.at(chest) - t.at(pelvis)).normalized();
+                const Vec legs = (0.5 * (t.at(A) + t.at(B)) - t.at(pelvis)).normalized();
+                const bool humanoid = legs.dot(spine) < -0.5;
+                if (up) {
+                    const Vec limbs = (t.at(A) - t.at(pelvis)).normalized() + (t.at(B) - t.at(pelvis)).normalized() +
+                                      (t.at(C) - t.at(chest)).normalized() + (t.at(D) - t.at(chest)).normalized();
+                    if (humanoid ? spine.dot(*up) < 0.5 : 0.25 * limbs.dot(*up) > -0.3) continue;  // limbs hang down
+                }
+                Plan& slot = humanoid ? best.humanoid : best.quadruped;
+                if (score < slot.score) slot = Plan{H, {A, B}, {C, D}, score};
+            }
+}
+
+Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
+
+}  // namespace
+
+PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
+    PlanSearch best;
+    const auto ext = t.extremities();
+    if (ext.size() < 5) return best;
+    // Five of the (up to) seven most significant leaves.
+    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
+    double total = 0;
+    for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+    const double whole_extent = t.extent(t.order());
+    for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
+        // A body plan includes the two most prominent extremities.
+        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
+        std::array<std::uint32_t, 5> leaf{};
+        double left_out = 0, left_out_thickness = 0;
+        for (int i = 0, k = 0; i < m; ++i) {
+            const auto& [significance, node] = ext[static_cast<std::size_t>(i)];
+            if (mask5 & (1 << i)) {
+                leaf[static_cast<std::size_t>(k++)] = node;
+            } else {
+                left_out += std::max(significance, 0.0);
+                left_out_thickness = std::max(left_out_thickness, t.end_radius(node));
+            }
+        }
+        // A body spans the object: five fingers at the end of an arm are no body plan.
+        if (t.extent(std::vector<std::uint32_t>(leaf.begin(), leaf.end())) < 0.5 * whole_extent) continue;
+        consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, up, best);
+    }
+    return best;
+}
+
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance) {
+    const NodeTree& t = c.tree;
+    const std::uint32_t H = plan.head;
+    const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
+    const std::uint32_t chest = t.median(pelvis, t.median(plan.arms[0], plan.arms[1], H), H);
+    const std::vector<std::uint32_t> spine = t.path(pelvis, chest), head = t.path(chest, H);
+    std::vector<std::uint32_t> leg[2], arm[2];
+    Fit leg_fit[2], arm_fit[2];
+    const Fit spine_fit = fit_chain(c.samples(spine), 3), head_fit = fit_chain(c.samples(head), 2);
+    bool ok = spine_fit.cuts.size() == 4 && head_fit.cuts.size() == 3;
+    for (int k = 0; k < 2; ++k) {
+        leg[k] = t.path(pelvis, plan.legs[k]);
+        arm[k] = t.path(chest, plan.arms[k]);
+        leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
+        arm_fit[k] = humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
+        ok = ok && leg_fit[k].cuts.size() == 5 && arm_fit[k].cuts.size() == 5;
+    }
+    if (!ok) return Candidate{};
+
+    // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
+    const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
+    Candidate out;
+    Vec forward = Vec::Zero();
+    if (humanoid) {
+        out.up = spine_dir;
+        for (int s = 0; s < 2; ++s) {  // feet point forward: the last bone of each leg
+            const auto& k = leg_fit[s].cuts;
+            forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), out.up);
+        }
+        const Vec legs = (0.5 * (t.at(plan.legs[0]) + t.at(plan.legs[1])) - t.at(pelvis)).normalized();
+        out.up_confidence = std::clamp(-2.0 * legs.dot(spine_dir) - 1.0, 0.0, 1.0);
+    } else {
+        forward = spine_dir;
+        Vec down = Vec::Zero();
+        for (int s = 0; s < 2; ++s) {
+            down += perp(t.at(plan.legs[s]) - t.at(pelvis), forward).normalized();
+            down += perp(t.at(plan.arms[s]) - t.at(chest), forward).normalized();
+        }
+        out.up = -down.normalized();
+        out.up_confidence = std::clamp(down.norm() / 4.0, 0.0, 1.0);
+    }
+    const Vec left = out.up.cross(forward.normalized());
+    auto first_is_left = [&](const std::uint32_t (&pair)[2], std::uint32_t base) {
+        return (t.at(pair[0]) - t.at(base)).dot(left) >= (t.at(pair[1]) - t.at(base)).dot(left);
+    };
+    const bool leg0_left = first_is_left(plan.legs, pelvis), arm0_left = first_is_left(plan.arms, chest);
+
+    RigBuilder b(c);
+    b.chain(spine, spine_fit.cuts, {"hips", "spine", "chest"});
+    b.chain(head, head_fit.cuts, {"neck", "head"});
+    for (int s = 0; s < 2; ++s) {
+        const std::string sfx = ((s == 0) == arm0_left) ? ".L" : ".R";
+        b.chain(arm[s], arm_fit[s].cuts, {"shoulder" + sfx, "upper_arm" + sfx, "forearm" + sfx, "hand" + sfx});
+    }
+    for (int s = 0; s < 2; ++s) {
+        const std::string sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
+        b.chain(leg[s], leg_fit[s].cuts, {"pelvis" + sfx, "thigh" + sfx, "shin" + sfx, "foot" + sfx});
+    }
+    add_extra_chains(c, b, !humanoid, tolerance);
+    out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
+    out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
+    return out;
+}
+
+}  // namespace volrig::rigging

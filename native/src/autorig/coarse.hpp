@@ -1,0 +1,47 @@
+// autorig/coarse.hpp: the object at autorig's own scale, so that the rig depends neither on the volume's
+// resolution nor on how many skeleton points the user keeps (internal to the core; tested alone in
+// tests/native/test_autorig.cpp).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "volrig/tree.hpp"
+
+namespace volrig::rigging {
+
+/// Cells along the object's longest extent at autorig's scale.
+constexpr double kCoarseCells = 400;
+/// The share of the coarse object's voxels kept as skeleton points (those of highest thinness score). A fixed
+/// thinness level gives skeletons too sparse to place joints well.
+constexpr double kCoarsePoints = 0.01;
+
+struct CoarseShape {
+    Grid grid;
+    std::vector<std::uint8_t> mask;
+    std::array<std::int64_t, 3> factor{1, 1, 1};  ///< fine voxels per coarse voxel along x, y, z
+    std::vector<std::int32_t> ijk;                ///< the curve skeleton's points [z, y, x] on `grid`
+    std::vector<float> radius;                    ///< their radii (world units)
+    std::vector<std::array<std::uint32_t, 2>> edges;  ///< their skeleton-tree
+
+    PointSet points() const { return PointSet{ijk.data(), radius.data(), radius.size()}; }
+};
+
+/// Integer factors per axis making voxels about max(finest spacing, longest object extent / cells) wide.
+std::array<std::int64_t, 3> coarse_factor(const Grid& g, const std::array<std::int64_t, 6>& box, double cells);
+
+/// Bounding box of the object voxels: x0, y0, z0 (inclusive), x1, y1, z1 (exclusive); all zero when empty.
+std::array<std::int64_t, 6> object_box(const Grid& g, const std::uint8_t* mask);
+
+/// The object's bounding box resampled by `factor` (a coarse voxel is object when at least half of its fine voxels
+/// are), with one empty voxel all around; coarse voxel centres are the means of their fine voxels' centres.
+CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array<std::int64_t, 6>& box,
+                       const std::array<std::int64_t, 3>& factor);
+
+/// The object at autorig's scale: downsampled to kCoarseCells along its longest extent, the kCoarsePoints share of
+/// its voxels of highest thinness score as skeleton points, and their skeleton-tree. Empty (no points) when the
+/// volume is no finer than that scale: the caller's points are rigged then.
+CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask);
+
+}  // namespace volrig::rigging

@@ -1,0 +1,101 @@
+// autorig/rig_builder.cpp: chains of nodes to named bones (see rig_builder.hpp).
+#include "autorig/rig_builder.hpp"
+
+#include <cmath>
+
+namespace volrig::rigging {
+
+Chain4 RigContext::samples(const std::vector<std::uint32_t>& nodes) const {
+    Chain4 out;
+    out.reserve(nodes.size());
+    for (std::uint32_t v : nodes) {
+        const Vec& p = tree.at(v);
+        out.emplace_back(p.x(), p.y(), p.z(), tree.radius(v));
+    }
+    return out;
+}
+
+std::vector<std::string> numbered_names(const std::string& base, std::size_t count) {
+    std::vector<std::string> names;
+    for (std::size_t p = 0; p < count; ++p) {
+        std::string name = base;
+        if (p > 0) {
+            const std::string num = std::to_string(p);
+            name += "." + std::string(num.size() < 3 ? 3 - num.size() : 0, '0') + num;
+        }
+        names.push_back(std::move(name));
+    }
+    return names;
+}
+
+std::int32_t RigBuilder::joint(std::uint32_t node) {
+    auto it = joint_of_node_.find(node);
+    if (it != joint_of_node_.end()) return it->second;
+    const auto j = static_cast<std::int32_t>(rig_.joints.size());
+    const std::uint32_t point = c_.rep[node];
+    rig_.joints.push_back(point_position(c_.grid, c_.pts, point));
+    rig_.joint_points.push_back(point);
+    joint_of_node_.emplace(node, j);
+    return j;
+}
+
+std::int32_t RigBuilder::bone_of(std::uint32_t node) const {
+    const auto it = bone_of_node_.find(node);
+    return it == bone_of_node_.end() ? -1 : it->second;
+}
+
+void RigBuilder::chain(const std::vector<std::uint32_t>& nodes, const std::vector<std::size_t>& cuts,
+                       const std::vector<std::string>& names, std::int32_t parent) {
+    std::int32_t prev = parent;
+    const std::int32_t start = joint(nodes[cuts[0]]);
+    if (prev < 0) {
+        if (auto it = bone_ending_at_.find(start); it != bone_ending_at_.end()) prev = it->second;
+        else if (auto it2 = bone_starting_at_.find(start); it2 != bone_starting_at_.end()) prev = it2->second;
+    }
+    for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+        const std::int32_t h = joint(nodes[cuts[c]]), t = joint(nodes[cuts[c + 1]]);
+        const auto b = static_cast<std::int32_t>(rig_.bones.size());
+        rig_.bones.push_back({h, t});
+        rig_.names.push_back(names[c]);
+        rig_.parents.push_back(prev);
+        bone_ending_at_.emplace(t, b);
+        bone_starting_at_.emplace(h, b);
+        for (std::size_t k = cuts[c]; k <= cuts[c + 1]; ++k) bone_of_node_.emplace(nodes[k], b);
+        prev = b;
+    }
+}
+
+Rig RigBuilder::finish(const std::string& kind) {
+    Rig rig = std::move(rig_);
+    rig.kind = kind;
+    const Grid& g = c_.grid;
+    std::vector<int> heads(rig.joints.size(), 0);
+    for (const auto& b : rig.bones) ++heads[static_cast<std::size_t>(b[0])];
+    const double step = 0.5 * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    for (const auto& b : rig.bones) {
+        const auto t = static_cast<std::size_t>(b[1]);
+        if (heads[t] || rig.joint_points[t] < 0) continue;
+        const Vec head(rig.joints[b[0]][0], rig.joints[b[0]][1], rig.joints[b[0]][2]);
+        const Vec tail(rig.joints[t][0], rig.joints[t][1], rig.joints[t][2]);
+        const Vec dir = (tail - head).normalized();
+        const double limit = 2.0 * c_.pts.radius[rig.joint_points[t]];
+        double reach = 0;
+        for (double s = step; s <= limit; s += step) {
+            const Vec q = tail + s * dir;
+            std::int64_t v[3];
+            bool inside = true;
+            for (int a = 0; a < 3; ++a) {
+                v[a] = std::llround((q[a] - g.origin[a]) / g.spacing[a]);
+                inside = inside && v[a] >= 0 && v[a] < g.dims[a];
+            }
+            if (!inside || !c_.mask[g.index(v[0], v[1], v[2])]) break;
+            reach = s;
+        }
+        const Vec end = tail + reach * dir;
+        rig.joints[t] = {end.x(), end.y(), end.z()};
+        rig.joint_points[t] = -1;
+    }
+    return rig;
+}
+
+}  // namespace volrig::rigging

@@ -1,0 +1,54 @@
+// autorig/rig_builder.hpp: what the templates share: the context they read (object, points, node tree) and the
+// builder that turns chains of nodes cut at joints into named bones (internal to the core).
+#pragma once
+
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "autorig/chain_fit.hpp"
+#include "autorig/node_tree.hpp"
+#include "volrig/rig.hpp"
+
+namespace volrig::rigging {
+
+struct RigContext {
+    const Grid& grid;
+    const std::uint8_t* mask;
+    const PointSet& pts;
+    const NodeTree& tree;
+    const std::vector<std::uint32_t>& rep;  ///< per node: the skeleton point a joint on it sits on
+
+    /// The nodes' 4-D samples (position, radius).
+    Chain4 samples(const std::vector<std::uint32_t>& nodes) const;
+};
+
+class RigBuilder {
+public:
+    explicit RigBuilder(const RigContext& c) : c_(c) {}
+    /// Adds the bones of a chain of nodes cut at `cuts` (indices into `nodes`), named names[0..]; the first bone's
+    /// parent is `parent` when given, else the bone ending (else the first bone starting) at the chain's first joint.
+    void chain(const std::vector<std::uint32_t>& nodes, const std::vector<std::size_t>& cuts,
+               const std::vector<std::string>& names, std::int32_t parent = -1);
+    /// The bone whose span of its chain holds `node`, or -1.
+    std::int32_t bone_of(std::uint32_t node) const;
+    const Rig& rig() const { return rig_; }
+    /// The rig of the given kind, its end joints (tails no bone starts from) moved outward along their bone to the
+    /// object's surface, up to twice the end point's radius.
+    Rig finish(const std::string& kind);
+
+private:
+    std::int32_t joint(std::uint32_t node);
+
+    const RigContext& c_;
+    Rig rig_;
+    std::unordered_map<std::uint32_t, std::int32_t> joint_of_node_;
+    std::unordered_map<std::int32_t, std::int32_t> bone_ending_at_;    // joint -> bone whose tail it is
+    std::unordered_map<std::int32_t, std::int32_t> bone_starting_at_;  // joint -> first bone with that head
+    std::unordered_map<std::uint32_t, std::int32_t> bone_of_node_;
+};
+
+/// Bone names of a chain: base, base.001, base.002, ... (Blender's numbering).
+std::vector<std::string> numbered_names(const std::string& base, std::size_t count);
+
+}  // namespace volrig::rigging

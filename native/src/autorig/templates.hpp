@@ -1,0 +1,59 @@
+// autorig/templates.hpp: body plans fitted to the node tree, each scored (internal to the core; tested alone in
+// tests/native/test_autorig.cpp).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "autorig/rig_builder.hpp"
+
+namespace volrig::rigging {
+
+/// A template's embedding: the rig (no bones when it could not be built), how well it fits (0..1), the up
+/// direction it implies and how sure that is (0..1; 0 when it implies none).
+struct Candidate {
+    Rig rig;
+    double fit = 0;
+    Vec up = Vec::Zero();
+    double up_confidence = 0;
+};
+
+/// The five extremities of a body plan: head, two legs (meeting at the pelvis), two arms (meeting at the chest).
+struct Plan {
+    std::uint32_t head = kNone, legs[2] = {kNone, kNone}, arms[2] = {kNone, kNone};
+    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+};
+constexpr double kPlanLimit = 0.6;
+
+struct PlanSearch {
+    Plan humanoid, quadruped;
+};
+
+/// Discrete search over the assignments of five of the seven most significant extremities (the two most
+/// significant always in) to head, legs and arms. Penalties: pairs not mirroring each other across the spine
+/// (tip height along the spine and distance from it), significant extremities left out, legs thinner than arms, a
+/// head thinner than an extremity left out (a tail).
+/// A humanoid's legs point away from its head (and, with `up`, its spine points up); a quadruped's do not (and,
+/// with `up`, its limbs hang down). The best assignment of each kind.
+PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
+
+/// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
+/// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
+/// bones when its chains are too short to cut.
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
+
+/// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
+/// (at most kMaxExtraChains), whose tip lies beyond kExtraReach radii of the node they hang from, become chains
+/// parented to the bone holding that node, cut at bends like neutral chains (at most 4 bones). Named tail, tail.001,
+/// ... when a quadruped's hang from its hips or pelvis, else chain.<parent bone>, chain.<parent bone>.001, ...
+constexpr int kMaxExtraChains = 6;
+constexpr double kExtraReach = 2.0;
+void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
+
+/// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
+/// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
+/// (relative to the radius), at least 0.
+Candidate chain_rig(const RigContext& c, int target, double tolerance);
+
+}  // namespace volrig::rigging

@@ -1,0 +1,286 @@
+// autorig's stages alone (native/src/autorig/): scale axis, level-set tree, node tree, chain cutting, body-plan
+// search, on small inputs whose answer is known. Also run under ASan/UBSan by scripts/test.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "autorig/chain_fit.hpp"
+#include "autorig/coarse.hpp"
+#include "autorig/node_tree.hpp"
+#include "autorig/shape_tree.hpp"
+#include "autorig/templates.hpp"
+
+using namespace volrig;
+using namespace volrig::rigging;
+
+namespace {
+
+/// A tree of nodes drawn as polylines: each limb starts at an existing node and runs to a point in steps of
+/// about 1, with radii interpolated from r0 to r1.
+struct Figure {
+    std::vector<Vec> pos;
+    std::vector<double> rad;
+    std::vector<std::array<std::uint32_t, 2>> edges;
+
+    explicit Figure(const Vec& root, double r) : pos{root}, rad{r} {}
+    /// Returns the last node of the limb.
+    std::uint32_t limb(std::uint32_t from, const Vec& to, double r0, double r1) {
+        const Vec a = pos[from];
+        const int steps = std::max(1, static_cast<int>(std::lround((to - a).norm())));
+        std::uint32_t prev = from;
+        for (int s = 1; s <= steps; ++s) {
+            const double t = static_cast<double>(s) / steps;
+            pos.push_back(a + t * (to - a));
+            rad.push_back(r0 + t * (r1 - r0));
+            const auto cur = static_cast<std::uint32_t>(pos.size() - 1);
+            edges.push_back({prev, cur});
+            prev = cur;
+        }
+        return prev;
+    }
+    NodeTree tree() const { return NodeTree(pos, rad, edges); }
+};
+
+/// A stick figure standing along +z: pelvis at the origin, chest at z = 30, head to z = 45, arms from the chest
+/// out along +-x and down, legs from the pelvis down to z = -45 (thicker than the arms). The head's tip node is
+/// returned in `head`.
+Figure stick_figure(std::uint32_t& head) {
+    Figure f(Vec(0, 0, 0), 8.0);
+    const std::uint32_t chest = f.limb(0, Vec(0, 0, 30), 8, 7);
+    head = f.limb(f.limb(chest, Vec(0, 0, 36), 4, 4), Vec(0, 0, 45), 5, 4);
+    for (double s : {-1.0, 1.0}) {
+        const std::uint32_t elbow = f.limb(f.limb(chest, Vec(s * 10, 0, 30), 3, 3), Vec(s * 18, 0, 12), 2.5, 2.5);
+        f.limb(elbow, Vec(s * 20, 0, -5), 2, 1.5);
+        f.limb(f.limb(0, Vec(s * 6, 0, -22), 4.5, 4), Vec(s * 6, 0, -45), 4, 3);
+    }
+    return f;
+}
+
+}  // namespace
+
+TEST_CASE("scale_axis drops small balls inside a larger ball and keeps the rest", "[autorig]") {
+    Grid g;
+    g.dims = {40, 40, 40};
+    // [z, y, x]: a big ball at x = 10; a small one 3 voxels from it (inside 1.25 x 10); a small one far away; a
+    // ball more than half as large beside the big one.
+    const std::vector<std::int32_t> ijk{20, 20, 10, 20, 20, 13, 20, 20, 35, 20, 23, 10};
+    const std::vector<float> r{10.f, 2.f, 2.f, 6.f};
+    const std::vector<std::uint8_t> keep = scale_axis(g, PointSet{ijk.data(), r.data(), r.size()});
+    CHECK(keep == std::vector<std::uint8_t>{1, 0, 1, 1});
+}
+
+TEST_CASE("level_set_tree follows a Y with nodes a band apart, whatever the point density", "[autorig]") {
+    Grid g;
+    g.dims = {80, 80, 4};
+    for (int step : {1, 2}) {
+        // Points along three arms of a Y meeting at (40, 40): down to (40, 4), up-left and up-right.
+        std::vector<std::int32_t> ijk;
+        std::vector<float> r;
+        auto add = [&](int x, int y) {
+            for (const std::int32_t v : {1, y, x}) ijk.push_back(v);
+            r.push_back(3.f);
+        };
+        add(40, 40);
+        for (int k = step; k <= 36; k += step) {
+            add(40, 40 - k);
+            add(40 - k * 7 / 10, 40 + k * 7 / 10);
+            add(40 + k * 7 / 10, 40 + k * 7 / 10);
+        }
+        const PointSet pts{ijk.data(), r.data(), r.size()};
+        std::vector<std::array<std::uint32_t, 2>> edges;
+        for (std::uint32_t i = 0; i < pts.n; ++i)
+            for (std::uint32_t j = i + 1; j < pts.n; ++j) {
+                const double dx = ijk[3 * i + 2] - ijk[3 * j + 2], dy = ijk[3 * i + 1] - ijk[3 * j + 1];
+                if (std::hypot(dx, dy) <= 2.0 * step) edges.push_back({i, j});
+            }
+        const SkeletonGraph graph = graph_of_edges(g, pts, edges);
+        const LevelSetTree t = level_set_tree(g, pts, graph, std::vector<std::uint8_t>(pts.n, 1), 4.0);
+        INFO("step " << step);
+        // Three arms of about 36 / 4 levels each, plus the centre.
+        CHECK(t.centroid.size() >= 25);
+        CHECK(t.centroid.size() <= 31);
+        REQUIRE(t.edges.size() == t.centroid.size() - 1);
+        std::vector<int> degree(t.centroid.size(), 0);
+        for (const auto& e : t.edges) {
+            ++degree[e[0]];
+            ++degree[e[1]];
+        }
+        CHECK(std::count(degree.begin(), degree.end(), 1) == 3);
+        CHECK(std::count_if(degree.begin(), degree.end(), [](int d) { return d >= 3; }) == 1);
+        for (std::size_t i = 0; i < pts.n; ++i) CHECK(t.node_of_point[i] != kNone);
+    }
+}
+
+TEST_CASE("NodeTree prunes spurs inside a ball and ranks extremities by how far they stick out", "[autorig]") {
+    Figure f(Vec(0, 0, 0), 10.0);
+    const std::uint32_t long_tip = f.limb(0, Vec(40, 0, 0), 4, 3);
+    const std::uint32_t mid_tip = f.limb(0, Vec(0, 25, 0), 4, 3);
+    const std::uint32_t spur = f.limb(0, Vec(0, 0, 8), 2, 1);  // inside the root's 1.5x ball
+    NodeTree t = f.tree();
+    CHECK(t.root() == 0);
+    CHECK(t.leaves().size() == 3);
+    t.prune(1.5);
+    CHECK(t.leaves().size() == 2);
+    CHECK_FALSE(t.kept()[spur]);
+    const auto ext = t.extremities();
+    REQUIRE(ext.size() == 2);
+    CHECK(ext[0].second == long_tip);
+    CHECK(ext[1].second == mid_tip);
+    CHECK(ext[0].first == Approx(40 - 10));
+    CHECK(t.median(long_tip, mid_tip, 0) == 0);
+    const auto p = t.path(long_tip, mid_tip);
+    CHECK(p.front() == long_tip);
+    CHECK(p.back() == mid_tip);
+    CHECK(p.size() == 40 + 25 + 1);
+}
+
+TEST_CASE("a path is rooted at its thicker end", "[autorig]") {
+    Figure f(Vec(0, 0, 0), 3.0);
+    f.limb(0, Vec(30, 0, 0), 3, 1);
+    f.limb(0, Vec(-20, 0, 0), 3, 6);  // the thick end
+    NodeTree t = f.tree();
+    t.root_path_at_thicker_end();
+    CHECK(t.at(t.root()).x() == Approx(-20));
+}
+
+TEST_CASE("fit_chain cuts an L at its corner; limb_fit puts an elbow at the bend", "[autorig]") {
+    Chain4 l;
+    for (int k = 0; k <= 20; ++k) l.emplace_back(k, 0, 0, 1);
+    for (int k = 1; k <= 20; ++k) l.emplace_back(20, k, 0, 1);
+    const Fit two = fit_chain(l, 2);
+    REQUIRE(two.cuts.size() == 3);
+    CHECK(two.cuts[1] == 20);
+    CHECK(two.worst == Approx(0).margin(1e-9));
+    CHECK(fit_chain(l, 1).worst > 5);
+    // An arm: a shoulder girdle out along x, then the upper arm down, a gentle bend at the elbow (30 degrees
+    // forward), forearm and hand.
+    Chain4 arm;
+    for (int k = 0; k <= 15; ++k) arm.emplace_back(k, 0, 0, 3);
+    for (int k = 1; k <= 20; ++k) arm.emplace_back(15, 0, -k, 3);
+    for (int k = 1; k <= 25; ++k) arm.emplace_back(15, 0.5 * k, -20 - 0.866 * k, 2.5);
+    const Fit f = limb_fit(arm, true);
+    REQUIRE(f.cuts.size() == 5);
+    // the girdle's corner, pulled a little toward the elbow by the forearm's bend
+    CHECK(f.cuts[1] >= 15);
+    CHECK(f.cuts[1] <= 18);
+    CHECK(std::abs(static_cast<int>(f.cuts[2]) - 35) <= 1);  // the elbow at the bend
+    CHECK(f.cuts[3] > f.cuts[2]);
+    CHECK(f.cuts[4] == arm.size() - 1);
+    CHECK(arc_of(arm).back() == Approx(60).epsilon(1e-3));
+}
+
+TEST_CASE("search_plans finds a stick figure's head, and a given up direction rules out its upside-down reading",
+          "[autorig]") {
+    std::uint32_t head = 0;
+    const NodeTree t = stick_figure(head).tree();
+    const PlanSearch free = search_plans(t, std::nullopt);
+    REQUIRE(free.humanoid.score < kPlanLimit);
+    CHECK(free.humanoid.head == head);
+    CHECK(free.humanoid.score < free.quadruped.score);
+    const PlanSearch up = search_plans(t, Vec(0, 0, 1));
+    CHECK(up.humanoid.head == head);
+    // Told that up is -z, no humanoid reading of the figure has its spine pointing up.
+    const PlanSearch down = search_plans(t, Vec(0, 0, -1));
+    CHECK_FALSE(down.humanoid.score < kPlanLimit);
+}
+
+TEST_CASE("search_plans reads four legs under a horizontal spine as a quadruped", "[autorig]") {
+    // Spine along +x from the hips (origin) to the chest (x = 40), head forward and up, legs down.
+    Figure f(Vec(0, 0, 0), 8.0);
+    const std::uint32_t chest = f.limb(0, Vec(40, 0, 0), 8, 8);
+    const std::uint32_t head = f.limb(f.limb(chest, Vec(52, 0, 10), 4, 4), Vec(60, 0, 14), 5, 4);
+    for (double s : {-1.0, 1.0}) {
+        f.limb(f.limb(0, Vec(0, s * 8, -15), 4, 4), Vec(0, s * 8, -35), 4, 3);
+        f.limb(f.limb(chest, Vec(40, s * 8, -15), 4, 4), Vec(40, s * 8, -35), 4, 3);
+    }
+    const NodeTree t = f.tree();
+    for (const auto& up : {std::optional<Vec>{}, std::optional<Vec>{Vec(0, 0, 1)}}) {
+        const PlanSearch s = search_plans(t, up);
+        REQUIRE(s.quadruped.score < kPlanLimit);
+        CHECK(s.quadruped.head == head);
+        CHECK(s.quadruped.score < s.humanoid.score);
+    }
+    // Upside down (told up is -z) the legs point up: no quadruped.
+    CHECK_FALSE(search_plans(t, Vec(0, 0, -1)).quadruped.score < kPlanLimit);
+}
+
+TEST_CASE("coarse: the object's box, factors to its own scale, and a majority downsampling", "[autorig]") {
+    Grid g;
+    g.dims = {40, 12, 10};
+    g.spacing = {0.5, 0.5, 1.0};
+    g.origin = {10, 20, 30};
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 0);
+    // A bar x 4..35, y 2..9, z 3..6 (exclusive ends), and one stray voxel beside it.
+    for (int z = 3; z < 7; ++z)
+        for (int y = 2; y < 10; ++y)
+            for (int x = 4; x < 36; ++x) mask[static_cast<std::size_t>(g.index(x, y, z))] = 1;
+    const auto box = object_box(g, mask.data());
+    CHECK(box == std::array<std::int64_t, 6>{4, 2, 3, 36, 10, 7});
+    // Longest extent 32 x 0.5 = 16: 8 cells of 2 world units, i.e. 4, 4 and 2 voxels.
+    const auto f = coarse_factor(g, box, 8);
+    CHECK(f == std::array<std::int64_t, 3>{4, 4, 2});
+    CHECK(coarse_factor(g, box, 1000) == std::array<std::int64_t, 3>{1, 1, 1});  // never finer than the volume
+    mask[static_cast<std::size_t>(g.index(20, 10, 7))] = 1;  // a stray voxel: a minority of its block
+    const CoarseShape c = downsample(g, mask.data(), object_box(g, mask.data()), f);
+    CHECK(c.grid.dims == std::array<std::int64_t, 3>{10, 5, 5});
+    std::size_t object = 0;
+    for (std::int64_t z = 0; z < c.grid.dims[2]; ++z)
+        for (std::int64_t y = 0; y < c.grid.dims[1]; ++y)
+            for (std::int64_t x = 0; x < c.grid.dims[0]; ++x) {
+                const bool in = c.mask[static_cast<std::size_t>(c.grid.index(x, y, z))];
+                object += in;
+                // The bar covers coarse x 1..8, y 1..2, z 1..2 whole; the stray voxel's block stays empty.
+                CHECK(in == (x >= 1 && x <= 8 && y >= 1 && y <= 2 && z >= 1 && z <= 2));
+            }
+    CHECK(object == 8 * 2 * 2);
+    // Coarse voxel (1, 1, 1) is the mean of fine voxels x 4..7, y 2..5, z 3..4.
+    CHECK(c.grid.origin[0] + c.grid.spacing[0] == Approx(10 + 5.5 * 0.5));
+    CHECK(c.grid.origin[1] + c.grid.spacing[1] == Approx(20 + 3.5 * 0.5));
+    CHECK(c.grid.origin[2] + c.grid.spacing[2] == Approx(30 + 3.5 * 1.0));
+}
+
+TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; the thicker end is the head",
+          "[autorig]") {
+    // The quadruped of the case above, shifted into a grid, with a tail behind the hips.
+    const Vec o(40, 30, 50);
+    Figure f(o, 8.0);
+    const std::uint32_t chest = f.limb(0, o + Vec(40, 0, 0), 8, 8);
+    f.limb(f.limb(chest, o + Vec(52, 0, 10), 4, 4), o + Vec(60, 0, 14), 5, 4);
+    for (double s : {-1.0, 1.0}) {
+        f.limb(f.limb(0, o + Vec(0, s * 8, -15), 4, 4), o + Vec(0, s * 8, -35), 4, 3);
+        f.limb(f.limb(chest, o + Vec(40, s * 8, -15), 4, 4), o + Vec(40, s * 8, -35), 4, 3);
+    }
+    f.limb(f.limb(0, o + Vec(-15, 0, 8), 3, 2.5), o + Vec(-30, 0, 4), 2.5, 1.5);
+    // Each node is a skeleton point at its rounded position, in a solid grid.
+    Grid g;
+    g.dims = {120, 60, 80};
+    const std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
+    std::vector<std::int32_t> ijk;
+    std::vector<float> r;
+    std::vector<std::uint32_t> rep;
+    for (std::size_t k = 0; k < f.pos.size(); ++k) {
+        for (int a = 2; a >= 0; --a) ijk.push_back(static_cast<std::int32_t>(std::lround(f.pos[k][a])));
+        r.push_back(static_cast<float>(f.rad[k]));
+        rep.push_back(static_cast<std::uint32_t>(k));
+    }
+    const PointSet pts{ijk.data(), r.data(), r.size()};
+    const NodeTree t = f.tree();
+    const RigContext ctx{g, mask.data(), pts, t, rep};
+    const PlanSearch s = search_plans(t, Vec(0, 0, 1));
+    REQUIRE(s.quadruped.score < kPlanLimit);
+    const Candidate c = build_plan(ctx, s.quadruped, false, 0.35);
+    REQUIRE(c.rig.bones.size() > 21);
+    const auto& names = c.rig.names;
+    const auto tail = std::find(names.begin(), names.end(), "tail");
+    REQUIRE(tail != names.end());
+    const auto b = static_cast<std::size_t>(tail - names.begin());
+    CHECK(names[static_cast<std::size_t>(c.rig.parents[b])] == "hips");
+    // the tail's chain ends at the tail's tip (extended to the grid's edge along its last bone at most 2 radii)
+    double far = 0;
+    for (std::size_t k = 0; k < names.size(); ++k)
+        if (names[k].rfind("tail", 0) == 0) far = std::max(far, o.x() - c.rig.joints[c.rig.bones[k][1]][0]);
+    CHECK(far >= 29);
+    CHECK(far <= 30 + 2 * 1.5 + 1);
+    CHECK(std::count(names.begin(), names.end(), "head") == 1);
+    CHECK(c.up.z() > 0.9);
+}
