@@ -58,6 +58,7 @@ def _remove(obj) -> None:
                            (bpy.types.Volume, bpy.data.volumes)):
             if isinstance(data, kind):
                 coll.remove(data)
+                return  # data is gone: asking it anything more raises
 
 
 def create_volume_object(context, name: str, vdb_path: str, unit_scale: float):
@@ -197,6 +198,14 @@ def update_skeleton_preview(volume_obj) -> None:
 
 
 # ---- the rig ----
+
+def scene_up(volume_obj):
+    """The scene's +Z as a direction in the volume's own frame (volrig's world: voxels at spacing and origin), for
+    autorig's ``up``: whichever way the scan was imported or turned, up is where the user sees it."""
+    from mathutils import Vector
+    d = volume_obj.matrix_world.to_3x3().inverted_safe() @ Vector((0.0, 0.0, 1.0))
+    return tuple(d.normalized())
+
 
 def build_armature(volume_obj, rig: volrig.Rig):
     """``<name>_rig``: one bone per rig bone from rig.heads()/rig.tails() in volume units (roll 0, so each bone's

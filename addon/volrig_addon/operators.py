@@ -222,8 +222,10 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
             mask = scans.mask(vol)
             pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
             r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
-                                      progress=progress)
+                                      progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
+                                      up=objects.scene_up(vol) if s.use_scene_up else None)
         _save_rig(vol, r.points, r.tree, r.rig, r.binding)
+        s.rig_found = pipeline.describe_rig(r.rig)
         rig_obj = objects.build_armature(vol, r.rig)
         objects.build_spheres(vol, rig_obj, r.points, r.tree, r.binding)
         objects.attach_volume(vol, rig_obj)
@@ -231,7 +233,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         if preview is not None:
             preview.hide_set(True)
         materials.update_volume_material(vol)
-        self.report({"INFO"}, f"volrig: {r.rig.kind} rig of {len(r.rig)} bones on {len(r.points):,} spheres")
+        self.report({"INFO"}, f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
 

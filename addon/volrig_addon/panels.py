@@ -89,6 +89,9 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         s, layout = _settings(self, context)
         vol = s.id_data
         _props(layout.column(align=True), s, "alpha", "bones", "roles")
+        row = layout.row(align=True)
+        row.prop(s, "body_plan", text="")
+        row.prop(s, "use_scene_up", toggle=True, icon="EMPTY_SINGLE_ARROW")
         layout.prop(s, "bind_mode")
         row = layout.row(align=True)
         row.operator("volrig.rig", icon="ARMATURE_DATA")
@@ -97,6 +100,8 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         if "RIG" in parts:
             layout.operator("volrig.walk_cycle", icon="ANIM")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
+            if s.rig_found:
+                layout.label(text=s.rig_found, icon="INFO")
         if "SPHERES" in parts:
             layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
                          icon="MESH_UVSPHERE")

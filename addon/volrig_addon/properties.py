@@ -103,6 +103,15 @@ class VolrigObject(bpy.types.PropertyGroup):
     bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
     roles: BoolProperty(name="Body roles", default=True,
                         description="Name bones as a humanoid or quadruped when the shape looks like one")
+    body_plan: EnumProperty(name="Body plan", items=[
+        ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, chains) and keep the best"),
+        ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
+        ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
+        ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
+    ], default="AUTO", description="The template the rig is fitted to; pick another and press Rig to refit")
+    use_scene_up: BoolProperty(name="Scene up", default=True,
+                               description="Tell the rig where up is: the scene's +Z seen from the volume (else inferred)")
+    rig_found: StringProperty(name="Found", description="What the last rig found: kind, fit and runner-up")
     bind_mode: EnumProperty(name="Binding", items=[
         ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),
         ("rigid", "Rigid", "Every point follows one bone"),

@@ -11,6 +11,7 @@ import numpy as np
 
 from ._volrig import VolrigError
 from .deform import MODES, SAMPLINGS
+from .rig import KINDS
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
@@ -90,17 +91,18 @@ def _mask_and_skeleton(args):
 
 
 def cmd_rig(args) -> int:
-    from .pipeline import rig_skeleton
+    from .pipeline import describe_rig, parse_up, rig_skeleton
     from .rigfile import save_rig
     if not args.output.endswith(".vrig"):
         raise VolrigError(f"{args.output}: the output must be a .vrig file")
     t = time.perf_counter()
     mask, sk, pts = _mask_and_skeleton(args)
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
-                     bind_mode=args.bind, progress=_progress_bar if args.progress else None, source=args.file)
+                     bind_mode=args.bind, progress=_progress_bar if args.progress else None, source=args.file,
+                     kind=args.kind, up=parse_up(args.up) if args.up else None)
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
-    print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {rig.kind} rig of {len(rig)} "
+    print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {describe_rig(rig)}: {len(rig)} "
           f"bones ({', '.join(rig.names[:8])}{', ...' if len(rig) > 8 else ''}), {args.bind} binding; "
           f"{time.perf_counter() - t:.1f} s -> {args.output}")
     return 0
@@ -296,6 +298,8 @@ def main(argv=None) -> int:
     p.add_argument("--max-edge", type=float, help="longest tree edge in world units (default 4 voxel diagonals)")
     p.add_argument("--bones", type=int, help="bone count target (default 24; role rigs use 21)")
     p.add_argument("--no-roles", action="store_true", help="neutral chain names, no humanoid/quadruped guess")
+    p.add_argument("--kind", choices=KINDS, help="force a body plan (default: the best-fitting template)")
+    p.add_argument("--up", help="the world's up in the volume's frame: +z, -y, x ... or x,y,z (default: inferred)")
     p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
     p.set_defaults(run=cmd_rig)
 

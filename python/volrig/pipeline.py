@@ -213,13 +213,37 @@ def voxels_from_thinness(tp: float, metric: str, spacing) -> float:
 
 def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, max_edge: Optional[float] = None,
                  bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
-                 progress: StepProgress = None, source: Optional[str] = None) -> RiggedSkeleton:
-    """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). Fewer than two
-    points are refused by autorig (lower the thinness)."""
+                 progress: StepProgress = None, source: Optional[str] = None, kind: Optional[str] = None,
+                 up=None) -> RiggedSkeleton:
+    """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
+    template (humanoid, quadruped, chains) and ``up`` gives the world's up direction in the volume's frame (see
+    ``autorig``). Fewer than two points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
-    rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"))
+    rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"))
     return RiggedSkeleton(points, tree, rig, binding, source)
+
+
+def parse_up(text: str) -> Tuple[float, float, float]:
+    """'+z', '-y', 'x' or '0,0.2,1' -> an up direction (x, y, z) in the volume's world frame."""
+    t = text.strip().lower().replace(" ", "")
+    axes = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+    if t.lstrip("+-") in axes:
+        sign = -1.0 if t.startswith("-") else 1.0
+        return tuple(sign * c + 0.0 for c in axes[t.lstrip("+-")])
+    try:
+        v = tuple(float(c) for c in t.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3:
+        raise VolrigError(f"up: {text!r} is not an axis (+z, -y, x...) or a vector x,y,z")
+    return v
+
+
+def describe_rig(rig: Rig) -> str:
+    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages."""
+    text = f"{rig.kind}, fit {rig.fit:.2f}"
+    return text + (f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else "")
 
 
 def load_rigged(path: str, binding: bool = False) -> RiggedSkeleton:

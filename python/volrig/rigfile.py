@@ -59,7 +59,10 @@ def save_rig(path, points: SkeletonPoints, tree: Optional[SkeletonTree] = None, 
                  tree_alpha=np.array(tree.alpha), tree_max_edge=np.array(tree.max_edge))
     if rig is not None:
         a.update(rig_joints=rig.joints, rig_bones=rig.bones, rig_names=np.array(rig.names, dtype=np.str_),
-                 rig_parents=rig.parents, rig_kind=np.array(rig.kind), rig_joint_points=rig.joint_points)
+                 rig_parents=rig.parents, rig_kind=np.array(rig.kind), rig_joint_points=rig.joint_points,
+                 rig_fit=np.array(rig.fit, np.float64), rig_up=np.asarray(rig.up, np.float64),
+                 rig_up_confidence=np.array(rig.up_confidence, np.float64), rig_runner_up=np.array(rig.runner_up),
+                 rig_runner_up_fit=np.array(rig.runner_up_fit, np.float64))
     if binding is not None:
         w = binding.weights.tocsr()
         a.update(binding_mode=np.array(binding.mode), binding_bone=binding.bone,
@@ -140,8 +143,13 @@ def load_rig(path) -> RiggedSkeleton:
         bones = get("rig_bones", "iu", 2, (None, 2))
         names = [str(s) for s in get("rig_names", "U", 1, (len(bones),))]
         try:
+            # what autorig found (absent from files written before it reported them)
+            found = dict(fit=float(get("rig_fit", "f", 0)), up=get("rig_up", "f", 1, (3,)),
+                         up_confidence=float(get("rig_up_confidence", "f", 0)),
+                         runner_up=str(get("rig_runner_up", "U", 0)),
+                         runner_up_fit=float(get("rig_runner_up_fit", "f", 0))) if "rig_fit" in a else {}
             rig = Rig(joints, bones, names, get("rig_parents", "i", 1, (len(bones),)), str(get("rig_kind", "U", 0)),
-                      get("rig_joint_points", "i", 1, (len(joints),)))
+                      get("rig_joint_points", "i", 1, (len(joints),)), **found)
         except VolrigError as e:
             raise bad(f"inconsistent rig ({e})") from None
     if "binding_bone" in a:

@@ -160,6 +160,32 @@ def test_rig_builds_the_armature_and_the_spheres(rigged):
     np.testing.assert_allclose(np.array(spheres.matrix_world), np.array(rig_obj.matrix_world))
 
 
+def test_rig_reports_its_fit_refits_as_another_kind_and_takes_up_from_the_scene(rigged):
+    """The Rig panel shows what autorig found; picking another body plan and pressing Rig refits; the scene's +Z,
+    seen from the volume, is the up autorig is given, however the volume is turned."""
+    vol = rigged
+    assert vol.volrig.rig_found.startswith("humanoid, fit ")
+    saved = volrig.load_rig(os.path.join(bpy.path.abspath(vol.volrig.cache_dir), vol.volrig.rig_file))
+    np.testing.assert_allclose(saved.rig.up, [0, 0, 1], atol=1e-6)
+    assert saved.rig.up_confidence == 1.0
+    vol.volrig.body_plan = "chains"
+    run_op(bpy.ops.volrig.rig)
+    assert vol.volrig.rig_found.startswith("chains, fit ")
+    assert all(b.name.startswith("chain") for b in _members(vol)["RIG"].data.bones)
+    # the volume lying on its back (turned -90 degrees about X): the scene's up is the volume's -y
+    from mathutils import Matrix
+    from volrig_addon.objects import scene_up
+    rig_obj = _members(vol)["RIG"]
+    rig_obj.matrix_world = Matrix.Rotation(-np.pi / 2, 4, "X") @ rig_obj.matrix_world
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(scene_up(vol), [0, -1, 0], atol=1e-6)
+    vol.volrig.body_plan = "AUTO"
+    run_op(bpy.ops.volrig.rig)
+    saved = volrig.load_rig(os.path.join(bpy.path.abspath(vol.volrig.cache_dir), vol.volrig.rig_file))
+    np.testing.assert_allclose(saved.rig.up, [0, -1, 0], atol=1e-6)
+    assert saved.rig.kind != "humanoid"  # the phantom stands along its z: with up = -y no humanoid fits
+
+
 def _evaluated_vertices(obj):
     dg = bpy.context.evaluated_depsgraph_get()
     ev = obj.evaluated_get(dg)
