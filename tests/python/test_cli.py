@@ -78,14 +78,22 @@ def test_rig_writes_a_rig_file(tmp_path):
     out = tmp_path / "phantom.vrig"
     r = run("rig", src, "--lo", 1, "--count", 4000, "-o", out)
     assert r.returncode == 0, r.stderr
-    assert "humanoid rig of 21 bones" in r.stdout
+    assert "humanoid, fit " in r.stdout and ": 21 bones" in r.stdout
     loaded = volrig.load_rig(out)
-    assert loaded.rig.kind == "humanoid" and len(loaded.points) == 4000
+    assert loaded.rig.kind == "humanoid" and len(loaded.points) == 4000 and 0 < loaded.rig.fit <= 1
     assert loaded.binding.mode == "smooth" and loaded.source == str(src)
     r = run("rig", src, "--lo", 1, "--count", 4000, "--no-roles", "--bones", 12, "-o", out)
     assert r.returncode == 0, r.stderr
     loaded = volrig.load_rig(out)
     assert loaded.rig.kind == "chains" and len(loaded.rig) <= 12
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--kind", "quadruped", "-o", out)
+    assert r.returncode == 0 and volrig.load_rig(out).rig.kind == "quadruped"  # forced, whatever its fit
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "0,0,1", "-o", out)
+    assert r.returncode == 0, r.stderr
+    loaded = volrig.load_rig(out)
+    assert loaded.rig.kind == "humanoid" and loaded.rig.up_confidence == 1.0 and list(loaded.rig.up) == [0, 0, 1]
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "sideways", "-o", out)
+    assert r.returncode == 2 and "sideways" in r.stderr
     bad = run("rig", src, "--lo", 1, "--count", 4000, "-o", tmp_path / "x.npz")
     assert bad.returncode == 2 and ".vrig" in bad.stderr
     mesh = run("rig", tmp_path / "arm.obj", "--count", 100, "-o", out)
