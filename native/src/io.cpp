@@ -43,9 +43,7 @@ Volume read_raw(const ByteSource& src, const RawLayout& layout, const ReadOption
     g.spacing = layout.spacing;
     g.origin = layout.origin;
     detail::check_volume(src.name(), g, layout.dtype, opt.max_bytes);
-    detail::DataLocation loc;
-    loc.src = &src;
-    loc.header = src.name();
+    detail::DataLocation loc(src);
     loc.offset = layout.offset;
     loc.claimant = "the layout";
     return detail::read_raw_voxels(loc, g, layout.dtype, layout.big_endian);

@@ -81,6 +81,9 @@ private:
 
 // ---- text headers (NRRD, MetaImage) ---------------------------------------------------------------------------
 
+/// The longest text header (NRRD, MetaImage) read before the file is taken for something else.
+constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
+
 struct HeaderField {
     std::string value;
     int line = 0;  ///< line number in the header, for messages
@@ -115,6 +118,9 @@ void swap_bytes(void* data, std::size_t count, std::size_t esize);
 
 /// Where the voxels of a header-described volume live.
 struct DataLocation {
+    DataLocation() = default;
+    /// Data in `s` itself, which names the errors.
+    explicit DataLocation(const ByteSource& s) : src(&s), header(s.name()) {}
     const ByteSource* src = nullptr;  ///< the file holding the voxels
     std::string header;               ///< name of the header file (subject of error messages)
     std::uint64_t offset = 0;         ///< first data byte in *src

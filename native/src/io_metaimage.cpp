@@ -19,13 +19,8 @@ namespace volrig {
 
 namespace {
 
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
-
-constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
-
-using Field = detail::HeaderField;
+using namespace detail;  // the shared reader helpers (fail, quoted, with_commas, kMaxHeader, ...)
+using Field = HeaderField;
 
 struct Header {
     detail::HeaderFields fields;  // lowercase keys
@@ -226,9 +221,7 @@ Encoding met_encoding(const std::string& name, const Header& h) {
 // Where the data starts: after the ElementDataFile line (LOCAL) or in the data file (opened into `detached`).
 detail::DataLocation met_data_location(const ByteSource& src, const Header& h, std::unique_ptr<ByteSource>& detached) {
     const std::string& name = src.name();
-    detail::DataLocation loc;
-    loc.src = &src;
-    loc.header = name;
+    detail::DataLocation loc(src);
     const Field fdata{h.data_file, h.data_file_line};
     if (h.data_file.empty()) bad(name, fdata, "ElementDataFile", "is empty");
     if (detail::iequals(h.data_file, "LOCAL")) {

@@ -278,9 +278,7 @@ Volume read_gzip_voxels(const ByteSource& src, detail::Inflater& inf, std::uint6
 Volume read_file_voxels(const ByteSource& src, bool pair, std::uint64_t offset, const Grid& g, DType dtype,
                         bool big_endian) {
     const std::string& name = src.name();
-    detail::DataLocation loc;
-    loc.src = &src;
-    loc.header = name;
+    detail::DataLocation loc(src);
     loc.offset = offset;
     std::unique_ptr<ByteSource> image;
     if (pair) {

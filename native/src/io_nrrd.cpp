@@ -18,13 +18,8 @@ namespace volrig {
 
 namespace {
 
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
-
-constexpr std::size_t kMaxHeader = std::size_t(1) << 20;
-
-using Field = detail::HeaderField;
+using namespace detail;  // the shared reader helpers (fail, quoted, with_commas, kMaxHeader, ...)
+using Field = HeaderField;
 
 // Field names compare lowercase with spaces removed ("data file" = "datafile").
 std::string field_key(std::string_view s) {
@@ -356,9 +351,7 @@ bool nrrd_big_endian(const std::string& name, const Header& h, DType dtype, Enc 
 // `detached`), after "line skip" lines; "byte skip" is left to read_data.
 detail::DataLocation nrrd_data_location(const ByteSource& src, const Header& h, std::unique_ptr<ByteSource>& detached) {
     const std::string& name = src.name();
-    detail::DataLocation loc;
-    loc.src = &src;
-    loc.header = name;
+    detail::DataLocation loc(src);
     if (const Field* f = h.fields.get("datafile")) {
         if (detail::names_several_files(f->value))
             bad(name, *f, "data file", "names several files: multi-file NRRD data is not supported");
