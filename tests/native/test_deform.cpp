@@ -1,4 +1,4 @@
-// Per-frame sampled reconstruction (ALGORITHMS.md §7): the Deformer against the thesis' brute-force scatter on
+// Per-frame sampled reconstruction (docs/ALGORITHMS.md §7): the Deformer against the thesis' brute-force scatter on
 // small random rigs, the identity pose against reconstruct(), and bad input. Also run under ASan/UBSan.
 #include <catch2/catch.hpp>
 
@@ -300,43 +300,4 @@ TEST_CASE("inverse_warp of the identity is the source", "[deform]") {
         REQUIRE(w.size() == L.samples.size());
         for (std::size_t i = 0; i < w.size(); ++i) REQUIRE(w[i] == float(L.samples[i]));
     }
-}
-
-TEST_CASE("a ZeroedPool hands its memory out again zeroed, and outlives nothing it must not", "[deform]") {
-    auto pool = ZeroedPool::create(2);
-    const float* first = nullptr;
-    {
-        ZeroedArray<float> a = pool->take<float>(300000);
-        REQUIRE(a.size() == 300000);
-        for (std::size_t i = 0; i < a.size(); ++i) REQUIRE(a[i] == 0.0f);
-        for (std::size_t i = 10; i < 5000; ++i) a[i] = 1.0f;
-        a.mark_written(10, 5000);
-        a[299999] = 2.0f;
-        a.mark_written(299999, 300000);
-        first = a.data();
-        REQUIRE(pool->kept_bytes() == 0);
-    }
-    REQUIRE(pool->kept_bytes() >= 300000 * sizeof(float));
-    {
-        ZeroedArray<float> b = pool->take<float>(290000);  // fits: the same memory, re-zeroed where it was written
-        REQUIRE(b.data() == first);
-        std::size_t nonzero = 0;
-        for (std::size_t i = 0; i < b.size(); ++i) nonzero += b[i] != 0.0f;
-        REQUIRE(nonzero == 0);
-        REQUIRE(b.data()[299999] == 0.0f);  // beyond the new size, still inside the reused memory
-        ZeroedArray<std::int16_t> c = pool->take<std::int16_t>(1000);  // the pool is empty now: fresh memory
-        REQUIRE(c.data() != static_cast<const void*>(first));
-        ZeroedArray<float> moved = std::move(b);
-        REQUIRE(b.empty());
-        REQUIRE(moved.data() == first);
-    }
-    REQUIRE(pool->kept_bytes() > 0);
-    pool->trim();
-    REQUIRE(pool->kept_bytes() == 0);
-    ZeroedArray<std::int16_t> late = pool->take<std::int16_t>(5000);
-    pool.reset();  // the array keeps its memory; it is freed, not returned, when it goes
-    late[4999] = 7;
-    late.mark_written(4999, 5000);
-    REQUIRE(late[4999] == 7);
-    REQUIRE_THROWS_AS(ZeroedPool::create()->take<double>(std::size_t(-1) / 4), std::bad_alloc);
 }

@@ -1,4 +1,4 @@
-// Skeleton-tree, autorig and binding (ALGORITHMS.md §5-6) on synthetic shapes with known structure and against
+// Skeleton-tree, autorig and binding (docs/ALGORITHMS.md §5-6) on synthetic shapes with known structure and against
 // brute-force references. Also run under ASan/UBSan by scripts/test.
 #include <catch2/catch.hpp>
 

@@ -1,5 +1,5 @@
 // Distance transforms, thinness scores, the skeleton order and reconstruction against brute-force references and
-// the thesis' cases (ALGORITHMS.md §2-4).
+// the thesis' cases (docs/ALGORITHMS.md §2-4).
 #include <catch2/catch.hpp>
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-"""Per-frame sampled reconstruction (ALGORITHMS.md §7): volrig.deform / Deformer against the thesis' literal
+"""Per-frame sampled reconstruction (docs/ALGORITHMS.md §7): volrig.deform / Deformer against the thesis' literal
 brute-force scatter, the thesis' bend and reversibility tests, and bad input."""
 import numpy as np
 import pytest
