@@ -100,8 +100,12 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         if "RIG" in parts:
             layout.operator("volrig.walk_cycle", icon="ANIM")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
-            if s.rig_found:
-                layout.label(text=s.rig_found, icon="INFO")
+            if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61)": kind and fit, then the runner-up
+                found, _, runner_up = s.rig_found.partition(" (")
+                col = layout.column(align=True)
+                col.label(text=found, icon="INFO")
+                if runner_up:
+                    col.label(text=runner_up.rstrip(")"), icon="BLANK1")
         if "SPHERES" in parts:
             layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
                          icon="MESH_UVSPHERE")
