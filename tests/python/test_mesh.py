@@ -410,5 +410,7 @@ def test_rig_command_reads_an_off_mesh(tmp_path):
                         "--voxel-size", "0.008", "--count", "4000", "-o", str(out)], capture_output=True, text=True,
                        env=env)
     assert r.returncode == 0, r.stderr
-    assert "humanoid rig of 21 bones" in r.stdout
-    assert len(volrig.load_rig(out).points) == 4000
+    assert "humanoid, fit " in r.stdout
+    saved = volrig.load_rig(out)
+    assert len(saved.points) == 4000 and saved.rig.kind == "humanoid"
+    assert {"head", "upper_arm.L", "forearm.R", "thigh.L", "shin.R"} <= set(saved.rig.names)  # (+ armour spikes)
