@@ -75,13 +75,19 @@ class Baker:
         return out
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
-        """Reconstruct scene frame ``frame`` into its VDB file; False when the file was up to date."""
+        """Reconstruct scene frame ``frame`` into its VDB file (written while the next frame computes: ``finish``
+        waits for it); False when the file was up to date."""
         scene.frame_set(frame)
         matrices = self.bone_matrices(bpy.context.evaluated_depsgraph_get())
         if not force and self.folder.up_to_date(frame, matrices):
             return False
         self.folder.bake(frame, matrices, progress=progress)
         return True
+
+    def finish(self) -> None:
+        """Waits for the last frame's file (bake_frame returns while it is written) and frees the frames' memory;
+        a failed write raises here."""
+        self.folder.finish()
 
     def play(self, scene) -> None:
         """Point the Volume object at the frame sequence over the scene's frame range."""
@@ -104,7 +110,7 @@ def bake(volume_obj, scene, frames, mode: str = "linear", force: bool = False, r
             report(f"volrig: {volume_obj.name} frame {frame} ({i + 1}/{len(frames)})")
     finally:
         scene.frame_set(current)
-        baker.folder.finish()
+        baker.finish()
     baker.play(scene)
     return written
 

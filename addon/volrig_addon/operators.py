@@ -330,7 +330,7 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
         wm.progress_end()
         context.scene.frame_set(self._current)
         try:
-            self._baker.folder.finish()  # the last file written; the frames' memory freed
+            self._baker.finish()  # the last file written; the frames' memory freed
         except USER_ERRORS as e:
             self.report({"ERROR"}, f"volrig: {e}")
         if self._next:

@@ -84,6 +84,7 @@ def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
     _pose_forearm(_members(vol)["RIG"], {3: -0.5})
     baker = bake.Baker(vol, "linear")
     assert [baker.bake_frame(scene, f) for f in (1, 2, 3)] == [False, False, True]
+    baker.finish()
 
 
 def test_painted_weights_change_the_bake(posed):
@@ -95,6 +96,7 @@ def test_painted_weights_change_the_bake(posed):
     spheres = _members(vol)["SPHERES"]
     baker = bake.Baker(vol, "linear")
     baker.bake_frame(scene, 3)
+    baker.finish()  # the file is written while the next frame would compute
     bent = volrig.load(bake.frame_path(vol, 3), grid="bone")
     forearm = baker.names.index("forearm.L") + 1
     assert np.count_nonzero(bent.array == forearm) > 100
@@ -104,6 +106,7 @@ def test_painted_weights_change_the_bake(posed):
     spheres.vertex_groups["upper_arm.L"].add(idx.tolist(), 1.0, "REPLACE")
     baker = bake.Baker(vol, "linear")
     assert baker.bake_frame(scene, 3)  # the weights changed, so the frame is out of date
+    baker.finish()
     painted = volrig.load(bake.frame_path(vol, 3), grid="bone")
     assert np.count_nonzero(painted.array == forearm) == 0
 
