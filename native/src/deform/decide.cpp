@@ -19,62 +19,6 @@ std::int32_t Decider::settle(const CellBounds* r, std::size_t K, std::uint8_t* l
     return n_live ? kOpen : kEmpty;
 }
 
-std::size_t Decider::best(const Candidate* c, std::size_t n) const {
-    std::size_t a = 0;
-    for (std::size_t k = 1; k < n; ++k)
-        if (beats(c[k], c[a])) a = k;
-    return a;
-}
-
-/// A closed cube's exact answer: the least power over its corners' labels.
-void Decider::sharpen(Candidate& c) const {
-    c.U = c.L = least_over_corners(s_.field(c.field), c.pf, s_.s2, c.local);
-    c.exact = c.sharp_L = true;
-}
-
-/// The sharper lower bound, when the cube's range does not beat `beat`: exact in a closed cube, else from the
-/// cube's corner powers.
-void Decider::sharpen_lower(Candidate& c, double beat) const {
-    if (c.sharp_L || c.L > beat) return;
-    if (c.closed) return sharpen(c);
-    c.L = std::max(c.L, s_.field(c.field).corner_lower(c.pf, s_.s2));
-    c.sharp_L = true;
-}
-
-std::int32_t Decider::by_first_label(Candidate* c, std::size_t n) const {
-    std::size_t a = best(c, n);
-    if (!(c[a].U < 0)) {  // none covers when every lower bound is >= 0
-        bool open = false;
-        for (std::size_t k = 0; k < n; ++k) {
-            sharpen_lower(c[k], 0.0);
-            open = open || !(c[k].L >= 0);
-        }
-        a = best(c, n);  // a closed cube's exact answer may cover
-        if (!(c[a].U < 0)) return open ? kOpen : kEmpty;
-    }
-    // Certain when the least upper bound (a cover) beats every rival's lower bound; failing that, once more with
-    // the closed cubes' exact answers (which may also lower the best upper bound).
-    for (int round = 0; round < 2; ++round) {
-        const Candidate& w = c[a];
-        bool sure = true;
-        for (std::size_t k = 0; k < n && sure; ++k) {
-            if (k == a) continue;
-            if (!c[k].exact) sharpen_lower(c[k], w.U);
-            sure = c[k].exact ? beats(w, c[k]) : certain(w.U, c[k].L, false);
-        }
-        if (sure) return w.field;
-        bool sharper = false;
-        for (std::size_t k = 0; k < n; ++k)
-            if (c[k].closed && !c[k].exact) {
-                sharpen(c[k]);
-                sharper = true;
-            }
-        if (!sharper) break;
-        a = best(c, n);
-    }
-    return kOpen;
-}
-
 /// Loads candidate c's preimage of m3 and its cube; false when the field cannot cover it (no corner label, or a
 /// same or closed cube whose exact answer is not a cover).
 bool Decider::load_cube(Candidate& c, const std::int64_t* m3) const {

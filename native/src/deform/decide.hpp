@@ -10,6 +10,7 @@
 //                     and the k-d searches that settle the rest exactly.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -86,5 +87,63 @@ private:
 
     const FieldSet& s_;
 };
+
+// Tier 3 runs for a fifth of the covered voxels: defined here, so that the gather inlines it.
+
+inline std::size_t Decider::best(const Candidate* c, std::size_t n) const {
+    std::size_t a = 0;
+    for (std::size_t k = 1; k < n; ++k)
+        if (beats(c[k], c[a])) a = k;
+    return a;
+}
+
+/// A closed cube's exact answer: the least power over its corners' labels.
+inline void Decider::sharpen(Candidate& c) const {
+    c.U = c.L = least_over_corners(s_.field(c.field), c.pf, s_.s2, c.local);
+    c.exact = c.sharp_L = true;
+}
+
+/// The sharper lower bound, when the cube's range does not beat `beat`: exact in a closed cube, else from the
+/// cube's corner powers.
+inline void Decider::sharpen_lower(Candidate& c, double beat) const {
+    if (c.sharp_L || c.L > beat) return;
+    if (c.closed) return sharpen(c);
+    c.L = std::max(c.L, s_.field(c.field).corner_lower(c.pf, s_.s2));
+    c.sharp_L = true;
+}
+
+inline std::int32_t Decider::by_first_label(Candidate* c, std::size_t n) const {
+    std::size_t a = best(c, n);
+    if (!(c[a].U < 0)) {  // none covers when every lower bound is >= 0
+        bool open = false;
+        for (std::size_t k = 0; k < n; ++k) {
+            sharpen_lower(c[k], 0.0);
+            open = open || !(c[k].L >= 0);
+        }
+        a = best(c, n);  // a closed cube's exact answer may cover
+        if (!(c[a].U < 0)) return open ? kOpen : kEmpty;
+    }
+    // Certain when the least upper bound (a cover) beats every rival's lower bound; failing that, once more with
+    // the closed cubes' exact answers (which may also lower the best upper bound).
+    for (int round = 0; round < 2; ++round) {
+        const Candidate& w = c[a];
+        bool sure = true;
+        for (std::size_t k = 0; k < n && sure; ++k) {
+            if (k == a) continue;
+            if (!c[k].exact) sharpen_lower(c[k], w.U);
+            sure = c[k].exact ? beats(w, c[k]) : certain(w.U, c[k].L, false);
+        }
+        if (sure) return w.field;
+        bool sharper = false;
+        for (std::size_t k = 0; k < n; ++k)
+            if (c[k].closed && !c[k].exact) {
+                sharpen(c[k]);
+                sharper = true;
+            }
+        if (!sharper) break;
+        a = best(c, n);
+    }
+    return kOpen;
+}
 
 }  // namespace volrig::deform_detail
