@@ -1,0 +1,57 @@
+"""For scripts/ui_screenshot: Blender with its UI (under Xvfb), the add-on enabled, the phantom imported,
+skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
+"UI READY" when the screen is ready for a screenshot."""
+import os, sys
+REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+WORK = os.environ.get("UI_WORK", "/tmp")
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
+import bpy
+import volrig, volrig_addon
+from volrig_addon import panels
+import inspect
+_panels = [c for c in vars(panels).values() if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
+for c in _panels:
+    c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
+volrig_addon.register()
+
+def setup():
+    ph = volrig.phantom.humanoid(0.4)
+    path = os.path.join(WORK, "phantom.nrrd")
+    if not os.path.exists(path):
+        ph.volume.save(path)
+    win = bpy.context.window_manager.windows[0]
+    area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
+    region = [r for r in area.regions if r.type == "WINDOW"][0]
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        for o in list(bpy.data.objects):
+            bpy.data.objects.remove(o)
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))
+        bpy.ops.volrig.import_volume(filepath=path, unit="MM", name="phantom")
+        vol = bpy.data.objects["phantom"]
+        bpy.context.view_layer.objects.active = vol
+        vol.select_set(True)
+        bpy.ops.volrig.skeletonize()
+        vol.volrig.thinness = 0.25
+        bpy.ops.volrig.rig()
+        bpy.context.view_layer.objects.active = vol
+        vol.select_set(True)
+    for area in win.screen.areas:
+        if area.type == "VIEW_3D":
+            for space in area.spaces:
+                if space.type == "VIEW_3D":
+                    space.show_region_ui = True
+                    space.shading.type = "SOLID"
+            for region in area.regions:
+                if region.type == "UI":
+                    try:
+                        region.active_panel_category = "volrig"
+                    except Exception as e:
+                        print("category:", e)
+            with bpy.context.temp_override(window=win, area=area, region=[r for r in area.regions if r.type == "WINDOW"][0]):
+                bpy.ops.view3d.view_axis(type="FRONT")
+                bpy.ops.view3d.view_all()
+    bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+    print("UI READY", flush=True)
+    return None
+
+bpy.app.timers.register(setup, first_interval=1.0)
