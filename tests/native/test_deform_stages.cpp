@@ -72,6 +72,17 @@ struct RandomSpheres {
     }
 };
 
+/// One bone's field over random spheres, with a random source for the points a test probes.
+struct FieldCase {
+    RandomSpheres rs;
+    std::array<double, 3> s2;
+    BoneField f;
+    std::mt19937 rng;
+    std::uniform_real_distribution<double> u{0.0, 1.0};
+    FieldCase(std::uint32_t seed, std::size_t n, std::uint32_t probe_seed, std::array<double, 3> spacing = {1.0, 1.25, 0.8})
+        : rs(seed, n, spacing), s2(rs.s2()), f(rs.field()), rng(probe_seed) {}
+};
+
 /// The brute-force least (power, local index) of a field's spheres at p (index space), ties to the lower global.
 Best brute_power(const BoneField& f, const double* p, const double* s2) {
     Best b;
@@ -214,11 +225,8 @@ TEST_CASE("sphere checks and smooth groups", "[deform][stages]") {
 }
 
 TEST_CASE("concave_lower bounds the power function from its corner values", "[deform][stages]") {
-    RandomSpheres rs(11, 12);
-    const auto s2 = rs.s2();
-    const BoneField f = rs.field();
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<double> u(0, 1);
+    FieldCase fc(11, 12, 5);
+    auto& [rs, s2, f, rng, u] = fc;
     std::uniform_int_distribution<int> cx(2, 24), cy(2, 20), cz(2, 26);
     int tight = 0;
     for (int t = 0; t < 3000; ++t) {
@@ -242,13 +250,10 @@ TEST_CASE("concave_lower bounds the power function from its corner values", "[de
 }
 
 TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers against a brute force", "[deform][stages]") {
-    RandomSpheres rs(21, 40);
-    const auto s2 = rs.s2();
-    const BoneField f = rs.field();
+    FieldCase fc(21, 40, 9);
+    auto& [rs, s2, f, rng, u] = fc;
     REQUIRE(!f.blocks.empty());
     REQUIRE(f.global.size() == 40);
-    std::mt19937 rng(9);
-    std::uniform_real_distribution<double> u(0, 1);
     std::int64_t labelled = 0, empty_checked = 0;
     for (std::int64_t z = 0; z + 1 < f.dims[2]; ++z)
         for (std::int64_t y = 0; y + 1 < f.dims[1]; ++y)
@@ -297,11 +302,8 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers aga
 }
 
 TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform][stages]") {
-    RandomSpheres rs(31, 60);
-    const auto s2 = rs.s2();
-    const BoneField f = rs.field();
-    std::mt19937 rng(13);
-    std::uniform_real_distribution<double> u(0, 1);
+    FieldCase fc(31, 60, 13);
+    auto& [rs, s2, f, rng, u] = fc;
     std::int64_t closed = 0, checked = 0;
     for (std::uint32_t cell = 1; cell < f.words.size(); ++cell) {
         if (!closed_of(f.words[cell])) continue;
@@ -345,10 +347,9 @@ TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform]
 }
 
 TEST_CASE("exact queries and cube bounds against a brute force", "[deform][stages]") {
-    RandomSpheres rs(41, 80, {0.9, 1.1, 1.3});
-    const auto s2 = rs.s2();
-    const BoneField f = rs.field();
-    std::mt19937 rng(17);
+    FieldCase fc(41, 80, 17, {0.9, 1.1, 1.3});
+    auto& [rs, s2, f, rng, u] = fc;
+    (void)u;
     std::uniform_real_distribution<double> x(2, 25), y(2, 21), z(2, 27);
     for (int t = 0; t < 2000; ++t) {
         const double p[3] = {x(rng), y(rng), z(rng)};
