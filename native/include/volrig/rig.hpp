@@ -58,9 +58,9 @@ struct AutorigOptions {
     /// The world's up direction in the volume's frame, when known: a humanoid's spine must point up, a quadruped's
     /// limbs down. Without it, up is inferred from the winning template.
     std::optional<std::array<double, 3>> up;
-    /// When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent),
-    /// rig a skeleton of the object resampled to that scale instead of the given points: finer volumes and any
-    /// point count give about the same rig. False always rigs the given points and tree.
+    /// Rig the object's own skeleton at autorig's scale (resampled to about 400 voxels along its longest extent
+    /// when finer) instead of the given points: any resolution and any point count give about the same rig; the
+    /// given points only carry the joints. False always rigs the given points and tree.
     bool own_scale = true;
 };
 

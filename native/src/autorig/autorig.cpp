@@ -1,11 +1,11 @@
 // autorig: from a skeleton-tree to an articulated skeleton (see volrig/rig.hpp). The stages, each in its own file:
 //
-// 0. coarse: when the volume is finer than autorig's own scale (kCoarseCells voxels along the object's longest
-//    extent), the rig is made there, not from the caller's points: the object is resampled (a coarse voxel is object
-//    when half its voxels are); the 1% of its voxels of highest thinness score and their skeleton-tree replace the
-//    caller's points and tree. Finer volumes and any point count then give about the same rig; the caller's points
-//    only name the point each joint sits on (the nearest one). At or below that scale the caller's points are
-//    rigged (the rig then depends on how many were kept). AutorigOptions::own_scale = false always rigs them.
+// 0. coarse: the rig is made at autorig's own scale (kCoarseCells voxels along the object's longest extent), not
+//    from the caller's points: a finer object is resampled (a coarse voxel is object when half its voxels are), a
+//    coarser one only cropped; the 1% of its voxels of highest thinness score (more below that scale) and their
+//    skeleton-tree replace the caller's points and tree. Any resolution and any point count then give about the
+//    same rig; the caller's points only name the point each joint sits on (the nearest one).
+//    AutorigOptions::own_scale = false rigs the caller's points instead.
 // 1. shape_tree: the points that carry the shape are the scale axis (a point goes when its ball lies inside the
 //    1.25x ball of a point at least twice as large: near-surface noise). They are joined by the tree's edges, by
 //    contained cone edges reaching across each point's ball and by bridges between fragments; the part with the

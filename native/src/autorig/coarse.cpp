@@ -40,13 +40,18 @@ std::array<std::int64_t, 6> object_box(const Grid& g, const std::uint8_t* mask) 
     return box[3] > box[0] ? box : Box{0, 0, 0, 0, 0, 0};
 }
 
-std::array<std::int64_t, 3> coarse_factor(const Grid& g, const std::array<std::int64_t, 6>& box, double cells) {
+double longest_cells(const Grid& g, const std::array<std::int64_t, 6>& box) {
     double longest = 0, finest = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
         longest = std::max(longest, static_cast<double>(box[3 + a] - box[a]) * g.spacing[a]);
         finest = std::min(finest, g.spacing[a]);
     }
-    const double size = std::max(finest, longest / cells);
+    return longest / finest;
+}
+
+std::array<std::int64_t, 3> coarse_factor(const Grid& g, const std::array<std::int64_t, 6>& box, double cells) {
+    const double finest = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double size = finest * std::max(1.0, longest_cells(g, box) / cells);
     std::array<std::int64_t, 3> f;
     for (int a = 0; a < 3; ++a) f[a] = std::max<std::int64_t>(1, std::llround(size / g.spacing[a]));
     return f;
@@ -86,11 +91,15 @@ CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array
 
 CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask) {
     const auto box = object_box(g, mask);
+    if (box[3] == 0) return CoarseShape{};
     const auto factor = coarse_factor(g, box, kCoarseCells);
-    if (factor == std::array<std::int64_t, 3>{1, 1, 1}) return CoarseShape{};  // the volume is at that scale
+    // Coarser volumes are resampled up to that scale (their own skeleton all the same, so that the rig depends
+    // neither on the caller's point count nor on the resolution).
     CoarseShape c = downsample(g, mask, box, factor);
     const Skeleton sk = skeletonize(c.grid, c.mask.data(), Metric::Euclidean);
-    const auto n = static_cast<std::size_t>(std::ceil(kCoarsePoints * static_cast<double>(sk.object_count())));
+    // Below that scale, a larger share: about as many points per cell of length as at kCoarseCells.
+    const double share = kCoarsePoints * std::max(1.0, kCoarseCells / longest_cells(c.grid, object_box(c.grid, c.mask.data())));
+    const auto n = static_cast<std::size_t>(std::ceil(share * static_cast<double>(sk.object_count())));
     c.ijk.resize(3 * n);
     c.radius.resize(n);
     skeleton_points(sk, n, c.ijk.data(), nullptr, c.radius.data(), nullptr);

@@ -13,8 +13,10 @@ namespace volrig::rigging {
 
 /// Cells along the object's longest extent at autorig's scale.
 constexpr double kCoarseCells = 400;
-/// The share of the coarse object's voxels kept as skeleton points (those of highest thinness score). A fixed
-/// thinness level gives skeletons too sparse to place joints well.
+/// The share of the coarse object's voxels kept as skeleton points (those of highest thinness score) at
+/// kCoarseCells; a smaller object (a volume coarser than that scale) keeps a share larger by kCoarseCells / its
+/// cells, about as many points per cell of length. A fixed thinness level gives skeletons too sparse to place joints
+/// well.
 constexpr double kCoarsePoints = 0.01;
 
 struct CoarseShape {
@@ -39,9 +41,13 @@ std::array<std::int64_t, 6> object_box(const Grid& g, const std::uint8_t* mask);
 CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array<std::int64_t, 6>& box,
                        const std::array<std::int64_t, 3>& factor);
 
-/// The object at autorig's scale: downsampled to kCoarseCells along its longest extent, the kCoarsePoints share of
-/// its voxels of highest thinness score as skeleton points, and their skeleton-tree. Empty (no points) when the
-/// volume is no finer than that scale: the caller's points are rigged then.
+/// Cells of the finest spacing along the box's longest world extent.
+double longest_cells(const Grid& g, const std::array<std::int64_t, 6>& box);
+
+/// The object at autorig's scale: downsampled to kCoarseCells along its longest extent (factor 1, only cropped,
+/// when the volume is no finer than that), the kCoarsePoints share of its voxels of highest thinness score as
+/// skeleton points, and their skeleton-tree. Empty only for an empty mask. The caller's points are not used: the
+/// rig does not depend on how many the user keeps.
 CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask);
 
 }  // namespace volrig::rigging
