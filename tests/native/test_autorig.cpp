@@ -169,6 +169,43 @@ TEST_CASE("fit_chain cuts an L at its corner; limb_fit puts an elbow at the bend
     CHECK(arc_of(arm).back() == Approx(60).epsilon(1e-3));
 }
 
+TEST_CASE("proportional_fit cuts a straight chain at its proportions and a bent one at its bend", "[autorig]") {
+    // A straight leg 0..100 along -z, radius 5: nothing but the proportions decides.
+    Chain4 straight;
+    for (int k = 0; k <= 100; ++k) straight.emplace_back(0, 0, -k, 5);
+    const Fit even = proportional_fit(straight, {1, 2, 1}, 0.0);
+    REQUIRE(even.cuts.size() == 4);
+    const std::vector<double> arc = arc_of(straight);
+    CHECK(arc[even.cuts[1]] == Approx(25).margin(2));
+    CHECK(arc[even.cuts[2]] == Approx(75).margin(2));
+    CHECK(even.cuts.back() == 100);
+    // `extra` lengthens the last bone: with 20 beyond the tip, 1 : 1 puts the cut at 60.
+    CHECK(arc[proportional_fit(straight, {1, 1}, 20.0).cuts[1]] == Approx(60).margin(2));
+    // A right-angle bend at 20 of 50 wins over a 1 : 1 proportion (at most 64 samples: every one is used).
+    Chain4 bent;
+    for (int k = 0; k <= 20; ++k) bent.emplace_back(0, 0, -k, 5);
+    for (int k = 1; k <= 30; ++k) bent.emplace_back(k, 0, -20, 5);
+    const Fit corner = proportional_fit(bent, {1, 1}, 0.0);
+    REQUIRE(corner.cuts.size() == 3);
+    CHECK(corner.cuts[1] == 20);
+    CHECK(corner.worst == Approx(0).margin(1e-9));
+    // Too few samples for the bones asked: no fit.
+    CHECK(proportional_fit(Chain4(3, Eigen::Vector4d(0, 0, 0, 1)), {1, 1, 1}, 0.0).cuts.empty());
+}
+
+TEST_CASE("limb_fit finds a standing leg's hip, ankle and a knee halfway between", "[autorig]") {
+    // Pelvis centre out 10 to the hip, down 90 to the ankle (no bend at the knee), forward 20 along the foot.
+    Chain4 leg;
+    for (int k = 0; k <= 10; ++k) leg.emplace_back(k, 0, 0, 8);
+    for (int k = 1; k <= 90; ++k) leg.emplace_back(10, 0, -k, 8 - 4.0 * k / 90);
+    for (int k = 1; k <= 20; ++k) leg.emplace_back(10, -k, -90, 3);
+    const Fit f = limb_fit(leg, false);
+    REQUIRE(f.cuts.size() == 5);
+    CHECK(std::abs(static_cast<int>(f.cuts[1]) - 10) <= 1);   // the hip at the corner
+    CHECK(std::abs(static_cast<int>(f.cuts[2]) - 55) <= 3);   // the knee halfway down the straight leg
+    CHECK(std::abs(static_cast<int>(f.cuts[3]) - 100) <= 1);  // the ankle at the corner
+}
+
 TEST_CASE("search_plans finds a stick figure's head, and a given up direction rules out its upside-down reading",
           "[autorig]") {
     std::uint32_t head = 0;

@@ -24,8 +24,9 @@
 //    Every template that can be built is a candidate; body plans within their score limit win over chains; the
 //    runner-up is reported, and AutorigOptions::kind forces one.
 // 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in
-//    (position, radius); a humanoid's elbows, wrists and knees near their anatomical proportions, moved to a clear
-//    bend nearby. End joints are extended along their bone to the object's surface.
+//    (position, radius); a humanoid's limbs by one optimisation of bends and anatomical proportions together
+//    (girdle, upper arm, forearm, hand; pelvis bone, thigh, shin, foot). End joints are extended along their bone
+//    to the object's surface.
 #include <cmath>
 
 #include "autorig/coarse.hpp"

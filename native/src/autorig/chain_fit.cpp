@@ -26,90 +26,108 @@ std::vector<double> arc_of(const Chain4& chain) {
     return arc;
 }
 
-Fit fit_chain(const Chain4& chain, int k) {
-    const std::size_t n = chain.size();
+namespace {
+
+/// The chain's samples (at most 64, spread evenly over its indices) and the cost of each piece a -> b: the sum over
+/// the samples strictly inside it of (4-D deviation from the chord / the chain's mean radius)^2.
+struct PieceCosts {
+    const Chain4& chain;
     std::vector<std::size_t> sample;
-    const std::size_t m = std::min<std::size_t>(n, 64);
-    for (std::size_t s = 0; s < m; ++s) sample.push_back(m == 1 ? 0 : s * (n - 1) / (m - 1));
-    Fit f;
-    if (m < 2) return f;
-    k = std::max(1, std::min<int>(k, static_cast<int>(m) - 1));
-    auto at = [&](std::size_t s) -> const Eigen::Vector4d& { return chain[sample[s]]; };
-    std::vector<double> cost(m * m, 0.0);
-    for (std::size_t a = 0; a < m; ++a)
-        for (std::size_t b = a + 1; b < m; ++b) {
-            double c = 0;
-            for (std::size_t s = a + 1; s < b; ++s) {
-                const double dv = deviation(at(a), at(b), at(s));
-                c += dv * dv;
-            }
-            cost[a * m + b] = c;
+    std::vector<double> arc, cost;
+    std::size_t m = 0;
+
+    explicit PieceCosts(const Chain4& c) : chain(c) {
+        const std::size_t n = c.size();
+        m = std::min<std::size_t>(n, 64);
+        const std::vector<double> full = arc_of(c);
+        double mean_r = 0;
+        for (std::size_t s = 0; s < m; ++s) {
+            sample.push_back(m == 1 ? 0 : s * (n - 1) / (m - 1));
+            arc.push_back(full[sample.back()]);
+            mean_r += c[sample.back()][3] / static_cast<double>(m);
         }
+        cost.assign(m * m, 0.0);
+        for (std::size_t a = 0; a < m; ++a)
+            for (std::size_t b = a + 2; b < m; ++b) {
+                double sum = 0;
+                for (std::size_t s = a + 1; s < b; ++s) {
+                    const double dv = deviation(at(a), at(b), at(s)) / std::max(mean_r, 1e-12);
+                    sum += dv * dv;
+                }
+                cost[a * m + b] = sum;
+            }
+    }
+    const Eigen::Vector4d& at(std::size_t s) const { return chain[sample[s]]; }
+    double of(std::size_t a, std::size_t b) const { return cost[a * m + b]; }
+
+    /// The fit of the sample cuts `from` traced back from the last sample over k pieces: chain indices and the
+    /// worst deviation relative to each sample's radius.
+    Fit trace(const std::vector<std::size_t>& from, std::size_t k) const {
+        std::vector<std::size_t> cuts{m - 1};
+        for (std::size_t j = k; j > 0; --j) cuts.push_back(from[j * m + cuts.back()]);
+        std::reverse(cuts.begin(), cuts.end());
+        Fit f;
+        for (std::size_t c = 0; c + 1 < cuts.size(); ++c)
+            for (std::size_t s = cuts[c] + 1; s < cuts[c + 1]; ++s)
+                f.worst = std::max(f.worst, deviation(at(cuts[c]), at(cuts[c + 1]), at(s)) / std::max(at(s)[3], 1e-9));
+        for (std::size_t c : cuts) f.cuts.push_back(sample[c]);
+        return f;
+    }
+};
+
+/// Optimal k pieces from the first sample to the last: piece_cost(j, a, b) for the j-th piece (1-based) from sample
+/// a to b is added to the pieces' deviation costs.
+template <class Extra>
+Fit best_pieces(const PieceCosts& pc, std::size_t k, Extra piece_cost) {
+    const std::size_t m = pc.m;
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<double> best((k + 1) * m, inf);
     std::vector<std::size_t> from((k + 1) * m, 0);
     best[0] = 0;
-    for (int j = 1; j <= k; ++j)
-        for (std::size_t b = 1; b < m; ++b)
-            for (std::size_t a = 0; a < b; ++a) {
-                const double c = best[(j - 1) * m + a] + cost[a * m + b];
+    for (std::size_t j = 1; j <= k; ++j)
+        for (std::size_t b = j; b < m; ++b) {
+            if (j == k && b != m - 1) continue;
+            for (std::size_t a = j - 1; a < b; ++a) {
+                if (best[(j - 1) * m + a] == inf) continue;
+                const double c = best[(j - 1) * m + a] + pc.of(a, b) + piece_cost(j, a, b);
                 if (c < best[j * m + b]) {
                     best[j * m + b] = c;
                     from[j * m + b] = a;
                 }
             }
-    std::vector<std::size_t> cuts{m - 1};
-    for (int j = k; j > 0; --j) cuts.push_back(from[j * m + cuts.back()]);
-    std::reverse(cuts.begin(), cuts.end());
-    for (std::size_t c = 0; c + 1 < cuts.size(); ++c)
-        for (std::size_t s = cuts[c] + 1; s < cuts[c + 1]; ++s)
-            f.worst = std::max(f.worst, deviation(at(cuts[c]), at(cuts[c + 1]), at(s)) / std::max(at(s)[3], 1e-9));
-    for (std::size_t c : cuts) f.cuts.push_back(sample[c]);
-    return f;
+        }
+    return pc.trace(from, k);
 }
 
-std::size_t place_joint(const Chain4& chain, const std::vector<double>& arc, std::size_t a, std::size_t b,
-                        double frac, double extra) {
-    const double len = arc[b] - arc[a] + extra, target = arc[a] + frac * len, w = 0.2 * len;
-    auto index_at = [&](double x) {
-        const auto it = std::lower_bound(arc.begin() + static_cast<std::ptrdiff_t>(a),
-                                         arc.begin() + static_cast<std::ptrdiff_t>(b) + 1, x);
-        return std::min<std::size_t>(static_cast<std::size_t>(it - arc.begin()), b);
-    };
-    std::size_t best = std::clamp(index_at(target), a + 1, b - 1);
-    double best_bend = 0.15;
-    for (std::size_t c = std::max(a + 1, index_at(target - w)); c <= index_at(target + w) && c < b; ++c) {
-        const double bend = deviation(chain[a], chain[b], chain[c]) / std::max(chain[c][3], 1e-9);
-        if (bend > best_bend) {
-            best_bend = bend;
-            best = c;
-        }
-    }
-    return best;
+}  // namespace
+
+Fit fit_chain(const Chain4& chain, int k) {
+    const PieceCosts pc(chain);
+    if (pc.m < 2) return Fit{};
+    const auto pieces = static_cast<std::size_t>(std::max(1, std::min<int>(k, static_cast<int>(pc.m) - 1)));
+    return best_pieces(pc, pieces, [](std::size_t, std::size_t, std::size_t) { return 0.0; });
+}
+
+Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra) {
+    const PieceCosts pc(chain);
+    const std::size_t m = pc.m, k = ratios.size();
+    if (k == 0 || m < k + 1) return Fit{};
+    double sum = 0;
+    for (double r : ratios) sum += r;
+    const double whole = pc.arc[m - 1] + extra;
+    return best_pieces(pc, k, [&](std::size_t j, std::size_t a, std::size_t b) {
+        const double len = pc.arc[b] - pc.arc[a] + (b == m - 1 ? extra : 0.0);
+        const double r = std::log(std::max(len, 1e-12) / std::max(whole * ratios[j - 1] / sum, 1e-12));
+        return kProportionWeight * static_cast<double>(m) * r * r;
+    });
 }
 
 Fit limb_fit(const Chain4& chain, bool arm) {
-    Fit f = fit_chain(chain, arm ? 2 : 3);
-    if (f.cuts.size() != (arm ? 3u : 4u) || chain.size() < 8) return Fit{};
-    const std::vector<double> arc = arc_of(chain);
-    const std::size_t end = chain.size() - 1;
-    if (arm) {
-        const std::size_t sh = f.cuts[1];
-        if (end - sh < 4) return Fit{};
-        const double extra = chain[end][3];
-        const std::size_t elbow = std::clamp(place_joint(chain, arc, sh, end, 0.186 / 0.44, extra), sh + 1, end - 2);
-        // The wrist at its proportion of the whole arm, measured from the elbow now placed.
-        const double whole = arc[end] - arc[sh] + extra;
-        const double from_elbow = (0.332 / 0.44 * whole - (arc[elbow] - arc[sh])) / (arc[end] - arc[elbow] + extra);
-        const std::size_t wrist = std::clamp(place_joint(chain, arc, elbow, end, from_elbow, extra), elbow + 1, end - 1);
-        f.cuts = {0, sh, elbow, wrist, end};
-    } else {
-        const std::size_t hip = f.cuts[1], ankle = f.cuts[2];
-        if (ankle - hip < 3) return Fit{};
-        const std::size_t knee = std::clamp(place_joint(chain, arc, hip, ankle, 0.5, 0.0), hip + 1, ankle - 1);
-        f.cuts = {0, hip, knee, ankle, end};
-    }
-    return f;
+    // Drillis and Contini's segment lengths (fractions of the height): half the shoulder breadth 0.13, upper arm
+    // 0.186, forearm 0.146, hand 0.108; half the hip breadth 0.095, thigh 0.245, shin 0.246, foot (ankle to toe
+    // tip) about 0.11.
+    static const std::vector<double> kArm{0.13, 0.186, 0.146, 0.108}, kLeg{0.095, 0.245, 0.246, 0.11};
+    return proportional_fit(chain, arm ? kArm : kLeg, arm ? chain.back()[3] : 0.0);
 }
 
 }  // namespace volrig::rigging

@@ -21,16 +21,21 @@ struct Fit {
 /// has too few samples.
 Fit fit_chain(const Chain4& chain, int k);
 
-/// A joint expected at fraction `frac` of the arc from chain index a to b (plus `extra` length beyond b): the
-/// sample deviating most from the chord a -> b (in position and radius) within a fifth of that length of the
-/// expected place, when it deviates by 0.15 of its radius (a clear bend), else the expected place itself.
-std::size_t place_joint(const Chain4& chain, const std::vector<double>& arc, std::size_t a, std::size_t b,
-                        double frac, double extra);
+/// Weight, per sample, of a bone-length ratio's squared logarithm against the samples' squared deviations.
+constexpr double kProportionWeight = 0.05;
 
-/// A humanoid limb cut into four bones: the strong bends by the piecewise-linear fit (an arm leaves the shoulder
-/// girdle; a leg leaves the pelvis and turns into the foot), then the weak ones (elbow and wrist; knee) near their
-/// Drillis-Contini proportions (upper arm : forearm : hand = 0.186 : 0.146 : 0.108 of the height, thigh and shin
-/// equal) and moved to a clear bend nearby. Empty cuts when the chain is too short.
+/// A chain cut into ratios.size() bones by one optimisation: clear bends, and bone lengths in the given ratios of
+/// the whole (the last bone's length counts `extra` beyond the chain's end). Cost: the samples' squared 4-D
+/// deviations from their piece's chord relative to the chain's mean radius (a relative measure per sample would let
+/// a thin foot's wiggles outweigh a knee), plus kProportionWeight * samples * log(length / expected)^2 per bone;
+/// exact over at most 64 samples (dynamic programming). `worst` holds the optimal cost. Empty cuts when the chain
+/// has fewer samples than bones + 1.
+Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra);
+
+/// A humanoid limb cut into four bones by proportional_fit with Drillis and Contini's proportions (fractions of the
+/// height): half the shoulder breadth 0.13, upper arm 0.186, forearm 0.146, hand 0.108 reaching one tip radius
+/// beyond the chain; half the hip breadth 0.095, thigh 0.245, shin 0.246, foot 0.11. Clear bends (the shoulder's
+/// corner, an elbow, the ankle) move joints off their proportion.
 Fit limb_fit(const Chain4& chain, bool arm);
 
 /// Arc length along a chain's positions, from its first sample.
