@@ -20,7 +20,9 @@
 //    five of the seven most significant extremities to head, legs and arms, penalising pairs that do not mirror
 //    each other across the spine, significant extremities left out and legs thinner than arms; legs pointing away
 //    from the head make a humanoid, otherwise a quadruped; a given up direction excludes humanoids whose spine
-//    does not point up and quadrupeds whose limbs do not hang down. Neutral chains: chains between branch points.
+//    does not point up and quadrupeds whose limbs do not hang down. Hand (hand.cpp): six of the eight most
+//    significant extremities as a wrist and five fingers meeting on a palm, the thumb joining farthest from the
+//    others' junction. Neutral chains: chains between branch points.
 //    Every template that can be built is a candidate; body plans within their score limit win over chains; the
 //    runner-up is reported, and AutorigOptions::kind forces one.
 // 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in
