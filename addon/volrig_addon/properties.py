@@ -102,12 +102,13 @@ class VolrigObject(bpy.types.PropertyGroup):
                          description="Skeleton-tree: 1 weighs edges by length only, lower prefers equal radii")
     bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
     roles: BoolProperty(name="Body roles", default=True,
-                        description="Name bones as a humanoid or quadruped when the shape looks like one")
+                        description="Name bones as a humanoid, quadruped or hand when the shape looks like one")
     body_plan: EnumProperty(name="Body plan", items=[
-        ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, chains) and keep the best"),
+        ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, hand, chains) and keep the best"),
         ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
         ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
         ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
+        ("hand", "Hand", "Force the hand template (palm, thumb and four fingers of three bones each)"),
     ], default="AUTO", description="The template the rig is fitted to; pick another and press Rig to refit")
     use_scene_up: BoolProperty(name="Scene up", default=True,
                                description="Tell the rig where up is: the scene's +Z seen from the volume (else inferred)")

@@ -111,6 +111,14 @@ inline VolumeView view_of(const py::array& a, const std::array<double, 3>& spaci
     return v;
 }
 
+/// A tuple of the names a core list spells once (the option names, in enum order).
+template <class List>
+py::tuple names_tuple(const List& list) {
+    py::tuple t(list.size());
+    for (std::size_t k = 0; k < list.size(); ++k) t[k] = py::str(list[k]);
+    return t;
+}
+
 /// Python tuple (array, spacing, origin) for a volume read from a file.
 inline py::tuple volume_tuple(Volume&& v) {
     auto spacing = v.grid.spacing;

@@ -154,14 +154,9 @@ void bind_deform(py::module_& m) {
             py::arg("weight_offsets") = py::none(), py::arg("weight_bones") = py::none(), py::arg("weights") = py::none())
         .def_property_readonly("reused_fields", [](const PyDeformer& d) { return d.deformer->reused_fields(); });
     // The option names, spelled once in the core (volrig/deform.hpp), in enum order.
-    auto names = [](const auto& list) {
-        py::tuple t(list.size());
-        for (std::size_t k = 0; k < list.size(); ++k) t[k] = py::str(list[k]);
-        return t;
-    };
-    m.attr("DEFORM_MODES") = names(kDeformModeNames);
-    m.attr("PROXIMITIES") = names(kProximityNames);
-    m.attr("SAMPLINGS") = names(kSamplingNames);
+    m.attr("DEFORM_MODES") = names_tuple(kDeformModeNames);
+    m.attr("PROXIMITIES") = names_tuple(kProximityNames);
+    m.attr("SAMPLINGS") = names_tuple(kSamplingNames);
 
     m.def(
         "deform_reference",

@@ -62,6 +62,7 @@ py::dict dict_of(Rig&& r) {
 }  // namespace
 
 void bind_rig(py::module_& m) {
+    m.attr("AUTORIG_KINDS") = names_tuple(kAutorigKinds);  // spelled once in the core (volrig/rig.hpp)
     m.def(
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,

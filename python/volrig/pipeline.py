@@ -216,7 +216,7 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
                  progress: StepProgress = None, source: Optional[str] = None, kind: Optional[str] = None,
                  up=None) -> RiggedSkeleton:
     """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
-    template (humanoid, quadruped, chains) and ``up`` gives the world's up direction in the volume's frame (see
+    template (humanoid, quadruped, hand, chains) and ``up`` gives the world's up direction in the volume's frame (see
     ``autorig``). Fewer than two points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
     rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up)

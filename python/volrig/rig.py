@@ -2,7 +2,8 @@
 
 ``autorig`` reduces a skeleton-tree to a small set of joints and bones (spurs pruned, joints at branch points,
 end points and bends), naming bones by role when the shape is humanoid- or quadruped-like (Rigify's names: hips,
-spine, chest, neck, head, shoulder/upper_arm/forearm/hand and pelvis/thigh/shin/foot with .L/.R). ``bind``
+spine, chest, neck, head, shoulder/upper_arm/forearm/hand and pelvis/thigh/shin/foot with .L/.R) or a hand (palm,
+thumb.01-03, f_index / f_middle / f_ring / f_pinky .01-03, .L/.R from the thumb's side). ``bind``
 attaches every skeleton point to the bone that owns it, by geodesic distance inside the object.
 """
 from __future__ import annotations
@@ -27,7 +28,7 @@ class Rig:
     names:   B unique bone names.
     parents: (B,) int32 parent bone of each bone, -1 for roots. Defaults to the bone whose tail is this bone's
              head (-1 when there is none).
-    kind:    "humanoid", "quadruped", "chains" (from ``autorig``) or "custom".
+    kind:    one of ``KINDS`` ("humanoid", "quadruped", "hand", "chains": from ``autorig``) or "custom".
     joint_points: (K,) int64 skeleton point each joint sits on, -1 when none (end joints moved to the surface,
              joints placed by hand and not snapped).
     fit:     how well autorig's template fits the shape, 0..1 (0 for other rigs).
@@ -215,7 +216,8 @@ class AutorigResult:
     node_kept: np.ndarray
 
 
-KINDS = ("humanoid", "quadruped", "chains")
+#: The templates autorig fits (spelled once in the core: volrig/rig.hpp kAutorigKinds).
+KINDS = tuple(_volrig.AUTORIG_KINDS)
 
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
@@ -223,7 +225,7 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
             detail: Optional[list] = None, kind: Optional[str] = None, up=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
-    Every template (humanoid, quadruped, neutral chains) is fitted and scored; the best wins. The result's
+    Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
     ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
     When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent), the rig
     is made from the object resampled there, whatever ``points`` and ``tree`` hold (they then only give each joint's
@@ -238,8 +240,9 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     roles:       try the humanoid / quadruped body plans (a guess from the shape's five main extremities: a molar
                  with four roots passes for a quadruped); False gives neutral chains.
     detail:      pass a list to receive an ``AutorigResult`` appended to it.
-    kind:        force a template: "humanoid", "quadruped" or "chains" (None: the best fit). A forced body plan is
-                 built whatever its score; ValueError when the shape has no five extremities for it.
+    kind:        force a template, one of ``KINDS``: "humanoid", "quadruped", "hand" or "chains" (None: the best
+                 fit). A forced body plan is built whatever its score; ValueError when the shape has no extremities
+                 for it (five for a humanoid or quadruped; six for a hand: a wrist and five fingers).
     up:          the world's up direction in the volume's frame (x, y, z), when known (e.g. the scene's +Z). A
                  humanoid's spine must then point up and a quadruped's limbs down. None: inferred.
     """

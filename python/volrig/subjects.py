@@ -89,7 +89,7 @@ MESHES = {
     # arm: lies along x, shoulder (thick end) at -x, hand at +x (silhouette along z); no body plan
     "arm": ("meshes/arm.obj", "meshes/arm.tgf", "chains", (1, 0, 0), (1, 0, 0)),
     # hand: palm in the x-y plane, fingers toward +y (silhouette along z)
-    "hand": ("meshes/hand.mesh", "meshes/hand.tgf", "chains", (0, 1, 0), (0, 1, 0)),
+    "hand": ("meshes/hand.mesh", "meshes/hand.tgf", "hand", (0, 1, 0), (0, 1, 0)),
     # knight: standing along +y, head at +y, arms out along x (silhouette along z)
     "knight": ("meshes/decimated-knight.off", None, "humanoid", (0, 1, 0), (0, 1, 0)),
     # cow: legs toward -y, head at +x (silhouette along z)

@@ -56,6 +56,29 @@ Figure stick_figure(std::uint32_t& head) {
     return f;
 }
 
+/// A figure's nodes as skeleton points at their rounded positions, in a solid grid of the given size.
+struct Solid {
+    Grid g;
+    std::vector<std::uint8_t> mask;
+    std::vector<std::int32_t> ijk;
+    std::vector<float> r;
+    std::vector<std::uint32_t> rep;
+    NodeTree tree;
+    PointSet pts;
+
+    Solid(const Figure& f, const std::array<std::int64_t, 3>& dims) : tree(f.tree()) {
+        g.dims = dims;
+        mask.assign(static_cast<std::size_t>(g.voxel_count()), 1);
+        for (std::size_t k = 0; k < f.pos.size(); ++k) {
+            for (int a = 2; a >= 0; --a) ijk.push_back(static_cast<std::int32_t>(std::lround(f.pos[k][a])));
+            r.push_back(static_cast<float>(f.rad[k]));
+            rep.push_back(static_cast<std::uint32_t>(k));
+        }
+        pts = PointSet{ijk.data(), r.data(), r.size()};
+    }
+    RigContext context() const { return RigContext{g, mask.data(), pts, tree, rep}; }
+};
+
 }  // namespace
 
 TEST_CASE("scale_axis drops small balls inside a larger ball and keeps the rest", "[autorig]") {
@@ -288,21 +311,9 @@ TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; 
         f.limb(f.limb(chest, o + Vec(40, s * 8, -15), 4, 4), o + Vec(40, s * 8, -35), 4, 3);
     }
     f.limb(f.limb(0, o + Vec(-15, 0, 8), 3, 2.5), o + Vec(-30, 0, 4), 2.5, 1.5);
-    // Each node is a skeleton point at its rounded position, in a solid grid.
-    Grid g;
-    g.dims = {120, 60, 80};
-    const std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
-    std::vector<std::int32_t> ijk;
-    std::vector<float> r;
-    std::vector<std::uint32_t> rep;
-    for (std::size_t k = 0; k < f.pos.size(); ++k) {
-        for (int a = 2; a >= 0; --a) ijk.push_back(static_cast<std::int32_t>(std::lround(f.pos[k][a])));
-        r.push_back(static_cast<float>(f.rad[k]));
-        rep.push_back(static_cast<std::uint32_t>(k));
-    }
-    const PointSet pts{ijk.data(), r.data(), r.size()};
-    const NodeTree t = f.tree();
-    const RigContext ctx{g, mask.data(), pts, t, rep};
+    const Solid solid(f, {120, 60, 80});
+    const NodeTree& t = solid.tree;
+    const RigContext ctx = solid.context();
     const PlanSearch s = search_plans(t, Vec(0, 0, 1));
     REQUIRE(s.quadruped.score < kPlanLimit);
     const Candidate c = build_plan(ctx, s.quadruped, false, 0.35);
@@ -320,4 +331,58 @@ TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; 
     CHECK(far <= 30 + 2 * 1.5 + 1);
     CHECK(std::count(names.begin(), names.end(), "head") == 1);
     CHECK(c.up.z() > 0.9);
+}
+
+namespace {
+
+/// A hand in a grid, fingers along +y: a wrist stub from y = 10 up to the palm centre at y = 50 (thickest), the
+/// thumb leaving the palm at y = 30 out along -x and up (its tip raised along +z), four fingers from the palm
+/// centre to knuckles at y = 60 and up to their tips (the middle one longest). The tips in `tips`: thumb, index,
+/// middle, ring, pinky.
+Figure hand_figure(std::array<std::uint32_t, 5>& tips) {
+    const Vec o(60, 10, 30);
+    Figure f(o, 7.0);
+    const std::uint32_t thumb_base = f.limb(0, o + Vec(0, 20, 0), 8, 9);
+    const std::uint32_t palm = f.limb(thumb_base, o + Vec(0, 40, 0), 9, 9);
+    tips[0] = f.limb(f.limb(thumb_base, o + Vec(-22, 32, 3), 5, 4.5), o + Vec(-36, 50, 8), 4.5, 3.5);
+    const double x[4] = {-15, -5, 5, 15}, len[4] = {38, 42, 38, 30};
+    for (int k = 0; k < 4; ++k)
+        tips[static_cast<std::size_t>(k) + 1] =
+            f.limb(f.limb(palm, o + Vec(x[k], 50, 0), 5, 4), o + Vec(1.2 * x[k], 50 + len[k], 0), 4, 3);
+    return f;
+}
+
+}  // namespace
+
+TEST_CASE("search_hand finds the thumb and orders the fingers; hand_rig names 16 bones", "[autorig]") {
+    std::array<std::uint32_t, 5> tips{};
+    const Figure f = hand_figure(tips);
+    const Solid solid(f, {120, 120, 60});
+    const HandPlan p = search_hand(solid.tree);
+    REQUIRE(p.score < kPlanLimit);
+    CHECK(p.fingers == tips);
+    CHECK(solid.tree.at(p.wrist).y() == Approx(10));
+    const Candidate c = hand_rig(solid.context(), p);
+    REQUIRE(c.rig.bones.size() == 16);
+    CHECK(c.rig.kind == "hand");
+    CHECK(c.fit > 0.5);
+    const auto& names = c.rig.names;
+    CHECK(names[0].rfind("palm", 0) == 0);
+    const std::string side = names[0].substr(4);
+    CHECK(side == ".L");  // the thumb raised on +z: the palm faces +z, the thumb on the viewer's left
+    for (const char* bone : {"thumb.01", "thumb.03", "f_index.01", "f_middle.02", "f_ring.03", "f_pinky.01"})
+        CHECK(std::count(names.begin(), names.end(), bone + side) == 1);
+    for (std::size_t b = 1; b < names.size(); ++b) CHECK(c.rig.parents[b] == static_cast<std::int32_t>(b % 3 == 1 ? 0 : b - 1));
+    // Not a body plan: five fingers are no head, arms and legs.
+    const PlanSearch plans = search_plans(solid.tree, std::nullopt);
+    CHECK(plans.humanoid.score > p.score);
+    CHECK(plans.quadruped.score > p.score);
+}
+
+TEST_CASE("a stick figure is no hand", "[autorig]") {
+    std::uint32_t head = 0;
+    Figure f = stick_figure(head);
+    CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
+    f.limb(0, Vec(0, -15, -5), 3, 2);  // a sixth extremity: a tail
+    CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
 }

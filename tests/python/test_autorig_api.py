@@ -50,8 +50,12 @@ def test_kind_is_forced_and_checked(half):
     assert autorig(pts, tree, mask, kind="humanoid").kind == "humanoid"
     quad = autorig(pts, tree, mask, kind="quadruped")  # forced: built whatever its score
     assert quad.kind == "quadruped" and set(quad.names) == ROLE_BONES
-    with pytest.raises(ValueError, match="kind must be"):
+    with pytest.raises(ValueError, match="kind must be one of 'humanoid', 'quadruped', 'hand', 'chains'"):
         autorig(pts, tree, mask, kind="dragon")
+    assert "hand" in volrig.rig.KINDS
+    # The phantom has five extremities, a hand needs six: a clear error, no crash.
+    with pytest.raises(ValueError, match="no hand fits this shape"):
+        autorig(pts, tree, mask, kind="hand")
     with pytest.raises(ValueError, match="up must be"):
         autorig(pts, tree, mask, up=(0, 0, 0))
 

@@ -21,7 +21,7 @@ struct Rig {
     std::vector<std::array<std::int32_t, 2>> bones;
     std::vector<std::string> names;
     std::vector<std::int32_t> parents;
-    std::string kind = "custom";  ///< "humanoid", "quadruped", "chains" (autorig) or "custom"
+    std::string kind = "custom";  ///< one of kAutorigKinds (autorig) or "custom"
     /// Per joint: the skeleton point it sits on, or -1 (an end joint extended to the surface, a user joint).
     std::vector<std::int64_t> joint_points;
     // What autorig found (left at their defaults for other rigs):
@@ -40,6 +40,9 @@ void check_rig(const Rig& rig);
 /// from the smallest rotation taking +Y to the bone direction (vec_roll_to_mat3), translation = head.
 std::array<double, 16> rest_matrix(const std::array<double, 3>& head, const std::array<double, 3>& tail);
 
+/// The templates autorig fits (AutorigOptions::kind, Rig::kind): body plans, then neutral chains.
+inline constexpr std::array<const char*, 4> kAutorigKinds = {"humanoid", "quadruped", "hand", "chains"};
+
 struct AutorigOptions {
     /// Bone count target. Role-named rigs (humanoid, quadruped) use their 21 role bones when this allows;
     /// other shapes get at most this many bones along their chains. 0 selects 24.
@@ -52,8 +55,8 @@ struct AutorigOptions {
     double tolerance = 0.35;
     /// Try the humanoid / quadruped body plans; false gives neutral chains whatever the shape.
     bool roles = true;
-    /// Force a template: "humanoid", "quadruped" or "chains" ("" = the best fit). A forced body plan is built
-    /// whatever its score (an error when the shape has no five extremities for it).
+    /// Force a template, one of kAutorigKinds ("" = the best fit). A forced body plan is built whatever its score
+    /// (an error when the shape has no extremities for it: five for a humanoid or quadruped, six for a hand).
     std::string kind;
     /// The world's up direction in the volume's frame, when known: a humanoid's spine must point up, a quadruped's
     /// limbs down. Without it, up is inferred from the winning template.
@@ -77,7 +80,7 @@ struct AutorigDetail {
 
 /// Reduces a skeleton-tree (edges over the points) of the object in `mask` to an articulated skeleton (the stages
 /// are described in native/src/autorig/autorig.cpp): the points' scale axis and its level-set tree, spurs pruned,
-/// then every template (humanoid, quadruped: role-named bones; neutral chains) fitted and scored; the best wins
+/// then every template (humanoid, quadruped, hand: role-named bones; neutral chains) fitted and scored; the best wins
 /// (rig.kind, rig.fit, rig.runner_up). Uses the part with the largest ball volume.
 Rig autorig(const Grid& grid, const std::uint8_t* mask, const PointSet& pts,
             const std::vector<std::array<std::uint32_t, 2>>& tree_edges, const AutorigOptions& opt = {},

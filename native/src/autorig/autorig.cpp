@@ -20,13 +20,16 @@
 //    five of the seven most significant extremities to head, legs and arms, penalising pairs that do not mirror
 //    each other across the spine, significant extremities left out and legs thinner than arms; legs pointing away
 //    from the head make a humanoid, otherwise a quadruped; a given up direction excludes humanoids whose spine
-//    does not point up and quadrupeds whose limbs do not hang down. Neutral chains: chains between branch points.
+//    does not point up and quadrupeds whose limbs do not hang down. Hand (hand.cpp): six of the eight most
+//    significant extremities as a wrist and five fingers meeting on a palm, the thumb joining farthest from the
+//    others' junction. Neutral chains: chains between branch points.
 //    Every template that can be built is a candidate; body plans within their score limit win over chains; the
 //    runner-up is reported, and AutorigOptions::kind forces one.
 // 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in
 //    (position, radius); a humanoid's limbs by one optimisation of bends and anatomical proportions together
 //    (girdle, upper arm, forearm, hand; pelvis bone, thigh, shin, foot). End joints are extended along their bone
 //    to the object's surface.
+#include <algorithm>
 #include <cmath>
 
 #include "autorig/coarse.hpp"
@@ -45,8 +48,12 @@ void check_options(const PointSet& pts, const std::vector<std::array<std::uint32
         throw Error("autorig: prune_scale must be >= 1");
     if (!(opt.tolerance > 0 && std::isfinite(opt.tolerance))) throw Error("autorig: tolerance must be > 0");
     if (opt.bones < 0 || opt.bones > 10000) throw Error("autorig: bones must lie in 1..10000 (0 = default)");
-    if (!opt.kind.empty() && opt.kind != "humanoid" && opt.kind != "quadruped" && opt.kind != "chains")
-        throw Error("autorig: kind must be 'humanoid', 'quadruped' or 'chains', got '" + opt.kind + "'");
+    if (!opt.kind.empty() &&
+        std::none_of(kAutorigKinds.begin(), kAutorigKinds.end(), [&](const char* k) { return opt.kind == k; })) {
+        std::string known;
+        for (const char* k : kAutorigKinds) known += std::string(known.empty() ? "'" : ", '") + k + "'";
+        throw Error("autorig: kind must be one of " + known + ", got '" + opt.kind + "'");
+    }
     if (opt.up) {
         const Vec u((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]);
         if (!std::isfinite(u.norm()) || u.norm() == 0) throw Error("autorig: up must be a finite non-zero vector");
@@ -60,28 +67,43 @@ void check_options(const PointSet& pts, const std::vector<std::array<std::uint32
     if (edges.size() + parts != pts.n) throw Error("autorig: the tree edges contain a cycle");
 }
 
+/// Whether a body plan of this kind and score is a candidate: within its limit when not forced, any finite
+/// score when forced.
+bool admits(const AutorigOptions& opt, const std::string& kind, double score) {
+    const bool forced = opt.kind == kind;
+    return (opt.kind.empty() || forced) && (score < rigging::kPlanLimit || (forced && std::isfinite(score)));
+}
+
+/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best fit first.
+std::vector<Candidate> plan_candidates(const rigging::RigContext& c, const AutorigOptions& opt,
+                                       const std::optional<Vec>& up) {
+    std::vector<Candidate> out;
+    const rigging::PlanSearch s = rigging::search_plans(c.tree, up);
+    for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
+        if (admits(opt, kind, plan.score))
+            out.push_back(rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance));
+    if (const rigging::HandPlan hand = rigging::search_hand(c.tree); admits(opt, "hand", hand.score))
+        out.push_back(rigging::hand_rig(c, hand));
+    out.erase(std::remove_if(out.begin(), out.end(), [](const Candidate& k) { return k.rig.bones.empty(); }),
+              out.end());
+    std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.fit > b.fit; });
+    return out;
+}
+
 /// Every template's candidate, best first: body plans within their limit (or forced) by fit, then chains.
 std::vector<Candidate> candidates(const rigging::RigContext& c, const AutorigOptions& opt) {
     const int target = opt.bones > 0 ? opt.bones : 24;
     std::optional<Vec> up;
     if (opt.up) up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
     std::vector<Candidate> out;
-    const bool plans = opt.kind.empty() ? opt.roles && target >= 21 : opt.kind != "chains";
-    if (plans) {
-        const rigging::PlanSearch s = rigging::search_plans(c.tree, up);
-        for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}}) {
-            const bool forced = opt.kind == kind;
-            const bool acceptable = plan.score < rigging::kPlanLimit || (forced && std::isfinite(plan.score));
-            if ((!opt.kind.empty() && !forced) || !acceptable) continue;
-            Candidate cand = rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance);
-            if (!cand.rig.bones.empty()) out.push_back(std::move(cand));
-        }
-        std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.fit > b.fit; });
-    }
+    if (opt.kind.empty() ? opt.roles && target >= 21 : opt.kind != "chains") out = plan_candidates(c, opt, up);
     if (opt.kind.empty() || opt.kind == "chains") {
         Candidate chains = rigging::chain_rig(c, target, opt.tolerance);
         if (!chains.rig.bones.empty()) out.push_back(std::move(chains));
     }
+    if (out.empty() && opt.kind == "hand")
+        throw Error("autorig: no hand fits this shape (it needs six extremities: five fingers meeting on a palm and a "
+                    "wrist)");
     if (out.empty() && !opt.kind.empty() && opt.kind != "chains")
         throw Error("autorig: no " + opt.kind + " body plan fits this shape (it needs five extremities: head, two "
                     "arms, two legs, spread over the object" +

@@ -59,6 +59,10 @@ Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
 
 }  // namespace
 
+bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves) {
+    return t.extent(leaves) >= 0.5 * t.extent(t.order());
+}
+
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
     PlanSearch best;
     const auto ext = t.extremities();
@@ -67,7 +71,6 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
     const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
     double total = 0;
     for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
-    const double whole_extent = t.extent(t.order());
     for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
         // A body plan includes the two most prominent extremities.
         if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
@@ -83,7 +86,7 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
             }
         }
         // A body spans the object: five fingers at the end of an arm are no body plan.
-        if (t.extent(std::vector<std::uint32_t>(leaf.begin(), leaf.end())) < 0.5 * whole_extent) continue;
+        if (!spans_object(t, std::vector<std::uint32_t>(leaf.begin(), leaf.end()))) continue;
         consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, up, best);
     }
     return best;

@@ -2,6 +2,7 @@
 // tests/native/test_autorig.cpp).
 #pragma once
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,6 +39,9 @@ struct PlanSearch {
 /// with `up`, its limbs hang down). The best assignment of each kind.
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
 
+/// Whether the extremities' bounding box is at least half the object's (a body plan spans the object).
+bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
+
 /// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
 /// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
 /// bones when its chains are too short to cut.
@@ -50,6 +54,29 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
 constexpr int kMaxExtraChains = 6;
 constexpr double kExtraReach = 2.0;
 void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
+
+/// A hand: a wrist stub and five fingers (thumb first, then index, middle, ring, pinky across the palm) meeting
+/// on a palm at `palm` (where the first finger leaves the path from the wrist).
+struct HandPlan {
+    std::uint32_t wrist = kNone, palm = kNone;
+    std::array<std::uint32_t, 5> fingers{kNone, kNone, kNone, kNone, kNone};
+    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+};
+
+/// Discrete search over the assignments of six of the eight most significant extremities to a wrist and five
+/// fingers. The thumb is the finger whose base lies farthest from where the other four meet. Penalties for the
+/// other four: unequal lengths (from the palm centre) and thicknesses, bases away from the palm centre (relative
+/// to the finger length), tips pointing back towards the wrist; a wrist thinner than a finger, a wrist stub longer
+/// than twice a finger (an arm), a thumb joining beyond the palm centre, significant extremities left out.
+HandPlan search_hand(const NodeTree& t);
+
+/// The hand's rig: "palm" from the wrist end to the palm centre, then per finger three bones parented to it,
+/// thumb.01..03 from where the thumb leaves the palm (cut at its bends), f_index / f_middle / f_ring / f_pinky
+/// .01..03 from the knuckle (the bend where the path from the palm centre turns into the finger) cut into
+/// phalanges (chain_fit's place_joint near their proportions). Names get .L / .R from the thumb's side of the
+/// palm (the thumb lies on the palm's side), none when the thumb lies in the palm's plane. No bones when a chain
+/// is too short to cut.
+Candidate hand_rig(const RigContext& c, const HandPlan& plan);
 
 /// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
 /// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
