@@ -104,9 +104,19 @@ MESHES = {
 }
 
 
+def _weld(v, f):
+    """The mesh with vertices at identical positions merged (faces left degenerate by it dropped)."""
+    v, inverse = np.unique(np.asarray(v), axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[np.asarray(f)]
+    keep = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    return v, f[keep]
+
+
 def _close_holes(v, f):
     """Caps every boundary loop of a triangle mesh with a fan around the loop's centroid (the lion statue is open
-    at its base: a hole far wider than voxelize's hole closing)."""
+    at its base: a hole far wider than voxelize's hole closing). Corners at the same place are welded first: a mesh
+    cut open along a seam (camel_b, for flattening) has a slit there, not a hole."""
+    v, f = _weld(v, f)
     directed = {(int(a), int(b)) for a, b in np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])}
     nxt = {b: a for a, b in directed if (b, a) not in directed}  # boundary edges, reversed: walks each loop
     v, faces = [v], [f]

@@ -244,16 +244,58 @@ TEST_CASE("search_plans finds a stick figure's head, and a given up direction ru
     CHECK_FALSE(down.humanoid.score < kPlanLimit);
 }
 
-TEST_CASE("search_plans reads four legs under a horizontal spine as a quadruped", "[autorig]") {
-    // Spine along +x from the hips (origin) to the chest (x = 40), head forward and up, legs down.
-    Figure f(Vec(0, 0, 0), 8.0);
-    const std::uint32_t chest = f.limb(0, Vec(40, 0, 0), 8, 8);
-    const std::uint32_t head = f.limb(f.limb(chest, Vec(52, 0, 10), 4, 4), Vec(60, 0, 14), 5, 4);
-    for (double s : {-1.0, 1.0}) {
-        f.limb(f.limb(0, Vec(0, s * 8, -15), 4, 4), Vec(0, s * 8, -35), 4, 3);
-        f.limb(f.limb(chest, Vec(40, s * 8, -15), 4, 4), Vec(40, s * 8, -35), 4, 3);
+namespace {
+
+/// A quadruped standing along +z: hips at `o` (radius `hips`), spine along +x to the chest 40 ahead, neck and
+/// head tip forward and up (relative to the hips), legs down 35 (front feet `stride` apart along x: walking; front
+/// legs of radius `front`, hind legs 4), a tail along the polyline `tail` (relative to the hips; none when empty).
+struct Quadruped {
+    Vec neck = Vec(52, 0, 10), head = Vec(60, 0, 14);
+    double stride = 0, front = 4, hips = 8;
+    std::vector<Vec> tail;
+
+    /// The figure; its head's tip node in `head_tip`.
+    Figure figure(const Vec& o, std::uint32_t& head_tip) const {
+        Figure f(o, hips);
+        const std::uint32_t chest = f.limb(0, o + Vec(40, 0, 0), 8, 8);
+        head_tip = f.limb(f.limb(chest, o + neck, 4, 4), o + head, 5, 4);
+        for (double s : {-1.0, 1.0}) {
+            f.limb(f.limb(0, o + Vec(0, s * 8, -15), 4, 4), o + Vec(0, s * 8, -35), 4, 3);
+            const double x = 40 + 0.5 * s * stride;
+            f.limb(f.limb(chest, o + Vec(x, s * 8, -15), front, front), o + Vec(x, s * 8, -35), front, front - 1);
+        }
+        std::uint32_t at = 0;
+        for (std::size_t k = 0; k < tail.size(); ++k)
+            at = f.limb(at, o + tail[k], k == 0 ? 3 : 2.5, k == 0 ? 2.5 : 1.5);
+        return f;
     }
-    const NodeTree t = f.tree();
+};
+
+/// The quadruped body plan built on a figure in a solid 120 x 60 x 80 grid, told that up is +z.
+Candidate quadruped_rig(const Figure& f) {
+    const Solid solid(f, {120, 60, 80});
+    const PlanSearch s = search_plans(solid.tree, Vec(0, 0, 1));
+    REQUIRE(s.quadruped.score < kPlanLimit);
+    return build_plan(solid.context(), s.quadruped, false, 0.35);
+}
+
+/// How far the bones named tail* reach behind `o` along -x, and below it along -z.
+std::pair<double, double> tail_reach(const Rig& rig, const Vec& o) {
+    double back = 0, down = 0;
+    for (std::size_t k = 0; k < rig.names.size(); ++k)
+        if (rig.names[k].rfind("tail", 0) == 0) {
+            const auto& tip = rig.joints[rig.bones[k][1]];
+            back = std::max(back, o.x() - tip[0]);
+            down = std::max(down, o.z() - tip[2]);
+        }
+    return {back, down};
+}
+
+}  // namespace
+
+TEST_CASE("search_plans reads four legs under a horizontal spine as a quadruped", "[autorig]") {
+    std::uint32_t head = 0;
+    const NodeTree t = Quadruped().figure(Vec(0, 0, 0), head).tree();
     for (const auto& up : {std::optional<Vec>{}, std::optional<Vec>{Vec(0, 0, 1)}}) {
         const PlanSearch s = search_plans(t, up);
         REQUIRE(s.quadruped.score < kPlanLimit);
@@ -301,22 +343,11 @@ TEST_CASE("coarse: the object's box, factors to its own scale, and a majority do
 
 TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; the thicker end is the head",
           "[autorig]") {
-    // The quadruped of the case above, shifted into a grid, with a tail behind the hips.
     const Vec o(40, 30, 50);
-    Figure f(o, 8.0);
-    const std::uint32_t chest = f.limb(0, o + Vec(40, 0, 0), 8, 8);
-    f.limb(f.limb(chest, o + Vec(52, 0, 10), 4, 4), o + Vec(60, 0, 14), 5, 4);
-    for (double s : {-1.0, 1.0}) {
-        f.limb(f.limb(0, o + Vec(0, s * 8, -15), 4, 4), o + Vec(0, s * 8, -35), 4, 3);
-        f.limb(f.limb(chest, o + Vec(40, s * 8, -15), 4, 4), o + Vec(40, s * 8, -35), 4, 3);
-    }
-    f.limb(f.limb(0, o + Vec(-15, 0, 8), 3, 2.5), o + Vec(-30, 0, 4), 2.5, 1.5);
-    const Solid solid(f, {120, 60, 80});
-    const NodeTree& t = solid.tree;
-    const RigContext ctx = solid.context();
-    const PlanSearch s = search_plans(t, Vec(0, 0, 1));
-    REQUIRE(s.quadruped.score < kPlanLimit);
-    const Candidate c = build_plan(ctx, s.quadruped, false, 0.35);
+    Quadruped q;
+    q.tail = {Vec(-15, 0, 8), Vec(-30, 0, 4)};
+    std::uint32_t head = 0;
+    const Candidate c = quadruped_rig(q.figure(o, head));
     REQUIRE(c.rig.bones.size() > 21);
     const auto& names = c.rig.names;
     const auto tail = std::find(names.begin(), names.end(), "tail");
@@ -324,9 +355,7 @@ TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; 
     const auto b = static_cast<std::size_t>(tail - names.begin());
     CHECK(names[static_cast<std::size_t>(c.rig.parents[b])] == "hips");
     // the tail's chain ends at the tail's tip (extended to the grid's edge along its last bone at most 2 radii)
-    double far = 0;
-    for (std::size_t k = 0; k < names.size(); ++k)
-        if (names[k].rfind("tail", 0) == 0) far = std::max(far, o.x() - c.rig.joints[c.rig.bones[k][1]][0]);
+    const double far = tail_reach(c.rig, o).first;
     CHECK(far >= 29);
     CHECK(far <= 30 + 2 * 1.5 + 1);
     CHECK(std::count(names.begin(), names.end(), "head") == 1);
@@ -338,12 +367,12 @@ namespace {
 /// A hand in a grid, fingers along +y: a wrist stub from y = 10 up to the palm centre at y = 50 (thickest), the
 /// thumb leaving the palm at y = 30 out along -x and up (its tip raised along +z), four fingers from the palm
 /// centre to knuckles at y = 60 and up to their tips (the middle one longest). The tips in `tips`: thumb, index,
-/// middle, ring, pinky.
-Figure hand_figure(std::array<std::uint32_t, 5>& tips) {
+/// middle, ring, pinky. The palm centre's radius is `palm_radius` (a hand's: 9, twice the fingers').
+Figure hand_figure(std::array<std::uint32_t, 5>& tips, double palm_radius = 9) {
     const Vec o(60, 10, 30);
     Figure f(o, 7.0);
     const std::uint32_t thumb_base = f.limb(0, o + Vec(0, 20, 0), 8, 9);
-    const std::uint32_t palm = f.limb(thumb_base, o + Vec(0, 40, 0), 9, 9);
+    const std::uint32_t palm = f.limb(thumb_base, o + Vec(0, 40, 0), 9, palm_radius);
     tips[0] = f.limb(f.limb(thumb_base, o + Vec(-22, 32, 3), 5, 4.5), o + Vec(-36, 50, 8), 4.5, 3.5);
     const double x[4] = {-15, -5, 5, 15}, len[4] = {38, 42, 38, 30};
     for (int k = 0; k < 4; ++k)
@@ -379,10 +408,96 @@ TEST_CASE("search_hand finds the thumb and orders the fingers; hand_rig names 16
     CHECK(plans.quadruped.score > p.score);
 }
 
+TEST_CASE("search_hand: a palm five times thicker than its fingers is a body, no palm", "[autorig]") {
+    // A camel read as a hand: its hump the wrist, its body the palm, its legs the fingers, its neck the thumb.
+    std::array<std::uint32_t, 5> tips{};
+    const HandPlan thin = search_hand(hand_figure(tips).tree()), thick = search_hand(hand_figure(tips, 22).tree());
+    REQUIRE(thin.score < kPlanLimit);
+    CHECK(thick.score >= thin.score + 2.0);
+    CHECK_FALSE(thick.score < kPlanLimit);
+}
+
 TEST_CASE("a stick figure is no hand", "[autorig]") {
     std::uint32_t head = 0;
     Figure f = stick_figure(head);
     CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
     f.limb(0, Vec(0, -15, -5), 3, 2);  // a sixth extremity: a tail
     CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
+}
+
+TEST_CASE("build_plan keeps a tail hanging down along a thick rump", "[autorig]") {
+    // The tail's tip lies within two radii of the thick hips it hangs from, yet it sticks out of the body by
+    // several of its own radii: a part, not a bump.
+    const Vec o(40, 30, 50);
+    Quadruped q;
+    q.hips = 16;
+    q.tail = {Vec(-14, 0, 2), Vec(-17, 0, -22)};
+    std::uint32_t head = 0;
+    const Candidate c = quadruped_rig(q.figure(o, head));
+    CHECK(std::count(c.rig.names.begin(), c.rig.names.end(), "tail") == 1);
+    CHECK(tail_reach(c.rig, o).second >= 20);
+}
+
+TEST_CASE("a branch looping back into the body from a thin attachment is no extremity", "[autorig]") {
+    // A body (thick, along x) with a leg down; from the leg's middle a thick branch runs back up into the body (a
+    // thigh whose knee touches the other leg: the level-set tree hangs it from the knee). Measured from the thin
+    // node it hangs from it sticks out 18; it lies inside the body's balls.
+    Figure f(Vec(0, 0, 0), 10.0);
+    f.limb(0, Vec(30, 0, 0), 10, 9);
+    const std::uint32_t knee = f.limb(0, Vec(0, 0, -20), 4, 2);
+    const std::uint32_t foot = f.limb(knee, Vec(0, 0, -40), 2, 1.5);
+    const std::uint32_t loop = f.limb(knee, Vec(3, 4, -3), 3, 5);
+    const auto ext = f.tree().extremities();
+    REQUIRE(ext.size() == 3);
+    CHECK(ext[0].second == foot);
+    for (const auto& [significance, leaf] : ext)
+        if (leaf == loop) CHECK(significance < 0);
+}
+
+TEST_CASE("search_plans: a figure whose hands reach its feet is a poor humanoid", "[autorig]") {
+    std::uint32_t head = 0;
+    const PlanSearch standing = search_plans(stick_figure(head).tree(), Vec(0, 0, 1));
+    // The same figure with arms down to the ground (a quadruped's four feet read as legs and arms).
+    Figure f(Vec(0, 0, 0), 8.0);
+    const std::uint32_t chest = f.limb(0, Vec(0, 0, 30), 8, 7);
+    f.limb(f.limb(chest, Vec(0, 0, 36), 4, 4), Vec(0, 0, 45), 5, 4);
+    for (double s : {-1.0, 1.0}) {
+        const std::uint32_t elbow = f.limb(f.limb(chest, Vec(s * 10, 0, 30), 3, 3), Vec(s * 18, 0, 0), 2.5, 2.5);
+        f.limb(elbow, Vec(s * 20, 0, -45), 2, 1.5);
+        f.limb(f.limb(0, Vec(s * 6, 0, -22), 4.5, 4), Vec(s * 6, 0, -45), 4, 3);
+    }
+    const PlanSearch low = search_plans(f.tree(), Vec(0, 0, 1));
+    REQUIRE(standing.humanoid.score < kPlanLimit);
+    CHECK(low.humanoid.score >= standing.humanoid.score + 0.8 * kHandsAboveFeet);
+}
+
+
+TEST_CASE("search_plans: a walking quadruped looking aside keeps its head, not a front foot", "[autorig]") {
+    // One front foot forward, the head turned aside level with it: foot and head mirror each other about the
+    // spine's line as well as the two front feet do. But the two pairs must mirror across one midplane and the
+    // neck runs on beyond the chest: a foot taken for the head (and the head for an arm) breaks both.
+    Quadruped q;
+    q.neck = Vec(46, 15, 5);
+    q.head = Vec(48, 35, 0);
+    q.stride = 16;
+    std::uint32_t head = 0;
+    const NodeTree t = q.figure(Vec(0, 0, 0), head).tree();
+    for (const auto& up : {std::optional<Vec>{}, std::optional<Vec>{Vec(0, 0, 1)}}) {
+        const PlanSearch s = search_plans(t, up);
+        REQUIRE(s.quadruped.score < kPlanLimit);
+        CHECK(s.quadruped.head == head);
+    }
+}
+
+TEST_CASE("search_plans: a quadruped with thick front legs keeps its head at the front", "[autorig]") {
+    // Legs thicker than arms is a humanoid's rule: a bull's front legs may be its thickest; read backwards, its
+    // tail would be taken for the head.
+    Quadruped q;
+    q.front = 6;
+    q.tail = {Vec(-13, 0, 8), Vec(-26, 0, 4)};
+    std::uint32_t head = 0;
+    const NodeTree t = q.figure(Vec(0, 0, 0), head).tree();
+    const PlanSearch s = search_plans(t, Vec(0, 0, 1));
+    REQUIRE(s.quadruped.score < kPlanLimit);
+    CHECK(s.quadruped.head == head);
 }

@@ -126,11 +126,12 @@ def rotation_failures(name, points=POINTS, **kw):
 
 @pytest.mark.parametrize("name", [
     "phantom",
-    pytest.param("cow", marks=[slow, xfail("the cow is rigged as chains")]),
+    pytest.param("cow", marks=[slow, xfail("24/24 rotations give a quadruped but 4/24 the same joints")]),
     pytest.param("knight", marks=[slow, xfail("8/24 rotations give the knight's rig")]),
     pytest.param("hand", marks=[slow, xfail("6/24 rotations give the hand's rig")]),
     pytest.param("horse", marks=slow),
-    pytest.param("camel", marks=[slow, xfail("the camel is rigged as a humanoid")]),
+    pytest.param("camel", marks=[slow, xfail("24/24 rotations give a quadruped but 2/24 the same joints (its "
+                                             "knees touch: the level-set tree runs a thigh up from the other knee)")]),
     pytest.param("arm", marks=[slow, xfail("0/24 rotations give the arm's rig")]),
     pytest.param("lion", marks=[slow, xfail("1/24 rotations give the lion head's rig")]),
 ])
@@ -193,13 +194,23 @@ def test_arm_joints_on_tgf():
 
 @pytest.mark.parametrize("name", [
     "cow",
-    pytest.param("horse", marks=xfail("the horse's rig has no tail chain")),
-    pytest.param("camel", marks=xfail("the camel is rigged as a humanoid")),
+    pytest.param("horse", marks=xfail("horse_quad.obj has no tail (a round rump): the criterion cannot hold on it")),
+    "camel",
 ])
 def test_quadruped_head_at_head_end_and_tail_chain(name):
     s, sk, rig = rig_of(name)
     bad = S.quadruped_problems(s, rig)
     assert not bad, f"{name}: " + "; ".join(bad)
+
+
+@pytest.mark.parametrize("voxels", [120, 240])
+@pytest.mark.parametrize("name", ["cow", "horse", "camel"])
+def test_quadruped_kind_and_head_end_at_other_voxel_sizes(name, voxels):
+    """The kind must not depend on the voxel size (issue 16: an elephant was humanoid at one size and quadruped at
+    another); the tail too, where the mesh has one."""
+    s, sk, rig = rig_of(name, voxels=voxels)
+    bad = [b for b in S.quadruped_problems(s, rig) if name != "horse" or "tail" not in b]
+    assert not bad, f"{name} at {voxels} voxels: " + "; ".join(bad)
 
 
 def test_lion_is_only_a_head():

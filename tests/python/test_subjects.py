@@ -85,6 +85,22 @@ def test_hole_capping_closes_an_open_off_mesh(tmp_path):
     assert mask.array.sum() == 10 * 10 * 10
 
 
+def test_hole_capping_welds_a_slit_first():
+    """A mesh cut open along a seam (camel_b.obj: duplicated vertices along a slit) is closed by welding, not
+    capped by a fan across the body."""
+    from volrig import subjects
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    quads = [[0, 3, 2, 1], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7], [4, 5, 6, 7]]
+    # the top face on copies of its corners: a slit all round it
+    v = np.vstack([v, v[4:]])
+    quads[5] = [8, 9, 10, 11]
+    faces = np.array([[q[0], q[i], q[i + 1]] for q in quads for i in (1, 2)])
+    v2, f2 = subjects._close_holes(v, faces)
+    assert v2.shape == (8, 3) and f2.shape == (12, 3)
+    mask = __import__("volrig").voxelize(v2, f2, voxel_size=0.1)
+    assert mask.array.sum() == 10 * 10 * 10
+
+
 def test_rig_joint_maps_reference_names():
     from volrig import Rig, subjects
     rig = Rig(joints=[[0, 0, 0], [0, 0, -1], [0, 0, -2]], bones=[[0, 1], [1, 2]], names=["upper_arm.L",

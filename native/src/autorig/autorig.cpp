@@ -15,14 +15,17 @@
 // 2. node_tree: the nodes rooted at the largest-radius node; spurs pruned (a leaf branch goes when the leaf's ball
 //    lies inside the ball, scaled by prune_scale, of a node between its junction and the root); a path is rerooted
 //    at its thicker end. Leaves are ranked by significance: how far each leaf's branch (in the longest-path
-//    decomposition) sticks out of the ball where it attaches.
+//    decomposition) sticks out of the balls from where it attaches up to the root (a branch that loops back into
+//    the body from a thin node, as a thigh hung from a touching knee, is no extremity).
 // 3. templates: body plans are fitted and scored. Humanoid and quadruped: a discrete search over assignments of
 //    five of the seven most significant extremities to head, legs and arms, penalising pairs that do not mirror
-//    each other across the spine, significant extremities left out and legs thinner than arms; legs pointing away
-//    from the head make a humanoid, otherwise a quadruped; a given up direction excludes humanoids whose spine
-//    does not point up and quadrupeds whose limbs do not hang down. Hand (hand.cpp): six of the eight most
-//    significant extremities as a wrist and five fingers meeting on a palm, the thumb joining farthest from the
-//    others' junction. Neutral chains: chains between branch points.
+//    each other across one midplane through the spine, significant extremities left out, a head not ahead of the
+//    chest, and for a humanoid legs thinner than arms and hands as low as the feet; legs pointing away from the
+//    head make a humanoid, otherwise a quadruped; a given up direction excludes humanoids whose spine does not
+//    point up and quadrupeds whose limbs do not hang down. Parts left out that stick out of the body by a few of
+//    their own radii become extra chains (a quadruped's tail behind its spine's start). Hand (hand.cpp): six of
+//    the eight most significant extremities as a wrist and five fingers meeting on a palm, the thumb joining
+//    farthest from the others' junction. Neutral chains: chains between branch points.
 //    Every template that can be built is a candidate; body plans within their score limit win over chains; the
 //    runner-up is reported, and AutorigOptions::kind forces one.
 // 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in

@@ -10,6 +10,8 @@ namespace volrig::rigging {
 
 namespace {
 
+Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
+
 /// How far two limb tips x, y (meeting at `base`) are from mirroring each other across the body's midplane: both
 /// tips at the same place along the spine's line (through `pelvis` along `axis`) and at the same distance from it,
 /// relative to the limbs' length. Straight-line measures: paths through a cluttered trunk wander.
@@ -19,6 +21,41 @@ double mirror(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, std::uin
     const double tx = px.dot(axis), ty = py.dot(axis);
     const double rx = (px - tx * axis).norm(), ry = (py - ty * axis).norm();
     return (std::abs(tx - ty) + std::abs(rx - ry)) / std::max((t.at(x) - t.at(base)).norm() + (t.at(y) - t.at(base)).norm(), 1e-12);
+}
+
+/// A humanoid's arms hang from its chest and are shorter than its torso and legs: its hands stay well above its
+/// feet along the spine (at mid-thigh when hanging, higher when raised). How far short of a quarter of the legs'
+/// length above the feet they stay: 0 for a humanoid, about 0.25 or more for a quadruped's four feet on the
+/// ground read as legs and arms.
+double hands_at_feet(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, const std::uint32_t (&legs)[2],
+                     const std::uint32_t (&arms)[2]) {
+    double feet = 0, hands = 0, leg_length = 0;
+    for (int s = 0; s < 2; ++s) {
+        feet += 0.5 * (t.at(legs[s]) - t.at(pelvis)).dot(axis);
+        hands += 0.5 * (t.at(arms[s]) - t.at(pelvis)).dot(axis);
+        leg_length += 0.5 * (t.at(legs[s]) - t.at(pelvis)).norm();
+    }
+    return std::max(0.0, kHandsAboveFeet - (hands - feet) / std::max(leg_length, 1e-12));
+}
+
+/// What a humanoid reading must also meet: its legs carry it (thicker than its arms; a quadruped's front and hind
+/// legs may go either way) and its hands stay above its feet (hands_at_feet).
+double humanoid_penalty(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, const Vec& axis,
+                        const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    const double rl = 0.5 * (t.mean_radius(t.path(pelvis, legs[0])) + t.mean_radius(t.path(pelvis, legs[1])));
+    const double ra = 0.5 * (t.mean_radius(t.path(chest, arms[0])) + t.mean_radius(t.path(chest, arms[1])));
+    return (rl < ra ? 0.25 : 0.0) + hands_at_feet(t, pelvis, axis, legs, arms);
+}
+
+/// What any reading must meet beyond mirrored pairs: both pairs mirror across one midplane (the directions
+/// between their tips, across the spine, agree), and the neck continues the spine beyond the chest (forward, up
+/// or between: kHeadAhead), so a limb hanging across the spine is no head.
+double body_penalty(const NodeTree& t, std::uint32_t chest, const Vec& axis, std::uint32_t head,
+                    const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    const Vec across_legs = perp(t.at(legs[0]) - t.at(legs[1]), axis).normalized();
+    const Vec across_arms = perp(t.at(arms[0]) - t.at(arms[1]), axis).normalized();
+    const double ahead = (t.at(head) - t.at(chest)).normalized().dot(axis);
+    return 1.0 - std::abs(across_legs.dot(across_arms)) + std::max(0.0, kHeadAhead - ahead);
 }
 
 /// Every assignment of five extremities to head, legs, arms, kept in `best` when better than its kind's.
@@ -36,26 +73,22 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 // branch joins the spine.
                 const std::uint32_t pelvis = t.median(A, B, H), chest = t.median(pelvis, t.median(C, D, H), H);
                 if (pelvis == chest) continue;
-                const Vec axis = (t.at(H) - t.at(pelvis)).normalized();
+                const Vec axis = (t.at(chest) - t.at(pelvis)).normalized();
                 double score = mirror(t, pelvis, axis, A, B, pelvis) + mirror(t, pelvis, axis, C, D, chest) + leave_penalty;
-                const double rl = 0.5 * (t.mean_radius(t.path(pelvis, A)) + t.mean_radius(t.path(pelvis, B)));
-                const double ra = 0.5 * (t.mean_radius(t.path(chest, C)) + t.mean_radius(t.path(chest, D)));
-                if (rl < ra) score += 0.25;  // legs carry the body: thicker than arms
                 if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
-                const Vec spine = (t.at(chest) - t.at(pelvis)).normalized();
+                score += body_penalty(t, chest, axis, H, {A, B}, {C, D});
                 const Vec legs = (0.5 * (t.at(A) + t.at(B)) - t.at(pelvis)).normalized();
-                const bool humanoid = legs.dot(spine) < -0.5;
+                const bool humanoid = legs.dot(axis) < -0.5;
+                if (humanoid) score += humanoid_penalty(t, pelvis, chest, axis, {A, B}, {C, D});
                 if (up) {
                     const Vec limbs = (t.at(A) - t.at(pelvis)).normalized() + (t.at(B) - t.at(pelvis)).normalized() +
                                       (t.at(C) - t.at(chest)).normalized() + (t.at(D) - t.at(chest)).normalized();
-                    if (humanoid ? spine.dot(*up) < 0.5 : 0.25 * limbs.dot(*up) > -0.3) continue;  // limbs hang down
+                    if (humanoid ? axis.dot(*up) < 0.5 : 0.25 * limbs.dot(*up) > -0.3) continue;  // limbs hang down
                 }
                 Plan& slot = humanoid ? best.humanoid : best.quadruped;
                 if (score < slot.score) slot = Plan{H, {A, B}, {C, D}, score};
             }
 }
-
-Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
 
 }  // namespace
 

@@ -18,7 +18,21 @@ std::string unused_base(const Rig& rig, const std::string& base) {
     return out;
 }
 
-bool is_back_end(const std::string& bone) { return bone == "hips" || bone.rfind("pelvis", 0) == 0; }
+/// A joint of a named bone (0: its head, 1: its tail); the bone exists in a body plan's rig.
+Vec joint_of(const Rig& rig, const std::string& bone, int end) {
+    const auto b = static_cast<std::size_t>(std::find(rig.names.begin(), rig.names.end(), bone) - rig.names.begin());
+    const auto& j = rig.joints[rig.bones[b][static_cast<std::size_t>(end)]];
+    return Vec(j[0], j[1], j[2]);
+}
+
+/// A quadruped's tail: a part hanging from the back of the trunk (hips, spine or pelvis) whose tip lies behind the
+/// spine's start along the trunk (spine to chest). The tree may join the rump to the spine a little forward of the
+/// hips, and hips may sit low when the hind legs touch.
+bool is_tail(const Rig& rig, const std::string& owner, const Vec& tip) {
+    if (owner != "hips" && owner != "spine" && owner.rfind("pelvis", 0) != 0) return false;
+    const Vec start = joint_of(rig, "spine", 0);
+    return (tip - start).dot(joint_of(rig, "chest", 1) - start) < 0;
+}
 
 }  // namespace
 
@@ -33,8 +47,11 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         std::uint32_t at = leaf;
         while (t.parent(at) != kNone && b.bone_of(at) < 0) nodes.push_back(at = t.parent(at));
         const std::int32_t parent = b.bone_of(at);
-        // A part: its tip lies beyond twice the radius where it attaches (bumps and stubs are no parts).
-        if (parent < 0 || nodes.size() < 3 || (t.at(leaf) - t.at(at)).norm() < kExtraReach * t.radius(at)) continue;
+        // A part sticks out of the body by a few of its own radii (bumps and stubs are no parts), however thick
+        // the body is where it attaches (a tail hanging down along the rump).
+        nodes.pop_back();  // `at`: the body's
+        if (parent < 0 || nodes.size() < 2 || significance < kExtraReach * t.mean_radius(nodes)) continue;
+        nodes.push_back(at);
         std::reverse(nodes.begin(), nodes.end());
         const Chain4 samples = c.samples(nodes);
         Fit fit;
@@ -44,7 +61,8 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         }
         if (fit.cuts.size() < 2) continue;
         const std::string& owner = b.rig().names[static_cast<std::size_t>(parent)];
-        const std::string base = unused_base(b.rig(), quadruped && is_back_end(owner) ? "tail" : "chain." + owner);
+        const bool tail = quadruped && is_tail(b.rig(), owner, t.at(leaf));
+        const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;
     }

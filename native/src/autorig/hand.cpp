@@ -76,6 +76,8 @@ double hand_penalty(const NodeTree& t, std::uint32_t wrist, const std::array<std
     double score = 0.5 * spread(len) + 0.5 * spread(rad) + apart / finger + 0.5 * backwards;
     const double wrist_radius = t.mean_radius(t.path(wrist, c));
     if (wrist_radius < *std::max_element(rad.begin(), rad.end())) score += 0.25;  // a thick wrist
+    // A palm is a plate, not a body several times thicker than its legs (a camel's hump, body and legs).
+    score += std::max(0.0, t.radius(c) / (0.25 * std::accumulate(rad.begin(), rad.end(), 0.0)) - kPalmThickness);
     // A thumb no longer than one and a half fingers, thinner than the wrist.
     const std::vector<std::uint32_t> thumb = t.path(thumb_base, f[0]);
     score += std::max(0.0, path_length(t, thumb) / finger - 1.5);

@@ -121,9 +121,12 @@ std::vector<std::pair<double, std::uint32_t>> NodeTree::extremities() const {
     for (std::uint32_t l : leaves()) {
         std::uint32_t t = l;
         while (t != root_ && heavy[parent_[t]] == t) t = parent_[t];
-        const std::uint32_t top = t == root_ ? root_ : parent_[t];
-        // How far the branch sticks out of the ball where it attaches (internal wandering does not count).
-        out.emplace_back((at(l) - at(top)).norm() - radius(top), l);
+        // How far the branch sticks out of the balls from where it attaches up to the root (internal wandering
+        // does not count, nor a branch that loops back inside the body from a thin attachment).
+        double outside = std::numeric_limits<double>::infinity();
+        for (std::uint32_t k = t == root_ ? root_ : parent_[t]; k != kNone; k = parent_[k])
+            outside = std::min(outside, (at(l) - at(k)).norm() - radius(k));
+        out.emplace_back(outside, l);
     }
     std::sort(out.begin(), out.end(),
               [](const auto& a, const auto& b) { return a.first != b.first ? a.first > b.first : a.second < b.second; });

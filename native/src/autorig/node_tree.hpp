@@ -36,7 +36,8 @@ public:
     /// When the kept nodes form a path, reroots it at its thicker end (its bones then run outward from there).
     void root_path_at_thicker_end();
     /// Leaves by descending significance: each leaf's branch in the longest-path decomposition of the rooted tree
-    /// attaches at a node; the significance is how far the leaf lies outside that node's ball.
+    /// attaches at a node; the significance is how far the leaf lies outside the balls of that node and of every
+    /// node between it and the root (the body it sticks out of, however thin the node it hangs from).
     std::vector<std::pair<double, std::uint32_t>> extremities() const;
 
     std::uint32_t lca(std::uint32_t a, std::uint32_t b) const;

@@ -26,6 +26,12 @@ struct Plan {
     double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
 };
 constexpr double kPlanLimit = 0.6;
+/// A humanoid's hand tips lie at least this fraction of its legs' length above its foot tips along the spine (a
+/// shortfall is added to the score: four feet on the ground are no humanoid's hands and feet).
+constexpr double kHandsAboveFeet = 0.25;
+/// The head's tip lies ahead of the chest along the spine: the cosine between chest -> head tip and pelvis -> chest
+/// is at least this (a camel's neck rises at about 45 degrees; a limb hangs across the spine); a shortfall is added.
+constexpr double kHeadAhead = 0.25;
 
 struct PlanSearch {
     Plan humanoid, quadruped;
@@ -33,8 +39,9 @@ struct PlanSearch {
 
 /// Discrete search over the assignments of five of the seven most significant extremities (the two most
 /// significant always in) to head, legs and arms. Penalties: pairs not mirroring each other across the spine
-/// (tip height along the spine and distance from it), significant extremities left out, legs thinner than arms, a
-/// head thinner than an extremity left out (a tail).
+/// (tip height along the spine and distance from it), significant extremities left out, a head thinner than an
+/// extremity left out (a tail), a head not ahead of the chest (kHeadAhead), and for a humanoid, legs thinner than
+/// arms and hands as low as its feet (kHandsAboveFeet).
 /// A humanoid's legs point away from its head (and, with `up`, its spine points up); a quadruped's do not (and,
 /// with `up`, its limbs hang down). The best assignment of each kind.
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
@@ -48,9 +55,10 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
 
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
-/// (at most kMaxExtraChains), whose tip lies beyond kExtraReach radii of the node they hang from, become chains
-/// parented to the bone holding that node, cut at bends like neutral chains (at most 4 bones). Named tail, tail.001,
-/// ... when a quadruped's hang from its hips or pelvis, else chain.<parent bone>, chain.<parent bone>.001, ...
+/// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
+/// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
+/// cut at bends like neutral chains (at most 4 bones). Named tail, tail.001, ... when a quadruped's hang from its
+/// hips, spine or pelvis with the tip behind the hips, else chain.<parent bone>, chain.<parent bone>.001, ...
 constexpr int kMaxExtraChains = 6;
 constexpr double kExtraReach = 2.0;
 void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
@@ -67,8 +75,12 @@ struct HandPlan {
 /// fingers. The thumb is the finger whose base lies farthest from where the other four meet. Penalties for the
 /// other four: unequal lengths (from the palm centre) and thicknesses, bases away from the palm centre (relative
 /// to the finger length), tips pointing back towards the wrist; a wrist thinner than a finger, a wrist stub longer
-/// than twice a finger (an arm), a thumb joining beyond the palm centre, significant extremities left out.
+/// than twice a finger (an arm), a thumb joining beyond the palm centre, a palm centre more than kPalmThickness
+/// times as thick as the fingers, significant extremities left out.
 HandPlan search_hand(const NodeTree& t);
+/// A palm is a plate about as thick as its fingers (a human's palm radius is under twice their mean radius); the
+/// excess of the ratio over this is added to a hand's score: a body several times thicker than its legs is none.
+constexpr double kPalmThickness = 2.5;
 
 /// The hand's rig: "palm" from the wrist end to the palm centre, then per finger three bones parented to it,
 /// thumb.01..03 from where the thumb leaves the palm (cut at its bends), f_index / f_middle / f_ring / f_pinky
