@@ -67,7 +67,7 @@ void bind_rig(py::module_& m) {
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
            const EdgeArray& edges, int bones, double prune_scale, double tolerance, bool roles,
-           const std::string& kind, const std::optional<Vec3>& up, const py::object& progress) {
+           const std::string& kind, const std::optional<Vec3>& up, bool own_scale, const py::object& progress) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             const PointSet pts = point_set(ijk, &radius, "autorig");
             const auto e = edges_of(edges);
@@ -77,6 +77,7 @@ void bind_rig(py::module_& m) {
             opt.tolerance = tolerance;
             opt.roles = roles;
             opt.kind = kind;
+            opt.own_scale = own_scale;
             if (up) opt.up = std::array<double, 3>{(*up)[0], (*up)[1], (*up)[2]};
             Progress p = progress_of(progress);
             Rig r;
@@ -101,7 +102,7 @@ void bind_rig(py::module_& m) {
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
         py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"), py::arg("kind") = "",
-        py::arg("up") = py::none(), py::arg("progress") = py::none());
+        py::arg("up") = py::none(), py::arg("own_scale") = true, py::arg("progress") = py::none());
 
     m.def(
         "bind",

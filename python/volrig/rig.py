@@ -222,14 +222,14 @@ KINDS = tuple(_volrig.AUTORIG_KINDS)
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
             prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
-            detail: Optional[list] = None, kind: Optional[str] = None, up=None) -> Rig:
+            detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
     Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
     ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
-    When the volume is finer than autorig's own scale (about 400 voxels along the object's longest extent), the rig
-    is made from the object resampled there, whatever ``points`` and ``tree`` hold (they then only give each joint's
-    ``joint_points``, the nearest point): the same object gives the same rig at any point count.
+    The rig is made from the object's own skeleton at autorig's scale (the object resampled to about 400 voxels
+    along its longest extent when finer), whatever ``points`` and ``tree`` hold (they then only give each joint's
+    ``joint_points``, the nearest point): the same object gives the same rig at any point count and resolution.
 
     bones:       bone count target (default 24). Humanoid and quadruped shapes get their 21 role bones when the
                  target allows at least 21; other shapes get at most this many bones along their chains.
@@ -245,6 +245,9 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  for it (five for a humanoid or quadruped; six for a hand: a wrist and five fingers).
     up:          the world's up direction in the volume's frame (x, y, z), when known (e.g. the scene's +Z). A
                  humanoid's spine must then point up and a quadruped's limbs down. None: inferred.
+    own_scale:   False rigs ``points`` and ``tree`` themselves (the rig then depends on how many points were kept):
+                 for thin, fragmented objects (bones without flesh, like the frog's tissue labels) whose thin parts
+                 a dense skeleton holds better than autorig's own.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
@@ -255,7 +258,8 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     if up is not None:  # bones, kind and up are checked by the core
         up = tuple(float(u) for u in np.asarray(up, dtype=np.float64).reshape(3))
     d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
-                        float(prune_scale), float(tolerance), bool(roles), kind or "", up, progress)
+                        float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(own_scale),
+                        progress)
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"]))

@@ -229,6 +229,46 @@ TEST_CASE("limb_fit finds a standing leg's hip, ankle and a knee halfway between
     CHECK(std::abs(static_cast<int>(f.cuts[3]) - 100) <= 1);  // the ankle at the corner
 }
 
+TEST_CASE("restore_proximal moves a hidden shoulder out to its proportion, inside the object", "[autorig]") {
+    Grid g;
+    g.dims = {10, 10, 80};
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
+    const NodeTree t({Vec(5, 5, 5)}, {1.0}, {});
+    const std::vector<std::int32_t> ijk{5, 5, 5};
+    const std::vector<float> r{1.0f};
+    const PointSet pts{ijk.data(), r.data(), 1};
+    const std::vector<std::uint32_t> rep{0};
+    const RigContext c{g, mask.data(), pts, t, rep};
+    // shoulder 0 -> 1, upper_arm 1 -> 2 (10 long), forearm 2 -> 3 (20 long) along z.
+    auto arm = [] {
+        Rig rig;
+        rig.joints = {{5, 5, 40}, {5, 5, 30}, {5, 5, 20}, {5, 5, 0}};
+        rig.joint_points = {0, 0, 0, 0};
+        rig.bones = {{0, 1}, {1, 2}, {2, 3}};
+        rig.names = {"shoulder", "upper_arm", "forearm"};
+        rig.parents = {-1, 0, 1};
+        return rig;
+    };
+    Rig rig = arm();
+    restore_proximal(c, rig, "upper_arm", "forearm", 1.5);  // wants 30: the shoulder moves from z 30 to 50
+    CHECK(rig.joints[1][2] == Approx(50).margin(0.5));
+    CHECK(rig.joints[1][0] == Approx(5));
+    CHECK(rig.joint_points[1] == -1);
+    // The object ends at z 45: the shoulder stops inside it.
+    for (std::int64_t z = 46; z < 80; ++z)
+        for (std::int64_t y = 0; y < 10; ++y)
+            for (std::int64_t x = 0; x < 10; ++x) mask[static_cast<std::size_t>(g.index(x, y, z))] = 0;
+    rig = arm();
+    restore_proximal(c, rig, "upper_arm", "forearm", 1.5);
+    CHECK(rig.joints[1][2] == Approx(45).margin(0.6));
+    // Long enough (10 >= 0.8 x 0.5 x 20): unchanged; a missing bone: unchanged.
+    rig = arm();
+    restore_proximal(c, rig, "upper_arm", "forearm", 0.5);
+    CHECK(rig.joints[1][2] == 30);
+    restore_proximal(c, rig, "upper_arm", "hand", 1.5);
+    CHECK(rig.joints[1][2] == 30);
+}
+
 TEST_CASE("search_plans finds a stick figure's head, and a given up direction rules out its upside-down reading",
           "[autorig]") {
     std::uint32_t head = 0;

@@ -6,14 +6,13 @@ import volrig
 from conftest import shared
 
 
-@pytest.mark.xfail(strict=False, reason="issue 16: autorig rigs its own skeleton now (1% of the frog's voxels, not the "
-                   "caller's 40,000 points): the frog (organs and bones, no skin) comes out as chains; its quadruped "
-                   "plan scores over the limit (kind='quadruped' forces it)")
 def test_frog_gets_four_legs_a_spine_and_a_head():
     vol = volrig.load(str(shared("frogtissue/frogtissue.mhd")))
     mask = volrig.segment(vol)
     pts = volrig.skeletonize(mask).top(40000)
-    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    # Organs and thin bones without flesh: the 40,000 points kept hold the thin leg bones (autorig's own skeleton,
+    # 1% of the voxels, loses them: see the README's known limits).
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask, own_scale=False)
     assert rig.kind == "quadruped"  # its legs do not point away from its head
     tip = lambda name: rig.tails()[rig.index(name)]  # noqa: E731
     # the frog lies along +x: snout near x = 470, hind feet at x < 200, front feet beside the trunk

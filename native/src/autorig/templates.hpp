@@ -26,6 +26,9 @@ struct Plan {
     double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
 };
 constexpr double kPlanLimit = 0.6;
+/// A humanoid's upper arm or thigh shorter than this share of its proportional length (from the forearm or shin)
+/// has its proximal end hidden in the trunk: it is moved out (build_plan).
+constexpr double kHiddenEnd = 0.8;
 /// A humanoid's hand tips lie at least this fraction of its legs' length above its foot tips along the spine (a
 /// shortfall is added to the score: four feet on the ground are no humanoid's hands and feet).
 constexpr double kHandsAboveFeet = 0.25;
@@ -53,6 +56,14 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 /// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
 /// bones when its chains are too short to cut.
 Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
+
+/// A limb whose proximal bone (upper arm, thigh) comes out shorter than kHiddenEnd times `ratio` times the next
+/// one (forearm, shin) had its proximal end hidden in the trunk: where an arm lies against the trunk, its medial
+/// axis leaves the trunk at the armpit, not at the humeral head. That end moves out along the bone's line (away
+/// from the distal joint) to the proportional length, as far as the object reaches; it is a free joint then
+/// (joint_points -1). Nothing changes when either bone is missing.
+void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
+                      double ratio);
 
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
