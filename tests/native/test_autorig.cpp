@@ -229,6 +229,29 @@ TEST_CASE("limb_fit finds a standing leg's hip, ankle and a knee halfway between
     CHECK(std::abs(static_cast<int>(f.cuts[3]) - 100) <= 1);  // the ankle at the corner
 }
 
+TEST_CASE("limbs_carry: a body's limbs carry its head; an arm's fingers do not carry the rest of it", "[autorig]") {
+    std::uint32_t head = 0;
+    const Figure stick = stick_figure(head);
+    const NodeTree t = stick.tree();
+    // The stick figure: pelvis node 0, chest at z = 30; its limb tips are the leaves other than the head.
+    std::vector<std::uint32_t> tips;
+    for (std::uint32_t l : t.leaves())
+        if (l != head) tips.push_back(l);
+    REQUIRE(tips.size() == 4);
+    std::uint32_t chest = 0;
+    for (std::uint32_t v = 0; v < stick.pos.size(); ++v)
+        if ((stick.pos[v] - Vec(0, 0, 30)).norm() < 0.5) chest = v;
+    const std::uint32_t legs[2] = {tips[0], tips[1]}, arms[2] = {tips[2], tips[3]};
+    CHECK(limbs_carry(t, 0, chest, head, legs, arms));
+    // An arm: the "head" is the shoulder end 100 away from a palm whose "limbs" are fingers 8 long.
+    Figure arm(Vec(0, 0, 0), 3.0);
+    const std::uint32_t shoulder_end = arm.limb(0, Vec(-100, 0, 0), 3, 4);
+    std::uint32_t fingers[4];
+    for (int k = 0; k < 4; ++k) fingers[k] = arm.limb(0, Vec(8, 2.0 * k - 3, 0), 1, 0.8);
+    const NodeTree a = arm.tree();
+    CHECK_FALSE(limbs_carry(a, 0, 0, shoulder_end, {fingers[0], fingers[1]}, {fingers[2], fingers[3]}));
+}
+
 TEST_CASE("restore_proximal moves a hidden shoulder out to its proportion, inside the object", "[autorig]") {
     Grid g;
     g.dims = {10, 10, 80};

@@ -25,9 +25,6 @@ def test_frog_gets_four_legs_a_spine_and_a_head():
     assert {"hips", "spine", "chest"} <= set(rig.names)
 
 
-@pytest.mark.xfail(strict=False, reason="issue 16: the arm voxelized at 0.01 (187 voxels long) is rigged as a quadruped "
-                   "(fit 0.23, chains 0.40): a body plan within its score limit wins over chains; at 0.012 and in "
-                   "autorig_eval (160 voxels) it is chains")
 def test_libigl_arm_joints_are_found():
     v, f = volrig.read_mesh(str(shared("meshes/arm.obj")))
     joints, edges = volrig.read_tgf(str(shared("meshes/arm.tgf")))

@@ -72,7 +72,7 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where that
                 // branch joins the spine.
                 const std::uint32_t pelvis = t.median(A, B, H), chest = t.median(pelvis, t.median(C, D, H), H);
-                if (pelvis == chest) continue;
+                if (pelvis == chest || !limbs_carry(t, pelvis, chest, H, {A, B}, {C, D})) continue;
                 const Vec axis = (t.at(chest) - t.at(pelvis)).normalized();
                 double score = mirror(t, pelvis, axis, A, B, pelvis) + mirror(t, pelvis, axis, C, D, chest) + leave_penalty;
                 if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
@@ -101,6 +101,14 @@ bool inside(const RigContext& c, const Vec& q) {
 }
 
 }  // namespace
+
+bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
+                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    double reach = 0;
+    for (int s = 0; s < 2; ++s)
+        reach += 0.25 * ((t.at(legs[s]) - t.at(pelvis)).norm() + (t.at(arms[s]) - t.at(chest)).norm());
+    return reach >= kLimbsToHead * (t.at(head) - t.at(chest)).norm();
+}
 
 void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
                       double ratio) {

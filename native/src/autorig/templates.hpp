@@ -29,6 +29,8 @@ constexpr double kPlanLimit = 0.6;
 /// A humanoid's upper arm or thigh shorter than this share of its proportional length (from the forearm or shin)
 /// has its proximal end hidden in the trunk: it is moved out (build_plan).
 constexpr double kHiddenEnd = 0.8;
+/// A body plan's limbs reach on average at least this share of its head's reach (limbs_carry in body_plan.cpp).
+constexpr double kLimbsToHead = 0.25;
 /// A humanoid's hand tips lie at least this fraction of its legs' length above its foot tips along the spine (a
 /// shortfall is added to the score: four feet on the ground are no humanoid's hands and feet).
 constexpr double kHandsAboveFeet = 0.25;
@@ -56,6 +58,12 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 /// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
 /// bones when its chains are too short to cut.
 Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
+
+/// Whether the four limbs carry a body: their mean reach (tip from the pelvis or chest) is at least kLimbsToHead
+/// times the head's (tip from the chest). A long object with a few short branches at one end (an arm with its
+/// fingers) is no body whose head is the rest of it; search_plans skips such readings.
+bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
+                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]);
 
 /// A limb whose proximal bone (upper arm, thigh) comes out shorter than kHiddenEnd times `ratio` times the next
 /// one (forearm, shin) had its proximal end hidden in the trunk: where an arm lies against the trunk, its medial
