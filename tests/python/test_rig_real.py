@@ -43,3 +43,15 @@ def test_libigl_arm_joints_are_found():
         assert nearest <= 2 * local_radius, (j, nearest, local_radius)
     # a rig, not a joint per voxel: the arm and five fingers need few bones
     assert len(rig) <= 24
+
+
+def test_a_thin_shell_is_rigged_from_the_points_given():
+    # lion.off is a head open at the back: voxelized as it is, only its shell (about 3,000 voxels) is object, and
+    # autorig's own skeleton of it has no branch; autorig then rigs the points given instead of failing.
+    v, f = volrig.read_mesh(str(shared("meshes/lion.off")))
+    mask = volrig.voxelize(v, f, float(np.ptp(v, axis=0).max()) / 160)
+    assert mask.array.sum() < 5000
+    pts = volrig.skeletonize(mask).top(15000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    assert len(rig) >= 4
+    assert set(rig.joint_points[rig.joint_points >= 0]) <= set(range(len(pts)))

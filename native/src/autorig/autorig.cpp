@@ -154,6 +154,26 @@ void fill_detail(const Grid& g, const PointSet& pts, const rigging::LevelSetTree
     d.node_kept = tree.kept();
 }
 
+/// Stages 1-3 on the points rigged (rg, rmask, rpts, redges): every template's candidate, best first; `detail`
+/// (about the caller's grid g and points pts) filled on the way.
+std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, const PointSet& rpts,
+                                     const std::vector<std::array<std::uint32_t, 2>>& redges, const AutorigOptions& opt,
+                                     const Progress& progress, const Grid& g, const PointSet& pts,
+                                     AutorigDetail* detail) {
+    report(progress, 0.3);
+    const rigging::LevelSetTree lst = rigging::shape_tree(rg, rmask, rpts, redges, progress);
+    report(progress, 0.5);
+    rigging::NodeTree tree(lst.centroid, lst.radius, lst.edges);
+    tree.prune(opt.prune_scale);
+    tree.root_path_at_thicker_end();
+    report(progress, 0.7);
+    if (detail) {
+        *detail = AutorigDetail{};
+        fill_detail(g, pts, lst, tree, *detail);
+    }
+    return candidates(rigging::RigContext{rg, rmask, rpts, tree, lst.rep}, opt);
+}
+
 }  // namespace
 
 Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
@@ -164,22 +184,17 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     if (pts.n < 2) throw Error("autorig: needs at least 2 skeleton points, got " + std::to_string(pts.n));
     check_options(pts, edges, opt);
 
+    // Autorig's own skeleton first; when it has no branch to rig (a thin shell, a few voxels), the caller's points.
     rigging::CoarseShape coarse;
     if (opt.own_scale) coarse = rigging::coarse_shape(g, mask);
-    const bool own = coarse.radius.size() >= 2;  // else the object is too small to resample: the caller's points
-    const Grid& rg = own ? coarse.grid : g;
-    const std::uint8_t* rmask = own ? coarse.mask.data() : mask;
-    const PointSet rpts = own ? coarse.points() : pts;
-    report(progress, 0.3);
-    const rigging::LevelSetTree lst = rigging::shape_tree(rg, rmask, rpts, own ? coarse.edges : edges, progress);
-    report(progress, 0.5);
-    rigging::NodeTree tree(lst.centroid, lst.radius, lst.edges);
-    tree.prune(opt.prune_scale);
-    tree.root_path_at_thicker_end();
-    report(progress, 0.7);
-    if (detail) fill_detail(g, pts, lst, tree, *detail);
-    const rigging::RigContext ctx{rg, rmask, rpts, tree, lst.rep};
-    std::vector<Candidate> found = candidates(ctx, opt);
+    bool own = coarse.radius.size() >= 2;
+    std::vector<Candidate> found = own ? fit_templates(coarse.grid, coarse.mask.data(), coarse.points(), coarse.edges,
+                                                       opt, progress, g, pts, detail)
+                                       : std::vector<Candidate>{};
+    if (found.empty()) {
+        own = false;
+        found = fit_templates(g, mask, pts, edges, opt, progress, g, pts, detail);
+    }
     if (found.empty()) throw Error("autorig: the skeleton-tree has no branch to make a bone of");
     Rig rig = std::move(found[0].rig);
     if (own) {  // joints sit on the caller's nearest points
