@@ -152,9 +152,9 @@ def main(argv=None):
     if "vhm4" in only:
         if os.path.exists(vhm):
             labels = volrig.load(vhm)
-            body = volrig.Volume(((labels.array != 0) & (labels.array != 2)).astype(np.uint8), labels.spacing,
-                                 labels.origin)
-            draw(rig_case("Visible Human (AustinMan 4 mm, labels other than 0 and air)", body, 15000),
+            # The body: every label but the outside air (0), its internal air (gut gas, airways) included.
+            body = volrig.Volume((labels.array != 0).astype(np.uint8), labels.spacing, labels.origin)
+            draw(rig_case("Visible Human (AustinMan 4 mm, labels other than 0)", body, 15000),
                  os.path.join(args.out, "rig_vhm4.png"), views=((0, 2), (1, 2)))
         else:
             print(f"skipping the Visible Human: {vhm} is absent")
