@@ -2,6 +2,7 @@
 #include "autorig/shape_tree.hpp"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <numeric>
 #include <tuple>
@@ -110,15 +111,27 @@ LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGr
     for (std::size_t i = 0; i < n; ++i)
         if (std::isfinite(dist[i])) level[i] = static_cast<std::int64_t>(dist[i] / band);
     level_pieces(pts, pos, graph, level, t);
-    // Links between pieces, reduced to a spanning tree (Kruskal by centroid distance).
-    std::vector<std::tuple<double, std::uint32_t, std::uint32_t>> links;
+    // Links between pieces, reduced to a spanning tree (Kruskal by centroid distance over the link's strength
+    // squared): a link is as strong as the thickest graph edge joining the two pieces, relative to the thinner
+    // piece (its smaller end radius over that piece's radius). Within a limb and where it grows out of the trunk
+    // the axis runs on at the limb's own radius (about 1); where a limb only touches the body (a hand on the
+    // pelvis, an arm against the trunk, knees together) the pieces meet through thin crease points: weak links,
+    // cut first where they close a loop.
+    std::map<std::pair<std::uint32_t, std::uint32_t>, double> strength;
     for (std::uint32_t v = 0; v < n; ++v)
         for (std::uint32_t e = graph.offsets[v]; e < graph.offsets[v + 1]; ++e) {
-            const std::uint32_t a = t.node_of_point[v], b = t.node_of_point[graph.targets[e]];
-            if (a != kNone && b != kNone && a < b) links.emplace_back((t.centroid[a] - t.centroid[b]).norm(), a, b);
+            const std::uint32_t w = graph.targets[e], a = t.node_of_point[v], b = t.node_of_point[w];
+            if (a == kNone || b == kNone || a >= b) continue;
+            const double s = std::min(pts.radius[v], pts.radius[w]) / std::min(t.radius[a], t.radius[b]);
+            double& best = strength[{a, b}];
+            best = std::max(best, s);
         }
+    std::vector<std::tuple<double, std::uint32_t, std::uint32_t>> links;
+    for (const auto& [ab, s] : strength) {
+        const double weak = std::max(std::min(s, 1.0), kWeakestLink);
+        links.emplace_back((t.centroid[ab.first] - t.centroid[ab.second]).norm() / (weak * weak), ab.first, ab.second);
+    }
     std::sort(links.begin(), links.end());
-    links.erase(std::unique(links.begin(), links.end()), links.end());
     detail::DisjointSets nodes(t.centroid.size());
     for (const auto& [w, a, b] : links)
         if (nodes.unite(a, b)) t.edges.push_back({a, b});
