@@ -6,13 +6,21 @@ import volrig
 from conftest import shared
 
 
-def test_frog_gets_four_legs_a_spine_and_a_head():
+def frog_rig(**kw):
     vol = volrig.load(str(shared("frogtissue/frogtissue.mhd")))
     mask = volrig.segment(vol)
     pts = volrig.skeletonize(mask).top(40000)
     # Organs and thin bones without flesh: the 40,000 points kept hold the thin leg bones (autorig's own skeleton,
     # 1% of the voxels, loses them: see the README's known limits).
-    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask, own_scale=False)
+    return volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask, own_scale=False, **kw)
+
+
+@pytest.mark.xfail(strict=False, reason="issue 16: bones without flesh touch each other at their joints: the "
+                   "level-set tree, cutting each loop at its narrowest link (right for bodies with skin), keeps "
+                   "the wrong contacts; the frog is read as a quadruped but its front feet land at x 155, among "
+                   "the hind legs")
+def test_frog_gets_four_legs_a_spine_and_a_head():
+    rig = frog_rig()
     assert rig.kind == "quadruped"  # its legs do not point away from its head
     tip = lambda name: rig.tails()[rig.index(name)]  # noqa: E731
     # the frog lies along +x: snout near x = 470, hind feet at x < 200, front feet beside the trunk
