@@ -99,7 +99,7 @@ def cmd_rig(args) -> int:
     mask, sk, pts = _mask_and_skeleton(args)
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
                      bind_mode=args.bind, progress=_progress_bar if args.progress else None, source=args.file,
-                     kind=args.kind, up=parse_up(args.up) if args.up else None)
+                     kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points)
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
     print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {describe_rig(rig)}: {len(rig)} "
@@ -300,6 +300,9 @@ def main(argv=None) -> int:
     p.add_argument("--no-roles", action="store_true", help="neutral chain names, no humanoid/quadruped guess")
     p.add_argument("--kind", choices=KINDS, help="force a body plan (default: the best-fitting template)")
     p.add_argument("--up", help="the world's up in the volume's frame: +z, -y, x ... or x,y,z (default: inferred)")
+    p.add_argument("--rig-kept-points", action="store_true",
+                   help="rig the kept skeleton points themselves, not autorig's own skeleton (thin, fragmented "
+                        "objects such as bones without flesh; the rig then depends on --count / --thinness)")
     p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
     p.set_defaults(run=cmd_rig)
 

@@ -92,46 +92,6 @@ TEST_CASE("scale_axis drops small balls inside a larger ball and keeps the rest"
     CHECK(keep == std::vector<std::uint8_t>{1, 0, 1, 1});
 }
 
-TEST_CASE("level_set_tree cuts a loop where a limb only touches the trunk, not where it grows out of it",
-          "[autorig]") {
-    // 2-D, in the plane z = 1: a trunk along y (x = 10, y 0..60, radius 8), an arm growing out of its top (the
-    // radius falling 8 -> 4 from x 10 to 30 at y = 60), hanging down along x = 30 to y = 14, its hand touching the
-    // trunk's side through a crease of thin points (radius 1) at y = 14.
-    Grid g;
-    g.dims = {40, 70, 3};
-    std::vector<std::int32_t> ijk;
-    std::vector<float> r;
-    auto add = [&](int x, int y, float radius) {
-        for (const std::int32_t v : {1, y, x}) ijk.push_back(v);
-        r.push_back(radius);
-    };
-    for (int y = 0; y <= 60; ++y) add(10, y, y == 30 ? 8.5f : 8.f);  // the root: the trunk's middle
-    for (int x = 11; x <= 30; ++x) add(x, 60, 8.f - 4.f * static_cast<float>(x - 10) / 20.f);
-    for (int y = 59; y >= 14; --y) add(30, y, 4.f);
-    for (int x = 29; x >= 11; --x) add(x, 14, 1.f);
-    const PointSet pts{ijk.data(), r.data(), r.size()};
-    std::vector<std::array<std::uint32_t, 2>> edges;
-    for (std::uint32_t i = 0; i < pts.n; ++i)
-        for (std::uint32_t j = i + 1; j < pts.n; ++j)
-            if (std::hypot(ijk[3 * i + 2] - ijk[3 * j + 2], ijk[3 * i + 1] - ijk[3 * j + 1]) <= 1.5)
-                edges.push_back({i, j});
-    const SkeletonGraph graph = graph_of_edges(g, pts, edges);
-    const LevelSetTree t = level_set_tree(g, pts, graph, std::vector<std::uint8_t>(pts.n, 1), 3.0);
-    REQUIRE(t.edges.size() == t.centroid.size() - 1);
-    // From the node of the arm's lowest point (30, 14) to the trunk's, the tree runs up the arm (through a node at
-    // y > 50), not across the crease.
-    const auto node_at = [&](int x, int y) {
-        for (std::uint32_t i = 0; i < pts.n; ++i)
-            if (ijk[3 * i + 2] == x && ijk[3 * i + 1] == y) return t.node_of_point[i];
-        return kNone;
-    };
-    NodeTree tree(t.centroid, t.radius, t.edges);
-    tree.reroot(node_at(10, 30));
-    bool via_top = false;
-    for (std::uint32_t v : tree.path(node_at(30, 16), tree.root())) via_top = via_top || t.centroid[v].y() > 50;
-    CHECK(via_top);
-}
-
 TEST_CASE("level_set_tree follows a Y with nodes a band apart, whatever the point density", "[autorig]") {
     Grid g;
     g.dims = {80, 80, 4};

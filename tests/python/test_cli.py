@@ -92,6 +92,11 @@ def test_rig_writes_a_rig_file(tmp_path):
     assert r.returncode == 0, r.stderr
     loaded = volrig.load_rig(out)
     assert loaded.rig.kind == "humanoid" and loaded.rig.up_confidence == 1.0 and list(loaded.rig.up) == [0, 0, 1]
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--rig-kept-points", "-o", out)
+    assert r.returncode == 0, r.stderr
+    loaded = volrig.load_rig(out)  # joints on the kept points themselves (end joints aside)
+    on = loaded.rig.joint_points >= 0
+    assert on.any() and np.allclose(loaded.rig.joints[on], loaded.points.centers[loaded.rig.joint_points[on]])
     r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "sideways", "-o", out)
     assert r.returncode == 2 and "sideways" in r.stderr
     bad = run("rig", src, "--lo", 1, "--count", 4000, "-o", tmp_path / "x.npz")

@@ -16,9 +16,9 @@ def frog_rig(**kw):
 
 
 @pytest.mark.xfail(strict=False, reason="issue 16: bones without flesh touch each other at their joints: the "
-                   "level-set tree, cutting each loop at its narrowest link (right for bodies with skin), keeps "
-                   "the wrong contacts; the frog is read as a quadruped but its front feet land at x 155, among "
-                   "the hind legs")
+                   "level-set tree, cutting loops at weak links (right for bodies with skin), keeps the wrong "
+                   "contacts; the frog comes out as chains (forced to a quadruped, its front feet land among the "
+                   "hind legs)")
 def test_frog_gets_four_legs_a_spine_and_a_head():
     rig = frog_rig()
     assert rig.kind == "quadruped"  # its legs do not point away from its head

@@ -111,23 +111,26 @@ LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGr
     for (std::size_t i = 0; i < n; ++i)
         if (std::isfinite(dist[i])) level[i] = static_cast<std::int64_t>(dist[i] / band);
     level_pieces(pts, pos, graph, level, t);
-    // Links between pieces, reduced to a spanning tree (Kruskal by centroid distance over the link's width
-    // squared): a link is as wide as the thickest graph edge joining the two pieces (the smaller radius at its
-    // ends). Where the body forms a loop because a limb only touches it (a hand on the pelvis, an arm against the
-    // trunk, knees together), the loop's narrowest place is that contact (thin crease points, or the fingers),
-    // not where the limb grows out of the trunk: that link goes first.
-    std::map<std::pair<std::uint32_t, std::uint32_t>, double> width;
+    // Links between pieces, reduced to a spanning tree (Kruskal by centroid distance over the link's strength
+    // squared): a link is as strong as the thickest graph edge joining the two pieces, relative to the thinner
+    // piece (its smaller end radius over that piece's radius). Within a limb and where it grows out of the trunk
+    // the axis runs on at the limb's own radius (about 1); where a limb only touches the body (a hand on the
+    // pelvis, an arm against the trunk) the pieces meet through thin near-surface points: weak links, cut first
+    // where they close a loop. (Limbs touching at the same geodesic level, knees together, share their level
+    // pieces: no link to cut there.)
+    std::map<std::pair<std::uint32_t, std::uint32_t>, double> strength;
     for (std::uint32_t v = 0; v < n; ++v)
         for (std::uint32_t e = graph.offsets[v]; e < graph.offsets[v + 1]; ++e) {
             const std::uint32_t w = graph.targets[e], a = t.node_of_point[v], b = t.node_of_point[w];
             if (a == kNone || b == kNone || a >= b) continue;
-            double& widest = width[{a, b}];
-            widest = std::max(widest, static_cast<double>(std::min(pts.radius[v], pts.radius[w])));
+            const double s = std::min(pts.radius[v], pts.radius[w]) / std::min(t.radius[a], t.radius[b]);
+            double& best = strength[{a, b}];
+            best = std::max(best, s);
         }
     std::vector<std::tuple<double, std::uint32_t, std::uint32_t>> links;
-    for (const auto& [ab, wd] : width) {
-        const double d = std::max(wd, 1e-9);
-        links.emplace_back((t.centroid[ab.first] - t.centroid[ab.second]).norm() / (d * d), ab.first, ab.second);
+    for (const auto& [ab, s] : strength) {
+        const double weak = std::max(std::min(s, 1.0), kWeakestLink);
+        links.emplace_back((t.centroid[ab.first] - t.centroid[ab.second]).norm() / (weak * weak), ab.first, ab.second);
     }
     std::sort(links.begin(), links.end());
     detail::DisjointSets nodes(t.centroid.size());

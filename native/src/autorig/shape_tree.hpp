@@ -37,6 +37,9 @@ struct LevelSetTree {
     std::vector<std::uint32_t> node_of_point;  // kNone outside the part
 };
 
+/// The strength below which a link between level pieces counts as weakest (level_set_tree).
+constexpr double kWeakestLink = 0.05;
+
 /// The level-set tree of the points with in_part[i] != 0, levels `band` (world units) apart.
 LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGraph& graph,
                             const std::vector<std::uint8_t>& in_part, double band);
