@@ -223,7 +223,8 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
             pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
             r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
                                       progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
-                                      up=objects.scene_up(vol) if s.use_scene_up else None)
+                                      up=objects.scene_up(vol) if s.use_scene_up else None,
+                                      own_scale=not s.rig_kept_points)
         _save_rig(vol, r.points, r.tree, r.rig, r.binding)
         s.rig_found = pipeline.describe_rig(r.rig)
         rig_obj = objects.build_armature(vol, r.rig)

@@ -88,7 +88,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
     def draw(self, context):
         s, layout = _settings(self, context)
         vol = s.id_data
-        _props(layout.column(align=True), s, "alpha", "bones", "roles")
+        _props(layout.column(align=True), s, "alpha", "bones", "roles", "rig_kept_points")
         row = layout.row(align=True)
         row.prop(s, "body_plan", text="")
         row.prop(s, "use_scene_up", toggle=True, icon="EMPTY_SINGLE_ARROW")

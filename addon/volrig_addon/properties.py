@@ -112,6 +112,10 @@ class VolrigObject(bpy.types.PropertyGroup):
     ], default="AUTO", description="The template the rig is fitted to; pick another and press Rig to refit")
     use_scene_up: BoolProperty(name="Scene up", default=True,
                                description="Tell the rig where up is: the scene's +Z seen from the volume (else inferred)")
+    rig_kept_points: BoolProperty(name="Kept points", default=False,
+                                  description="Rig the kept skeleton points themselves, not autorig's own skeleton "
+                                              "of the object (for bones without flesh; the rig then follows the "
+                                              "thinness)")
     rig_found: StringProperty(name="Found", description="What the last rig found: kind, fit and runner-up")
     bind_mode: EnumProperty(name="Binding", items=[
         ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),

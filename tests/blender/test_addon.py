@@ -184,6 +184,13 @@ def test_rig_reports_its_fit_refits_as_another_kind_and_takes_up_from_the_scene(
     saved = volrig.load_rig(os.path.join(bpy.path.abspath(vol.volrig.cache_dir), vol.volrig.rig_file))
     np.testing.assert_allclose(saved.rig.up, [0, -1, 0], atol=1e-6)
     assert saved.rig.kind != "humanoid"  # the phantom stands along its z: with up = -y no humanoid fits
+    # Kept points: the rig's joints sit on the kept skeleton points themselves (end joints aside)
+    vol.volrig.rig_kept_points = True
+    run_op(bpy.ops.volrig.rig)
+    saved = volrig.load_rig(os.path.join(bpy.path.abspath(vol.volrig.cache_dir), vol.volrig.rig_file))
+    on = saved.rig.joint_points >= 0
+    assert on.any() and np.allclose(saved.rig.joints[on], saved.points.centers[saved.rig.joint_points[on]])
+    vol.volrig.rig_kept_points = False
 
 
 def _evaluated_vertices(obj):
