@@ -112,7 +112,9 @@ private:
     void lookups(const Block& b, Local& loc) const;
     void lanes(Local& loc) const;
     void undecided(const Block& b, Local& loc) const;
-    std::size_t load_first_labels(Local& loc, std::size_t n_run, std::size_t li, const std::int64_t* m3) const;
+    double cube_lower(const Local& loc, std::size_t k, std::size_t li) const;
+    bool load_first_label(Local& loc, std::size_t r, std::size_t li, const std::int64_t* m3) const;
+    bool load_first_labels(Local& loc, std::size_t& n_run, std::size_t li, const std::int64_t* m3) const;
     template <class S>
     std::int64_t write_block(const Block& b, Local& loc, const S& sampler) const;
     void add_extent(const Block& b, Local& loc) const;
@@ -335,28 +337,53 @@ void Gather::lanes(Local& loc) const {
     loc.by[1] += sure_count;
 }
 
-/// Tier 3's candidates at voxel li: the running candidates' first-corner spheres and cube ranges; returns how many
-/// were loaded, 0 when one has no label there (then tier 3 cannot decide).
-std::size_t Gather::load_first_labels(Local& loc, std::size_t n_run, std::size_t li, const std::int64_t* m3) const {
-    for (std::size_t r = 0; r < n_run; ++r) {
+/// Candidate k's cube lower bound at voxel li, as a power.
+double Gather::cube_lower(const Local& loc, std::size_t k, std::size_t li) const {
+    const std::int16_t lo = loc.cube_lo[k * 512 + li];
+    return lo == kBoundMin ? -kInf : lo * s_.bound_step;
+}
+
+/// Tier 3's candidate r from loc.running[r] at voxel li: its first-corner sphere's power (U, an upper bound of its
+/// field's power) and its cube's lower bound; false when no sphere labels its cube.
+bool Gather::load_first_label(Local& loc, std::size_t r, std::size_t li, const std::int64_t* m3) const {
+    const auto k = static_cast<std::size_t>(loc.running[r]);
+    Candidate& c = loc.cands[r];
+    c.field = loc.fields[k];
+    const BoneField& f = s_.field(c.field);
+    const std::uint32_t word = f.words[loc.cube_cell[k * 512 + li]];
+    const std::uint32_t lab = label_of(word);
+    if (lab == kNone) return false;
+    s_.pull(c.field).fixed(m3, c.pf);
+    Pull::to_double(c.pf, c.p);
+    c.U = power_of(f, lab, c.p, s_.s2);
+    c.local = lab;
+    c.exact = same_of(word);
+    c.closed = !c.exact && closed_of(word);
+    c.L = c.exact ? c.U : cube_lower(loc, k, li);
+    c.sharp_L = c.exact;
+    return true;
+}
+
+/// Tier 3's candidates at voxel li, the lanes' best first: a rival whose cube lower bound lies above the first
+/// candidate's U loses to it for certain (or, U >= 0, covers nowhere), so it leaves the running without being
+/// loaded (smooth modes' blend groups crowd a voxel with such rivals). Compacts loc.running to the n_run left;
+/// false when one of them has no label (then tier 3 cannot decide).
+bool Gather::load_first_labels(Local& loc, std::size_t& n_run, std::size_t li, const std::int64_t* m3) const {
+    const auto end = loc.running.begin() + static_cast<std::ptrdiff_t>(n_run);
+    const auto first = std::find(loc.running.begin(), end, static_cast<std::int32_t>(loc.best[li]));
+    if (first != end) std::iter_swap(loc.running.begin(), first);
+    bool loaded = load_first_label(loc, 0, li, m3);
+    const double u = loaded ? loc.cands[0].U : kInf;
+    std::size_t n = 1;
+    for (std::size_t r = 1; r < n_run; ++r) {
         const std::int32_t k = loc.running[r];
-        const std::size_t at = static_cast<std::size_t>(k) * 512 + li;
-        Candidate& c = loc.cands[r];
-        c.field = loc.fields[static_cast<std::size_t>(k)];
-        const BoneField& f = s_.field(c.field);
-        const std::uint32_t word = f.words[loc.cube_cell[at]];
-        const std::uint32_t lab = label_of(word);
-        if (lab == kNone) return 0;
-        s_.pull(c.field).fixed(m3, c.pf);
-        Pull::to_double(c.pf, c.p);
-        c.U = power_of(f, lab, c.p, s_.s2);
-        c.local = lab;
-        c.exact = same_of(word);
-        c.closed = !c.exact && closed_of(word);
-        c.L = c.exact ? c.U : (loc.cube_lo[at] == kBoundMin ? -kInf : loc.cube_lo[at] * s_.bound_step);
-        c.sharp_L = c.exact;
+        if (cube_lower(loc, static_cast<std::size_t>(k), li) > u) continue;
+        loc.running[n] = k;
+        loaded = loaded && load_first_label(loc, n, li, m3);
+        ++n;
     }
-    return n_run;
+    n_run = n;
+    return loaded;
 }
 
 /// The voxels the lanes left open, one by one: tier 3, then tier 4.
