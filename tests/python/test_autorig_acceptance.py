@@ -85,8 +85,7 @@ def phantom_cases(failing):
     cases = [(0.5, n) for n in (5000, 15000, 40000, 100000)] + [(1.0, n) for n in (5000, 40000, 100000)]
     out = [pytest.param(*c, marks=xfail(f"phantom {c[0]} with {c[1]} points: {failing[c]}")) if c in failing
            else c for c in cases]
-    return out + [pytest.param(2.0, n, marks=[slow, xfail(f"phantom 2.0 with {n} points: rigged as chains")])
-                  for n in (5000, 100000)]
+    return out + [pytest.param(2.0, n, marks=slow) for n in (5000, 100000)]
 
 
 @pytest.mark.parametrize("scale,points", phantom_cases({}))
