@@ -10,8 +10,6 @@ namespace volrig::rigging {
 
 namespace {
 
-Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
-
 /// How far two limb tips x, y (meeting at `base`) are from mirroring each other across the body's midplane: both
 /// tips at the same place along the spine's line (through `pelvis` along `axis`) and at the same distance from it,
 /// relative to the limbs' length. Straight-line measures: paths through a cluttered trunk wander.
@@ -90,16 +88,6 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
             }
 }
 
-/// Whether world position q lies in the object.
-bool inside(const RigContext& c, const Vec& q) {
-    std::int64_t v[3];
-    for (int a = 0; a < 3; ++a) {
-        v[a] = std::llround((q[a] - c.grid.origin[a]) / c.grid.spacing[a]);
-        if (v[a] < 0 || v[a] >= c.grid.dims[a]) return false;
-    }
-    return c.mask[c.grid.index(v[0], v[1], v[2])] != 0;
-}
-
 }  // namespace
 
 bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
@@ -112,24 +100,13 @@ bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, s
 
 void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
                       double ratio) {
-    const auto index = [&](const std::string& n) {
-        return static_cast<std::size_t>(std::find(rig.names.begin(), rig.names.end(), n) - rig.names.begin());
-    };
-    const std::size_t p = index(proximal), d = index(distal);
-    if (p >= rig.names.size() || d >= rig.names.size()) return;
-    const auto at = [&](std::int32_t j) {
-        const auto& q = rig.joints[static_cast<std::size_t>(j)];
-        return Vec(q[0], q[1], q[2]);
-    };
-    const Vec top = at(rig.bones[p][0]), mid = at(rig.bones[p][1]), low = at(rig.bones[d][1]);
-    const double want = ratio * (low - mid).norm(), have = (top - mid).norm();
+    const std::int32_t p = bone_index(rig, proximal), d = bone_index(rig, distal);
+    if (p < 0 || d < 0) return;
+    const Vec top = bone_end(rig, static_cast<std::size_t>(p), 0), mid = bone_end(rig, static_cast<std::size_t>(p), 1);
+    const double want = ratio * (bone_end(rig, static_cast<std::size_t>(d), 1) - mid).norm(), have = (top - mid).norm();
     if (have >= kHiddenEnd * want || have == 0) return;
-    const Vec dir = (top - mid) / have;
-    const double step = 0.5 * std::min({c.grid.spacing[0], c.grid.spacing[1], c.grid.spacing[2]});
-    double reach = have;
-    while (reach + step <= want && inside(c, mid + (reach + step) * dir)) reach += step;
-    const Vec q = mid + reach * dir;
-    const auto j = static_cast<std::size_t>(rig.bones[p][0]);
+    const Vec dir = (top - mid) / have, q = mid + c.reach_inside(mid, dir, have, want) * dir;
+    const auto j = static_cast<std::size_t>(rig.bones[static_cast<std::size_t>(p)][0]);
     rig.joints[j] = {q.x(), q.y(), q.z()};
     rig.joint_points[j] = -1;
 }
@@ -228,9 +205,9 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     add_extra_chains(c, b, !humanoid, tolerance);
     out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
     if (humanoid)
-        for (const char* sfx : {".L", ".R"}) {  // Drillis and Contini: upper arm / forearm, thigh / shin
-            restore_proximal(c, out.rig, std::string("upper_arm") + sfx, std::string("forearm") + sfx, 0.186 / 0.146);
-            restore_proximal(c, out.rig, std::string("thigh") + sfx, std::string("shin") + sfx, 0.245 / 0.246);
+        for (const std::string sfx : {".L", ".R"}) {  // upper arm / forearm, thigh / shin
+            restore_proximal(c, out.rig, "upper_arm" + sfx, "forearm" + sfx, kArmProportions[1] / kArmProportions[2]);
+            restore_proximal(c, out.rig, "thigh" + sfx, "shin" + sfx, kLegProportions[1] / kLegProportions[2]);
         }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;

@@ -123,11 +123,7 @@ Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, dou
 }
 
 Fit limb_fit(const Chain4& chain, bool arm) {
-    // Drillis and Contini's segment lengths (fractions of the height): half the shoulder breadth 0.13, upper arm
-    // 0.186, forearm 0.146, hand 0.108; half the hip breadth 0.095, thigh 0.245, shin 0.246, foot (ankle to toe
-    // tip) about 0.11.
-    static const std::vector<double> kArm{0.13, 0.186, 0.146, 0.108}, kLeg{0.095, 0.245, 0.246, 0.11};
-    return proportional_fit(chain, arm ? kArm : kLeg, arm ? chain.back()[3] : 0.0);
+    return proportional_fit(chain, arm ? kArmProportions : kLegProportions, arm ? chain.back()[3] : 0.0);
 }
 
 }  // namespace volrig::rigging

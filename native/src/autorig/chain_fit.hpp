@@ -28,8 +28,8 @@ constexpr double kProportionWeight = 0.05;
 /// the whole (the last bone's length counts `extra` beyond the chain's end). Cost: the samples' squared 4-D
 /// deviations from their piece's chord relative to the chain's mean radius (a relative measure per sample would let
 /// a thin foot's wiggles outweigh a knee), plus kProportionWeight * samples * log(length / expected)^2 per bone;
-/// exact over at most 64 samples (dynamic programming). `worst` holds the optimal cost. Empty cuts when the chain
-/// has fewer samples than bones + 1.
+/// exact over at most 64 samples (dynamic programming). `worst` as for fit_chain. Empty cuts when the chain has
+/// fewer samples than bones + 1.
 Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra);
 
 /// A humanoid limb cut into four bones by proportional_fit with Drillis and Contini's proportions (fractions of the
@@ -37,6 +37,11 @@ Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, dou
 /// beyond the chain; half the hip breadth 0.095, thigh 0.245, shin 0.246, foot 0.11. Clear bends (the shoulder's
 /// corner, an elbow, the ankle) move joints off their proportion.
 Fit limb_fit(const Chain4& chain, bool arm);
+
+/// Drillis and Contini's segment lengths (fractions of the height) of a humanoid's arm (half the shoulder breadth,
+/// upper arm, forearm, hand) and leg (half the hip breadth, thigh, shin, foot from the ankle to the toe tip).
+inline const std::vector<double> kArmProportions{0.13, 0.186, 0.146, 0.108};
+inline const std::vector<double> kLegProportions{0.095, 0.245, 0.246, 0.11};
 
 /// Arc length along a chain's positions, from its first sample.
 std::vector<double> arc_of(const Chain4& chain);

@@ -93,12 +93,14 @@ CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask) {
     const auto box = object_box(g, mask);
     if (box[3] == 0) return CoarseShape{};
     const auto factor = coarse_factor(g, box, kCoarseCells);
-    // Coarser volumes are resampled up to that scale (their own skeleton all the same, so that the rig depends
-    // neither on the caller's point count nor on the resolution).
+    // A volume no finer than that scale has factor 1: only cropped, its own skeleton all the same (so that the
+    // rig does not depend on the caller's point count), with a larger share: about as many points per cell of
+    // length as at kCoarseCells.
     CoarseShape c = downsample(g, mask, box, factor);
     const Skeleton sk = skeletonize(c.grid, c.mask.data(), Metric::Euclidean);
-    // Below that scale, a larger share: about as many points per cell of length as at kCoarseCells.
-    const double share = kCoarsePoints * std::max(1.0, kCoarseCells / longest_cells(c.grid, object_box(c.grid, c.mask.data())));
+    const double coarse_cells = longest_cells(g, box) * std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) /
+                                std::min({c.grid.spacing[0], c.grid.spacing[1], c.grid.spacing[2]});
+    const double share = kCoarsePoints * std::max(1.0, kCoarseCells / coarse_cells);
     const auto n = static_cast<std::size_t>(std::ceil(share * static_cast<double>(sk.object_count())));
     c.ijk.resize(3 * n);
     c.radius.resize(n);

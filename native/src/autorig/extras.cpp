@@ -18,20 +18,14 @@ std::string unused_base(const Rig& rig, const std::string& base) {
     return out;
 }
 
-/// A joint of a named bone (0: its head, 1: its tail); the bone exists in a body plan's rig.
-Vec joint_of(const Rig& rig, const std::string& bone, int end) {
-    const auto b = static_cast<std::size_t>(std::find(rig.names.begin(), rig.names.end(), bone) - rig.names.begin());
-    const auto& j = rig.joints[rig.bones[b][static_cast<std::size_t>(end)]];
-    return Vec(j[0], j[1], j[2]);
-}
-
 /// A quadruped's tail: a part hanging from the back of the trunk (hips, spine or pelvis) whose tip lies behind the
 /// spine's start along the trunk (spine to chest). The tree may join the rump to the spine a little forward of the
 /// hips, and hips may sit low when the hind legs touch.
 bool is_tail(const Rig& rig, const std::string& owner, const Vec& tip) {
     if (owner != "hips" && owner != "spine" && owner.rfind("pelvis", 0) != 0) return false;
-    const Vec start = joint_of(rig, "spine", 0);
-    return (tip - start).dot(joint_of(rig, "chest", 1) - start) < 0;
+    const auto spine = static_cast<std::size_t>(bone_index(rig, "spine"));
+    const Vec start = bone_end(rig, spine, 0);
+    return (tip - start).dot(bone_end(rig, static_cast<std::size_t>(bone_index(rig, "chest")), 1) - start) < 0;
 }
 
 }  // namespace

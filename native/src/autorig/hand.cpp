@@ -32,8 +32,6 @@ double spread(const std::vector<double>& v) {
     return *hi > 0 ? (*hi - *lo) / *hi : 1.0;
 }
 
-Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
-
 /// The thumb among five fingers: the one whose base (where it joins the path from the wrist to the others' palm
 /// centre) lies farthest from that centre; on a tie, the one pointing farthest from the others' mean direction.
 std::size_t find_thumb(const NodeTree& t, std::uint32_t wrist, const std::array<std::uint32_t, 5>& f) {

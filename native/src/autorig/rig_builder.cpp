@@ -1,6 +1,7 @@
 // autorig/rig_builder.cpp: chains of nodes to named bones (see rig_builder.hpp).
 #include "autorig/rig_builder.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace volrig::rigging {
@@ -13,6 +14,31 @@ Chain4 RigContext::samples(const std::vector<std::uint32_t>& nodes) const {
         out.emplace_back(p.x(), p.y(), p.z(), tree.radius(v));
     }
     return out;
+}
+
+double RigContext::reach_inside(const Vec& from, const Vec& dir, double start, double limit) const {
+    const double step = 0.5 * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    auto inside = [&](const Vec& q) {
+        std::int64_t v[3];
+        for (int a = 0; a < 3; ++a) {
+            v[a] = std::llround((q[a] - grid.origin[a]) / grid.spacing[a]);
+            if (v[a] < 0 || v[a] >= grid.dims[a]) return false;
+        }
+        return mask[grid.index(v[0], v[1], v[2])] != 0;
+    };
+    double reach = start;
+    while (reach + step <= limit && inside(from + (reach + step) * dir)) reach += step;
+    return reach;
+}
+
+std::int32_t bone_index(const Rig& rig, const std::string& name) {
+    const auto it = std::find(rig.names.begin(), rig.names.end(), name);
+    return it == rig.names.end() ? -1 : static_cast<std::int32_t>(it - rig.names.begin());
+}
+
+Vec bone_end(const Rig& rig, std::size_t b, int end) {
+    const auto& j = rig.joints[static_cast<std::size_t>(rig.bones[b][static_cast<std::size_t>(end)])];
+    return Vec(j[0], j[1], j[2]);
 }
 
 std::vector<std::string> numbered_names(const std::string& base, std::size_t count) {
@@ -68,30 +94,13 @@ void RigBuilder::chain(const std::vector<std::uint32_t>& nodes, const std::vecto
 Rig RigBuilder::finish(const std::string& kind) {
     Rig rig = std::move(rig_);
     rig.kind = kind;
-    const Grid& g = c_.grid;
     std::vector<int> heads(rig.joints.size(), 0);
     for (const auto& b : rig.bones) ++heads[static_cast<std::size_t>(b[0])];
-    const double step = 0.5 * std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
-    for (const auto& b : rig.bones) {
-        const auto t = static_cast<std::size_t>(b[1]);
+    for (std::size_t b = 0; b < rig.bones.size(); ++b) {
+        const auto t = static_cast<std::size_t>(rig.bones[b][1]);
         if (heads[t] || rig.joint_points[t] < 0) continue;
-        const Vec head(rig.joints[b[0]][0], rig.joints[b[0]][1], rig.joints[b[0]][2]);
-        const Vec tail(rig.joints[t][0], rig.joints[t][1], rig.joints[t][2]);
-        const Vec dir = (tail - head).normalized();
-        const double limit = 2.0 * c_.pts.radius[rig.joint_points[t]];
-        double reach = 0;
-        for (double s = step; s <= limit; s += step) {
-            const Vec q = tail + s * dir;
-            std::int64_t v[3];
-            bool inside = true;
-            for (int a = 0; a < 3; ++a) {
-                v[a] = std::llround((q[a] - g.origin[a]) / g.spacing[a]);
-                inside = inside && v[a] >= 0 && v[a] < g.dims[a];
-            }
-            if (!inside || !c_.mask[g.index(v[0], v[1], v[2])]) break;
-            reach = s;
-        }
-        const Vec end = tail + reach * dir;
+        const Vec tail = bone_end(rig, b, 1), dir = (tail - bone_end(rig, b, 0)).normalized();
+        const Vec end = tail + c_.reach_inside(tail, dir, 0.0, 2.0 * c_.pts.radius[rig.joint_points[t]]) * dir;
         rig.joints[t] = {end.x(), end.y(), end.z()};
         rig.joint_points[t] = -1;
     }

@@ -21,7 +21,15 @@ struct RigContext {
 
     /// The nodes' 4-D samples (position, radius).
     Chain4 samples(const std::vector<std::uint32_t>& nodes) const;
+    /// How far from `from` along the unit vector `dir` the object reaches without a gap, from `start` up to
+    /// `limit` (world units), in steps of half the finest spacing; `start` itself when the next step leaves it.
+    double reach_inside(const Vec& from, const Vec& dir, double start, double limit) const;
 };
+
+/// The index of the bone named `name` in `rig`, or -1.
+std::int32_t bone_index(const Rig& rig, const std::string& name);
+/// Joint `end` (0: head, 1: tail) of bone b as a vector.
+Vec bone_end(const Rig& rig, std::size_t b, int end);
 
 class RigBuilder {
 public:

@@ -2,8 +2,8 @@
 #include "autorig/shape_tree.hpp"
 
 #include <algorithm>
-#include <map>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <tuple>
 

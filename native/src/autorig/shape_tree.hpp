@@ -17,6 +17,9 @@ namespace volrig::rigging {
 using Vec = Eigen::Vector3d;
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
+/// v without its component along the unit vector `axis`.
+inline Vec perp(const Vec& v, const Vec& axis) { return v - v.dot(axis) * axis; }
+
 /// Scale-axis filter (after Giesen et al.'s scale axis transform): 1 for the points kept, 0 for those whose ball
 /// lies inside the ball, scaled by kScaleAxis, of a point at least twice as large. Near-surface points of a noisy
 /// boundary lie inside their limb's axis balls and go; axes and genuine sheets stay.

@@ -103,8 +103,8 @@ constexpr double kPalmThickness = 2.5;
 
 /// The hand's rig: "palm" from the wrist end to the palm centre, then per finger three bones parented to it,
 /// thumb.01..03 from where the thumb leaves the palm (cut at its bends), f_index / f_middle / f_ring / f_pinky
-/// .01..03 from the knuckle (the bend where the path from the palm centre turns into the finger) cut into
-/// phalanges (chain_fit's place_joint near their proportions). Names get .L / .R from the thumb's side of the
+/// .01..03 from the knuckle (the bend where the path from the palm centre turns into the finger) cut at its
+/// bends when clearly bent, else at the phalanges' proportions. Names get .L / .R from the thumb's side of the
 /// palm (the thumb lies on the palm's side), none when the thumb lies in the palm's plane. No bones when a chain
 /// is too short to cut.
 Candidate hand_rig(const RigContext& c, const HandPlan& plan);
