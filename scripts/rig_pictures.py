@@ -117,7 +117,8 @@ def main(argv=None):
     frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
     if "frog" in only:
         if os.path.exists(frog):
-            # Organs and thin bones without flesh: its 40,000 points rigged (autorig's own skeleton loses the legs).
+            # Organs and thin bones without flesh: its 40,000 points rigged (autorig's own skeleton misses the front
+            # legs); it still comes out as chains (README, Known limits).
             draw(rig_case("frog (frogtissue, labels > 0, own_scale=False)", volrig.segment(volrig.load(frog)), 40000,
                           own_scale=False),
                  os.path.join(args.out, "rig_frog.png"), views=((0, 1), (0, 2)))

@@ -229,7 +229,7 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
     The rig is made from the object's own skeleton at autorig's scale (the object resampled to about 400 voxels
     along its longest extent when finer), whatever ``points`` and ``tree`` hold (they then only give each joint's
-    ``joint_points``, the nearest point): the same object gives the same rig at any point count and resolution.
+    ``joint_points``, the nearest point): the same object gives the same rig at any point count.
 
     bones:       bone count target (default 24). Humanoid and quadruped shapes get their 21 role bones when the
                  target allows at least 21; other shapes get at most this many bones along their chains.
@@ -246,8 +246,8 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     up:          the world's up direction in the volume's frame (x, y, z), when known (e.g. the scene's +Z). A
                  humanoid's spine must then point up and a quadruped's limbs down. None: inferred.
     own_scale:   False rigs ``points`` and ``tree`` themselves (the rig then depends on how many points were kept):
-                 for thin, fragmented objects (bones without flesh, like the frog's tissue labels) whose thin parts
-                 a dense skeleton holds better than autorig's own.
+                 for thin, fragmented objects (bones without flesh) whose thin parts autorig's own skeleton, at 1%
+                 of the voxels, loses.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)

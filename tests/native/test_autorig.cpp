@@ -2,6 +2,7 @@
 // search, on small inputs whose answer is known. Also run under ASan/UBSan by scripts/test.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 #include "autorig/chain_fit.hpp"
@@ -90,6 +91,50 @@ TEST_CASE("scale_axis drops small balls inside a larger ball and keeps the rest"
     const std::vector<float> r{10.f, 2.f, 2.f, 6.f};
     const std::vector<std::uint8_t> keep = scale_axis(g, PointSet{ijk.data(), r.data(), r.size()});
     CHECK(keep == std::vector<std::uint8_t>{1, 0, 1, 1});
+}
+
+TEST_CASE("level_set_tree cuts a loop at a weak contact, even when the contact is the shortest link", "[autorig]") {
+    // Two limbs of radius 4 hang from a bridge at y = 60 (x = 10 and x = 12, y 0..59). A thin near-surface point
+    // (radius 1) beside the right limb at (13, 11) touches the left limb at (10, 10): a short edge between pieces
+    // of two levels, weak (1 against the pieces' 4). By centroid distance alone it would stay and a link within
+    // a limb would go.
+    Grid g;
+    g.dims = {20, 70, 3};
+    std::vector<std::int32_t> ijk;
+    std::vector<float> r;
+    std::vector<std::array<std::uint32_t, 2>> edges;
+    auto add = [&](int x, int y, float radius) {
+        for (const std::int32_t v : {1, y, x}) ijk.push_back(v);
+        r.push_back(radius);
+        return static_cast<std::uint32_t>(r.size() - 1);
+    };
+    const std::uint32_t left_top = add(10, 60, 4.5f), mid = add(11, 60, 4.5f), right_top = add(12, 60, 4.5f);
+    edges.push_back({left_top, mid});
+    edges.push_back({mid, right_top});
+    std::uint32_t left_contact = 0, right_axis = 0;
+    for (int x : {10, 12}) {
+        std::uint32_t prev = x == 10 ? left_top : right_top;
+        for (int y = 59; y >= 0; --y) {
+            const std::uint32_t p = add(x, y, 4.f);
+            edges.push_back({prev, p});
+            prev = p;
+            if (x == 10 && y == 10) left_contact = p;
+            if (x == 12 && y == 11) right_axis = p;
+        }
+    }
+    const std::uint32_t crease = add(13, 11, 1.f);
+    edges.push_back({right_axis, crease});
+    edges.push_back({left_contact, crease});
+    const PointSet pts{ijk.data(), r.data(), r.size()};
+    const SkeletonGraph graph = graph_of_edges(g, pts, edges);
+    const LevelSetTree t = level_set_tree(g, pts, graph, std::vector<std::uint8_t>(pts.n, 1), 3.0);
+    REQUIRE(t.edges.size() == t.centroid.size() - 1);
+    const std::uint32_t a = t.node_of_point[left_contact], b = t.node_of_point[crease];
+    REQUIRE(a != b);
+    const bool contact_kept = std::any_of(t.edges.begin(), t.edges.end(), [&](const auto& e) {
+        return (e[0] == a && e[1] == b) || (e[0] == b && e[1] == a);
+    });
+    CHECK_FALSE(contact_kept);
 }
 
 TEST_CASE("level_set_tree follows a Y with nodes a band apart, whatever the point density", "[autorig]") {

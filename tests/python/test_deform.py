@@ -309,11 +309,11 @@ def test_reversibility_on_the_phantom(phantom_half, phantom_rigged):
 
 def test_reversibility_on_the_frog_labels_and_the_default_proximity():
     volume = volrig.load(str(shared("frogtissue/frogtissue.mhd")))  # 26 tissue labels, used as intensities
-    mask, pts, rig, binding = rigged_volume(volume, 40000, own_scale=False, kind="quadruped")  # thin bones: its points
+    mask, pts, rig, binding = rigged_volume(volume, 40000, own_scale=False, kind="quadruped")  # bones without flesh
     M = rig.pose({"thigh.L": ([0, 0, 1], 25), "thigh.R": ([0, 0, 1], -20), "shin.L": ([0, 1, 0], -30),
                   "upper_arm.L": ([0, 0, 1], -20), "upper_arm.R": ([0, 0, 1], 20), "head": ([0, 1, 0], 15)})
     fractions = {p: reversibility(volume, pts, rig, binding, M, p) for p in ("power", "nearest")}
-    assert all(0 < f < 0.0339 for f in fractions.values()), fractions  # within the thesis' 3.39% (Visible Human)
+    assert all(0 < f < 0.015 for f in fractions.values()), fractions
     # the default proximity is the one that reverses better
     assert fractions["power"] <= fractions["nearest"]
     from volrig.deform import DEFAULT_PROXIMITY

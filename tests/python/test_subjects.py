@@ -81,7 +81,8 @@ def test_hole_capping_closes_an_open_off_mesh(tmp_path):
     v2, f2 = subjects._close_holes(verts, faces)
     assert v2.shape == (9, 3) and f2.shape == (14, 3)
     np.testing.assert_allclose(v2[8], [0.5, 0.5, 1.0])
-    mask = __import__("volrig").voxelize(v2, f2, voxel_size=0.1)
+    from volrig import voxelize
+    mask = voxelize(v2, f2, voxel_size=0.1)
     assert mask.array.sum() == 10 * 10 * 10
 
 
@@ -97,7 +98,8 @@ def test_hole_capping_welds_a_slit_first():
     faces = np.array([[q[0], q[i], q[i + 1]] for q in quads for i in (1, 2)])
     v2, f2 = subjects._close_holes(v, faces)
     assert v2.shape == (8, 3) and f2.shape == (12, 3)
-    mask = __import__("volrig").voxelize(v2, f2, voxel_size=0.1)
+    from volrig import voxelize
+    mask = voxelize(v2, f2, voxel_size=0.1)
     assert mask.array.sum() == 10 * 10 * 10
 
 

@@ -62,8 +62,8 @@ struct AutorigOptions {
     /// limbs down. Without it, up is inferred from the winning template.
     std::optional<std::array<double, 3>> up;
     /// Rig the object's own skeleton at autorig's scale (resampled to about 400 voxels along its longest extent
-    /// when finer) instead of the given points: any resolution and any point count give about the same rig; the
-    /// given points only carry the joints. False always rigs the given points and tree.
+    /// when finer) instead of the given points: any point count gives the same rig; the given points only carry
+    /// the joints. False always rigs the given points and tree.
     bool own_scale = true;
 };
 

@@ -3,8 +3,9 @@
 // 0. coarse: the rig is made at autorig's own scale (kCoarseCells voxels along the object's longest extent), not
 //    from the caller's points: a finer object is resampled (a coarse voxel is object when half its voxels are), a
 //    coarser one only cropped; the 1% of its voxels of highest thinness score (more below that scale) and their
-//    skeleton-tree replace the caller's points and tree. Any resolution and any point count then give about the
-//    same rig; the caller's points only name the point each joint sits on (the nearest one).
+//    skeleton-tree replace the caller's points and tree. Any point count then gives the same rig (resolutions
+//    resample to about the same object); the caller's points only name the point each joint sits on (the
+//    nearest one). When that skeleton has no branch to rig (a thin shell), the caller's points are rigged.
 //    AutorigOptions::own_scale = false rigs the caller's points instead.
 // 1. shape_tree: the points that carry the shape are the scale axis (a point goes when its ball lies inside the
 //    1.25x ball of a point at least twice as large: near-surface noise). They are joined by the tree's edges, by
