@@ -103,7 +103,8 @@ def rotation_check(subject, points, rig0, dt, verbose=False):
         if autorig_accepts("up"):
             free_rig = run_autorig(pts, volrig.skeleton_tree(pts, rmask), rmask)
         free += free_rig.kind == subject.kind
-        worst = S.rig_difference(rig0, rig, to_rot, lambda p: S.local_radius(dt, subject.mask, p))
+        worst = S.rig_difference(rig0, rig, to_rot,
+                                 lambda p: S.local_radius(dt, subject.mask, p, S.SAME_JOINT_VOXELS))
         same += worst <= 0.5
         if verbose:
             print(f"    rotation {k:2d} {m.astype(int).tolist()}: {rig.kind} ({free_rig.kind} with up=None), "

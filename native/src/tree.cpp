@@ -147,19 +147,26 @@ std::vector<std::array<std::uint32_t, 2>> cone_edges(const Grid& g, const std::u
             std::sort(cand.begin(), cand.end());
             std::uint32_t closed = 0;  // bit per cone: a neighbour was found, or two lines failed
             std::uint8_t failures[27] = {};
-            for (const auto& [d2, j] : cand) {
-                const std::int32_t* pj = pts.ijk + 3 * j;
-                const int k = cone_of((pj[2] - pi[2]) * g.spacing[0], (pj[1] - pi[1]) * g.spacing[1],
-                                      (pj[0] - pi[0]) * g.spacing[2]);
-                if (closed & (1u << k)) continue;
-                // A line inside the point's own ball is inside the object.
-                if (std::sqrt(d2) + slack < ri || line_inside(g, mask, pi, pj)) {
-                    closed |= 1u << k;
-                    out.push_back(i < j ? Pair{static_cast<std::uint32_t>(i), j} : Pair{j, static_cast<std::uint32_t>(i)});
-                } else if (++failures[k] >= 2) {
-                    closed |= 1u << k;
+            // Candidates equally near (up to rounding) are taken together: which of them closes a cone does not
+            // depend on the order of the points (the same edges with the object turned or mirrored).
+            for (std::size_t a = 0; a < cand.size() && closed != 0x7FFDFFFu;) {  // bit 13 (no direction) never set
+                std::uint32_t closing = 0;
+                for (const double near = cand[a].first * (1 + 1e-9); a < cand.size() && cand[a].first <= near; ++a) {
+                    const auto [d2, j] = cand[a];
+                    const std::int32_t* pj = pts.ijk + 3 * j;
+                    const int k = cone_of((pj[2] - pi[2]) * g.spacing[0], (pj[1] - pi[1]) * g.spacing[1],
+                                          (pj[0] - pi[0]) * g.spacing[2]);
+                    if (closed & (1u << k)) continue;
+                    // A line inside the point's own ball is inside the object.
+                    if (std::sqrt(d2) + slack < ri || line_inside(g, mask, pi, pj)) {
+                        closing |= 1u << k;
+                        out.push_back(i < j ? Pair{static_cast<std::uint32_t>(i), j}
+                                            : Pair{j, static_cast<std::uint32_t>(i)});
+                    } else if (++failures[k] >= 2) {
+                        closing |= 1u << k;
+                    }
                 }
-                if (closed == 0x7FFDFFFu) break;  // all 26 cones (bit 13, the zero direction, never set)
+                closed |= closing;
             }
         }
     });

@@ -277,14 +277,19 @@ def quadruped_problems(subject: Subject, rig) -> list:
     return bad
 
 
-def local_radius(dt: np.ndarray, mask: Volume, point) -> float:
+def local_radius(dt: np.ndarray, mask: Volume, point, at_least: float = 1.0) -> float:
     """The object's thickness at ``point`` (world): the largest Euclidean distance transform value (``dt``, world
-    units, e.g. ``Skeleton.dt``) within one voxel of it, at least one voxel."""
+    units, e.g. ``Skeleton.dt``) within one voxel of it, at least ``at_least`` voxels."""
     sp = np.asarray(mask.spacing, dtype=np.float64)
     ijk = np.round((np.asarray(point, dtype=np.float64) - np.asarray(mask.origin)) / sp).astype(int)[::-1]
     c = np.clip(ijk, 0, np.array(dt.shape) - 1)
     s = tuple(slice(max(c[a] - 1, 0), c[a] + 2) for a in range(3))
-    return max(float(dt[s].max()), float(sp.min()))
+    return max(float(dt[s].max()), at_least * float(sp.min()))
+
+
+SAME_JOINT_VOXELS = 2.0 * 3 ** 0.5
+"""Joints of two rigs are the same within half a local radius (``rig_difference``), that radius at least this many
+voxels: joints a voxel apart (diagonally too) are the same; one on a part a voxel or two thick cannot be placed closer."""
 
 
 # ---- Visible Human reference joints from its bone labels ----------------------------------------------------------

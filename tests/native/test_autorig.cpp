@@ -108,7 +108,8 @@ TEST_CASE("level_set_tree cuts a loop at a weak contact, even when the contact i
         r.push_back(radius);
         return static_cast<std::uint32_t>(r.size() - 1);
     };
-    const std::uint32_t left_top = add(10, 60, 4.5f), mid = add(11, 60, 4.5f), right_top = add(12, 60, 4.5f);
+    // Levels are measured from the bridge's thickest point, above the left limb.
+    const std::uint32_t left_top = add(10, 60, 4.6f), mid = add(11, 60, 4.5f), right_top = add(12, 60, 4.5f);
     edges.push_back({left_top, mid});
     edges.push_back({mid, right_top});
     std::uint32_t left_contact = 0, right_axis = 0;
@@ -443,10 +444,12 @@ TEST_CASE("coarse: the object's box, factors to its own scale, and a majority do
                 CHECK(in == (x >= 1 && x <= 8 && y >= 1 && y <= 2 && z >= 1 && z <= 2));
             }
     CHECK(object == 8 * 2 * 2);
-    // Coarse voxel (1, 1, 1) is the mean of fine voxels x 4..7, y 2..5, z 3..4.
-    CHECK(c.grid.origin[0] + c.grid.spacing[0] == Approx(10 + 5.5 * 0.5));
-    CHECK(c.grid.origin[1] + c.grid.spacing[1] == Approx(20 + 3.5 * 0.5));
-    CHECK(c.grid.origin[2] + c.grid.spacing[2] == Approx(30 + 3.5 * 1.0));
+    // Coarse voxel (1, 1, 1) is the mean of fine voxels x 4..7, y 2..5, z 3..4 (the grid's origin is 0, the world
+    // is `offset` away).
+    CHECK(c.grid.origin == std::array<double, 3>{0, 0, 0});
+    CHECK(c.offset[0] + c.grid.spacing[0] == Approx(10 + 5.5 * 0.5));
+    CHECK(c.offset[1] + c.grid.spacing[1] == Approx(20 + 3.5 * 0.5));
+    CHECK(c.offset[2] + c.grid.spacing[2] == Approx(30 + 3.5 * 1.0));
 }
 
 TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; the thicker end is the head",

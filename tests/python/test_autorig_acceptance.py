@@ -114,7 +114,7 @@ def rotation_failures(name, points=POINTS, **kw):
         pts = volrig.skeletonize(vol).top(points)
         tree = volrig.skeleton_tree(pts, vol)
         rig = autorig(pts, tree, vol, m @ s.up)
-        worst = S.rig_difference(rig0, rig, to_rot, lambda p: S.local_radius(sk.dt, s.mask, p))
+        worst = S.rig_difference(rig0, rig, to_rot, lambda p: S.local_radius(sk.dt, s.mask, p, S.SAME_JOINT_VOXELS))
         if rig.kind != s.kind or worst > 0.5:
             bad.append(f"rotation {k}: {rig.kind}, {len(rig)} bones, {worst:.2f} radii off")
         free = autorig(pts, tree, vol, None)
@@ -125,15 +125,14 @@ def rotation_failures(name, points=POINTS, **kw):
 
 @pytest.mark.parametrize("name", [
     "phantom",
-    pytest.param("cow", marks=[slow, xfail("24/24 rotations give a quadruped but 4/24 the same joints")]),
-    pytest.param("knight", marks=[slow, xfail("24/24 rotations give a humanoid but 0/24 the same joints")]),
-    pytest.param("hand", marks=[slow, xfail("6/24 rotations give the hand's rig")]),
-    pytest.param("horse", marks=[slow, xfail("18/24 rotations give the horse's rig (6 are 3.6-5.1 local radii off; "
-                                             "all 24 were the same before the own-scale skeleton)")]),
-    pytest.param("camel", marks=[slow, xfail("24/24 rotations give a quadruped but 2/24 the same joints (its "
-                                             "knees touch: the level-set tree runs a thigh up from the other knee)")]),
-    pytest.param("arm", marks=[slow, xfail("7/24 rotations give the arm's rig")]),
-    pytest.param("lion", marks=[slow, xfail("1/24 rotations give the lion head's rig")]),
+    pytest.param("cow", marks=slow),
+    pytest.param("knight", marks=slow),
+    pytest.param("hand", marks=slow),
+    pytest.param("horse", marks=slow),
+    pytest.param("camel", marks=slow),
+    pytest.param("arm", marks=slow),
+    pytest.param("lion", marks=[slow, xfail("9/24 rotations give the lion head's rig (a thin shell: chains); "
+                                            "with up=None none is called chains")]),
 ])
 def test_24_rotations_give_the_same_rig_rotated(name):
     bad = rotation_failures(name, scale=0.5) if name == "phantom" else rotation_failures(name)

@@ -135,12 +135,13 @@ std::vector<std::uint32_t> nearest_points(const Grid& g, const PointSet& pts, co
     return out;
 }
 
-/// What was kept, for the caller's points: a point is kept when the nearest node is (the nodes are few).
+/// What was kept, for the caller's points: a point is kept when the nearest node is (the nodes are few). Node
+/// positions are `shift` away from the world.
 void fill_detail(const Grid& g, const PointSet& pts, const rigging::LevelSetTree& lst,
-                 const rigging::NodeTree& tree, AutorigDetail& d) {
+                 const rigging::NodeTree& tree, const Vec& shift, AutorigDetail& d) {
     d.kept.assign(pts.n, 0);
     for (std::size_t i = 0; i < pts.n; ++i) {
-        const Vec p = position(g, pts, i);
+        const Vec p = position(g, pts, i) - shift;
         double best = std::numeric_limits<double>::infinity();
         for (std::size_t k = 0; k < lst.centroid.size(); ++k)
             if (const double dk = (p - lst.centroid[k]).squaredNorm(); dk < best) {
@@ -148,19 +149,19 @@ void fill_detail(const Grid& g, const PointSet& pts, const rigging::LevelSetTree
                 d.kept[i] = tree.kept()[k];
             }
     }
-    d.root = lst.centroid.empty() ? -1 : nearest_points(g, pts, {lst.centroid[tree.root()]})[0];
-    for (const Vec& c : lst.centroid) d.nodes.push_back({c.x(), c.y(), c.z()});
+    d.root = lst.centroid.empty() ? -1 : nearest_points(g, pts, {lst.centroid[tree.root()] + shift})[0];
+    for (const Vec& c : lst.centroid) d.nodes.push_back({c.x() + shift.x(), c.y() + shift.y(), c.z() + shift.z()});
     d.node_radius = lst.radius;
     d.node_edges = lst.edges;
     d.node_kept = tree.kept();
 }
 
-/// Stages 1-3 on the points rigged (rg, rmask, rpts, redges): every template's candidate, best first; `detail`
-/// (about the caller's grid g and points pts) filled on the way.
+/// Stages 1-3 on the points rigged (rg, rmask, rpts, redges; world = rg's positions + shift): every template's
+/// candidate, best first, in rg's positions; `detail` (about the caller's grid g and points pts) filled on the way.
 std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, const PointSet& rpts,
-                                     const std::vector<std::array<std::uint32_t, 2>>& redges, const AutorigOptions& opt,
-                                     const Progress& progress, const Grid& g, const PointSet& pts,
-                                     AutorigDetail* detail) {
+                                     const std::vector<std::array<std::uint32_t, 2>>& redges, const Vec& shift,
+                                     const AutorigOptions& opt, const Progress& progress, const Grid& g,
+                                     const PointSet& pts, AutorigDetail* detail) {
     report(progress, 0.3);
     const rigging::LevelSetTree lst = rigging::shape_tree(rg, rmask, rpts, redges, progress);
     report(progress, 0.5);
@@ -170,7 +171,7 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
     report(progress, 0.7);
     if (detail) {
         *detail = AutorigDetail{};
-        fill_detail(g, pts, lst, tree, *detail);
+        fill_detail(g, pts, lst, tree, shift, *detail);
     }
     return candidates(rigging::RigContext{rg, rmask, rpts, tree, lst.rep}, opt);
 }
@@ -189,16 +190,19 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     rigging::CoarseShape coarse;
     if (opt.own_scale) coarse = rigging::coarse_shape(g, mask);
     bool own = coarse.radius.size() >= 2;
+    const Vec shift(coarse.offset[0], coarse.offset[1], coarse.offset[2]);
     std::vector<Candidate> found = own ? fit_templates(coarse.grid, coarse.mask.data(), coarse.points(), coarse.edges,
-                                                       opt, progress, g, pts, detail)
+                                                       shift, opt, progress, g, pts, detail)
                                        : std::vector<Candidate>{};
     if (found.empty()) {
         own = false;
-        found = fit_templates(g, mask, pts, edges, opt, progress, g, pts, detail);
+        found = fit_templates(g, mask, pts, edges, Vec::Zero(), opt, progress, g, pts, detail);
     }
     if (found.empty()) throw Error("autorig: the skeleton-tree has no branch to make a bone of");
     Rig rig = std::move(found[0].rig);
-    if (own) {  // joints sit on the caller's nearest points
+    if (own) {  // back to the world; joints sit on the caller's nearest points
+        for (auto& j : rig.joints)
+            for (int a = 0; a < 3; ++a) j[static_cast<std::size_t>(a)] += coarse.offset[static_cast<std::size_t>(a)];
         std::vector<Vec> on;
         for (std::size_t j = 0; j < rig.joints.size(); ++j)
             if (rig.joint_points[j] >= 0) on.emplace_back(rig.joints[j][0], rig.joints[j][1], rig.joints[j][2]);

@@ -65,8 +65,9 @@ CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array
         c.grid.dims[a] = (box[3 + a] - box[a] + f[a] - 1) / f[a] + 2;
         c.grid.spacing[a] = g.spacing[a] * static_cast<double>(f[a]);
         // Coarse voxel k + 1 covers fine voxels box[a] + f k .. + f - 1: its centre is their mean.
-        c.grid.origin[a] = g.origin[a] + (static_cast<double>(box[a]) + 0.5 * static_cast<double>(f[a] - 1)) *
-                                             g.spacing[a] - c.grid.spacing[a];
+        c.offset[a] = g.origin[a] + (static_cast<double>(box[a]) + 0.5 * static_cast<double>(f[a] - 1)) *
+                                        g.spacing[a] - c.grid.spacing[a];
+        c.grid.origin[a] = 0.0;
     }
     c.mask.assign(static_cast<std::size_t>(c.grid.voxel_count()), 0);
     const std::int64_t half = (f[0] * f[1] * f[2] + 1) / 2;
@@ -89,6 +90,13 @@ CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array
     return c;
 }
 
+std::size_t with_ties(const Skeleton& sk, std::size_t n) {
+    if (n == 0 || n >= sk.object_count()) return std::min(n, sk.object_count());
+    const double cut = sk.score(n - 1), tol = kTiedScore * std::abs(cut);
+    while (n < sk.object_count() && sk.score(n) >= cut - tol) ++n;
+    return n;
+}
+
 CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask) {
     const auto box = object_box(g, mask);
     if (box[3] == 0) return CoarseShape{};
@@ -101,7 +109,7 @@ CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask) {
     const double coarse_cells = longest_cells(g, box) * std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) /
                                 std::min({c.grid.spacing[0], c.grid.spacing[1], c.grid.spacing[2]});
     const double share = kCoarsePoints * std::max(1.0, kCoarseCells / coarse_cells);
-    const auto n = static_cast<std::size_t>(std::ceil(share * static_cast<double>(sk.object_count())));
+    const std::size_t n = with_ties(sk, static_cast<std::size_t>(std::ceil(share * static_cast<double>(sk.object_count()))));
     c.ijk.resize(3 * n);
     c.radius.resize(n);
     skeleton_points(sk, n, c.ijk.data(), nullptr, c.radius.data(), nullptr);

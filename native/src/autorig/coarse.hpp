@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "volrig/skeleton.hpp"
 #include "volrig/tree.hpp"
 
 namespace volrig::rigging {
@@ -20,7 +21,10 @@ constexpr double kCoarseCells = 400;
 constexpr double kCoarsePoints = 0.01;
 
 struct CoarseShape {
+    /// The coarse grid with its origin at 0 (the results then do not depend, bit for bit, on where the object lies:
+    /// the same object moved gives the same rig); world = grid position + `offset`.
     Grid grid;
+    std::array<double, 3> offset{0, 0, 0};
     std::vector<std::uint8_t> mask;
     std::array<std::int64_t, 3> factor{1, 1, 1};  ///< fine voxels per coarse voxel along x, y, z
     std::vector<std::int32_t> ijk;                ///< the curve skeleton's points [z, y, x] on `grid`
@@ -44,9 +48,15 @@ CoarseShape downsample(const Grid& g, const std::uint8_t* mask, const std::array
 /// Cells of the finest spacing along the box's longest world extent.
 double longest_cells(const Grid& g, const std::array<std::int64_t, 6>& box);
 
+/// Scores this close to the n-th one (relative) count as tied with it: summed in another order (the object
+/// turned or moved) a score changes in its last bits.
+constexpr double kTiedScore = 1e-4;
+/// n, or more when the points after the n-th tie with it: the same points whatever order the voxels come in.
+std::size_t with_ties(const Skeleton& sk, std::size_t n);
+
 /// The object at autorig's scale: downsampled to kCoarseCells along its longest extent (factor 1, only cropped,
 /// when the volume is no finer than that), the kCoarsePoints share of its voxels of highest thinness score as
-/// skeleton points, and their skeleton-tree. Empty only for an empty mask. The caller's points are not used: the
+/// skeleton points (with_ties), and their skeleton-tree. Empty only for an empty mask. The caller's points are not used: the
 /// rig does not depend on how many the user keeps.
 CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask);
 

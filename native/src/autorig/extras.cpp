@@ -40,11 +40,11 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         std::vector<std::uint32_t> nodes{leaf};
         std::uint32_t at = leaf;
         while (t.parent(at) != kNone && b.bone_of(at) < 0) nodes.push_back(at = t.parent(at));
-        const std::int32_t parent = b.bone_of(at);
+        const std::int32_t holder = b.bone_of(at);
         // A part sticks out of the body by a few of its own radii (bumps and stubs are no parts), however thick
         // the body is where it attaches (a tail hanging down along the rump).
         nodes.pop_back();  // `at`: the body's
-        if (parent < 0 || nodes.size() < 2 || significance < kExtraReach * t.mean_radius(nodes)) continue;
+        if (holder < 0 || nodes.size() < 2 || significance < kExtraReach * t.mean_radius(nodes)) continue;
         nodes.push_back(at);
         std::reverse(nodes.begin(), nodes.end());
         const Chain4 samples = c.samples(nodes);
@@ -54,8 +54,9 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
             if (fit.worst <= tolerance || static_cast<int>(fit.cuts.size()) - 1 < pieces) break;
         }
         if (fit.cuts.size() < 2) continue;
+        const bool tail = quadruped && is_tail(b.rig(), b.rig().names[static_cast<std::size_t>(holder)], t.at(leaf));
+        const std::int32_t parent = tail ? holder : b.attach_bone(at, t.radius(at));
         const std::string& owner = b.rig().names[static_cast<std::size_t>(parent)];
-        const bool tail = quadruped && is_tail(b.rig(), owner, t.at(leaf));
         const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;

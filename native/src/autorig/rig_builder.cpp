@@ -18,13 +18,21 @@ Chain4 RigContext::samples(const std::vector<std::uint32_t>& nodes) const {
 
 double RigContext::reach_inside(const Vec& from, const Vec& dir, double start, double limit) const {
     const double step = 0.5 * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    // Inside when every voxel nearest q is (a point halfway between voxels has two along that axis: the same
+    // answer with the object turned or mirrored).
     auto inside = [&](const Vec& q) {
-        std::int64_t v[3];
+        std::int64_t lo[3], hi[3];
         for (int a = 0; a < 3; ++a) {
-            v[a] = std::llround((q[a] - grid.origin[a]) / grid.spacing[a]);
-            if (v[a] < 0 || v[a] >= grid.dims[a]) return false;
+            const double t = (q[a] - grid.origin[a]) / grid.spacing[a];
+            lo[a] = static_cast<std::int64_t>(std::ceil(t - 0.5 - 1e-9));
+            hi[a] = static_cast<std::int64_t>(std::floor(t + 0.5 + 1e-9));
+            if (lo[a] < 0 || hi[a] >= grid.dims[a]) return false;
         }
-        return mask[grid.index(v[0], v[1], v[2])] != 0;
+        for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+            for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+                for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+                    if (!mask[grid.index(x, y, z)]) return false;
+        return true;
     };
     double reach = start;
     while (reach + step <= limit && inside(from + (reach + step) * dir)) reach += step;
@@ -59,7 +67,8 @@ std::int32_t RigBuilder::joint(std::uint32_t node) {
     if (it != joint_of_node_.end()) return it->second;
     const auto j = static_cast<std::int32_t>(rig_.joints.size());
     const std::uint32_t point = c_.rep[node];
-    rig_.joints.push_back(point_position(c_.grid, c_.pts, point));
+    const Vec& at = c_.tree.at(node);
+    rig_.joints.push_back({at.x(), at.y(), at.z()});
     rig_.joint_points.push_back(point);
     joint_of_node_.emplace(node, j);
     return j;
@@ -68,6 +77,18 @@ std::int32_t RigBuilder::joint(std::uint32_t node) {
 std::int32_t RigBuilder::bone_of(std::uint32_t node) const {
     const auto it = bone_of_node_.find(node);
     return it == bone_of_node_.end() ? -1 : it->second;
+}
+
+std::int32_t RigBuilder::attach_bone(std::uint32_t node, double reach) const {
+    const std::int32_t b = bone_of(node);
+    if (b < 0 || (c_.tree.at(node) - bone_end(rig_, static_cast<std::size_t>(b), 1)).norm() > reach) return b;
+    std::int32_t next = -1;
+    for (std::size_t k = 0; k < rig_.bones.size(); ++k)
+        if (rig_.bones[k][0] == rig_.bones[static_cast<std::size_t>(b)][1]) {
+            if (next >= 0) return b;  // a branch point: no one next bone
+            next = static_cast<std::int32_t>(k);
+        }
+    return next >= 0 ? next : b;
 }
 
 void RigBuilder::chain(const std::vector<std::uint32_t>& nodes, const std::vector<std::size_t>& cuts,

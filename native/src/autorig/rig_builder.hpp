@@ -40,6 +40,10 @@ public:
                const std::vector<std::string>& names, std::int32_t parent = -1);
     /// The bone whose span of its chain holds `node`, or -1.
     std::int32_t bone_of(std::uint32_t node) const;
+    /// The bone a part hanging from `node` moves with: bone_of(node), or the next bone when the node lies within
+    /// `reach` of that bone's tail and exactly one bone starts there (a part at an elbow goes with the forearm
+    /// wherever the cut fell among the nodes around it), or -1.
+    std::int32_t attach_bone(std::uint32_t node, double reach) const;
     const Rig& rig() const { return rig_; }
     /// The rig of the given kind, its end joints (tails no bone starts from) moved outward along their bone to the
     /// object's surface, up to twice the end point's radius.

@@ -86,30 +86,59 @@ std::vector<std::uint8_t> scale_axis(const Grid& g, const PointSet& pts) {
         }
         grid.for_each_in_box(lo, hi, [&](std::uint32_t j) {
             if (j == i || !keep[j] || pts.radius[j] > 0.5f * pts.radius[i]) return;
-            if ((pos[j] - pos[i]).norm() + pts.radius[j] <= reach_w) keep[j] = 0;
+            // (with a margin for rounding: grid distances meet the bound exactly, in any order of summing)
+            if ((pos[j] - pos[i]).norm() + pts.radius[j] <= reach_w * (1 + 1e-9)) keep[j] = 0;
         });
     }
     return keep;
 }
 
+namespace {
+
+// Where level_set_tree measures from: of the points as large as the largest (within kTiedRadius), those nearest
+// (within kTiedRadius) to their centroid, at distance 0; the rest at infinity. Empty when no point is in the part.
+// Chosen by geometry alone, so the same points in another order or rotated give the same sources; on a shape of
+// one radius everywhere (a tube) this is its middle rather than every point.
+std::vector<double> source_distances(const PointSet& pts, const std::vector<Vec>& pos,
+                                     const std::vector<std::uint8_t>& in_part) {
+    float largest = -1;
+    for (std::uint32_t i = 0; i < pts.n; ++i)
+        if (in_part[i]) largest = std::max(largest, pts.radius[i]);
+    if (largest < 0) return {};
+    std::vector<std::uint32_t> tied;
+    Vec centre = Vec::Zero();
+    for (std::uint32_t i = 0; i < pts.n; ++i)
+        if (in_part[i] && pts.radius[i] >= (1.0 - kTiedRadius) * largest) {
+            tied.push_back(i);
+            centre += pos[i];
+        }
+    centre /= static_cast<double>(tied.size());
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const std::uint32_t i : tied) nearest = std::min(nearest, (pos[i] - centre).norm());
+    std::vector<double> dist(pts.n, std::numeric_limits<double>::infinity());
+    const double tolerance = kTiedRadius * std::max(1.0, static_cast<double>(largest));
+    for (const std::uint32_t i : tied)
+        if ((pos[i] - centre).norm() <= nearest + tolerance) dist[i] = 0;
+    return dist;
+}
+
+}  // namespace
+
 LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGraph& graph,
                             const std::vector<std::uint8_t>& in_part, double band) {
     const std::size_t n = pts.n;
     const std::vector<Vec> pos = positions(g, pts);
-    std::uint32_t root = kNone;
-    for (std::uint32_t i = 0; i < n; ++i)
-        if (in_part[i] && (root == kNone || pts.radius[i] > pts.radius[root])) root = i;
     LevelSetTree t;
-    if (root == kNone) {
+    std::vector<double> dist = source_distances(pts, pos, in_part);
+    if (dist.empty()) {
         t.node_of_point.assign(n, kNone);
         return t;
     }
-    std::vector<double> dist(n, std::numeric_limits<double>::infinity());
-    dist[root] = 0;
     shortest_paths(graph, dist, nullptr, &in_part);
     std::vector<std::int64_t> level(n, -1);
     for (std::size_t i = 0; i < n; ++i)
-        if (std::isfinite(dist[i])) level[i] = static_cast<std::int64_t>(dist[i] / band);
+        // A distance a whole number of bands summed in another order may come out a bit under: nudged up.
+        if (std::isfinite(dist[i])) level[i] = static_cast<std::int64_t>(dist[i] / band + 1e-9);
     level_pieces(pts, pos, graph, level, t);
     // Links between pieces, reduced to a spanning tree (Kruskal by centroid distance over the link's strength
     // squared): a link is as strong as the thickest graph edge joining the two pieces, relative to the thinner

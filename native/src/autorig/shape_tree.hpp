@@ -27,7 +27,7 @@ constexpr double kScaleAxis = 1.25;
 std::vector<std::uint8_t> scale_axis(const Grid& g, const PointSet& pts);
 
 /// The level-set tree of one part of the skeleton: points binned by geodesic distance from the part's
-/// largest-radius point (over a neighbour graph), each bin split into connected pieces; a piece is a node
+/// largest-radius points (over a neighbour graph), each bin split into connected pieces; a piece is a node
 /// (centroid, largest radius, representative point nearest the centroid) and pieces joined by graph edges are
 /// linked, then reduced to a spanning tree by centroid distance. Unlike paths in a minimum spanning tree, which
 /// wander inside a skeleton several voxels thick, the nodes follow the middle of each branch. Node sizes follow the
@@ -42,6 +42,9 @@ struct LevelSetTree {
 
 /// The strength below which a link between level pieces counts as weakest (level_set_tree).
 constexpr double kWeakestLink = 0.05;
+
+/// Radii this close (relative) to the largest count as the largest: level_set_tree measures its levels from all.
+constexpr double kTiedRadius = 1e-5;
 
 /// The level-set tree of the points with in_part[i] != 0, levels `band` (world units) apart.
 LevelSetTree level_set_tree(const Grid& g, const PointSet& pts, const SkeletonGraph& graph,
