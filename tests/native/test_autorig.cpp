@@ -612,3 +612,98 @@ TEST_CASE("search_plans: a quadruped with thick front legs keeps its head at the
     REQUIRE(s.quadruped.score < kPlanLimit);
     CHECK(s.quadruped.head == head);
 }
+
+TEST_CASE("own_start finds where an arm leaves the trunk's sheet, not where its hand thickens", "[autorig]") {
+    Chain4 chain;
+    auto add = [&](double z, double r) { chain.emplace_back(0.0, 0.0, z, r); };
+    for (double z : {100.0, 95.0, 90.0}) add(z, 20.0);  // trunk
+    for (int k = 0; k < 20; ++k) add(85.0 - 3 * k, 8.0 - 0.2 * k);  // arm, tapering
+    add(20.0, 1.0);  // a finger tip: its neighbour is more than 1.5x as thick, but it is the far end
+    CHECK(own_start(chain) == 3);
+    // Only the root is trunk: the arm starts at 1. No trunk at all: 0.
+    chain.erase(chain.begin(), chain.begin() + 2);
+    CHECK(own_start(chain) == 1);
+    chain.front()[3] = 8.0;
+    CHECK(own_start(chain) == 0);
+}
+
+TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a radius under the surface",
+          "[autorig]") {
+    // A solid column x 0..39, z 0..99 (y 0..19); the arm's visible axis runs down x = 30 from z = 70 to 40,
+    // then the forearm forward-down to (30, 2, 10) region. Its shoulder: up x = 30 to the top (z 99.5), 5 back in.
+    Grid g;
+    g.dims = {40, 20, 100};
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
+    const NodeTree t({Vec(5, 5, 5)}, {1.0}, {});
+    const std::vector<std::int32_t> ijk{5, 5, 5};
+    const std::vector<float> r{1.0f};
+    const PointSet pts{ijk.data(), r.data(), 1};
+    const std::vector<std::uint32_t> rep{0};
+    const RigContext c{g, mask.data(), pts, t, rep};
+    Chain4 chain;
+    chain.emplace_back(10, 10, 80, 12);  // chest
+    chain.emplace_back(20, 10, 76, 11);  // the trunk's sheet
+    for (int z = 70; z >= 40; z -= 2) chain.emplace_back(30, 10, z, 5);                 // upper arm
+    for (int k = 1; k <= 12; ++k) chain.emplace_back(30, 10 - 0.6 * k, 40 - 2.0 * k, 4);  // forearm
+    for (int k = 1; k <= 6; ++k) chain.emplace_back(30, 2.8 - 0.3 * k, 16 - 1.5 * k, 3);  // hand
+    const auto f = fused_arm(c, chain, Vec(0, 0, 1));
+    REQUIRE(f);
+    CHECK(f->own == 2);
+    CHECK(f->shoulder.x() == Approx(30).margin(0.5));
+    CHECK(f->shoulder.z() == Approx(94.5).margin(1.0));
+    REQUIRE(f->cuts.size() == 5);
+    CHECK(f->cuts[0] == 0);
+    CHECK(f->cuts[1] == 2);
+    CHECK(chain[f->cuts[2]].z() == Approx(40).margin(4.1));  // the elbow at the bend
+    CHECK(f->cuts[4] == chain.size() - 1);
+    // An arm whose top runs across the body (a shoulder girdle) is not fused.
+    Chain4 across{chain[0], Eigen::Vector4d(14, 10, 80, 11)};
+    for (int x = 20; x <= 30; ++x) across.emplace_back(x, 10, 78, 5);
+    across.insert(across.end(), chain.begin() + 2, chain.end());
+    CHECK_FALSE(fused_arm(c, across, Vec(0, 0, 1)));
+}
+
+namespace {
+
+/// A leg of nodes from (0, 0, 100) to (0, 0, 0) with the axis bent `bend` at z = 40 (pushed along y), and a rig
+/// of hips (its head at z `fork`), thigh 100 -> 40 and shin 40 -> 0 over it.
+struct Leg {
+    Figure f{Vec(0, 0, 100), 10.0};
+    Rig rig;
+    std::vector<std::uint32_t> nodes;
+    Leg(double bend, double fork) {
+        f.limb(f.limb(0, Vec(0, bend, 40), 10, 9), Vec(0, 0, 0), 9, 6);
+        for (std::uint32_t k = 0; k < f.pos.size(); ++k) nodes.push_back(k);
+        rig.joints = {{0, 0, fork}, {0, 0, 100}, {0, bend, 40}, {0, 0, 0}};
+        rig.joint_points = {0, 0, 0, 0};
+        rig.bones = {{0, 1}, {1, 2}, {2, 3}};
+        rig.names = {"hips", "thigh.L", "shin.L"};
+        rig.parents = {-1, 0, 1};
+    }
+};
+
+}  // namespace
+
+TEST_CASE("straight_knee: a straight leg's knee at the thigh's share, a bent one's left at its bend", "[autorig]") {
+    Leg straight(2.0, 100.0);  // 2 off the line: straight (radius about 9)
+    Solid s(straight.f, {10, 10, 110});
+    straight_knee(s.context(), straight.rig, straight.nodes, ".L");
+    const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
+    CHECK(straight.rig.joints[2][2] == Approx(100 * (1 - share)).margin(1.5));
+    CHECK(straight.rig.joint_points[2] == -1);
+    Leg bent(30.0, 100.0);  // a bent knee: its bend stays
+    Solid sb(bent.f, {10, 40, 110});
+    straight_knee(sb.context(), bent.rig, bent.nodes, ".L");
+    CHECK(bent.rig.joints[2][2] == 40);
+    CHECK(bent.rig.joints[2][1] == 30);
+}
+
+TEST_CASE("hip_on_thigh_line moves a hip below the legs' fork up the thigh's line, never down", "[autorig]") {
+    Leg leg(0.0, 120.0);  // the fork 20 above the thigh's head
+    hip_on_thigh_line(leg.rig, "thigh.L");
+    CHECK(leg.rig.joints[1][2] == Approx(120));
+    CHECK(leg.rig.joints[1][1] == Approx(0));
+    Leg low(0.0, 90.0);
+    hip_on_thigh_line(low.rig, "thigh.L");
+    CHECK(low.rig.joints[1][2] == 100);
+}

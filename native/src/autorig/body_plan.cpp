@@ -154,17 +154,20 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     Fit leg_fit[2], arm_fit[2];
     const Fit spine_fit = fit_chain(c.samples(spine), 3), head_fit = fit_chain(c.samples(head), 2);
     bool ok = spine_fit.cuts.size() == 4 && head_fit.cuts.size() == 3;
+    const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
+    std::optional<FusedArm> fused[2];
     for (int k = 0; k < 2; ++k) {
         leg[k] = t.path(pelvis, plan.legs[k]);
         arm[k] = t.path(chest, plan.arms[k]);
         leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
-        arm_fit[k] = humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
+        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), spine_dir);
+        arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
+                              : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
         ok = ok && leg_fit[k].cuts.size() == 5 && arm_fit[k].cuts.size() == 5;
     }
     if (!ok) return Candidate{};
 
     // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
-    const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
     Candidate out;
     Vec forward = Vec::Zero();
     if (humanoid) {
@@ -205,9 +208,19 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     add_extra_chains(c, b, !humanoid, tolerance);
     out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
     if (humanoid)
-        for (const std::string sfx : {".L", ".R"}) {  // upper arm / forearm, thigh / shin
-            restore_proximal(c, out.rig, "upper_arm" + sfx, "forearm" + sfx, kArmProportions[1] / kArmProportions[2]);
-            restore_proximal(c, out.rig, "thigh" + sfx, "shin" + sfx, kLegProportions[1] / kLegProportions[2]);
+        for (int s = 0; s < 2; ++s) {  // joints the medial axis does not show
+            const std::string arm_sfx = ((s == 0) == arm0_left) ? ".L" : ".R", leg_sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
+            if (fused[s])
+                place_fused_shoulder(out.rig, "upper_arm" + arm_sfx, fused[s]->shoulder);
+            else
+                restore_proximal(c, out.rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
+                                 kArmProportions[1] / kArmProportions[2]);
+            hip_on_thigh_line(out.rig, "thigh" + leg_sfx);
+            restore_proximal(c, out.rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
+            const auto& k = leg_fit[s].cuts;
+            straight_knee(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[1]),
+                                                                 leg[s].begin() + static_cast<std::ptrdiff_t>(k[3]) + 1),
+                          leg_sfx);
         }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;

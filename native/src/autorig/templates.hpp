@@ -73,6 +73,42 @@ bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, s
 void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
                       double ratio);
 
+/// A limb chain's samples from the trunk out: a sample more than kTrunkJump times as thick as every sample beyond
+/// it is trunk (a limb lying against the trunk joins it through the trunk's medial sheet, not at its own radius).
+constexpr double kTrunkJump = 1.5;
+/// The index of the first sample after the last trunk sample (the root counts; only in the first half of the
+/// chain's length: a hand thickens from its finger tip too), or 0 when there is none.
+std::size_t own_start(const Chain4& chain);
+
+/// How much of an arm's visible top gives its line (arc length, in radii of its first own sample).
+constexpr double kFusedTopRadii = 2.0;
+/// A fused upper arm runs along the body: |cos| between its line and the spine at least this.
+constexpr double kFusedAlongSpine = 0.7;
+/// An arm fused with the trunk (arms at the sides of a scan): the medial axis of its upper arm starts mid-arm
+/// (own), below the humeral head. The shoulder joint goes up the line of its visible top (kFusedTopRadii) to the
+/// shoulder's surface and one radius back in; `cuts` (into the chain: the chest, own, elbow, wrist, tip) come from
+/// proportional_fit of upper arm, forearm and hand over the shoulder joint and the own samples.
+struct FusedArm {
+    std::size_t own = 0;
+    Vec shoulder = Vec::Zero();
+    std::vector<std::size_t> cuts;
+};
+/// The fused reading of an arm chain (from the chest), or none: no trunk samples beyond its root, a top across the
+/// body (a shoulder girdle, a raised arm), too few samples.
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& spine_dir);
+/// Moves the head of bone `upper_arm` to the fused arm's shoulder joint.
+void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& shoulder);
+
+/// The hip: the legs' medial axes fork below the hip joints (at the crotch, thighs pressed together lower still),
+/// so the thigh's head moves up its line to the level of the hips bone's head (the fork), when that is higher.
+void hip_on_thigh_line(Rig& rig, const std::string& thigh);
+
+/// A leg is straight when no node of its axis between hip and ankle (`leg`: those nodes) lies more than this
+/// times their mean radius off the hip-ankle line; its knee then goes to the node nearest the thigh's share of
+/// hip-ankle (Drillis and Contini), not to a wiggle of the axis or of the radius.
+constexpr double kStraightLeg = 1.0;
+void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
+
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
 /// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
