@@ -223,6 +223,7 @@ void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
     f.words.assign(f.blocks.size() * 512 + 1, kNone);
     f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
+    f.sub_sphere.assign(f.blocks.size() * 8, kNone);
 }
 
 /// A cube to close: its cell in the block and its corners' labels.
@@ -319,16 +320,28 @@ void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_p
     }
 }
 
-/// The range of a block's cube ranges over each of its eight 4³ sub-blocks.
+/// The range of a block's cube ranges over each of its eight 4³ sub-blocks, and the sphere whose power is the
+/// bone's on all of a sub-block's cubes (every cell's cube one label's at all corners, the same label), if any.
 void sub_block_ranges(BoneField& f, std::size_t slot) {
     const CellBounds* cells = f.bounds.data() + 1 + slot * 512;
+    const std::uint32_t* words = f.words.data() + 1 + slot * 512;
     CellBounds* sb = f.sub.data() + slot * 8;
-    for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
+    std::uint32_t* one = f.sub_sphere.data() + slot * 8;
+    bool alone[8];
+    for (int k = 0; k < 8; ++k) {
+        sb[k] = CellBounds{kBoundMax, kBoundMin};
+        one[k] = label_of(words[(((k >> 2) * 4 * 8) + ((k >> 1) & 1) * 4) * 8 + (k & 1) * 4]);
+        alone[k] = true;
+    }
     for (int li = 0; li < 512; ++li) {
-        CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
+        const int k = (((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1);
+        CellBounds& t = sb[k];
         t.lo = std::min(t.lo, cells[li].lo);
         t.hi = std::max(t.hi, cells[li].hi);
+        alone[k] = alone[k] && same_of(words[li]) && label_of(words[li]) == one[k];
     }
+    for (int k = 0; k < 8; ++k)
+        if (!alone[k]) one[k] = kNone;
 }
 
 /// The summed-area table of the allocated blocks, (bdims + 1)³, for any_block.
