@@ -77,6 +77,8 @@ struct Local {
     std::int16_t best[512];                 // the candidate giving it
     std::int16_t rival_lo[512];             // the least lower bound over the others
     std::int16_t least_lo[512];             // the least lower bound over all
+    std::int16_t least_lo_arg[512];         // the candidate giving it
+    std::int16_t second_lo[512];            // the least lower bound over the others than that one
     std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
     std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
 };
@@ -196,7 +198,8 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
                 cc[a] = static_cast<std::int64_t>(std::floor(phi[a])) + 1;
             }
             if (!s_.field(f).any_block(ca, cc)) continue;
-            const CellBounds rg = preimage_range(f, b.base, kBlock);
+            std::uint32_t single;
+            const CellBounds rg = preimage_range(f, b.base, kBlock, &single);
             if (rg.lo >= 0) continue;
             loc.fields.push_back(f);
             loc.range.push_back(rg);
@@ -352,20 +355,24 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
 
 /// Tier 2, over the block's voxels in int16 lanes: u = the least upper bound (candidate arg's), mo = the least
 /// lower bound of the others, ml = the least lower bound; a voxel is empty when ml >= 0, won for certain by arg
-/// when certain(u, mo), else open.
+/// when certain(u, mo), else open. One pass over the candidates: mo is the second least lower bound where the
+/// least is arg's own, else the least.
 void Gather::lanes(Local& loc) const {
     const std::size_t K = loc.fields.size();
     std::int16_t* const u = loc.least_hi;
     std::int16_t* const mo = loc.rival_lo;
     std::int16_t* const ml = loc.least_lo;
     std::int16_t* const arg = loc.best;
+    std::int16_t* const arg_lo = loc.least_lo_arg;
+    std::int16_t* const m2 = loc.second_lo;
     const std::int16_t* khi = loc.cube_hi.data();
     const std::int16_t* klo = loc.cube_lo.data();
     for (std::size_t li = 0; li < 512; ++li) {
         u[li] = khi[li];
         arg[li] = 0;
         ml[li] = klo[li];
-        mo[li] = kBoundMax;
+        arg_lo[li] = 0;
+        m2[li] = kBoundMax;
     }
     for (std::size_t k = 1; k < K; ++k) {
         const std::int16_t* hk = khi + k * 512;
@@ -375,14 +382,13 @@ void Gather::lanes(Local& loc) const {
             const bool lt = hk[li] < u[li];
             u[li] = lt ? hk[li] : u[li];
             arg[li] = lt ? kk : arg[li];
-            ml[li] = std::min(ml[li], lk[li]);
+            const bool below = lk[li] < ml[li];
+            m2[li] = below ? ml[li] : std::min(m2[li], lk[li]);
+            ml[li] = below ? lk[li] : ml[li];
+            arg_lo[li] = below ? kk : arg_lo[li];
         }
     }
-    for (std::size_t k = 0; k < K && K > 1; ++k) {
-        const std::int16_t* lk = klo + k * 512;
-        const auto kk = static_cast<std::int16_t>(k);
-        for (std::size_t li = 0; li < 512; ++li) mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], lk[li]);
-    }
+    for (std::size_t li = 0; li < 512; ++li) mo[li] = arg_lo[li] == arg[li] ? m2[li] : ml[li];
     const bool nearest = s_.nearest;
     std::int64_t sure_count = 0;
     for (std::size_t li = 0; li < 512; ++li) {
