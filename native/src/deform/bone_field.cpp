@@ -223,7 +223,7 @@ void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
     f.words.assign(f.blocks.size() * 512 + 1, kNone);
     f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
-    f.sub_sphere.assign(f.blocks.size() * 8, kNone);
+    f.pair_sphere.assign(f.blocks.size() * 64, kNone);
 }
 
 /// A cube to close: its cell in the block and its corners' labels.
@@ -320,28 +320,33 @@ void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_p
     }
 }
 
-/// The range of a block's cube ranges over each of its eight 4³ sub-blocks, and the sphere whose power is the
-/// bone's on all of a sub-block's cubes (every cell's cube one label's at all corners, the same label), if any.
+/// The range of a block's cube ranges over each of its eight 4³ sub-blocks.
 void sub_block_ranges(BoneField& f, std::size_t slot) {
     const CellBounds* cells = f.bounds.data() + 1 + slot * 512;
-    const std::uint32_t* words = f.words.data() + 1 + slot * 512;
     CellBounds* sb = f.sub.data() + slot * 8;
-    std::uint32_t* one = f.sub_sphere.data() + slot * 8;
-    bool alone[8];
-    for (int k = 0; k < 8; ++k) {
-        sb[k] = CellBounds{kBoundMax, kBoundMin};
-        one[k] = label_of(words[(((k >> 2) * 4 * 8) + ((k >> 1) & 1) * 4) * 8 + (k & 1) * 4]);
-        alone[k] = true;
-    }
+    for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
     for (int li = 0; li < 512; ++li) {
-        const int k = (((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1);
-        CellBounds& t = sb[k];
+        CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
         t.lo = std::min(t.lo, cells[li].lo);
         t.hi = std::max(t.hi, cells[li].hi);
-        alone[k] = alone[k] && same_of(words[li]) && label_of(words[li]) == one[k];
     }
-    for (int k = 0; k < 8; ++k)
-        if (!alone[k]) one[k] = kNone;
+}
+
+/// The sphere whose power is the bone's on all the cubes of each 2³ cells of a block: every cell's cube one label's
+/// at all corners, the same label (else kNone).
+void pair_spheres(BoneField& f, std::size_t slot) {
+    const std::uint32_t* words = f.words.data() + 1 + slot * 512;
+    std::uint32_t* one = f.pair_sphere.data() + slot * 64;
+    for (int m = 0; m < 64; ++m) {
+        const int first = (((m >> 4) * 2 * 8) + ((m >> 2) & 3) * 2) * 8 + (m & 3) * 2;  // cell (2x, 2y, 2z)
+        const std::uint32_t lab = label_of(words[first]);
+        bool alone = true;
+        for (int c = 0; c < 8 && alone; ++c) {
+            const std::uint32_t w = words[first + ((c >> 2) * 8 + ((c >> 1) & 1)) * 8 + (c & 1)];
+            alone = same_of(w) && label_of(w) == lab;
+        }
+        one[m] = alone ? lab : kNone;
+    }
 }
 
 /// The summed-area table of the allocated blocks, (bdims + 1)³, for any_block.
@@ -389,6 +394,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
             const int n_pending = fill_block_cells(f, slot, pass, sc.pending.data());
             if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near);
             sub_block_ranges(f, slot);
+            pair_spheres(f, slot);
         }
     });
     block_sums(f);

@@ -101,14 +101,13 @@ struct BoneField {
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
                                                   // (quantised in steps common to all fields, so that they compare)
-    std::vector<std::uint32_t> sub_sphere;        // 8 per allocated block: the sphere (local) whose power is the
-                                                  // bone's on every cube of the 4³ sub-block (all its cells' cubes
-                                                  // have that one label at all corners), else kNone
+    std::vector<std::uint32_t> pair_sphere;       // 64 per allocated block: the sphere (local) whose power is the
+                                                  // bone's on every cube of the 2³ cells (all their cubes have that
+                                                  // one label at all corners), else kNone
 
     /// The quantised range of the bone's power over the cubes whose first corners lie in cells [a, b] (absolute
-    /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be. With
-    /// `single`, also the sphere (local) whose power is the bone's on all of those cubes, or kNone.
-    CellBounds range_bounds(const std::int64_t* a, const std::int64_t* b, std::uint32_t* single = nullptr) const {
+    /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be.
+    CellBounds range_bounds(const std::int64_t* a, const std::int64_t* b) const {
         std::int16_t l = kBoundMax, h = kBoundMin;
         std::int64_t s0[3], s1[3];
         for (int i = 0; i < 3; ++i) {
@@ -116,33 +115,48 @@ struct BoneField {
             if (a0 < 0 || b0 >= dims[i]) h = kBoundMax;
             s0[i] = std::max<std::int64_t>(a0, 0);
             s1[i] = std::min<std::int64_t>(b0, dims[i] - 1);
-            if (s1[i] < s0[i]) {
-                if (single) *single = kNone;
-                return CellBounds{};
-            }
+            if (s1[i] < s0[i]) return CellBounds{};
             s0[i] >>= 2;
             s1[i] >>= 2;
         }
-        std::uint32_t one = kNone;
-        bool alone = h != kBoundMax;  // inside the field, and every sub-block met so far is one sphere's, the same
         for (std::int64_t z = s0[2]; z <= s1[2]; ++z)
             for (std::int64_t y = s0[1]; y <= s1[1]; ++y)
                 for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
                     const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 1) * bdims[1] + (y >> 1)) * bdims[0] + (x >> 1))];
                     if (blk < 0) {
                         h = kBoundMax;
-                        alone = false;
                         continue;
                     }
-                    const std::size_t k = static_cast<std::size_t>(blk) * 8 + static_cast<std::size_t>(((z & 1) * 2 + (y & 1)) * 2 + (x & 1));
-                    const CellBounds c = sub[k];
+                    const CellBounds c = sub[static_cast<std::size_t>(blk) * 8 + static_cast<std::size_t>(((z & 1) * 2 + (y & 1)) * 2 + (x & 1))];
                     l = std::min(l, c.lo);
                     h = std::max(h, c.hi);
-                    if (one == kNone) one = sub_sphere[k];
-                    alone = alone && sub_sphere[k] != kNone && sub_sphere[k] == one;
                 }
-        if (single) *single = alone ? one : kNone;
         return CellBounds{l, h};
+    }
+
+    /// The sphere (local) whose power is the bone's on all the cubes whose first corners lie in cells [a, b]
+    /// (absolute lattice, inclusive), from the 2³ cells' pair_sphere; kNone when there is none (or the cells reach
+    /// outside the allocated blocks).
+    std::uint32_t single_sphere(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t s0[3], s1[3];
+        for (int i = 0; i < 3; ++i) {
+            s0[i] = a[i] - lo[i];
+            s1[i] = b[i] - lo[i];
+            if (s0[i] < 0 || s1[i] >= dims[i]) return kNone;
+            s0[i] >>= 1;
+            s1[i] >>= 1;
+        }
+        std::uint32_t one = kNone;
+        for (std::int64_t z = s0[2]; z <= s1[2]; ++z)
+            for (std::int64_t y = s0[1]; y <= s1[1]; ++y)
+                for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
+                    const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 2) * bdims[1] + (y >> 2)) * bdims[0] + (x >> 2))];
+                    if (blk < 0) return kNone;
+                    const std::uint32_t k = pair_sphere[static_cast<std::size_t>(blk) * 64 + static_cast<std::size_t>(((z & 3) * 4 + (y & 3)) * 4 + (x & 3))];
+                    if (k == kNone || (one != kNone && k != one)) return kNone;
+                    one = k;
+                }
+        return one;
     }
 
     /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
@@ -223,7 +237,7 @@ struct BoneField {
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
                blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
-               block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + sub_sphere.size() * 4;
+               block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_sphere.size() * 4;
     }
 };
 

@@ -165,8 +165,10 @@ CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::i
         box[3 + a] = Pull::to_double(hi_f);
     }
     const BoneField& field = s_.field(f);
-    const CellBounds r = field.range_bounds(ra, rb, single);
-    if (!single || *single == kNone) return r;
+    const CellBounds r = field.range_bounds(ra, rb);
+    if (!single) return r;
+    *single = r.lo < 0 ? field.single_sphere(ra, rb) : kNone;
+    if (*single == kNone) return r;
     const CellBounds e = sphere_box_range(field, *single, box, s_.s2, s_.bound_step);
     return CellBounds{std::max(r.lo, e.lo), std::min(r.hi, e.hi)};
 }
