@@ -103,11 +103,13 @@ def bake(volume_obj, scene, frames, mode: str = "linear", force: bool = False, r
     baker = Baker(volume_obj, mode)
     current = scene.frame_current
     written = 0
+    rate = pipeline.BakeRate(len(frames))
     try:
-        for i, frame in enumerate(frames):
+        for frame in frames:
             if baker.bake_frame(scene, frame, force=force):
                 written += 1
-            report(f"volrig: {volume_obj.name} frame {frame} ({i + 1}/{len(frames)})")
+            rate.tick()
+            report(f"volrig: {volume_obj.name} frame {frame} {rate.bar()}")
     finally:
         scene.frame_set(current)
         baker.finish()

@@ -293,6 +293,7 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
         self._baker = baking.Baker(vol, vol.volrig.deform_mode)
         self._next = 0
         self._written = 0
+        self._rate = pipeline.BakeRate(len(self._frames))
         self._current = context.scene.frame_current
         wm = context.window_manager
         wm.progress_begin(0, len(self._frames))
@@ -316,11 +317,15 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
             self.report({"ERROR"}, f"volrig: {e}")
             return {"CANCELLED"}
         self._next += 1
+        self._rate.tick()
         context.window_manager.progress_update(self._next)
+        if context.workspace is not None:  # the bar with frames per second in the status bar
+            context.workspace.status_text_set(f"volrig bake: {self._rate.bar()}")
         if self._next < len(self._frames):
             return {"RUNNING_MODAL"}
         self._finish(context)
-        self.report({"INFO"}, f"volrig: baked {self._written} of {len(self._frames)} frames")
+        self.report({"INFO"}, f"volrig: baked {self._written} of {len(self._frames)} frames, "
+                              f"{self._rate.per_second:.2f} frames/s")
         return {"FINISHED"}
 
     def _finish(self, context):
@@ -329,6 +334,8 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
             wm.event_timer_remove(self._timer)
             self._timer = None
         wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
         context.scene.frame_set(self._current)
         try:
             self._baker.finish()  # the last file written; the frames' memory freed

@@ -97,6 +97,7 @@ py::dict frame_dict(DeformedVolume&& f) {
     stats["by_cube"] = f.stats.by_cube;
     stats["by_sphere"] = f.stats.by_sphere;
     stats["by_search"] = f.stats.by_search;
+    stats["exact_sub_blocks"] = f.stats.exact_sub_blocks;
     d["stats"] = stats;
     return d;
 }

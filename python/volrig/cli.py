@@ -151,13 +151,15 @@ def cmd_animate(args) -> int:
 
 
 def cmd_bake_mocap(args) -> int:
-    from .pipeline import FolderBake, sequence_number
+    from .pipeline import BakeRate, FolderBake, sequence_number
     t = time.perf_counter()
     source = _load(args)
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args, args.step, binding=True)
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
     bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling)
-    written, first = 0, time.perf_counter()
+    todo = [(f, m) for f, m in zip(frames, matrices)
+            if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
+    rate = BakeRate(len(todo))
     try:
         for k, (f, m) in enumerate(zip(frames, matrices)):
             path = bake.path(sequence_number(f, args.step))
@@ -167,13 +169,13 @@ def cmd_bake_mocap(args) -> int:
                 continue
             started = time.perf_counter()
             stats = bake.bake(sequence_number(f, args.step), m)
-            written += 1
-            now = time.perf_counter()
-            sys.stderr.write(head + f"{stats['covered']:,} voxels, {now - started:.2f} s, "
-                             f"{written / (now - first):.2f} frames/s -> {path}\n")
+            rate.tick()
+            sys.stderr.write(head + f"{stats['covered']:,} voxels, {time.perf_counter() - started:.2f} s -> {path}  "
+                             f"{rate.bar()}\n")
             sys.stderr.flush()
     finally:
         bake.finish()
+    written = rate.done
     print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
           f"{motion.frame_count}, {motion.fps / args.step:.4g} fps) x {len(saved.rig)} bones, {len(bone_map)} mapped, "
           f"{args.root}, {args.mode}; {time.perf_counter() - t:.1f} s -> {args.output}")

@@ -16,6 +16,7 @@ import hashlib
 import json
 import os
 import re
+import time
 from dataclasses import dataclass
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -315,6 +316,36 @@ def mocap_poses(rig: Rig, motion, frames, bone_map=None, root_motion: str = "in_
 def frame_file(folder: str, stem: str, number: int) -> str:
     """``<folder>/<stem>_NNNN.vdb``: frame ``number`` of a VDB sequence."""
     return os.path.join(folder, f"{stem}_{number:04d}.vdb")
+
+
+class BakeRate:
+    """A bake's progress and pace: frames done of ``total`` and frames per second since ``start`` (the first frame
+    started; each frame's file is written while the next computes, so the rate is what the whole bake sustains).
+    ``bar()`` is the one-line progress bar every bake loop shows (CLI, add-on)."""
+
+    def __init__(self, total: int):
+        self.total = int(total)
+        self.done = 0
+        self.start = time.perf_counter()
+
+    def tick(self) -> None:
+        """One more frame done."""
+        self.done += 1
+
+    @property
+    def per_second(self) -> float:
+        elapsed = time.perf_counter() - self.start
+        return self.done / elapsed if elapsed > 0 else 0.0
+
+    def bar(self, width: int = 24) -> str:
+        """``[#########...............] 12/240 frames, 1.86 frames/s, 2:02 left``."""
+        filled = int(width * self.done / self.total) if self.total else width
+        text = f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} frames"
+        rate = self.per_second
+        if self.done and rate > 0:
+            left = int(round((self.total - self.done) / rate))
+            text += f", {rate:.2f} frames/s, {left // 60}:{left % 60:02d} left"
+        return text
 
 
 class FolderBake:

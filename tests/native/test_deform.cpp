@@ -254,6 +254,32 @@ TEST_CASE("every decision tier of the Deformer is used, and it still equals the 
     for (std::int64_t t : tiers) REQUIRE(t > 0);
 }
 
+TEST_CASE("sub-blocks whose powers come from one sphere (smooth blend groups) still equal the brute-force scatter",
+          "[deform]") {
+    // The thick limb with its blend across the joint: many (field, sub-block) pairs lie in one sphere's power
+    // cell, where the gather takes that sphere's power itself instead of the per-cube tables.
+    const Limb L = make_limb({1.0, 1.0, 1.0}, 3);
+    Deformer d(L.view(), L.spheres(true));
+    const auto joint = world(L.grid, L.joint);
+    for (DeformMode mode : {DeformMode::Rigid, DeformMode::Linear, DeformMode::DualQuaternion})
+        for (double deg : {20.0, 70.0}) {
+            std::vector<double> mats;
+            const auto m0 = motion({0, 0, 1}, 5, joint, {0.5, 0, 0});
+            const auto m1 = motion({0.3, 1, 0.2}, deg, joint, {0, 0.25, 0});
+            mats.insert(mats.end(), m0.begin(), m0.end());
+            mats.insert(mats.end(), m1.begin(), m1.end());
+            for (Proximity prox : {Proximity::Power, Proximity::Nearest}) {
+                DeformOptions o;
+                o.mode = mode;
+                o.proximity = prox;
+                INFO("mode " << int(mode) << " bend " << deg << " prox " << int(prox));
+                const DeformedVolume fast = d.frame(mats.data(), o);
+                REQUIRE(fast.stats.exact_sub_blocks > 0);
+                require_brute_force(L, true, mats, o, fast);
+            }
+        }
+}
+
 TEST_CASE("deform refuses non-rigid matrices and bad options, and can be cancelled", "[deform]") {
     const Limb L = make_limb({1.0, 1.0, 1.0});
     Deformer d(L.view(), L.spheres(true));

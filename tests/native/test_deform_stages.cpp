@@ -301,6 +301,52 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers aga
     CHECK(f.any_block(a, b) == allocated);
 }
 
+TEST_CASE("one sphere's cells: its power is the field's on all their cubes", "[deform][stages]") {
+    FieldCase fc(5, 12, 3);
+    auto& [rs, s2, f, rng, u] = fc;
+    REQUIRE(f.pair_sphere.size() == f.blocks.size() * 64);
+    std::int64_t singles = 0, probed = 0, in_range = 0;
+    for (std::size_t slot = 0; slot < f.blocks.size(); ++slot)
+        for (int m = 0; m < 64; ++m) {
+            const std::uint32_t one = f.pair_sphere[slot * 64 + static_cast<std::size_t>(m)];
+            if (one == kNone) continue;
+            ++singles;
+            const std::int64_t a[3] = {f.blocks[slot][0] + (m & 3) * 2, f.blocks[slot][1] + ((m >> 2) & 3) * 2,
+                                       f.blocks[slot][2] + (m >> 4) * 2};
+            const std::int64_t b[3] = {a[0] + 1, a[1] + 1, a[2] + 1};
+            REQUIRE(f.single_sphere(a, b) == one);
+            for (int t = 0; t < 20; ++t) {  // anywhere in the cells' cubes: that sphere's power is the least
+                const double p[3] = {a[0] + 2 * u(rng), a[1] + 2 * u(rng), a[2] + 2 * u(rng)};
+                REQUIRE(power_of(f, one, p, s2.data()) == Approx(brute_power(f, p, s2.data()).key).margin(1e-9));
+                ++probed;
+            }
+            // its range over a box is the sphere's power's: it holds every point's power
+            const double box[6] = {a[0] + 0.5, a[1] + 0.25, a[2] + 1.0, a[0] + 1.5, a[1] + 2.0, a[2] + 1.75};
+            const CellBounds r = sphere_box_range(f, one, box, s2.data(), f.step);
+            for (int t = 0; t < 10; ++t) {
+                const double p[3] = {box[0] + (box[3] - box[0]) * u(rng), box[1] + (box[4] - box[1]) * u(rng),
+                                     box[2] + (box[5] - box[2]) * u(rng)};
+                const double v = power_of(f, one, p, s2.data());  // (kBoundMin / kBoundMax: -inf / +inf)
+                REQUIRE((r.lo == kBoundMin || r.lo * f.step <= v));
+                REQUIRE((r.hi == kBoundMax || v <= r.hi * f.step));
+                const CellBounds e = exact_bounds(v, 1.0 / f.step);
+                REQUIRE((e.lo == kBoundMin || e.lo * f.step <= v));
+                REQUIRE((e.hi == kBoundMax || v <= e.hi * f.step));
+                if (e.lo != kBoundMin && e.hi != kBoundMax) REQUIRE(e.hi - e.lo <= 1);
+                ++in_range;
+            }
+        }
+    CHECK(singles > 10);
+    CHECK(probed > 0);
+    CHECK(in_range > 0);
+    // a region reaching past the field, or over several spheres' cells, has no single sphere
+    const std::int64_t a[3] = {f.lo[0] - 2, f.lo[1], f.lo[2]}, b[3] = {f.lo[0] + 40, f.lo[1] + 40, f.lo[2] + 40};
+    CHECK(f.single_sphere(a, b) == kNone);
+    const std::int64_t a2[3] = {f.lo[0], f.lo[1], f.lo[2]}, b2[3] = {f.lo[0] + f.dims[0] - 1, f.lo[1] + f.dims[1] - 1,
+                                                                      f.lo[2] + f.dims[2] - 1};
+    CHECK(f.single_sphere(a2, b2) == kNone);
+}
+
 TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform][stages]") {
     FieldCase fc(31, 60, 13);
     auto& [rs, s2, f, rng, u] = fc;

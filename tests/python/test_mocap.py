@@ -591,6 +591,7 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
     r = run("bake-mocap", src, rig_file, walk.source, "-o", out, "--frames", "1-61", "--step", 30)
     assert r.returncode == 0, r.stderr
     assert "3 of 3 frames" in r.stdout and r.stderr.count("bake-mocap: ") == 3 and "3/3 BVH frame 61" in r.stderr
+    assert "3/3 frames, " in r.stderr and " frames/s" in r.stderr  # the progress bar
     files = [out / f"phantom_{k:04d}.vdb" for k in (1, 2, 3)]
     assert sorted(os.listdir(out)) == [f.name for f in files]  # nothing else (no temporary files left)
     assert {g["name"] for g in volrig._volrig.vdb_grids(str(files[0]))} == {"density", "bone"}

@@ -321,3 +321,15 @@ def test_every_mode_and_sampling_the_menus_offer_is_the_cores():
             assert deformer.frame(volrig.rest_pose(2), mode=mode, sampling=sampling).stats["covered"] > 0
     with pytest.raises(volrig.VolrigError, match="unknown sampling 'cubic'"):
         deformer.frame(volrig.rest_pose(2), sampling="cubic")
+
+
+def test_bake_rate_bar_counts_frames_and_their_pace():
+    rate = pipeline.BakeRate(4)
+    assert rate.bar(8) == "[........] 0/4 frames"
+    rate.start -= 2.0  # two seconds ago
+    rate.tick()
+    rate.tick()
+    text = rate.bar(8)
+    assert text.startswith("[####....] 2/4 frames, ") and " frames/s, " in text and text.endswith(" left")
+    assert 0.9 < rate.per_second <= 1.0
+    assert pipeline.BakeRate(0).bar(4) == "[####] 0/0 frames"

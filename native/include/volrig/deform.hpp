@@ -78,6 +78,9 @@ struct DeformStats {
     /// How the covered voxels were decided (they sum to `covered`): by whole 8³ blocks one bone covers alone, by the
     /// per-cube power ranges, by the power of the sphere labelling the cube, or by the full per-voxel search.
     std::int64_t by_block = 0, by_cube = 0, by_sphere = 0, by_search = 0;
+    /// (candidate field, 4³ output sub-block) pairs looked up voxel by voxel whose powers came straight from the one
+    /// sphere that is the field's nearest over the whole sub-block's preimage (no per-voxel table lookups).
+    std::int64_t exact_sub_blocks = 0;
 };
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel

@@ -63,7 +63,7 @@ struct AutorigOptions {
     std::optional<std::array<double, 3>> up;
     /// Rig the object's own skeleton at autorig's scale (resampled to about 400 voxels along its longest extent
     /// when finer) instead of the given points: any point count gives the same rig; the given points only carry
-    /// the joints. False always rigs the given points and tree.
+    /// the joints. False always rigs the given points and tree, its joints on those points (end joints aside).
     bool own_scale = true;
 };
 

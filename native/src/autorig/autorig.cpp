@@ -209,6 +209,11 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
         const std::vector<std::uint32_t> near = nearest_points(g, pts, on);
         for (std::size_t j = 0, k = 0; j < rig.joints.size(); ++j)
             if (rig.joint_points[j] >= 0) rig.joint_points[j] = near[k++];
+    } else if (!opt.own_scale) {  // the caller's points rigged as asked: joints on them (the piece's point nearest
+                                  // its centroid; a thin part's centroid can lie outside it), end joints aside
+        for (std::size_t j = 0; j < rig.joints.size(); ++j)
+            if (rig.joint_points[j] >= 0)
+                rig.joints[j] = point_position(g, pts, static_cast<std::size_t>(rig.joint_points[j]));
     }
     rig.fit = found[0].fit;
     Vec up = found[0].up;

@@ -223,6 +223,7 @@ void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
     f.words.assign(f.blocks.size() * 512 + 1, kNone);
     f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
+    f.pair_sphere.assign(f.blocks.size() * 64, kNone);
 }
 
 /// A cube to close: its cell in the block and its corners' labels.
@@ -331,6 +332,23 @@ void sub_block_ranges(BoneField& f, std::size_t slot) {
     }
 }
 
+/// The sphere whose power is the bone's on all the cubes of each 2³ cells of a block: every cell's cube one label's
+/// at all corners, the same label (else kNone).
+void pair_spheres(BoneField& f, std::size_t slot) {
+    const std::uint32_t* words = f.words.data() + 1 + slot * 512;
+    std::uint32_t* one = f.pair_sphere.data() + slot * 64;
+    for (int m = 0; m < 64; ++m) {
+        const int first = (((m >> 4) * 2 * 8) + ((m >> 2) & 3) * 2) * 8 + (m & 3) * 2;  // cell (2x, 2y, 2z)
+        const std::uint32_t lab = label_of(words[first]);
+        bool alone = true;
+        for (int c = 0; c < 8 && alone; ++c) {
+            const std::uint32_t w = words[first + ((c >> 2) * 8 + ((c >> 1) & 1)) * 8 + (c & 1)];
+            alone = same_of(w) && label_of(w) == lab;
+        }
+        one[m] = alone ? lab : kNone;
+    }
+}
+
 /// The summed-area table of the allocated blocks, (bdims + 1)³, for any_block.
 void block_sums(BoneField& f) {
     const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2], sx = bx + 1, sy = by + 1;
@@ -376,6 +394,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
             const int n_pending = fill_block_cells(f, slot, pass, sc.pending.data());
             if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near);
             sub_block_ranges(f, slot);
+            pair_spheres(f, slot);
         }
     });
     block_sums(f);

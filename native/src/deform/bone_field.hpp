@@ -101,6 +101,9 @@ struct BoneField {
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
                                                   // (quantised in steps common to all fields, so that they compare)
+    std::vector<std::uint32_t> pair_sphere;       // 64 per allocated block: the sphere (local) whose power is the
+                                                  // bone's on every cube of the 2³ cells (all their cubes have that
+                                                  // one label at all corners), else kNone
 
     /// The quantised range of the bone's power over the cubes whose first corners lie in cells [a, b] (absolute
     /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be.
@@ -129,6 +132,31 @@ struct BoneField {
                     h = std::max(h, c.hi);
                 }
         return CellBounds{l, h};
+    }
+
+    /// The sphere (local) whose power is the bone's on all the cubes whose first corners lie in cells [a, b]
+    /// (absolute lattice, inclusive), from the 2³ cells' pair_sphere; kNone when there is none (or the cells reach
+    /// outside the allocated blocks).
+    std::uint32_t single_sphere(const std::int64_t* a, const std::int64_t* b) const {
+        std::int64_t s0[3], s1[3];
+        for (int i = 0; i < 3; ++i) {
+            s0[i] = a[i] - lo[i];
+            s1[i] = b[i] - lo[i];
+            if (s0[i] < 0 || s1[i] >= dims[i]) return kNone;
+            s0[i] >>= 1;
+            s1[i] >>= 1;
+        }
+        std::uint32_t one = kNone;
+        for (std::int64_t z = s0[2]; z <= s1[2]; ++z)
+            for (std::int64_t y = s0[1]; y <= s1[1]; ++y)
+                for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
+                    const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 2) * bdims[1] + (y >> 2)) * bdims[0] + (x >> 2))];
+                    if (blk < 0) return kNone;
+                    const std::uint32_t k = pair_sphere[static_cast<std::size_t>(blk) * 64 + static_cast<std::size_t>(((z & 3) * 4 + (y & 3)) * 4 + (x & 3))];
+                    if (k == kNone || (one != kNone && k != one)) return kNone;
+                    one = k;
+                }
+        return one;
     }
 
     /// The cell at the first corner of the lattice cube holding p (rest index space in fixed point, as Pull gives
@@ -209,13 +237,35 @@ struct BoneField {
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
                blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
-               block_sat.size() * 4 + sub.size() * sizeof(CellBounds);
+               block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_sphere.size() * 4;
     }
 };
 
 inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
     const auto& sp = f.sph[k];
     return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+/// An exact power v as a quantised range in steps of 1 / inv_step (lo <= v <= hi, with a rounding margin; lo
+/// kBoundMin below the int16 range, hi kBoundMax above it). No libm floor: it runs per voxel.
+inline CellBounds exact_bounds(double v, double inv_step) {
+    const double x = v * inv_step, m = 1e-9 * (std::abs(x) + 1);
+    const double lo = std::min(std::max(x - m, -32768.0), 32767.0), hi = std::min(std::max(x + m, -32767.0), 32767.0);
+    return CellBounds{static_cast<std::int16_t>(fast_floor(lo)), static_cast<std::int16_t>(-fast_floor(-hi))};
+}
+
+/// Sphere k's power over the box {lo x, y, z, hi x, y, z} (index space) as a quantised range (outwards).
+inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const double* box, const double* s2, double step) {
+    const auto& sp = f.sph[k];
+    double near[3], far[3];
+    for (int a = 0; a < 3; ++a) {
+        const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
+        near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
+        far[a] = std::max(std::abs(d0), std::abs(d1));
+    }
+    const double inv = 1.0 / step;
+    return CellBounds{exact_bounds(length2(near[0], near[1], near[2], s2) - sp.lim, inv).lo,
+                      exact_bounds(length2(far[0], far[1], far[2], s2) - sp.lim, inv).hi};
 }
 
 /// Builds one bone's field from its spheres (global indices) with radii r: T is the power above which nothing is

@@ -204,7 +204,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
     if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
     report(progress, 1.0);
-    out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search};
+    out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search,
+                 r.exact_sub_blocks};
     return out;
 }
 

@@ -62,22 +62,31 @@ struct Local {
                           std::numeric_limits<std::int64_t>::max()};
     std::int64_t hi[3] = {-1, -1, -1};
     std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
+    std::int64_t exact_pairs = 0;  // (candidate, sub-block) pairs whose powers came from one sphere
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<CellBounds> range, range_sub;
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
     std::vector<std::int16_t> cube_lo, cube_hi;
     std::vector<std::uint32_t> cube_cell;   // the cells themselves, for their words
+    // per candidate, per 4³ sub-block: the sphere whose power is the candidate's over all of the sub-block's
+    // preimage (kNone when there is none), and then per voxel of such sub-blocks that power, exact
+    std::vector<std::uint32_t> single;
+    std::vector<double> exact;
     std::int16_t least_hi[512];             // the least upper bound over the candidates
     std::int16_t best[512];                 // the candidate giving it
     std::int16_t rival_lo[512];             // the least lower bound over the others
     std::int16_t least_lo[512];             // the least lower bound over all
+    std::int16_t least_lo_arg[512];         // the candidate giving it
+    std::int16_t second_lo[512];            // the least lower bound over the others than that one
     std::int32_t win[512];                  // per voxel: the winning field, kEmpty or kOpen
     std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
 };
 
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
 std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
+/// The 4³ sub-block holding voxel li (x + 8 y + 64 z) of an 8³ block.
+std::size_t sub_of(std::size_t li) { return (((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1); }
 
 class Gather {
 public:
@@ -105,11 +114,14 @@ private:
         }
         return b;
     }
-    CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side) const;
+    CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
+                              std::uint32_t* single = nullptr) const;
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
+    void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
+    void exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
     void lanes(Local& loc) const;
     void undecided(const Block& b, Local& loc) const;
     double cube_lower(const Local& loc, std::size_t k, std::size_t li) const;
@@ -133,10 +145,13 @@ private:
 
 /// The quantised range of field f's power over the preimages of the output voxels q0 + [0, side)³ (absolute
 /// lattice): over the rest cubes holding them, from the bounding box of the preimage in fixed point (exact: the
-/// lookups' cells are the integer parts of the very same values).
-CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side) const {
+/// lookups' cells are the integer parts of the very same values). With `single`, also the sphere whose power is
+/// the field's on all of those cubes, or kNone; the range is then that sphere's over the box, when sharper.
+CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
+                                  std::uint32_t* single) const {
     const Pull& pl = s_.pull(f);
     std::int64_t p0[3], ra[3], rb[3];
+    double box[6];  // the preimages' bounding box, rest index space
     pl.fixed(q0, p0);
     for (int a = 0; a < 3; ++a) {
         std::int64_t lo_f = p0[a], hi_f = p0[a];
@@ -146,8 +161,16 @@ CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::i
         }
         ra[a] = lo_f >> Pull::kBits;
         rb[a] = hi_f >> Pull::kBits;
+        box[a] = Pull::to_double(lo_f);
+        box[3 + a] = Pull::to_double(hi_f);
     }
-    return s_.field(f).range_bounds(ra, rb);
+    const BoneField& field = s_.field(f);
+    const CellBounds r = field.range_bounds(ra, rb);
+    if (!single) return r;
+    *single = r.lo < 0 ? field.single_sphere(ra, rb) : kNone;
+    if (*single == kNone) return r;
+    const CellBounds e = sphere_box_range(field, *single, box, s_.s2, s_.bound_step);
+    return CellBounds{std::max(r.lo, e.lo), std::min(r.hi, e.hi)};
 }
 
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.
@@ -177,7 +200,8 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
                 cc[a] = static_cast<std::int64_t>(std::floor(phi[a])) + 1;
             }
             if (!s_.field(f).any_block(ca, cc)) continue;
-            const CellBounds rg = preimage_range(f, b.base, kBlock);
+            std::uint32_t single;
+            const CellBounds rg = preimage_range(f, b.base, kBlock, &single);
             if (rg.lo >= 0) continue;
             loc.fields.push_back(f);
             loc.range.push_back(rg);
@@ -209,6 +233,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
     cand.resize(K);
     std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
     loc.live.assign(K * 8, 0);
+    loc.single.assign(K * 8, kNone);
     bool any_open = false;
     auto& sr = loc.range_sub;
     sr.resize(K);
@@ -217,7 +242,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         sub_win[sb] = kEmpty;
         if (s0[0] >= b.e[0] || s0[1] >= b.e[1] || s0[2] >= b.e[2]) continue;
         const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
-        for (std::size_t k = 0; k < K; ++k) sr[k] = preimage_range(cand[k], q0, 4);
+        for (std::size_t k = 0; k < K; ++k) sr[k] = preimage_range(cand[k], q0, 4, &loc.single[k * 8 + static_cast<std::size_t>(sb)]);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
         if (w >= 0) {
@@ -249,67 +274,107 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
     }
 }
 
-/// Per candidate and voxel of its live sub-blocks: the cell of the cube holding the voxel's preimage (stepping the
-/// fixed-point preimage by the map's columns: exactly the direct evaluation), then the cells' ranges, loaded apart
-/// from the address arithmetic so that many loads are in flight at once.
+/// Per candidate and voxel of its live sub-blocks: the range of the cube holding the voxel's preimage, or, where
+/// one sphere's power is the field's over the whole sub-block, that power itself (exact_powers). The cells' ranges
+/// are loaded apart from the address arithmetic, so that many loads are in flight at once.
 void Gather::lookups(const Block& b, Local& loc) const {
     const std::size_t K = loc.fields.size();
     loc.cube_lo.resize(K * 512);
     loc.cube_hi.resize(K * 512);
     loc.cube_cell.resize(K * 512);
+    loc.exact.resize(K * 512);
     if (loc.running.size() < K) {
         loc.running.resize(K);
         loc.cands.resize(K);
     }
     for (std::size_t k = 0; k < K; ++k) {
-        const Pull& pl = s_.pull(loc.fields[k]);
-        const BoneField& f = s_.field(loc.fields[k]);
         std::uint32_t* at = loc.cube_cell.data() + k * 512;
         std::fill(at, at + 512, kNoCell);
-        for (int sb = 0; sb < 8; ++sb) {
-            if (!loc.live[k * 8 + static_cast<std::size_t>(sb)]) continue;
-            const auto s0 = sub_origin(sb);
-            const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
-            const std::int64_t e[3] = {std::min<std::int64_t>(4, b.e[0] - s0[0]), std::min<std::int64_t>(4, b.e[1] - s0[1]),
-                                       std::min<std::int64_t>(4, b.e[2] - s0[2])};
-            std::uint32_t* sat = at + (s0[2] * 8 + s0[1]) * 8 + s0[0];
-            std::int64_t pz[3];
-            pl.fixed(q0, pz);
-            for (std::int64_t dz = 0; dz < e[2]; ++dz, pl.step(pz, 2)) {
-                std::int64_t py[3] = {pz[0], pz[1], pz[2]};
-                for (std::int64_t dy = 0; dy < e[1]; ++dy, pl.step(py, 1)) {
-                    std::int64_t px[3] = {py[0], py[1], py[2]};
-                    for (std::int64_t dx = 0; dx < e[0]; ++dx, pl.step(px, 0)) sat[(dz * 8 + dy) * 8 + dx] = f.cube_cell(px);
-                }
-            }
-        }
+        for (int sb = 0; sb < 8; ++sb)
+            if (loc.live[k * 8 + static_cast<std::size_t>(sb)] && loc.single[k * 8 + static_cast<std::size_t>(sb)] == kNone)
+                cube_cells(b, loc, k, sb);
         std::int16_t* klo = loc.cube_lo.data() + k * 512;
         std::int16_t* khi = loc.cube_hi.data() + k * 512;
-        const CellBounds* cells = f.bounds.data();
+        const CellBounds* cells = s_.field(loc.fields[k]).bounds.data();
         for (std::size_t li = 0; li < 512; ++li) {
             const CellBounds c = cells[at[li]];
             klo[li] = c.lo;
             khi[li] = c.hi;
         }
+        for (int sb = 0; sb < 8; ++sb)
+            if (loc.live[k * 8 + static_cast<std::size_t>(sb)] && loc.single[k * 8 + static_cast<std::size_t>(sb)] != kNone)
+                exact_powers(b, loc, k, sb);
     }
+}
+
+/// Calls f(li, pf) for each voxel of sub-block sb of the block with its preimage under pull pl (fixed point,
+/// stepping by the map's columns: exactly the direct evaluation).
+template <class F>
+void for_sub_block(const Pull& pl, const std::int64_t* base, const std::int64_t* e_block, int sb, F&& f) {
+    const auto s0 = sub_origin(sb);
+    const std::int64_t q0[3] = {base[0] + s0[0], base[1] + s0[1], base[2] + s0[2]};
+    const std::int64_t e[3] = {std::min<std::int64_t>(4, e_block[0] - s0[0]), std::min<std::int64_t>(4, e_block[1] - s0[1]),
+                               std::min<std::int64_t>(4, e_block[2] - s0[2])};
+    const std::size_t first = static_cast<std::size_t>((s0[2] * 8 + s0[1]) * 8 + s0[0]);
+    std::int64_t pz[3];
+    pl.fixed(q0, pz);
+    for (std::int64_t dz = 0; dz < e[2]; ++dz, pl.step(pz, 2)) {
+        std::int64_t py[3] = {pz[0], pz[1], pz[2]};
+        for (std::int64_t dy = 0; dy < e[1]; ++dy, pl.step(py, 1)) {
+            std::int64_t px[3] = {py[0], py[1], py[2]};
+            for (std::int64_t dx = 0; dx < e[0]; ++dx, pl.step(px, 0))
+                f(first + static_cast<std::size_t>((dz * 8 + dy) * 8 + dx), px);
+        }
+    }
+}
+
+/// Candidate k's cells of the cubes holding its sub-block sb's preimages.
+void Gather::cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const {
+    const BoneField& f = s_.field(loc.fields[k]);
+    std::uint32_t* at = loc.cube_cell.data() + k * 512;
+    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* p) { at[li] = f.cube_cell(p); });
+}
+
+/// Candidate k's exact power over sub-block sb, where one sphere's power is its field's: the power of that sphere
+/// at each preimage (the very expression tier 3 evaluates), and its quantised range for the lanes.
+void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const {
+    const BoneField& f = s_.field(loc.fields[k]);
+    const std::uint32_t one = loc.single[k * 8 + static_cast<std::size_t>(sb)];
+    double* pw = loc.exact.data() + k * 512;
+    std::int16_t* klo = loc.cube_lo.data() + k * 512;
+    std::int16_t* khi = loc.cube_hi.data() + k * 512;
+    const double inv_step = 1.0 / s_.bound_step;
+    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
+        double p[3];
+        Pull::to_double(pf, p);
+        pw[li] = power_of(f, one, p, s_.s2);
+        const CellBounds r = exact_bounds(pw[li], inv_step);
+        klo[li] = r.lo;
+        khi[li] = r.hi;
+    });
+    ++loc.exact_pairs;
 }
 
 /// Tier 2, over the block's voxels in int16 lanes: u = the least upper bound (candidate arg's), mo = the least
 /// lower bound of the others, ml = the least lower bound; a voxel is empty when ml >= 0, won for certain by arg
-/// when certain(u, mo), else open.
+/// when certain(u, mo), else open. One pass over the candidates: mo is the second least lower bound where the
+/// least is arg's own, else the least.
 void Gather::lanes(Local& loc) const {
     const std::size_t K = loc.fields.size();
     std::int16_t* const u = loc.least_hi;
     std::int16_t* const mo = loc.rival_lo;
     std::int16_t* const ml = loc.least_lo;
     std::int16_t* const arg = loc.best;
+    std::int16_t* const arg_lo = loc.least_lo_arg;
+    std::int16_t* const m2 = loc.second_lo;
     const std::int16_t* khi = loc.cube_hi.data();
     const std::int16_t* klo = loc.cube_lo.data();
     for (std::size_t li = 0; li < 512; ++li) {
         u[li] = khi[li];
         arg[li] = 0;
         ml[li] = klo[li];
-        mo[li] = kBoundMax;
+        arg_lo[li] = 0;
+        m2[li] = kBoundMax;
     }
     for (std::size_t k = 1; k < K; ++k) {
         const std::int16_t* hk = khi + k * 512;
@@ -319,14 +384,13 @@ void Gather::lanes(Local& loc) const {
             const bool lt = hk[li] < u[li];
             u[li] = lt ? hk[li] : u[li];
             arg[li] = lt ? kk : arg[li];
-            ml[li] = std::min(ml[li], lk[li]);
+            const bool below = lk[li] < ml[li];
+            m2[li] = below ? ml[li] : std::min(m2[li], lk[li]);
+            ml[li] = below ? lk[li] : ml[li];
+            arg_lo[li] = below ? kk : arg_lo[li];
         }
     }
-    for (std::size_t k = 0; k < K && K > 1; ++k) {
-        const std::int16_t* lk = klo + k * 512;
-        const auto kk = static_cast<std::int16_t>(k);
-        for (std::size_t li = 0; li < 512; ++li) mo[li] = arg[li] == kk ? mo[li] : std::min(mo[li], lk[li]);
-    }
+    for (std::size_t li = 0; li < 512; ++li) mo[li] = arg_lo[li] == arg[li] ? m2[li] : ml[li];
     const bool nearest = s_.nearest;
     std::int64_t sure_count = 0;
     for (std::size_t li = 0; li < 512; ++li) {
@@ -349,6 +413,14 @@ bool Gather::load_first_label(Local& loc, std::size_t r, std::size_t li, const s
     const auto k = static_cast<std::size_t>(loc.running[r]);
     Candidate& c = loc.cands[r];
     c.field = loc.fields[k];
+    const std::uint32_t one = loc.single[k * 8 + sub_of(li)];
+    if (one != kNone) {  // one sphere's power is the field's here: computed already
+        c.U = c.L = loc.exact[k * 512 + li];
+        c.local = one;
+        c.exact = c.sharp_L = true;
+        c.closed = false;
+        return true;
+    }
     const BoneField& f = s_.field(c.field);
     const std::uint32_t word = f.words[loc.cube_cell[k * 512 + li]];
     const std::uint32_t lab = label_of(word);
@@ -527,6 +599,7 @@ GatherResult Gather::result() const {
         r.by_cube += loc.by[1];
         r.by_sphere += loc.by[2];
         r.by_search += loc.by[3];
+        r.exact_sub_blocks += loc.exact_pairs;
         for (int a = 0; a < 3; ++a) {
             r.lo[a] = std::min(r.lo[a], loc.lo[a]);
             r.hi[a] = std::max(r.hi[a], loc.hi[a]);

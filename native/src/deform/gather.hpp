@@ -17,6 +17,7 @@ namespace volrig::deform_detail {
 struct GatherResult {
     std::int64_t covered = 0, queries = 0;
     std::int64_t by_block = 0, by_cube = 0, by_sphere = 0, by_search = 0;
+    std::int64_t exact_sub_blocks = 0;
     std::int64_t lo[3], hi[3];
 };
 

@@ -1,0 +1,215 @@
+#!/usr/bin/env python3
+"""Benchmark: bake throughput (issue 17), every figure with its reference measured in the same run.
+
+On the humanoid phantom at --scale with its automatic rig (smooth binding, `pipeline.rig_skeleton`, as
+bench_bake), prints:
+  * smooth frames: the dual-quaternion and linear frames of the walking stride (bench_deform.walking_pose) against
+    the rigid frame of the same pose (best of --repeat each, run alternately), and whether each smooth frame
+    equals the brute-force scatter (volrig.deform_reference) voxel for voxel (skipped with --no-reference);
+  * rig changes: the per-rig tables' build (the first frame less the best frame), rigid and smooth;
+  * a whole bake: --bake-frames frames of CMU 131_01 through pipeline.FolderBake (each VDB written on its own
+    thread while the next frame computes) in --bake-mode, against the sum of its own deformation times, and the
+    frames per second;
+  * memory: the peak resident size of a child process baking --memory-frames frames, less that of the same child
+    stopping before the bake (source, rig and matrices loaded), per source voxel.
+
+Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/bench_throughput.py [--scale 1] [--repeat 3] [--bake-frames 240]
+Targets (issue 17, scale 1, 2 cores): smooth frames within 1.5x of rigid and equal to the brute force; tables
+<= 0.5 s; bake <= 1.3x the sum of its deformation times; peak memory <= 3 bytes per source voxel above the source.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PYTHON_DIR = os.path.join(HERE, "..", "python")
+sys.path.insert(0, PYTHON_DIR)
+
+import volrig  # noqa: E402
+from volrig import phantom, pipeline  # noqa: E402
+from volrig.deform import MODES  # noqa: E402
+from bench_deform import walking_pose  # noqa: E402  (this folder is on sys.path when run as a script)
+
+CLIP = os.path.join(HERE, "..", "..", "shared", "data", "bvh", "131_01.bvh")
+SMOOTH = ("dual_quaternion", "linear")
+
+# A child process's peak resident size (VmHWM): the source and rig loaded, the matrices read, then (with "bake") a
+# FolderBake over them. Prints {"peak_bytes": ...}.
+MEMORY_CHILD = r"""
+import json, sys, tempfile
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import volrig
+from volrig import pipeline
+source = volrig.Volume(np.load(sys.argv[2]), json.loads(sys.argv[3]))
+rigged = volrig.load_rig(sys.argv[4])
+matrices = np.load(sys.argv[5])
+if sys.argv[7] == "bake":
+    with tempfile.TemporaryDirectory() as folder:
+        bake = pipeline.FolderBake(source, rigged.points, rigged.binding, folder, "m", mode=sys.argv[6])
+        for k, m in enumerate(matrices, start=1):
+            bake.bake(k, m)
+        bake.finish()
+# VmHWM, not getrusage's ru_maxrss: that one keeps the parent's size from before the exec.
+with open("/proc/self/status") as f:
+    hwm = next(int(line.split()[1]) for line in f if line.startswith("VmHWM:"))
+print(json.dumps({"peak_bytes": hwm * 1024}))
+"""
+
+
+def frames(vol, rigged, repeat: int, reference: bool) -> dict:
+    """Smooth frames against the rigid frame of the same pose, the per-rig builds, the brute-force check."""
+    M = walking_pose(rigged.rig)
+    out = {}
+    deformers = {"rigid": volrig.Deformer(vol, rigged.points, rigged.binding),
+                 "smooth": volrig.Deformer(vol, rigged.points, rigged.binding)}
+    first = {}
+    for name, mode in (("rigid", "rigid"), ("smooth", "linear")):
+        t = time.perf_counter()
+        deformers[name].frame(M, mode=mode)
+        first[name] = time.perf_counter() - t
+    best = {m: float("inf") for m in ("rigid",) + SMOOTH}
+    kept = {}
+    for _ in range(repeat):  # alternately, so that the machine's drift hits every mode alike
+        for mode in best:
+            d = deformers["rigid" if mode == "rigid" else "smooth"]
+            t = time.perf_counter()
+            f = d.frame(M, mode=mode)
+            best[mode] = min(best[mode], time.perf_counter() - t)
+            kept[mode] = f
+            del f
+    for mode, v in best.items():
+        out[f"{mode}_frame_s"] = v
+    for mode in SMOOTH:
+        out[f"{mode}_ratio"] = best[mode] / best["rigid"]
+        out[f"{mode}_exact_sub_blocks"] = kept[mode].stats["exact_sub_blocks"]
+    out["rigid_build_s"] = first["rigid"] - best["rigid"]
+    out["smooth_build_s"] = first["smooth"] - best["linear"]
+    out["rigid_tables_mb"] = deformers["rigid"].memory_bytes / 1e6
+    out["smooth_tables_mb"] = deformers["smooth"].memory_bytes / 1e6
+    if reference:
+        for mode in SMOOTH:
+            f = kept[mode]
+            t = time.perf_counter()
+            ref = volrig.deform_reference(vol, rigged.points, rigged.binding, M, mode=mode, like=f)
+            out[f"{mode}_brute_force_s"] = time.perf_counter() - t
+            out[f"{mode}_equals_brute_force"] = bool(np.array_equal(ref.bone.array, f.bone.array)
+                                                     and np.array_equal(ref.values.array, f.values.array))
+    return out
+
+
+def bake(vol, rigged, matrices, mode: str) -> dict:
+    """A FolderBake of the matrices against the sum of its own deformation times (the per-rig build left out)."""
+    with tempfile.TemporaryDirectory() as folder:
+        fb = pipeline.FolderBake(vol, rigged.points, rigged.binding, folder, "phantom", mode=mode)
+        times = []
+        frame = fb.deformer.frame
+
+        def timed(*a, **k):
+            t = time.perf_counter()
+            f = frame(*a, **k)
+            times.append(time.perf_counter() - t)
+            return f
+
+        fb.deformer.frame = timed
+        fb.bake(0, matrices[0])  # the per-rig build, outside the timing
+        fb.finish()
+        times.clear()
+        rate = pipeline.BakeRate(len(matrices))
+        for k, m in enumerate(matrices, start=1):
+            fb.bake(k, m)
+            rate.tick()
+            sys.stderr.write(f"\r  bake {rate.bar()}   ")
+        fb.finish()
+        wall = time.perf_counter() - rate.start
+        sys.stderr.write("\n")
+    total = sum(times)
+    return {"bake_frames": len(matrices), "bake_deform_sum_s": total, "bake_wall_s": wall,
+            "bake_ratio": wall / total, "bake_frames_per_s": len(matrices) / wall}
+
+
+def memory(vol, rigged, matrices, mode: str) -> dict:
+    """Peak resident size of a baking child above the same child without the bake, per source voxel."""
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = [os.path.join(tmp, n) for n in ("source.npy", "rig.npz", "matrices.npy")]
+        np.save(paths[0], vol.array)
+        volrig.save_rig(paths[1], rigged.points, rigged.tree, rigged.rig, rigged.binding)
+        np.save(paths[2], np.asarray(matrices))
+        peak = {}
+        for what in ("load", "bake"):
+            r = subprocess.run([sys.executable, "-c", MEMORY_CHILD, os.path.abspath(PYTHON_DIR), paths[0],
+                                json.dumps(list(vol.spacing)), paths[1], paths[2], mode, what],
+                               check=True, capture_output=True, text=True)
+            peak[what] = json.loads(r.stdout.strip().splitlines()[-1])["peak_bytes"]
+    voxels = vol.array.size
+    return {"memory_frames": len(matrices), "source_bytes_per_voxel": vol.array.itemsize,
+            "peak_loaded_mb": peak["load"] / 1e6, "peak_bake_mb": peak["bake"] / 1e6,
+            "bake_bytes_per_source_voxel": (peak["bake"] - peak["load"]) / voxels}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--points", type=int, default=40000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--no-reference", action="store_true", help="skip the (slow) brute-force scatters")
+    ap.add_argument("--bake-frames", type=int, default=240, help="BVH frames 1..N of CMU 131_01 (0: no bake)")
+    ap.add_argument("--bake-mode", default="linear", choices=MODES)
+    ap.add_argument("--memory-frames", type=int, default=4, help="frames the memory child bakes (0: skip)")
+    ap.add_argument("--json", help="also write the figures to this JSON file")
+    args = ap.parse_args()
+
+    ph = phantom.humanoid(args.scale)
+    vol = ph.volume
+    mask = volrig.segment(vol)
+    rigged = pipeline.rig_skeleton(volrig.skeletonize(mask).top(args.points), mask, up=(0, 0, 1))
+    print(f"phantom scale {args.scale}: grid {vol.dims} ({vol.array.size:,} voxels), {len(rigged.points):,} "
+          f"spheres, {len(rigged.rig)} bones, smooth binding")
+    fig = frames(vol, rigged, args.repeat, not args.no_reference)
+    n_clip = max(args.bake_frames, args.memory_frames)
+    if n_clip and os.path.exists(CLIP):
+        clip = volrig.read_bvh(CLIP)
+        picked = pipeline.clip_frames(clip.frame_count, f"1-{min(n_clip, clip.frame_count)}", 1)
+        _, matrices = pipeline.mocap_poses(rigged.rig, clip, picked)
+        if args.bake_frames:
+            fig.update(bake(vol, rigged, matrices[:args.bake_frames], args.bake_mode))
+        if args.memory_frames:
+            fig.update(memory(vol, rigged, matrices[:args.memory_frames], args.bake_mode))
+    elif n_clip:
+        print(f"bake and memory skipped: {CLIP} is absent")
+
+    rows = [("rigid frame, walking stride (reference)", f"{fig['rigid_frame_s']:.3f} s", "")]
+    for mode in SMOOTH:
+        rows.append((f"{mode.replace('_', '-')} frame", f"{fig[mode + '_frame_s']:.3f} s",
+                     f"{fig[mode + '_ratio']:.2f}x rigid (<= 1.5x)"))
+        if mode + "_equals_brute_force" in fig:
+            rows.append((f"  equal to the brute-force scatter ({fig[mode + '_brute_force_s']:.0f} s)",
+                         str(fig[mode + "_equals_brute_force"]), "(must be True)"))
+    rows += [("per-rig tables, rigid", f"{fig['rigid_build_s']:.2f} s", f"{fig['rigid_tables_mb']:.0f} MB (<= 0.5 s)"),
+             ("per-rig tables, smooth", f"{fig['smooth_build_s']:.2f} s", f"{fig['smooth_tables_mb']:.0f} MB (<= 0.5 s)")]
+    if "bake_wall_s" in fig:
+        rows += [(f"sum of deformation times, {fig['bake_frames']} frames {args.bake_mode} (reference)",
+                  f"{fig['bake_deform_sum_s']:.1f} s", ""),
+                 ("whole bake, VDBs written", f"{fig['bake_wall_s']:.1f} s",
+                  f"{fig['bake_ratio']:.2f}x (<= 1.3x), {fig['bake_frames_per_s']:.2f} frames/s")]
+    if "bake_bytes_per_source_voxel" in fig:
+        rows += [(f"peak memory, {fig['memory_frames']}-frame bake less loaded child (reference)",
+                  f"{fig['peak_bake_mb']:.0f} MB", f"loaded: {fig['peak_loaded_mb']:.0f} MB"),
+                 ("  per source voxel above the source", f"{fig['bake_bytes_per_source_voxel']:.1f} B",
+                  f"source {fig['source_bytes_per_voxel']} B/voxel (<= 3 B above it)")]
+    for name, value, note in rows:
+        print(f"  {name:<62} {value:>10}   {note}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(fig, fh, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
