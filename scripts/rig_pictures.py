@@ -105,7 +105,8 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
-    ap.add_argument("--only", default="phantom,frog,arm")
+    ap.add_argument("--only", default=",".join(["phantom", "frog", "arm", *MESHES, "vhm4"]),
+                    help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     only = set(args.only.split(","))

@@ -629,10 +629,11 @@ TEST_CASE("own_start finds where an arm leaves the trunk's sheet, not where its 
 
 TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a radius under the surface",
           "[autorig]") {
-    // A solid column x 0..39, z 0..99 (y 0..19); the arm's visible axis runs down x = 30 from z = 70 to 40,
-    // then the forearm forward-down to (30, 2, 10) region. Its shoulder: up x = 30 to the top (z 99.5), 5 back in.
+    // A solid column x 0..35, y 0..19, z 0..99; the arm's visible axis runs down x = 30 (5 inside the outer
+    // side) from z = 70 to 40, then the forearm forward-down. Its shoulder: up x = 30 to the top (z 99), 5 back
+    // in, midway front to back.
     Grid g;
-    g.dims = {40, 20, 100};
+    g.dims = {36, 20, 100};
     std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
     const NodeTree t({Vec(5, 5, 5)}, {1.0}, {});
     const std::vector<std::int32_t> ijk{5, 5, 5};
@@ -649,8 +650,9 @@ TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a 
     const auto f = fused_arm(c, chain, Vec(0, 0, 1));
     REQUIRE(f);
     CHECK(f->own == 2);
-    CHECK(f->shoulder.x() == Approx(30).margin(0.5));
+    CHECK(f->shoulder.x() == Approx(30).margin(1.0));  // half-voxel steps
     CHECK(f->shoulder.z() == Approx(94.5).margin(1.0));
+    CHECK(f->shoulder.y() == Approx(9.5).margin(0.6));
     REQUIRE(f->cuts.size() == 5);
     CHECK(f->cuts[0] == 0);
     CHECK(f->cuts[1] == 2);
@@ -706,4 +708,15 @@ TEST_CASE("hip_on_thigh_line moves a hip below the legs' fork up the thigh's lin
     Leg low(0.0, 90.0);
     hip_on_thigh_line(low.rig, "thigh.L");
     CHECK(low.rig.joints[1][2] == 100);
+}
+
+TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has its knee at the neck", "[autorig]") {
+    Leg leg(0.0, 100.0);
+    leg.f = Figure(Vec(0, 0, 100), 10.0);
+    leg.f.limb(leg.f.limb(leg.f.limb(0, Vec(0, 0, 45), 10, 7), Vec(0, 0, 30), 7, 8.5), Vec(0, 0, 0), 8.5, 6);
+    leg.nodes.clear();
+    for (std::uint32_t k = 0; k < leg.f.pos.size(); ++k) leg.nodes.push_back(k);
+    Solid s(leg.f, {10, 10, 110});
+    straight_knee(s.context(), leg.rig, leg.nodes, ".L");
+    CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));  // not the proportional 50
 }

@@ -85,7 +85,7 @@ std::vector<Candidate> plan_candidates(const rigging::RigContext& c, const Autor
     const rigging::PlanSearch s = rigging::search_plans(c.tree, up);
     for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
         if (admits(opt, kind, plan.score))
-            out.push_back(rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance));
+            out.push_back(rigging::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, up));
     if (const rigging::HandPlan hand = rigging::search_hand(c.tree); admits(opt, "hand", hand.score))
         out.push_back(rigging::hand_rig(c, hand));
     out.erase(std::remove_if(out.begin(), out.end(), [](const Candidate& k) { return k.rig.bones.empty(); }),

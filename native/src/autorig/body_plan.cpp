@@ -144,7 +144,8 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
     return best;
 }
 
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance) {
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+                     const std::optional<Vec>& up) {
     const NodeTree& t = c.tree;
     const std::uint32_t H = plan.head;
     const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
@@ -160,7 +161,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
         leg[k] = t.path(pelvis, plan.legs[k]);
         arm[k] = t.path(chest, plan.arms[k]);
         leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
-        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), spine_dir);
+        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), up ? *up : spine_dir);
         arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
                               : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
         ok = ok && leg_fit[k].cuts.size() == 5 && arm_fit[k].cuts.size() == 5;

@@ -31,6 +31,26 @@ void move_joint(Rig& rig, std::int32_t j, const Vec& q) {
     rig.joint_points[static_cast<std::size_t>(j)] = -1;
 }
 
+/// The node of a chain (`path`) where the limb is narrowest within kNeckWindow of its radius (arc length) around
+/// node `at`, when the radius rises from there by kNeckRise on both sides within that window (a knee between
+/// thigh and calf); else `at`.
+std::size_t narrowest_near(const NodeTree& t, const std::vector<std::uint32_t>& path, std::size_t at) {
+    const double window = kNeckWindow * t.radius(path[at]);
+    std::vector<double> arc(path.size(), 0.0);
+    for (std::size_t k = 1; k < path.size(); ++k) arc[k] = arc[k - 1] + (t.at(path[k]) - t.at(path[k - 1])).norm();
+    std::size_t lo = at, hi = at;
+    while (lo > 0 && arc[at] - arc[lo - 1] <= window) --lo;
+    while (hi + 1 < path.size() && arc[hi + 1] - arc[at] <= window) ++hi;
+    std::size_t m = lo;
+    for (std::size_t k = lo; k <= hi; ++k)
+        if (t.radius(path[k]) < t.radius(path[m])) m = k;
+    double before = 0, after = 0;
+    for (std::size_t k = lo; k < m; ++k) before = std::max(before, t.radius(path[k]));
+    for (std::size_t k = m + 1; k <= hi; ++k) after = std::max(after, t.radius(path[k]));
+    const double rise = (1 + kNeckRise) * t.radius(path[m]);
+    return before >= rise && after >= rise ? m : at;
+}
+
 }  // namespace
 
 std::size_t own_start(const Chain4& chain) {
@@ -47,16 +67,30 @@ std::size_t own_start(const Chain4& chain) {
 
 namespace {
 
-/// The shoulder joint of a fused arm from the visible upper arm's samples (from the top down): up their line to
-/// the object's surface (at most `limit`), then `radius` back in; none unless the line runs along the spine.
-std::optional<Vec> shoulder_up_line(const RigContext& c, const std::vector<Vec>& upper, const Vec& spine_dir,
-                                    double radius, double limit) {
+/// The shoulder joint of a fused arm from the visible upper arm's samples (from the top down): up the body
+/// (`body_up`) to the object's surface (at most `limit`), then `radius` back in, `radius` inside the surface away
+/// from the chest and midway front to back; none unless their line runs along `body_up`.
+std::optional<Vec> shoulder_up_line(const RigContext& c, const std::vector<Vec>& upper, const Vec& body_up,
+                                    const Vec& chest, double radius, double limit) {
     if (upper.size() < 3) return std::nullopt;
     auto [mean, dir] = line_through(upper);
     if (dir.dot(upper.front() - upper.back()) < 0) dir = -dir;  // towards the trunk
-    if (std::abs(dir.dot(spine_dir)) < kFusedAlongSpine) return std::nullopt;  // a girdle across the body
-    const Vec from = mean + (upper.front() - mean).dot(dir) * dir;
-    return from + std::max(0.0, c.reach_inside(from, dir, 0.0, limit) - radius) * dir;
+    if (std::abs(dir.dot(body_up)) < kFusedAlongSpine) return std::nullopt;  // a girdle across the body
+    const Vec rise = dir.dot(body_up) > 0 ? body_up : Vec(-body_up);
+    // From the top of the visible upper arm: centred (a radius inside the outer side, midway front to back: the
+    // visible axis leans out, its inner side being trunk), up to the shoulder's top and a radius back in, centred
+    // again there.
+    Vec at = mean + (upper.front() - mean).dot(dir) * dir;
+    auto centre = [&] {
+        const Vec out = perp(at - chest, rise).normalized(), ahead = rise.cross(out);
+        at += std::clamp(c.reach_inside(at, out, 0.0, 2.0 * radius) - radius, -radius, radius) * out;
+        const double front = c.reach_inside(at, ahead, 0.0, 4.0 * radius);
+        at += 0.5 * (front - c.reach_inside(at, -ahead, 0.0, 4.0 * radius)) * ahead;
+    };
+    centre();
+    at += std::max(0.0, c.reach_inside(at, rise, 0.0, limit) - radius) * rise;
+    centre();
+    return at;
 }
 
 /// Upper arm, forearm and hand cut by proportional_fit over the shoulder joint and the own samples; cuts into the
@@ -80,20 +114,21 @@ std::vector<Vec> positions_of(const Chain4& chain, std::size_t from, std::size_t
 
 }  // namespace
 
-std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& spine_dir) {
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up) {
     const std::size_t own = own_start(chain);
     if (own == 0 || own + 3 >= chain.size()) return std::nullopt;
     const std::vector<double> arc = arc_of(chain);
     const double r0 = chain[own][3], limit = 0.5 * (arc.back() - arc[own]);
+    const Vec chest = chain.front().head<3>();
     // First the line of the visible top (kFusedTopRadii), then, once the elbow is known, of the whole visible
     // upper arm.
     std::size_t top_end = own;
     while (top_end + 1 < chain.size() && arc[top_end + 1] - arc[own] <= kFusedTopRadii * r0) ++top_end;
-    std::optional<Vec> shoulder = shoulder_up_line(c, positions_of(chain, own, top_end), spine_dir, r0, limit);
+    std::optional<Vec> shoulder = shoulder_up_line(c, positions_of(chain, own, top_end), body_up, chest, r0, limit);
     if (!shoulder) return std::nullopt;
     std::vector<std::size_t> cuts = fused_cuts(chain, own, *shoulder);
     if (cuts.empty()) return std::nullopt;
-    if (const auto better = shoulder_up_line(c, positions_of(chain, own, cuts[2]), spine_dir, r0, limit)) {
+    if (const auto better = shoulder_up_line(c, positions_of(chain, own, cuts[2]), body_up, chest, r0, limit)) {
         if (auto again = fused_cuts(chain, own, *better); !again.empty()) {
             shoulder = better;
             cuts = std::move(again);
@@ -142,12 +177,12 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     if (count == 0 || worst > kStraightLeg * radius / static_cast<double>(count)) return;
     const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
     // On the axis: the node nearest the proportional point along the line.
-    std::uint32_t best = kNone;
-    for (const std::uint32_t v : leg)
-        if (best == kNone || std::abs((c.tree.at(v) - hip).dot(dir) - share * length) <
-                                 std::abs((c.tree.at(best) - hip).dot(dir) - share * length))
-            best = v;
-    move_joint(rig, knee, c.tree.at(best));
+    std::size_t best = 0;
+    auto off = [&](std::size_t k) { return std::abs((c.tree.at(leg[k]) - hip).dot(dir) - share * length); };
+    for (std::size_t k = 1; k < leg.size(); ++k)
+        if (off(k) < off(best)) best = k;
+    best = narrowest_near(c.tree, leg, best);
+    move_joint(rig, knee, c.tree.at(leg[best]));
 }
 
 }  // namespace volrig::rigging

@@ -57,7 +57,8 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 /// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
 /// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
 /// bones when its chains are too short to cut.
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance);
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+                     const std::optional<Vec>& up = std::nullopt);
 
 /// Whether the four limbs carry a body: their mean reach (tip from the pelvis or chest) is at least kLimbsToHead
 /// times the head's (tip from the chest). A long object with a few short branches at one end (an arm with its
@@ -82,7 +83,8 @@ std::size_t own_start(const Chain4& chain);
 
 /// How much of an arm's visible top gives its line (arc length, in radii of its first own sample).
 constexpr double kFusedTopRadii = 2.0;
-/// A fused upper arm runs along the body: |cos| between its line and the spine at least this.
+/// A fused upper arm runs along the body: |cos| between its line and the body's up (the given up, else the spine)
+/// at least this.
 constexpr double kFusedAlongSpine = 0.7;
 /// An arm fused with the trunk (arms at the sides of a scan): the medial axis of its upper arm starts mid-arm
 /// (own), below the humeral head. The shoulder joint goes up the line of its visible top (kFusedTopRadii) to the
@@ -95,7 +97,7 @@ struct FusedArm {
 };
 /// The fused reading of an arm chain (from the chest), or none: no trunk samples beyond its root, a top across the
 /// body (a shoulder girdle, a raised arm), too few samples.
-std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& spine_dir);
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up);
 /// Moves the head of bone `upper_arm` to the fused arm's shoulder joint.
 void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& shoulder);
 
@@ -107,6 +109,10 @@ void hip_on_thigh_line(Rig& rig, const std::string& thigh);
 /// times their mean radius off the hip-ankle line; its knee then goes to the node nearest the thigh's share of
 /// hip-ankle (Drillis and Contini), not to a wiggle of the axis or of the radius.
 constexpr double kStraightLeg = 1.0;
+/// ... and then to the narrowest node within kNeckWindow radii of it, when the leg widens from there by kNeckRise
+/// on both sides (thigh above, calf below: a human knee).
+constexpr double kNeckWindow = 2.0;
+constexpr double kNeckRise = 0.05;
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
