@@ -720,3 +720,17 @@ TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has it
     straight_knee(s.context(), leg.rig, leg.nodes, ".L");
     CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));  // not the proportional 50
 }
+
+TEST_CASE("centre_chest puts the chest joint midway between the shoulders across the body", "[autorig]") {
+    Rig rig;
+    rig.joints = {{0, 0, 0}, {5, 1, 10}, {12, 0, 12}, {-8, 0, 12}, {14, 0, 0}, {-10, 0, 0}};
+    rig.joint_points = {0, 0, 0, 0, 0, 0};
+    rig.bones = {{0, 1}, {1, 2}, {1, 3}, {2, 4}, {3, 5}};
+    rig.names = {"chest", "shoulder.L", "shoulder.R", "upper_arm.L", "upper_arm.R"};
+    rig.parents = {-1, 0, 0, 1, 2};
+    centre_chest(rig);
+    CHECK(rig.joints[1][0] == Approx(2));  // midway between x 12 and -8
+    CHECK(rig.joints[1][1] == Approx(1));  // depth and height kept
+    CHECK(rig.joints[1][2] == Approx(10));
+    CHECK(rig.joint_points[1] == -1);
+}

@@ -599,10 +599,11 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
     deformer = volrig.Deformer(ph.volume, pts, binding)
     rest = int(np.count_nonzero(deformer.frame(volrig.rest_pose(len(rig)), mode="linear").bone.array))
     assert rest > 0.9 * np.count_nonzero(mask.array)
-    # the walk's hips swing the pelvis bones out of the spheres they overlap at rest: 3.0-3.5% more voxels here
+    # the walk's hips swing the pelvis bones out of the spheres they overlap at rest: with the hips at the legs'
+    # fork (autorig's hip_on_thigh_line) 5.3% more voxels at BVH frame 1 (its legs spread widest), 1.0-1.5% at 31, 61
     counts = [_vdb_active(f, "bone") for f in files]
     for c in counts:
-        assert abs(c - rest) <= 0.05 * rest, (c, rest)
+        assert abs(c - rest) <= 0.06 * rest, (c, rest)
     bones = [volrig.load(str(f), grid="bone") for f in files]
     for a, b in [(0, 1), (1, 2), (0, 2)]:
         assert bones[a].array.shape != bones[b].array.shape or not np.array_equal(bones[a].array, bones[b].array)

@@ -185,4 +185,16 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     move_joint(rig, knee, c.tree.at(leg[best]));
 }
 
+void centre_chest(Rig& rig) {
+    const std::int32_t chest = bone_index(rig, "chest"), left = bone_index(rig, "upper_arm.L"),
+                       right = bone_index(rig, "upper_arm.R");
+    if (chest < 0 || left < 0 || right < 0) return;
+    const Vec l = bone_end(rig, static_cast<std::size_t>(left), 0), r = bone_end(rig, static_cast<std::size_t>(right), 0);
+    if ((l - r).norm() == 0) return;
+    const Vec across = (l - r).normalized();
+    const std::int32_t j = rig.bones[static_cast<std::size_t>(chest)][1];
+    const Vec at = joint_at(rig, j);
+    move_joint(rig, j, at + (0.5 * (l + r) - at).dot(across) * across);
+}
+
 }  // namespace volrig::rigging

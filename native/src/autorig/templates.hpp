@@ -115,6 +115,10 @@ constexpr double kNeckWindow = 2.0;
 constexpr double kNeckRise = 0.05;
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
+/// The chest joint (where neck and shoulders meet) midway between the shoulder joints across the body: a neck
+/// joining the trunk's medial sheet off its middle pulls the level-set tree's chest node aside.
+void centre_chest(Rig& rig);
+
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
 /// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
