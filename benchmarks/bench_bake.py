@@ -20,6 +20,26 @@ from volrig import phantom, pipeline  # noqa: E402
 from volrig.deform import MODES  # noqa: E402
 
 
+def timed_folder_bake(vol, rigged, folder: str, mode: str, first):
+    """A FolderBake whose deformer's frames are timed: (bake, times). Its per-rig build (the first frame, `first`,
+    baked as frame 0) is left out of `times`."""
+    bake = pipeline.FolderBake(vol, rigged.points, rigged.binding, folder, "phantom", mode=mode)
+    times = []
+    frame = bake.deformer.frame
+
+    def timed(*a, **k):
+        t = time.perf_counter()
+        f = frame(*a, **k)
+        times.append(time.perf_counter() - t)
+        return f
+
+    bake.deformer.frame = timed
+    bake.bake(0, first)
+    bake.finish()
+    times.clear()
+    return bake, times
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scale", type=float, default=1.0)
@@ -38,20 +58,7 @@ def main() -> int:
     frames = pipeline.clip_frames(clip.frame_count, f"1-{args.frames}", 1)
     _, matrices = pipeline.mocap_poses(rigged.rig, clip, frames)
     with tempfile.TemporaryDirectory() as folder:
-        bake = pipeline.FolderBake(ph.volume, rigged.points, rigged.binding, folder, "phantom", mode=args.mode)
-        deform_times = []
-        frame = bake.deformer.frame
-
-        def timed(*a, **k):
-            t = time.perf_counter()
-            f = frame(*a, **k)
-            deform_times.append(time.perf_counter() - t)
-            return f
-
-        bake.deformer.frame = timed
-        bake.bake(0, matrices[0])  # the per-rig build, outside the timing
-        bake.finish()
-        deform_times.clear()
+        bake, deform_times = timed_folder_bake(ph.volume, rigged, folder, args.mode, matrices[0])
         start = time.perf_counter()
         for k, m in enumerate(matrices, start=1):
             bake.bake(k, m)

@@ -34,7 +34,8 @@ sys.path.insert(0, PYTHON_DIR)
 import volrig  # noqa: E402
 from volrig import phantom, pipeline  # noqa: E402
 from volrig.deform import MODES  # noqa: E402
-from bench_deform import walking_pose  # noqa: E402  (this folder is on sys.path when run as a script)
+from bench_bake import timed_folder_bake  # noqa: E402  (this folder is on sys.path when run as a script)
+from bench_deform import walking_pose  # noqa: E402
 
 CLIP = os.path.join(HERE, "..", "..", "shared", "data", "bvh", "131_01.bvh")
 SMOOTH = ("dual_quaternion", "linear")
@@ -107,20 +108,7 @@ def frames(vol, rigged, repeat: int, reference: bool) -> dict:
 def bake(vol, rigged, matrices, mode: str) -> dict:
     """A FolderBake of the matrices against the sum of its own deformation times (the per-rig build left out)."""
     with tempfile.TemporaryDirectory() as folder:
-        fb = pipeline.FolderBake(vol, rigged.points, rigged.binding, folder, "phantom", mode=mode)
-        times = []
-        frame = fb.deformer.frame
-
-        def timed(*a, **k):
-            t = time.perf_counter()
-            f = frame(*a, **k)
-            times.append(time.perf_counter() - t)
-            return f
-
-        fb.deformer.frame = timed
-        fb.bake(0, matrices[0])  # the per-rig build, outside the timing
-        fb.finish()
-        times.clear()
+        fb, times = timed_folder_bake(vol, rigged, folder, mode, matrices[0])
         rate = pipeline.BakeRate(len(matrices))
         for k, m in enumerate(matrices, start=1):
             fb.bake(k, m)

@@ -80,6 +80,25 @@ struct Solid {
     RigContext context() const { return RigContext{g, mask.data(), pts, tree, rep}; }
 };
 
+/// A solid block of voxels as the object, with a one-node tree: the context for stages that only walk inside the
+/// object.
+struct Block {
+    Grid g;
+    std::vector<std::uint8_t> mask;
+    NodeTree tree{{Vec(0, 0, 0)}, {1.0}, {}};
+    std::vector<std::int32_t> ijk{0, 0, 0};
+    std::vector<float> r{1.0f};
+    PointSet pts{ijk.data(), r.data(), 1};
+    std::vector<std::uint32_t> rep{0};
+
+    explicit Block(const std::array<std::int64_t, 3>& dims) {
+        g.dims = dims;
+        mask.assign(static_cast<std::size_t>(g.voxel_count()), 1);
+    }
+    Block(const Block&) = delete;
+    RigContext context() const { return RigContext{g, mask.data(), pts, tree, rep}; }
+};
+
 }  // namespace
 
 TEST_CASE("scale_axis drops small balls inside a larger ball and keeps the rest", "[autorig]") {
@@ -299,15 +318,10 @@ TEST_CASE("limbs_carry: a body's limbs carry its head; an arm's fingers do not c
 }
 
 TEST_CASE("restore_proximal moves a hidden shoulder out to its proportion, inside the object", "[autorig]") {
-    Grid g;
-    g.dims = {10, 10, 80};
-    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
-    const NodeTree t({Vec(5, 5, 5)}, {1.0}, {});
-    const std::vector<std::int32_t> ijk{5, 5, 5};
-    const std::vector<float> r{1.0f};
-    const PointSet pts{ijk.data(), r.data(), 1};
-    const std::vector<std::uint32_t> rep{0};
-    const RigContext c{g, mask.data(), pts, t, rep};
+    Block block({10, 10, 80});
+    Grid& g = block.g;
+    std::vector<std::uint8_t>& mask = block.mask;
+    const RigContext c = block.context();
     // shoulder 0 -> 1, upper_arm 1 -> 2 (10 long), forearm 2 -> 3 (20 long) along z.
     auto arm = [] {
         Rig rig;
@@ -632,15 +646,8 @@ TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a 
     // A solid column x 0..35, y 0..19, z 0..99; the arm's visible axis runs down x = 30 (5 inside the outer
     // side) from z = 70 to 40, then the forearm forward-down. Its shoulder: up x = 30 to the top (z 99), 5 back
     // in, midway front to back.
-    Grid g;
-    g.dims = {36, 20, 100};
-    std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()), 1);
-    const NodeTree t({Vec(5, 5, 5)}, {1.0}, {});
-    const std::vector<std::int32_t> ijk{5, 5, 5};
-    const std::vector<float> r{1.0f};
-    const PointSet pts{ijk.data(), r.data(), 1};
-    const std::vector<std::uint32_t> rep{0};
-    const RigContext c{g, mask.data(), pts, t, rep};
+    const Block block({36, 20, 100});
+    const RigContext c = block.context();
     Chain4 chain;
     chain.emplace_back(10, 10, 80, 12);  // chest
     chain.emplace_back(20, 10, 76, 11);  // the trunk's sheet
