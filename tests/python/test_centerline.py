@@ -235,3 +235,21 @@ def test_airway_tree():
     pts = np.concatenate([b.points for b in tr.branches])
     ijk = np.round((pts - np.array(m.origin)) / np.array(m.spacing)).astype(int)
     assert m.array[ijk[:, 2], ijk[:, 1], ijk[:, 0]].mean() > 0.98
+
+
+def test_cli_writes_csv(tmp_path, helix_tube, capsys):
+    from volrig.cli import main
+    c, m = helix_tube
+    src = tmp_path / "tube.nrrd"
+    volrig.Volume(m.array.astype(np.uint8), m.spacing, m.origin).save(str(src))
+    out = tmp_path / "line.csv"
+    assert main(["centerline", str(src), "--start", *map(str, c[1000]), "--end", *map(str, c[-1000]),
+                 "-o", str(out)]) == 0
+    rows = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert open(out).readline().strip() == "branch,parent,generation,index,x,y,z,radius,arc_length"
+    assert distances(rows[:, 4:7], c).mean() < 0.5
+    assert np.all(rows[:, 0] == 0) and np.all(np.diff(rows[:, 8]) > 0)
+    assert main(["centerline", str(src), "--tree", "-o", str(tmp_path / "tree.csv")]) == 0
+    assert main(["centerline", str(src), "--start", "900", "0", "0", "-o", str(out)]) == 2
+    assert "not on the object" in capsys.readouterr().err
+    assert main(["centerline", str(src), "-o", str(tmp_path / "line.txt")]) == 2

@@ -155,6 +155,49 @@ void branches_of(const VoxelTree& t, std::vector<std::vector<std::int32_t>>& pat
     }
 }
 
+double path_length(const VoxelGraph& g, const std::vector<std::int32_t>& path) {
+    double len = 0.0;
+    for (std::size_t i = 1; i < path.size(); ++i) {
+        const Vec3d a = world(g.grid, g.voxel[static_cast<std::size_t>(path[i - 1])]);
+        const Vec3d b = world(g.grid, g.voxel[static_cast<std::size_t>(path[i])]);
+        len += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+    }
+    return len;
+}
+
+/// Two branch points closer than the radius at the first are one (a trifurcation the voxel paths split in two):
+/// an inner branch that short is prepended to its children, which then hang from its parent.
+void merge_close_branch_points(const VoxelGraph& g, std::vector<std::vector<std::int32_t>>& paths,
+                               std::vector<std::int32_t>& parents) {
+    const std::size_t n = paths.size();
+    std::vector<std::uint8_t> has_child(n, 0), gone(n, 0);
+    for (std::int32_t p : parents)
+        if (p >= 0) has_child[static_cast<std::size_t>(p)] = 1;
+    for (std::size_t k = 0; k < n; ++k) {  // parents come before children
+        if (parents[k] < 0 || !has_child[k]) continue;
+        if (path_length(g, paths[k]) >= g.dt[static_cast<std::size_t>(paths[k].front())]) continue;
+        gone[k] = 1;
+        for (std::size_t c = k + 1; c < n; ++c) {
+            if (parents[c] != static_cast<std::int32_t>(k)) continue;
+            std::vector<std::int32_t> joined(paths[k].begin(), paths[k].end() - 1);
+            joined.insert(joined.end(), paths[c].begin(), paths[c].end());
+            paths[c] = std::move(joined);
+            parents[c] = parents[k];
+        }
+    }
+    std::vector<std::int32_t> index(n, -1);
+    std::vector<std::vector<std::int32_t>> kept_paths;
+    std::vector<std::int32_t> kept_parents;
+    for (std::size_t k = 0; k < n; ++k) {
+        if (gone[k]) continue;
+        index[k] = static_cast<std::int32_t>(kept_paths.size());
+        kept_paths.push_back(std::move(paths[k]));
+        kept_parents.push_back(parents[k] < 0 ? -1 : index[static_cast<std::size_t>(parents[k])]);
+    }
+    paths = std::move(kept_paths);
+    parents = std::move(kept_parents);
+}
+
 /// Mean DT along each terminal chain (the root's too); returns the leaf (or root) of the thickest.
 std::int32_t thickest_end(const VoxelGraph& g, const VoxelTree& t) {
     std::vector<std::vector<std::int32_t>> paths;
@@ -226,6 +269,7 @@ CenterlineTree centerline_tree(const VoxelGraph& g, const std::uint8_t* mask, co
     out.root = r;
     std::vector<std::vector<std::int32_t>> paths;
     branches_of(t, paths, out.parents);
+    merge_close_branch_points(g, paths, out.parents);
     if (paths.empty()) throw Error("centerline_tree: the object around the root is a single voxel");
     std::vector<std::uint8_t> has_child(paths.size(), 0);
     for (std::int32_t p : out.parents)
