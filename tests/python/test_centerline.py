@@ -128,6 +128,23 @@ def test_touching_loop_and_one_voxel_bridge_are_not_shortcuts():
     assert abs(cl.length - arc(u)) < 0.03 * arc(u)          # round the U (91 long), not across a bridge (7)
 
 
+def test_holes_in_the_lumen_and_the_wall(helix_tube):
+    c, m = helix_tube
+    sp, org = np.array(m.spacing), np.array(m.origin)
+    cavities, walls = m.array.copy(), m.array.copy()
+    for k in range(2000, 38000, 3000):
+        i = np.round((c[k] - org) / sp).astype(int)              # a 2-voxel cavity on the axis
+        cavities[i[2] - 1:i[2] + 1, i[1] - 1:i[1] + 1, i[0] - 1:i[0] + 1] = False
+        out = np.array([np.cos(k / 40000 * 4 * np.pi), np.sin(k / 40000 * 4 * np.pi), 0])
+        i = np.round((c[k] + 3.5 * out - org) / sp).astype(int)  # a 3-voxel hole through the wall
+        walls[i[2] - 1:i[2] + 2, i[1] - 1:i[1] + 2, i[0] - 1:i[0] + 2] = False
+    for a in (cavities, walls):
+        cl = volrig.centerline(volrig.Volume(a, m.spacing, m.origin))
+        d = distances(cl.points, c)
+        assert d.mean() < 0.5 and d.max() < 2.0, (d.mean(), d.max())
+        assert abs(cl.length - arc(c)) < 0.02 * arc(c)
+
+
 def y_branch():
     stem = segment([0, 0, 0], [0, 0, 40])
     left = segment([0, 0, 40], [-25, 0, 70])
