@@ -117,48 +117,78 @@ Vec3d perpendicular(const Vec3d& t) {
     return unit(cross(t, e));
 }
 
+namespace {
+
+/// A (2m + 1)^2 grid of flags on a plane, indexed from -m to m.
+struct Section {
+    std::int64_t m = 0;
+    std::vector<std::uint8_t> flag;
+    std::uint8_t& at(std::int64_t a, std::int64_t b) {
+        return flag[static_cast<std::size_t>((b + m) * (2 * m + 1) + a + m)];
+    }
+};
+
+/// Flags (1) the samples of the disc of m steps of `gs` around c in the plane (u, v) where the trilinear mask is at
+/// least 0.5.
+Section sample_section(const Grid& grid, const std::uint8_t* mask, const Vec3d& c, const Vec3d& u, const Vec3d& v,
+                       std::int64_t m, double gs) {
+    Section sec;
+    sec.m = m;
+    sec.flag.assign(static_cast<std::size_t>((2 * m + 1) * (2 * m + 1)), 0);
+    auto is_object = [mask](std::int64_t k) { return mask[k] ? 1.0 : 0.0; };
+    for (std::int64_t b = -m; b <= m; ++b)
+        for (std::int64_t a = -m; a <= m; ++a) {
+            if (a * a + b * b > m * m) continue;
+            const Vec3d p = add(add(c, u, gs * static_cast<double>(a)), v, gs * static_cast<double>(b));
+            sec.at(a, b) = sample(grid, p, 0.0, is_object) >= 0.5 ? 1 : 0;
+        }
+    return sec;
+}
+
+/// Mean (a, b) of the 4-connected flagged piece holding the flagged sample nearest the centre, which must lie
+/// within `reach` steps; false when there is none.
+bool piece_centroid(Section& sec, std::int64_t reach, double& ma, double& mb) {
+    const std::int64_t m = sec.m;
+    std::int64_t sa = 0, sb = 0, best = -1;
+    for (std::int64_t b = -m; b <= m; ++b)
+        for (std::int64_t a = -m; a <= m; ++a)
+            if (sec.at(a, b) && (best < 0 || a * a + b * b < best)) {
+                best = a * a + b * b;
+                sa = a;
+                sb = b;
+            }
+    if (best < 0 || best > reach * reach) return false;
+    std::vector<std::array<std::int64_t, 2>> queue{{sa, sb}};
+    sec.at(sa, sb) = 2;
+    ma = mb = 0.0;
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+        const auto [a, b] = queue[q];
+        ma += static_cast<double>(a);
+        mb += static_cast<double>(b);
+        const std::int64_t na[4] = {a + 1, a - 1, a, a}, nb[4] = {b, b, b + 1, b - 1};
+        for (int k = 0; k < 4; ++k) {
+            if (na[k] < -m || na[k] > m || nb[k] < -m || nb[k] > m || sec.at(na[k], nb[k]) != 1) continue;
+            sec.at(na[k], nb[k]) = 2;
+            queue.push_back({na[k], nb[k]});
+        }
+    }
+    ma /= static_cast<double>(queue.size());
+    mb /= static_cast<double>(queue.size());
+    return true;
+}
+
+}  // namespace
+
 Vec3d section_centroid(const Grid& grid, const std::uint8_t* mask, const Vec3d& c, const Vec3d& t, double radius) {
     const double h = min_spacing(grid);
     const double rho = 1.5 * std::max(radius, h) + 2.0 * h;
     const double gs = std::max(0.5 * h, rho / 24.0);
     const auto m = static_cast<std::int64_t>(std::ceil(rho / gs));
-    const std::int64_t side = 2 * m + 1;
     const Vec3d u = perpendicular(t), v = cross(t, u);
-    std::vector<std::uint8_t> in(static_cast<std::size_t>(side * side), 0);
-    auto at = [&](std::int64_t a, std::int64_t b) -> std::uint8_t& { return in[static_cast<std::size_t>((b + m) * side + a + m)]; };
-    auto is_object = [&](std::int64_t k) { return mask[k] ? 1.0 : 0.0; };
-    for (std::int64_t b = -m; b <= m; ++b)
-        for (std::int64_t a = -m; a <= m; ++a) {
-            if (a * a + b * b > m * m) continue;
-            const Vec3d p = add(add(c, u, gs * static_cast<double>(a)), v, gs * static_cast<double>(b));
-            at(a, b) = sample(grid, p, 0.0, is_object) >= 0.5 ? 1 : 0;
-        }
-    // Seed: the object sample nearest the centre.
-    std::int64_t sa = 0, sb = 0, best = -1;
-    for (std::int64_t b = -m; b <= m; ++b)
-        for (std::int64_t a = -m; a <= m; ++a)
-            if (at(a, b) && (best < 0 || a * a + b * b < best)) {
-                best = a * a + b * b;
-                sa = a;
-                sb = b;
-            }
-    if (best < 0 || best * gs * gs > 4.0 * h * h) return c;
-    std::vector<std::array<std::int64_t, 2>> queue{{sa, sb}};
-    at(sa, sb) = 2;
+    Section sec = sample_section(grid, mask, c, u, v, m, gs);
     double ma = 0.0, mb = 0.0;
-    for (std::size_t q = 0; q < queue.size(); ++q) {
-        const auto [a, b] = queue[q];
-        ma += static_cast<double>(a);
-        mb += static_cast<double>(b);
-        const std::int64_t na[4] = {a + 1, a - 1, a, a}, nbb[4] = {b, b, b + 1, b - 1};
-        for (int k = 0; k < 4; ++k) {
-            if (na[k] < -m || na[k] > m || nbb[k] < -m || nbb[k] > m || at(na[k], nbb[k]) != 1) continue;
-            at(na[k], nbb[k]) = 2;
-            queue.push_back({na[k], nbb[k]});
-        }
-    }
-    const double cnt = static_cast<double>(queue.size());
-    return add(add(c, u, gs * ma / cnt), v, gs * mb / cnt);
+    if (!piece_centroid(sec, static_cast<std::int64_t>(std::floor(2.0 * h / gs)), ma, mb)) return c;
+    return add(add(c, u, gs * ma), v, gs * mb);
 }
 
 }  // namespace centerline_detail
@@ -187,16 +217,12 @@ void solve3(const double m[3][3], const double b[3], double x[3]) {
     }
 }
 
-/// The last end of pts (see EndMode): cut back 1.5 radii, where the path still heads for its end voxel rather than
-/// along the tube, and continue the curve (a quadratic fitted before the cut) to the object's surface, or with
-/// `given`, to the plane through that point across the curve.
-void extend_to_surface(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3d>& pts, double step,
-                       const Vec3d* given) {
-    if (pts.size() < 3) return;
-    auto is_object = [mask](std::int64_t k) { return mask[k] ? 1.0 : 0.0; };
-    // Near a cap the DT is the distance to the cap, so cut back 1.5 times the largest DT met walking in.
-    double from_end = 0.0, rmax = 0.0;
+/// Where to cut the last end of pts back to: 1.5 times the largest DT met walking in from the end (near a cap the DT
+/// is only the distance to the cap), at least 2 voxels, at most half the curve. `rmax` gets that largest DT.
+std::size_t cut_back(const VoxelGraph& g, const std::vector<Vec3d>& pts, double& rmax) {
     const double h = min_spacing(g.grid);
+    double from_end = 0.0;
+    rmax = 0.0;
     std::size_t k = pts.size() - 1;
     while (k > pts.size() / 2) {
         rmax = std::max(rmax, trilinear(g.grid, g.dense_dt, pts[k], 0.0));
@@ -204,12 +230,23 @@ void extend_to_surface(const VoxelGraph& g, const std::uint8_t* mask, std::vecto
         from_end += norm(add(pts[k], pts[k - 1], -1.0));
         --k;
     }
-    // Continue the curve by a quadratic (in arc length) fitted to the 2 rmax before the cut: it keeps bending.
-    std::vector<double> sj;
+    return k;
+}
+
+/// a + b e + c e^2 in arc length e from a sample, forwards.
+struct Quadratic {
+    Vec3d a, b, c;
+    Vec3d at(double e) const { return add(add(a, b, e), c, e * e); }
+    Vec3d direction(double e) const { return add(b, c, 2.0 * e); }
+};
+
+/// The quadratic least-squares fit to the samples within `span` (arc length) before pts[k], with e = 0 at pts[k];
+/// the straight continuation of the last segment when fewer than 5 samples are there.
+Quadratic fit_before(const std::vector<Vec3d>& pts, std::size_t k, double span) {
     std::size_t j0 = k;
-    for (double s = 0.0; j0 > 0 && s < 2.0 * std::max(rmax, 2.0 * h); --j0) s += norm(add(pts[j0], pts[j0 - 1], -1.0));
-    double s = 0.0;
-    double m[3][3] = {}, rhs[3][3] = {};
+    for (double s = 0.0; j0 > 0 && s < span; --j0) s += norm(add(pts[j0], pts[j0 - 1], -1.0));
+    if (k - j0 < 4) return {pts[k], unit(add(pts[k], pts[k - 1], -1.0)), {0, 0, 0}};
+    double m[3][3] = {}, rhs[3][3] = {}, s = 0.0;
     for (std::size_t j = k + 1; j-- > j0;) {
         const double pw[3] = {1.0, -s, s * s};
         for (int r = 0; r < 3; ++r) {
@@ -218,34 +255,45 @@ void extend_to_surface(const VoxelGraph& g, const std::uint8_t* mask, std::vecto
         }
         if (j > 0) s += norm(add(pts[j], pts[j - 1], -1.0));
     }
-    const bool quadratic = k - j0 >= 4;
-    Vec3d coef[3];  // per power: a + b s + c s^2
-    for (int a = 0; a < 3; ++a) {
-        const double x[3] = {rhs[a][0], rhs[a][1], rhs[a][2]};
-        double sol[3] = {pts[k][static_cast<std::size_t>(a)], 0.0, 0.0};
-        if (quadratic) solve3(m, x, sol);
-        for (int r = 0; r < 3; ++r) coef[r][static_cast<std::size_t>(a)] = sol[r];
+    Quadratic q{pts[k], {0, 0, 0}, {0, 0, 0}};
+    for (std::size_t a = 0; a < 3; ++a) {
+        double sol[3] = {pts[k][a], 0.0, 0.0};
+        solve3(m, rhs[a], sol);
+        q.a[a] = sol[0];
+        q.b[a] = sol[1];
+        q.c[a] = sol[2];
     }
-    if (!quadratic) coef[1] = unit(add(pts[k], pts[k - 1], -1.0));
+    return q;
+}
+
+/// The last end of pts (see EndMode): cut back where the path still heads for its end voxel rather than along the
+/// tube, and continue the curve (a quadratic fitted to the 2 radii before the cut: it keeps bending) to the
+/// object's surface, or with `given`, to the plane through that point across the curve.
+void extend_to_surface(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3d>& pts, const Vec3d* given) {
+    if (pts.size() < 3) return;
+    const double h = min_spacing(g.grid);
+    double rmax = 0.0;
+    const std::size_t k = cut_back(g, pts, rmax);
+    const Quadratic curve = fit_before(pts, k, 2.0 * std::max(rmax, 2.0 * h));
     pts.resize(k + 1);
+    auto is_object = [mask](std::int64_t i) { return mask[i] ? 1.0 : 0.0; };
     const double fine = 0.25 * h, limit = 3.0 * rmax + 4.0 * h;
     Vec3d p = pts.back();
     for (double e = fine; e < limit; e += fine) {
-        const Vec3d q = add(add(quadratic ? coef[0] : pts[k], coef[1], e), coef[2], quadratic ? e * e : 0.0);
+        const Vec3d q = curve.at(e);
         if (sample(g.grid, q, 0.0, is_object) < 0.5) break;
-        const Vec3d dir = quadratic ? add(coef[1], coef[2], 2.0 * e) : coef[1];
-        if (given && dot(add(q, *given, -1.0), dir) >= 0.0) break;  // a Free end: its point's plane
+        if (given && dot(add(q, *given, -1.0), curve.direction(e)) >= 0.0) break;  // a Free end: its point's plane
         p = q;
     }
     if (norm(add(p, pts.back(), -1.0)) > 1e-9) pts.push_back(p);
 }
 
-void extend_ends(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3d>& pts, double step, EndMode start,
-                 EndMode end, const Vec3d& first, const Vec3d& last) {
-    if (end != EndMode::Fixed) extend_to_surface(g, mask, pts, step, end == EndMode::Free ? &last : nullptr);
+void extend_ends(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3d>& pts, EndMode start, EndMode end,
+                 const Vec3d& first, const Vec3d& last) {
+    if (end != EndMode::Fixed) extend_to_surface(g, mask, pts, end == EndMode::Free ? &last : nullptr);
     if (start != EndMode::Fixed) {
         std::reverse(pts.begin(), pts.end());
-        extend_to_surface(g, mask, pts, step, start == EndMode::Free ? &first : nullptr);
+        extend_to_surface(g, mask, pts, start == EndMode::Free ? &first : nullptr);
         std::reverse(pts.begin(), pts.end());
     }
 }
@@ -273,7 +321,7 @@ Centerline curve_of_path(const VoxelGraph& g, const std::uint8_t* mask, const st
         if (end == EndMode::Fixed) moved.back() = last;
         pts = resample(smooth(moved, 1.0 * h / step), step);
     }
-    extend_ends(g, mask, pts, step, start, end, first, last);
+    extend_ends(g, mask, pts, start, end, first, last);
     pts = resample(pts, step);
     Centerline out;
     out.points = std::move(pts);
