@@ -252,6 +252,12 @@ def test_airway_tree():
     pts = np.concatenate([b.points for b in tr.branches])
     ijk = np.round((pts - np.array(m.origin)) / np.array(m.spacing)).astype(int)
     assert m.array[ijk[:, 2], ijk[:, 1], ijk[:, 0]].mean() > 0.98
+    # the root given where the automatic one is: a trachea and two main bronchi again; the carina (where the minimal
+    # paths merge) may move up to two radii
+    again = volrig.centerline_tree(m, root=tr.root)
+    assert len(again.children(0)) == 2
+    assert abs(again.branches[0].length - trachea.length) < 2 * np.median(trachea.radii) + 1
+    assert abs(len(again) - len(tr)) <= 3
 
 
 def test_cli_writes_csv(tmp_path, helix_tube, capsys):
