@@ -163,5 +163,6 @@ void bind_rig(py::module_& m);
 void bind_mesh(py::module_& m);
 void bind_deform(py::module_& m);
 void bind_bvh(py::module_& m);
+void bind_centerline(py::module_& m);
 
 }  // namespace volrig::py

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -272,6 +272,36 @@ def cmd_bake(args) -> int:
         return subprocess.run(cmd).returncode
 
 
+def cmd_centerline(args) -> int:
+    from .centerlines import centerline, centerline_tree
+    from .files import atomic_output
+    from .pipeline import Segmentation
+    if not args.output.endswith(".csv"):
+        raise VolrigError(f"{args.output}: the output must be a .csv file")
+    if args.tree and (args.start or args.end):
+        raise VolrigError("--tree takes --root, not --start / --end")
+    seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)  # default: non-zero
+    t = time.perf_counter()
+    mask = seg.mask(_load(args), name=args.file)
+    loaded = time.perf_counter() - t
+    t = time.perf_counter()
+    if args.tree:
+        tree = centerline_tree(mask, root=args.root, step=args.step)
+        lines = list(zip(range(len(tree)), tree.parents, tree.generations, tree.branches))
+    else:
+        lines = [(0, -1, 0, centerline(mask, start=args.start, end=args.end, step=args.step))]
+    elapsed = time.perf_counter() - t
+    with atomic_output(args.output, suffix=".csv") as tmp, open(tmp, "w") as f:
+        f.write("branch,parent,generation,index,x,y,z,radius,arc_length\n")
+        for b, parent, gen, line in lines:
+            for k, (p, r) in enumerate(zip(line.points, line.radii)):
+                f.write(f"{b},{parent},{gen},{k},{p[0]:.6g},{p[1]:.6g},{p[2]:.6g},{r:.6g},{k * line.step:.6g}\n")
+    total = sum(line.length for *_, line in lines)
+    print(f"{len(lines)} branch(es), {sum(len(line) for *_, line in lines):,} points, length {total:.1f}; "
+          f"loaded in {loaded:.2f} s, centerline{' tree' if args.tree else ''} in {elapsed:.2f} s -> {args.output}")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(args.output, scale=args.scale, thinness=args.thinness)
@@ -348,6 +378,24 @@ def main(argv=None) -> int:
     p.add_argument("--name", help="file name stem (default: the volume file's)")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
     p.set_defaults(run=cmd_bake_mocap)
+
+    p = sub.add_parser("centerline", help="centerline of a tubular object (--tree: every branch of a branching one) "
+                                          "as CSV")
+    _add_load_options(p)
+    p.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="world start point (default: the object's end farthest from the other)")
+    p.add_argument("--end", type=float, nargs=3, metavar=("X", "Y", "Z"), help="world end point (default: automatic)")
+    p.add_argument("--tree", action="store_true", help="every branch from a root (airways, vessels)")
+    p.add_argument("--root", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="--tree: world root point (default: the end of the thickest terminal branch)")
+    p.add_argument("--step", type=float, help="arc length between samples (default: the smallest voxel spacing)")
+    p.add_argument("--lo", type=float, help="segmentation: lowest object value (default: non-zero is object)")
+    p.add_argument("--hi", type=float, help="segmentation: highest object value")
+    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
+    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .csv: branch,parent,generation,index,x,y,z,radius,arc_length (world units)")
+    p.set_defaults(run=cmd_centerline)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
