@@ -726,6 +726,13 @@ TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has it
     Solid s(leg.f, {10, 10, 110});
     straight_knee(s.context(), leg.rig, leg.nodes, ".L");
     CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));  // not the proportional 50
+    CHECK(leg.rig.joints[1][2] == 100);  // the thigh (55) is longer than its share of the shin (45): kept
+    // A hip left low (at a fork 20 below): with the knee at its neck, the thigh grows to its share of the shin.
+    leg.rig.joints[1] = {0, 0, 80};
+    leg.rig.joints[2] = {0, 0, 40};
+    straight_knee(s.context(), leg.rig, leg.nodes, ".L");
+    CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));
+    CHECK(leg.rig.joints[1][2] == Approx(45 + 45 * kLegProportions[1] / kLegProportions[2]).margin(0.5));
 }
 
 TEST_CASE("centre_chest puts the chest joint midway between the shoulders across the body", "[autorig]") {

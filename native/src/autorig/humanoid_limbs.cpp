@@ -33,8 +33,8 @@ void move_joint(Rig& rig, std::int32_t j, const Vec& q) {
 
 /// The node of a chain (`path`) where the limb is narrowest within kNeckWindow of its radius (arc length) around
 /// node `at`, when the radius rises from there by kNeckRise on both sides within that window (a knee between
-/// thigh and calf); else `at`.
-std::size_t narrowest_near(const NodeTree& t, const std::vector<std::uint32_t>& path, std::size_t at) {
+/// thigh and calf); else none.
+std::optional<std::size_t> narrowest_near(const NodeTree& t, const std::vector<std::uint32_t>& path, std::size_t at) {
     const double window = kNeckWindow * t.radius(path[at]);
     std::vector<double> arc(path.size(), 0.0);
     for (std::size_t k = 1; k < path.size(); ++k) arc[k] = arc[k - 1] + (t.at(path[k]) - t.at(path[k - 1])).norm();
@@ -48,7 +48,17 @@ std::size_t narrowest_near(const NodeTree& t, const std::vector<std::uint32_t>& 
     for (std::size_t k = lo; k < m; ++k) before = std::max(before, t.radius(path[k]));
     for (std::size_t k = m + 1; k <= hi; ++k) after = std::max(after, t.radius(path[k]));
     const double rise = (1 + kNeckRise) * t.radius(path[m]);
-    return before >= rise && after >= rise ? m : at;
+    if (before >= rise && after >= rise) return m;
+    return std::nullopt;
+}
+
+/// Moves the head of bone b out along the bone's line (away from its tail) so that it is `length` long, when it is
+/// shorter.
+void restore_proximal_to(Rig& rig, std::int32_t b, double length) {
+    const std::int32_t head = rig.bones[static_cast<std::size_t>(b)][0];
+    const Vec tail = joint_at(rig, rig.bones[static_cast<std::size_t>(b)][1]), at = joint_at(rig, head);
+    const double have = (at - tail).norm();
+    if (have > 0 && have < length) move_joint(rig, head, tail + (at - tail) * (length / have));
 }
 
 }  // namespace
@@ -181,8 +191,12 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     auto off = [&](std::size_t k) { return std::abs((c.tree.at(leg[k]) - hip).dot(dir) - share * length); };
     for (std::size_t k = 1; k < leg.size(); ++k)
         if (off(k) < off(best)) best = k;
-    best = narrowest_near(c.tree, leg, best);
-    move_joint(rig, knee, c.tree.at(leg[best]));
+    const std::optional<std::size_t> neck = narrowest_near(c.tree, leg, best);
+    move_joint(rig, knee, c.tree.at(leg[neck ? *neck : best]));
+    // A knee found at its neck is the anatomical one: the hip goes up the thigh's line to the thigh's proportion
+    // of the shin, when the legs' fork left it shorter.
+    if (neck)
+        restore_proximal_to(rig, thigh, kLegProportions[1] / kLegProportions[2] * (ankle - c.tree.at(leg[*neck])).norm());
 }
 
 void centre_chest(Rig& rig) {
