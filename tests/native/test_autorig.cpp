@@ -748,3 +748,22 @@ TEST_CASE("centre_chest puts the chest joint midway between the shoulders across
     CHECK(rig.joints[1][2] == Approx(10));
     CHECK(rig.joint_points[1] == -1);
 }
+
+TEST_CASE("head_up turns a head bone pointing at the face up to the top of the head", "[autorig]") {
+    const Block block({20, 20, 40});  // the head's top at z 39
+    Rig rig;
+    rig.joints = {{10, 10, 20}, {10, 10, 30}, {10, 2, 30}};
+    rig.joint_points = {0, 0, 0};
+    rig.bones = {{0, 1}, {1, 2}};
+    rig.names = {"neck", "head"};
+    rig.parents = {-1, 0};
+    head_up(block.context(), rig, Vec(0, 0, 1));
+    CHECK(rig.joints[2][0] == Approx(10));
+    CHECK(rig.joints[2][1] == Approx(10));
+    CHECK(rig.joints[2][2] == Approx(39).margin(0.5));
+    CHECK(rig.joints[1][2] == 30);  // the head joint stays
+    // Already up: unchanged.
+    rig.joints[2] = {11, 10, 36};
+    head_up(block.context(), rig, Vec(0, 0, 1));
+    CHECK(rig.joints[2][2] == 36);
+}

@@ -223,7 +223,10 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
                                                                  leg[s].begin() + static_cast<std::ptrdiff_t>(k[3]) + 1),
                           leg_sfx);
         }
-    if (humanoid) centre_chest(out.rig);
+    if (humanoid) {
+        centre_chest(out.rig);
+        head_up(c, out.rig, up ? *up : out.up);
+    }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;
 }

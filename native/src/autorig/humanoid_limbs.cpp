@@ -211,4 +211,14 @@ void centre_chest(Rig& rig) {
     move_joint(rig, j, at + (0.5 * (l + r) - at).dot(across) * across);
 }
 
+void head_up(const RigContext& c, Rig& rig, const Vec& body_up) {
+    const std::int32_t h = bone_index(rig, "head");
+    if (h < 0) return;
+    const Vec base = bone_end(rig, static_cast<std::size_t>(h), 0), tip = bone_end(rig, static_cast<std::size_t>(h), 1);
+    const double length = (tip - base).norm();
+    if (length == 0 || (tip - base).dot(body_up) >= kHeadUp * length) return;
+    const double reach = c.reach_inside(base, body_up, 0.0, 3.0 * length);
+    if (reach > 0) move_joint(rig, rig.bones[static_cast<std::size_t>(h)][1], base + reach * body_up);
+}
+
 }  // namespace volrig::rigging

@@ -119,6 +119,11 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
 /// joining the trunk's medial sheet off its middle pulls the level-set tree's chest node aside.
 void centre_chest(Rig& rig);
 
+/// A humanoid's head bone points up (Rigify's): when the head's extremity is the face (its bone more than 60
+/// degrees off the body's up: cos below kHeadUp), its tail goes up from the head joint to the top of the head.
+constexpr double kHeadUp = 0.5;
+void head_up(const RigContext& c, Rig& rig, const Vec& body_up);
+
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
 /// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
