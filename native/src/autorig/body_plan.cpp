@@ -102,13 +102,10 @@ void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal
                       double ratio) {
     const std::int32_t p = bone_index(rig, proximal), d = bone_index(rig, distal);
     if (p < 0 || d < 0) return;
-    const Vec top = bone_end(rig, static_cast<std::size_t>(p), 0), mid = bone_end(rig, static_cast<std::size_t>(p), 1);
-    const double want = ratio * (bone_end(rig, static_cast<std::size_t>(d), 1) - mid).norm(), have = (top - mid).norm();
-    if (have >= kHiddenEnd * want || have == 0) return;
-    const Vec dir = (top - mid) / have, q = mid + c.reach_inside(mid, dir, have, want) * dir;
-    const auto j = static_cast<std::size_t>(rig.bones[static_cast<std::size_t>(p)][0]);
-    rig.joints[j] = {q.x(), q.y(), q.z()};
-    rig.joint_points[j] = -1;
+    const Vec mid = bone_end(rig, static_cast<std::size_t>(p), 1);
+    const double want = ratio * (bone_end(rig, static_cast<std::size_t>(d), 1) - mid).norm();
+    if ((bone_end(rig, static_cast<std::size_t>(p), 0) - mid).norm() < kHiddenEnd * want)
+        lengthen_proximal(c, rig, static_cast<std::size_t>(p), want);
 }
 
 bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves) {

@@ -21,44 +21,24 @@ std::pair<Vec, Vec> line_through(const std::vector<Vec>& points) {
     return {mean, eig.eigenvectors().col(2)};
 }
 
-Vec joint_at(const Rig& rig, std::int32_t j) {
-    const auto& p = rig.joints[static_cast<std::size_t>(j)];
-    return Vec(p[0], p[1], p[2]);
-}
-
-void move_joint(Rig& rig, std::int32_t j, const Vec& q) {
-    rig.joints[static_cast<std::size_t>(j)] = {q.x(), q.y(), q.z()};
-    rig.joint_points[static_cast<std::size_t>(j)] = -1;
-}
-
-/// The node of a chain (`path`) where the limb is narrowest within kNeckWindow of its radius (arc length) around
-/// node `at`, when the radius rises from there by kNeckRise on both sides within that window (a knee between
-/// thigh and calf); else none.
-std::optional<std::size_t> narrowest_near(const NodeTree& t, const std::vector<std::uint32_t>& path, std::size_t at) {
-    const double window = kNeckWindow * t.radius(path[at]);
-    std::vector<double> arc(path.size(), 0.0);
-    for (std::size_t k = 1; k < path.size(); ++k) arc[k] = arc[k - 1] + (t.at(path[k]) - t.at(path[k - 1])).norm();
+/// The sample of a limb's chain where it is narrowest within kNeckWindow of its radius (arc length) around sample
+/// `at`, when the radius rises from there by kNeckRise on both sides within that window (a knee between thigh and
+/// calf); else none.
+std::optional<std::size_t> narrowest_near(const Chain4& chain, std::size_t at) {
+    const double window = kNeckWindow * chain[at][3];
+    const std::vector<double> arc = arc_of(chain);
     std::size_t lo = at, hi = at;
     while (lo > 0 && arc[at] - arc[lo - 1] <= window) --lo;
-    while (hi + 1 < path.size() && arc[hi + 1] - arc[at] <= window) ++hi;
+    while (hi + 1 < chain.size() && arc[hi + 1] - arc[at] <= window) ++hi;
     std::size_t m = lo;
     for (std::size_t k = lo; k <= hi; ++k)
-        if (t.radius(path[k]) < t.radius(path[m])) m = k;
+        if (chain[k][3] < chain[m][3]) m = k;
     double before = 0, after = 0;
-    for (std::size_t k = lo; k < m; ++k) before = std::max(before, t.radius(path[k]));
-    for (std::size_t k = m + 1; k <= hi; ++k) after = std::max(after, t.radius(path[k]));
-    const double rise = (1 + kNeckRise) * t.radius(path[m]);
+    for (std::size_t k = lo; k < m; ++k) before = std::max(before, chain[k][3]);
+    for (std::size_t k = m + 1; k <= hi; ++k) after = std::max(after, chain[k][3]);
+    const double rise = (1 + kNeckRise) * chain[m][3];
     if (before >= rise && after >= rise) return m;
     return std::nullopt;
-}
-
-/// Moves the head of bone b out along the bone's line (away from its tail) so that it is `length` long, when it is
-/// shorter.
-void restore_proximal_to(Rig& rig, std::int32_t b, double length) {
-    const std::int32_t head = rig.bones[static_cast<std::size_t>(b)][0];
-    const Vec tail = joint_at(rig, rig.bones[static_cast<std::size_t>(b)][1]), at = joint_at(rig, head);
-    const double have = (at - tail).norm();
-    if (have > 0 && have < length) move_joint(rig, head, tail + (at - tail) * (length / have));
 }
 
 }  // namespace
@@ -156,47 +136,48 @@ void hip_on_thigh_line(Rig& rig, const std::string& thigh) {
     const std::int32_t t = bone_index(rig, thigh), h = bone_index(rig, "hips");
     if (t < 0 || h < 0) return;
     const std::int32_t head = rig.bones[static_cast<std::size_t>(t)][0];
-    const Vec knee = joint_at(rig, rig.bones[static_cast<std::size_t>(t)][1]), hip = joint_at(rig, head);
+    const Vec knee = bone_end(rig, static_cast<std::size_t>(t), 1), hip = bone_end(rig, static_cast<std::size_t>(t), 0);
     const double length = (hip - knee).norm();
     if (length == 0) return;
     const Vec dir = (hip - knee) / length;
-    const double along = (joint_at(rig, rig.bones[static_cast<std::size_t>(h)][0]) - knee).dot(dir);
+    const double along = (bone_end(rig, static_cast<std::size_t>(h), 0) - knee).dot(dir);
     if (along > length) move_joint(rig, head, knee + along * dir);
 }
 
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx) {
     const std::int32_t thigh = bone_index(rig, "thigh" + sfx), shin = bone_index(rig, "shin" + sfx);
-    if (thigh < 0 || shin < 0) return;
-    const std::int32_t knee = rig.bones[static_cast<std::size_t>(thigh)][1];
-    const Vec hip = joint_at(rig, rig.bones[static_cast<std::size_t>(thigh)][0]);
-    const Vec ankle = joint_at(rig, rig.bones[static_cast<std::size_t>(shin)][1]);
+    if (thigh < 0 || shin < 0 || leg.empty()) return;
+    const Vec hip = bone_end(rig, static_cast<std::size_t>(thigh), 0);
+    const Vec ankle = bone_end(rig, static_cast<std::size_t>(shin), 1);
     const double length = (ankle - hip).norm();
     if (length == 0) return;
     const Vec dir = (ankle - hip) / length;
+    const Chain4 chain = c.samples(leg);
     // The leg's axis between hip and ankle: straight when no node strays kStraightLeg of the mean radius off the
     // hip-ankle line.
     double worst = 0, radius = 0;
     std::size_t count = 0;
-    for (const std::uint32_t v : leg) {
-        const double s = (c.tree.at(v) - hip).dot(dir);
-        if (s <= 0 || s >= length) continue;
-        worst = std::max(worst, perp(c.tree.at(v) - hip, dir).norm());
-        radius += c.tree.radius(v);
+    for (const auto& q : chain) {
+        const Vec v = q.head<3>() - hip;
+        if (v.dot(dir) <= 0 || v.dot(dir) >= length) continue;
+        worst = std::max(worst, perp(v, dir).norm());
+        radius += q[3];
         ++count;
     }
     if (count == 0 || worst > kStraightLeg * radius / static_cast<double>(count)) return;
     const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
     // On the axis: the node nearest the proportional point along the line.
     std::size_t best = 0;
-    auto off = [&](std::size_t k) { return std::abs((c.tree.at(leg[k]) - hip).dot(dir) - share * length); };
-    for (std::size_t k = 1; k < leg.size(); ++k)
+    auto off = [&](std::size_t k) { return std::abs((chain[k].head<3>() - hip).dot(dir) - share * length); };
+    for (std::size_t k = 1; k < chain.size(); ++k)
         if (off(k) < off(best)) best = k;
-    const std::optional<std::size_t> neck = narrowest_near(c.tree, leg, best);
-    move_joint(rig, knee, c.tree.at(leg[neck ? *neck : best]));
+    const std::optional<std::size_t> neck = narrowest_near(chain, best);
+    const Vec knee = chain[neck ? *neck : best].head<3>();
+    move_joint(rig, rig.bones[static_cast<std::size_t>(thigh)][1], knee);
     // A knee found at its neck is the anatomical one: the hip goes up the thigh's line to the thigh's proportion
     // of the shin, when the legs' fork left it shorter.
     if (neck)
-        restore_proximal_to(rig, thigh, kLegProportions[1] / kLegProportions[2] * (ankle - c.tree.at(leg[*neck])).norm());
+        lengthen_proximal(c, rig, static_cast<std::size_t>(thigh), kLegProportions[1] / kLegProportions[2] * (ankle - knee).norm());
 }
 
 void centre_chest(Rig& rig) {
@@ -207,7 +188,7 @@ void centre_chest(Rig& rig) {
     if ((l - r).norm() == 0) return;
     const Vec across = (l - r).normalized();
     const std::int32_t j = rig.bones[static_cast<std::size_t>(chest)][1];
-    const Vec at = joint_at(rig, j);
+    const Vec at = bone_end(rig, static_cast<std::size_t>(chest), 1);
     move_joint(rig, j, at + (0.5 * (l + r) - at).dot(across) * across);
 }
 

@@ -49,6 +49,19 @@ Vec bone_end(const Rig& rig, std::size_t b, int end) {
     return Vec(j[0], j[1], j[2]);
 }
 
+void move_joint(Rig& rig, std::int32_t j, const Vec& q) {
+    rig.joints[static_cast<std::size_t>(j)] = {q.x(), q.y(), q.z()};
+    rig.joint_points[static_cast<std::size_t>(j)] = -1;
+}
+
+void lengthen_proximal(const RigContext& c, Rig& rig, std::size_t b, double want) {
+    const Vec top = bone_end(rig, b, 0), mid = bone_end(rig, b, 1);
+    const double have = (top - mid).norm();
+    if (have == 0 || have >= want) return;
+    const Vec dir = (top - mid) / have;
+    move_joint(rig, rig.bones[b][0], mid + c.reach_inside(mid, dir, have, want) * dir);
+}
+
 std::vector<std::string> numbered_names(const std::string& base, std::size_t count) {
     std::vector<std::string> names;
     for (std::size_t p = 0; p < count; ++p) {

@@ -30,6 +30,11 @@ struct RigContext {
 std::int32_t bone_index(const Rig& rig, const std::string& name);
 /// Joint `end` (0: head, 1: tail) of bone b as a vector.
 Vec bone_end(const Rig& rig, std::size_t b, int end);
+/// Moves joint j to q; it is a free joint then (joint_points -1).
+void move_joint(Rig& rig, std::int32_t j, const Vec& q);
+/// Moves the head of bone b out along the bone's line (away from its tail), as far as the object reaches, so that
+/// the bone is `want` long; nothing when it is that long already.
+void lengthen_proximal(const RigContext& c, Rig& rig, std::size_t b, double want);
 
 class RigBuilder {
 public:
