@@ -1,0 +1,158 @@
+"""Collision detection (issue 19): the phantom walking into a ball (equal to two Deformer frames intersected voxel
+for voxel), self-contact of the phantom (a walk: none; a forearm swung into the thigh: found with hand.R/thigh.R),
+contacts over a clip, and bad input. The brute-force equality on random limbs is in tests/native/test_collide.cpp."""
+import numpy as np
+import pytest
+
+import volrig
+from volrig.walk import walk_cycle
+
+
+@pytest.fixture(scope="module")
+def body(phantom_half):
+    vol = phantom_half.volume
+    mask = volrig.segment(vol)
+    pts = volrig.skeletonize(mask).top(5000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
+    rigid = volrig.bind(pts, rig, mask)
+    smooth = volrig.bind(pts, rig, mask, mode="smooth")
+    return vol, pts, rig, rigid, smooth
+
+
+@pytest.fixture(scope="module")
+def ball(body):
+    """A ball of radius 12 voxels on the phantom's own grid (so both deform on one lattice), one bone."""
+    vol = body[0]
+    z, y, x = np.indices(vol.array.shape)
+    centre = np.array([98.0, 72.0, 60.0])  # x, y, z: in front of the left shin
+    inside = (x - centre[0]) ** 2 + (y - centre[1]) ** 2 + (z - centre[2]) ** 2 < 12.0 ** 2
+    bv = vol.like(np.where(inside, 200, 0).astype(np.uint8))
+    mask = volrig.segment(bv)
+    pts = volrig.skeletonize(mask).top(400)
+    world = np.array(vol.origin) + np.array(vol.spacing) * centre
+    rig = volrig.Rig([world, world + [0, 0, 10.0]], [[0, 1]], ["ball"])
+    return bv, pts, rig, volrig.bind(pts, rig, mask)
+
+
+def shift(dy):
+    """The ball moved along y (towards the shin for dy < 0)."""
+    m = np.eye(4)[None].copy()
+    m[0, 1, 3] = dy
+    return m
+
+
+def walk_clip(rig, frames=24):
+    axis, angles = walk_cycle(rig, frames)
+    return np.array([rig.pose({n: (axis, np.degrees(a[f])) for n, a in angles.items()}) for f in range(frames)])
+
+
+def intersected(fa, fb) -> int:
+    """Voxels covered in both frames (both on the same lattice, offsets in lattice steps)."""
+    oa, ob = np.array(fa.offset), np.array(fb.offset)
+    lo, hi = np.maximum(oa, ob), np.minimum(oa + fa.bone.dims, ob + fb.bone.dims)
+    if (hi <= lo).any():
+        return 0
+    a = fa.bone.array[lo[2] - oa[2]:hi[2] - oa[2], lo[1] - oa[1]:hi[1] - oa[1], lo[0] - oa[0]:hi[0] - oa[0]]
+    b = fb.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
+    return int(((a > 0) & (b > 0)).sum())
+
+
+@pytest.mark.parametrize("mode", ["rigid", "linear", "dual_quaternion"])
+def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(body, ball, mode):
+    vol, pts, rig, rigid, smooth = body
+    bv, bpts, brig, bbind = ball
+    binding = rigid if mode == "rigid" else smooth
+    a = volrig.Collider(pts, binding, rig, shape=vol.array.shape)
+    b = volrig.Collider(bpts, bbind, brig, shape=bv.array.shape)
+    da, db = volrig.Deformer(vol, pts, binding), volrig.Deformer(bv, bpts, bbind)
+    clip = walk_clip(rig, 8)
+    hits = 0
+    k = rig.index("shin.L")
+    rest_mid = np.append((rig.heads()[k] + rig.tails()[k]) / 2, 1.0)
+    ball_centre = brig.heads()[0]
+    for f, gap in zip(range(0, 8, 2), (20.0, 14.0, 8.0, 70.0)):  # the ball in front of the walking left shin
+        target = (clip[f][k] @ rest_mid)[:3] + [0.0, gap, 0.0]
+        mb = shift(target[1] - ball_centre[1])
+        mb[0, 0, 3], mb[0, 2, 3] = target[0] - ball_centre[0], target[2] - ball_centre[2]
+        c = volrig.collide(a, clip[f], b, mb, mode=mode, mode_b="rigid")
+        want = intersected(da.frame(clip[f], mode=mode, values=False), db.frame(mb, values=False))
+        assert c.voxels == want, (f, gap)
+        assert c.hit == (want > 0)
+        hits += c.hit
+        if c.hit:
+            assert c.bones_b == ["ball"]
+            assert c.bones_a == ["shin.L"], c.bones_a
+            assert all(pair[1] == "ball" for pair in c.bone_pairs)
+            assert (c.box[0] <= c.box[1]).all()
+    assert hits == 3  # all but the ball 70 voxels away
+    assert not volrig.collide(a, clip[0], b, shift(200.0), mode=mode, mode_b="rigid").hit
+
+
+def test_self_contact_of_the_phantom(body):
+    vol, pts, rig, rigid, smooth = body
+    c = volrig.Collider(pts, rigid, rig, shape=vol.array.shape)
+    cs = volrig.Collider(pts, smooth, rig, shape=vol.array.shape)
+    clip = walk_clip(rig)
+    for collider, mode in ((c, "rigid"), (cs, "linear")):  # a walk: nothing passes through anything
+        found = volrig.collisions(collider, clip, mode=mode)
+        assert found.hit_frames == [] and found.contacts == []
+    rest = np.repeat(np.eye(4)[None], len(rig), axis=0)
+    assert not volrig.self_collide(c, rest)
+    # without skipping bones joined at rest, the trunk and the thighs touch at rest
+    assert ("hips", "thigh.L") in volrig.self_collide(c, rest, ignore_rest_contact=False).bone_pairs
+    # the right forearm swung in about the front-back axis: the hand goes into the right thigh, and only there
+    hand = volrig.self_collide(c, rig.pose({"upper_arm.R": ([0, 1, 0], 8), "forearm.R": ([0, 1, 0], -20)}))
+    assert hand.hit and hand.bone_pairs == [("hand.R", "thigh.R")]
+    assert hand.bones_a == hand.bones_b == ["hand.R", "thigh.R"]
+    heads = rig.heads()
+    assert heads[rig.index("hand.R")][0] - 5 < hand.box[0][0] < heads[rig.index("thigh.R")][0]
+    deeper = volrig.self_collide(c, rig.pose({"upper_arm.R": ([0, 1, 0], 8), "forearm.R": ([0, 1, 0], -30)}))
+    assert deeper.voxels > 10 * hand.voxels and ("hand.R", "thigh.R") in deeper.bone_pairs
+    # swung outwards instead: nothing
+    assert not volrig.self_collide(c, rig.pose({"forearm.R": ([0, 1, 0], 30)}))
+
+
+def test_contacts_over_a_clip_come_in_runs_with_their_bones(body, ball):
+    vol, pts, rig, rigid, _ = body
+    bv, bpts, brig, bbind = ball
+    a = volrig.Collider(pts, rigid, rig, shape=vol.array.shape)
+    b = volrig.Collider(bpts, bbind, brig, shape=bv.array.shape)
+    still = np.repeat(np.eye(4)[None], len(rig), axis=0)
+    ys = np.linspace(20.0, -70.0, 13)  # the ball passes through the left shin, then out the back
+    clip_b = np.array([shift(y) for y in ys])
+    ticks = []
+    found = volrig.collisions(a, np.repeat(still[None], len(ys), axis=0), b, clip_b, frames=range(1, 14),
+                              progress=lambda f: ticks.append(f) or True)
+    assert ticks[-1] == 1.0 and len(ticks) == 13
+    hit = found.hit_frames
+    assert hit and hit == list(range(hit[0], hit[-1] + 1))  # one run of consecutive frames
+    (run,) = found.contacts
+    assert (run.first, run.last) == (hit[0], hit[-1])
+    assert run.voxels == max(r.voxels for r in found.results) and run.first <= run.peak_frame <= run.last
+    assert ("shin.L", "ball") in run.bone_pairs and "shin.L/ball" in run.name
+    with pytest.raises(volrig.Cancelled):
+        volrig.collisions(a, np.repeat(still[None], 3, axis=0), b, clip_b[:3], progress=lambda f: False)
+
+
+def test_bad_input_gets_clear_errors(body, ball):
+    vol, pts, rig, rigid, _ = body
+    bv, bpts, brig, bbind = ball
+    a = volrig.Collider(pts, rigid, rig, shape=vol.array.shape)
+    b = volrig.Collider(bpts, bbind)  # no rig: two-body tests only
+    still = np.repeat(np.eye(4)[None], len(rig), axis=0)
+    with pytest.raises(volrig.VolrigError, match="needs the rig's bone parents"):
+        volrig.self_collide(b, np.eye(4)[None])
+    with pytest.raises(volrig.VolrigError, match="bone matrices"):
+        volrig.collide(a, still[:3], b, np.eye(4)[None])
+    scaled = np.eye(4)[None].copy()
+    scaled[0, :3, :3] *= 2
+    with pytest.raises(volrig.VolrigError, match="not a rotation"):
+        volrig.collide(a, still, b, scaled)
+    with pytest.raises(volrig.VolrigError, match="min_bone_distance"):
+        volrig.self_collide(a, still, min_bone_distance=-1)
+    with pytest.raises(volrig.VolrigError, match="clip_b"):
+        volrig.collisions(a, still[None], b, np.eye(4)[None, None].repeat(3, axis=0))
+    with pytest.raises(TypeError, match="Collider"):
+        volrig.collide(a, still, "ball", np.eye(4)[None])
+    with pytest.raises(volrig.VolrigError, match="rig has 1 bones but the binding 21"):
+        volrig.Collider(pts, rigid, brig)
