@@ -302,6 +302,56 @@ def cmd_centerline(args) -> int:
     return 0
 
 
+def _contact_poses(saved, clip_path, args, frames=None):
+    """(F, B, 4, 4) poses of a rig driven by a clip (or the rest pose held for `frames`, or one frame)."""
+    from .mocap import load_bone_map, read_bvh
+    from .pipeline import clip_frames, mocap_poses
+    if clip_path is None:
+        return np.repeat(np.eye(4)[None, None], 1 if frames is None else len(frames), axis=0).repeat(
+            len(saved.rig), axis=1), frames if frames is not None else [0]
+    motion = read_bvh(clip_path)
+    if frames is None:
+        frames = clip_frames(motion.frame_count, args.frames or "", args.step, what=os.path.basename(clip_path))
+    _, matrices = mocap_poses(saved.rig, motion, frames, load_bone_map(args.map) if args.map else None,
+                              root_motion=args.root, up_axis=args.up, scale=args.scale)
+    return matrices, frames
+
+
+def cmd_contacts(args) -> int:
+    from .collide import Collider, collisions
+    from .pipeline import load_rigged
+    rigs = [f for f in args.files if f.endswith(".vrig")]
+    clips = [f for f in args.files if f.endswith(".bvh")]
+    other = [f for f in args.files if f not in rigs and f not in clips]
+    if other or not 1 <= len(rigs) <= 2 or len(clips) > len(rigs):
+        raise VolrigError("give one or two rig files (.vrig) and at most one clip (.bvh) per rig, e.g. "
+                          "`volrig contacts a.vrig b.vrig walk.bvh ball.bvh`" + (f"; not understood: {other}" if other else ""))
+    t = time.perf_counter()
+    saved = [load_rigged(r, binding=True) for r in rigs]
+    colliders = [Collider(s.points, s.binding, s.rig) for s in saved]
+    poses_a, frames = _contact_poses(saved[0], clips[0] if clips else None, args)
+    options = dict(mode=args.mode)
+    if len(rigs) == 2:
+        clip_b = clips[1] if len(clips) == 2 else None
+        poses_b, _ = _contact_poses(saved[1], clip_b, args, frames)
+        if len(poses_b) != len(poses_a):
+            raise VolrigError(f"the clips give {len(poses_a)} and {len(poses_b)} frames: use --frames within both")
+        found = collisions(colliders[0], poses_a, colliders[1], poses_b, frames=[f + 1 for f in frames],
+                           **options)
+    else:
+        found = collisions(colliders[0], poses_a, frames=[f + 1 for f in frames], min_bone_distance=args.min_distance,
+                           **options)
+    elapsed = time.perf_counter() - t
+    what = f"{rigs[0]} and {rigs[1]}" if len(rigs) == 2 else f"{rigs[0]} against itself"
+    for c in found.contacts:
+        span = f"frame {c.first}" if c.first == c.last else f"frames {c.first}-{c.last}"
+        print(f"{span}: {', '.join(f'{x}/{y}' for x, y in c.bone_pairs)} (most {c.voxels:,} voxels, frame "
+              f"{c.peak_frame})")
+    print(f"{len(found.hit_frames)} of {len(frames)} frames in contact ({what}, {args.mode}); "
+          f"{elapsed:.2f} s with loading")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(args.output, scale=args.scale, thinness=args.thinness)
@@ -396,6 +446,19 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", required=True,
                    help="output .csv: branch,parent,generation,index,x,y,z,radius,arc_length (world units)")
     p.set_defaults(run=cmd_centerline)
+
+    p = sub.add_parser("contacts", help="frames where two rigged volumes touch, or one passes through itself, over "
+                                        "BVH clips")
+    p.add_argument("files", nargs="+", metavar="FILE",
+                   help="one or two rig files (.vrig, with their binding) then a clip (.bvh) for each; one clip "
+                        "drives the first rig (the second holds its rest pose); one rig alone: self-contact")
+    _add_mocap_options(p)
+    p.add_argument("--step", type=_at_least_one, default=1, help="test every STEP-th frame of the clip")
+    p.add_argument("--mode", choices=MODES, default="rigid", help="how the spheres move (as in the bake)")
+    p.add_argument("--min-distance", type=_at_least_one, default=2,
+                   help="self-contact: bones at least this many bones apart in the rig (default 2: not parent and "
+                        "child)")
+    p.set_defaults(run=cmd_contacts)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

@@ -156,3 +156,30 @@ def test_bad_input_gets_clear_errors(body, ball):
         volrig.collide(a, still, "ball", np.eye(4)[None])
     with pytest.raises(volrig.VolrigError, match="rig has 1 bones but the binding 21"):
         volrig.Collider(pts, rigid, brig)
+
+
+def test_cli_contacts(tmp_path, body, ball):
+    from conftest import shared
+    from test_cli import run
+    vol, pts, rig, rigid, _ = body
+    bv, bpts, brig, bbind = ball
+    a, b = tmp_path / "phantom.vrig", tmp_path / "ball.vrig"
+    volrig.save_rig(a, pts, rig=rig, binding=rigid)
+    # the ball 14 voxels nearer the left shin, at rest against it
+    moved = volrig.SkeletonPoints(bpts.ijk - [0, 14, 0], bpts.centers - [0, 14, 0], bpts.radii, bpts.dt, bpts.scores,
+                                  bpts.metric, bpts.spacing, bpts.origin)
+    volrig.save_rig(b, moved, rig=brig, binding=bbind)
+    r = run("contacts", a, b)
+    assert r.returncode == 0, r.stderr
+    want = volrig.collide(volrig.Collider(pts, rigid, rig), volrig.rest_pose(len(rig)),
+                          volrig.Collider(moved, bbind, brig), volrig.rest_pose(1))
+    assert want.hit and f"frame 1: shin.L/ball (most {want.voxels:,} voxels" in r.stdout
+    assert "1 of 1 frames in contact" in r.stdout
+    clip = shared("bvh/131_01.bvh")
+    r = run("contacts", a, clip, "--frames", "1-97", "--step", 48)  # self-contact over a mocap walk: 3 frames
+    assert r.returncode == 0, r.stderr
+    assert "of 3 frames in contact" in r.stdout and "against itself" in r.stdout
+    for bad, words in [((a, b, b), "one or two rig files"), ((a, tmp_path / "x.txt"), "not understood"),
+                       ((tmp_path / "none.vrig",), "none.vrig")]:
+        r = run("contacts", *bad)
+        assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
