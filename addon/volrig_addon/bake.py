@@ -39,18 +39,20 @@ def parse_frames(text: str, scene=None):
     return pipeline.parse_frames(text, None if scene is None else (scene.frame_start, scene.frame_end))
 
 
-class Baker:
-    """Everything one bake of a volrig Volume object needs, prepared once (``volrig.pipeline.FolderBake``: the
-    Deformer and the record of baked poses)."""
+class RigState:
+    """A rigged volrig Volume object as the deformation sees it now: its armature and sphere mesh, the rig file's
+    points, the bone names in the armature's order and the binding from the sphere mesh's vertex groups (weight
+    painting counts)."""
 
-    def __init__(self, volume_obj, mode: str = "linear"):
+    def __init__(self, volume_obj):
         self.volume_obj = volume_obj
         parts = objects.members(volume_obj)
         if "RIG" not in parts or "SPHERES" not in parts:
             raise volrig.VolrigError(f"{volume_obj.name} is not rigged: press Rig first")
         self.rig_obj, self.spheres_obj = parts["RIG"], parts["SPHERES"]
-        path = scans.rig_path(volume_obj)
-        saved = volrig.load_rig(path)
+        self.path = scans.rig_path(volume_obj)
+        saved = volrig.load_rig(self.path)
+        self.points = saved.points
         self.names = [b.name for b in self.rig_obj.data.bones]
         fallback = saved.binding if saved.binding is not None and saved.binding.bone_names == self.names else None
         groups = objects.vertex_groups(self.spheres_obj)
@@ -58,10 +60,12 @@ class Baker:
             raise volrig.VolrigError(f"{self.spheres_obj.name} has {len(self.spheres_obj.data.vertices)} vertices "
                                      f"but the rig file has {len(saved.points)} points: press Rig again")
         self.binding = volrig.Binding.from_groups(groups, self.names, len(saved.points), fallback=fallback)
-        self.folder = pipeline.FolderBake(scans.source(volume_obj), saved.points, self.binding,
-                                          frames_dir(volume_obj), _stem(volume_obj), mode=mode,
-                                          sampling=volume_obj.volrig.sampling, track=True,
-                                          setup=os.path.basename(path))
+
+    @property
+    def parents(self):
+        """Each bone's parent index in the armature (-1 for roots)."""
+        index = {name: b for b, name in enumerate(self.names)}
+        return [index[b.parent.name] if b.parent else -1 for b in self.rig_obj.data.bones]
 
     def bone_matrices(self, depsgraph) -> np.ndarray:
         """(B, 4, 4) rest-to-pose matrices of the evaluated armature, in the bone order of the binding."""
@@ -73,6 +77,18 @@ class Baker:
         # (bones at rest come out of Blender's single precision a hair off the identity: volrig.deform takes them as
         # the identity itself)
         return out
+
+
+class Baker(RigState):
+    """Everything one bake of a volrig Volume object needs, prepared once (``volrig.pipeline.FolderBake``: the
+    Deformer and the record of baked poses)."""
+
+    def __init__(self, volume_obj, mode: str = "linear"):
+        super().__init__(volume_obj)
+        self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
+                                          frames_dir(volume_obj), _stem(volume_obj), mode=mode,
+                                          sampling=volume_obj.volrig.sampling, track=True,
+                                          setup=os.path.basename(self.path))
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
         """Reconstruct scene frame ``frame`` into its VDB file (written while the next frame computes: ``finish``

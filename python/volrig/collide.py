@@ -55,10 +55,11 @@ class Collider:
     rig:   the rig (its bone parents are needed for ``self_collide``; its names label the answers).
     shape: the source volume's array shape (z, y, x) the points index; default the points' own extent. Give it to
            match ``Deformer`` frames exactly when bone matrices lie within float noise of the identity.
+    parents: the bones' parents without a Rig (an armature's, as the add-on has them); the binding names the bones.
     """
 
     def __init__(self, points: SkeletonPoints, binding: Binding, rig: Optional[Rig] = None,
-                 shape: Optional[Sequence[int]] = None):
+                 shape: Optional[Sequence[int]] = None, parents: Optional[Sequence[int]] = None):
         ijk, radius, bone, bone_count, offsets, wbones, weights = _sphere_arrays(points, binding)
         if shape is None:
             shape = (ijk.max(axis=0) + 1) if len(ijk) else (1, 1, 1)
@@ -66,7 +67,11 @@ class Collider:
             raise VolrigError(f"shape must be (z, y, x), got {tuple(shape)}")
         if rig is not None and len(rig.names) != bone_count:
             raise VolrigError(f"the rig has {len(rig.names)} bones but the binding {bone_count}")
-        parents = [] if rig is None else [int(p) for p in rig.parents]
+        if parents is None:
+            parents = [] if rig is None else rig.parents
+        parents = [int(p) for p in parents]
+        if parents and len(parents) != bone_count:
+            raise VolrigError(f"{len(parents)} parents for {bone_count} bones")
         self.names = list(rig.names if rig is not None else binding.bone_names) or [str(b) for b in range(bone_count)]
         self.smooth = binding.mode == "smooth"
         self._native = _volrig.Collider(tuple(points.spacing), tuple(points.origin),
@@ -169,7 +174,8 @@ class ClipContacts:
         return [f for f, r in zip(self.frames, self.results) if r.hit]
 
 
-def _runs(frames: List[int], results: List[Collision]) -> List[Contact]:
+def contact_runs(frames: List[int], results: List[Collision]) -> List[Contact]:
+    """The runs of consecutive frames with contact in per-frame results."""
     out: List[Contact] = []
     previous = None
     for f, r in zip(frames, results):
@@ -212,4 +218,4 @@ def collisions(a: Collider, clip_a, b: Optional[Collider] = None, clip_b=None, f
         results.append(collide(a, ma[k], b, mb[k], **options) if b is not None else self_collide(a, ma[k], **options))
         if progress is not None and not progress((k + 1) / n):
             raise Cancelled("cancelled")
-    return ClipContacts(labels, results, _runs(labels, results))
+    return ClipContacts(labels, results, contact_runs(labels, results))
