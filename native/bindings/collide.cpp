@@ -31,6 +31,10 @@ py::dict collision_dict(Collision&& c) {
     d["bones_b"] = c.bones_b;
     d["bone_pairs"] = c.bone_pairs;
     d["box"] = c.box;
+    d["points"] = to_numpy_shaped(std::vector<std::int64_t>(reinterpret_cast<const std::int64_t*>(c.points.data()),
+                                                            reinterpret_cast<const std::int64_t*>(c.points.data()) +
+                                                                3 * c.points.size()),
+                                  {static_cast<py::ssize_t>(c.points.size()), 3});
     py::dict stats;  // Collision.stats: the only place Python spells these names (volrig/collide.hpp)
     stats["field_pairs"] = c.stats.field_pairs;
     stats["node_pairs"] = c.stats.node_pairs;
@@ -82,34 +86,34 @@ void bind_collide(py::module_& m) {
     auto two_body = [](bool reference) {
         return [reference](const PyCollider& a, const DoubleArray& ma, const std::string& mode_a,
                            const py::object& scale_a, const PyCollider& b, const DoubleArray& mb,
-                           const std::string& mode_b, const py::object& scale_b) {
+                           const std::string& mode_b, const py::object& scale_b, bool points) {
             const CollideOptions oa = collide_options(mode_a, scale_a), ob = collide_options(mode_b, scale_b);
             const double* pa = matrices_of(ma, a.collider->bone_count());
             const double* pb = matrices_of(mb, b.collider->bone_count());
             return released([&] {
                 return reference ? collide_reference(*a.collider, pa, oa, *b.collider, pb, ob)
-                                 : collide(*a.collider, pa, oa, *b.collider, pb, ob);
+                                 : collide(*a.collider, pa, oa, *b.collider, pb, ob, points);
             });
         };
     };
     auto self = [](bool reference) {
         return [reference](const PyCollider& a, const DoubleArray& ma, const std::string& mode,
-                           const py::object& scale, int min_bone_distance, bool ignore_rest_contact) {
+                           const py::object& scale, int min_bone_distance, bool ignore_rest_contact, bool points) {
             const CollideOptions o = collide_options(mode, scale);
             const double* p = matrices_of(ma, a.collider->bone_count());
             return released([&] {
                 return reference ? self_collide_reference(*a.collider, p, o, min_bone_distance, ignore_rest_contact)
-                                 : self_collide(*a.collider, p, o, min_bone_distance, ignore_rest_contact);
+                                 : self_collide(*a.collider, p, o, min_bone_distance, ignore_rest_contact, points);
             });
         };
     };
     for (bool reference : {false, true}) {
         m.def(reference ? "collide_reference" : "collide", two_body(reference), py::arg("a"), py::arg("matrices_a"),
               py::arg("mode_a"), py::arg("radius_scale_a"), py::arg("b"), py::arg("matrices_b"), py::arg("mode_b"),
-              py::arg("radius_scale_b"));
+              py::arg("radius_scale_b"), py::arg("points") = false);
         m.def(reference ? "self_collide_reference" : "self_collide", self(reference), py::arg("a"),
               py::arg("matrices"), py::arg("mode"), py::arg("radius_scale"), py::arg("min_bone_distance"),
-              py::arg("ignore_rest_contact"));
+              py::arg("ignore_rest_contact"), py::arg("points") = false);
     }
 }
 

@@ -31,6 +31,7 @@ class Collision:
                 involved).
     bone_pairs: (bone of A, bone of B) name pairs sharing a contact voxel (self-contact: each pair once).
     box:        (2, 3) world bounding box (min, max corner) of the contact voxels' centres; None without contact.
+    points:     (voxels, 3) world centres of the contact voxels (sorted by z, y, x) when asked for, else None.
     stats:      work done: field_pairs (bone or blend-group pairs whose bounds overlap), node_pairs (bounding
                 sphere pairs tested), sphere_pairs (ball pairs that intersect), lattice_tests (points decided one
                 by one: the ends of rows through a ball; the rows between are inside by a margin).
@@ -43,6 +44,7 @@ class Collision:
     bone_pairs: List[Tuple[str, str]]
     box: Optional[np.ndarray]
     stats: dict
+    points: Optional[np.ndarray] = None
 
     def __bool__(self) -> bool:
         return self.hit
@@ -72,6 +74,7 @@ class Collider:
         parents = [int(p) for p in parents]
         if parents and len(parents) != bone_count:
             raise VolrigError(f"{len(parents)} parents for {bone_count} bones")
+        self.spacing, self.origin = tuple(points.spacing), tuple(points.origin)
         self.names = list(rig.names if rig is not None else binding.bone_names) or [str(b) for b in range(bone_count)]
         self.smooth = binding.mode == "smooth"
         self._native = _volrig.Collider(tuple(points.spacing), tuple(points.origin),
@@ -91,11 +94,12 @@ class Collider:
         return self._native.memory_bytes
 
 
-def _collision(d: dict, names_a: List[str], names_b: List[str]) -> Collision:
+def _collision(d: dict, a: Collider, names_b: List[str], points: bool) -> Collision:
     box = np.array(d["box"], dtype=np.float64).reshape(2, 3) if d["hit"] else None
-    return Collision(bool(d["hit"]), int(d["voxels"]), [names_a[b] for b in d["bones_a"]],
-                     [names_b[b] for b in d["bones_b"]], [(names_a[x], names_b[y]) for x, y in d["bone_pairs"]],
-                     box, dict(d["stats"]))
+    world = np.asarray(a.origin) + np.asarray(a.spacing) * d["points"] if points else None
+    return Collision(bool(d["hit"]), int(d["voxels"]), [a.names[b] for b in d["bones_a"]],
+                     [names_b[b] for b in d["bones_b"]], [(a.names[x], names_b[y]) for x, y in d["bone_pairs"]],
+                     box, dict(d["stats"]), world)
 
 
 def _check(c, what: str) -> Collider:
@@ -105,17 +109,18 @@ def _check(c, what: str) -> Collider:
 
 
 def collide(a: Collider, matrices_a, b: Collider, matrices_b, mode: str = "rigid", mode_b: Optional[str] = None,
-            radius_scale_a=None, radius_scale_b=None, reference: bool = False) -> Collision:
+            radius_scale_a=None, radius_scale_b=None, points: bool = False, reference: bool = False) -> Collision:
     """Contact between two posed bodies: ``matrices_a`` (B_a, 4, 4) and ``matrices_b`` rest-to-pose bone matrices
     (world coordinates, as ``deform`` takes them); ``mode`` how their spheres move ("rigid", "linear",
-    "dual_quaternion"; ``mode_b`` for B, default the same); radius scales as ``deform``'s. ``reference``: the brute
-    force (every lattice point against every ball), for tests."""
+    "dual_quaternion"; ``mode_b`` for B, default the same); radius scales as ``deform``'s. ``points``: also the
+    contact voxels' world centres (``Collision.points``). ``reference``: the brute force (every lattice point
+    against every ball), for tests."""
     _check(a, "a")
     _check(b, "b")
     f = _volrig.collide_reference if reference else _volrig.collide
     d = f(a._native, _matrices(matrices_a), mode, _radius_scale(radius_scale_a, len(a)), b._native,
-          _matrices(matrices_b), mode_b or mode, _radius_scale(radius_scale_b, len(b)))
-    return _collision(d, a.names, b.names)
+          _matrices(matrices_b), mode_b or mode, _radius_scale(radius_scale_b, len(b)), bool(points or reference))
+    return _collision(d, a, b.names, points)
 
 
 def _min_distance(exclude_adjacent: bool, min_bone_distance: Optional[int]) -> int:
@@ -127,7 +132,7 @@ def _min_distance(exclude_adjacent: bool, min_bone_distance: Optional[int]) -> i
 
 
 def self_collide(a: Collider, matrices, exclude_adjacent: bool = True, min_bone_distance: Optional[int] = None,
-                 ignore_rest_contact: bool = True, mode: str = "rigid", radius_scale=None,
+                 ignore_rest_contact: bool = True, mode: str = "rigid", radius_scale=None, points: bool = False,
                  reference: bool = False) -> Collision:
     """Parts of one posed body that interpenetrate (a hand through a thigh).
 
@@ -140,8 +145,9 @@ def self_collide(a: Collider, matrices, exclude_adjacent: bool = True, min_bone_
     if k > 0 and not a.has_parents:
         raise VolrigError("self_collide needs the rig's bone parents: build the Collider with rig=")
     f = _volrig.self_collide_reference if reference else _volrig.self_collide
-    d = f(a._native, _matrices(matrices), mode, _radius_scale(radius_scale, len(a)), k, bool(ignore_rest_contact))
-    return _collision(d, a.names, a.names)
+    d = f(a._native, _matrices(matrices), mode, _radius_scale(radius_scale, len(a)), k, bool(ignore_rest_contact),
+          bool(points or reference))
+    return _collision(d, a, a.names, points)
 
 
 @dataclass

@@ -32,6 +32,13 @@ void require_same(const Collision& fast, const Collision& ref) {
     REQUIRE(fast.bones_a == ref.bones_a);
     REQUIRE(fast.bones_b == ref.bones_b);
     for (int k = 0; k < 6; ++k) REQUIRE(fast.box[k] == Approx(ref.box[k]));
+    REQUIRE(fast.points.empty());
+}
+
+/// The same with the contact voxels listed: the very voxels of the reference.
+void require_same_points(const Collision& fast, const Collision& ref) {
+    REQUIRE(fast.voxels == static_cast<std::int64_t>(fast.points.size()));
+    REQUIRE(fast.points == ref.points);
 }
 
 /// Lattice points covered in both frames (A's frame and B's, deformed on the same lattice).
@@ -61,7 +68,9 @@ TEST_CASE("collide equals brute force and the intersection of the two deformed f
                 CollideOptions o;
                 o.mode = mode;
                 const Collision fast = collide(c, ma.data(), o, c, mb.data(), o);
-                require_same(fast, collide_reference(c, ma.data(), o, c, mb.data(), o));
+                const Collision ref = collide_reference(c, ma.data(), o, c, mb.data(), o);
+                require_same(fast, ref);
+                require_same_points(collide(c, ma.data(), o, c, mb.data(), o, true), ref);
                 DeformOptions d;
                 d.mode = mode;
                 d.values = false;
@@ -170,7 +179,9 @@ TEST_CASE("self-contact: a limb folded onto itself, and none at rest", "[collide
                 CollideOptions o;
                 o.mode = mode;
                 const Collision fast = self_collide(c, m.data(), o);
-                require_same(fast, self_collide_reference(c, m.data(), o));
+                const Collision ref = self_collide_reference(c, m.data(), o);
+                require_same(fast, ref);
+                require_same_points(self_collide(c, m.data(), o, 2, true, true), ref);
                 if (fold == 0.0) REQUIRE_FALSE(fast.hit);
                 if (fold == 100.0) {
                     REQUIRE(fast.hit);

@@ -80,6 +80,9 @@ def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(
         assert c.hit == (want > 0)
         hits += c.hit
         if c.hit:
+            with_points = volrig.collide(a, clip[f], b, mb, mode=mode, mode_b="rigid", points=True)
+            assert with_points.points.shape == (c.voxels, 3) and c.points is None
+            assert (with_points.points >= c.box[0]).all() and (with_points.points <= c.box[1]).all()
             assert c.bones_b == ["ball"]
             assert c.bones_a == ["shin.L"], c.bones_a
             assert all(pair[1] == "ball" for pair in c.bone_pairs)

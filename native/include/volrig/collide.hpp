@@ -57,6 +57,8 @@ struct Collision {
     std::vector<std::pair<std::int32_t, std::int32_t>> bone_pairs;
     /// World bounding box of the contact voxels' centres: min x, y, z, max x, y, z (zeros when there is none).
     std::array<double, 6> box{0, 0, 0, 0, 0, 0};
+    /// The contact voxels as lattice indices (x, y, z) of A's grid, sorted by z, y, x; only when asked for.
+    std::vector<std::array<std::int64_t, 3>> points;
     CollideStats stats;
 };
 
@@ -84,15 +86,17 @@ private:
 };
 
 /// Contact between two posed bodies (rest-to-pose matrices as in Deformer::frame, one per bone of each rig).
+/// `keep_points`: also list the contact voxels (Collision::points).
 Collision collide(const Collider& a, BoneMatrices matrices_a, const CollideOptions& options_a, const Collider& b,
-                  BoneMatrices matrices_b, const CollideOptions& options_b);
+                  BoneMatrices matrices_b, const CollideOptions& options_b, bool keep_points = false);
 
 /// Contact of a posed body with itself (see the header comment for which ball pairs count); min_bone_distance
 /// must be at least 1.
 Collision self_collide(const Collider& a, BoneMatrices matrices, const CollideOptions& options,
-                       int min_bone_distance = 2, bool ignore_rest_contact = true);
+                       int min_bone_distance = 2, bool ignore_rest_contact = true, bool keep_points = false);
 
-/// Brute force for tests: every lattice point of the posed bounding box against every moved ball.
+/// Brute force for tests: every lattice point of the posed bounding box against every moved ball (points always
+/// listed).
 Collision collide_reference(const Collider& a, BoneMatrices matrices_a, const CollideOptions& options_a,
                             const Collider& b, BoneMatrices matrices_b, const CollideOptions& options_b);
 Collision self_collide_reference(const Collider& a, BoneMatrices matrices, const CollideOptions& options,

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <tuple>
 
 #include "collide/posed.hpp"
 
@@ -88,6 +89,7 @@ struct PairRule {
     bool self = false;
     int min_bone_distance = 0;
     bool ignore_rest_contact = false;
+    bool keep_points = false;  ///< also list the contact voxels
     bool accept(const Posed& p, std::uint32_t i, std::uint32_t j, bool same_leaf) const {
         return !self || ((!same_leaf || i < j) && eligible(p, i, j, min_bone_distance, ignore_rest_contact));
     }
@@ -332,9 +334,11 @@ struct Found {
     std::int64_t voxels = 0;
     Box6 box = kNoBox;
     std::vector<std::uint8_t> pair_hit;  ///< per slot pair
+    std::vector<std::array<std::int64_t, 3>> points;  ///< the contact voxels, when kept
 };
 
-void combine(const Slab& slab, const std::vector<std::pair<std::size_t, std::size_t>>& sp, std::size_t w, Found& f) {
+void combine(const Slab& slab, const std::vector<std::pair<std::size_t, std::size_t>>& sp, std::size_t w, bool keep,
+             Found& f) {
     std::uint64_t hit = 0;
     for (std::size_t k = 0; k < sp.size(); ++k) {
         const std::uint64_t both = slab.word(sp[k].first, w) & slab.word(sp[k].second, w);
@@ -346,6 +350,7 @@ void combine(const Slab& slab, const std::vector<std::pair<std::size_t, std::siz
         slab.point(w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits)), q);
         ++f.voxels;
         f.box = join(f.box, {q[0], q[1], q[2], q[0], q[1], q[2]});
+        if (keep) f.points.push_back({q[0], q[1], q[2]});
     }
 }
 
@@ -377,21 +382,26 @@ Found contact(const Posed& a, const Posed& b, const Candidates& cs, const PairRu
         });
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slab.words(), 1024), [&](const tbb::blocked_range<std::size_t>& r) {
             Found& f = found.local();
-            for (std::size_t w = r.begin(); w != r.end(); ++w) combine(slab, sp, w, f);
+            for (std::size_t w = r.begin(); w != r.end(); ++w) combine(slab, sp, w, rule.keep_points, f);
         });
         for (const Found& f : found) {
             total.voxels += f.voxels;
             total.box = join(total.box, f.box);
             for (std::size_t k = 0; k < sp.size(); ++k) total.pair_hit[k] |= f.pair_hit[k];
+            total.points.insert(total.points.end(), f.points.begin(), f.points.end());
         }
     }
     tests = tested;
     return total;
 }
 
-Collision answer(const Posed& a, const Candidates& cs, const PairRule& rule, const Found& f) {
+Collision answer(const Posed& a, const Candidates& cs, const PairRule& rule, Found&& f) {
     Collision out;
     out.voxels = f.voxels;
+    out.points = std::move(f.points);
+    std::sort(out.points.begin(), out.points.end(), [](const auto& x, const auto& y) {
+        return std::tie(x[2], x[1], x[0]) < std::tie(y[2], y[1], y[0]);
+    });
     out.hit = f.voxels > 0;
     if (!out.hit) return out;
     const auto sp = slot_pairs(cs, a, rule);
@@ -461,17 +471,19 @@ Collision run(const Posed& a, const Posed& b, const PairRule& rule) {
 }  // namespace
 
 Collision collide(const Collider& a, BoneMatrices ma, const CollideOptions& oa, const Collider& b, BoneMatrices mb,
-                  const CollideOptions& ob) {
+                  const CollideOptions& ob, bool keep_points) {
     const Posed pa = pose(a.impl(), ma, oa);
     const Posed pb = pose(b.impl(), mb, ob);
-    return run(pa, pb, PairRule{});
+    PairRule rule;
+    rule.keep_points = keep_points;
+    return run(pa, pb, rule);
 }
 
 Collision self_collide(const Collider& a, BoneMatrices m, const CollideOptions& o, int min_bone_distance,
-                       bool ignore_rest_contact) {
+                       bool ignore_rest_contact, bool keep_points) {
     check_self_options(a, min_bone_distance);
     const Posed p = pose(a.impl(), m, o);
-    return run(p, p, PairRule{true, min_bone_distance, ignore_rest_contact});
+    return run(p, p, PairRule{true, min_bone_distance, ignore_rest_contact, keep_points});
 }
 
 }  // namespace volrig

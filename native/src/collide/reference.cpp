@@ -58,6 +58,7 @@ void add(Collision& out, const Grid& g, const std::int64_t* q, const std::vector
     }
     ++out.voxels;
     out.hit = true;
+    out.points.push_back({q[0], q[1], q[2]});
     out.bone_pairs.insert(out.bone_pairs.end(), pairs.begin(), pairs.end());
 }
 
