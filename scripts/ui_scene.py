@@ -14,6 +14,20 @@ for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
 volrig_addon.register()
 
+def contacts(vol):
+    from mathutils import Euler
+    from volrig_addon.objects import members
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 40
+    pb = members(vol)["RIG"].pose.bones["forearm.R"]
+    pb.rotation_mode = "XYZ"
+    for frame, angle in ((1, 0.0), (20, -0.8), (40, 0.0)):
+        pb.rotation_euler = Euler((0.0, 0.0, angle))
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    print("find_contacts:", bpy.ops.volrig.find_contacts(), flush=True)
+    scene.frame_set(20)
+
+
 def setup():
     ph = volrig.phantom.humanoid(0.4)
     path = os.path.join(WORK, "phantom.nrrd")
@@ -35,6 +49,8 @@ def setup():
         bpy.ops.volrig.rig()
         bpy.context.view_layer.objects.active = vol
         vol.select_set(True)
+        if os.environ.get("UI_CONTACTS"):  # key the right arm swung through the body, then Find Contacts
+            contacts(vol)
     for area in win.screen.areas:
         if area.type == "VIEW_3D":
             for space in area.spaces:

@@ -162,9 +162,13 @@ class Contact:
 
     @property
     def name(self) -> str:
-        """A marker name: the first bone pairs, "hand.L/thigh.R" style."""
-        text = ", ".join(f"{x}/{y}" for x, y in self.bone_pairs[:3])
-        return text + (" ..." if len(self.bone_pairs) > 3 else "")
+        """A short name (timeline markers hold 63 characters): "hand.R/thigh.R" for one bone pair, else the bones
+        involved and the pair count."""
+        if len(self.bone_pairs) == 1:
+            return "/".join(self.bone_pairs[0])
+        bones = " ".join(sorted({b for pair in self.bone_pairs for b in pair}))
+        tail = f" ({len(self.bone_pairs)} pairs)"
+        return (bones if len(bones) + len(tail) <= 50 else bones[:49 - len(tail)] + "…") + tail
 
 
 @dataclass

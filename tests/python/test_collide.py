@@ -132,7 +132,9 @@ def test_contacts_over_a_clip_come_in_runs_with_their_bones(body, ball):
     (run,) = found.contacts
     assert (run.first, run.last) == (hit[0], hit[-1])
     assert run.voxels == max(r.voxels for r in found.results) and run.first <= run.peak_frame <= run.last
-    assert ("shin.L", "ball") in run.bone_pairs and "shin.L/ball" in run.name
+    assert run.bone_pairs == [("shin.L", "ball")] and run.name == "shin.L/ball"
+    many = volrig.Contact(1, 2, [("forearm.R", "pelvis.L"), ("forearm.R", "thigh.R"), ("hand.R", "thigh.R")], 9, 1)
+    assert many.name == "forearm.R hand.R pelvis.L thigh.R (3 pairs)"
     with pytest.raises(volrig.Cancelled):
         volrig.collisions(a, np.repeat(still[None], 3, axis=0), b, clip_b[:3], progress=lambda f: False)
 
