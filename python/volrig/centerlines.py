@@ -377,3 +377,146 @@ def straightening_rig(line: Centerline, bones: int = 12, axis: Optional[Sequence
     rig = Rig(joints, np.stack([np.arange(bones), np.arange(1, bones + 1)], axis=1), names,
               np.arange(-1, bones - 1), kind="chains")
     return StraighteningRig(rig, straight, a, local)
+
+
+# ---- fly-throughs (virtual endoscopy) ----
+
+def flight_path(mask, start: Optional[Sequence[float]] = None, end: Optional[Sequence[float]] = None,
+                progress: ProgressFn = None) -> Centerline:
+    """The centerline a fly-through follows: ``centerline(mask, start, end)``, except that a start left out is the end
+    of the object's thickest terminal branch (the root of ``centerline_tree``: the trachea of an airway tree, the
+    wide end of a tube), and an end left out the end farthest from the start along the object."""
+    if start is None:
+        if end is None:
+            start = centerline_tree(mask, progress=_span(progress, 0.0, 0.5)).root
+            progress = _span(progress, 0.5, 1.0)
+        else:  # the given end is where the flight stops: start from the far end
+            return _reversed(centerline(mask, start=end, progress=progress))
+    return centerline(mask, start=start, end=end, progress=progress)
+
+
+def _reversed(line: Centerline) -> Centerline:
+    return Centerline(line.points[::-1].copy(), line.radii[::-1].copy(), line.length, line.voxels[::-1].copy())
+
+
+@dataclass(frozen=True)
+class FlightFrames:
+    """A camera's path along a centerline, one entry per frame (world units of the line).
+
+    positions:  (F, 3) camera positions, equal arc-length steps of 1 / frames_per_mm.
+    directions: (F, 3) unit view directions: the line's tangent averaged over ``look_ahead`` ahead of the camera.
+    ups:        (F, 3) unit up vectors, perpendicular to the directions, turned from frame to frame by the smallest
+                rotation (no roll, no flip when the path turns straight up or down).
+    radii:      (F,) the lumen's radius at each position (the line's inscribed-ball radius).
+    arc:        (F,) arc length of each position from the line's start.
+    """
+
+    positions: np.ndarray
+    directions: np.ndarray
+    ups: np.ndarray
+    radii: np.ndarray
+    arc: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+
+def flight_frames(line: Centerline, frames_per_mm: float = 1.0, look_ahead: float = 10.0,
+                  up: Optional[Sequence[float]] = None, stop_short: Optional[float] = None,
+                  min_radius: float = 0.0) -> FlightFrames:
+    """Camera positions, view directions and up vectors along ``line`` for a fly-through: ``frames_per_mm`` frames
+    per unit of arc length (the speed), the view along the tangent averaged over the next ``look_ahead`` units,
+    ``up`` (default +z, or +y when the line starts along z) projected off the first view direction and carried
+    along without roll. The flight starts and ends ``stop_short`` (default the lumen's radius there) inside the line's
+    ends,
+    so the camera starts and stops in front of the wall that closes the lumen, and ends where the lumen's radius
+    first drops below ``min_radius`` (narrower than a camera fits: the wall's soft edge would fill the view)."""
+    if not isinstance(line, Centerline):
+        raise TypeError(f"line must be a volrig.Centerline, got {type(line).__name__}")
+    if not (np.isfinite(frames_per_mm) and frames_per_mm > 0):
+        raise VolrigError(f"frames per mm must be positive and finite, got {frames_per_mm}")
+    if not (np.isfinite(look_ahead) and look_ahead >= 0):
+        raise VolrigError(f"look ahead must be >= 0 and finite, got {look_ahead}")
+    pts = np.asarray(line.points, dtype=np.float64)
+    if len(pts) < 2:
+        raise VolrigError("the centerline has fewer than 2 points")
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    # the radius at an end is the cap's (it shrinks to 0 there): take the widest within the widest radius of it
+    reach = float(line.radii.max())
+    first = float(line.radii[s <= reach].max()) if stop_short is None else float(stop_short)
+    first = min(max(first, 0.0), 0.25 * s[-1])
+    short = float(line.radii[s >= s[-1] - reach].max()) if stop_short is None else float(stop_short)
+    stop = max(s[-1] - max(short, 0.0), 0.5 * s[-1])
+    narrow = np.flatnonzero((s > first) & (s < stop) & (line.radii < min_radius))
+    if len(narrow):
+        stop = max(s[narrow[0]], first + 0.1 * (s[-1] - first))
+    count = max(int(np.floor((stop - first) * frames_per_mm)) + 1, 2)
+    arc = first + np.arange(count) / frames_per_mm
+    if arc[-1] > stop:
+        arc = np.linspace(first, stop, count)
+    positions = np.stack([np.interp(arc, s, pts[:, a]) for a in range(3)], axis=1)
+    radii = np.interp(arc, s, line.radii)
+    # the averaged tangent over [a, a + look_ahead] is the chord to the point look_ahead ahead (clamped at the end;
+    # near the end, where the window shrinks, it is at least the local tangent)
+    tangents = line.tangents()
+    ahead = np.minimum(arc + max(look_ahead, 1e-9), s[-1])
+    tips = np.stack([np.interp(ahead, s, pts[:, a]) for a in range(3)], axis=1)
+    d = tips - positions
+    n = np.linalg.norm(d, axis=1)
+    local = np.stack([np.interp(arc, s, tangents[:, a]) for a in range(3)], axis=1)
+    short_window = n < 0.25 * max(look_ahead, 1e-9)
+    d[short_window] = local[short_window]
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    u0 = np.array([0.0, 0.0, 1.0]) if up is None else np.asarray(up, dtype=np.float64).reshape(3)
+    if up is None and abs(d[0] @ u0) > 0.9:
+        u0 = np.array([0.0, 1.0, 0.0])
+    u = u0 - (u0 @ d[0]) * d[0]
+    if np.linalg.norm(u) < 1e-6:
+        raise VolrigError(f"up {tuple(u0)} is along the first view direction")
+    ups = np.empty_like(d)
+    ups[0] = u / np.linalg.norm(u)
+    for k in range(1, len(d)):
+        v = _turn(d[k - 1], d[k]) @ ups[k - 1]
+        v -= (v @ d[k]) * d[k]
+        ups[k] = v / np.linalg.norm(v)
+    return FlightFrames(positions, d, ups, radii, arc)
+
+
+def lumen_wall(mask, thickness: float = 3.0, sigma: float = 0.7) -> Volume:
+    """A float32 Volume, 0 inside the lumen (the mask), rising to 1 across its boundary and 1 in a shell
+    ``thickness`` voxels thick around it, 0 beyond: the wall a camera inside the lumen sees, as a volume renderer
+    needs it (only the shell is non-zero, so it alone is stored and marched). ``sigma`` (voxels) softens the
+    boundary so it does not show the voxel steps. Cropped to the shell's bounding box."""
+    from scipy import ndimage
+    if not (np.isfinite(thickness) and 0 < thickness <= 100):
+        raise VolrigError(f"thickness must be 0 to 100 voxels, got {thickness}")
+    crop, _, spacing, origin, offset = _cropped_mask(mask, int(np.ceil(thickness + 3 * sigma)) + 1)
+    inside = crop.astype(np.float32)
+    soft = ndimage.gaussian_filter(inside, sigma) if sigma > 0 else inside
+    # the shell: within `thickness` (smallest) voxels of the lumen (the native Euclidean DT of the outside)
+    # (the DT counts the grid's border as background: padded beyond reach)
+    k = int(np.ceil(thickness)) + 2
+    outside = _volrig.distance_transform(np.pad(1 - crop, k, constant_values=1), spacing, "euclidean", None)
+    near = outside[k:-k, k:-k, k:-k] <= thickness * min(spacing)
+    wall = np.where(near, 1.0 - soft, 0.0).astype(np.float32)
+    wall[wall < 0.02] = 0.0
+    return Volume(wall, spacing, origin)
+
+
+def _cropped_mask(mask, pad: int):
+    """The mask (uint8) cropped to its object's bounding box plus ``pad`` voxels (the grid grown where needed), its
+    spacing, the crop's origin and offset (z, y, x)."""
+    arr = _mask_array(mask)
+    spacing, origin = _geometry(mask)
+    nz = [np.flatnonzero(arr.any(axis=tuple(a for a in range(3) if a != ax))) for ax in range(3)]
+    if any(len(n) == 0 for n in nz):
+        raise VolrigError("mask: the mask is empty (no object voxel)")
+    lo = np.array([int(n[0]) - pad for n in nz])
+    hi = np.array([int(n[-1]) + pad + 1 for n in nz])
+    out = np.zeros(tuple(hi - lo), np.uint8)
+    src_lo = np.maximum(lo, 0)
+    src_hi = np.minimum(hi, arr.shape)
+    out[tuple(slice(a - l, b - l) for a, b, l in zip(src_lo, src_hi, lo))] = \
+        arr[tuple(slice(a, b) for a, b in zip(src_lo, src_hi))]
+    corigin = tuple(o + s * i for o, s, i in zip(origin, spacing, (lo[2], lo[1], lo[0])))
+    return out, None, tuple(spacing), corigin, lo
