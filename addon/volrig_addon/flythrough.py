@@ -309,8 +309,10 @@ def build_from_file(args: dict) -> dict:
         s.segment_by, s.labels = "LABELS", " ".join(str(x) for x in args["labels"])
     else:
         s.segment_by = "RANGE"
-        s.low = args["lo"] if args.get("lo") is not None else s.low
-        s.high = args["hi"] if args.get("hi") is not None else 1e9
+        if args.get("lo") is not None:
+            s.low, s.high = args["lo"], 1e9
+        if args.get("hi") is not None:
+            s.high = args["hi"]
     s.largest = bool(args.get("largest", True))
     if args.get("start") is not None or args.get("end") is not None:
         if args.get("start") is None or args.get("end") is None:
