@@ -186,6 +186,7 @@ def fly_through(context, volume_obj, progress=None) -> dict:
     scene.frame_set(int(frames[0]))
     scene.render.engine = "CYCLES"
     scene.cycles.volume_bounces = 0
+    scene.view_settings.view_transform = "Standard"  # Filmic greys the wall's pink out
     if scene.world is None:
         scene.world = bpy.data.worlds.new("volrig world")
     scene.world.use_nodes = True
@@ -297,8 +298,13 @@ def build_from_file(args: dict) -> dict:
     """The Blender side of ``volrig flythrough``: an empty scene, saved first as ``args["output"]`` (so the cache
     goes beside it), the scan imported and segmented, Fly Through, saved; frames rendered when asked."""
     bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.preferences.filepaths.save_version = 0  # no .blend1 beside the output
     out = os.path.abspath(args["output"])
-    bpy.ops.wm.save_as_mainfile(filepath=out)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=out)
+    except RuntimeError as e:
+        raise OSError(f"{out}: cannot write ({e})") from None
     try:  # an operator's error report reaches Python as RuntimeError("Error: volrig: ...")
         bpy.ops.volrig.import_volume(filepath=os.path.abspath(args["file"]), unit="MM")
     except RuntimeError as e:

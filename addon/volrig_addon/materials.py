@@ -13,7 +13,7 @@ PRESETS = {
     "GREY": (0.0, 1.0, "LINEAR", [(0.0, (1.0, 1.0, 1.0), 0.0), (1.0, (1.0, 1.0, 1.0), 1.0)]),
 }
 #: The lumen view's wall colour (a mucosa pink) and the colour of the lumen itself (clear).
-WALL_COLOR = (0.9, 0.4, 0.33)
+WALL_COLOR = (0.9, 0.45, 0.4)
 #: Label colours (label k uses PALETTE[(k - 1) % len]); a colour ramp holds at most 32 stops.
 PALETTE = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.45, 0.80, 0.40), (0.70, 0.45, 0.85),
            (0.95, 0.55, 0.20), (0.35, 0.85, 0.80), (0.85, 0.40, 0.60), (0.60, 0.60, 0.60), (0.55, 0.35, 0.20)]
@@ -164,7 +164,7 @@ def update_volume_material(volume_obj):
 
 def lumen_wall_material(name: str, density: float):
     """The material of a lumen's wall (``<name>_lumen``, a grid 0 in the lumen and 1 in the wall around it):
-    a scattering and slightly absorbing pink medium, ``density`` per Blender unit where the grid is 1, so the wall
+    a scattering and absorbing medium of albedo WALL_COLOR, ``density`` per Blender unit where the grid is 1, so the wall
     is opaque within a voxel or two and the headlight shades it like tissue."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
@@ -179,13 +179,15 @@ def lumen_wall_material(name: str, density: float):
     mult.location = (-400, 0)
     absorb_density = n.new("ShaderNodeMath")
     absorb_density.operation = "MULTIPLY"
-    absorb_density.inputs[1].default_value = 0.3
+    absorb_density.inputs[1].default_value = 1.5
     absorb_density.location = (-200, -150)
     scatter = n.new("ShaderNodeVolumeScatter")
-    scatter.inputs["Color"].default_value = (*WALL_COLOR, 1.0)
+    scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     scatter.location = (0, 100)
     absorb = n.new("ShaderNodeVolumeAbsorption")
-    absorb.inputs["Color"].default_value = (0.9, 0.3, 0.25, 1.0)
+    # in an opaque medium the colour is the albedo, scattering / (scattering + absorption), not the scattering
+    # colour: absorption (1 - colour) * 1.5 * density against white scattering gives albedo WALL_COLOR
+    absorb.inputs["Color"].default_value = (*(max(1.0 - (1.0 - c) / c / 1.5, 0.0) for c in WALL_COLOR), 1.0)
     absorb.location = (0, -100)
     add = n.new("ShaderNodeAddShader")
     add.location = (200, 0)

@@ -388,11 +388,19 @@ def flight_path(mask, start: Optional[Sequence[float]] = None, end: Optional[Seq
     wide end of a tube), and an end left out the end farthest from the start along the object."""
     if start is None:
         if end is None:
-            start = centerline_tree(mask, progress=_span(progress, 0.0, 0.5)).root
-            progress = _span(progress, 0.5, 1.0)
-        else:  # the given end is where the flight stops: start from the far end
-            return _reversed(centerline(mask, start=end, progress=progress))
+            tree = centerline_tree(mask, progress=_span(progress, 0.0, 0.5))
+            line = centerline(mask, start=tree.root, progress=_span(progress, 0.5, 1.0))
+            return _thick_end_first(line) if len(tree) == 1 else line
+        # the given end is where the flight stops: start from the far end
+        return _reversed(centerline(mask, start=end, progress=progress))
     return centerline(mask, start=start, end=end, progress=progress)
+
+
+def _thick_end_first(line: Centerline) -> Centerline:
+    """An unbranched tube's line (its tree's root is then just one end) running from its wider end: the median
+    radius over the first quarter against the last."""
+    q = max(len(line) // 4, 1)
+    return _reversed(line) if np.median(line.radii[-q:]) > np.median(line.radii[:q]) else line
 
 
 def _reversed(line: Centerline) -> Centerline:
@@ -482,7 +490,7 @@ def flight_frames(line: Centerline, frames_per_mm: float = 1.0, look_ahead: floa
     return FlightFrames(positions, d, ups, radii, arc)
 
 
-def lumen_wall(mask, thickness: float = 3.0, sigma: float = 0.7) -> Volume:
+def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.2) -> Volume:
     """A float32 Volume, 0 inside the lumen (the mask), rising to 1 across its boundary and 1 in a shell
     ``thickness`` voxels thick around it, 0 beyond: the wall a camera inside the lumen sees, as a volume renderer
     needs it (only the shell is non-zero, so it alone is stored and marched). ``sigma`` (voxels) softens the

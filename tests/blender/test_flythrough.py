@@ -8,7 +8,6 @@ import pytest
 import bpy
 import volrig
 from conftest import run_op
-from mathutils import Vector
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 AIRWAY = os.path.join(os.path.dirname(REPO), "shared", "data", "airway", "Patient1_bronchialTree.nii.gz")
