@@ -171,9 +171,9 @@ def fly_through(context, volume_obj, progress=None) -> dict:
     light.parent = cam
     light.matrix_parent_inverse.identity()
     light.matrix_basis = Matrix.Identity(4)
-    # beside the lens as on an endoscope (a light at the lens itself shades the wall flat), a third of the way to
+    # beside the lens as on an endoscope (a light at the lens itself shades the wall flat), 15 % of the way to
     # the wall above it
-    _keys(light, "location", frames, np.c_[0 * flight.radii, 0.3 * flight.radii * scale, 0 * flight.radii],
+    _keys(light, "location", frames, np.c_[0 * flight.radii, 0.15 * flight.radii * scale, 0 * flight.radii],
           "Object Transforms")
     # the headlight follows the lumen's radius, so the wall nearby is lit alike in wide and narrow parts
     _keys(light_data, "energy", frames, s.fly_light * LIGHT_POWER * (flight.radii * scale) ** 2)

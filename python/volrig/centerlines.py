@@ -490,11 +490,12 @@ def flight_frames(line: Centerline, frames_per_mm: float = 1.0, look_ahead: floa
     return FlightFrames(positions, d, ups, radii, arc)
 
 
-def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.2) -> Volume:
+def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.5) -> Volume:
     """A float32 Volume, 0 inside the lumen (the mask), rising to 1 across its boundary and 1 in a shell
     ``thickness`` voxels thick around it, 0 beyond: the wall a camera inside the lumen sees, as a volume renderer
-    needs it (only the shell is non-zero, so it alone is stored and marched). ``sigma`` (voxels) softens the
-    boundary so it does not show the voxel steps. Cropped to the shell's bounding box."""
+    needs it (only the shell is non-zero, so it alone is stored and marched). The boundary is the 0.5 level of the
+    mask blurred by ``sigma`` voxels (so it does not show the voxel steps), the rise a smoothstep across a third of
+    the blurred range. Cropped to the shell's bounding box."""
     from scipy import ndimage
     if not (np.isfinite(thickness) and 0 < thickness <= 100):
         raise VolrigError(f"thickness must be 0 to 100 voxels, got {thickness}")
@@ -506,8 +507,10 @@ def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.2) -> Volume:
     k = int(np.ceil(thickness)) + 2
     outside = _volrig.distance_transform(np.pad(1 - crop, k, constant_values=1), spacing, "euclidean", None)
     near = outside[k:-k, k:-k, k:-k] <= thickness * min(spacing)
-    wall = np.where(near, 1.0 - soft, 0.0).astype(np.float32)
-    wall[wall < 0.02] = 0.0
+    # the blurred mask's 0.5 level is a smooth wall without the voxel steps; a narrow ramp across it (0.35 to 0.65)
+    # keeps the lumen itself clear (a blurred value there would fog a long view down a narrow tube)
+    x = np.clip((1.0 - soft - 0.35) / 0.3, 0.0, 1.0)
+    wall = np.where(near, x * x * (3.0 - 2.0 * x), 0.0).astype(np.float32)
     return Volume(wall, spacing, origin)
 
 

@@ -201,4 +201,5 @@ def test_airway_fly_through_renders_the_wall_from_inside(empty_scene, tmp_path):
         # the wall fills the view, lit, not blown out; the lumen ahead is a darker hole: not a uniform image
         assert 0.1 < img.mean() < 0.8, (path, img.mean())
         assert img.std() > 0.05, (path, img.std())
+        print(f"{os.path.basename(path)}: mean {img.mean():.3f}, std {img.std():.3f}")
         assert (img > 0.2).mean() > 0.5, path  # most of the view is the lit wall
