@@ -186,6 +186,7 @@ def fly_through(context, volume_obj, progress=None) -> dict:
     scene.frame_set(int(frames[0]))
     scene.render.engine = "CYCLES"
     scene.cycles.volume_bounces = 0
+    scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise: rendering would fail
     scene.view_settings.view_transform = "Standard"  # Filmic greys the wall's pink out
     if scene.world is None:
         scene.world = bpy.data.worlds.new("volrig world")
