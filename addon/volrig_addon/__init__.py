@@ -36,14 +36,15 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "operators",
+    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
                "panels"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import bake, materials, mocap, objects, operators, panels, properties, scans, staging  # noqa: E402,F401
+from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
+               staging)
 
 
 def register():

@@ -12,12 +12,39 @@ PRESETS = {
                                           (0.5, (0.9, 0.65, 0.55), 0.25), (1.0, (1.0, 1.0, 0.95), 1.0)]),
     "GREY": (0.0, 1.0, "LINEAR", [(0.0, (1.0, 1.0, 1.0), 0.0), (1.0, (1.0, 1.0, 1.0), 1.0)]),
 }
+#: The lumen view's wall colour (a mucosa pink) and the colour of the lumen itself (clear).
+WALL_COLOR = (0.9, 0.45, 0.4)
 #: Label colours (label k uses PALETTE[(k - 1) % len]); a colour ramp holds at most 32 stops.
 PALETTE = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.45, 0.80, 0.40), (0.70, 0.45, 0.85),
            (0.95, 0.55, 0.20), (0.35, 0.85, 0.80), (0.85, 0.40, 0.60), (0.60, 0.60, 0.60), (0.55, 0.35, 0.20)]
 
 
-def _stops(preset, vmin, vmax):
+def _lumen_range(s):
+    """The values the lumen holds: the segmentation's range, or its labels' span (label maps)."""
+    if s.segment_by == "LABELS":
+        from volrig.pipeline import parse_labels
+        try:
+            labels = parse_labels(s.labels)
+        except Exception:  # an invalid label text: the count shows it; the look falls back to label 1
+            labels = [1]
+        return min(labels) - 0.5, max(labels) + 0.5
+    return s.low, s.high
+
+
+def _stops(preset, vmin, vmax, lumen=None):
+    if preset == "LUMEN":  # the lumen's values clear, everything else an opaque wall: seen from inside
+        lo, hi = lumen
+        span = (vmax - vmin) or 1.0
+        edge = 0.02
+        a = min(max((lo - vmin) / span, 0.0), 1.0)
+        b = min(max((hi - vmin) / span, 0.0), 1.0)
+        stops = [(0.0, WALL_COLOR, 1.0)] if a > edge else []
+        stops += [(max(a - edge, 0.0), WALL_COLOR, 1.0), (a, WALL_COLOR, 0.0), (max(b, a), WALL_COLOR, 0.0)]
+        if b < 1.0 - edge:
+            stops += [(min(b + edge, 1.0), WALL_COLOR, 1.0), (1.0, WALL_COLOR, 1.0)]
+        if a <= 0.0:
+            stops = stops[1:]  # nothing below the lumen
+        return vmin, vmin + span, "LINEAR", stops
     if preset == "LABELS":
         top = max(1, min(int(round(vmax)), 31))
         stops = [(0.0, (0.0, 0.0, 0.0), 0.0)]
@@ -115,7 +142,7 @@ def update_volume_material(volume_obj):
         else:
             data.materials.append(mat)
     nd = _nodes(mat)
-    lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max)
+    lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max, _lumen_range(s))
     nd["window"].inputs["From Min"].default_value = lo
     nd["window"].inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
     ramp = nd["ramp"].color_ramp
@@ -132,4 +159,46 @@ def update_volume_material(volume_obj):
     nd["is_bone"].inputs[1].default_value = float(index) if index else -10.0
     nd["glow"].inputs[1].default_value = s.highlight_strength
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
+    return mat
+
+
+def lumen_wall_material(name: str, density: float):
+    """The material of a lumen's wall (``<name>_lumen``, a grid 0 in the lumen and 1 in the wall around it):
+    a scattering and absorbing medium of albedo WALL_COLOR, ``density`` per Blender unit where the grid is 1, so the wall
+    is opaque within a voxel or two and the headlight shades it like tissue."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    n = mat.node_tree.nodes
+    n.clear()
+    attr = n.new("ShaderNodeAttribute")
+    attr.attribute_name = "density"
+    attr.location = (-600, 0)
+    mult = n.new("ShaderNodeMath")
+    mult.operation = "MULTIPLY"
+    mult.inputs[1].default_value = float(density)
+    mult.location = (-400, 0)
+    absorb_density = n.new("ShaderNodeMath")
+    absorb_density.operation = "MULTIPLY"
+    absorb_density.inputs[1].default_value = 1.5
+    absorb_density.location = (-200, -150)
+    scatter = n.new("ShaderNodeVolumeScatter")
+    scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scatter.location = (0, 100)
+    absorb = n.new("ShaderNodeVolumeAbsorption")
+    # in an opaque medium the colour is the albedo, scattering / (scattering + absorption), not the scattering
+    # colour: absorption (1 - colour) * 1.5 * density against white scattering gives albedo WALL_COLOR
+    absorb.inputs["Color"].default_value = (*(max(1.0 - (1.0 - c) / c / 1.5, 0.0) for c in WALL_COLOR), 1.0)
+    absorb.location = (0, -100)
+    add = n.new("ShaderNodeAddShader")
+    add.location = (200, 0)
+    out = n.new("ShaderNodeOutputMaterial")
+    out.location = (400, 0)
+    link = mat.node_tree.links.new
+    link(attr.outputs["Fac"], mult.inputs[0])
+    link(mult.outputs[0], scatter.inputs["Density"])
+    link(mult.outputs[0], absorb_density.inputs[0])
+    link(absorb_density.outputs[0], absorb.inputs["Density"])
+    link(scatter.outputs[0], add.inputs[0])
+    link(absorb.outputs[0], add.inputs[1])
+    link(add.outputs[0], out.inputs["Volume"])
     return mat

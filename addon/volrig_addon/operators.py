@@ -15,7 +15,7 @@ from volrig.collide import contact_runs
 from volrig.volume import FORMATS, format_of
 
 from . import bake as baking
-from . import materials, mocap, objects, scans
+from . import flythrough, materials, mocap, objects, scans
 from .properties import UNIT_FACTOR, UNIT_SCALES
 
 #: What a user mistake or a bad file raises (volrig.Cancelled and volrig.FileFormatError are VolrigErrors); reported
@@ -527,13 +527,66 @@ class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _centerline_progress(bar):
+    """The centerline's progress on the first 80 % of the bar."""
+    show = bar.steps({"centerline": (0, 80)})
+    return lambda f: show("centerline", f)
+
+
+class VOLRIG_OT_fly_through(_OnVolume, bpy.types.Operator):
+    """Fly a camera along the volume's centerline: a Bezier curve on it, a camera keyed along it looking down the
+    averaged tangent, a headlight riding with it, the lumen's wall shown from inside, and the scene's frame range"""
+    bl_idname = "volrig.fly_through"
+    bl_label = "Fly Through"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            made = flythrough.fly_through(context, vol, progress=_centerline_progress(bar))
+        scene = context.scene
+        self.report({"INFO"}, f"volrig: fly-through of {made['line'].length:.1f} units in {len(made['flight'])} "
+                              f"frames ({scene.frame_start} .. {scene.frame_end}) by {made['camera'].name}")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_straighten(_OnVolume, bpy.types.Operator):
+    """Resample the volume on the planes normal to its centerline (curved planar reformation) and add the straight
+    volume as <name>_straight beside it"""
+    bl_idname = "volrig.straighten"
+    bl_label = "Straighten"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            obj, line = flythrough.straighten(context, vol, import_samples, progress=_centerline_progress(bar))
+        x, y, z = obj.volrig.dims
+        self.report({"INFO"}, f"volrig: {obj.name}: {x} x {y} x {z} voxels along {line.length:.1f} units of "
+                              f"centerline")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_straightening_rig(_OnVolume, bpy.types.Operator):
+    """Rig the volume with a chain of bones along its centerline and key it from curved to straight (Bake then
+    straightens the organ); replaces the volume's rig"""
+    bl_idname = "volrig.straightening_rig"
+    bl_label = "Animate Straightening"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            sr, rig_obj = flythrough.straightening_animation(context, vol, _save_rig,
+                                                             progress=_centerline_progress(bar))
+        scene = context.scene
+        self.report({"INFO"}, f"volrig: {rig_obj.name}: {len(sr.rig)} bones keyed straight over frames "
+                              f"{scene.frame_start} .. {scene.frame_end}; press Bake")
+        return {"FINISHED"}
+
+
 def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
 CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
-           VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh, VOLRIG_OT_reset_bone_map,
-           VOLRIG_OT_show_rest)
+           VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh,
+           VOLRIG_OT_reset_bone_map, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
+           VOLRIG_OT_straightening_rig)
 
 
 def register():

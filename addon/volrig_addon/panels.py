@@ -161,6 +161,37 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
         row.prop(s, "highlight_color", text="")
 
 
+class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):
+    """Fly-through and straightening along the centerline of a tubular object (airways, colon, vessels)."""
+    bl_label = "Centerline"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        vol = s.id_data
+        layout.prop(s, "fly_ends", expand=True)
+        if s.fly_ends == "POINTS":
+            col = layout.column(align=True)
+            col.prop(s, "fly_start")
+            col.prop(s, "fly_end")
+        box = layout.box()
+        box.label(text="Fly-through", icon="CAMERA_DATA")
+        col = box.column(align=True)
+        _props(col, s, "frames_per_mm", "look_ahead", "fly_fov", "fly_light", "fly_frame_start")
+        box.operator("volrig.fly_through", icon="VIEW_CAMERA")
+        parts = objects.members(vol)
+        if "CAMERA" in parts:
+            box.label(text=f"{parts['CAMERA'].name}: frames {context.scene.frame_start} .. "
+                           f"{context.scene.frame_end}", icon="INFO")
+        box = layout.box()
+        box.label(text="Straighten", icon="IPO_LINEAR")
+        box.prop(s, "straighten_radius")
+        box.operator("volrig.straighten", icon="VOLUME_DATA")
+        row = box.row(align=True)
+        row.prop(s, "straighten_bones")
+        row.prop(s, "straighten_frames")
+        box.operator("volrig.straightening_rig", icon="ARMATURE_DATA")
+
+
 class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
     bl_label = "Bake"
 
@@ -176,7 +207,7 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
 
 
 CLASSES = (VOLRIG_PT_volume, VOLRIG_PT_segment, VOLRIG_PT_skeleton, VOLRIG_PT_rig, VOLRIG_PT_mocap, VOLRIG_PT_look,
-           VOLRIG_PT_bake)
+           VOLRIG_PT_centerline, VOLRIG_PT_bake)
 
 
 def register():

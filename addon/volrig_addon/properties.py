@@ -54,6 +54,10 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("SPHERES", "Spheres", "One vertex per skeleton sphere, bound to the armature"),
         ("SKELETON", "Skeleton preview", "The skeleton points at the current thinness"),
         ("MASK", "Mask preview", "The segmentation mask"),
+        ("PATH", "Centerline", "The fly-through's Bezier curve along the centerline"),
+        ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
+        ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),
+        ("LUMEN", "Lumen wall", "The wall around the segmented lumen, seen from inside"),
     ], default="NONE")
     volume: PointerProperty(name="Volume", type=bpy.types.Object, poll=_volume_object,
                             description="The volrig Volume object this object belongs to")
@@ -135,6 +139,8 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("SOFT_TISSUE", "Soft tissue", "Low values reddish and translucent, dense values white"),
         ("LABELS", "Label map", "One colour per integer label"),
         ("GREY", "Grey", "Density proportional to the value"),
+        ("LUMEN", "Lumen view", "The segmented range clear, every other value an opaque pink wall: for cameras "
+                                "inside a hollow organ (Fly Through sets it)"),
     ], default="SOFT_TISSUE", update=_look_changed)
     density_scale: FloatProperty(name="Density", default=1.0, min=0.0, soft_max=100.0, update=_look_changed,
                                  description="Density multiplier (per Blender unit of the scaled object)")
@@ -143,6 +149,35 @@ class VolrigObject(bpy.types.PropertyGroup):
     highlight_strength: FloatProperty(name="Glow", default=2.0, min=0.0, soft_max=20.0, update=_look_changed)
     highlight_color: FloatVectorProperty(name="Glow colour", subtype="COLOR", size=3, default=(1.0, 0.35, 0.05),
                                          min=0.0, max=1.0, update=_look_changed)
+
+    # --- centerline: fly-through and straightening ---
+    fly_ends: EnumProperty(name="Ends", items=[
+        ("AUTO", "Automatic", "From the end of the thickest terminal branch (a trachea, a tube's wide end) to the "
+                              "end farthest from it along the object"),
+        ("POINTS", "Points", "From Start to End (volume units, e.g. mm in the scan's frame)"),
+    ], default="AUTO")
+    fly_start: FloatVectorProperty(name="Start", size=3, precision=2,
+                                   description="Where the centerline starts (volume units, on the object)")
+    fly_end: FloatVectorProperty(name="End", size=3, precision=2,
+                                 description="Where the centerline ends (volume units, on the object)")
+    frames_per_mm: FloatProperty(name="Frames per mm", default=1.0, min=0.01, soft_max=20.0,
+                                 description="Frames per volume unit of the centerline: the camera's speed")
+    look_ahead: FloatProperty(name="Look ahead", default=10.0, min=0.0, soft_max=100.0,
+                              description="The camera looks along the centerline's tangent averaged over this "
+                                          "length ahead of it (volume units)")
+    fly_fov: FloatProperty(name="Field of view", default=100.0, min=10.0, max=170.0,
+                           description="The camera's field of view, degrees (endoscopes: 90 to 140)")
+    fly_light: FloatProperty(name="Headlight", default=1.0, min=0.0, soft_max=10.0,
+                             description="The headlight's power, relative (it follows the lumen's radius)")
+    fly_frame_start: IntProperty(name="First frame", default=1,
+                                 description="Scene frame where the fly-through and the straightening start")
+    straighten_radius: FloatProperty(name="Radius", default=0.0, min=0.0,
+                                     description="Straighten: half the width of the straightened volume (volume "
+                                                 "units); 0 = 1.5 times the widest radius plus two voxels")
+    straighten_bones: IntProperty(name="Bones", default=12, min=1, max=200,
+                                  description="Straightening rig: bones along the centerline (equal arc pieces)")
+    straighten_frames: IntProperty(name="Frames", default=48, min=2, max=100000,
+                                   description="Straightening rig: frames from curved to straight")
 
     # --- bake ---
     deform_mode: EnumProperty(name="Deform", items=_menu(MODE_INFO), default="linear")

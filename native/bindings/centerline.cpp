@@ -53,36 +53,38 @@ void bind_centerline(py::module_& m) {
         "centerline",
         [](const MaskArray& mask, const FloatArray& dt, const Vec3& spacing, const Vec3& origin,
            std::optional<Vec3> start, std::optional<Vec3> end, double power, double step, double smoothing,
-           int refine) {
+           int refine, const py::object& progress) {
             const GraphInput in = graph_input(mask, dt, spacing, origin);
             const CenterlineOptions opt = line_options(power, step, smoothing, refine);
+            Progress p = progress_of(progress);
             Centerline c;
             {
                 py::gil_scoped_release nogil;
                 const VoxelGraph g = voxel_graph(in.grid, in.mask, in.dt);
-                c = centerline(g, in.mask, start ? &*start : nullptr, end ? &*end : nullptr, opt);
+                c = centerline(g, in.mask, start ? &*start : nullptr, end ? &*end : nullptr, opt, p);
             }
             return line_tuple(std::move(c));
         },
         py::arg("mask"), py::arg("dt"), py::arg("spacing"), py::arg("origin"), py::arg("start"), py::arg("end"),
-        py::arg("power"), py::arg("step"), py::arg("smoothing"), py::arg("refine"));
+        py::arg("power"), py::arg("step"), py::arg("smoothing"), py::arg("refine"), py::arg("progress") = py::none());
 
     m.def(
         "centerline_tree",
         [](const MaskArray& mask, const FloatArray& dt, const Vec3& spacing, const Vec3& origin,
            std::optional<Vec3> root, double power, double step, double smoothing, int refine, double scale,
-           double constant, double prune) {
+           double constant, double prune, const py::object& progress) {
             const GraphInput in = graph_input(mask, dt, spacing, origin);
             TreeCenterlineOptions opt;
             opt.line = line_options(power, step, smoothing, refine);
             opt.scale = scale;
             opt.constant = constant;
             opt.prune = prune;
+            Progress p = progress_of(progress);
             CenterlineTree t;
             {
                 py::gil_scoped_release nogil;
                 const VoxelGraph g = voxel_graph(in.grid, in.mask, in.dt);
-                t = centerline_tree(g, in.mask, root ? &*root : nullptr, opt);
+                t = centerline_tree(g, in.mask, root ? &*root : nullptr, opt, p);
             }
             py::list branches;
             for (auto& b : t.branches) branches.append(line_tuple(std::move(b)));
@@ -92,7 +94,7 @@ void bind_centerline(py::module_& m) {
         },
         py::arg("mask"), py::arg("dt"), py::arg("spacing"), py::arg("origin"), py::arg("root"), py::arg("power"),
         py::arg("step"), py::arg("smoothing"), py::arg("refine"), py::arg("scale"), py::arg("constant"),
-        py::arg("prune"));
+        py::arg("prune"), py::arg("progress") = py::none());
 
     m.def(
         "straighten",

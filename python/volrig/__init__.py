@@ -18,8 +18,8 @@ from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
-from .centerlines import (Centerline, CenterlineTree, StraightenMap, centerline, centerline_tree,
-                         straighten)
+from .centerlines import (Centerline, CenterlineTree, StraighteningRig, StraightenMap, centerline, centerline_tree,
+                          straighten, straightening_rig)
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
 from . import pipeline
 
@@ -31,8 +31,8 @@ __all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skelet
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
            "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",
-           "StraightenMap", "centerline", "centerline_tree", "straighten", "Collider", "Collision", "Contact",
-           "ClipContacts", "collide", "self_collide", "collisions"]
+           "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",
+           "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions"]
 
 
 def __getattr__(name):

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -211,22 +211,22 @@ def _at_least_one(text: str) -> int:
     return value
 
 
-#: Runs inside Blender for ``bake``: puts the folders found for volrig and the add-on first on sys.path, enables
-#: the add-on and hands over to its headless entry (``volrig_addon.bake.command_line``), which bakes and exits 0,
-#: or 2 with a message for a user error.
+#: Runs inside Blender for ``bake`` and ``flythrough``: puts the folders found for volrig and the add-on first on
+#: sys.path, enables the add-on and hands over to its headless entry (``volrig_addon.<module>.command_line``: bake,
+#: flythrough), which does the work and exits 0, or 2 with a message for a user error.
 _BOOTSTRAP = """
 import os, sys
 sys.path[:0] = {paths!r}
 import addon_utils
 addon_utils.enable("volrig_addon", default_set=False)
 try:
-    from volrig_addon import bake
+    from volrig_addon import {module}
 except ImportError as e:
     print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip, "
           "or pass --addon", file=sys.stderr)
     sys.stderr.flush()
     os._exit(2)
-bake.command_line()
+{module}.command_line()
 """
 
 
@@ -252,24 +252,50 @@ def addon_folder(addon: str = "", unpack_to: str = "") -> str:
     return os.path.dirname(os.path.dirname(spec.origin)) if spec is not None and spec.origin else ""
 
 
-def cmd_bake(args) -> int:
+def _run_blender(args, module: str, payload: dict, blend: str = "") -> int:
+    """Runs Blender headless on ``blend`` (or an empty scene) with the add-on's ``module``.command_line and the
+    JSON ``payload``; returns Blender's exit code."""
     import shutil
     import subprocess
     import tempfile
     blender = args.blender or os.environ.get("BLENDER") or shutil.which("blender")
     if not blender:
         raise FileNotFoundError("blender not found: install it (apt-get install blender) or pass --blender PATH")
-    if not os.path.isfile(args.blend):
-        raise FileNotFoundError(f"{args.blend}: no such file")
-    payload = json.dumps({"frames": args.frames or "", "objects": args.object or [], "mode": args.mode or "",
-                          "force": args.force, "save": not args.no_save})
     with tempfile.TemporaryDirectory(prefix="volrig_addon_") as unpacked:
         found = addon_folder(args.addon or "", unpacked)
         package_parent = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this volrig, for the add-on
         paths = [package_parent] + ([found] if found else [])
-        cmd = [blender, "-b", "--factory-startup", os.path.abspath(args.blend), "--python-exit-code", "1",
-               "--python-expr", _BOOTSTRAP.format(paths=paths), "--", payload]
+        cmd = [blender, "-b", "--factory-startup"] + ([os.path.abspath(blend)] if blend else []) + \
+            ["--python-exit-code", "1", "--python-expr", _BOOTSTRAP.format(paths=paths, module=module), "--",
+             json.dumps(payload)]
         return subprocess.run(cmd).returncode
+
+
+def cmd_bake(args) -> int:
+    if not os.path.isfile(args.blend):
+        raise FileNotFoundError(f"{args.blend}: no such file")
+    return _run_blender(args, "bake", {"frames": args.frames or "", "objects": args.object or [],
+                                       "mode": args.mode or "", "force": args.force, "save": not args.no_save},
+                        args.blend)
+
+
+def cmd_flythrough(args) -> int:
+    if not args.output.endswith(".blend"):
+        raise VolrigError(f"{args.output}: the output must be a .blend file")
+    if not os.path.isfile(args.file):
+        raise FileNotFoundError(f"{args.file}: no such file")
+    if (args.start is None) != (args.end is None):
+        raise VolrigError("--start and --end go together (or leave both out: automatic ends)")
+    if not args.frames_per_mm > 0:
+        raise VolrigError(f"--frames-per-mm must be positive, got {args.frames_per_mm}")
+    if args.frames is not None and not args.render:
+        raise VolrigError("--frames needs --render DIR")
+    return _run_blender(args, "flythrough", {
+        "file": os.path.abspath(args.file), "lo": args.lo, "hi": args.hi, "labels": args.labels,
+        "largest": not args.all_parts, "start": args.start, "end": args.end, "frames_per_mm": args.frames_per_mm,
+        "look_ahead": args.look_ahead, "output": os.path.abspath(args.output),
+        "render": os.path.abspath(args.render) if args.render else "", "frames": args.frames or 3,
+        "resolution": args.resolution, "samples": args.samples})
 
 
 def cmd_centerline(args) -> int:
@@ -459,6 +485,31 @@ def main(argv=None) -> int:
                    help="self-contact: bones at least this many bones apart in the rig (default 2: not parent and "
                         "child)")
     p.set_defaults(run=cmd_contacts)
+
+    p = sub.add_parser("flythrough", help="a fly-through along a tubular object's centerline, built in headless "
+                                          "Blender and saved as a .blend (optionally a few frames rendered)")
+    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb), in mm")
+    p.add_argument("--lo", type=float, help="segmentation: lowest lumen value (default: the add-on's guess)")
+    p.add_argument("--hi", type=float, help="segmentation: highest lumen value")
+    p.add_argument("--labels", type=int, nargs="+", help="segmentation: lumen labels")
+    p.add_argument("--all-parts", action="store_true", help="keep every connected part (default: the largest)")
+    p.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="world start point (default: the end of the thickest terminal branch)")
+    p.add_argument("--end", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="world end point (default: the end farthest from the start)")
+    p.add_argument("--frames-per-mm", type=float, default=1.0, help="the camera's speed (default 1)")
+    p.add_argument("--look-ahead", type=float, help="mm of centerline the view direction averages (default 10)")
+    p.add_argument("-o", "--output", required=True, help="output .blend (its cache folder goes beside it)")
+    p.add_argument("--render", metavar="DIR", help="also render frames in Cycles as DIR/frame_NNNN.png")
+    p.add_argument("--frames", type=_at_least_one, help="--render: how many frames, spread over the flight "
+                                                         "(default 3)")
+    p.add_argument("--resolution", type=int, nargs=2, default=(320, 320), metavar=("W", "H"),
+                   help="--render: image size (default 320 320)")
+    p.add_argument("--samples", type=_at_least_one, default=16, help="--render: Cycles samples (default 16)")
+    p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
+    p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
+                                   "volrig_addon Python finds, else the one installed in Blender)")
+    p.set_defaults(run=cmd_flythrough)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

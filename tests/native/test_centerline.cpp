@@ -2,6 +2,7 @@
 // tubes with known axes.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -170,6 +171,31 @@ TEST_CASE("centerline tree of a Y: a stem and two arms from one branch point", "
     CHECK(dist(fork, tr.branches[2].points.front()) < 1e-9);
     CHECK(tr.branches[0].length == Approx(30.0).margin(3.0));
     CHECK(tr.branches[1].length == Approx(30.0).margin(3.0));
+}
+
+TEST_CASE("centerline and centerline_tree report progress up to 1 and cancel", "[centerline]") {
+    const Tube t = torus_segment();
+    const VoxelGraph g = voxel_graph(t.grid, t.mask.data(), t.dt.data());
+    for (int tree = 0; tree < 2; ++tree) {
+        std::vector<double> seen;
+        const Progress record = [&](double f) {
+            seen.push_back(f);
+            return true;
+        };
+        if (tree)
+            centerline_tree(g, t.mask.data(), nullptr, {}, record);
+        else
+            centerline(g, t.mask.data(), nullptr, nullptr, {}, record);
+        REQUIRE(seen.size() >= 4);
+        CHECK(seen.front() == 0.0);
+        CHECK(seen.back() == 1.0);
+        CHECK(std::is_sorted(seen.begin(), seen.end()));
+        const Progress stop = [](double f) { return f < 0.3; };
+        if (tree)
+            CHECK_THROWS_AS(centerline_tree(g, t.mask.data(), nullptr, {}, stop), Cancelled);
+        else
+            CHECK_THROWS_AS(centerline(g, t.mask.data(), nullptr, nullptr, {}, stop), Cancelled);
+    }
 }
 
 TEST_CASE("polyline resampling and smoothing keep the ends; frames are orthonormal and do not twist", "[centerline]") {

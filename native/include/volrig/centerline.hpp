@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "volrig/progress.hpp"
 #include "volrig/volume.hpp"
 
 namespace volrig {
@@ -70,9 +71,10 @@ std::int32_t far_tip(const VoxelGraph& g, const std::vector<double>& dist);
 
 /// Centerline between two world points (null = found automatically: the two ends of the object farthest apart
 /// along it, by a double sweep of geodesic distance). Throws Error on an empty mask, endpoints off the object or
-/// in different parts of it.
+/// in different parts of it. `progress` (optional) gets the fraction done after each search and at the end;
+/// returning false cancels (throws Cancelled).
 Centerline centerline(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d* start, const Vec3d* end,
-                      const CenterlineOptions& opt = {});
+                      const CenterlineOptions& opt = {}, const Progress& progress = {});
 
 /// What happens to an end of a curve: kept where it is (a branch point), moved into the middle of its cross-section
 /// (a point given by the user), or, at a tip of the object, cut back to where the curve is at least a radius from
@@ -99,9 +101,10 @@ struct CenterlineTree {
 };
 
 /// TEASAR centerline tree of the part of the object holding the root (world point; null = the end of the thickest
-/// terminal branch of a first tree grown from the object's farthest voxel).
+/// terminal branch of a first tree grown from the object's farthest voxel). `progress` (optional) gets the fraction
+/// done as the tree covers the object and its branches are made into curves; returning false cancels.
 CenterlineTree centerline_tree(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d* root,
-                               const TreeCenterlineOptions& opt = {});
+                               const TreeCenterlineOptions& opt = {}, const Progress& progress = {});
 
 /// Rotation-minimising frames (double reflection, Wang et al. 2008) along points: per point the unit tangent t,
 /// normal u and binormal v = t x u.

@@ -31,8 +31,9 @@ void check_options(const CenterlineOptions& opt) {
 }  // namespace
 
 Centerline centerline(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d* start, const Vec3d* end,
-                      const CenterlineOptions& opt) {
+                      const CenterlineOptions& opt, const Progress& progress) {
     check_options(opt);
+    report(progress, 0.0);
     const double snap = 2.0 * std::max({g.grid.spacing[0], g.grid.spacing[1], g.grid.spacing[2]});
     std::int32_t a = start ? snap_to_object(g, *start, snap, "centerline start") : -1;
     const EndMode ma = start ? EndMode::Free : EndMode::Tip, mb = end ? EndMode::Free : EndMode::Tip;
@@ -41,10 +42,12 @@ Centerline centerline(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d
     if (a < 0 || b < 0) {  // double sweep of geodesic length: the object's two ends farthest apart
         const std::int32_t seed = a >= 0 ? a : (b >= 0 ? b : thickest(g));
         voxel_distances(g, {seed}, -1.0, dist);
+        report(progress, 0.25);
         const std::int32_t far = far_tip(g, dist);
         if (a < 0 && b < 0) {
             a = far;
             voxel_distances(g, {a}, -1.0, dist);
+            report(progress, 0.5);
             b = far_tip(g, dist);
         } else if (a < 0) {
             a = far;
@@ -57,7 +60,10 @@ Centerline centerline(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d
     if (!std::isfinite(dist[static_cast<std::size_t>(b)]))
         throw Error("centerline: start and end lie in different parts of the object (no path inside it joins them)");
     if (a == b) throw Error("centerline: start and end are the same voxel");
-    return curve_of_path(g, mask, trace(pred, b), opt, ma, mb);
+    report(progress, 0.75);
+    Centerline c = curve_of_path(g, mask, trace(pred, b), opt, ma, mb);
+    report(progress, 1.0);
+    return c;
 }
 
 }  // namespace volrig

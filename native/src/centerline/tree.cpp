@@ -49,14 +49,19 @@ void cover_ball(const VoxelGraph& g, std::int32_t id, double rho, std::vector<st
     }
 }
 
-VoxelTree grow(const VoxelGraph& g, std::int32_t root, const TreeCenterlineOptions& opt) {
+/// The TEASAR tree from `root`; reports progress from `lo` to `hi` (the searches, then the covering by the share of
+/// voxels visited).
+VoxelTree grow(const VoxelGraph& g, std::int32_t root, const TreeCenterlineOptions& opt, const Progress& progress,
+               double lo, double hi) {
     const std::size_t n = g.size();
     const double constant = opt.constant > 0.0 ? opt.constant : 2.0 * min_spacing(g.grid);
     std::vector<double> length, cost;
     VoxelTree t;
     t.root = root;
     voxel_distances(g, {root}, -1.0, length);
+    report(progress, lo + 0.25 * (hi - lo));
     voxel_distances(g, {root}, opt.line.power, cost, &t.parent);
+    report(progress, lo + 0.5 * (hi - lo));
     std::vector<std::int32_t> order;
     for (std::size_t i = 0; i < n; ++i)
         if (std::isfinite(length[i])) order.push_back(static_cast<std::int32_t>(i));
@@ -68,7 +73,10 @@ VoxelTree grow(const VoxelGraph& g, std::int32_t root, const TreeCenterlineOptio
     t.on.assign(n, 0);
     t.on[static_cast<std::size_t>(root)] = 1;
     cover_ball(g, root, opt.scale * g.dt[static_cast<std::size_t>(root)] + constant, covered);
-    for (std::int32_t target : order) {
+    for (std::size_t k = 0; k < order.size(); ++k) {
+        if (progress && (k & 0xffff) == 0)
+            report(progress, lo + (0.5 + 0.5 * static_cast<double>(k) / static_cast<double>(order.size())) * (hi - lo));
+        const std::int32_t target = order[k];
         if (covered[static_cast<std::size_t>(target)]) continue;
         std::int32_t p = tip_centre(g, length, target);
         if (covered[static_cast<std::size_t>(p)] || t.on[static_cast<std::size_t>(p)]) p = target;
@@ -248,17 +256,19 @@ void check_tree_options(const TreeCenterlineOptions& opt) {
 }  // namespace
 
 CenterlineTree centerline_tree(const VoxelGraph& g, const std::uint8_t* mask, const Vec3d* root,
-                               const TreeCenterlineOptions& opt) {
+                               const TreeCenterlineOptions& opt, const Progress& progress) {
     check_tree_options(opt);
+    report(progress, 0.0);
     const double snap = 2.0 * std::max({g.grid.spacing[0], g.grid.spacing[1], g.grid.spacing[2]});
     VoxelTree t;
     const EndMode root_end = root ? EndMode::Free : EndMode::Tip;
     if (root) {
-        t = grow(g, snap_to_object(g, *root, snap, "centerline_tree root"), opt);
+        t = grow(g, snap_to_object(g, *root, snap, "centerline_tree root"), opt, progress, 0.0, 0.85);
     } else {  // grow from the farthest voxel, then take the end of the thickest terminal branch as the root
         std::vector<double> dist;
         voxel_distances(g, {thickest(g)}, -1.0, dist);
-        t = grow(g, far_tip(g, dist), opt);
+        report(progress, 0.05);
+        t = grow(g, far_tip(g, dist), opt, progress, 0.05, 0.85);
         prune_spurs(g, t, opt.prune);
         const std::int32_t end = thickest_end(g, t);
         if (end != t.root) reroot(t, end);
@@ -275,6 +285,7 @@ CenterlineTree centerline_tree(const VoxelGraph& g, const std::uint8_t* mask, co
     for (std::int32_t p : out.parents)
         if (p >= 0) has_child[static_cast<std::size_t>(p)] = 1;
     out.branches.resize(paths.size());
+    report(progress, 0.9);
     tbb::parallel_for(std::size_t{0}, paths.size(), [&](std::size_t k) {
         const bool from_branch_point = out.parents[k] >= 0 || t.children[static_cast<std::size_t>(t.root)] > 1;
         out.branches[k] = curve_of_path(g, mask, paths[k], opt.line, from_branch_point ? EndMode::Fixed : root_end,
@@ -284,6 +295,7 @@ CenterlineTree centerline_tree(const VoxelGraph& g, const std::uint8_t* mask, co
         const std::int32_t p = out.parents[k];
         out.generations.push_back(p < 0 ? 0 : out.generations[static_cast<std::size_t>(p)] + 1);
     }
+    report(progress, 1.0);
     return out;
 }
 
