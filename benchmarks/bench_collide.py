@@ -27,13 +27,8 @@ sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import volrig  # noqa: E402
 from volrig import phantom  # noqa: E402
-from volrig.walk import walk_cycle  # noqa: E402
+from volrig.walk import walk_matrices  # noqa: E402
 from bench_rig import best_of  # noqa: E402  (this folder is on sys.path when run as a script)
-
-
-def walk_clip(rig, frames):
-    axis, angles = walk_cycle(rig, frames)
-    return np.array([rig.pose({n: (axis, np.degrees(a[f])) for n, a in angles.items()}) for f in range(frames)])
 
 
 def ball_rig(vol, centre, radius):
@@ -46,16 +41,6 @@ def ball_rig(vol, centre, radius):
     world = np.array(vol.origin) + np.array(vol.spacing) * centre
     rig = volrig.Rig([world, world + [0, 0, 10.0]], [[0, 1]], ["ball"])
     return bv, pts, rig, volrig.bind(pts, rig, mask)
-
-
-def intersected(fa, fb) -> int:
-    oa, ob = np.array(fa.offset), np.array(fb.offset)
-    lo, hi = np.maximum(oa, ob), np.minimum(oa + fa.bone.dims, ob + fb.bone.dims)
-    if (hi <= lo).any():
-        return 0
-    a = fa.bone.array[lo[2] - oa[2]:hi[2] - oa[2], lo[1] - oa[1]:hi[1] - oa[1], lo[0] - oa[0]:hi[0] - oa[0]]
-    b = fb.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
-    return int(((a > 0) & (b > 0)).sum())
 
 
 def main() -> int:
@@ -72,7 +57,7 @@ def main() -> int:
     pts = volrig.skeletonize(mask).top(args.points)
     rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask)
     rigid = volrig.bind(pts, rig, mask)
-    clip = walk_clip(rig, args.frames)
+    clip = walk_matrices(rig, args.frames)
     shin = rig.index("shin.L")
     mid = (rig.heads()[shin] + rig.tails()[shin]) / 2
     s = args.scale / 0.5
@@ -95,7 +80,7 @@ def main() -> int:
     for f in range(args.frames):
         t0 = time.perf_counter()
         fa = da.frame(clip[f], values=False)
-        n = intersected(fa, fb)
+        n = fa.shared_voxels(fb)
         ref.append(time.perf_counter() - t0)
         fa = None
         assert n == volrig.collide(a, clip[f], b, still).voxels, f"frame {f}: the two answers differ"

@@ -19,7 +19,8 @@ sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 
 import volrig  # noqa: E402
 from volrig import phantom  # noqa: E402
-from bench_collide import ball_rig, walk_clip  # noqa: E402
+from bench_collide import ball_rig  # noqa: E402
+from volrig.walk import walk_matrices  # noqa: E402
 from centerline_pictures import save  # noqa: E402  (scripts/ is this script's folder)
 
 
@@ -68,7 +69,7 @@ def main() -> int:
     a = volrig.Collider(pts, rigid, rig, shape=vol.array.shape)
     b = volrig.Collider(bpts, bbind, brig, shape=bv.array.shape)
     da, db = volrig.Deformer(vol, pts, rigid), volrig.Deformer(bv, bpts, bbind)
-    clip = walk_clip(rig, 24)
+    clip = walk_matrices(rig, 24)
     still = np.eye(4)[None]
     found = volrig.collisions(a, clip, b, np.repeat(still[None], len(clip), axis=0))
     run = max(found.contacts, key=lambda c: c.last - c.first)

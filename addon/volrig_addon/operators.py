@@ -389,7 +389,6 @@ class VOLRIG_OT_find_contacts(_OnVolume, bpy.types.Operator):
         if others:
             b = baking.RigState(others[0])
             cb = volrig.Collider(b.points, b.binding, parents=b.parents)
-            to_a = _to_frame_of(a.rig_obj, b.rig_obj)
         frames = list(range(scene.frame_start, scene.frame_end + 1))
         current, results = scene.frame_current, []
         mode = vol.volrig.deform_mode
@@ -401,8 +400,9 @@ class VOLRIG_OT_find_contacts(_OnVolume, bpy.types.Operator):
                     ma = a.bone_matrices(depsgraph)
                     if b is None:
                         results.append(volrig.self_collide(ca, ma, min_bone_distance=self.min_distance, mode=mode))
-                    else:
-                        mb = to_a @ b.bone_matrices(depsgraph) @ np.linalg.inv(to_a)
+                    else:  # B's rest (its armature space) -> B posed -> A's armature space, as they stand now
+                        to_a = _to_frame_of(a.rig_obj.evaluated_get(depsgraph), b.rig_obj.evaluated_get(depsgraph))
+                        mb = to_a @ b.bone_matrices(depsgraph)
                         results.append(volrig.collide(ca, ma, cb, mb, mode=mode))
                     bar.wm.progress_update(100.0 * (k + 1) / len(frames))
             finally:

@@ -67,6 +67,21 @@ class Frame:
         """The binary reconstruction: voxels covered by a moved sphere."""
         return self.bone.like(self.bone.array > 0)
 
+    def shared_voxels(self, other: "Frame") -> int:
+        """How many voxels both frames cover: frames of one source lattice (or two sources sharing a lattice), the
+        reference ``volrig.collide`` equals."""
+        oa, ob = np.array(self.offset), np.array(other.offset)
+        if self.bone.spacing != other.bone.spacing or not np.allclose(
+                np.array(self.bone.origin) - np.array(self.bone.spacing) * oa,
+                np.array(other.bone.origin) - np.array(other.bone.spacing) * ob):
+            raise VolrigError("shared_voxels: the frames lie on different lattices")
+        lo, hi = np.maximum(oa, ob), np.minimum(oa + self.bone.dims, ob + other.bone.dims)
+        if (hi <= lo).any():
+            return 0
+        a = self.bone.array[lo[2] - oa[2]:hi[2] - oa[2], lo[1] - oa[1]:hi[1] - oa[1], lo[0] - oa[0]:hi[0] - oa[0]]
+        b = other.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
+        return int(np.count_nonzero((a > 0) & (b > 0)))
+
     def save(self, path, half: bool = True) -> None:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
         floats when ``half``) and ``bone`` (int32), placed by spacing and origin; atomically."""

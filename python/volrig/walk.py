@@ -40,3 +40,9 @@ def walk_cycle(rig: Rig, frames: int, period: float = 24.0, amplitude: float = 1
     angles = {name: np.radians(amplitude * (mean + amp * np.sin(2 * np.pi * (t - phase))))
               for name, (mean, amp, phase) in _WALK.items() if name in rig.names}
     return axis / np.linalg.norm(axis), angles
+
+
+def walk_matrices(rig: Rig, frames: int, period: float = 24.0, amplitude: float = 1.0) -> np.ndarray:
+    """(frames, B, 4, 4) rest-to-pose matrices of ``walk_cycle``'s angles (``Rig.pose`` per frame)."""
+    axis, angles = walk_cycle(rig, frames, period, amplitude)
+    return np.array([rig.pose({n: (axis, np.degrees(a[f])) for n, a in angles.items()}) for f in range(frames)])

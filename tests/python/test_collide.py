@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import volrig
-from volrig.walk import walk_cycle
+from volrig.walk import walk_matrices
 
 
 @pytest.fixture(scope="module")
@@ -41,22 +41,6 @@ def shift(dy):
     return m
 
 
-def walk_clip(rig, frames=24):
-    axis, angles = walk_cycle(rig, frames)
-    return np.array([rig.pose({n: (axis, np.degrees(a[f])) for n, a in angles.items()}) for f in range(frames)])
-
-
-def intersected(fa, fb) -> int:
-    """Voxels covered in both frames (both on the same lattice, offsets in lattice steps)."""
-    oa, ob = np.array(fa.offset), np.array(fb.offset)
-    lo, hi = np.maximum(oa, ob), np.minimum(oa + fa.bone.dims, ob + fb.bone.dims)
-    if (hi <= lo).any():
-        return 0
-    a = fa.bone.array[lo[2] - oa[2]:hi[2] - oa[2], lo[1] - oa[1]:hi[1] - oa[1], lo[0] - oa[0]:hi[0] - oa[0]]
-    b = fb.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
-    return int(((a > 0) & (b > 0)).sum())
-
-
 @pytest.mark.parametrize("mode", ["rigid", "linear", "dual_quaternion"])
 def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(body, ball, mode):
     vol, pts, rig, rigid, smooth = body
@@ -65,7 +49,7 @@ def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(
     a = volrig.Collider(pts, binding, rig, shape=vol.array.shape)
     b = volrig.Collider(bpts, bbind, brig, shape=bv.array.shape)
     da, db = volrig.Deformer(vol, pts, binding), volrig.Deformer(bv, bpts, bbind)
-    clip = walk_clip(rig, 8)
+    clip = walk_matrices(rig, 8)
     hits = 0
     k = rig.index("shin.L")
     rest_mid = np.append((rig.heads()[k] + rig.tails()[k]) / 2, 1.0)
@@ -75,7 +59,7 @@ def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(
         mb = shift(target[1] - ball_centre[1])
         mb[0, 0, 3], mb[0, 2, 3] = target[0] - ball_centre[0], target[2] - ball_centre[2]
         c = volrig.collide(a, clip[f], b, mb, mode=mode, mode_b="rigid")
-        want = intersected(da.frame(clip[f], mode=mode, values=False), db.frame(mb, values=False))
+        want = da.frame(clip[f], mode=mode, values=False).shared_voxels(db.frame(mb, values=False))
         assert c.voxels == want, (f, gap)
         assert c.hit == (want > 0)
         hits += c.hit
@@ -88,6 +72,8 @@ def test_the_phantom_walking_into_a_ball_equals_two_deformed_frames_intersected(
             assert all(pair[1] == "ball" for pair in c.bone_pairs)
             assert (c.box[0] <= c.box[1]).all()
     assert hits == 3  # all but the ball 70 voxels away
+    fa = da.frame(clip[0], mode=mode, values=False)
+    assert fa.shared_voxels(fa) == fa.stats["covered"]
     assert not volrig.collide(a, clip[0], b, shift(200.0), mode=mode, mode_b="rigid").hit
 
 
@@ -95,7 +81,7 @@ def test_self_contact_of_the_phantom(body):
     vol, pts, rig, rigid, smooth = body
     c = volrig.Collider(pts, rigid, rig, shape=vol.array.shape)
     cs = volrig.Collider(pts, smooth, rig, shape=vol.array.shape)
-    clip = walk_clip(rig)
+    clip = walk_matrices(rig, 24)
     for collider, mode in ((c, "rigid"), (cs, "linear")):  # a walk: nothing passes through anything
         found = volrig.collisions(collider, clip, mode=mode)
         assert found.hit_frames == [] and found.contacts == []

@@ -241,9 +241,9 @@ public:
     }
     /// Sets the bits of row (y, z) from x0 to x1 (inclusive).
     void set_row(std::size_t slot, std::int64_t y, std::int64_t z, std::int64_t x0, std::int64_t x1) {
-        const auto row = static_cast<std::size_t>(((z - z0_) * ny_ + (y - box_[1])) * nx_ - box_[0]);
-        std::size_t k = row + static_cast<std::size_t>(x0);
-        const std::size_t end = row + static_cast<std::size_t>(x1) + 1;
+        const std::int64_t row = ((z - z0_) * ny_ + (y - box_[1])) * nx_;
+        std::size_t k = static_cast<std::size_t>(row + (x0 - box_[0]));
+        const auto end = static_cast<std::size_t>(row + (x1 - box_[0]) + 1);
         while (k < end) {
             const std::size_t w = k >> 6, first = k & 63, last = std::min<std::size_t>(64, first + (end - k));
             const std::uint64_t mask = (last == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << last) - 1) &

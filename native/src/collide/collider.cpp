@@ -13,21 +13,6 @@ namespace volrig {
 using namespace collide_detail;
 using deform_detail::Motion;
 
-BoundSpheres Collider::Impl::view() const {
-    BoundSpheres s;
-    s.ijk = ijk.data();
-    s.radius = radius.data();
-    s.n = radius.size();
-    s.bone = bone.data();
-    s.bone_count = bone_count;
-    if (has_weights) {
-        s.weight_offsets = weight_offsets.data();
-        s.weight_bones = weight_bones.data();
-        s.weights = weights.data();
-    }
-    return s;
-}
-
 std::vector<std::int32_t> bone_distances(const std::vector<std::int32_t>& parents) {
     const std::size_t n = parents.size();
     std::vector<std::vector<std::int32_t>> next(n);
@@ -166,17 +151,7 @@ Collider::Collider(const Grid& grid, const BoundSpheres& s, std::vector<std::int
         throw Error("collide: " + std::to_string(parents.size()) + " parents for a rig of " +
                     std::to_string(s.bone_count) + " bones");
     c.grid = grid;
-    c.ijk.assign(s.ijk, s.ijk + 3 * s.n);
-    c.radius.assign(s.radius, s.radius + s.n);
-    c.bone.assign(s.bone, s.bone + s.n);
-    c.bone_count = s.bone_count;
-    c.has_weights = s.weight_offsets != nullptr;
-    if (c.has_weights) {
-        c.weight_offsets.assign(s.weight_offsets, s.weight_offsets + s.n + 1);
-        const auto nnz = static_cast<std::size_t>(s.weight_offsets[s.n]);
-        c.weight_bones.assign(s.weight_bones, s.weight_bones + nnz);
-        c.weights.assign(s.weights, s.weights + nnz);
-    }
+    c.assign(s);
     c.distance = bone_distances(parents);
     c.parents = std::move(parents);
     for (std::size_t i = 0; i < s.n; ++i) {
@@ -203,9 +178,8 @@ std::size_t Collider::field_count(DeformMode mode) const { return impl_->partiti
 
 std::size_t Collider::memory_bytes() const {
     const Impl& c = *impl_;
-    std::size_t bytes = sizeof(Impl) + c.ijk.capacity() * 4 + c.bone.capacity() * 4 + c.radius.capacity() * 4 +
-                        c.weight_bones.capacity() * 4 + c.weights.capacity() * 4 + c.weight_offsets.capacity() * 8 +
-                        c.distance.capacity() * 4 + c.joined.capacity() + (c.rest_world.capacity() + c.rest_index.capacity()) * sizeof(Vec3);
+    std::size_t bytes = sizeof(Impl) + c.SphereStore::memory_bytes() + c.distance.capacity() * 4 + c.joined.capacity() +
+                        (c.rest_world.capacity() + c.rest_index.capacity()) * sizeof(Vec3);
     for (const Partition* p : {&c.rigid, &c.smooth}) {
         bytes += p->field_of.capacity() * 4;
         for (const Field& f : p->fields) bytes += sizeof(Field) + f.tree.memory_bytes();

@@ -33,19 +33,13 @@ struct Partition {
 
 namespace volrig {
 
-struct Collider::Impl {
+struct Collider::Impl : deform_detail::SphereStore {
     Grid grid;
-    std::vector<std::int32_t> ijk, bone, weight_bones;
-    std::vector<float> radius, weights;
-    std::vector<std::int64_t> weight_offsets;
-    std::size_t bone_count = 0;
     std::vector<std::int32_t> parents, distance;  ///< the rig's tree and its bone distances (empty without parents)
     std::vector<std::uint8_t> joined;  ///< bone pairs whose balls intersect at rest (bone_count x bone_count)
     std::vector<collide_detail::Vec3> rest_world, rest_index;  ///< per sphere (x, y, z)
     collide_detail::Partition rigid, smooth;
-    bool has_weights = false;
 
-    BoundSpheres view() const;
     bool joined_bones(std::int32_t x, std::int32_t y) const {
         return joined[static_cast<std::size_t>(x) * bone_count + static_cast<std::size_t>(y)] != 0;
     }

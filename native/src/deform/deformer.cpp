@@ -41,14 +41,9 @@ DeformMode deform_mode_from_name(const std::string& name) {
 Proximity proximity_from_name(const std::string& name) { return from_name<Proximity>(name, kProximityNames, "proximity"); }
 Sampling sampling_from_name(const std::string& name) { return from_name<Sampling>(name, kSamplingNames, "sampling"); }
 
-struct Deformer::Impl {
+struct Deformer::Impl : SphereStore {
     VolumeView source;
     Grid grid;
-    std::size_t n = 0, bone_count = 0;
-    std::vector<std::int32_t> ijk, bone, weight_bones;
-    std::vector<float> radius, weights;
-    std::vector<std::int64_t> weight_offsets;
-    bool has_weights = false;
     std::shared_ptr<ZeroedPool> pool = ZeroedPool::create();  // frames' output memory, recycled
 
     // per-rig data for one (partition, radii) key
@@ -67,8 +62,6 @@ struct Deformer::Impl {
     std::vector<double> radii;              // scaled radii
     double bound_step = 1;                  // the quantum of the fields' power bounds
 
-    BoundSpheres view() const;
-    void set_binding(const BoundSpheres& s);
     /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
     double threshold() const {
         const auto& sp = grid.spacing;
@@ -80,35 +73,6 @@ struct Deformer::Impl {
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
     DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress, const Box* fixed_box);
 };
-
-BoundSpheres Deformer::Impl::view() const {
-    BoundSpheres s;
-    s.ijk = ijk.data();
-    s.radius = radius.data();
-    s.n = n;
-    s.bone = bone.data();
-    s.bone_count = bone_count;
-    if (has_weights) {
-        s.weight_offsets = weight_offsets.data();
-        s.weight_bones = weight_bones.data();
-        s.weights = weights.data();
-    }
-    return s;
-}
-
-/// Copies the spheres' bones and weights.
-void Deformer::Impl::set_binding(const BoundSpheres& s) {
-    bone.assign(s.bone, s.bone + s.n);
-    has_weights = s.weight_offsets != nullptr;
-    weight_offsets.clear();
-    weight_bones.clear();
-    weights.clear();
-    if (!has_weights) return;
-    weight_offsets.assign(s.weight_offsets, s.weight_offsets + s.n + 1);
-    const auto nnz = static_cast<std::size_t>(s.weight_offsets[s.n]);
-    weight_bones.assign(s.weight_bones, s.weight_bones + nnz);
-    weights.assign(s.weights, s.weights + nnz);
-}
 
 /// The spheres of each field: per bone its rigid spheres, then (smooth) per group its blended ones.
 std::vector<std::vector<std::uint32_t>> Deformer::Impl::partition(bool smooth) {
@@ -217,11 +181,7 @@ Deformer::Deformer(const VolumeView& source, const BoundSpheres& spheres) : impl
     m.source = source;
     m.grid = source.grid;
     advise_huge_pages(source.data, static_cast<std::size_t>(source.grid.voxel_count()) * dtype_size(source.dtype));
-    m.n = spheres.n;
-    m.bone_count = spheres.bone_count;
-    m.ijk.assign(spheres.ijk, spheres.ijk + 3 * spheres.n);
-    m.radius.assign(spheres.radius, spheres.radius + spheres.n);
-    m.set_binding(spheres);
+    m.assign(spheres);
 }
 
 Deformer::~Deformer() = default;
@@ -243,8 +203,7 @@ std::size_t Deformer::bone_count() const { return impl_->bone_count; }
 std::size_t Deformer::sphere_count() const { return impl_->n; }
 
 std::size_t Deformer::memory_bytes() const {
-    std::size_t b = impl_->ijk.size() * 4 + impl_->radius.size() * 4 + impl_->bone.size() * 4 +
-                    impl_->weights.size() * 8 + impl_->weight_offsets.size() * 8 + impl_->radii.size() * 8 +
+    std::size_t b = impl_->SphereStore::memory_bytes() + impl_->radii.size() * 8 +
                     impl_->groups.group_of.size() * 8 + impl_->groups.weights.size() * 64;
     for (const auto& f : impl_->fields) b += f.bytes();
     return b;

@@ -27,6 +27,47 @@ bool all_finite(const T* data, std::size_t n) {
 
 }  // namespace
 
+void SphereStore::assign(const BoundSpheres& s) {
+    n = s.n;
+    bone_count = s.bone_count;
+    ijk.assign(s.ijk, s.ijk + 3 * s.n);
+    radius.assign(s.radius, s.radius + s.n);
+    set_binding(s);
+}
+
+void SphereStore::set_binding(const BoundSpheres& s) {
+    bone.assign(s.bone, s.bone + s.n);
+    has_weights = s.weight_offsets != nullptr;
+    weight_offsets.clear();
+    weight_bones.clear();
+    weights.clear();
+    if (!has_weights) return;
+    weight_offsets.assign(s.weight_offsets, s.weight_offsets + s.n + 1);
+    const auto nnz = static_cast<std::size_t>(s.weight_offsets[s.n]);
+    weight_bones.assign(s.weight_bones, s.weight_bones + nnz);
+    weights.assign(s.weights, s.weights + nnz);
+}
+
+BoundSpheres SphereStore::view() const {
+    BoundSpheres s;
+    s.ijk = ijk.data();
+    s.radius = radius.data();
+    s.n = n;
+    s.bone = bone.data();
+    s.bone_count = bone_count;
+    if (has_weights) {
+        s.weight_offsets = weight_offsets.data();
+        s.weight_bones = weight_bones.data();
+        s.weights = weights.data();
+    }
+    return s;
+}
+
+std::size_t SphereStore::memory_bytes() const {
+    return (ijk.capacity() + bone.capacity() + weight_bones.capacity()) * sizeof(std::int32_t) +
+           (radius.capacity() + weights.capacity()) * sizeof(float) + weight_offsets.capacity() * sizeof(std::int64_t);
+}
+
 void check_source(const VolumeView& v, const char* who) {
     const auto n = static_cast<std::size_t>(v.grid.voxel_count());
     const bool ok = v.dtype == DType::Float32   ? all_finite(static_cast<const float*>(v.data), n)

@@ -13,6 +13,20 @@
 
 namespace volrig::deform_detail {
 
+/// An owned copy of bound spheres (BoundSpheres only views them): what the Deformer and the Collider keep.
+struct SphereStore {
+    std::size_t n = 0, bone_count = 0;
+    std::vector<std::int32_t> ijk, bone, weight_bones;
+    std::vector<float> radius, weights;
+    std::vector<std::int64_t> weight_offsets;
+    bool has_weights = false;
+
+    void assign(const BoundSpheres& s);       ///< copies everything
+    void set_binding(const BoundSpheres& s);  ///< copies the bones and weights only (a rebind)
+    BoundSpheres view() const;
+    std::size_t memory_bytes() const;
+};
+
 /// Throws when a floating-point source holds a NaN or an infinite sample (`who` names the caller).
 void check_source(const VolumeView& v, const char* who);
 /// Throws unless the spheres fit the grid: centres inside, radii finite and >= 0, bones and weights valid.
