@@ -735,6 +735,41 @@ TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has it
     CHECK(leg.rig.joints[1][2] == Approx(45 + 45 * kLegProportions[1] / kLegProportions[2]).margin(0.5));
 }
 
+namespace {
+
+/// A lower leg from the knee (0, 0, 100) down to a heel at z = 20 and a foot forward to (0, 40, 10), the rig's
+/// ankle at the heel (where such an axis turns); `neck` the radius at z = 40 (the heel's is 8).
+struct LowerLeg {
+    Figure f{Vec(0, 0, 100), 9.0};
+    Rig rig;
+    std::vector<std::uint32_t> nodes;
+    explicit LowerLeg(double neck) {
+        f.limb(f.limb(f.limb(0, Vec(0, 0, 40), 9, neck), Vec(0, 0, 20), neck, 8), Vec(0, 40, 10), 8, 3);
+        for (std::uint32_t k = 0; k < f.pos.size(); ++k) nodes.push_back(k);
+        rig.joints = {{0, 0, 100}, {0, 0, 20}, {0, 40, 10}};
+        rig.joint_points = {0, 0, 0};
+        rig.bones = {{0, 1}, {1, 2}};
+        rig.names = {"shin.L", "foot.L"};
+        rig.parents = {-1, 0};
+    }
+};
+
+}  // namespace
+
+TEST_CASE("heel_ankle: an ankle at the heel's centre goes up midway to the leg's neck; a plain taper keeps it",
+          "[autorig]") {
+    LowerLeg leg(5.0);
+    Solid s(leg.f, {10, 50, 110});
+    heel_ankle(s.context(), leg.rig, leg.nodes, ".L");
+    CHECK(leg.rig.joints[1][2] == Approx(30).margin(1.0));  // midway between the neck (z 40) and the heel (z 20)
+    CHECK(leg.rig.joints[1][1] == Approx(0).margin(1e-9));
+    CHECK(leg.rig.joints[2][2] == 10);  // the toe stays
+    LowerLeg taper(8.0);  // no neck: 9 at the knee down to 8 at the heel
+    Solid st(taper.f, {10, 50, 110});
+    heel_ankle(st.context(), taper.rig, taper.nodes, ".L");
+    CHECK(taper.rig.joints[1][2] == 20);
+}
+
 TEST_CASE("centre_chest puts the chest joint midway between the shoulders across the body", "[autorig]") {
     Rig rig;
     rig.joints = {{0, 0, 0}, {5, 1, 10}, {12, 0, 12}, {-8, 0, 12}, {14, 0, 0}, {-10, 0, 0}};

@@ -219,6 +219,9 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
             straight_knee(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[1]),
                                                                  leg[s].begin() + static_cast<std::ptrdiff_t>(k[3]) + 1),
                           leg_sfx);
+            heel_ankle(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[2]),
+                                                                  leg[s].end()),
+                           leg_sfx);
         }
     if (humanoid) {
         centre_chest(out.rig);

@@ -180,6 +180,32 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
         lengthen_proximal(c, rig, static_cast<std::size_t>(thigh), kLegProportions[1] / kLegProportions[2] * (ankle - knee).norm());
 }
 
+void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx) {
+    const std::int32_t shin = bone_index(rig, "shin" + sfx);
+    if (shin < 0 || leg.size() < 4) return;
+    const Vec knee = bone_end(rig, static_cast<std::size_t>(shin), 0), ankle = bone_end(rig, static_cast<std::size_t>(shin), 1);
+    const Chain4 chain = c.samples(leg);
+    const std::vector<double> arc = arc_of(chain);
+    std::size_t bend = 0;  // the axis node at the rig's ankle
+    for (std::size_t k = 1; k < chain.size(); ++k)
+        if ((chain[k].head<3>() - ankle).norm() < (chain[bend].head<3>() - ankle).norm()) bend = k;
+    std::size_t heel = bend;  // the widest node within kNeckWindow radii of it
+    for (std::size_t k = 0; k < chain.size(); ++k)
+        if (std::abs(arc[k] - arc[bend]) <= kNeckWindow * chain[bend][3] && chain[k][3] > chain[heel][3]) heel = k;
+    const Vec middle = 0.5 * (knee + ankle);  // the neck: the narrowest node from mid-shin to the heel
+    std::size_t from = 0;
+    for (std::size_t k = 1; k < chain.size(); ++k)
+        if ((chain[k].head<3>() - middle).norm() < (chain[from].head<3>() - middle).norm()) from = k;
+    std::size_t neck = heel;
+    for (std::size_t k = from; k < heel; ++k)
+        if (chain[k][3] < chain[neck][3]) neck = k;
+    if (neck == heel || chain[heel][3] < (1 + kNeckRise) * chain[neck][3]) return;  // no neck above a wider heel
+    const double half = 0.5 * (arc[neck] + arc[heel]);
+    std::size_t at = neck;
+    while (at < heel && arc[at + 1] <= half) ++at;
+    move_joint(rig, rig.bones[static_cast<std::size_t>(shin)][1], chain[at].head<3>());
+}
+
 void centre_chest(Rig& rig) {
     const std::int32_t chest = bone_index(rig, "chest"), left = bone_index(rig, "upper_arm.L"),
                        right = bone_index(rig, "upper_arm.R");

@@ -115,6 +115,13 @@ constexpr double kNeckWindow = 2.0;
 constexpr double kNeckRise = 0.05;
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
+/// The ankle above a heel: where the lower leg narrows (its neck, above the malleoli) and then widens into a heel
+/// around the rig's ankle (the widest node within kNeckWindow radii of it, by kNeckRise at least), the medial axis
+/// turns towards the toes at the heel's centre, below the ankle joint; the ankle goes midway along the axis between
+/// the neck and the heel's widest node, where the malleoli are. A leg without that shape keeps its ankle.
+/// `leg`: the leg's nodes from the knee to the foot's tip.
+void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
+
 /// The chest joint (where neck and shoulders meet) midway between the shoulder joints across the body: a neck
 /// joining the trunk's medial sheet off its middle pulls the level-set tree's chest node aside.
 void centre_chest(Rig& rig);
