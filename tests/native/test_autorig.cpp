@@ -770,6 +770,39 @@ TEST_CASE("heel_ankle: an ankle at the heel's centre goes up midway to the leg's
     CHECK(taper.rig.joints[1][2] == 20);
 }
 
+TEST_CASE("wrist_at_neck: a hand resting on something widens past the wrist; a free hand keeps the wrist",
+          "[autorig]") {
+    // The arm's axis from the elbow (0, 0, 100) down: the forearm narrows from 9 to 5 at z = 60, a hand lying on
+    // something widens to 7 at z = 45 and ends at z = 20; the rig's wrist (by proportion) at z = 35.
+    auto arm = [](double palm) {
+        Figure f(Vec(0, 0, 100), 9.0);
+        f.limb(f.limb(f.limb(0, Vec(0, 0, 60), 9, 5), Vec(0, 0, 45), 5, palm), Vec(0, 0, 20), palm, 2);
+        return f;
+    };
+    auto rig_of = [] {
+        Rig rig;
+        rig.joints = {{0, 0, 130}, {0, 0, 100}, {0, 0, 35}, {0, 0, 20}};
+        rig.joint_points = {0, 0, 0, 0};
+        rig.bones = {{0, 1}, {1, 2}, {2, 3}};
+        rig.names = {"upper_arm.L", "forearm.L", "hand.L"};
+        rig.parents = {-1, 0, 1};
+        return rig;
+    };
+    const Figure resting = arm(7.0);
+    std::vector<std::uint32_t> nodes;
+    for (std::uint32_t k = 0; k < resting.pos.size(); ++k) nodes.push_back(k);
+    Solid s(resting, {10, 10, 110});
+    Rig rig = rig_of();
+    wrist_at_neck(s.context(), rig, nodes, ".L");
+    CHECK(rig.joints[2][2] == Approx(60).margin(1.0));
+    CHECK(rig.joints[3][2] == 20);  // the hand's tip stays
+    const Figure free = arm(4.0);  // the hand thinner than the wrist: no neck
+    Solid sf(free, {10, 10, 110});
+    Rig kept = rig_of();
+    wrist_at_neck(sf.context(), kept, nodes, ".L");
+    CHECK(kept.joints[2][2] == 35);
+}
+
 TEST_CASE("centre_chest puts the chest joint midway between the shoulders across the body", "[autorig]") {
     Rig rig;
     rig.joints = {{0, 0, 0}, {5, 1, 10}, {12, 0, 12}, {-8, 0, 12}, {14, 0, 0}, {-10, 0, 0}};

@@ -213,6 +213,10 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
             else
                 restore_proximal(c, out.rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
                                  kArmProportions[1] / kArmProportions[2]);
+            const auto& a = arm_fit[s].cuts;
+            wrist_at_neck(c, out.rig, std::vector<std::uint32_t>(arm[s].begin() + static_cast<std::ptrdiff_t>(a[2]),
+                                                                 arm[s].end()),
+                          arm_sfx);
             hip_on_thigh_line(out.rig, "thigh" + leg_sfx);
             restore_proximal(c, out.rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
             const auto& k = leg_fit[s].cuts;

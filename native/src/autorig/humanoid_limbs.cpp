@@ -206,6 +206,32 @@ void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>&
     move_joint(rig, rig.bones[static_cast<std::size_t>(shin)][1], chain[at].head<3>());
 }
 
+void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& arm, const std::string& sfx) {
+    const std::int32_t forearm = bone_index(rig, "forearm" + sfx);
+    if (forearm < 0 || arm.size() < 4) return;
+    const Vec wrist = bone_end(rig, static_cast<std::size_t>(forearm), 1);
+    const Chain4 chain = c.samples(arm);
+    const std::vector<double> arc = arc_of(chain);
+    std::size_t at = 0;  // the axis node at the rig's wrist
+    for (std::size_t k = 1; k < chain.size(); ++k)
+        if ((chain[k].head<3>() - wrist).norm() < (chain[at].head<3>() - wrist).norm()) at = k;
+    std::optional<std::size_t> best;
+    for (std::size_t k = 1; k + 1 < chain.size(); ++k) {
+        const double window = kNeckWindow * chain[k][3], rise = (1 + kNeckRise) * chain[k][3];
+        double before = 0, after = 0;
+        bool lowest = true;
+        for (std::size_t j = 0; j < chain.size(); ++j) {
+            if (std::abs(arc[j] - arc[k]) > window || j == k) continue;
+            lowest = lowest && chain[j][3] >= chain[k][3];
+            (j < k ? before : after) = std::max(j < k ? before : after, chain[j][3]);
+        }
+        if (lowest && before >= rise && after >= rise &&
+            (!best || std::abs(arc[k] - arc[at]) < std::abs(arc[*best] - arc[at])))
+            best = k;
+    }
+    if (best) move_joint(rig, rig.bones[static_cast<std::size_t>(forearm)][1], chain[*best].head<3>());
+}
+
 void centre_chest(Rig& rig) {
     const std::int32_t chest = bone_index(rig, "chest"), left = bone_index(rig, "upper_arm.L"),
                        right = bone_index(rig, "upper_arm.R");

@@ -115,6 +115,12 @@ constexpr double kNeckWindow = 2.0;
 constexpr double kNeckRise = 0.05;
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
+/// The wrist at its neck: a forearm narrows to the wrist, and a hand resting on something (the pelvis, a thigh)
+/// widens again in the mask, so where the arm's axis from the elbow (`arm`: its nodes from the elbow to the hand's
+/// tip) has a node narrower than every node within kNeckWindow of its radii and the arm widens by kNeckRise on both
+/// sides, the wrist goes to the one nearest the rig's wrist. A free hand, thinner than its wrist, keeps the wrist.
+void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& arm, const std::string& sfx);
+
 /// The ankle above a heel: where the lower leg narrows (its neck, above the malleoli) and then widens into a heel
 /// around the rig's ankle (the widest node within kNeckWindow radii of it, by kNeckRise at least), the medial axis
 /// turns towards the toes at the heel's centre, below the ankle joint; the ankle goes midway along the axis between
