@@ -153,14 +153,13 @@ def bake_saved_scene(frames_text: str = "", names=(), mode: str = "", force: boo
     return total
 
 
-def command_line() -> None:
-    """The Blender side of ``python -m volrig bake``: bakes the open .blend as the JSON after ``--`` on Blender's
-    command line says, then exits Blender with 0, or 2 and a message for a user error (a bug gives a traceback
-    and 1 through ``--python-exit-code``)."""
+def exit_with(work) -> None:
+    """The Blender side of a headless volrig command: runs ``work(args)`` with the JSON after ``--`` on Blender's
+    command line and prints the line it returns, then exits Blender with 0, or 2 and a message for a user error (a
+    bug gives a traceback and 1 through ``--python-exit-code``)."""
     args = json.loads(sys.argv[sys.argv.index("--") + 1])
     try:
-        n = bake_saved_scene(args["frames"], args["objects"], args["mode"], args["force"], args["save"])
-        print(f"volrig: baked {n} frame(s) of {os.path.basename(bpy.data.filepath)}")
+        print(work(args))
         code = 0
     except (volrig.VolrigError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
@@ -168,3 +167,11 @@ def command_line() -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+def command_line() -> None:
+    """The Blender side of ``python -m volrig bake``: bakes the open .blend as the JSON after ``--`` says."""
+    def work(args):
+        n = bake_saved_scene(args["frames"], args["objects"], args["mode"], args["force"], args["save"])
+        return f"volrig: baked {n} frame(s) of {os.path.basename(bpy.data.filepath)}"
+    exit_with(work)

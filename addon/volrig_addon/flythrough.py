@@ -8,9 +8,7 @@ Objects of a volume's set made here (roles): ``<name>_path`` (PATH, curve, child
 ``<name>_camera`` (CAMERA), ``<name>_light`` (LIGHT, child of the camera), ``<name>_lumen`` (LUMEN, the wall as a
 Volume object, child of the volume). Fly Through again replaces them.
 """
-import json
 import os
-import sys
 
 import bpy
 import numpy as np
@@ -20,6 +18,7 @@ import volrig
 from volrig.centerlines import flight_frames, flight_path, lumen_wall, straightening_rig
 
 from . import materials, objects, scans
+from .bake import exit_with
 
 #: The headlight's power for a lumen of radius 1 Blender unit (W); it scales with the radius squared, so the wall
 #: at the lumen's radius is lit alike in a trachea and in a bronchus a tenth as wide.
@@ -339,18 +338,10 @@ def build_from_file(args: dict) -> dict:
 
 
 def command_line() -> None:
-    """Runs ``build_from_file`` with the JSON after ``--`` on Blender's command line, then exits Blender with 0, or
-    2 and a message for a user error (a bug gives a traceback and 1 through ``--python-exit-code``)."""
-    args = json.loads(sys.argv[sys.argv.index("--") + 1])
-    try:
+    """The Blender side of ``volrig flythrough``: ``build_from_file`` with the JSON after ``--`` (bake.exit_with)."""
+    def work(args):
         made = build_from_file(args)
         scene = bpy.context.scene
-        print(f"volrig: fly-through of {made['line'].length:.1f} mm in frames {scene.frame_start}-{scene.frame_end}"
-              f" -> {bpy.data.filepath}" + "".join(f"\n  {p}" for p in made["renders"]))
-        code = 0
-    except (volrig.VolrigError, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        code = 2
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
+        return (f"volrig: fly-through of {made['line'].length:.1f} mm in frames {scene.frame_start}-"
+                f"{scene.frame_end} -> {bpy.data.filepath}" + "".join(f"\n  {p}" for p in made["renders"]))
+    exit_with(work)

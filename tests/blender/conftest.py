@@ -39,10 +39,8 @@ def run_op(op, **kw):
     return result
 
 
-@pytest.fixture
-def rigged(empty_scene, phantom_file):
-    """The phantom imported, skeletonized at thinness 0.3 and rigged; returns the Volume object."""
-    path, _ = phantom_file
+def import_and_rig(path):
+    """Imports a volume file in mm, skeletonizes it at thinness 0.3 and rigs it; returns the Volume object."""
     run_op(bpy.ops.volrig.import_volume, filepath=path, unit="MM")
     vol = bpy.context.active_object
     vol.volrig.low = 1.0
@@ -50,3 +48,9 @@ def rigged(empty_scene, phantom_file):
     vol.volrig.thinness = 0.3
     run_op(bpy.ops.volrig.rig)
     return vol
+
+
+@pytest.fixture
+def rigged(empty_scene, phantom_file):
+    """The phantom imported, skeletonized at thinness 0.3 and rigged; returns the Volume object."""
+    return import_and_rig(phantom_file[0])

@@ -1,7 +1,7 @@
 """Find Contacts in the add-on (issue 19): self-contact of the rigged phantom over keyed poses, and two rigged
 volumes, as timeline markers named with the bones."""
 import pytest
-from conftest import PHANTOM_SCALE, run_op  # noqa: F401  (the phantom the fixtures build)
+from conftest import import_and_rig, run_op
 
 bpy = pytest.importorskip("bpy")
 
@@ -44,13 +44,7 @@ def test_self_contact_markers_name_the_bones(rigged):
 def test_two_volumes_touch_where_they_overlap(rigged, phantom_file, capfd):
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, 3
-    path, _ = phantom_file
-    run_op(bpy.ops.volrig.import_volume, filepath=path, unit="MM")
-    other = bpy.context.active_object
-    other.volrig.low = 1.0
-    run_op(bpy.ops.volrig.skeletonize)
-    other.volrig.thinness = 0.3
-    run_op(bpy.ops.volrig.rig)
+    other = import_and_rig(phantom_file[0])
     arm = _rig_obj(other)
     for frame, x in [(1, 0.0), (3, 1.0)]:  # the second phantom walks away (1 m) from the first
         arm.location = (x, 0.0, 0.0)

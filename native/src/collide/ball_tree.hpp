@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace volrig::collide_detail {
@@ -32,6 +33,19 @@ struct BallTree {
         return nodes.capacity() * sizeof(BallNode) + order.capacity() * sizeof(std::uint32_t);
     }
 };
+
+/// A dual descent's step for a node pair that may touch: opens the node with the larger bound (a leaf never) and
+/// pushes its children paired with the other node.
+inline void open_larger(std::vector<std::pair<std::int32_t, std::int32_t>>& stack, const BallNode& na, std::int32_t ia,
+                        double ra, const BallNode& nb, std::int32_t ib, double rb) {
+    if (nb.leaf() || (!na.leaf() && ra >= rb)) {
+        stack.emplace_back(na.child[0], ib);
+        stack.emplace_back(na.child[1], ib);
+    } else {
+        stack.emplace_back(ia, nb.child[0]);
+        stack.emplace_back(ia, nb.child[1]);
+    }
+}
 
 /// Builds the tree over `members` (sphere indices into `centre` and `radius`): median splits along the widest axis
 /// of the centres, leaves of at most kLeafSize balls. Balls of radius 0 hold no lattice point and are left out.

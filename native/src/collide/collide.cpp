@@ -147,13 +147,7 @@ std::int64_t descend(const Posed& a, std::size_t fa, const Posed& b, std::size_t
                 stack.emplace_back(na.child[1], na.child[1]);
             }
         } else if (na.leaf() && nb.leaf()) leaf_pairs(a, b, na, nb, ta, tb, X, rule, false, out);
-        else if (nb.leaf() || (!na.leaf() && ra >= rb)) {
-            stack.emplace_back(na.child[0], ib);
-            stack.emplace_back(na.child[1], ib);
-        } else {
-            stack.emplace_back(ia, nb.child[0]);
-            stack.emplace_back(ia, nb.child[1]);
-        }
+        else open_larger(stack, na, ia, ra, nb, ib, rb);
     }
     return tests;
 }

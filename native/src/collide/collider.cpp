@@ -116,13 +116,8 @@ bool trees_touch(const BallTree& x, const BallTree& y, const std::vector<Vec3>& 
                     const double r = static_cast<double>(radius[i]) + static_cast<double>(radius[j]);
                     if (d2(centre[i], centre[j]) < r * r) return true;
                 }
-        } else if (ny.leaf() || (!nx.leaf() && nx.bound >= ny.bound)) {
-            stack.emplace_back(nx.child[0], iy);
-            stack.emplace_back(nx.child[1], iy);
-        } else {
-            stack.emplace_back(ix, ny.child[0]);
-            stack.emplace_back(ix, ny.child[1]);
-        }
+        } else
+            open_larger(stack, nx, ix, nx.bound, ny, iy, ny.bound);
     }
     return false;
 }
