@@ -32,6 +32,9 @@ const JOB_TYPE = {
           description: "Re-bake frames whose pose did not change, too" },
         { key: "volrig_cmd", type: "string", default: "python3 -m volrig", visible: "submission",
           description: "The volrig command line on the workers (program and leading arguments)" },
+        { key: "addon", type: "string", subtype: "file_path", default: "", visible: "submission",
+          description: "The volrig add-on zip (or a folder holding volrig_addon) on shared storage, for " +
+              "`volrig bake --addon`; empty: the one the worker's volrig finds, else Blender's installed add-on" },
         { key: "render_output_path", type: "string", subtype: "file_path", required: false,
           eval: "C.scene.render.filepath", visible: "submission",
           description: "Where frames are rendered (empty: the .blend's own output path)" },
@@ -80,6 +83,7 @@ function volrigCommand(settings, frames, save) {
     if (!save) args.push("--no-save");
     if (settings.bake_mode) args = args.concat(["--mode", settings.bake_mode]);
     if (settings.force) args.push("--force");
+    if (settings.addon) args = args.concat(["--addon", settings.addon]);
     return author.Command("exec", { exe: words[0], args: args });
 }
 

@@ -62,7 +62,7 @@ def test_chunks_bake_then_render_with_dependencies():
 
 def test_lists_single_frames_mode_force_and_own_command():
     r = compile_job(blendfile="/s/a.blend", frames="7, 1-3,2-4, 10", chunk_size=2, bake_mode="dual_quaternion",
-                    force=True, volrig_cmd="/opt/volrig/bin/volrig")
+                    force=True, volrig_cmd="/opt/volrig/bin/volrig", addon="/farm/volrig_addon.zip")
     tasks = by_name(r)
     assert [t["name"] for t in r["tasks"] if t["name"].startswith("bake")] == ["bake-1-2", "bake-3-4", "bake-7",
                                                                                "bake-10"]
@@ -71,6 +71,7 @@ def test_lists_single_frames_mode_force_and_own_command():
     assert cmd["exe"] == "/opt/volrig/bin/volrig"
     assert cmd["args"][:2] == ["bake", "/s/a.blend"]
     assert cmd["args"][cmd["args"].index("--mode") + 1] == "dual_quaternion" and "--force" in cmd["args"]
+    assert cmd["args"][cmd["args"].index("--addon") + 1] == "/farm/volrig_addon.zip"
     assert tasks["prepare"]["commands"][0]["parameters"]["args"][3] == "1"
 
 
@@ -82,7 +83,8 @@ def test_bad_frames_are_refused_with_a_message(frames):
 
 def test_bake_commands_parse_in_volrigs_command_line(monkeypatch, tmp_path):
     """Every authored `volrig bake` command line is one volrig's own parser accepts, meaning what the job says."""
-    r = compile_job(blendfile=str(tmp_path / "a.blend"), frames="1-5", chunk_size=3, bake_mode="rigid")
+    r = compile_job(blendfile=str(tmp_path / "a.blend"), frames="1-5", chunk_size=3, bake_mode="rigid",
+                    addon="/farm/addon.zip")
     seen = []
     monkeypatch.setattr(cli, "cmd_bake", lambda args: seen.append(args) or 0)
     for t in r["tasks"]:
@@ -90,5 +92,5 @@ def test_bake_commands_parse_in_volrigs_command_line(monkeypatch, tmp_path):
             args = t["commands"][0]["parameters"]["args"]
             assert args[:2] == ["-m", "volrig"]
             assert cli.main(args[2:]) == 0
-    assert [(a.frames, a.no_save, a.mode, a.blender) for a in seen] == [
-        ("1", False, "rigid", "{blender}"), ("1-3", True, "rigid", "{blender}"), ("4-5", True, "rigid", "{blender}")]
+    assert [(a.frames, a.no_save, a.mode, a.blender, a.addon) for a in seen] == [
+        (f, save, "rigid", "{blender}", "/farm/addon.zip") for f, save in (("1", False), ("1-3", True), ("4-5", True))]
