@@ -274,8 +274,9 @@ def _at_least_one(text: str) -> int:
 
 
 #: Runs inside Blender for ``bake`` and ``flythrough``: puts the folders found for volrig and the add-on first on
-#: sys.path, enables the add-on and hands over to its headless entry (``volrig_addon.<module>.command_line``: bake,
-#: flythrough), which does the work and exits 0, or 2 with a message for a user error.
+#: sys.path, enables the add-on (``volrig_addon``, else the Blender 4.2+ extension ``bl_ext.<repo>.volrig``) and hands
+#: over to its headless entry (``<add-on>.<module>.command_line``: bake, flythrough), which does the work and exits
+#: 0, or 2 with a message for a user error.
 _BOOTSTRAP = """
 import os, sys
 sys.path[:0] = {paths!r}
@@ -284,10 +285,17 @@ addon_utils.enable("volrig_addon", default_set=False)
 try:
     from volrig_addon import {module}
 except ImportError as e:
-    print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip, "
-          "or pass --addon", file=sys.stderr)
-    sys.stderr.flush()
-    os._exit(2)
+    # Blender 4.2+: the volrig extension (bl_ext.<repository>.volrig), when installed
+    import importlib
+    ext = sorted(m.__name__ for m in addon_utils.modules()
+                 if m.__name__.startswith("bl_ext.") and m.__name__.rsplit(".", 1)[-1] == "volrig")
+    if not ext:
+        print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip "
+              "or the extension, or pass --addon", file=sys.stderr)
+        sys.stderr.flush()
+        os._exit(2)
+    addon_utils.enable(ext[0], default_set=False)
+    {module} = importlib.import_module(ext[0] + ".{module}")
 {module}.command_line()
 """
 

@@ -25,6 +25,7 @@ from bl_ext.user_default import volrig as addon
 out, nrrd = sys.argv[-2], os.path.join(sys.argv[-2], "phantom.nrrd")
 volrig.phantom.humanoid(scale=0.25).volume.save(nrrd)
 bpy.ops.wm.read_homefile(use_empty=True)
+bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "scene.blend"))  # the cache goes beside it
 assert bpy.ops.volrig.import_volume(filepath=nrrd, unit="MM") == {"FINISHED"}
 vol = bpy.context.active_object
 vol.volrig.low = 1.0
@@ -32,6 +33,8 @@ assert bpy.ops.volrig.skeletonize() == {"FINISHED"}
 vol.volrig.thinness = 0.3
 assert bpy.ops.volrig.rig() == {"FINISHED"}
 rig = [o for o in bpy.data.objects if o.type == "ARMATURE"]
+bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 2
+bpy.ops.wm.save_mainfile()
 print("EXTINFO", enabled, volrig.__file__, addon.__file__, len(rig[0].data.bones) if rig else 0,
       sys.version_info[:2])
 sys.stdout.flush()
@@ -68,3 +71,11 @@ def test_extension_installs_from_file_enables_and_runs_operators(tmp_path):
     assert enabled == "True"
     assert volrig_file.startswith(str(user)) and addon_file.startswith(str(user)), line  # not the checkout
     assert int(bones) >= 5, line
+    # `volrig bake` (headless Blender) finds the add-on as the extension when no volrig_addon is importable
+    cli_env = dict(env, PYTHONPATH=os.path.join(REPO, "python"))
+    bake = subprocess.run(["python3", "-m", "volrig", "bake", str(work / "scene.blend"), "--frames", "1-2",
+                           "--blender", bpy.app.binary_path], env=cli_env, capture_output=True, text=True,
+                          timeout=600, cwd=str(tmp_path))
+    assert bake.returncode == 0, bake.stdout[-3000:] + bake.stderr[-3000:]
+    assert "baked 2 frame(s) of scene.blend" in bake.stdout, bake.stdout[-3000:]
+    assert len(list(work.rglob("*_000[12].vdb"))) == 2
