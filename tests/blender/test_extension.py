@@ -52,6 +52,9 @@ def test_extension_installs_from_file_enables_and_runs_operators(tmp_path):
     out = subprocess.run(["python3", os.path.join(REPO, "scripts", "extension"), "-o", zip_path, "--require", tag],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
+    env0 = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    valid = blender("--command", "extension", "validate", zip_path, env=env0, timeout=120)
+    assert valid.returncode == 0 and "FATAL" not in valid.stdout + valid.stderr, valid.stdout + valid.stderr
     user = tmp_path / "user"
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "BLENDER_USER_SCRIPTS",
                                                            "BLENDER_USER_CONFIG", "BLENDER_USER_EXTENSIONS")}
