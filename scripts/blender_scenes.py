@@ -11,6 +11,7 @@ samples: <out>/phantom_walk.blend (the phantom walking, 24 frames baked) and, wh
 Everything goes through the add-on's operators, as a user would click them.
 """
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -96,14 +97,33 @@ def frog_posed(blend_path, data):
     return vol
 
 
+@contextlib.contextmanager
+def quiet_stdout():
+    """Blender's own stdout (Cycles' per-tile and per-sample log, "Fra:1 Mem:..." lines, written by C code, so
+    at the file-descriptor level) goes to /dev/null inside; volrig's lines come before and after."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def render_frames(scene, frames, out_dir):
     paths = []
-    for f in frames:
+    for k, f in enumerate(frames):
         scene.frame_set(f)
         scene.render.filepath = os.path.join(out_dir, f"frame_{f:04d}.png")
-        bpy.ops.render.render(write_still=True)
+        started = time.perf_counter()
+        with quiet_stdout():
+            bpy.ops.render.render(write_still=True)
         paths.append(scene.render.filepath)
-        log(f"rendered {scene.render.filepath}")
+        log(f"rendered {k + 1}/{len(frames)}: frame {f}, {scene.render.resolution_x} x {scene.render.resolution_y}, "
+            f"{scene.cycles.samples} samples, {time.perf_counter() - started:.1f} s -> {scene.render.filepath}")
     return paths
 
 

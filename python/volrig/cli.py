@@ -86,7 +86,10 @@ def _mask_and_skeleton(args):
     from .pipeline import Segmentation, load_mask, skeleton_of, skeleton_points
     seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
     mask = load_mask(args.file, seg, voxel_size=args.voxel_size, **_hints(args))
-    sk = skeleton_of(mask, args.metric, progress=_progress_bar if args.progress else None)
+    bars = StepBars() if _show_progress(args) else None
+    sk = skeleton_of(mask, args.metric, progress=bars)
+    if bars is not None:
+        bars.close()
     return mask, sk, skeleton_points(sk, thinness=args.thinness, count=args.count)
 
 
@@ -98,7 +101,7 @@ def cmd_rig(args) -> int:
     t = time.perf_counter()
     mask, sk, pts = _mask_and_skeleton(args)
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
-                     bind_mode=args.bind, progress=_progress_bar if args.progress else None, source=args.file,
+                     bind_mode=args.bind, progress=StepBars() if _show_progress(args) else None, source=args.file,
                      kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points)
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
@@ -160,20 +163,33 @@ def cmd_bake_mocap(args) -> int:
     todo = [(f, m) for f, m in zip(frames, matrices)
             if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
     rate = BakeRate(len(todo))
+    tqdm = _tqdm() if _show_progress(args) else None
+    bar = tqdm(total=len(todo), desc="bake-mocap", unit="frame", file=sys.stderr) if tqdm else None
+
+    def say(line: str) -> None:
+        if bar is not None:
+            bar.write(line, file=sys.stderr)
+        else:
+            sys.stderr.write(line + "\n")
+            sys.stderr.flush()
+
     try:
         for k, (f, m) in enumerate(zip(frames, matrices)):
             path = bake.path(sequence_number(f, args.step))
             head = f"bake-mocap: {k + 1}/{len(frames)} BVH frame {f + 1}: "
             if args.skip_existing and os.path.exists(path):
-                sys.stderr.write(head + f"{path} exists, skipped\n")
+                say(head + f"{path} exists, skipped")
                 continue
             started = time.perf_counter()
             stats = bake.bake(sequence_number(f, args.step), m)
             rate.tick()
-            sys.stderr.write(head + f"{stats['covered']:,} voxels, {time.perf_counter() - started:.2f} s -> {path}  "
-                             f"{rate.bar()}\n")
-            sys.stderr.flush()
+            say(head + f"{stats['covered']:,} voxels, {time.perf_counter() - started:.2f} s -> {path}"
+                + ("" if bar is not None else f"  {rate.bar()}"))
+            if bar is not None:
+                bar.update(1)
     finally:
+        if bar is not None:
+            bar.close()
         bake.finish()
     written = rate.done
     print(f"{written} of {len(frames)} frames (BVH {frames[0] + 1}-{frames[-1] + 1} step {args.step} of "
@@ -191,17 +207,63 @@ def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument("--hi", type=float, help="segmentation: highest object value")
     p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
     p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
-    p.add_argument("--progress", action="store_true", help="show progress on stderr")
+    p.add_argument("--progress", action="store_true", help="show progress bars on stderr (always on a terminal)")
     p.add_argument("-o", "--output", required=True, help=what)
 
 
-def _progress_bar(step: str, f: float) -> bool:
-    """A pipeline StepProgress on stderr: one line per step."""
-    sys.stderr.write(f"\r{step}: {100 * f:5.1f}%")
-    if f >= 1.0:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
-    return True
+def _tqdm():
+    """tqdm (Debian's python3-tqdm, which scripts/setup installs), or None: the bars are then plain lines."""
+    try:
+        from tqdm import tqdm
+        return tqdm
+    except ImportError:
+        return None
+
+
+class StepBars:
+    """A pipeline StepProgress (``progress(step, fraction) -> bool``) on stderr: one tqdm bar per step
+    (skeletonize, skeleton-tree, autorig, bind), in percent; without tqdm one line per step, rewritten in place."""
+
+    def __init__(self, file=None):
+        self.file = file or sys.stderr
+        self.tqdm = _tqdm()
+        self.step, self.bar = None, None
+        self.finished = None  # the step last seen at 100% (steps may report their end twice)
+
+    def __call__(self, step: str, f: float) -> bool:
+        f = min(max(float(f), 0.0), 1.0)
+        if step == self.finished:
+            return True
+        self.finished = None
+        if step != self.step:
+            self.close()
+            self.step = step
+            if self.tqdm is not None:
+                self.bar = self.tqdm(total=100, desc=step, unit="%", file=self.file, leave=True,
+                                     bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        if self.bar is not None:
+            self.bar.n = round(100 * f, 1)
+            self.bar.refresh()
+        else:
+            self.file.write(f"\r{step}: {100 * f:5.1f}%")
+            self.file.flush()
+        if f >= 1.0:
+            self.close()
+            self.finished = step
+        return True
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        elif self.step is not None:
+            self.file.write("\n")
+            self.file.flush()
+        self.step, self.bar = None, None
+
+
+def _show_progress(args) -> bool:
+    """--progress, or stderr is a terminal."""
+    return bool(getattr(args, "progress", False)) or sys.stderr.isatty()
 
 
 def _at_least_one(text: str) -> int:
@@ -212,8 +274,9 @@ def _at_least_one(text: str) -> int:
 
 
 #: Runs inside Blender for ``bake`` and ``flythrough``: puts the folders found for volrig and the add-on first on
-#: sys.path, enables the add-on and hands over to its headless entry (``volrig_addon.<module>.command_line``: bake,
-#: flythrough), which does the work and exits 0, or 2 with a message for a user error.
+#: sys.path, enables the add-on (``volrig_addon``, else the Blender 4.2+ extension ``bl_ext.<repo>.volrig``) and hands
+#: over to its headless entry (``<add-on>.<module>.command_line``: bake, flythrough), which does the work and exits
+#: 0, or 2 with a message for a user error.
 _BOOTSTRAP = """
 import os, sys
 sys.path[:0] = {paths!r}
@@ -222,10 +285,17 @@ addon_utils.enable("volrig_addon", default_set=False)
 try:
     from volrig_addon import {module}
 except ImportError as e:
-    print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip, "
-          "or pass --addon", file=sys.stderr)
-    sys.stderr.flush()
-    os._exit(2)
+    # Blender 4.2+: the volrig extension (bl_ext.<repository>.volrig), when installed
+    import importlib
+    ext = sorted(m.__name__ for m in addon_utils.modules()
+                 if m.__name__.startswith("bl_ext.") and m.__name__.rsplit(".", 1)[-1] == "volrig")
+    if not ext:
+        print("error: the volrig add-on is not installed in this Blender (" + str(e) + "): install the add-on zip "
+              "or the extension, or pass --addon", file=sys.stderr)
+        sys.stderr.flush()
+        os._exit(2)
+    addon_utils.enable(ext[0], default_set=False)
+    {module} = importlib.import_module(ext[0] + ".{module}")
 {module}.command_line()
 """
 
@@ -453,6 +523,7 @@ def main(argv=None) -> int:
                    help="nearest for label maps")
     p.add_argument("--name", help="file name stem (default: the volume file's)")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
+    p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)
 
     p = sub.add_parser("centerline", help="centerline of a tubular object (--tree: every branch of a branching one) "
