@@ -128,6 +128,13 @@ inline py::tuple volume_tuple(Volume&& v) {
                           py::make_tuple(origin[0], origin[1], origin[2]));
 }
 
+/// Python tuple (array, spacing, origin, direction) with the direction as 9 numbers, row-major (volume.hpp).
+inline py::tuple oriented_volume_tuple(Volume&& v) {
+    const Matrix3 d = v.grid.direction;
+    py::tuple t = volume_tuple(std::move(v));
+    return py::make_tuple(t[0], t[1], t[2], py::make_tuple(d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]));
+}
+
 /// Wraps a Python callable f(fraction) -> bool|None as a Progress (None or True continue, False cancels).
 /// Must be called with the GIL held; the returned Progress acquires the GIL itself when invoked.
 inline Progress progress_of(const py::object& f) {

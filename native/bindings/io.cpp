@@ -19,18 +19,51 @@ ReadOptions options_of(std::int64_t max_bytes) {
 void bind_io(py::module_& m) {
     m.def(
         "read_volume",
-        [](const std::string& path, std::int64_t max_bytes) {
-            const ReadOptions opt = options_of(max_bytes);
+        [](const std::string& path, std::int64_t max_bytes, const std::string& series,
+           const std::array<double, 3>& spacing) {
+            ReadOptions opt = options_of(max_bytes);
+            opt.series = series;
+            opt.spacing = spacing;
+            std::vector<std::string> warnings;
+            opt.warn = [&warnings](const std::string& w) { warnings.push_back(w); };  // kept; told after reading
             Volume v;
             {
                 py::gil_scoped_release release;
                 v = read_volume(path, opt);
             }
-            return volume_tuple(std::move(v));
+            py::tuple t = oriented_volume_tuple(std::move(v));
+            return py::make_tuple(t[0], t[1], t[2], t[3], py::cast(warnings));
         },
-        py::arg("path"), py::arg("max_bytes") = -1,
-        "Reads a .nrrd/.nhdr/.mhd/.mha/.nii/.nii.gz/.hdr/.vdb file: (array [z, y, x], spacing, origin). "
-        "max_bytes < 0 means the default limit.");
+        py::arg("path"), py::arg("max_bytes") = -1, py::arg("series") = "",
+        py::arg("spacing") = std::array<double, 3>{0, 0, 0},
+        "Reads a .nrrd/.nhdr/.mhd/.mha/.nii/.nii.gz/.hdr/.vdb/.tif/.tiff/.dcm file, a DICOMDIR or a folder of DICOM "
+        "or TIFF files: (array [z, y, x], spacing, origin, direction as 9 numbers row-major (LPS), warnings). "
+        "max_bytes < 0 means the default limit; series: a DICOM SeriesInstanceUID (empty: the largest series); "
+        "spacing: TIFF spacing (x, y, z), components <= 0 from the file.");
+
+    m.def(
+        "dicom_series",
+        [](const std::string& path) {
+            std::vector<DicomSeriesInfo> all;
+            {
+                py::gil_scoped_release release;
+                all = dicom_series(path);
+            }
+            py::list out;
+            for (const DicomSeriesInfo& s : all) {
+                py::dict d;
+                d["uid"] = s.uid;
+                d["description"] = s.description;
+                d["modality"] = s.modality;
+                d["dims"] = py::make_tuple(s.dims[0], s.dims[1], s.dims[2]);
+                d["files"] = s.files;
+                out.append(d);
+            }
+            return out;
+        },
+        py::arg("path"),
+        "The DICOM image series under a folder, DICOMDIR or file, the largest first: dicts with uid, description, "
+        "modality, dims (columns, rows, slices) and files.");
 
     m.def(
         "read_raw",
@@ -61,23 +94,28 @@ void bind_io(py::module_& m) {
     m.def(
         "write_nrrd",
         [](const std::string& path, const py::array& array, const std::array<double, 3>& spacing,
-           const std::array<double, 3>& origin, bool gzip) {
-            const VolumeView v = view_of(array, spacing, origin, "write_nrrd");
+           const std::array<double, 3>& origin, bool gzip, const Matrix3& direction) {
+            VolumeView v = view_of(array, spacing, origin, "write_nrrd");
+            v.grid.direction = direction;
             py::gil_scoped_release release;
             write_nrrd(path, v, gzip);
         },
         py::arg("path"), py::arg("array"), py::arg("spacing"), py::arg("origin"), py::arg("gzip") = true,
-        "Writes a C-contiguous [z, y, x] array as NRRD (gzip or raw), atomically.");
+        py::arg("direction") = kIdentity3,
+        "Writes a C-contiguous [z, y, x] array as NRRD (gzip or raw; direction: 9 numbers row-major, LPS), "
+        "atomically.");
 
     m.def(
         "write_metaimage",
         [](const std::string& path, const py::array& array, const std::array<double, 3>& spacing,
-           const std::array<double, 3>& origin, bool compress) {
-            const VolumeView v = view_of(array, spacing, origin, "write_metaimage");
+           const std::array<double, 3>& origin, bool compress, const Matrix3& direction) {
+            VolumeView v = view_of(array, spacing, origin, "write_metaimage");
+            v.grid.direction = direction;
             py::gil_scoped_release release;
             write_metaimage(path, v, compress);
         },
         py::arg("path"), py::arg("array"), py::arg("spacing"), py::arg("origin"), py::arg("compress") = true,
+        py::arg("direction") = kIdentity3,
         "Writes a C-contiguous [z, y, x] array as a single-file MetaImage (.mha, LOCAL data), atomically.");
 }
 

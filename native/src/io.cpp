@@ -1,10 +1,12 @@
 // io.cpp: the volume I/O entry points that are no single format: the size limit, raw voxels, and the dispatcher
-// that picks a reader from the file name. The readers live in io_<format>.cpp, the helpers they share in
+// that picks a reader from the file name (folders and unnamed DICOM files by content). The readers live in io_<format>.cpp, the helpers they share in
 // io_detail.cpp, io_voxels.cpp, io_source.cpp and io_write.cpp (all declared in io_detail.hpp).
 #include <cctype>
 #include <charconv>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string_view>
 
@@ -49,13 +51,49 @@ Volume read_raw(const ByteSource& src, const RawLayout& layout, const ReadOption
     return detail::read_raw_voxels(loc, g, layout.dtype, layout.big_endian);
 }
 
+namespace {
+
+// The first regular file under a folder (recursively) whose name is not a TIFF's: a DICOM folder holds such
+// files (often without an ending), a TIFF stack none.
+bool has_non_tiff_file(const std::string& folder) {
+    std::error_code ec;
+    for (auto it = std::filesystem::recursive_directory_iterator(folder, ec);
+         !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
+        if (!it->is_regular_file(ec)) continue;
+        const std::string low = detail::lower(it->path().filename().string());
+        const bool tiff = low.size() > 4 && (low.compare(low.size() - 4, 4, ".tif") == 0 ||
+                                             (low.size() > 5 && low.compare(low.size() - 5, 5, ".tiff") == 0));
+        if (!tiff && low[0] != '.') return true;
+    }
+    return false;
+}
+
+// True when the file starts with the DICOM Part-10 preamble (128 bytes, then "DICM").
+bool has_dicom_preamble(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    char head[132] = {};
+    return f.read(head, sizeof head) && std::memcmp(head + 128, "DICM", 4) == 0;
+}
+
+// Folders: DICOM when they hold a file that is no TIFF (read_dicom says so when none is DICOM), else TIFF.
+Volume read_folder(const std::string& path, const ReadOptions& opt) {
+    if (has_non_tiff_file(path)) return read_dicom(path, opt);
+    return read_tiff(path, opt);
+}
+
+}  // namespace
+
 Volume read_volume(const std::string& path, const ReadOptions& opt) {
     const std::string low = detail::lower(path);
     auto ends = [&](const char* e) {
         const std::size_t n = std::strlen(e);
         return low.size() >= n && low.compare(low.size() - n, n, e) == 0;
     };
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) return read_folder(path, opt);
     if (ends(".vdb")) return read_vdb(path, "", opt);
+    if (ends(".tif") || ends(".tiff")) return read_tiff(path, opt);
+    if (ends(".dcm") || ends(".dicom") || ends("dicomdir") || has_dicom_preamble(path)) return read_dicom(path, opt);
     enum class Kind { Nrrd, Meta, Nifti } kind;
     if (ends(".nrrd") || ends(".nhdr"))
         kind = Kind::Nrrd;
@@ -65,7 +103,8 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
         kind = Kind::Nifti;
     else
         throw FileFormatError(path + ": unknown volume format (known endings: .nrrd .nhdr .mhd .mha .nii .nii.gz "
-                                     ".hdr .vdb; raw files need read_raw)");
+                                     ".hdr .vdb .tif .tiff .dcm, DICOMDIR, folders of DICOM or TIFF files; raw "
+                                     "files need read_raw)");
     auto src = open_file(path);
     switch (kind) {
         case Kind::Nrrd: return read_nrrd(*src, opt);

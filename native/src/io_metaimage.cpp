@@ -5,7 +5,8 @@
 // (BinaryData = False) voxels in either byte order; NDims 1..3 (or more when the extra sizes are 1).
 // Element sizes follow MetaIO's own table: MET_LONG/MET_ULONG are 4 bytes (int32/uint32), MET_LONG_LONG/
 // MET_ULONG_LONG 8. Spacing = ElementSpacing (else ElementSize), origin = Offset (or Origin/Position);
-// TransformMatrix (orientation) is not kept. Refused: other ObjectTypes, ElementNumberOfChannels > 1, array
+// orientation = TransformMatrix (ITK's layout: the direction of axis a is numbers 3a..3a+2, in LPS), else
+// AnatomicalOrientation (ITK's letters: where each axis comes from, RAI = identity); the writer writes both. Refused: other ObjectTypes, ElementNumberOfChannels > 1, array
 // element types, several data files (LIST or patterns).
 #include <cmath>
 #include <cstring>
@@ -194,6 +195,61 @@ void met_spacing_and_origin(const std::string& name, const Header& h, std::size_
         met_vector(name, *fp, "Position", n, false, g.origin);
 }
 
+// The LPS direction an axis points to when it comes from anatomical letter c (R->L is +x): false when unknown.
+bool from_letter(char c, std::array<double, 3>& dir) {
+    static const char* const letters = "RLAPIS";  // from R: +x, from L: -x, from A: +y, ...
+    const char* at = std::strchr(letters, std::toupper(static_cast<unsigned char>(c)));
+    if (!at || !c) return false;
+    const auto i = static_cast<std::size_t>(at - letters);
+    dir = {0, 0, 0};
+    dir[i / 2] = i % 2 == 0 ? 1 : -1;
+    return true;
+}
+
+// AnatomicalOrientation ("RAI") as a direction matrix; false when the value is not three letters of distinct axes.
+bool anatomical_direction(std::string_view value, Matrix3& d) {
+    value = detail::trim(value);
+    if (value.size() != 3) return false;
+    d = Matrix3{};
+    std::array<double, 3> dir{};
+    for (std::size_t a = 0; a < 3; ++a) {
+        if (!from_letter(value[a], dir)) return false;
+        for (std::size_t r = 0; r < 3; ++r) d[3 * r + a] = dir[r];
+    }
+    return normalize_direction(d).empty();
+}
+
+// The letters of the axes' nearest anatomical directions (ITK's convention): "RAI" for the identity.
+std::string anatomical_letters(const Matrix3& d) {
+    std::string out;
+    for (std::size_t a = 0; a < 3; ++a) {
+        std::size_t best = 0;
+        for (std::size_t r = 1; r < 3; ++r)
+            if (std::fabs(d[3 * r + a]) > std::fabs(d[3 * best + a])) best = r;
+        out += "RLAPIS"[2 * best + (d[3 * best + a] < 0 ? 1 : 0)];
+    }
+    return out;
+}
+
+// The direction matrix from TransformMatrix (column a = numbers 3a..3a+2, as ITK writes it), else from
+// AnatomicalOrientation; identity for 2-D images and when neither is given.
+void met_direction(const std::string& name, const Header& h, std::size_t n, Grid& g) {
+    if (n != 3) return;
+    if (const Field* f = h.fields.get("transformmatrix")) {
+        const auto words = detail::split_words(f->value);
+        if (words.size() != 9) bad(name, *f, "TransformMatrix", "must give 9 numbers (NDims 3)");
+        Matrix3 d{};
+        for (std::size_t i = 0; i < 9; ++i)
+            if (!detail::parse_double(words[i], d[3 * (i % 3) + i / 3])) bad(name, *f, "TransformMatrix", "must be numbers");
+        const std::string problem = normalize_direction(d);
+        if (!problem.empty()) bad(name, *f, "TransformMatrix", problem);
+        g.direction = d;
+    } else if (const Field* fa = h.fields.get("anatomicalorientation")) {
+        Matrix3 d{};
+        if (anatomical_direction(fa->value, d)) g.direction = d;
+    }
+}
+
 // How the voxels are stored.
 struct Encoding {
     bool big_endian = false;
@@ -264,6 +320,7 @@ Volume read_metaimage(const ByteSource& src, const ReadOptions& opt) {
     g.dims = met_dims(name, h, n);
     const DType dtype = met_dtype(name, h);
     met_spacing_and_origin(name, h, n, g);
+    met_direction(name, h, n, g);
     detail::check_volume(name, g, dtype, opt.max_bytes);
     const Encoding e = met_encoding(name, h);
     std::unique_ptr<ByteSource> detached;
@@ -282,9 +339,13 @@ void write_metaimage(const std::string& path, const VolumeView& v, bool compress
     head += std::string("CompressedData = ") + (compress ? "True" : "False") + "\n";
     std::string size_line = "CompressedDataSize = ";
     const std::size_t size_field = 20;  // room for any uint64, padded with spaces and filled in afterwards
-    std::string tail = "TransformMatrix = 1 0 0 0 1 0 0 0 1\n";
+    std::string tail = "TransformMatrix =";
+    for (std::size_t a = 0; a < 3; ++a)
+        for (std::size_t r = 0; r < 3; ++r) tail += " " + f(g.direction[3 * r + a] + 0.0);  // + 0.0: no -0
+    tail += "\n";
     tail += "Offset = " + f(g.origin[0]) + " " + f(g.origin[1]) + " " + f(g.origin[2]) + "\n";
     tail += "CenterOfRotation = 0 0 0\n";
+    tail += "AnatomicalOrientation = " + anatomical_letters(g.direction) + "\n";
     tail += "ElementSpacing = " + f(g.spacing[0]) + " " + f(g.spacing[1]) + " " + f(g.spacing[2]) + "\n";
     tail += "DimSize = " + std::to_string(g.dims[0]) + " " + std::to_string(g.dims[1]) + " " +
             std::to_string(g.dims[2]) + "\n";

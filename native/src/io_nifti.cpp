@@ -2,8 +2,10 @@
 //
 // The 348-byte header's sizeof_hdr gives the byte order. dim[0] 1..7 with dims 4..7 equal to 1 (a single 3-D
 // volume); datatypes uint8/int8/int16/uint16/int32/uint32/int64/uint64/float32/float64 with a matching bitpix.
-// Spacing = |pixdim[1..3]|; origin = srow_x/y/z[3] when sform_code > 0, else qoffset_x/y/z (the rotation part of
-// either transform is not kept). scl_slope/scl_inter are applied as io.hpp says. A .nii.gz is one gzip stream:
+// Spacing = |pixdim[1..3]|; orientation from the sform (sform_code > 0: origin srow_x/y/z[3], directions the
+// unit columns of its 3x3 part), else the qform (qform_code > 0: the quaternion with qfac = pixdim[0], origin
+// qoffset_x/y/z), both converted from NIfTI's RAS to LPS (x and y negated); with neither code, the qoffsets as
+// given and no rotation (NIfTI's "method 1"). scl_slope/scl_inter are applied as io.hpp says. A .nii.gz is one gzip stream:
 // the header is inflated first, then the voxels straight into the output buffer.
 // Refused with a clear message: NIfTI-2, Analyze 7.5 (no magic), 4-D and higher, complex/RGB/binary/float128.
 #include <cfloat>
@@ -207,7 +209,47 @@ DType nifti_dtype(const std::string& name, const HeaderFields& f) {
     return dtype;
 }
 
-// Spacing = |pixdim[1..3]| (1 for unused axes); origin from the sform (sform_code > 0), else the qform offsets.
+// The 3x3 part of the sform (rows srow_x, srow_y, srow_z).
+Matrix3 sform_matrix(const HeaderFields& f) {
+    Matrix3 m{};
+    for (std::size_t r = 0; r < 3; ++r)
+        for (std::size_t c = 0; c < 3; ++c) m[3 * r + c] = f.f32(280 + 16 * r + 4 * c);
+    return m;
+}
+
+// The qform's rotation (quatern_b/c/d, a = sqrt(1 - b^2 - c^2 - d^2)) with the third column times qfac.
+Matrix3 qform_matrix(const HeaderFields& f) {
+    double b = f.f32(256), c = f.f32(260), d = f.f32(264);
+    double a = 1 - (b * b + c * c + d * d);
+    if (a < 1e-7) {  // 180-degree rotation: renormalise (b, c, d) as nifti1_io does
+        const double n = std::sqrt(b * b + c * c + d * d);
+        if (n > 0) b /= n, c /= n, d /= n;
+        a = 0;
+    } else {
+        a = std::sqrt(a);
+    }
+    const double qfac = f.f32(76) < 0 ? -1 : 1;
+    return Matrix3{a * a + b * b - c * c - d * d, 2 * (b * c - a * d),         qfac * 2 * (b * d + a * c),
+                   2 * (b * c + a * d),         a * a + c * c - b * b - d * d, qfac * 2 * (c * d - a * b),
+                   2 * (b * d - a * c),         2 * (c * d + a * b),         qfac * (a * a + d * d - c * c - b * b)};
+}
+
+// The sform (sform_code > 0) or qform (qform_code > 0) rotation into g.direction, converted from RAS to LPS with
+// the origin.
+void nifti_direction(const std::string& name, const HeaderFields& f, Grid& g) {
+    const bool sform = f.i16(254) > 0;
+    if (!sform && f.i16(252) <= 0) return;
+    Matrix3 d = sform ? sform_matrix(f) : qform_matrix(f);
+    const std::string problem = normalize_direction(d);
+    if (!problem.empty()) fail(name, std::string(sform ? "sform" : "qform") + ": " + problem);
+    for (std::size_t c = 0; c < 3; ++c) d[c] = -d[c], d[3 + c] = -d[3 + c];
+    g.direction = d;
+    g.origin[0] = -g.origin[0];
+    g.origin[1] = -g.origin[1];
+}
+
+// Spacing = |pixdim[1..3]| (1 for unused axes); origin from the sform (sform_code > 0), else the qform offsets;
+// the direction as nifti_direction says.
 void nifti_geometry(const std::string& name, const HeaderFields& f, int ndim, Grid& g) {
     for (int a = 0; a < 3; ++a) {
         const double p = std::fabs(static_cast<double>(f.f32(76 + 4 * static_cast<std::size_t>(a + 1))));
@@ -225,6 +267,7 @@ void nifti_geometry(const std::string& name, const HeaderFields& f, int ndim, Gr
         if (!std::isfinite(g.origin[a]))
             fail(name, std::string(sform_code > 0 ? "srow_" : "qoffset_") + "xyz"[a] + " is " +
                            detail::format_double(g.origin[a]) + ": the origin must be finite");
+    nifti_direction(name, f, g);
 }
 
 struct Scaling {

@@ -2,8 +2,9 @@
 //
 // Reads NRRD0001..NRRD0005 with attached (.nrrd) or single detached (.nhdr + data file) data in raw, gzip or
 // ascii encoding, either endianness, dimension 1..3 (or more when the extra axes have size 1). Spacing comes from
-// "space directions" (vector norms) or "spacings"; origin from "space origin" (else "axis mins"). Orientation
-// (direction cosines) is not kept. Refused with a clear message: bzip2/hex encodings, type "block", several data
+// "space directions" (vector norms) or "spacings"; origin from "space origin" (else "axis mins"). Orientation: the
+// unit space directions become the grid's direction matrix, converted with the origin from the file's "space"
+// (RAS, LAS, LPS, scanner-xyz, ...) to LPS; the writer writes LPS. Refused with a clear message: bzip2/hex encodings, type "block", several data
 // files (LIST or patterns), multi-component axes, 4-D data.
 #include <algorithm>
 #include <cctype>
@@ -196,6 +197,7 @@ struct Axis {
     double spacing = 1.0;
     double min = 0.0;
     std::string kind = "domain";
+    std::vector<double> direction;  // the space direction vector (empty for 'none')
 };
 
 // The axes "dimension" and "sizes" declare.
@@ -241,6 +243,7 @@ void nrrd_spacings(const std::string& name, const Header& h, std::vector<Axis>& 
             for (double c : v) n2 += c * c;
             axes[a].has_spacing = true;
             axes[a].spacing = std::sqrt(n2);
+            axes[a].direction = v;
         }
     } else if (const Field* fs = h.fields.get("spacings")) {
         const auto words = per_axis(name, *fs, "spacings", "one number", axes.size());
@@ -293,6 +296,43 @@ std::vector<Axis> spatial_axes(const std::string& name, const std::vector<Axis>&
     return kept;
 }
 
+// The signs that take the file's "space" to LPS: RAS and LAS flip axes; LPS, scanner-xyz, 3D-*-handed and no
+// "space" keep them.
+std::array<double, 3> lps_signs(const std::string& name, const Header& h) {
+    const Field* f = h.fields.get("space");
+    if (!f) return {1, 1, 1};
+    std::string s;
+    for (char c : detail::lower(f->value))
+        if (c != '-' && c != ' ') s += c;
+    if (s == "rightanteriorsuperior" || s == "ras") return {-1, -1, 1};
+    if (s == "leftanteriorsuperior" || s == "las") return {1, -1, 1};
+    if (s == "leftposteriorsuperior" || s == "lps" || s == "scannerxyz" || s == "3drighthanded" ||
+        s == "3dlefthanded")
+        return {1, 1, 1};
+    bad(name, *f, "space", "is not supported (3-D spaces: RAS, LAS, LPS, scanner-xyz, 3D-right-handed)");
+}
+
+// The unit space directions of the kept axes as the columns of g.direction (in LPS), and the origin in LPS. Two
+// given directions get the third as their cross product; with fewer, the grid stays axis-aligned.
+void nrrd_direction(const std::string& name, const Header& h, const std::vector<Axis>& kept, Grid& g) {
+    const std::array<double, 3> sign = lps_signs(name, h);
+    for (int r = 0; r < 3; ++r) g.origin[r] *= sign[r];
+    std::size_t given = 0;
+    while (given < kept.size() && given < 3 && kept[given].direction.size() == 3) ++given;
+    if (given < 2 || given < std::min<std::size_t>(kept.size(), 3)) return;
+    Matrix3 d{};
+    for (std::size_t a = 0; a < given; ++a)
+        for (int r = 0; r < 3; ++r) d[3 * r + a] = sign[r] * kept[a].direction[r] / kept[a].spacing;
+    if (given == 2) {
+        d[2] = d[3] * d[7] - d[6] * d[4];
+        d[5] = d[6] * d[1] - d[0] * d[7];
+        d[8] = d[0] * d[4] - d[3] * d[1];
+    }
+    const std::string problem = normalize_direction(d);
+    if (!problem.empty()) bad(name, *h.fields.get("spacedirections"), "space directions", problem);
+    g.direction = d;
+}
+
 // The grid of the (at most three) spatial axes; the origin from "space origin", else "axis mins".
 Grid nrrd_grid(const std::string& name, const Header& h, const std::vector<Axis>& kept, bool have_mins) {
     Grid g;
@@ -320,6 +360,7 @@ Grid nrrd_grid(const std::string& name, const Header& h, const std::vector<Axis>
                 if (!std::isfinite(v[a])) bad(name, *f, "space origin", "must be finite");
         }
     }
+    nrrd_direction(name, h, kept, g);
     return g;
 }
 
@@ -427,12 +468,18 @@ void write_nrrd(const std::string& path, const VolumeView& v, bool gzip) {
     std::string h = "NRRD0004\n# Complete NRRD file format specification at:\n"
                     "# http://teem.sourceforge.net/nrrd/format.html\n# written by volrig\n";
     h += std::string("type: ") + nrrd_type_name(v.dtype) + "\n";
-    h += "dimension: 3\nspace dimension: 3\n";
+    h += "dimension: 3\nspace: left-posterior-superior\n";
     h += "sizes: " + std::to_string(g.dims[0]) + " " + std::to_string(g.dims[1]) + " " + std::to_string(g.dims[2]) +
          "\n";
     const auto f = detail::format_double;
-    h += "space directions: (" + f(g.spacing[0]) + ",0,0) (0," + f(g.spacing[1]) + ",0) (0,0," + f(g.spacing[2]) +
-         ")\n";
+    h += "space directions:";
+    for (int a = 0; a < 3; ++a) {
+        const Matrix3& d = g.direction;
+        // + 0.0 writes -0 as 0
+        h += " (" + f(d[a] * g.spacing[a] + 0.0) + "," + f(d[3 + a] * g.spacing[a] + 0.0) + "," +
+             f(d[6 + a] * g.spacing[a] + 0.0) + ")";
+    }
+    h += "\n";
     h += "kinds: domain domain domain\n";
     if (dtype_size(v.dtype) > 1) h += "endian: little\n";
     h += std::string("encoding: ") + (gzip ? "gzip" : "raw") + "\n";

@@ -45,6 +45,56 @@ DType dtype_from_name(const std::string& n) {
     throw Error("unsupported element type '" + n + "'");
 }
 
+std::array<double, 3> world_position(const Grid& g, const std::array<double, 3>& xyz) {
+    std::array<double, 3> out = g.origin;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) out[r] += g.direction[3 * r + c] * g.spacing[c] * xyz[c];
+    return out;
+}
+
+namespace {
+
+double column_dot(const Matrix3& d, int a, int b) {
+    return d[a] * d[b] + d[3 + a] * d[3 + b] + d[6 + a] * d[6 + b];
+}
+
+// Direction errors, or "" when the columns are finite, of unit length and orthogonal within `tol`.
+std::string direction_problem(const Matrix3& d, double tol) {
+    for (double v : d)
+        if (!std::isfinite(v)) return "direction matrix must be finite";
+    for (int a = 0; a < 3; ++a)
+        if (std::fabs(std::sqrt(column_dot(d, a, a)) - 1) > tol)
+            return std::string("direction of axis ") + "xyz"[a] + " is not a unit vector";
+    for (int a = 0; a < 3; ++a)
+        for (int b = a + 1; b < 3; ++b)
+            if (std::fabs(column_dot(d, a, b)) > tol)
+                return std::string("directions of axes ") + "xyz"[a] + " and " + "xyz"[b] +
+                       " are not perpendicular (sheared grids are not supported)";
+    return {};
+}
+
+}  // namespace
+
+std::string normalize_direction(Matrix3& d) {
+    // Unit columns first (file formats store them with a few digits), then Gram-Schmidt.
+    for (int a = 0; a < 3; ++a) {
+        const double n = std::sqrt(column_dot(d, a, a));
+        if (!(n > 0) || !std::isfinite(n)) return std::string("direction of axis ") + "xyz"[a] + " is zero or not finite";
+        for (int r = 0; r < 3; ++r) d[3 * r + a] /= n;
+    }
+    std::string problem = direction_problem(d, 1e-3);
+    if (!problem.empty()) return problem;
+    for (int a = 1; a < 3; ++a) {
+        for (int b = 0; b < a; ++b) {
+            const double p = column_dot(d, a, b);
+            for (int r = 0; r < 3; ++r) d[3 * r + a] -= p * d[3 * r + b];
+        }
+        const double n = std::sqrt(column_dot(d, a, a));
+        for (int r = 0; r < 3; ++r) d[3 * r + a] /= n;
+    }
+    return {};
+}
+
 void check_grid(const Grid& g, std::size_t element_size, std::uint64_t max_bytes, const std::string& what) {
     for (int a = 0; a < 3; ++a) {
         if (g.dims[a] <= 0) {
@@ -59,6 +109,8 @@ void check_grid(const Grid& g, std::size_t element_size, std::uint64_t max_bytes
             throw Error(s.str());
         }
     }
+    const std::string problem = direction_problem(g.direction, 1e-3);
+    if (!problem.empty()) throw Error(what + ": " + problem);
     // Overflow-safe product check.
     long double bytes = static_cast<long double>(element_size);
     for (int a = 0; a < 3; ++a) bytes *= static_cast<long double>(g.dims[a]);

@@ -12,7 +12,9 @@ from .mesh import read_mesh, read_tgf, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
-from .volume import Volume, load, write_vdb
+from .volume import Volume, dicom_series, load, write_vdb
+
+read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
 from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
@@ -25,7 +27,7 @@ from . import pipeline
 
 __version__ = "0.1.0"
 
-__all__ = ["Volume", "load", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
+__all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",

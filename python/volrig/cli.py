@@ -15,7 +15,8 @@ from .rig import KINDS
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb, or raw with --dims)")
+    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb .tif .tiff .dcm, a DICOMDIR, "
+                                "a folder of DICOM or TIFF files, or raw with --dims)")
     p.add_argument("--dims", type=int, nargs=3, metavar=("X", "Y", "Z"), help="raw files: size in voxels")
     p.add_argument("--dtype", help="raw files: element type (uint8, int16, float32, ...)")
     p.add_argument("--spacing", type=float, nargs=3, default=(1.0, 1.0, 1.0), metavar=("SX", "SY", "SZ"),
@@ -23,12 +24,16 @@ def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--big-endian", action="store_true", help="raw files: big-endian samples")
     p.add_argument("--offset", type=int, default=0, help="raw files: header bytes to skip")
     p.add_argument("--grid", default="", help="VDB files: grid name (default: density, else the first)")
+    p.add_argument("--series", default="", help="DICOM: SeriesInstanceUID (default: the series with most slices)")
+    p.add_argument("--tiff-spacing", type=float, nargs=3, metavar=("SX", "SY", "SZ"),
+                   help="TIFF stacks: voxel size; 0 takes it from the file (x, y from its resolution, z = x)")
 
 
 def _hints(args) -> dict:
     """The load options as ``pipeline.load_source``'s keywords."""
     return dict(dims=args.dims, dtype=args.dtype, spacing=args.spacing, big_endian=args.big_endian,
-                offset=args.offset, grid=args.grid)
+                offset=args.offset, grid=args.grid, series=getattr(args, "series", ""),
+                tiff_spacing=getattr(args, "tiff_spacing", None))
 
 
 def _load(args):
@@ -36,7 +41,30 @@ def _load(args):
     return load_source(args.file, **_hints(args))
 
 
+def _dicom_listing(path: str):
+    """The DICOM series under ``path`` (a folder, DICOMDIR or DICOM file), or None for other files."""
+    from .volume import dicom_series, format_of
+    try:
+        kind = format_of(path)
+    except VolrigError:
+        return None
+    if kind not in ("folder", "dicom"):
+        return None
+    try:
+        return dicom_series(path)
+    except VolrigError:
+        return None  # a folder of TIFF files
+
+
+def _print_series(series) -> None:
+    print(f"  {len(series)} DICOM series (the largest is read unless --series names another):")
+    for s in series:
+        x, y, z = s["dims"]
+        print(f"    {s['uid']}  {s['modality'] or '?'}  {s['description']!r}  {z} slices of {x} x {y}")
+
+
 def cmd_info(args) -> int:
+    series = _dicom_listing(args.file) if args.dims is None else None
     v = _load(args)
     a = v.array
     finite = a[np.isfinite(a)] if a.dtype.kind == "f" else a
@@ -44,8 +72,11 @@ def cmd_info(args) -> int:
         "file": args.file, "dims_xyz": list(v.dims), "dtype": str(a.dtype), "spacing": list(v.spacing),
         "origin": list(v.origin), "min": float(finite.min()) if finite.size else None,
         "max": float(finite.max()) if finite.size else None, "nonzero": int(np.count_nonzero(a)),
-        "voxels": int(a.size),
+        "voxels": int(a.size), "direction": np.asarray(v.direction).tolist(),
     }
+    if series:
+        info["series"] = [{k: s[k] for k in ("uid", "description", "modality", "dims")} | {"slices": len(s["files"])}
+                          for s in series]
     if a.dtype.kind in "iu" and a.size and int(a.max()) - int(a.min()) <= 255:
         values, counts = np.unique(a, return_counts=True)
         info["values"] = {int(k): int(c) for k, c in zip(values, counts)}
@@ -55,8 +86,12 @@ def cmd_info(args) -> int:
         x, y, z = v.dims
         print(f"{args.file}\n  {x} x {y} x {z} {a.dtype}, spacing {v.spacing}, origin {v.origin}\n"
               f"  values {info['min']} .. {info['max']}, {info['nonzero']:,} non-zero of {a.size:,} voxels")
+        if not v.axis_aligned:
+            print("  direction (LPS, columns x y z): " + np.array2string(np.asarray(v.direction), precision=4))
         if "values" in info and len(info["values"]) <= 40:
             print("  labels: " + ", ".join(f"{k}: {c:,}" for k, c in info["values"].items()))
+        if series:
+            _print_series(series)
     return 0
 
 

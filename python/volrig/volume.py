@@ -1,12 +1,19 @@
 """The sampled volume and file I/O: ``Volume``, ``load``.
 
 A ``Volume`` is a numpy array indexed ``[z, y, x]`` (x fastest, as MetaImage/NRRD/NIfTI store voxels) with the
-grid geometry: ``spacing`` (x, y, z) in world units per voxel (mm for medical data) and ``origin`` (x, y, z), the
-world position of voxel (0, 0, 0). World position of voxel (x, y, z) = origin + spacing * (x, y, z).
+grid geometry: ``spacing`` (x, y, z) in world units per voxel (mm for medical data), ``origin`` (x, y, z), the
+world position of voxel (0, 0, 0), and ``direction`` (3, 3), whose columns are the patient (LPS) directions of
+the voxel axes x, y, z (identity by default).
+
+Two frames (docs/DESIGN.md, "Orientation"): the pipeline (skeleton, rig, frames) works in the *grid frame*, where
+voxel (x, y, z) sits at origin + spacing * (x, y, z); the patient (LPS) position is
+origin + direction @ (spacing * (x, y, z)). ``grid_to_world()`` is the 4x4 matrix from the first to the second,
+applied once where results are placed (the add-on's Volume object), so every result agrees with the volume.
 """
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from typing import Optional, Sequence, Tuple
 
@@ -23,6 +30,8 @@ FORMATS = {
     ".nrrd": "nrrd", ".nhdr": "nrrd",
     ".mha": "metaimage", ".mhd": "metaimage",
     ".vdb": "vdb",
+    ".tif": "tiff", ".tiff": "tiff",
+    ".dcm": "dicom", "dicomdir": "dicom",
     ".raw": "raw", ".bin": "raw", ".img": "raw",
 }
 
@@ -34,13 +43,34 @@ def _vec3(v, what: str) -> Vec3:
     return t  # type: ignore[return-value]
 
 
+def _direction(d) -> np.ndarray:
+    """A (3, 3) float64 direction matrix with orthonormal columns (None: identity)."""
+    if d is None:
+        return np.eye(3)
+    m = np.array(d, dtype=np.float64).reshape(3, 3) if np.size(d) == 9 else None
+    if m is None or not np.all(np.isfinite(m)) or not np.allclose(m.T @ m, np.eye(3), atol=1e-3):
+        raise VolrigError(f"direction must be a 3x3 matrix with orthonormal columns, got {d!r}")
+    return m
+
+
 def format_of(path: str) -> str:
-    """The reader/writer name for ``path`` from its ending (see ``FORMATS``); raises ValueError when unknown."""
-    low = os.fspath(path).lower()
+    """The reader/writer name for ``path`` from its ending (see ``FORMATS``), "folder" for a folder (of DICOM or
+    TIFF files), "dicom" for a file with the DICOM preamble; raises VolrigError when unknown."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        return "folder"
+    low = path.lower()
     for ending in sorted(FORMATS, key=len, reverse=True):
         if low.endswith(ending):
             return FORMATS[ending]
-    raise VolrigError(f"{path}: unknown volume format (known endings: {', '.join(sorted(FORMATS))})")
+    try:
+        with open(path, "rb") as f:
+            if f.read(132)[128:] == b"DICM":
+                return "dicom"
+    except OSError:
+        pass
+    raise VolrigError(f"{path}: unknown volume format (known endings: {', '.join(sorted(FORMATS))}; "
+                      "folders of DICOM or TIFF files)")
 
 
 @dataclass
@@ -51,12 +81,14 @@ class Volume:
     spacing: voxel size (x, y, z) in world units (mm for medical scans).
     origin:  world position (x, y, z) of voxel (0, 0, 0).
     path:    the file it was read from, if any.
+    direction: (3, 3) matrix whose columns are the LPS directions of the voxel axes (None: identity).
     """
 
     array: np.ndarray
     spacing: Vec3 = (1.0, 1.0, 1.0)
     origin: Vec3 = (0.0, 0.0, 0.0)
     path: Optional[str] = field(default=None, compare=False)
+    direction: Optional[np.ndarray] = field(default=None, compare=False)
 
     def __post_init__(self):
         self.array = np.asarray(self.array)
@@ -66,6 +98,31 @@ class Volume:
         if min(self.spacing) <= 0:
             raise VolrigError(f"spacing must be positive, got {self.spacing}")
         self.origin = _vec3(self.origin, "origin")
+        self.direction = _direction(self.direction)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """True when the direction is the identity (the grid frame is the patient frame)."""
+        return bool(np.array_equal(self.direction, np.eye(3)))
+
+    def index_to_world(self) -> np.ndarray:
+        """4x4 matrix taking voxel indices (x, y, z, 1) to patient (LPS) positions:
+        origin + direction @ (spacing * index)."""
+        m = np.eye(4)
+        m[:3, :3] = self.direction * np.asarray(self.spacing)  # scales the columns
+        m[:3, 3] = self.origin
+        return m
+
+    def index_to_grid(self) -> np.ndarray:
+        """4x4 matrix taking voxel indices (x, y, z, 1) to the grid frame: origin + spacing * index."""
+        m = np.diag([*self.spacing, 1.0])
+        m[:3, 3] = self.origin
+        return m
+
+    def grid_to_world(self) -> np.ndarray:
+        """4x4 matrix taking grid-frame positions (where skeletons, rigs and frames live) to patient (LPS)
+        positions; the identity for an axis-aligned volume. It turns about the origin."""
+        return self.index_to_world() @ np.linalg.inv(self.index_to_grid())
 
     @property
     def dims(self) -> Tuple[int, int, int]:
@@ -79,15 +136,21 @@ class Volume:
         return self.array.shape  # type: ignore[return-value]
 
     def world(self, ijk) -> np.ndarray:
-        """World positions (N, 3) xyz of voxel indices ``ijk`` (N, 3) given as [z, y, x]."""
+        """Grid-frame positions (N, 3) xyz of voxel indices ``ijk`` (N, 3) given as [z, y, x] (the patient
+        positions when the volume is axis-aligned; else see ``patient``)."""
         ijk = np.asarray(ijk, dtype=np.float64)
         return ijk[..., ::-1] * np.asarray(self.spacing) + np.asarray(self.origin)
 
+    def patient(self, ijk) -> np.ndarray:
+        """Patient (LPS) positions (N, 3) xyz of voxel indices ``ijk`` (N, 3) given as [z, y, x]."""
+        ijk = np.asarray(ijk, dtype=np.float64)
+        return (ijk[..., ::-1] * np.asarray(self.spacing)) @ self.direction.T + np.asarray(self.origin)
+
     def like(self, array: np.ndarray) -> "Volume":
-        """A Volume with this one's geometry holding ``array`` (same shape)."""
+        """A Volume with this one's geometry (direction too) holding ``array`` (same shape)."""
         if array.shape != self.array.shape:
             raise VolrigError(f"shape {array.shape} does not match the volume's {self.array.shape}")
-        return Volume(array, self.spacing, self.origin)
+        return Volume(array, self.spacing, self.origin, direction=self.direction)
 
     def on_grid(self, origin, dims) -> "Volume":
         """The samples placed on another grid of the same spacing: ``origin`` (x, y, z) and ``dims`` (x, y, z)
@@ -116,19 +179,21 @@ class Volume:
 
     def save(self, path: str, *, compress: bool = True, half: bool = False, grid: str = "density") -> None:
         """Write the volume to ``path``: ``.nrrd`` (gzip when ``compress``), ``.mha`` (zlib when ``compress``)
-        or ``.vdb`` (one float grid named ``grid``; half floats when ``half``). Written to a temporary file and
+        or ``.vdb`` (one float grid named ``grid``; half floats when ``half``; VDB keeps the grid frame, not the
+        direction). NRRD and MetaImage keep the direction. Written to a temporary file and
         renamed, so a failed write never leaves a partial file."""
         path = os.fspath(path)
         fmt = format_of(path)
         arr = np.ascontiguousarray(self.array)
         if arr.dtype == np.bool_:
             arr = arr.view(np.uint8)
+        d = tuple(float(x) for x in self.direction.ravel())
         if fmt == "nrrd":
-            _volrig.write_nrrd(path, arr, self.spacing, self.origin, compress)
+            _volrig.write_nrrd(path, arr, self.spacing, self.origin, compress, d)
         elif fmt == "metaimage":
             if path.lower().endswith(".mhd"):
                 raise VolrigError(f"{path}: write MetaImage as a single .mha file")
-            _volrig.write_metaimage(path, arr, self.spacing, self.origin, compress)
+            _volrig.write_metaimage(path, arr, self.spacing, self.origin, compress, d)
         elif fmt == "vdb":
             _volrig.write_vdb(path, [(grid, arr)], self.spacing, self.origin, half)
         else:
@@ -136,21 +201,28 @@ class Volume:
 
     def __repr__(self) -> str:
         x, y, z = self.dims
+        turned = "" if self.axis_aligned else f", direction={self.direction.round(4).tolist()}"
         return (f"Volume({x} x {y} x {z} {self.array.dtype}, spacing={self.spacing}, origin={self.origin}"
-                + (f", path={self.path!r})" if self.path else ")"))
+                + turned + (f", path={self.path!r})" if self.path else ")"))
 
 
-def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=(1.0, 1.0, 1.0),
+def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=None,
          origin=(0.0, 0.0, 0.0), byte_order: str = "little", offset: int = 0, grid: str = "",
-         max_bytes: Optional[int] = None) -> Volume:
-    """Read a volume file.
+         max_bytes: Optional[int] = None, series: str = "") -> Volume:
+    """Read a volume file or folder.
 
     The format comes from the name: NRRD (``.nrrd``, ``.nhdr``), MetaImage (``.mha``, ``.mhd``), NIfTI-1
-    (``.nii``, ``.nii.gz``, ``.hdr``), OpenVDB (``.vdb``) or raw voxels (``.raw``, ``.bin``, ``.img``).
+    (``.nii``, ``.nii.gz``, ``.hdr``), OpenVDB (``.vdb``), TIFF stacks (``.tif``, ``.tiff``: every page a slice),
+    DICOM (``.dcm``, a ``DICOMDIR``, any file with the DICOM preamble) or raw voxels (``.raw``, ``.bin``,
+    ``.img``); a folder is read as one DICOM series, or as a TIFF stack (files in natural order) when it holds
+    only TIFF files. NRRD, MetaImage, NIfTI and DICOM keep the orientation (``Volume.direction``, LPS).
 
     Raw files need the hints: ``dims`` (x, y, z) in voxels, ``dtype`` (numpy name or type), ``spacing`` and
     ``origin`` (x, y, z, world units), ``byte_order`` ("little" or "big"), ``offset`` (bytes to skip).
     VDB files: ``grid`` names the grid to read (default "density", else the first scalar grid).
+    DICOM: ``series`` picks a SeriesInstanceUID (default: the series with most slices; ``dicom_series`` lists
+    them). Slice spacing that jitters is averaged with a ``UserWarning`` saying so.
+    TIFF: ``spacing`` (x, y, z), a component 0 or None taken from the file (x, y from its resolution, z = x).
     ``max_bytes`` caps the decoded size (default 16 GiB or $VOLRIG_MAX_BYTES).
 
     Errors: FileNotFoundError when the file is missing; ``volrig.FileFormatError`` (a ValueError) naming the
@@ -165,13 +237,25 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
         if byte_order not in ("little", "big"):
             raise VolrigError(f"byte_order must be 'little' or 'big', got {byte_order!r}")
         arr, sp, org = _volrig.read_raw(path, tuple(int(d) for d in dims), np.dtype(dtype).name,
-                                        _vec3(spacing, "spacing"), _vec3(origin, "origin"),
+                                        _vec3(1.0 if spacing is None else spacing, "spacing"),
+                                        _vec3(origin, "origin"),
                                         byte_order == "big", int(offset), limit)
     elif fmt == "vdb":
         arr, sp, org = _volrig.read_vdb(path, grid, limit)
     else:
-        arr, sp, org = _volrig.read_volume(path, limit)
+        given = (0.0, 0.0, 0.0) if spacing is None else tuple(
+            0.0 if x is None else float(x) for x in (spacing if np.ndim(spacing) else (spacing,) * 3))
+        arr, sp, org, d, said = _volrig.read_volume(path, limit, str(series), given)
+        for w in said:
+            warnings.warn(w, stacklevel=2)
+        return Volume(arr, sp, org, path=path, direction=np.asarray(d).reshape(3, 3))
     return Volume(arr, sp, org, path=path)
+
+
+def dicom_series(path: str) -> list:
+    """The DICOM image series under a folder, DICOMDIR or file, the largest first: dicts with ``uid``,
+    ``description``, ``modality``, ``dims`` (columns, rows, slices) and ``files``."""
+    return _volrig.dicom_series(os.fspath(path))
 
 
 def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) -> None:

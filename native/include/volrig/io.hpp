@@ -24,6 +24,13 @@ std::uint64_t default_max_bytes();
 
 struct ReadOptions {
     std::uint64_t max_bytes = default_max_bytes();
+    /// DICOM: the SeriesInstanceUID to read from a folder holding several series (empty: the one with most slices).
+    std::string series;
+    /// TIFF: spacing (x, y, z) to use instead of the file's resolution (a component <= 0: from the file; z,
+    /// which TIFF does not store, then equals x).
+    std::array<double, 3> spacing{0.0, 0.0, 0.0};
+    /// Told what a reader assumed about a doubtful file (e.g. DICOM slice spacing that jitters); may be empty.
+    std::function<void(const std::string&)> warn;
 };
 
 /// A random-access byte source: a file on disk or a block of memory (fuzzing, tests).
@@ -63,7 +70,36 @@ Volume read_metaimage(const ByteSource& src, const ReadOptions& opt = {});
 /// sform (sform_code > 0) or else the qform offsets.
 Volume read_nifti(const ByteSource& src, const ReadOptions& opt = {});
 
-/// Picks the reader from the file name: .nrrd .nhdr .mhd .mha .nii .nii.gz .hdr .vdb (raw needs read_raw).
+/// DICOM (through GDCM). A folder (searched recursively), a DICOMDIR (the files under its folder are searched; its
+/// records are not read) or a single file. Slices are grouped by SeriesInstanceUID and sorted along the slice
+/// normal (ImagePositionPatient . (row x column direction)); the slice spacing comes from the positions; origin =
+/// the first slice's position, direction = (row, column, normal) in LPS. RescaleSlope/Intercept are applied:
+/// int16 when they are integral and the values fit, else float32 (no rescale: the stored type). Refused with a
+/// FileFormatError: mixed sizes, orientations or pixel spacings, two slices at one position, uneven gaps (missing
+/// slices), slices not stacked along their normal (gantry tilt), colour images. Spacing that jitters a little is
+/// averaged and reported through opt.warn. Compressed transfer syntaxes are decoded by GDCM.
+Volume read_dicom(const std::string& path, const ReadOptions& opt = {});
+/// One DICOM file (single or multi-frame) from a byte source (fuzzing, tests).
+Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt = {});
+
+struct DicomSeriesInfo {
+    std::string uid, description, modality;
+    std::array<std::int64_t, 3> dims{0, 0, 0};  ///< columns, rows, slices (frames of a single multi-frame file)
+    std::vector<std::string> files;
+};
+/// The image series under a folder / DICOMDIR / file, the largest first.
+std::vector<DicomSeriesInfo> dicom_series(const std::string& path);
+
+/// A TIFF stack (through libtiff): a multi-page TIFF file or a folder of TIFF files in natural order (slice2 before
+/// slice10), one page per slice. Single-channel 8/16/32-bit unsigned or signed integers or 32/64-bit floats;
+/// every page the same size and type. Spacing: opt.spacing where given, else x and y from XResolution/
+/// YResolution with ResolutionUnit (inch or cm -> mm), z = x. Origin 0, axis-aligned.
+Volume read_tiff(const std::string& path, const ReadOptions& opt = {});
+/// One (multi-page) TIFF file from a byte source (fuzzing, tests).
+Volume read_tiff_file(const ByteSource& src, const ReadOptions& opt = {});
+
+/// Picks the reader from the file name: .nrrd .nhdr .mhd .mha .nii .nii.gz .hdr .vdb .tif .tiff .dcm DICOMDIR,
+/// else by content (a folder of DICOM or TIFF files; a file with the DICOM preamble) (raw needs read_raw).
 Volume read_volume(const std::string& path, const ReadOptions& opt = {});
 
 /// Writers. gzip/compress select the compressed encodings.

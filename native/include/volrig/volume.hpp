@@ -1,7 +1,9 @@
 // volrig/volume.hpp: the sampled volume, its grid geometry and element types.
 //
-// Conventions (docs/DESIGN.md, "Conventions"): voxels are stored C-order [z, y, x] with x fastest; the world
-// position of voxel (x, y, z) is origin + spacing * (x, y, z). Dimensions, spacing and origin are given as (x, y, z).
+// Conventions (docs/DESIGN.md, "Conventions"): voxels are stored C-order [z, y, x] with x fastest. The grid frame
+// position of voxel (x, y, z) is origin + spacing * (x, y, z), in which the whole pipeline works; the patient (LPS)
+// world position is origin + direction * (spacing * (x, y, z)) (docs/DESIGN.md, "Orientation"). Dimensions,
+// spacing and origin are given as (x, y, z).
 #pragma once
 
 #include <array>
@@ -21,12 +23,18 @@ std::size_t dtype_size(DType t);
 const char* dtype_name(DType t);          ///< "uint8", "int16", "float32", ...
 DType dtype_from_name(const std::string& numpy_name);  ///< inverse of dtype_name; throws Error when unknown
 
+/// A 3x3 matrix stored row-major: m[3 * row + column].
+using Matrix3 = std::array<double, 9>;
+constexpr Matrix3 kIdentity3{1, 0, 0, 0, 1, 0, 0, 0, 1};
+
 /// Grid geometry: dims (x, y, z) in voxels, spacing (x, y, z) in world units per voxel, origin = world
-/// position of voxel (0, 0, 0).
+/// position of voxel (0, 0, 0), direction = the world (LPS) directions of the voxel axes x, y, z as the columns of
+/// a 3x3 matrix (identity: axis-aligned, as ITK and DICOM define it).
 struct Grid {
     std::array<std::int64_t, 3> dims{0, 0, 0};
     std::array<double, 3> spacing{1.0, 1.0, 1.0};
     std::array<double, 3> origin{0.0, 0.0, 0.0};
+    Matrix3 direction = kIdentity3;
 
     std::int64_t voxel_count() const { return dims[0] * dims[1] * dims[2]; }
     /// Linear index of voxel (x, y, z) in the C-order [z, y, x] layout.
@@ -52,7 +60,15 @@ struct Volume {
     std::size_t byte_size() const { return data.size(); }
 };
 
-/// Checks that a grid's dims are positive, its spacing finite and positive, its origin finite, and that
+/// World (LPS) position of voxel (x, y, z): origin + direction * (spacing * (x, y, z)).
+std::array<double, 3> world_position(const Grid& g, const std::array<double, 3>& xyz);
+
+/// Checks that a direction matrix is finite with unit-length, mutually orthogonal columns (within 1e-3); when it
+/// is, re-orthonormalises it in place and returns an empty string, else says what is wrong.
+std::string normalize_direction(Matrix3& d);
+
+/// Checks that a grid's dims are positive, its spacing finite and positive, its origin finite, its direction
+/// orthonormal (normalize_direction), and that
 /// dims * element size stays within `max_bytes`; throws Error with `what` as the subject otherwise.
 void check_grid(const Grid& grid, std::size_t element_size, std::uint64_t max_bytes, const std::string& what);
 
