@@ -89,8 +89,6 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
         const std::size_t n = std::strlen(e);
         return low.size() >= n && low.compare(low.size() - n, n, e) == 0;
     };
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) return read_folder(path, opt);
     if (ends(".vdb")) return read_vdb(path, "", opt);
     if (ends(".tif") || ends(".tiff")) return read_tiff(path, opt);
     if (ends(".dcm") || ends(".dicom") || ends("dicomdir") || has_dicom_preamble(path)) return read_dicom(path, opt);
@@ -101,6 +99,8 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
         kind = Kind::Meta;
     else if (ends(".nii") || ends(".nii.gz") || ends(".hdr"))
         kind = Kind::Nifti;
+    else if (std::error_code ec; std::filesystem::is_directory(path, ec))  // a folder by another name
+        return read_folder(path, opt);
     else
         throw FileFormatError(path + ": unknown volume format (known endings: .nrrd .nhdr .mhd .mha .nii .nii.gz "
                                      ".hdr .vdb .tif .tiff .dcm, DICOMDIR, folders of DICOM or TIFF files; raw "

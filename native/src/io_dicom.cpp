@@ -31,6 +31,20 @@ const gdcm::Tag kSeriesUid(0x0020, 0x000e), kDescription(0x0008, 0x103e), kModal
     kPosition(0x0020, 0x0032), kOrientation(0x0020, 0x0037), kRows(0x0028, 0x0010), kColumns(0x0028, 0x0011),
     kPixelSpacing(0x0028, 0x0030), kFrames(0x0028, 0x0008);
 
+// Runs a GDCM call, turning the exceptions GDCM throws on broken input into a FileFormatError naming `name`.
+template <class F>
+auto guarded(const std::string& name, F&& f) -> decltype(f()) {
+    try {
+        return f();
+    } catch (const Error&) {
+        throw;
+    } catch (const std::bad_alloc&) {
+        fail(name, "GDCM ran out of memory reading it (broken lengths?)");
+    } catch (const std::exception& e) {
+        fail(name, std::string("GDCM: ") + e.what());
+    }
+}
+
 // ---- header values -------------------------------------------------------------------------------------------
 
 // A scanned value without its padding (spaces, NULs); "" when absent.
@@ -101,7 +115,7 @@ gdcm::Scanner scan(const std::string& path, const std::vector<std::string>& file
     for (const gdcm::Tag& t : {kSeriesUid, kDescription, kModality, kPosition, kOrientation, kRows, kColumns,
                                kPixelSpacing, kFrames})
         s.AddTag(t);
-    if (!s.Scan(files)) fail(path, "GDCM could not scan the DICOM files");
+    if (!guarded(path, [&] { return s.Scan(files); })) fail(path, "GDCM could not scan the DICOM files");
     return s;
 }
 
@@ -259,7 +273,8 @@ void decode(const std::string& name, const gdcm::Image& im, std::uint8_t* dst, s
     if (len != n)
         fail(name, "GDCM decodes " + detail::with_commas(len) + " bytes of pixels where the header declares " +
                        detail::with_commas(n));
-    if (!im.GetBuffer(reinterpret_cast<char*>(dst))) fail(name, "GDCM could not decode the pixel data");
+    if (!guarded(name, [&] { return im.GetBuffer(reinterpret_cast<char*>(dst)); }))
+        fail(name, "GDCM could not decode the pixel data");
 }
 
 Scale scale_of(const std::string& name, const gdcm::Image& im) {
@@ -363,7 +378,7 @@ Volume read_stack(const std::string& path, const std::vector<Slice>& slices, Gri
         const std::string& file = slices[k].file;
         gdcm::ImageReader r;
         r.SetFileName(file.c_str());
-        if (!r.Read()) fail(file, "GDCM could not read the image");
+        if (!guarded(file, [&] { return r.Read(); })) fail(file, "GDCM could not read the image");
         const gdcm::Image& im = r.GetImage();
         const DType t = image_dtype(file, im);
         if (k == 0) {
@@ -426,7 +441,7 @@ Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
     std::istringstream in(all_bytes(src, opt));
     gdcm::ImageReader r;
     r.SetStream(in);
-    if (!r.Read()) fail(name, "not a DICOM image GDCM can read");
+    if (!guarded(name, [&] { return r.Read(); })) fail(name, "not a DICOM image GDCM can read");
     const gdcm::Image& im = r.GetImage();
     const DType t = image_dtype(name, im);
     const Grid g = single_grid(name, im);

@@ -93,6 +93,10 @@ public:
     const std::string& name() const { return client_.src->name(); }
     /// " (libtiff: <message>)" when libtiff said why, else "".
     std::string because() const { return client_.error.empty() ? "" : " (libtiff: " + client_.error + ")"; }
+    /// Fails "<name>: <where>: <libtiff's message>" when libtiff reported an error (e.g. a broken next page).
+    void check(const std::string& where) const {
+        if (!client_.error.empty()) fail(name(), where + ": " + client_.error);
+    }
 
 private:
     Client client_;
@@ -160,8 +164,10 @@ void read_page(const TiffFile& f, const Page& p, std::uint8_t* dst, int index) {
     std::uint32_t tw = 0, th = 0;
     TIFFGetField(t, TIFFTAG_TILEWIDTH, &tw);
     TIFFGetField(t, TIFFTAG_TILELENGTH, &th);
-    if (tw == 0 || th == 0 || static_cast<std::uint64_t>(TIFFTileSize64(t)) != std::uint64_t(tw) * th * esize)
-        throw FileFormatError(where + ": unexpected tile size");
+    const std::uint64_t tile_bytes = std::uint64_t(tw) * th * esize;
+    if (tw == 0 || th == 0 || static_cast<std::uint64_t>(TIFFTileSize64(t)) != tile_bytes ||
+        tile_bytes > (std::uint64_t(1) << 28))
+        throw FileFormatError(where + ": unexpected tile size " + std::to_string(tw) + "x" + std::to_string(th));
     std::vector<std::uint8_t> tile(std::size_t(tw) * th * esize);
     for (std::uint32_t y0 = 0; y0 < p.height; y0 += th)
         for (std::uint32_t x0 = 0; x0 < p.width; x0 += tw) {
@@ -169,8 +175,10 @@ void read_page(const TiffFile& f, const Page& p, std::uint8_t* dst, int index) {
                 throw FileFormatError(where + ": cannot read the tile at " + std::to_string(x0) + ", " +
                                       std::to_string(y0) + f.because());
             const std::size_t w = std::min(tw, p.width - x0) * esize;
-            for (std::uint32_t y = y0; y < std::min(y0 + th, p.height); ++y)
-                std::memcpy(dst + y * row + x0 * esize, tile.data() + (y - y0) * tw * esize, w);
+            const std::uint32_t rows = std::min<std::uint64_t>(th, p.height - y0);
+            for (std::uint32_t y = 0; y < rows; ++y)
+                std::memcpy(dst + (std::size_t(y0) + y) * row + std::size_t(x0) * esize,
+                            tile.data() + std::size_t(y) * tw * esize, w);
         }
 }
 
@@ -216,6 +224,7 @@ void add_file(Stack& s, const ByteSource& src) {
         ++s.pages;
         ++index;
     } while (TIFFReadDirectory(f.get()));
+    f.check("after page " + std::to_string(index));
 }
 
 // Reads every page of the file into dst (room for `room` bytes); returns the bytes written.
@@ -231,6 +240,7 @@ std::size_t copy_file(const ByteSource& src, const Page& first, std::uint8_t* ds
         done += bytes;
         ++index;
     } while (TIFFReadDirectory(f.get()));
+    f.check("after page " + std::to_string(index));
     return done;
 }
 

@@ -937,10 +937,17 @@ TEST_CASE("NIfTI: origin from sform or qform, extensions, 4-D with one volume", 
     n.srow[1][3] = -20;
     n.srow[2][3] = -30;
     const Bytes data(24, 5);
+    // no qform/sform code: NIfTI's "method 1", the qoffsets as given, no rotation
+    CHECK(read_mem(read_nifti, n.header() + data, "0.nii").grid.origin == std::array<double, 3>{1, 2, 3});
+    // NIfTI's RAS becomes LPS: x and y negated (tests/native/test_orientation.cpp tests rotations)
     n.qform = 1;
-    CHECK(read_mem(read_nifti, n.header() + data, "q.nii").grid.origin == std::array<double, 3>{1, 2, 3});
+    const Grid q = read_mem(read_nifti, n.header() + data, "q.nii").grid;
+    CHECK(q.origin == std::array<double, 3>{-1, -2, 3});
+    CHECK(q.direction == Matrix3{-1, 0, 0, 0, -1, 0, 0, 0, 1});
     n.sform = 2;
-    CHECK(read_mem(read_nifti, n.header() + data, "s.nii").grid.origin == std::array<double, 3>{-10, -20, -30});
+    const Grid sf = read_mem(read_nifti, n.header() + data, "s.nii").grid;
+    CHECK(sf.origin == std::array<double, 3>{10, 20, -30});
+    CHECK(sf.direction == Matrix3{-1, 0, 0, 0, -1, 0, 0, 0, 1});
     n.vox_offset = 496;  // header extensions before the data
     n.pixdim[1] = -1.5f;  // negative pixdim: spacing is |pixdim|
     n.dim[0] = 5;
@@ -1225,13 +1232,15 @@ TEST_CASE("Real: LIDC2.mha (zlib, LOCAL)", "[io][real]") {
 
 TEST_CASE("Real: TotalSegmentator NIfTI (.nii.gz)", "[io][real]") {
     if (skip_without_data()) return;
-    const std::array<double, 3> origin{-177.95632934570312, 11.319000244140625, 94.3017578125};
+    // sform diag(3, 3, 3) in RAS: in LPS the origin's x and y change sign and the direction is diag(-1, -1, 1)
+    const std::array<double, 3> origin{177.95632934570312, -11.319000244140625, 94.3017578125};
     {
         const Volume v = read_volume(shared_data() + "/totalseg/example_ct.nii.gz");
         CHECK(v.grid.dims == std::array<std::int64_t, 3>{122, 101, 112});
         CHECK(v.dtype == DType::Int32);
         CHECK(v.grid.spacing == std::array<double, 3>{3, 3, 3});
         CHECK(v.grid.origin == origin);
+        CHECK(v.grid.direction == Matrix3{-1, 0, 0, 0, -1, 0, 0, 0, 1});
         const Stats s = stats_of<std::int32_t>(v);
         CHECK(s.min == -1207);
         CHECK(s.max == 3382);
@@ -1266,7 +1275,7 @@ TEST_CASE("Real: airway bronchial tree (.nii.gz, 168 MB decoded)", "[io][real]")
     CHECK(v.dtype == DType::Int16);
     CHECK(v.grid.spacing[0] == Approx(0.55078125));
     CHECK(v.grid.spacing[2] == Approx(0.7000195980072021));
-    CHECK(v.grid.origin[0] == Approx(-143.53399658203125));  // qform (sform_code 0)
+    CHECK(v.grid.origin[0] == Approx(143.53399658203125));  // qform (sform_code 0), identity in RAS: x negated
     CHECK(v.grid.origin[2] == Approx(1033.239990234375));
     const Stats s = stats_of<std::int16_t>(v);
     CHECK(s.min == 0);

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <tiffio.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -73,10 +74,15 @@ void write_tiff(const fs::path& p, const PageSpec& s, int pages, const std::func
         if (s.tiled) {
             TIFFSetField(t, TIFFTAG_TILEWIDTH, 16);
             TIFFSetField(t, TIFFTAG_TILELENGTH, 16);
-            std::vector<std::uint8_t> tile(16 * 16 * esize * s.samples, 0);
-            for (std::uint32_t y = 0; y < s.height; ++y)
-                std::memcpy(tile.data() + y * 16 * esize * s.samples, img.data() + y * row, row);
-            REQUIRE(TIFFWriteTile(t, tile.data(), 0, 0, 0, 0) > 0);
+            const std::size_t px = esize * s.samples;
+            for (std::uint32_t y0 = 0; y0 < s.height; y0 += 16)
+                for (std::uint32_t x0 = 0; x0 < s.width; x0 += 16) {
+                    std::vector<std::uint8_t> tile(16 * 16 * px, 0);
+                    for (std::uint32_t y = y0; y < std::min(y0 + 16, s.height); ++y)
+                        std::memcpy(tile.data() + (y - y0) * 16 * px, img.data() + y * row + x0 * px,
+                                    std::min<std::uint32_t>(16, s.width - x0) * px);
+                    REQUIRE(TIFFWriteTile(t, tile.data(), x0, y0, 0, 0) > 0);
+                }
         } else {
             TIFFSetField(t, TIFFTAG_ROWSPERSTRIP, 2);
             for (std::uint32_t y = 0; y < s.height; ++y) REQUIRE(TIFFWriteScanline(t, img.data() + y * row, y, 0) == 1);

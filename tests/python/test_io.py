@@ -67,12 +67,14 @@ def decode_nifti_gz(path: Path):
     datatype = struct.unpack(e + "h", raw[70:72])[0]
     pixdim = struct.unpack(e + "8f", raw[76:108])
     vox_offset = int(struct.unpack(e + "f", raw[108:112])[0])
-    sform = struct.unpack(e + "h", raw[254:256])[0]
+    qform, sform = struct.unpack(e + "2h", raw[252:256])
     if sform > 0:
         srow = struct.unpack(e + "12f", raw[280:328])
         origin = (srow[3], srow[7], srow[11])
     else:
         origin = struct.unpack(e + "3f", raw[268:280])
+    if sform > 0 or qform > 0:  # NIfTI's RAS read as LPS
+        origin = (-origin[0], -origin[1], origin[2])
     arr = np.frombuffer(raw[vox_offset:], e + NIFTI_TYPES[datatype]).reshape(dim[3], dim[2], dim[1])
     return arr, tuple(abs(p) for p in pixdim[1:4]), tuple(float(o) for o in origin)
 
