@@ -154,6 +154,12 @@ std::uint64_t skip_lines(const ByteSource& src, const std::string& header, std::
 /// True when a data-file value names several files (LIST, or a printf pattern followed by numbers).
 bool names_several_files(std::string_view value);
 
+// ---- DICOM ---------------------------------------------------------------------------------------------------
+
+/// Walks a DICOM Part-10 file's structure (preamble, meta group, every element and item length within the file)
+/// and fails naming the source unless GDCM can safely be handed it (io_dicom_part10.cpp says why).
+void check_dicom_part10(const ByteSource& src);
+
 // ---- writing -------------------------------------------------------------------------------------------------
 
 /// An output file opened for writing (created or truncated); every failure throws naming `shown_as` (the

@@ -3,7 +3,8 @@
 // GDCM does the DICOM: its Scanner reads the few header tags that group and sort slices, its ImageReader decodes
 // each slice's pixels (every transfer syntax GDCM supports: raw, RLE, JPEG lossless/lossy, JPEG-LS, JPEG 2000).
 // This file only groups, sorts, checks the geometry and rescales. Errors name the folder or file and say what is
-// wrong; nothing is allocated before the series' size is checked against max_bytes.
+// wrong; nothing is allocated before the series' size is checked against max_bytes. Every file passes
+// check_dicom_part10 (io_dicom_part10.cpp) before GDCM reads it: Debian's GDCM aborts on some broken files.
 #include <gdcmDirectory.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
@@ -93,19 +94,34 @@ struct Series {
     std::vector<Slice> slices;
 };
 
-// The files to scan: a folder's (recursively), those under a DICOMDIR's folder, or the file itself.
+// True when the file passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
+// for GDCM, and are left out).
+bool well_formed(const std::string& file) {
+    try {
+        detail::check_dicom_part10(*open_file(file));
+        return true;
+    } catch (const Error&) {
+        return false;
+    }
+}
+
+// The files to scan (each passed check_dicom_part10 or, for a single file, is checked when read): a folder's
+// (recursively), those under a DICOMDIR's folder, or the file itself.
 std::vector<std::string> candidate_files(const std::string& path) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (!fs::exists(path, ec)) throw FileNotFound(path + ": no such file or folder");
     const bool dicomdir = detail::iequals(base_name(path), "DICOMDIR");
-    if (!fs::is_directory(path, ec) && !dicomdir) return {path};
+    if (!fs::is_directory(path, ec) && !dicomdir) {
+        detail::check_dicom_part10(*open_file(path));
+        return {path};
+    }
     gdcm::Directory dir;
     const std::string folder = dicomdir ? fs::path(path).parent_path().string() : path;
     dir.Load(folder.empty() ? "." : folder, true);
     std::vector<std::string> files;
     for (const std::string& f : dir.GetFilenames())
-        if (!detail::iequals(base_name(f), "DICOMDIR")) files.push_back(f);
+        if (!detail::iequals(base_name(f), "DICOMDIR") && well_formed(f)) files.push_back(f);
     std::sort(files.begin(), files.end());
     return files;
 }
@@ -159,7 +175,7 @@ std::vector<Series> find_series(const std::string& path) {
     for (auto& [uid, series] : by_uid) out.push_back(std::move(series));
     std::stable_sort(out.begin(), out.end(),
                      [](const Series& a, const Series& b) { return a.slices.size() > b.slices.size(); });
-    if (out.empty()) fail(path, "no DICOM images found (" + std::to_string(files.size()) + " files looked at)");
+    if (out.empty()) fail(path, "no DICOM images found (" + std::to_string(files.size()) + " well-formed DICOM files)");
     return out;
 }
 
@@ -438,6 +454,7 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
 
 Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
+    detail::check_dicom_part10(src);
     std::istringstream in(all_bytes(src, opt));
     gdcm::ImageReader r;
     r.SetStream(in);

@@ -1,0 +1,179 @@
+// io_dicom_part10.cpp: a structural check of a DICOM Part-10 file before GDCM sees it (io_detail.hpp).
+//
+// Why hand-written: Debian's GDCM aborts the process (failed internal assertions) on some malformed files, e.g.
+// a meta element whose length runs past the end of the file. So every file is walked first: the 128-byte
+// preamble and "DICM", the file meta group (explicit VR little endian), then the data set in the transfer syntax
+// the meta group names (implicit or explicit VR, either byte order), every element's length bounded by the bytes
+// left, sequences and items (defined or undefined length, nested at most kMaxDepth deep) and encapsulated pixel
+// data walked item by item. Values are skipped, not read: only element headers are. Deflated data sets cannot be
+// walked and are refused. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+#include <cstring>
+
+#include "io_detail.hpp"
+
+namespace volrig::detail {
+
+namespace {
+
+constexpr int kMaxDepth = 16;
+constexpr std::uint32_t kUndefined = 0xffffffffu;
+constexpr std::uint16_t kItemGroup = 0xfffe;
+constexpr std::uint16_t kItem = 0xe000, kItemEnd = 0xe00d, kSequenceEnd = 0xe0dd;
+
+struct Walker {
+    const ByteSource& src;
+    std::uint64_t size;
+    bool explicit_vr = true;
+    bool big = false;  // byte order of the data set (the meta group is always little endian)
+
+    [[noreturn]] void bad(std::uint64_t at, const std::string& what) const {
+        fail(src.name(), "broken DICOM structure at byte " + with_commas(at) + ": " + what);
+    }
+    std::uint16_t u16(const std::uint8_t* p, bool be) const {
+        return static_cast<std::uint16_t>(be ? (p[0] << 8) | p[1] : (p[1] << 8) | p[0]);
+    }
+    std::uint32_t u32(const std::uint8_t* p, bool be) const {
+        return be ? (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3]
+                  : (std::uint32_t(p[3]) << 24) | (std::uint32_t(p[2]) << 16) | (std::uint32_t(p[1]) << 8) | p[0];
+    }
+    void need(std::uint64_t at, std::uint64_t n, const char* what) const {
+        if (at > size || n > size - at) bad(at, std::string(what) + " runs past the end of the file");
+    }
+};
+
+struct Element {
+    std::uint16_t group = 0, elem = 0;
+    char vr[3] = {0, 0, 0};
+    std::uint32_t length = 0;
+    std::uint64_t value_at = 0;  // first value byte
+};
+
+bool long_vr(const char* vr) {
+    static const char* const longs[] = {"OB", "OW", "OF", "SQ", "UT", "UN", "UC", "UR", "OD", "OL", "OV", "SV", "UV"};
+    for (const char* l : longs)
+        if (vr[0] == l[0] && vr[1] == l[1]) return true;
+    return false;
+}
+
+// Reads the element header at `at` (explicit or implicit VR; item tags have no VR).
+Element header_at(const Walker& w, std::uint64_t at, bool explicit_vr, bool be) {
+    std::uint8_t h[12];
+    w.need(at, 8, "an element header");
+    w.src.read(at, h, 8);
+    Element e;
+    e.group = w.u16(h, be);
+    e.elem = w.u16(h + 2, be);
+    if (e.group == kItemGroup || !explicit_vr) {
+        e.length = w.u32(h + 4, be);
+        e.value_at = at + 8;
+        return e;
+    }
+    e.vr[0] = static_cast<char>(h[4]);
+    e.vr[1] = static_cast<char>(h[5]);
+    if (e.vr[0] < 'A' || e.vr[0] > 'Z' || e.vr[1] < 'A' || e.vr[1] > 'Z')
+        w.bad(at, "value representation " + quoted(std::string_view(e.vr, 2)) + " is not two capital letters");
+    if (!long_vr(e.vr)) {
+        e.length = w.u16(h + 6, be);
+        e.value_at = at + 8;
+        return e;
+    }
+    w.need(at, 12, "an element header");
+    w.src.read(at + 8, h + 8, 4);
+    e.length = w.u32(h + 8, be);
+    e.value_at = at + 12;
+    return e;
+}
+
+std::uint64_t walk_items(const Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments);
+
+// Walks the elements from `at` to `end` (or to an item delimiter when `end` is 0: returns just past it).
+std::uint64_t walk_elements(const Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
+    if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
+    const std::uint64_t stop = end ? end : w.size;
+    while (at < stop) {
+        const Element e = header_at(w, at, w.explicit_vr, w.big);
+        if (e.group == kItemGroup) {
+            if (!end && e.elem == kItemEnd) return e.value_at;
+            w.bad(at, "an item tag where an element was expected");
+        }
+        const bool pixels = e.group == 0x7fe0 && e.elem == 0x0010;
+        const bool sequence = std::strncmp(e.vr, "SQ", 2) == 0 || (!w.explicit_vr && e.length == kUndefined);
+        if (e.length == kUndefined) {
+            if (!sequence && !pixels && std::strncmp(e.vr, "UN", 2) != 0)
+                w.bad(at, "undefined length on a " + quoted(std::string_view(e.vr, 2)) + " element");
+            at = walk_items(w, e.value_at, 0, depth + 1, pixels);
+        } else {
+            w.need(e.value_at, e.length, "an element's value");
+            if (std::strncmp(e.vr, "SQ", 2) == 0 && e.length > 0) walk_items(w, e.value_at, e.value_at + e.length, depth + 1, false);
+            at = e.value_at + e.length;
+        }
+        if (end && at > end) w.bad(at, "an element runs past the end of its item");
+    }
+    if (!end) w.bad(at, "an item without its delimiter");
+    return at;
+}
+
+// Walks sequence items from `at` to `end` (or to a sequence delimiter when `end` is 0: returns just past it).
+// `fragments`: encapsulated pixel data (items hold bytes, not data sets).
+std::uint64_t walk_items(const Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments) {
+    if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
+    const std::uint64_t stop = end ? end : w.size;
+    while (at < stop) {
+        const Element e = header_at(w, at, w.explicit_vr, w.big);
+        if (e.group != kItemGroup) w.bad(at, "an element where a sequence item was expected");
+        if (e.elem == kSequenceEnd) {
+            if (end) w.bad(at, "a sequence delimiter in a sequence of defined length");
+            return e.value_at;
+        }
+        if (e.elem != kItem) w.bad(at, "an unknown item tag");
+        if (e.length == kUndefined) {
+            if (fragments) w.bad(at, "a pixel data fragment of undefined length");
+            at = walk_elements(w, e.value_at, 0, depth + 1);
+        } else {
+            w.need(e.value_at, e.length, "a sequence item");
+            if (!fragments && e.length > 0) walk_elements(w, e.value_at, e.value_at + e.length, depth + 1);
+            at = e.value_at + e.length;
+        }
+    }
+    if (!end) w.bad(at, "a sequence without its delimiter");
+    if (at != end) w.bad(at, "an item runs past the end of its sequence");
+    return at;
+}
+
+// The file meta group (explicit VR little endian); sets how the data set is encoded and returns where it starts.
+std::uint64_t walk_meta(Walker& w) {
+    std::uint64_t at = 132;
+    std::string syntax;
+    while (at < w.size) {
+        const Element e = header_at(w, at, true, false);
+        if (e.group != 0x0002) break;
+        if (e.length == kUndefined) w.bad(at, "undefined length in the file meta group");
+        w.need(e.value_at, e.length, "a file meta element");
+        if (e.elem == 0x0010) {
+            if (e.length > 64) w.bad(at, "a transfer syntax UID longer than 64 bytes");
+            syntax.resize(e.length);
+            if (e.length) w.src.read(e.value_at, &syntax[0], e.length);
+            while (!syntax.empty() && (syntax.back() == '\0' || syntax.back() == ' ')) syntax.pop_back();
+        }
+        at = e.value_at + e.length;
+    }
+    if (syntax.empty()) w.bad(at, "no transfer syntax UID (0002,0010) in the file meta group");
+    if (syntax == "1.2.840.10008.1.2.1.99")
+        fail(w.src.name(), "deflated DICOM (transfer syntax 1.2.840.10008.1.2.1.99) is not supported");
+    w.explicit_vr = syntax != "1.2.840.10008.1.2";
+    w.big = syntax == "1.2.840.10008.1.2.2";
+    return at;
+}
+
+}  // namespace
+
+void check_dicom_part10(const ByteSource& src) {
+    Walker w{src, src.size()};
+    char magic[4] = {0, 0, 0, 0};
+    if (w.size >= 132) src.read(128, magic, 4);
+    if (std::memcmp(magic, "DICM", 4) != 0)
+        fail(src.name(), "not a DICOM Part-10 file (no 'DICM' after the 128-byte preamble)");
+    walk_elements(w, walk_meta(w), w.size, 0);
+}
+
+}  // namespace volrig::detail
