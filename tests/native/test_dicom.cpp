@@ -22,6 +22,11 @@ namespace {
 
 using Bytes = std::vector<std::uint8_t>;
 
+Bytes operator+(Bytes a, const Bytes& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+}
+
 // One explicit VR little endian element; strings padded to even length (UI with NUL, others with a space).
 void element(Bytes& out, std::uint16_t group, std::uint16_t elem, const char* vr, Bytes value) {
     if (value.size() % 2) value.push_back(std::strcmp(vr, "UI") == 0 ? 0 : ' ');
@@ -211,4 +216,29 @@ TEST_CASE("DICOM: the fuzz corpus never crashes the reader", "[dicom][fuzz]") {
         ++n;
     }
     CHECK(n > 0);
+}
+
+TEST_CASE("DICOM: broken Part-10 structure is refused before GDCM sees it", "[dicom][errors]") {
+    const Bytes good = slice_file(SliceSpec{});
+    auto refuse = [](const Bytes& b, const std::string& what) {
+        auto src = memory_source(b.data(), b.size(), "b.dcm");
+        CHECK_THROWS_WITH(read_dicom_file(*src), Catch::StartsWith("b.dcm: ") && Catch::Contains(what));
+    };
+    // a meta element whose length runs past the end of the file (Debian's GDCM aborts on it)
+    Bytes meta_past(128, 0);
+    for (char c : std::string("DICM\x02\x00\x10\x00UI\xff\xff", 12)) meta_past.push_back(static_cast<std::uint8_t>(c));
+    refuse(meta_past, "a file meta element runs past the end of the file");
+    refuse(Bytes(good.begin(), good.begin() + 100), "not a DICOM Part-10 file");
+    Bytes cut(good.begin(), good.end() - 5);  // pixel data shorter than its length
+    refuse(cut, "an element's value runs past the end of the file");
+    Bytes undefined = good;  // the modality (CS) with an undefined length
+    const std::string cs("\x08\x00\x60\x00" "CS", 6);
+    auto at = std::search(undefined.begin(), undefined.end(), cs.begin(), cs.end());
+    REQUIRE(at != undefined.end());
+    Bytes item = Bytes(undefined.begin(), at) + Bytes{0xfe, 0xff, 0x00, 0xe0, 0, 0, 0, 0} + Bytes(at, undefined.end());
+    refuse(item, "an item tag where an element was expected");
+    Bytes bad_vr = good;
+    at = std::search(bad_vr.begin(), bad_vr.end(), cs.begin(), cs.end());
+    at[4] = 'c';
+    refuse(bad_vr, "is not two capital letters");
 }
