@@ -1,6 +1,7 @@
 // io.cpp: the volume I/O entry points that are no single format: the size limit, raw voxels, and the dispatcher
-// that picks a reader from the file name (folders and unnamed DICOM files by content). The readers live in io_<format>.cpp, the helpers they share in
-// io_detail.cpp, io_voxels.cpp, io_source.cpp and io_write.cpp (all declared in io_detail.hpp).
+// that picks a reader from the file name (folders and unnamed DICOM files by content). The readers live in
+// io_<format>.cpp, the helpers they share in io_detail.cpp, io_voxels.cpp, io_source.cpp and io_write.cpp (all
+// declared in io_detail.hpp).
 #include <cctype>
 #include <charconv>
 #include <cstdlib>
@@ -53,21 +54,6 @@ Volume read_raw(const ByteSource& src, const RawLayout& layout, const ReadOption
 
 namespace {
 
-// The first regular file under a folder (recursively) whose name is not a TIFF's: a DICOM folder holds such
-// files (often without an ending), a TIFF stack none.
-bool has_non_tiff_file(const std::string& folder) {
-    std::error_code ec;
-    for (auto it = std::filesystem::recursive_directory_iterator(folder, ec);
-         !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
-        if (!it->is_regular_file(ec)) continue;
-        const std::string low = detail::lower(it->path().filename().string());
-        const bool tiff = low.size() > 4 && (low.compare(low.size() - 4, 4, ".tif") == 0 ||
-                                             (low.size() > 5 && low.compare(low.size() - 5, 5, ".tiff") == 0));
-        if (!tiff && low[0] != '.') return true;
-    }
-    return false;
-}
-
 // True when the file starts with the DICOM Part-10 preamble (128 bytes, then "DICM").
 bool has_dicom_preamble(const std::string& path) {
     std::ifstream f(path, std::ios::binary);
@@ -75,10 +61,32 @@ bool has_dicom_preamble(const std::string& path) {
     return f.read(head, sizeof head) && std::memcmp(head + 128, "DICM", 4) == 0;
 }
 
-// Folders: DICOM when they hold a file that is no TIFF (read_dicom says so when none is DICOM), else TIFF.
+// True when a regular file under the folder (recursively) is a DICOM Part-10 file.
+bool has_dicom_file(const std::string& folder) {
+    std::error_code ec;
+    for (auto it = std::filesystem::recursive_directory_iterator(folder, ec);
+         !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec))
+        if (it->is_regular_file(ec) && has_dicom_preamble(it->path().string())) return true;
+    return false;
+}
+
+// True when the folder itself holds a .tif or .tiff file.
+bool has_tiff_file(const std::string& folder) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+        const std::string low = detail::lower(e.path().filename().string());
+        const auto n = low.size();
+        if ((n > 4 && low.compare(n - 4, 4, ".tif") == 0) || (n > 5 && low.compare(n - 5, 5, ".tiff") == 0))
+            return true;
+    }
+    return false;
+}
+
+// Folders: DICOM when any file under them is DICOM, else a TIFF stack when they hold TIFF files (else read_dicom
+// says that no DICOM images were found).
 Volume read_folder(const std::string& path, const ReadOptions& opt) {
-    if (has_non_tiff_file(path)) return read_dicom(path, opt);
-    return read_tiff(path, opt);
+    if (!has_dicom_file(path) && has_tiff_file(path)) return read_tiff(path, opt);
+    return read_dicom(path, opt);
 }
 
 }  // namespace

@@ -24,6 +24,7 @@ def test_multipage_uint16_with_dpi(tmp_path):
 def test_folder_in_natural_order_float32(tmp_path):
     for k in (1, 2, 10, 11, 3):
         Image.fromarray(np.full((2, 3), k / 2, np.float32)).save(tmp_path / f"img_{k}.tiff")
+    (tmp_path / "Thumbs.db").write_bytes(b"not an image")   # other files do not make it a DICOM folder
     v = volrig.load(str(tmp_path))
     assert v.array.dtype == np.float32
     np.testing.assert_array_equal(v.array[:, 0, 0], np.array([1, 2, 3, 10, 11]) / 2)
