@@ -3,10 +3,10 @@
 // Why hand-written: Debian's GDCM aborts the process (failed internal assertions) on some malformed files, e.g.
 // a meta element whose length runs past the end of the file. So every file is walked first: the 128-byte
 // preamble and "DICM", the file meta group (explicit VR little endian), then the data set in the transfer syntax
-// the meta group names (implicit or explicit VR, either byte order), every element's length bounded by the bytes
-// left, sequences and items (defined or undefined length, nested at most kMaxDepth deep) and encapsulated pixel
-// data walked item by item. Values are skipped, not read: only element headers are. Deflated data sets cannot be
-// walked and are refused. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+// the meta group names (implicit or explicit VR, either byte order), every explicit VR one DICOM knows, every
+// element's length bounded by the bytes left, sequences and items (defined or undefined length, nested at most
+// kMaxDepth deep) and encapsulated pixel data walked item by item. Values are skipped, not read: only element
+// headers are. Deflated data sets cannot be walked and are refused. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
 #include <cstring>
 
 #include "io_detail.hpp"
@@ -48,6 +48,16 @@ struct Element {
     std::uint64_t value_at = 0;  // first value byte
 };
 
+// The value representations of DICOM PS3.5 (GDCM aborts on others in explicit VR files).
+bool known_vr(const char* vr) {
+    static const char* const all[] = {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FL", "FD", "IS", "LO", "LT", "OB",
+                                      "OD", "OF", "OL", "OV", "OW", "PN", "SH", "SL", "SQ", "SS", "ST", "SV", "TM",
+                                      "UC", "UI", "UL", "UN", "UR", "US", "UT", "UV"};
+    for (const char* k : all)
+        if (vr[0] == k[0] && vr[1] == k[1]) return true;
+    return false;
+}
+
 bool long_vr(const char* vr) {
     static const char* const longs[] = {"OB", "OW", "OF", "SQ", "UT", "UN", "UC", "UR", "OD", "OL", "OV", "SV", "UV"};
     for (const char* l : longs)
@@ -70,8 +80,8 @@ Element header_at(const Walker& w, std::uint64_t at, bool explicit_vr, bool be) 
     }
     e.vr[0] = static_cast<char>(h[4]);
     e.vr[1] = static_cast<char>(h[5]);
-    if (e.vr[0] < 'A' || e.vr[0] > 'Z' || e.vr[1] < 'A' || e.vr[1] > 'Z')
-        w.bad(at, "value representation " + quoted(std::string_view(e.vr, 2)) + " is not two capital letters");
+    if (!known_vr(e.vr))
+        w.bad(at, "value representation " + quoted(std::string_view(e.vr, 2)) + " is not a DICOM VR");
     if (!long_vr(e.vr)) {
         e.length = w.u16(h + 6, be);
         e.value_at = at + 8;

@@ -240,5 +240,5 @@ TEST_CASE("DICOM: broken Part-10 structure is refused before GDCM sees it", "[di
     Bytes bad_vr = good;
     at = std::search(bad_vr.begin(), bad_vr.end(), cs.begin(), cs.end());
     at[4] = 'c';
-    refuse(bad_vr, "is not two capital letters");
+    refuse(bad_vr, "is not a DICOM VR");
 }
