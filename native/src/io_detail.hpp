@@ -157,7 +157,8 @@ bool names_several_files(std::string_view value);
 // ---- DICOM ---------------------------------------------------------------------------------------------------
 
 /// Walks a DICOM Part-10 file's structure (preamble, meta group, every element and item length within the file)
-/// and fails naming the source unless GDCM can safely be handed it (io_dicom_part10.cpp says why).
+/// and checks its image pixel module; fails naming the source unless GDCM can safely be handed it and it is a
+/// grey image (io_dicom_part10.cpp says why).
 void check_dicom_part10(const ByteSource& src);
 
 // ---- writing -------------------------------------------------------------------------------------------------

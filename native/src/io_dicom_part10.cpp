@@ -6,8 +6,13 @@
 // the meta group names (implicit or explicit VR, either byte order), every explicit VR one DICOM knows, every
 // element's length bounded by the bytes left, sequences and items (defined or undefined length, nested at most
 // kMaxDepth deep) and encapsulated pixel data walked item by item. Values are skipped, not read: only element
-// headers are. Deflated data sets cannot be walked and are refused. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+// headers are. Deflated data sets cannot be walked and are refused. Then the image pixel module values GDCM
+// asserts on (samples per pixel, bits allocated/stored, high bit, ...) are checked, and RLE frames (headers,
+// segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
 #include <cstring>
+#include <map>
+#include <utility>
+#include <vector>
 
 #include "io_detail.hpp"
 
@@ -25,6 +30,9 @@ struct Walker {
     std::uint64_t size;
     bool explicit_vr = true;
     bool big = false;  // byte order of the data set (the meta group is always little endian)
+    std::map<std::uint16_t, std::string> image;  // top-level (0028,xxxx) values of at most 16 bytes
+    std::string syntax;                           // the transfer syntax UID
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> fragments;  // encapsulated pixel data: offset, length
 
     [[noreturn]] void bad(std::uint64_t at, const std::string& what) const {
         fail(src.name(), "broken DICOM structure at byte " + with_commas(at) + ": " + what);
@@ -94,10 +102,44 @@ Element header_at(const Walker& w, std::uint64_t at, bool explicit_vr, bool be) 
     return e;
 }
 
-std::uint64_t walk_items(const Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments);
+std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments);
+
+// Keeps a short image pixel module value (0028,xxxx) for check_image_module.
+void keep_image_value(Walker& w, const Element& e) {
+    std::string v(e.length, '\0');
+    w.need(e.value_at, e.length, "an element's value");
+    if (e.length) w.src.read(e.value_at, &v[0], e.length);
+    w.image[e.elem] = v;
+}
+
+// A kept US value (binary), or -1 when absent or not two bytes.
+int us_value(const Walker& w, std::uint16_t elem) {
+    auto it = w.image.find(elem);
+    if (it == w.image.end() || it->second.size() != 2) return -1;
+    return w.u16(reinterpret_cast<const std::uint8_t*>(it->second.data()), w.big);
+}
+
+// The image pixel module values GDCM asserts on (it aborts the process on samples per pixel above 4, bits stored
+// above bits allocated, ...), checked before it sees them; what volrig cannot read (colour) is refused here too.
+void check_image_module(const Walker& w) {
+    const int spp = us_value(w, 0x0002), rows = us_value(w, 0x0010), cols = us_value(w, 0x0011);
+    const int ba = us_value(w, 0x0100), bs = us_value(w, 0x0101), hb = us_value(w, 0x0102), pr = us_value(w, 0x0103);
+    const std::string name = w.src.name();
+    if (rows <= 0 || cols <= 0) fail(name, "no valid Rows/Columns: not a DICOM image");
+    if (spp != 1) fail(name, "samples per pixel " + std::to_string(spp) + ": only single-channel (grey) images are supported");
+    if (ba != 8 && ba != 16 && ba != 32 && ba != 64)
+        fail(name, "bits allocated " + std::to_string(ba) + " is not supported (8, 16, 32 or 64)");
+    if (bs != -1 && (bs < 1 || bs > ba)) fail(name, "bits stored " + std::to_string(bs) + " is not 1 to bits allocated");
+    if (hb != -1 && (hb < 0 || hb >= (bs == -1 ? ba : bs))) fail(name, "high bit " + std::to_string(hb) + " is out of range");
+    if (pr != -1 && pr != 0 && pr != 1) fail(name, "pixel representation " + std::to_string(pr) + " is not 0 or 1");
+    auto it = w.image.find(0x0004);
+    std::string pi = it == w.image.end() ? "" : std::string(trim(it->second.c_str()));
+    if (pi != "MONOCHROME1" && pi != "MONOCHROME2")
+        fail(name, "photometric interpretation " + quoted(pi) + ": only MONOCHROME1/2 images are supported");
+}
 
 // Walks the elements from `at` to `end` (or to an item delimiter when `end` is 0: returns just past it).
-std::uint64_t walk_elements(const Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
+std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
     if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
     const std::uint64_t stop = end ? end : w.size;
     while (at < stop) {
@@ -106,6 +148,7 @@ std::uint64_t walk_elements(const Walker& w, std::uint64_t at, std::uint64_t end
             if (!end && e.elem == kItemEnd) return e.value_at;
             w.bad(at, "an item tag where an element was expected");
         }
+        if (depth == 0 && e.group == 0x0028 && e.length != kUndefined && e.length <= 16) keep_image_value(w, e);
         const bool pixels = e.group == 0x7fe0 && e.elem == 0x0010;
         const bool sequence = std::strncmp(e.vr, "SQ", 2) == 0 || (!w.explicit_vr && e.length == kUndefined);
         if (e.length == kUndefined) {
@@ -125,7 +168,7 @@ std::uint64_t walk_elements(const Walker& w, std::uint64_t at, std::uint64_t end
 
 // Walks sequence items from `at` to `end` (or to a sequence delimiter when `end` is 0: returns just past it).
 // `fragments`: encapsulated pixel data (items hold bytes, not data sets).
-std::uint64_t walk_items(const Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments) {
+std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments) {
     if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
     const std::uint64_t stop = end ? end : w.size;
     while (at < stop) {
@@ -142,6 +185,7 @@ std::uint64_t walk_items(const Walker& w, std::uint64_t at, std::uint64_t end, i
         } else {
             w.need(e.value_at, e.length, "a sequence item");
             if (!fragments && e.length > 0) walk_elements(w, e.value_at, e.value_at + e.length, depth + 1);
+            if (fragments && depth == 1) w.fragments.emplace_back(e.value_at, e.length);
             at = e.value_at + e.length;
         }
     }
@@ -170,20 +214,63 @@ std::uint64_t walk_meta(Walker& w) {
     if (syntax.empty()) w.bad(at, "no transfer syntax UID (0002,0010) in the file meta group");
     if (syntax == "1.2.840.10008.1.2.1.99")
         fail(w.src.name(), "deflated DICOM (transfer syntax 1.2.840.10008.1.2.1.99) is not supported");
+    w.syntax = syntax;
     w.explicit_vr = syntax != "1.2.840.10008.1.2";
     w.big = syntax == "1.2.840.10008.1.2.2";
     return at;
 }
 
+// One RLE segment (PackBits) from `at` to `end` may write at most `room` bytes and must not read past `end`.
+void check_rle_segment(const Walker& w, std::uint64_t at, std::uint64_t end, std::uint64_t room) {
+    std::vector<std::uint8_t> in(static_cast<std::size_t>(end - at));
+    if (!in.empty()) w.src.read(at, in.data(), in.size());
+    std::uint64_t out = 0;
+    for (std::size_t i = 0; i < in.size() && out < room;) {
+        const auto n = static_cast<std::int8_t>(in[i++]);
+        if (n == -128) continue;
+        const std::uint64_t run = n >= 0 ? std::uint64_t(n) + 1 : std::uint64_t(1 - n);
+        const std::size_t take = n >= 0 ? static_cast<std::size_t>(run) : 1;
+        if (in.size() - i < take) w.bad(at + i, "an RLE run reads past the end of its segment");
+        if (out + run > room) w.bad(at + i, "an RLE run writes past the end of the frame");
+        i += take;
+        out += run;
+    }
+}
+
+// RLE Lossless pixel data (GDCM's decoder overruns on broken headers): per frame fragment, a 64-byte header with
+// as many segments as bytes per pixel, ascending offsets inside the fragment, and segments that stay in bounds.
+void check_rle(const Walker& w) {
+    const std::uint64_t room = std::uint64_t(us_value(w, 0x0010)) * static_cast<std::uint64_t>(us_value(w, 0x0011));
+    const int segments = us_value(w, 0x0100) / 8;
+    if (w.fragments.size() < 2) fail(w.src.name(), "RLE pixel data without frames");
+    for (std::size_t f = 1; f < w.fragments.size(); ++f) {  // fragment 0 is the basic offset table
+        const auto [at, len] = w.fragments[f];
+        std::uint8_t h[64];
+        if (len < 64) w.bad(at, "an RLE frame shorter than its 64-byte header");
+        w.src.read(at, h, 64);
+        if (static_cast<int>(w.u32(h, false)) != segments)
+            w.bad(at, "an RLE frame with " + std::to_string(w.u32(h, false)) + " segments where " +
+                          std::to_string(segments) + " were expected");
+        for (int k = 0; k < segments; ++k) {
+            const std::uint32_t start = w.u32(h + 4 + 4 * k, false);
+            const std::uint32_t stop = k + 1 < segments ? w.u32(h + 8 + 4 * k, false) : len;
+            if (start < 64 || start > stop || stop > len) w.bad(at, "RLE segment offsets out of order or range");
+            check_rle_segment(w, at + start, at + stop, room);
+        }
+    }
+}
+
 }  // namespace
 
 void check_dicom_part10(const ByteSource& src) {
-    Walker w{src, src.size()};
+    Walker w{src, src.size(), true, false, {}, {}, {}};
     char magic[4] = {0, 0, 0, 0};
     if (w.size >= 132) src.read(128, magic, 4);
     if (std::memcmp(magic, "DICM", 4) != 0)
         fail(src.name(), "not a DICOM Part-10 file (no 'DICM' after the 128-byte preamble)");
     walk_elements(w, walk_meta(w), w.size, 0);
+    check_image_module(w);
+    if (w.syntax == "1.2.840.10008.1.2.5") check_rle(w);
 }
 
 }  // namespace volrig::detail
