@@ -202,6 +202,8 @@ std::uint64_t walk_meta(Walker& w) {
         const Element e = header_at(w, at, true, false);
         if (e.group != 0x0002) break;
         if (e.length == kUndefined) w.bad(at, "undefined length in the file meta group");
+        if (std::strncmp(e.vr, "SQ", 2) == 0 || std::strncmp(e.vr, "UN", 2) == 0)  // GDCM asserts on these here
+            w.bad(at, "a " + std::string(e.vr, 2) + " element in the file meta group");
         w.need(e.value_at, e.length, "a file meta element");
         if (e.elem == 0x0010) {
             if (e.length > 64) w.bad(at, "a transfer syntax UID longer than 64 bytes");
