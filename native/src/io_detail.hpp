@@ -159,7 +159,9 @@ bool names_several_files(std::string_view value);
 /// Walks a DICOM Part-10 file's structure (preamble, meta group, every element and item length within the file)
 /// and checks its image pixel module; fails naming the source unless GDCM can safely be handed it and it is a
 /// grey image (io_dicom_part10.cpp says why).
-void check_dicom_part10(const ByteSource& src);
+/// `vr_ok(group, element, vr)`, when given, says whether an explicit VR suits the tag (GDCM's dictionary).
+void check_dicom_part10(const ByteSource& src,
+                        const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok = {});
 
 // ---- writing -------------------------------------------------------------------------------------------------
 

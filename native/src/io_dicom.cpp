@@ -5,7 +5,9 @@
 // This file only groups, sorts, checks the geometry and rescales. Errors name the folder or file and say what is
 // wrong; nothing is allocated before the series' size is checked against max_bytes. Every file passes
 // check_dicom_part10 (io_dicom_part10.cpp) before GDCM reads it: Debian's GDCM aborts on some broken files.
+#include <gdcmDicts.h>
 #include <gdcmDirectory.h>
+#include <gdcmGlobal.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
 #include <gdcmScanner.h>
@@ -94,11 +96,23 @@ struct Series {
     std::vector<Slice> slices;
 };
 
+// Whether an explicit VR suits the tag in GDCM's dictionary (unknown and private tags: any VR).
+bool vr_suits_tag(std::uint16_t group, std::uint16_t element, const char* vr) {
+    if (group % 2) return true;  // private
+    const gdcm::VR dict = gdcm::Global::GetInstance().GetDicts().GetDictEntry(gdcm::Tag(group, element)).GetVR();
+    if (dict == gdcm::VR::INVALID || dict == gdcm::VR::UN) return true;
+    const char two[3] = {vr[0], vr[1], 0};
+    return dict.Compatible(gdcm::VR(gdcm::VR::GetVRType(two)));
+}
+
+// The Part-10 structure check with GDCM's dictionary VRs.
+void check_part10(const ByteSource& src) { detail::check_dicom_part10(src, vr_suits_tag); }
+
 // True when the file passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
 // for GDCM, and are left out).
 bool well_formed(const std::string& file) {
     try {
-        detail::check_dicom_part10(*open_file(file));
+        check_part10(*open_file(file));
         return true;
     } catch (const Error&) {
         return false;
@@ -113,7 +127,7 @@ std::vector<std::string> candidate_files(const std::string& path) {
     if (!fs::exists(path, ec)) throw FileNotFound(path + ": no such file or folder");
     const bool dicomdir = detail::iequals(base_name(path), "DICOMDIR");
     if (!fs::is_directory(path, ec) && !dicomdir) {
-        detail::check_dicom_part10(*open_file(path));
+        check_part10(*open_file(path));
         return {path};
     }
     gdcm::Directory dir;
@@ -454,7 +468,7 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
 
 Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
-    detail::check_dicom_part10(src);
+    check_part10(src);
     std::istringstream in(all_bytes(src, opt));
     gdcm::ImageReader r;
     r.SetStream(in);

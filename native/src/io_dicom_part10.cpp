@@ -8,8 +8,11 @@
 // kMaxDepth deep) and encapsulated pixel data walked item by item. Values are skipped, not read: only element
 // headers are. Deflated data sets cannot be walked and are refused. Then the image pixel module values GDCM
 // asserts on (samples per pixel, bits allocated/stored, high bit, ...) are checked, and RLE frames (headers,
-// segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on. GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+// segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on. The caller may
+// check each explicit VR against the tag's (GDCM's dictionary: GDCM asserts on a VR its attribute does not allow). GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+#include <cstdio>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <utility>
 #include <vector>
@@ -33,6 +36,7 @@ struct Walker {
     std::map<std::uint16_t, std::string> image;  // top-level (0028,xxxx) values of at most 16 bytes
     std::string syntax;                           // the transfer syntax UID
     std::vector<std::pair<std::uint64_t, std::uint32_t>> fragments;  // encapsulated pixel data: offset, length
+    std::function<bool(std::uint16_t, std::uint16_t, const char*)> vr_ok;  // the VR suits the tag (may be empty)
 
     [[noreturn]] void bad(std::uint64_t at, const std::string& what) const {
         fail(src.name(), "broken DICOM structure at byte " + with_commas(at) + ": " + what);
@@ -104,6 +108,12 @@ Element header_at(const Walker& w, std::uint64_t at, bool explicit_vr, bool be) 
 
 std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments);
 
+std::string hex4(std::uint16_t v) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "%04X", v);
+    return buf;
+}
+
 // Keeps a short image pixel module value (0028,xxxx) for check_image_module.
 void keep_image_value(Walker& w, const Element& e) {
     std::string v(e.length, '\0');
@@ -148,6 +158,9 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
             if (!end && e.elem == kItemEnd) return e.value_at;
             w.bad(at, "an item tag where an element was expected");
         }
+        if (w.explicit_vr && w.vr_ok && !w.vr_ok(e.group, e.elem, e.vr))
+            w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") has VR " + std::string(e.vr, 2) +
+                          ", which its tag does not allow");
         if (depth == 0 && e.group == 0x0028 && e.length != kUndefined && e.length <= 16) keep_image_value(w, e);
         const bool pixels = e.group == 0x7fe0 && e.elem == 0x0010;
         const bool sequence = std::strncmp(e.vr, "SQ", 2) == 0 || (!w.explicit_vr && e.length == kUndefined);
@@ -264,8 +277,9 @@ void check_rle(const Walker& w) {
 
 }  // namespace
 
-void check_dicom_part10(const ByteSource& src) {
-    Walker w{src, src.size(), true, false, {}, {}, {}};
+void check_dicom_part10(const ByteSource& src,
+                        const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok) {
+    Walker w{src, src.size(), true, false, {}, {}, {}, vr_ok};
     char magic[4] = {0, 0, 0, 0};
     if (w.size >= 132) src.read(128, magic, 4);
     if (std::memcmp(magic, "DICM", 4) != 0)
