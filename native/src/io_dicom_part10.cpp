@@ -10,6 +10,7 @@
 // asserts on (samples per pixel, bits allocated/stored, high bit, ...) are checked, and RLE frames (headers,
 // segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on. The caller may
 // check each explicit VR against the tag's (GDCM's dictionary: GDCM asserts on a VR its attribute does not allow). GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -33,7 +34,7 @@ struct Walker {
     std::uint64_t size;
     bool explicit_vr = true;
     bool big = false;  // byte order of the data set (the meta group is always little endian)
-    std::map<std::uint16_t, std::string> image;  // top-level (0028,xxxx) values of at most 16 bytes
+    std::map<std::uint16_t, std::string> image;  // top-level (0028,xxxx) values of at most 64 bytes
     std::string syntax;                           // the transfer syntax UID
     std::vector<std::pair<std::uint64_t, std::uint32_t>> fragments;  // encapsulated pixel data: offset, length
     std::function<bool(std::uint16_t, std::uint16_t, const char*)> vr_ok;  // the VR suits the tag (may be empty)
@@ -142,6 +143,14 @@ void check_image_module(const Walker& w) {
     if (bs != -1 && (bs < 1 || bs > ba)) fail(name, "bits stored " + std::to_string(bs) + " is not 1 to bits allocated");
     if (hb != -1 && (hb < 0 || hb >= (bs == -1 ? ba : bs))) fail(name, "high bit " + std::to_string(hb) + " is out of range");
     if (pr != -1 && pr != 0 && pr != 1) fail(name, "pixel representation " + std::to_string(pr) + " is not 0 or 1");
+    // GDCM asserts on a zero slope, which it also takes when an intercept comes without a (non-empty) slope.
+    const auto slope = w.image.find(0x1053);
+    if (slope != w.image.end() || w.image.count(0x1052)) {
+        double v = 0;
+        const std::string text = slope == w.image.end() ? "" : std::string(trim(slope->second.c_str()));
+        if (!parse_double(text.substr(0, text.find('\\')), v) || !std::isfinite(v) || v == 0)
+            fail(name, "RescaleSlope " + quoted(text) + " is not a finite non-zero number (with a RescaleIntercept)");
+    }
     auto it = w.image.find(0x0004);
     std::string pi = it == w.image.end() ? "" : std::string(trim(it->second.c_str()));
     if (pi != "MONOCHROME1" && pi != "MONOCHROME2")
@@ -161,7 +170,7 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
         if (w.explicit_vr && w.vr_ok && !w.vr_ok(e.group, e.elem, e.vr))
             w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") has VR " + std::string(e.vr, 2) +
                           ", which its tag does not allow");
-        if (depth == 0 && e.group == 0x0028 && e.length != kUndefined && e.length <= 16) keep_image_value(w, e);
+        if (depth == 0 && e.group == 0x0028 && e.length != kUndefined && e.length <= 64) keep_image_value(w, e);
         const bool pixels = e.group == 0x7fe0 && e.elem == 0x0010;
         const bool sequence = std::strncmp(e.vr, "SQ", 2) == 0 || (!w.explicit_vr && e.length == kUndefined);
         if (e.length == kUndefined) {
