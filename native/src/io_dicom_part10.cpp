@@ -164,7 +164,10 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
     while (at < stop) {
         const Element e = header_at(w, at, w.explicit_vr, w.big);
         if (e.group == kItemGroup) {
-            if (!end && e.elem == kItemEnd) return e.value_at;
+            if (!end && e.elem == kItemEnd) {
+                if (e.length != 0) w.bad(at, "an item delimiter with a non-zero length");
+                return e.value_at;
+            }
             w.bad(at, "an item tag where an element was expected");
         }
         if (w.explicit_vr && w.vr_ok && !w.vr_ok(e.group, e.elem, e.vr))
@@ -198,6 +201,7 @@ std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int dep
         if (e.group != kItemGroup) w.bad(at, "an element where a sequence item was expected");
         if (e.elem == kSequenceEnd) {
             if (end) w.bad(at, "a sequence delimiter in a sequence of defined length");
+            if (e.length != 0) w.bad(at, "a sequence delimiter with a non-zero length");
             return e.value_at;
         }
         if (e.elem != kItem) w.bad(at, "an unknown item tag");
