@@ -8,7 +8,8 @@
 // kMaxDepth deep) and encapsulated pixel data walked item by item. Values are skipped, not read: only element
 // headers are. Deflated data sets cannot be walked and are refused. Then the image pixel module values GDCM
 // asserts on (samples per pixel, bits allocated/stored, high bit, ...) are checked, and RLE frames (headers,
-// segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on. The caller may
+// segment offsets, every run within its segment and frame), which GDCM's RLE decoder overruns on, and native
+// pixel data of the size the image module declares (GDCM's raw decoder copies past a shorter one). The caller may
 // check each explicit VR against the tag's (GDCM's dictionary: GDCM asserts on a VR its attribute does not allow). GDCM still does all the parsing and decoding; this only refuses what it cannot survive.
 #include <cmath>
 #include <cstdio>
@@ -36,6 +37,7 @@ struct Walker {
     bool big = false;  // byte order of the data set (the meta group is always little endian)
     std::map<std::uint16_t, std::string> image;  // top-level (0028,xxxx) values of at most 64 bytes
     std::string syntax;                           // the transfer syntax UID
+    std::int64_t pixel_bytes = -1;                // length of the top-level native pixel data (-1: none)
     std::vector<std::pair<std::uint64_t, std::uint32_t>> fragments;  // encapsulated pixel data: offset, length
     std::function<bool(std::uint16_t, std::uint16_t, const char*)> vr_ok;  // the VR suits the tag (may be empty)
 
@@ -175,6 +177,7 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
                           ", which its tag does not allow");
         if (depth == 0 && e.group == 0x0028 && e.length != kUndefined && e.length <= 64) keep_image_value(w, e);
         const bool pixels = e.group == 0x7fe0 && e.elem == 0x0010;
+        if (pixels && depth == 0 && e.length != kUndefined) w.pixel_bytes = e.length;
         const bool sequence = std::strncmp(e.vr, "SQ", 2) == 0 || (!w.explicit_vr && e.length == kUndefined);
         if (e.length == kUndefined) {
             if (!sequence && !pixels && std::strncmp(e.vr, "UN", 2) != 0)
@@ -288,11 +291,26 @@ void check_rle(const Walker& w) {
     }
 }
 
+// Native (uncompressed) pixel data must hold rows x columns x frames samples (an odd byte of padding allowed):
+// GDCM's raw decoder copies past a shorter element.
+void check_native_pixels(const Walker& w) {
+    std::int64_t frames = 1;
+    if (auto f = w.image.find(0x0008); f != w.image.end()) {
+        const std::string text(trim(f->second.c_str()));
+        if (!text.empty() && (!parse_int(text, frames) || frames < 1 || frames > 1000000))
+            fail(w.src.name(), "NumberOfFrames " + quoted(text) + " is not a positive integer");
+    }
+    const std::int64_t want = std::int64_t(us_value(w, 0x0010)) * us_value(w, 0x0011) * frames * (us_value(w, 0x0100) / 8);
+    if (w.pixel_bytes < want || w.pixel_bytes > want + 1)
+        fail(w.src.name(), "pixel data holds " + with_commas(static_cast<std::uint64_t>(w.pixel_bytes)) +
+                               " bytes where rows x columns x frames need " + with_commas(static_cast<std::uint64_t>(want)));
+}
+
 }  // namespace
 
 void check_dicom_part10(const ByteSource& src,
                         const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok) {
-    Walker w{src, src.size(), true, false, {}, {}, {}, vr_ok};
+    Walker w{src, src.size(), true, false, {}, {}, -1, {}, vr_ok};
     char magic[4] = {0, 0, 0, 0};
     if (w.size >= 132) src.read(128, magic, 4);
     if (std::memcmp(magic, "DICM", 4) != 0)
@@ -300,6 +318,7 @@ void check_dicom_part10(const ByteSource& src,
     walk_elements(w, walk_meta(w), w.size, 0);
     check_image_module(w);
     if (w.syntax == "1.2.840.10008.1.2.5") check_rle(w);
+    if (w.pixel_bytes >= 0) check_native_pixels(w);
 }
 
 }  // namespace volrig::detail
