@@ -238,7 +238,8 @@ std::uint64_t walk_meta(Walker& w) {
             if (e.length > 64) w.bad(at, "a transfer syntax UID longer than 64 bytes");
             syntax.resize(e.length);
             if (e.length) w.src.read(e.value_at, &syntax[0], e.length);
-            while (!syntax.empty() && (syntax.back() == '\0' || syntax.back() == ' ')) syntax.pop_back();
+            syntax.resize(std::strlen(syntax.c_str()));  // up to the first NUL, as GDCM reads it
+            while (!syntax.empty() && syntax.back() == ' ') syntax.pop_back();
         }
         at = e.value_at + e.length;
     }
