@@ -286,7 +286,8 @@ void check_rle(const Walker& w) {
         for (int k = 0; k < segments; ++k) {
             const std::uint32_t start = w.u32(h + 4 + 4 * k, false);
             const std::uint32_t stop = k + 1 < segments ? w.u32(h + 8 + 4 * k, false) : len;
-            if (start < 64 || start > stop || stop > len) w.bad(at, "RLE segment offsets out of order or range");
+            if (start < 64 || start >= stop || stop > len)  // GDCM asserts on an empty segment too
+                w.bad(at, "RLE segment offsets out of order or range");
             check_rle_segment(w, at + start, at + stop, room);
         }
     }
