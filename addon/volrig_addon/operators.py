@@ -195,6 +195,26 @@ class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
+    """Show the segmented object coloured by its local thickness (each voxel: the diameter of the largest ball
+    inside the object that contains it) as <name>_thickness"""
+    bl_idname = "volrig.show_thickness"
+    bl_label = "Show Thickness"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"thickness": (0, 100)})
+            obj, values = objects.update_thickness(vol, mask, progress=lambda f: show("thickness", f))
+        if values.size == 0:
+            self.report({"WARNING"}, "volrig: the mask is empty: no thickness to show")
+            return {"FINISHED"}
+        lo, med, hi = np.percentile(values, [5, 50, 95])
+        self.report({"INFO"}, f"volrig: {obj.name}: thickness 5/50/95% {lo:.3g} / {med:.3g} / {hi:.3g} "
+                              f"(volume units), blue thin to red thick")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     """Segment the volume and compute its thinness skeleton once; the Thinness slider then re-thresholds it"""
     bl_idname = "volrig.skeletonize"
@@ -583,7 +603,7 @@ def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
-CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_show_thickness, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
            VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh,
            VOLRIG_OT_reset_bone_map, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
            VOLRIG_OT_straightening_rig)

@@ -4,6 +4,7 @@
 #include "volrig/distance.hpp"
 #include "volrig/reconstruct.hpp"
 #include "volrig/skeleton.hpp"
+#include "volrig/thickness.hpp"
 
 namespace volrig::py {
 
@@ -36,6 +37,20 @@ void bind_skeleton(py::module_& m) {
             return to_numpy(std::move(dt), g);
         },
         py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+
+    m.def(
+        "local_thickness",
+        [](const Mask& mask, const Vec3& spacing, const py::object& progress) {
+            const Grid g = mask_grid(mask, spacing);
+            Progress p = progress_of(progress);
+            std::vector<float> t;
+            {
+                py::gil_scoped_release nogil;
+                t = local_thickness(g, mask.data(), p);
+            }
+            return to_numpy(std::move(t), g);
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("progress") = py::none());
 
     py::class_<Skeleton>(m, "Skeleton")
         .def_property_readonly("metric", [](const Skeleton& s) { return std::string(metric_name(s.metric)); })
