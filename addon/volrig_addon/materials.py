@@ -234,7 +234,15 @@ def thickness_material(name: str):
     vol = n.new("ShaderNodeVolumePrincipled")
     vol.name = "volrig thickness volume"
     vol.location = (-100, 0)
-    vol.inputs["Emission Strength"].default_value = 0.4
+    # the glow only inside the mask (Principled Volume's emission ignores its density attribute: a constant
+    # strength would light the grid's whole active box)
+    inside = n.new("ShaderNodeAttribute")
+    inside.attribute_name = "density"
+    inside.location = (-600, -250)
+    glow = n.new("ShaderNodeMath")
+    glow.operation = "MULTIPLY"
+    glow.inputs[1].default_value = 0.6
+    glow.location = (-400, -250)
     out = n.new("ShaderNodeOutputMaterial")
     out.location = (200, 0)
     link = mat.node_tree.links.new
@@ -242,6 +250,8 @@ def thickness_material(name: str):
     link(span.outputs["Result"], ramp.inputs["Fac"])
     link(ramp.outputs["Color"], vol.inputs["Color"])
     link(ramp.outputs["Color"], vol.inputs["Emission Color"])
+    link(inside.outputs["Fac"], glow.inputs[0])
+    link(glow.outputs[0], vol.inputs["Emission Strength"])
     link(vol.outputs["Volume"], out.inputs["Volume"])
     return mat
 
