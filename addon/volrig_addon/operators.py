@@ -2,6 +2,7 @@
 user mistakes (volrig's own errors: bad files, empty segmentations, missing rigs; and OSError) in the UI instead
 of raising, lets anything else (a bug) raise, is undoable, and never writes to the user's source file."""
 import os
+import threading
 import uuid
 
 import bpy
@@ -295,6 +296,45 @@ class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class FrameWork:
+    """One frame's volume computed on a worker thread (``Baker.compute``: no Blender data touched); ``stop()``
+    makes its progress callback return False, which stops the native computation at its next check (many per
+    frame) with volrig.Cancelled."""
+
+    def __init__(self, baker, frame: int, matrices):
+        self.fraction = 0.0
+        self._stop = threading.Event()
+        self._error = None
+        self._thread = threading.Thread(target=self._run, args=(baker, frame, matrices), name="volrig-frame",
+                                        daemon=True)
+        self._thread.start()
+
+    def _progress(self, f) -> bool:
+        self.fraction = float(f)
+        return not self._stop.is_set()
+
+    def _run(self, baker, frame, matrices):
+        try:
+            baker.compute(frame, matrices, progress=self._progress)
+        except BaseException as e:  # handed to the modal operator on Blender's thread
+            self._error = e
+
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def result(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+
+    def stop(self) -> bool:
+        """Stops the frame and waits for it; True when it was still computing."""
+        running = not self.done()
+        self._stop.set()
+        self._thread.join()
+        return running
+
+
 class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
     """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
     bl_idname = "volrig.bake"
@@ -321,27 +361,45 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
         self._written = 0
         self._rate = pipeline.BakeRate(len(self._frames))
         self._current = context.scene.frame_current
+        self._work = None
         wm = context.window_manager
         wm.progress_begin(0, len(self._frames))
-        self._timer = wm.event_timer_add(0.01, window=context.window)
+        self._timer = wm.event_timer_add(0.05, window=context.window)
         wm.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        """Each frame: its pose taken on Blender's thread, its volume computed on a worker (FrameWork), so Esc is
+        seen while a frame computes and stops it within a fraction of the frame."""
         if event.type == "ESC":
+            inside = self._work is not None and self._work.stop()
             self._finish(context)
-            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames")
+            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames"
+                                     + (" (the frame in progress dropped)" if inside else ""))
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         try:
-            frame = self._frames[self._next]
-            if self._baker.bake_frame(context.scene, frame, force=self.force):
+            if self._work is not None:
+                if not self._work.done():
+                    context.window_manager.progress_update(self._next + self._work.fraction)
+                    return {"RUNNING_MODAL"}
+                self._work.result()  # raises what the frame raised
+                self._work = None
                 self._written += 1
+                return self._frame_done(context)
+            frame = self._frames[self._next]
+            matrices = self._baker.pose(context.scene, frame, force=self.force)
+            if matrices is None:  # up to date
+                return self._frame_done(context)
+            self._work = FrameWork(self._baker, frame, matrices)
         except USER_ERRORS as e:
             self._finish(context)
             self.report({"ERROR"}, f"volrig: {e}")
             return {"CANCELLED"}
+        return {"RUNNING_MODAL"}
+
+    def _frame_done(self, context):
         self._next += 1
         self._rate.tick()
         context.window_manager.progress_update(self._next)
