@@ -14,7 +14,6 @@ Target (issue 22, 2 cores): local thickness within 3x of the EDT measured in the
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -22,18 +21,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import volrig  # noqa: E402
+from bench_centerline import timed  # noqa: E402  (best, median, last result of repeated calls)
 
 DATA = os.path.join(HERE, "..", "..", "shared", "data")
-
-
-def timed(repeat, f):
-    times, out = [], None
-    for _ in range(repeat):
-        out = None
-        t0 = time.perf_counter()
-        out = f()
-        times.append(time.perf_counter() - t0)
-    return min(times), float(np.median(times)), out
 
 
 def shells(n=256):
