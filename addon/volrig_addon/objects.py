@@ -64,15 +64,26 @@ def _remove(obj) -> None:
                 return  # data is gone: asking it anything more raises
 
 
-def create_volume_object(context, name: str, vdb_path: str, unit_scale: float):
-    """A Volume object in a new collection ``name`` showing ``vdb_path``, scaled by ``unit_scale``."""
+def placement(unit_scale: float, grid_to_world=None) -> Matrix:
+    """The Volume object's matrix: the grid frame (origin + spacing * index, where volrig computes) turned into the
+    patient frame (``volrig.Volume.grid_to_world()``, LPS), scaled into Blender units. Blender's axes are taken as
+    LPS: +x the patient's left, +y posterior, +z superior, so a patient faces -Y like a Blender character (the
+    front view shows the face)."""
+    g = Matrix.Identity(4) if grid_to_world is None else Matrix([list(map(float, r)) for r in np.asarray(grid_to_world)])
+    return Matrix.Scale(unit_scale, 4) @ g
+
+
+def create_volume_object(context, name: str, vdb_path: str, unit_scale: float, grid_to_world=None):
+    """A Volume object in a new collection ``name`` showing ``vdb_path`` (a grid-frame VDB), placed by
+    ``placement``; the armature, the sphere mesh and the previews take its matrix, so all that volrig computes in
+    the grid frame lands on the volume."""
     coll = bpy.data.collections.new(name)
     context.scene.collection.children.link(coll)
     data = bpy.data.volumes.new(name)
     data.filepath = vdb_path
     obj = bpy.data.objects.new(name, data)
     coll.objects.link(obj)
-    obj.matrix_world = Matrix.Scale(unit_scale, 4)
+    obj.matrix_world = placement(unit_scale, grid_to_world)
     obj.volrig.role = "VOLUME"
     obj.volrig.unit_scale = unit_scale
     return obj

@@ -163,7 +163,8 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     folder = bpy.path.abspath(rel)
     os.makedirs(folder, exist_ok=True)
     scans.write_source(folder, vol, source)
-    obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale)
+    obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale,
+                                       vol.grid_to_world())
     s = obj.volrig
     s.source, s.cache_dir = source, rel
     scans.remember_source(obj, vol)
