@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Pictures of local thickness (issue 22): the Visible Human Male's bone (labels 84, 92) at 2 mm seen from the front,
-and its skull at 1 mm seen from the left, each coloured by its local thickness (the colour of the first bone voxel
-along each line of sight, shaded by its depth). Needs ../shared/data. Writes docs/images/thickness.png.
+its skull at 1 mm seen from the left, and the skull's plane-like skeleton (volrig.plane_like, t = 5), each coloured
+by local thickness (the colour of the first voxel along each line of sight, shaded by its depth). Needs ../shared/data. Writes docs/images/thickness.png.
 
     PYTHONPATH=python /usr/bin/python3 scripts/thickness_pictures.py [--out docs/images]
 """
@@ -72,12 +72,22 @@ def main() -> int:
               "Visible Human Male, bone, 2 mm, front", 1, False),
              (skull_1mm(), "its skull at 1 mm, from the left", 2, True)]
     top = 40.0
-    fig = plt.figure(figsize=(12, 8.5))
-    axes = [fig.add_axes([0.05, 0.07, 0.33, 0.83]), fig.add_axes([0.43, 0.07, 0.45, 0.83])]
-    cax = fig.add_axes([0.91, 0.25, 0.015, 0.5])
+    fig = plt.figure(figsize=(12, 11.5))
+    axes = [fig.add_axes([0.05, 0.05, 0.33, 0.88]), fig.add_axes([0.45, 0.53, 0.42, 0.40]),
+            fig.add_axes([0.45, 0.05, 0.42, 0.40])]
+    cax = fig.add_axes([0.91, 0.3, 0.015, 0.4])
+    skull = cases[1][0]
+    t0 = time.perf_counter()
+    plates = volrig.plane_like(skull, t=5.0)
+    pt = time.perf_counter() - t0
+    cases.append((volrig.Volume(plates.array, skull.spacing, skull.origin),
+                  f"its plane-like skeleton (t = 5 voxels, {pt:.1f} s): the medial surface of the plates", 2, True))
     for ax, (mask, title, axis, flip) in zip(axes, cases):
         t0 = time.perf_counter()
-        thick = volrig.local_thickness(mask)
+        thick = volrig.local_thickness(skull if mask.array is plates.array else mask)
+        if mask.array is plates.array:  # the skull's thickness on its plane-like voxels
+            thick = volrig.Volume(np.where(plates.array, thick.array, 0.0).astype(np.float32), skull.spacing,
+                                  skull.origin)
         dt = time.perf_counter() - t0
         vals = thick.array[mask.array]
         q = np.percentile(vals, [5, 50, 95])
@@ -85,7 +95,7 @@ def main() -> int:
                          f" ({dt:.1f} s)", top, axis, flip)
     sm = plt.cm.ScalarMappable(cmap="turbo", norm=plt.Normalize(0, top))
     fig.colorbar(sm, cax=cax, label="local thickness (mm)")
-    fig.suptitle("Local thickness: each voxel's largest inscribed ball, seen from the front (first bone voxel, shaded by depth)",
+    fig.suptitle("Local thickness: each voxel's largest inscribed ball (first bone voxel along the view, shaded by depth)",
                  fontsize=10)
     path = os.path.join(args.out, "thickness.png")
     from volrig.files import atomic_output

@@ -2,6 +2,7 @@
 #include "convert.hpp"
 #include "volrig/components.hpp"
 #include "volrig/distance.hpp"
+#include "volrig/medial.hpp"
 #include "volrig/reconstruct.hpp"
 #include "volrig/skeleton.hpp"
 #include "volrig/thickness.hpp"
@@ -37,6 +38,20 @@ void bind_skeleton(py::module_& m) {
             return to_numpy(std::move(dt), g);
         },
         py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+
+    m.def(
+        "plane_measure",
+        [](const Mask& mask, const Vec3& spacing, double t, const py::object& progress) {
+            const Grid g = mask_grid(mask, spacing);
+            Progress p = progress_of(progress);
+            std::vector<float> d;
+            {
+                py::gil_scoped_release nogil;
+                d = plane_measure(g, mask.data(), t, p);
+            }
+            return to_numpy(std::move(d), g);
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("t"), py::arg("progress") = py::none());
 
     m.def(
         "local_thickness",

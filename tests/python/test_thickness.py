@@ -120,3 +120,37 @@ def test_real_bone_plates_are_thinner_than_long_bones():
     head[: int(nz * 0.88)] = False  # the top 12% of the body: the skull
     assert np.median(t[head]) <= 8.0 + 1e-4 and np.percentile(t[head], 95) <= 16.0 + 1e-4
     assert np.percentile(t[bone], 99) > 40.0  # the pelvis, the vertebral bodies, the femoral heads
+
+
+def test_plane_like_is_the_middle_layer_of_plates_and_leaves_thin_rods_out():
+    # a plate 6 voxels thick with a rod of radius 2.5 standing on it: plane-like voxels are one layer in the plate's
+    # middle (away from its rim), none in the rod (round it is ~8 voxels, below t = 10)
+    m = np.zeros((60, 100, 100), bool)
+    m[7:13, 10:90, 10:90] = True
+    z, y, x = np.indices(m.shape)
+    m |= ((x - 50) ** 2 + (y - 50) ** 2 < 6.5) & (z >= 13) & (z < 55)
+    vol = volrig.Volume(m, (0.5, 0.5, 0.5))
+    p = volrig.plane_like(vol, t=10.0)
+    assert p.spacing == (0.5, 0.5, 0.5) and p.array.dtype == np.bool_
+    assert not (p.array & ~m).any()
+    layers = np.nonzero(p.array)[0]
+    assert set(np.unique(layers)) <= {9, 10, 11}
+    inner = p.array[:, 25:75, 25:75].sum(axis=0)
+    assert (inner == 1).mean() > 0.99
+    assert not p.array[14:].any()  # the rod
+    d = volrig.plane_measure(vol, t=10.0)
+    assert np.isinf(d.array[10, 50, 30]) and d.array[0, 0, 0] == 0.0
+    assert np.all(d.array[~m] == 0.0)
+    with pytest.raises(volrig.VolrigError, match="t must be"):
+        volrig.plane_like(vol, t=0.0)
+
+
+def test_plane_like_on_the_skull_at_2mm():
+    # The Visible Human's bone at 2 mm: the skull vault is a plate, so most of its plane-like voxels lie in the head,
+    # and the long bones (tubes) keep few.
+    vol = volrig.load(shared("visible-human/austinman_2mm_labels.nii.gz"))
+    bone = np.isin(vol.array, (84, 92))
+    z0 = int(bone.shape[0] * 0.88)
+    head = volrig.Volume(np.ascontiguousarray(bone[z0:]), vol.spacing, vol.origin)
+    p = volrig.plane_like(head, t=5.0).array
+    assert p.sum() > 0.05 * head.array.sum()
