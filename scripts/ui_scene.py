@@ -51,12 +51,19 @@ def setup():
         vol.select_set(True)
         if os.environ.get("UI_CONTACTS"):  # key the right arm swung through the body, then Find Contacts
             contacts(vol)
+        if os.environ.get("UI_THICKNESS"):  # the bone's thickness as colour, the scan and the rig hidden
+            vol.volrig.low, vol.volrig.high, vol.volrig.largest = 150, 255, False
+            print("show_thickness:", bpy.ops.volrig.show_thickness(), flush=True)
+            from volrig_addon.objects import members
+            for role, o in members(vol).items():
+                o.hide_set(role != "THICKNESS")
+            vol.hide_set(True)
     for area in win.screen.areas:
         if area.type == "VIEW_3D":
             for space in area.spaces:
                 if space.type == "VIEW_3D":
                     space.show_region_ui = True
-                    space.shading.type = "SOLID"
+                    space.shading.type = "MATERIAL" if os.environ.get("UI_THICKNESS") else "SOLID"
             for region in area.regions:
                 if region.type == "UI":
                     try:

@@ -93,12 +93,26 @@ class Baker(RigState):
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
         """Reconstruct scene frame ``frame`` into its VDB file (written while the next frame computes: ``finish``
         waits for it); False when the file was up to date."""
+        matrices = self.pose(scene, frame, force)
+        if matrices is None:
+            return False
+        self.compute(frame, matrices, progress)
+        return True
+
+    def pose(self, scene, frame: int, force: bool = False):
+        """The (B, 4, 4) bone matrices of scene frame ``frame`` (Blender's side of a frame: the main thread only),
+        or None when its file is up to date."""
         scene.frame_set(frame)
         matrices = self.bone_matrices(bpy.context.evaluated_depsgraph_get())
         if not force and self.folder.up_to_date(frame, matrices):
-            return False
+            return None
+        return matrices
+
+    def compute(self, frame: int, matrices, progress=None) -> None:
+        """volrig's side of a frame: reconstructs the pose into its file; touches no Blender data, so it may run on
+        a worker thread while Blender's stays responsive. ``progress(fraction)`` is called many times within the
+        frame; returning False stops it there (``volrig.Cancelled``) and writes nothing for it."""
         self.folder.bake(frame, matrices, progress=progress)
-        return True
 
     def finish(self) -> None:
         """Waits for the last frame's file (bake_frame returns while it is written) and frees the frames' memory;

@@ -202,3 +202,64 @@ def lumen_wall_material(name: str, density: float):
     link(absorb.outputs[0], add.inputs[1])
     link(add.outputs[0], out.inputs["Volume"])
     return mat
+
+
+#: Thickness colours, thin to thick (a perceptually ordered blue-green-yellow-red ramp).
+THICKNESS_STOPS = ((0.0, (0.05, 0.15, 0.9)), (0.35, (0.0, 0.75, 0.6)), (0.65, (0.95, 0.85, 0.1)),
+                   (1.0, (0.9, 0.1, 0.05)))
+
+
+def thickness_material(name: str):
+    """``<name> thickness``: a Principled Volume whose density follows the ``density`` grid (the mask) and whose
+    colour and glow follow the ``thickness`` grid through a colour ramp (``set_thickness_range`` sets the span)."""
+    mat = bpy.data.materials.new(f"{name} thickness")
+    mat.use_nodes = True
+    n = mat.node_tree.nodes
+    n.clear()
+    attr = n.new("ShaderNodeAttribute")
+    attr.name = attr.label = "volrig thickness"
+    attr.attribute_name = "thickness"
+    attr.location = (-800, 0)
+    span = n.new("ShaderNodeMapRange")
+    span.name = span.label = "volrig thickness span"
+    span.location = (-600, 0)
+    ramp = n.new("ShaderNodeValToRGB")
+    ramp.name = ramp.label = "volrig thickness ramp"
+    ramp.location = (-400, 0)
+    r = ramp.color_ramp
+    r.elements[0].position, r.elements[0].color = THICKNESS_STOPS[0][0], (*THICKNESS_STOPS[0][1], 1.0)
+    r.elements[1].position, r.elements[1].color = THICKNESS_STOPS[-1][0], (*THICKNESS_STOPS[-1][1], 1.0)
+    for pos, rgb in THICKNESS_STOPS[1:-1]:
+        r.elements.new(pos).color = (*rgb, 1.0)
+    vol = n.new("ShaderNodeVolumePrincipled")
+    vol.name = "volrig thickness volume"
+    vol.location = (-100, 0)
+    # the glow only inside the mask (Principled Volume's emission ignores its density attribute: a constant
+    # strength would light the grid's whole active box)
+    inside = n.new("ShaderNodeAttribute")
+    inside.attribute_name = "density"
+    inside.location = (-600, -250)
+    glow = n.new("ShaderNodeMath")
+    glow.operation = "MULTIPLY"
+    glow.inputs[1].default_value = 0.6
+    glow.location = (-400, -250)
+    out = n.new("ShaderNodeOutputMaterial")
+    out.location = (200, 0)
+    link = mat.node_tree.links.new
+    link(attr.outputs["Fac"], span.inputs["Value"])
+    link(span.outputs["Result"], ramp.inputs["Fac"])
+    link(ramp.outputs["Color"], vol.inputs["Color"])
+    link(ramp.outputs["Color"], vol.inputs["Emission Color"])
+    link(inside.outputs["Fac"], glow.inputs[0])
+    link(glow.outputs[0], vol.inputs["Emission Strength"])
+    link(vol.outputs["Volume"], out.inputs["Volume"])
+    return mat
+
+
+def set_thickness_range(mat, top: float, density: float) -> None:
+    """Thickness 0 .. ``top`` (world units) spans the ramp; ``density`` per Blender unit inside the mask."""
+    n = mat.node_tree.nodes
+    span = n["volrig thickness span"]
+    span.inputs["From Min"].default_value = 0.0
+    span.inputs["From Max"].default_value = max(float(top), 1e-6)
+    n["volrig thickness volume"].inputs["Density"].default_value = float(density)

@@ -2,6 +2,7 @@
 
 - ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
 - ``<name>_mask``     preview Volume object (child of ``<name>``) showing the segmentation mask.
+- ``<name>_thickness`` Volume object (child of ``<name>``): the mask coloured by its local thickness.
 - ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
 - ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
 - ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
@@ -15,6 +16,8 @@ import numpy as np
 from mathutils import Matrix
 
 import volrig
+
+from . import materials
 
 SPHERE_NODES = "volrig spheres"
 
@@ -61,43 +64,88 @@ def _remove(obj) -> None:
                 return  # data is gone: asking it anything more raises
 
 
-def create_volume_object(context, name: str, vdb_path: str, unit_scale: float):
-    """A Volume object in a new collection ``name`` showing ``vdb_path``, scaled by ``unit_scale``."""
+def placement(unit_scale: float, grid_to_world=None) -> Matrix:
+    """The Volume object's matrix: the grid frame (origin + spacing * index, where volrig computes) turned into the
+    patient frame (``volrig.Volume.grid_to_world()``, LPS), scaled into Blender units. Blender's axes are taken as
+    LPS: +x the patient's left, +y posterior, +z superior, so a patient faces -Y like a Blender character (the
+    front view shows the face)."""
+    g = Matrix.Identity(4) if grid_to_world is None else Matrix([list(map(float, r)) for r in np.asarray(grid_to_world)])
+    return Matrix.Scale(unit_scale, 4) @ g
+
+
+def create_volume_object(context, name: str, vdb_path: str, unit_scale: float, grid_to_world=None):
+    """A Volume object in a new collection ``name`` showing ``vdb_path`` (a grid-frame VDB), placed by
+    ``placement``; the armature, the sphere mesh and the previews take its matrix, so all that volrig computes in
+    the grid frame lands on the volume."""
     coll = bpy.data.collections.new(name)
     context.scene.collection.children.link(coll)
     data = bpy.data.volumes.new(name)
     data.filepath = vdb_path
     obj = bpy.data.objects.new(name, data)
     coll.objects.link(obj)
-    obj.matrix_world = Matrix.Scale(unit_scale, 4)
+    obj.matrix_world = placement(unit_scale, grid_to_world)
     obj.volrig.role = "VOLUME"
     obj.volrig.unit_scale = unit_scale
     return obj
 
 
-def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
-    """Shows ``mask`` as ``<name>_mask``: a Volume object over the scan (parented to it) whose grid is the mask,
-    written to the cache as mask_<key>.vdb (a new name per segmentation, so Blender reloads it)."""
+def _cached_preview(volume_obj, prefix: str, write) -> str:
+    """Cache path (relative, as the Volume data wants it) of ``<prefix>_<key>.vdb`` for the current segmentation,
+    written by ``write(path)`` when missing; earlier ``<prefix>_*.vdb`` files are removed (a new name per
+    segmentation, so Blender reloads it)."""
     import hashlib
     from . import scans
     folder = scans.cache_dir(volume_obj)
     key = hashlib.sha1(repr(scans.segmentation_key(volume_obj)).encode()).hexdigest()[:10]
-    path = os.path.join(folder, f"mask_{key}.vdb")
+    path = os.path.join(folder, f"{prefix}_{key}.vdb")
     if not os.path.exists(path):
-        volrig.write_vdb(path, {"density": mask})
-    for old in os.listdir(folder):  # earlier previews
-        if old.startswith("mask_") and old.endswith(".vdb") and old != os.path.basename(path):
+        write(path)
+    for old in os.listdir(folder):
+        if old.startswith(prefix + "_") and old.endswith(".vdb") and old != os.path.basename(path):
             os.remove(os.path.join(folder, old))
-    obj = members(volume_obj).get("MASK")
+    return os.path.join(volume_obj.volrig.cache_dir, os.path.basename(path))
+
+
+def _child_volume(volume_obj, role: str, suffix: str, material) -> bpy.types.Object:
+    """The Volume object of ``role`` over the scan (parented to it), made with ``material`` when missing."""
+    obj = members(volume_obj).get(role)
     if obj is None:
-        obj = _new_object(volume_obj, volume_obj.name + "_mask", bpy.data.volumes.new(volume_obj.name + "_mask"),
-                          "MASK")
+        name = volume_obj.name + suffix
+        obj = _new_object(volume_obj, name, bpy.data.volumes.new(name), role)
         obj.parent = volume_obj
         obj.matrix_parent_inverse.identity()
-        obj.data.materials.append(_mask_material())
-    rel = os.path.join(volume_obj.volrig.cache_dir, os.path.basename(path))
+        obj.data.materials.append(material)
+    return obj
+
+
+def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
+    """Shows ``mask`` as ``<name>_mask``: a Volume object over the scan (parented to it) whose grid is the mask,
+    written to the cache as mask_<key>.vdb."""
+    rel = _cached_preview(volume_obj, "mask", lambda path: volrig.write_vdb(path, {"density": mask}))
+    obj = _child_volume(volume_obj, "MASK", "_mask", _mask_material())
     obj.data.filepath = rel
     return obj
+
+
+def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
+    """Shows the mask coloured by its local thickness as ``<name>_thickness`` (grids ``density``: the mask,
+    ``thickness``: world units; cached as thickness_<key>.vdb). Returns (object, thickness values of the mask)."""
+    from . import scans
+
+    def write(path):
+        t = volrig.local_thickness(mask, progress=progress)
+        volrig.write_vdb(path, {"density": mask, "thickness": t}, half=False)
+
+    rel = _cached_preview(volume_obj, "thickness", write)
+    t = volrig.load(os.path.join(scans.cache_dir(volume_obj), os.path.basename(rel)), grid="thickness")
+    values = t.array[t.array > 0]
+    obj = _child_volume(volume_obj, "THICKNESS", "_thickness", materials.thickness_material(volume_obj.name))
+    obj.data.filepath = rel
+    s = volume_obj.volrig
+    extent = max(d * sp for d, sp in zip(s.dims, s.spacing)) * s.unit_scale
+    top = float(np.percentile(values, 99)) if values.size else 1.0
+    materials.set_thickness_range(obj.active_material, top, density=40.0 / max(extent, 1e-9))
+    return obj, values
 
 
 def _mask_material():

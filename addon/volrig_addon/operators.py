@@ -2,6 +2,7 @@
 user mistakes (volrig's own errors: bad files, empty segmentations, missing rigs; and OSError) in the UI instead
 of raising, lets anything else (a bug) raise, is undoable, and never writes to the user's source file."""
 import os
+import threading
 import uuid
 
 import bpy
@@ -162,7 +163,8 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
     folder = bpy.path.abspath(rel)
     os.makedirs(folder, exist_ok=True)
     scans.write_source(folder, vol, source)
-    obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale)
+    obj = objects.create_volume_object(context, name, os.path.join(rel, "source.vdb"), unit_scale,
+                                       vol.grid_to_world())
     s = obj.volrig
     s.source, s.cache_dir = source, rel
     scans.remember_source(obj, vol)
@@ -192,6 +194,26 @@ class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):
         objects.update_mask_preview(vol, mask)
         vol.volrig.mask_count = count
         self.report({"INFO"}, f"volrig: mask of {count:,} voxels shown as {vol.name}_mask")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
+    """Show the segmented object coloured by its local thickness (each voxel: the diameter of the largest ball
+    inside the object that contains it) as <name>_thickness"""
+    bl_idname = "volrig.show_thickness"
+    bl_label = "Show Thickness"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"thickness": (0, 100)})
+            obj, values = objects.update_thickness(vol, mask, progress=lambda f: show("thickness", f))
+        if values.size == 0:
+            self.report({"WARNING"}, "volrig: the mask is empty: no thickness to show")
+            return {"FINISHED"}
+        lo, med, hi = np.percentile(values, [5, 50, 95])
+        self.report({"INFO"}, f"volrig: {obj.name}: thickness 5/50/95% {lo:.3g} / {med:.3g} / {hi:.3g} "
+                              f"(volume units), blue thin to red thick")
         return {"FINISHED"}
 
 
@@ -275,6 +297,45 @@ class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class FrameWork:
+    """One frame's volume computed on a worker thread (``Baker.compute``: no Blender data touched); ``stop()``
+    makes its progress callback return False, which stops the native computation at its next check (many per
+    frame) with volrig.Cancelled."""
+
+    def __init__(self, baker, frame: int, matrices):
+        self.fraction = 0.0
+        self._stop = threading.Event()
+        self._error = None
+        self._thread = threading.Thread(target=self._run, args=(baker, frame, matrices), name="volrig-frame",
+                                        daemon=True)
+        self._thread.start()
+
+    def _progress(self, f) -> bool:
+        self.fraction = float(f)
+        return not self._stop.is_set()
+
+    def _run(self, baker, frame, matrices):
+        try:
+            baker.compute(frame, matrices, progress=self._progress)
+        except BaseException as e:  # handed to the modal operator on Blender's thread
+            self._error = e
+
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def result(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+
+    def stop(self) -> bool:
+        """Stops the frame and waits for it; True when it was still computing."""
+        running = not self.done()
+        self._stop.set()
+        self._thread.join()
+        return running
+
+
 class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
     """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
     bl_idname = "volrig.bake"
@@ -301,27 +362,45 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
         self._written = 0
         self._rate = pipeline.BakeRate(len(self._frames))
         self._current = context.scene.frame_current
+        self._work = None
         wm = context.window_manager
         wm.progress_begin(0, len(self._frames))
-        self._timer = wm.event_timer_add(0.01, window=context.window)
+        self._timer = wm.event_timer_add(0.05, window=context.window)
         wm.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
+        """Each frame: its pose taken on Blender's thread, its volume computed on a worker (FrameWork), so Esc is
+        seen while a frame computes and stops it within a fraction of the frame."""
         if event.type == "ESC":
+            inside = self._work is not None and self._work.stop()
             self._finish(context)
-            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames")
+            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames"
+                                     + (" (the frame in progress dropped)" if inside else ""))
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         try:
-            frame = self._frames[self._next]
-            if self._baker.bake_frame(context.scene, frame, force=self.force):
+            if self._work is not None:
+                if not self._work.done():
+                    context.window_manager.progress_update(self._next + self._work.fraction)
+                    return {"RUNNING_MODAL"}
+                self._work.result()  # raises what the frame raised
+                self._work = None
                 self._written += 1
+                return self._frame_done(context)
+            frame = self._frames[self._next]
+            matrices = self._baker.pose(context.scene, frame, force=self.force)
+            if matrices is None:  # up to date
+                return self._frame_done(context)
+            self._work = FrameWork(self._baker, frame, matrices)
         except USER_ERRORS as e:
             self._finish(context)
             self.report({"ERROR"}, f"volrig: {e}")
             return {"CANCELLED"}
+        return {"RUNNING_MODAL"}
+
+    def _frame_done(self, context):
         self._next += 1
         self._rate.tick()
         context.window_manager.progress_update(self._next)
@@ -583,7 +662,7 @@ def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
-CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_show_thickness, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
            VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh,
            VOLRIG_OT_reset_bone_map, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
            VOLRIG_OT_straightening_rig)

@@ -54,6 +54,7 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("SPHERES", "Spheres", "One vertex per skeleton sphere, bound to the armature"),
         ("SKELETON", "Skeleton preview", "The skeleton points at the current thinness"),
         ("MASK", "Mask preview", "The segmentation mask"),
+        ("THICKNESS", "Thickness", "The segmented object coloured by its local thickness"),
         ("PATH", "Centerline", "The fly-through's Bezier curve along the centerline"),
         ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
         ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),

@@ -2,8 +2,10 @@
 #include "convert.hpp"
 #include "volrig/components.hpp"
 #include "volrig/distance.hpp"
+#include "volrig/medial.hpp"
 #include "volrig/reconstruct.hpp"
 #include "volrig/skeleton.hpp"
+#include "volrig/thickness.hpp"
 
 namespace volrig::py {
 
@@ -19,23 +21,47 @@ py::array_t<T> view(const std::vector<T, A>& v, std::vector<py::ssize_t> shape, 
     return py::array_t<T>(shape, v.data(), owner);
 }
 
+/// A per-voxel function of a mask (DT, plane measure, thickness) run without the GIL, as an array on its grid.
+template <class F>
+py::array_t<float> per_voxel(const Mask& mask, const Vec3& spacing, const py::object& progress, F f) {
+    const Grid g = mask_grid(mask, spacing);
+    Progress p = progress_of(progress);
+    std::vector<float> out;
+    {
+        py::gil_scoped_release nogil;
+        out = f(g, mask.data(), p);
+    }
+    return to_numpy(std::move(out), g);
+}
+
 }  // namespace
 
 void bind_skeleton(py::module_& m) {
     m.def(
         "distance_transform",
         [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
-            const Grid g = mask_grid(mask, spacing);
             const Metric mt = metric_from_name(metric);
-            Progress p = progress_of(progress);
-            std::vector<float> dt;
-            {
-                py::gil_scoped_release nogil;
-                dt = distance_transform(g, mask.data(), mt, p);
-            }
-            return to_numpy(std::move(dt), g);
+            return per_voxel(mask, spacing, progress, [mt](const Grid& g, const std::uint8_t* data, const Progress& p) {
+                return distance_transform(g, data, mt, p);
+            });
         },
         py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+    m.def(
+        "plane_measure",
+        [](const Mask& mask, const Vec3& spacing, double t, const py::object& progress) {
+            return per_voxel(mask, spacing, progress, [t](const Grid& g, const std::uint8_t* data, const Progress& p) {
+                return plane_measure(g, data, t, p);
+            });
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("t"), py::arg("progress") = py::none());
+    m.def(
+        "local_thickness",
+        [](const Mask& mask, const Vec3& spacing, const py::object& progress) {
+            return per_voxel(mask, spacing, progress, [](const Grid& g, const std::uint8_t* data, const Progress& p) {
+                return local_thickness(g, data, p);
+            });
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("progress") = py::none());
 
     py::class_<Skeleton>(m, "Skeleton")
         .def_property_readonly("metric", [](const Skeleton& s) { return std::string(metric_name(s.metric)); })

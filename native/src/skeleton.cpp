@@ -181,10 +181,7 @@ Skeleton skeletonize(const Grid& g, const std::uint8_t* mask, Metric metric, con
     Skeleton s;
     s.grid = g;
     s.metric = metric;
-    auto scaled = [&](double a, double b) -> Progress {
-        if (!progress) return {};
-        return [&progress, a, b](double f) { return progress(a + (b - a) * f); };
-    };
+    auto scaled = [&](double a, double b) { return progress_span(progress, a, b); };
     check_grid(g, 1, std::numeric_limits<std::uint64_t>::max(), "skeletonize");
     s.dt.resize(static_cast<std::size_t>(g.voxel_count()));
     if (metric == Metric::Euclidean)

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -233,15 +233,19 @@ def cmd_bake_mocap(args) -> int:
     return 0
 
 
+def _add_segmentation_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--lo", type=float, help="segmentation: lowest object value (default: non-zero is object)")
+    p.add_argument("--hi", type=float, help="segmentation: highest object value")
+    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
+    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+
+
 def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
     g.add_argument("--count", "-n", type=int, help="keep the N highest-scoring points instead")
     p.add_argument("--metric", choices=["euclidean", "chamfer345"], default="euclidean")
-    p.add_argument("--lo", type=float, help="segmentation: lowest object value")
-    p.add_argument("--hi", type=float, help="segmentation: highest object value")
-    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
-    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+    _add_segmentation_options(p)
     p.add_argument("--progress", action="store_true", help="show progress bars on stderr (always on a terminal)")
     p.add_argument("-o", "--output", required=True, help=what)
 
@@ -433,6 +437,32 @@ def cmd_centerline(args) -> int:
     return 0
 
 
+def cmd_thickness(args) -> int:
+    from .medial import local_thickness
+    from .pipeline import Segmentation
+    from .volume import format_of
+    if format_of(args.output) not in ("nrrd", "metaimage", "vdb"):
+        raise VolrigError(f"{args.output}: the output must be .nrrd, .mha or .vdb")
+    seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
+    mask = seg.mask(_load(args), name=args.file)
+    t = time.perf_counter()
+    bars = StepBars() if _show_progress(args) else None
+    thick = local_thickness(mask, progress=(lambda f: bars("local thickness", f)) if bars else None)
+    if bars is not None:
+        bars.close()
+    elapsed = time.perf_counter() - t
+    thick.save(args.output, grid="thickness")
+    values = thick.array[mask.array != 0]
+    if values.size:
+        q = np.percentile(values, [5, 50, 95])
+        summary = f"thickness 5/50/95%: {q[0]:.3g} / {q[1]:.3g} / {q[2]:.3g}, max {values.max():.3g}"
+    else:
+        summary = "empty mask"
+    print(f"{values.size:,} object voxels; {summary} (world units); local thickness in {elapsed:.2f} s "
+          f"-> {args.output}")
+    return 0
+
+
 def _contact_poses(saved, clip_path, args, frames=None):
     """(F, B, 4, 4) poses of a rig driven by a clip (or the rest pose held for `frames`, or one frame)."""
     from .mocap import load_bone_map, read_bvh
@@ -571,13 +601,18 @@ def main(argv=None) -> int:
     p.add_argument("--root", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="--tree: world root point (default: the end of the thickest terminal branch)")
     p.add_argument("--step", type=float, help="arc length between samples (default: the smallest voxel spacing)")
-    p.add_argument("--lo", type=float, help="segmentation: lowest object value (default: non-zero is object)")
-    p.add_argument("--hi", type=float, help="segmentation: highest object value")
-    p.add_argument("--labels", type=int, nargs="+", help="segmentation: object labels")
-    p.add_argument("--largest", action="store_true", help="segmentation: keep the largest connected part")
+    _add_segmentation_options(p)
     p.add_argument("-o", "--output", required=True,
                    help="output .csv: branch,parent,generation,index,x,y,z,radius,arc_length (world units)")
     p.set_defaults(run=cmd_centerline)
+
+    p = sub.add_parser("thickness", help="local thickness of an object (each voxel: the diameter of the largest "
+                                         "inscribed ball containing it) as a volume")
+    _add_load_options(p)
+    _add_segmentation_options(p)
+    p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
+    p.add_argument("-o", "--output", required=True, help="output .nrrd, .mha or .vdb (grid 'thickness'), world units")
+    p.set_defaults(run=cmd_thickness)
 
     p = sub.add_parser("contacts", help="frames where two rigged volumes touch, or one passes through itself, over "
                                         "BVH clips")

@@ -70,6 +70,34 @@ def test_mask_preview_shows_the_segmentation(empty_scene, phantom_file):
         bpy.ops.volrig.preview_mask()
 
 
+def test_show_thickness_colours_the_object_by_its_thickness(empty_scene, phantom_file):
+    path, ph = phantom_file
+    run_op(bpy.ops.volrig.import_volume, filepath=path)
+    vol = bpy.context.active_object
+    s = vol.volrig
+    s.low, s.high, s.largest = 150, 255, False  # the bone
+    run_op(bpy.ops.volrig.show_thickness)
+    obj = _members(vol)["THICKNESS"]
+    assert obj.name == "phantom_thickness" and obj.type == "VOLUME" and obj.parent == vol
+    file = bpy.path.abspath(obj.data.filepath)
+    grids = {g["name"]: g for g in volrig._volrig.vdb_grids(file)}
+    assert set(grids) == {"density", "thickness"}
+    mask = ph.volume.array >= 150
+    assert grids["thickness"]["active_voxels"] == np.count_nonzero(mask)
+    # the grid is volrig.local_thickness of the mask, on the scan's grid
+    want = volrig.local_thickness(volrig.Volume(mask, ph.volume.spacing))
+    got = volrig.load(file, grid="thickness").on_grid(s.origin, s.dims)
+    np.testing.assert_allclose(got.array, want.array, rtol=1e-6)
+    # the ramp spans the thickness values: From Max at their 99th percentile
+    nodes = obj.active_material.node_tree.nodes
+    top = nodes["volrig thickness span"].inputs["From Max"].default_value
+    assert top == pytest.approx(np.percentile(want.array[mask], 99), rel=1e-5)
+    assert nodes["volrig thickness volume"].inputs["Density"].default_value > 0
+    run_op(bpy.ops.volrig.show_thickness)  # again: the same object, the cached file
+    assert bpy.path.abspath(_members(vol)["THICKNESS"].data.filepath) == file
+    assert len([o for o in bpy.data.objects if o.volrig.role == "THICKNESS"]) == 1
+
+
 def test_import_reports_bad_files_without_raising(empty_scene, tmp_path):
     bad = tmp_path / "broken.nrrd"
     bad.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 100 100 100\nencoding: raw\n\n" + b"\0" * 100)

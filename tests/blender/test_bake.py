@@ -87,6 +87,42 @@ def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
     baker.finish()
 
 
+def test_a_frame_stops_inside_its_computation(posed):
+    # What Esc does to the interactive bake: the frame computes on a worker thread (FrameWork) and its progress
+    # callback, called many times within the frame, returns False; the frame stops there and writes nothing.
+    from volrig_addon import bake
+    from volrig_addon.operators import FrameWork
+    vol = posed
+    scene = bpy.context.scene
+    baker = bake.Baker(vol, "linear")
+    matrices = baker.pose(scene, 2, force=True)
+    seen = []
+    baker.compute(2, matrices, progress=lambda f: seen.append(f) or True)
+    baker.finish()
+    assert len(seen) >= 5 and seen[-1] == pytest.approx(1.0)  # reports all through the frame
+    path = bake.frame_path(vol, 2)
+    os.remove(path)
+    stopped = []
+
+    def stop_midway(f):
+        stopped.append(f)
+        return len(stopped) < 3
+    with pytest.raises(volrig.Cancelled):
+        baker.compute(2, matrices, progress=stop_midway)
+    baker.finish()
+    assert len(stopped) == 3 and stopped[-1] < 1.0 and not os.path.exists(path)
+    # the worker-thread path the modal operator uses: the frame computed while this thread waits
+    work = FrameWork(baker, 2, matrices)
+    work.result()
+    baker.finish()
+    assert work.done() and work.fraction == pytest.approx(1.0) and os.path.exists(path)
+    work = FrameWork(baker, 3, baker.pose(scene, 3, force=True))
+    work.stop()
+    if work._error is not None:  # stopped inside the frame (it may also have finished first)
+        assert isinstance(work._error, volrig.Cancelled)
+    baker.finish()
+
+
 def test_painted_weights_change_the_bake(posed):
     """Moving the forearm's spheres to the upper arm's group (weight painting) keeps them still when the forearm
     bends."""

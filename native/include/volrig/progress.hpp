@@ -16,4 +16,10 @@ inline void report(const Progress& progress, double fraction) {
     if (progress && !progress(fraction)) throw Cancelled("cancelled");
 }
 
+/// A callback that maps [0, 1] onto [a, b] of `progress` (empty when `progress` is); `progress` must outlive it.
+inline Progress progress_span(const Progress& progress, double a, double b) {
+    if (!progress) return {};
+    return [&progress, a, b](double f) { return progress(a + (b - a) * f); };
+}
+
 }  // namespace volrig
