@@ -71,7 +71,7 @@ def float_samples(volume: Volume) -> Volume:
     finite = np.isfinite(samples)
     if not finite.all():
         samples = np.where(finite, samples, np.float32(0))
-    return Volume(samples, volume.spacing, volume.origin)
+    return volume.like(samples)  # the geometry, orientation included
 
 
 def looks_like_labels(array: np.ndarray) -> bool:

@@ -101,3 +101,30 @@ def test_info_shows_the_direction(tmp_path, capsys):
     phantom().save(str(tmp_path / "p.nrrd"))
     assert main(["info", str(tmp_path / "p.nrrd")]) == 0
     assert "direction (LPS, columns x y z)" in capsys.readouterr().out
+
+
+def test_the_same_volume_as_a_dicom_series_and_a_tiff_stack(tmp_path):
+    # The acceptance of issue 24: the oriented phantom as a DICOM series (ImageOrientationPatient, positions) gives
+    # the same voxels at the same patient positions as the NRRD; as a TIFF stack (no orientation, no origin) the
+    # same voxels on the same lattice.
+    pytest.importorskip("pydicom")
+    from test_dicom import write_slice
+    v = phantom()
+    want = positions(v)
+    folder = tmp_path / "series"
+    folder.mkdir()
+    d, s = v.direction, np.asarray(v.spacing)
+    for k in range(v.dims[2]):
+        write_slice(folder / f"s{k:03d}.dcm", v.array[k], k, series_uid="1.2.826.0.1.3680043.2.1125.1",
+                    row=d[:, 0], col=d[:, 1], pixel_spacing=(s[1], s[0]), gap=s[2], intercept=0.0,
+                    position=np.asarray(v.origin) + d[:, 2] * s[2] * k)
+    back = volrig.load(str(folder))
+    got = positions(back)
+    assert got.keys() == want.keys()
+    assert max(np.abs(got[k] - want[k]).max() for k in want) < 1e-4
+    from PIL import Image
+    pages = [Image.fromarray(v.array[k].astype(np.uint16)) for k in range(v.dims[2])]
+    pages[0].save(tmp_path / "stack.tif", save_all=True, append_images=pages[1:])
+    tif = volrig.load(str(tmp_path / "stack.tif"), spacing=v.spacing)
+    np.testing.assert_array_equal(tif.array, v.array)
+    assert tif.spacing == pytest.approx(v.spacing) and tif.axis_aligned
