@@ -66,9 +66,8 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
         layout.prop(s, "largest")
         layout.label(text=f"{s.mask_count:,} voxels in range" if s.mask_count >= 0 else "invalid segmentation",
                      icon="INFO" if s.mask_count > 0 else "ERROR")
-        row = layout.row(align=True)
-        row.operator("volrig.preview_mask", icon="HIDE_OFF")
-        row.operator("volrig.show_thickness", icon="MOD_THICKNESS")
+        layout.operator("volrig.preview_mask", icon="HIDE_OFF")
+        layout.operator("volrig.show_thickness", icon="MOD_THICKNESS")  # (one row each: the sidebar is narrow)
 
 
 class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):
