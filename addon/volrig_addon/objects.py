@@ -132,12 +132,16 @@ def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
     ``thickness``: world units; cached as thickness_<key>.vdb). Returns (object, thickness values of the mask)."""
     from . import scans
 
+    computed = []
+
     def write(path):
-        t = volrig.local_thickness(mask, progress=progress)
-        volrig.write_vdb(path, {"density": mask, "thickness": t}, half=False)
+        computed.append(volrig.local_thickness(mask, progress=progress))
+        volrig.write_vdb(path, {"density": mask, "thickness": computed[0]}, half=False)
 
     rel = _cached_preview(volume_obj, "thickness", write)
-    t = volrig.load(os.path.join(scans.cache_dir(volume_obj), os.path.basename(rel)), grid="thickness")
+    # freshly computed, or the cached file of this segmentation
+    t = computed[0] if computed else volrig.load(os.path.join(scans.cache_dir(volume_obj), os.path.basename(rel)),
+                                                 grid="thickness")
     values = t.array[t.array > 0]
     obj = _child_volume(volume_obj, "THICKNESS", "_thickness", materials.thickness_material(volume_obj.name))
     obj.data.filepath = rel

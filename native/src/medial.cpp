@@ -9,7 +9,6 @@
 #include <cmath>
 #include <limits>
 #include <queue>
-#include <unordered_map>
 
 namespace volrig {
 
@@ -193,18 +192,14 @@ public:
         const auto c = pad_.xyz(seed);
         out.assign(targets.size(), kFar);
         // Targets further than the limit in a straight line are out of reach; 26-neighbours are a step away.
-        std::size_t left = 0;
         for (std::size_t k = 0; k < targets.size(); ++k) {
             const auto p = pad_.xyz(targets[k]);
             const std::int64_t dx = p[0] - c[0], dy = p[1] - c[1], dz = p[2] - c[2];
             const double straight = length(dx, dy, dz);
             if (straight > limit_) continue;
-            if (std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1) out[k] = straight;
-            else ++left;
+            const bool adjacent = std::abs(dx) <= 1 && std::abs(dy) <= 1 && std::abs(dz) <= 1;
+            out[k] = adjacent ? straight : search(c, p);
         }
-        if (left == 0) return;
-        for (std::size_t k = 0; k < targets.size(); ++k)
-            if (out[k] == kFar) out[k] = search(c, pad_.xyz(targets[k]));
     }
 
     /// A* from the seed (window centre) to `to` over the boundary, the straight distance left as the heuristic:
