@@ -654,7 +654,7 @@ TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a 
     for (int z = 70; z >= 40; z -= 2) chain.emplace_back(30, 10, z, 5);                 // upper arm
     for (int k = 1; k <= 12; ++k) chain.emplace_back(30, 10 - 0.6 * k, 40 - 2.0 * k, 4);  // forearm
     for (int k = 1; k <= 6; ++k) chain.emplace_back(30, 2.8 - 0.3 * k, 16 - 1.5 * k, 3);  // hand
-    const auto f = fused_arm(c, chain, Vec(0, 0, 1));
+    const auto f = fused_arm(c, chain, Vec(0, 0, 1), Vec::Zero());
     REQUIRE(f);
     CHECK(f->own == 2);
     CHECK(f->shoulder.x() == Approx(30).margin(1.0));  // half-voxel steps
@@ -669,7 +669,24 @@ TEST_CASE("fused_arm: an arm against the trunk gets its shoulder up its line, a 
     Chain4 across{chain[0], Eigen::Vector4d(14, 10, 80, 11)};
     for (int x = 20; x <= 30; ++x) across.emplace_back(x, 10, 78, 5);
     across.insert(across.end(), chain.begin() + 2, chain.end());
-    CHECK_FALSE(fused_arm(c, across, Vec(0, 0, 1)));
+    CHECK_FALSE(fused_arm(c, across, Vec(0, 0, 1), Vec::Zero()));
+}
+
+TEST_CASE("fused_arm: in a shoulder deeper than the arm is thick, the joint sits a radius behind the front",
+          "[autorig]") {
+    // The column of the test above, 40 deep (y 0..39) with the front at -y: the shoulder blade's depth lies
+    // behind the joint, which goes a radius (5) behind the front face (y -0.5), not midway.
+    const Block block({36, 40, 100});
+    Chain4 chain;
+    chain.emplace_back(10, 10, 80, 12);
+    chain.emplace_back(20, 10, 76, 11);
+    for (int z = 70; z >= 40; z -= 2) chain.emplace_back(30, 10, z, 5);
+    for (int k = 1; k <= 12; ++k) chain.emplace_back(30, 10 - 0.6 * k, 40 - 2.0 * k, 4);
+    const auto f = fused_arm(block.context(), chain, Vec(0, 0, 1), Vec(0, -1, 0));
+    REQUIRE(f);
+    CHECK(f->shoulder.y() == Approx(4.5).margin(0.6));
+    CHECK(f->shoulder.x() == Approx(30).margin(1.0));
+    CHECK(f->shoulder.z() == Approx(94.5).margin(1.0));
 }
 
 namespace {
@@ -726,13 +743,14 @@ TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has it
     Solid s(leg.f, {10, 10, 110});
     straight_knee(s.context(), leg.rig, leg.nodes, ".L");
     CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));  // not the proportional 50
-    CHECK(leg.rig.joints[1][2] == 100);  // the thigh (55) is longer than its share of the shin (45): kept
-    // A hip left low (at a fork 20 below): with the knee at its neck, the thigh grows to its share of the shin.
+    CHECK(leg.rig.joints[1][2] == 100);  // the thigh (55) is longer than its share of the knee height (51): kept
+    // A hip left low (at a fork 20 below): with the knee at its neck, the thigh grows
     leg.rig.joints[1] = {0, 0, 80};
     leg.rig.joints[2] = {0, 0, 40};
     straight_knee(s.context(), leg.rig, leg.nodes, ".L");
     CHECK(leg.rig.joints[2][2] == Approx(45).margin(0.5));
-    CHECK(leg.rig.joints[1][2] == Approx(45 + 45 * kLegProportions[1] / kLegProportions[2]).margin(0.5));
+    // to its share of the knee's height above the sole (the axis' last sample, z 0, radius 6).
+    CHECK(leg.rig.joints[1][2] == Approx(45 + kThighToKneeHeight * (45 + 6)).margin(0.5));
 }
 
 namespace {
@@ -803,35 +821,98 @@ TEST_CASE("wrist_at_neck: a hand resting on something widens past the wrist; a f
     CHECK(kept.joints[2][2] == 35);
 }
 
-TEST_CASE("centre_chest puts the chest joint midway between the shoulders across the body", "[autorig]") {
+TEST_CASE("centre_chest puts the chest joint between the shoulders and the hips' head between the hips",
+          "[autorig]") {
     Rig rig;
-    rig.joints = {{0, 0, 0}, {5, 1, 10}, {12, 0, 12}, {-8, 0, 12}, {14, 0, 0}, {-10, 0, 0}};
-    rig.joint_points = {0, 0, 0, 0, 0, 0};
-    rig.bones = {{0, 1}, {1, 2}, {1, 3}, {2, 4}, {3, 5}};
-    rig.names = {"chest", "shoulder.L", "shoulder.R", "upper_arm.L", "upper_arm.R"};
-    rig.parents = {-1, 0, 0, 1, 2};
-    centre_chest(rig);
-    CHECK(rig.joints[1][0] == Approx(2));  // midway between x 12 and -8
-    CHECK(rig.joints[1][1] == Approx(1));  // depth and height kept
-    CHECK(rig.joints[1][2] == Approx(10));
+    rig.joints = {{0, 0, 0}, {5, 1, 10}, {12, 0, 12}, {-8, 0, 12}, {14, 0, 0}, {-10, 0, 0},
+                  {1, 2, -3}, {6, 0, -6}, {-4, 0, -6}, {6, 0, -30}, {-4, 0, -30}};
+    rig.joint_points.assign(rig.joints.size(), 0);
+    rig.bones = {{0, 1}, {1, 2}, {1, 3}, {2, 4}, {3, 5}, {6, 0}, {6, 7}, {6, 8}, {7, 9}, {8, 10}};
+    rig.names = {"chest", "shoulder.L", "shoulder.R", "upper_arm.L", "upper_arm.R", "hips", "pelvis.L", "pelvis.R",
+                 "thigh.L", "thigh.R"};
+    rig.parents = {5, 0, 0, 1, 2, -1, 5, 5, 6, 7};
+    centre_chest(rig, Vec(0, 0, 1));
+    CHECK(rig.joints[1][0] == Approx(2));   // midway between x 12 and -8
+    CHECK(rig.joints[1][1] == Approx(1));   // depth kept
+    CHECK(rig.joints[1][2] == Approx(12));  // at the shoulders' height
     CHECK(rig.joint_points[1] == -1);
+    CHECK(rig.joints[6][0] == Approx(1));   // midway between the hips
+    CHECK(rig.joints[6][1] == Approx(2));
+    CHECK(rig.joints[6][2] == Approx(-6));
 }
 
-TEST_CASE("head_up turns a head bone pointing at the face up to the top of the head", "[autorig]") {
-    const Block block({20, 20, 40});  // the head's top at z 39
+TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and its tail straight up",
+          "[autorig]") {
+    // A neck from z 20 up to 30, the head's axis running forward to the face (y 2); the head's top at z 39.
+    const Block block({20, 20, 40});
     Rig rig;
     rig.joints = {{10, 10, 20}, {10, 10, 30}, {10, 2, 30}};
     rig.joint_points = {0, 0, 0};
     rig.bones = {{0, 1}, {1, 2}};
     rig.names = {"neck", "head"};
     rig.parents = {-1, 0};
-    head_up(block.context(), rig, Vec(0, 0, 1));
-    CHECK(rig.joints[2][0] == Approx(10));
-    CHECK(rig.joints[2][1] == Approx(10));
-    CHECK(rig.joints[2][2] == Approx(39).margin(0.5));
-    CHECK(rig.joints[1][2] == 30);  // the head joint stays
-    // Already up: unchanged.
-    rig.joints[2] = {11, 10, 36};
-    head_up(block.context(), rig, Vec(0, 0, 1));
-    CHECK(rig.joints[2][2] == 36);
+    Chain4 head;
+    for (int z = 20; z <= 30; ++z) head.emplace_back(10, 10, z, 4);
+    for (int y = 9; y >= 2; --y) head.emplace_back(10, y, 30, 3);
+    place_head(block.context(), rig, head, Vec(0, 0, 1));
+    const double top = 39.5, want = top - kHeadShare * (top - 20);  // the reach ends half a voxel out
+    CHECK(rig.joints[1][2] == Approx(want).margin(0.6));
+    CHECK(rig.joints[1][0] == Approx(9.5).margin(0.6));  // centred in the head's section
+    CHECK(rig.joints[1][1] == Approx(9.5).margin(0.6));
+    CHECK(rig.joints[2][0] == Approx(rig.joints[1][0]));  // straight up
+    CHECK(rig.joints[2][1] == Approx(rig.joints[1][1]));
+    CHECK(rig.joints[2][2] == Approx(top).margin(0.6));
+}
+
+TEST_CASE("deepest_dip finds a knee between thigh and calf, not the narrowing towards the ankle", "[autorig]") {
+    Chain4 leg;
+    for (double r : {10.0, 9.0, 8.0, 7.0, 7.5, 8.0, 7.0, 6.0, 5.0}) leg.emplace_back(0, 0, 0, r);
+    CHECK(deepest_dip(leg, 0, leg.size() - 1) == std::optional<std::size_t>(3));
+    CHECK_FALSE(deepest_dip(leg, 4, leg.size() - 1));  // from the calf down: a plain taper
+}
+
+TEST_CASE("trunk_fit cuts a wiggling spine at thirds of its chord", "[autorig]") {
+    Chain4 spine;
+    for (int z = 0; z <= 30; ++z) spine.emplace_back(z % 2 == 0 ? 0.0 : 3.0, 0, z, 5);  // wiggles along x
+    const Fit fit = trunk_fit(spine);
+    REQUIRE(fit.cuts.size() == 4);
+    CHECK(fit.cuts == std::vector<std::size_t>{0, 10, 20, 30});
+}
+
+TEST_CASE("bend_corner moves a bent elbow from the rounded axis to the corner of the bones' lines; a straight "
+          "limb keeps it", "[autorig]") {
+    // An arm down x = 5, y = 40 from z 60 to 36, rounded over a quarter circle of radius 6 into a forearm along -y
+    // at z 30: the lines meet at (5, 40, 30).
+    const double pi = 3.14159265358979;
+    Figure f(Vec(5, 40, 60), 5.0);
+    std::uint32_t at = f.limb(0, Vec(5, 40, 36), 5, 5), elbow = 0;
+    for (int k = 1; k <= 6; ++k) {
+        const double a = k * pi / 12;
+        at = f.limb(at, Vec(5, 34 + 6 * std::cos(a), 36 - 6 * std::sin(a)), 5, 5);
+        if (k == 3) elbow = at;
+    }
+    f.limb(at, Vec(5, 10, 30), 5, 5);
+    const Solid s(f, {10, 50, 70});
+    std::vector<std::uint32_t> nodes(f.pos.size());
+    for (std::uint32_t k = 0; k < nodes.size(); ++k) nodes[k] = k;
+    Rig rig;
+    const Vec e = f.pos[elbow];
+    rig.joints = {{5, 40, 60}, {e.x(), e.y(), e.z()}, {5, 10, 30}};
+    rig.joint_points = {0, 0, 0};
+    rig.bones = {{0, 1}, {1, 2}};
+    rig.names = {"upper_arm.L", "forearm.L"};
+    rig.parents = {-1, 0};
+    bend_corner(s.context(), rig, nodes, "upper_arm.L", "forearm.L");
+    CHECK(rig.joints[1][0] == Approx(5).margin(0.3));
+    CHECK(rig.joints[1][1] == Approx(40).margin(0.3));
+    CHECK(rig.joints[1][2] == Approx(30).margin(0.3));
+    // Straight: unchanged.
+    Figure g(Vec(5, 40, 60), 5.0);
+    g.limb(0, Vec(5, 40, 5), 5, 5);
+    const Solid sg(g, {10, 50, 70});
+    std::vector<std::uint32_t> straight(g.pos.size());
+    for (std::uint32_t k = 0; k < straight.size(); ++k) straight[k] = k;
+    rig.joints = {{5, 40, 60}, {5, 40, 30}, {5, 40, 5}};
+    bend_corner(sg.context(), rig, straight, "upper_arm.L", "forearm.L");
+    CHECK(rig.joints[1][2] == 30);
 }

@@ -98,6 +98,30 @@ bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, s
     return reach >= kLimbsToHead * (t.at(head) - t.at(chest)).norm();
 }
 
+Fit trunk_fit(const Chain4& spine) {
+    if (spine.size() < kSpineProportions.size() + 1) return fit_chain(spine, 3);
+    // Shares of the chord from the pelvis to the chest, not of the arc: the axis' wiggles differ between
+    // resolutions.
+    const Vec chord = spine.back().head<3>() - spine.front().head<3>();
+    std::vector<double> arc;
+    for (const auto& q : spine) arc.push_back((q.head<3>() - spine.front().head<3>()).dot(chord.normalized()));
+    double sum = 0;
+    for (double r : kSpineProportions) sum += r;
+    Fit fit;
+    fit.cuts.push_back(0);
+    double share = 0;
+    for (std::size_t k = 0; k + 1 < kSpineProportions.size(); ++k) {
+        share += kSpineProportions[k] / sum;
+        std::size_t at = fit.cuts.back() + 1;  // the sample nearest that share of the arc, after the last cut
+        while (at + 1 < spine.size() - (kSpineProportions.size() - 1 - k) &&
+               std::abs(arc[at + 1] - share * arc.back()) < std::abs(arc[at] - share * arc.back()))
+            ++at;
+        fit.cuts.push_back(at);
+    }
+    fit.cuts.push_back(spine.size() - 1);
+    return fit;
+}
+
 void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
                       double ratio) {
     const std::int32_t p = bone_index(rig, proximal), d = bone_index(rig, distal);
@@ -150,30 +174,37 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     const std::vector<std::uint32_t> spine = t.path(pelvis, chest), head = t.path(chest, H);
     std::vector<std::uint32_t> leg[2], arm[2];
     Fit leg_fit[2], arm_fit[2];
-    const Fit spine_fit = fit_chain(c.samples(spine), 3), head_fit = fit_chain(c.samples(head), 2);
+    const Fit spine_fit = trunk_fit(c.samples(spine)), head_fit = fit_chain(c.samples(head), 2);
     bool ok = spine_fit.cuts.size() == 4 && head_fit.cuts.size() == 3;
     const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
     std::optional<FusedArm> fused[2];
     for (int k = 0; k < 2; ++k) {
         leg[k] = t.path(pelvis, plan.legs[k]);
-        arm[k] = t.path(chest, plan.arms[k]);
         leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
-        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), up ? *up : spine_dir);
-        arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
-                              : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
-        ok = ok && leg_fit[k].cuts.size() == 5 && arm_fit[k].cuts.size() == 5;
+        ok = ok && leg_fit[k].cuts.size() == 5;
     }
     if (!ok) return Candidate{};
-
     // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
     Candidate out;
     Vec forward = Vec::Zero();
-    if (humanoid) {
-        out.up = spine_dir;
+    if (humanoid)
         for (int s = 0; s < 2; ++s) {  // feet point forward: the last bone of each leg
             const auto& k = leg_fit[s].cuts;
-            forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), out.up);
+            forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), spine_dir);
         }
+    const Vec body_up = up ? *up : spine_dir;
+    const Vec front = perp(forward, body_up).norm() > 0 ? Vec(perp(forward, body_up).normalized()) : Vec::Zero();
+    for (int k = 0; k < 2; ++k) {
+        arm[k] = t.path(chest, plan.arms[k]);
+        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), body_up, front);
+        arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
+                              : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
+        ok = ok && arm_fit[k].cuts.size() == 5;
+    }
+    if (!ok) return Candidate{};
+
+    if (humanoid) {
+        out.up = spine_dir;
         const Vec legs = (0.5 * (t.at(plan.legs[0]) + t.at(plan.legs[1])) - t.at(pelvis)).normalized();
         out.up_confidence = std::clamp(-2.0 * legs.dot(spine_dir) - 1.0, 0.0, 1.0);
     } else {
@@ -210,10 +241,15 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
             const std::string arm_sfx = ((s == 0) == arm0_left) ? ".L" : ".R", leg_sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
             if (fused[s])
                 place_fused_shoulder(out.rig, "upper_arm" + arm_sfx, fused[s]->shoulder);
-            else
+            const auto& a = arm_fit[s].cuts;
+            if (!fused[s]) {
                 restore_proximal(c, out.rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
                                  kArmProportions[1] / kArmProportions[2]);
-            const auto& a = arm_fit[s].cuts;
+                shoulder_on_top(c, out.rig, c.samples(arm[s]), a[1], a[2], "upper_arm" + arm_sfx, body_up, front);
+            }
+            bend_corner(c, out.rig, std::vector<std::uint32_t>(arm[s].begin() + static_cast<std::ptrdiff_t>(a[1]),
+                                                               arm[s].begin() + static_cast<std::ptrdiff_t>(a[3]) + 1),
+                        "upper_arm" + arm_sfx, "forearm" + arm_sfx);
             wrist_at_neck(c, out.rig, std::vector<std::uint32_t>(arm[s].begin() + static_cast<std::ptrdiff_t>(a[2]),
                                                                  arm[s].end()),
                           arm_sfx);
@@ -221,15 +257,15 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
             restore_proximal(c, out.rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
             const auto& k = leg_fit[s].cuts;
             straight_knee(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[1]),
-                                                                 leg[s].begin() + static_cast<std::ptrdiff_t>(k[3]) + 1),
+                                                                 leg[s].end()),
                           leg_sfx);
             heel_ankle(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[2]),
                                                                   leg[s].end()),
                            leg_sfx);
         }
     if (humanoid) {
-        centre_chest(out.rig);
-        head_up(c, out.rig, up ? *up : out.up);
+        centre_chest(out.rig, up ? *up : out.up);
+        place_head(c, out.rig, c.samples(head), up ? *up : out.up);
     }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;

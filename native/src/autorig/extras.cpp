@@ -28,6 +28,20 @@ bool is_tail(const Rig& rig, const std::string& owner, const Vec& tip) {
     return (tip - start).dot(bone_end(rig, static_cast<std::size_t>(bone_index(rig, "chest")), 1) - start) < 0;
 }
 
+/// How far a part hanging from a humanoid's `owner` bone at `at` must stick out: the hand's (foot's) length when
+/// the owner is a hand (foot), or its forearm (shin) with `at` within that length of the wrist (ankle); else 0.
+double end_part_reach(const Rig& rig, const std::string& owner, const Vec& at) {
+    for (const auto& [end, limb] : {std::pair{"hand", "forearm"}, std::pair{"foot", "shin"}}) {
+        const std::string side = owner.substr(owner.find('.') == std::string::npos ? owner.size() : owner.find('.'));
+        const std::int32_t e = bone_index(rig, end + side);
+        if (e < 0 || (owner != end + side && owner != limb + side)) continue;
+        const Vec base = bone_end(rig, static_cast<std::size_t>(e), 0);
+        const double length = (bone_end(rig, static_cast<std::size_t>(e), 1) - base).norm();
+        if (owner == end + side || (at - base).norm() < length) return length;
+    }
+    return 0.0;
+}
+
 }  // namespace
 
 void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance) {
@@ -57,6 +71,9 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         const bool tail = quadruped && is_tail(b.rig(), b.rig().names[static_cast<std::size_t>(holder)], t.at(leaf));
         const std::int32_t parent = tail ? holder : b.attach_bone(at, t.radius(at));
         const std::string& owner = b.rig().names[static_cast<std::size_t>(parent)];
+        // A humanoid's fingers and toes go with its hand and foot: a part there is kept when it sticks out farther
+        // than the hand (foot) is long (a sword held, not fingers curled against the pelvis).
+        if (!quadruped && significance < end_part_reach(b.rig(), owner, t.at(at))) continue;
         const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;

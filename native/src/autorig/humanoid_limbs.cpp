@@ -9,6 +9,19 @@
 
 namespace volrig::rigging {
 
+std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi) {
+    std::vector<double> after(hi - lo + 2, 0.0);  // after[k - lo]: the widest sample beyond k up to hi
+    for (std::size_t k = hi; k > lo; --k) after[k - 1 - lo] = std::max(after[k - lo], chain[k][3]);
+    std::optional<std::size_t> best;
+    double best_rise = 1 + kNeckRise, before = 0;
+    for (std::size_t k = lo; k <= hi; before = std::max(before, chain[k][3]), ++k)
+        if (const double rise = std::min(before, after[k - lo]) / chain[k][3]; rise >= best_rise) {
+            best_rise = rise;
+            best = k;
+        }
+    return best;
+}
+
 namespace {
 
 /// The line through points (least squares): their centroid and principal direction.
@@ -21,24 +34,15 @@ std::pair<Vec, Vec> line_through(const std::vector<Vec>& points) {
     return {mean, eig.eigenvectors().col(2)};
 }
 
-/// The sample of a limb's chain where it is narrowest within kNeckWindow of its radius (arc length) around sample
-/// `at`, when the radius rises from there by kNeckRise on both sides within that window (a knee between thigh and
-/// calf); else none.
+/// The neck of a limb's chain within kNeckWindow of its radius (arc length) around sample `at` (deepest_dip there);
+/// else none.
 std::optional<std::size_t> narrowest_near(const Chain4& chain, std::size_t at) {
     const double window = kNeckWindow * chain[at][3];
     const std::vector<double> arc = arc_of(chain);
     std::size_t lo = at, hi = at;
     while (lo > 0 && arc[at] - arc[lo - 1] <= window) --lo;
     while (hi + 1 < chain.size() && arc[hi + 1] - arc[at] <= window) ++hi;
-    std::size_t m = lo;
-    for (std::size_t k = lo; k <= hi; ++k)
-        if (chain[k][3] < chain[m][3]) m = k;
-    double before = 0, after = 0;
-    for (std::size_t k = lo; k < m; ++k) before = std::max(before, chain[k][3]);
-    for (std::size_t k = m + 1; k <= hi; ++k) after = std::max(after, chain[k][3]);
-    const double rise = (1 + kNeckRise) * chain[m][3];
-    if (before >= rise && after >= rise) return m;
-    return std::nullopt;
+    return deepest_dip(chain, lo, hi);
 }
 
 }  // namespace
@@ -57,11 +61,13 @@ std::size_t own_start(const Chain4& chain) {
 
 namespace {
 
+constexpr int kCornerSteps = 4;
+
 /// The shoulder joint of a fused arm from the visible upper arm's samples (from the top down): up the body
 /// (`body_up`) to the object's surface (at most `limit`), then `radius` back in, `radius` inside the surface away
 /// from the chest and midway front to back; none unless their line runs along `body_up`.
 std::optional<Vec> shoulder_up_line(const RigContext& c, const std::vector<Vec>& upper, const Vec& body_up,
-                                    const Vec& chest, double radius, double limit) {
+                                    const Vec& front, const Vec& chest, double radius, double limit) {
     if (upper.size() < 3) return std::nullopt;
     auto [mean, dir] = line_through(upper);
     if (dir.dot(upper.front() - upper.back()) < 0) dir = -dir;  // towards the trunk
@@ -71,15 +77,26 @@ std::optional<Vec> shoulder_up_line(const RigContext& c, const std::vector<Vec>&
     // visible axis leans out, its inner side being trunk), up to the shoulder's top and a radius back in, centred
     // again there.
     Vec at = mean + (upper.front() - mean).dot(dir) * dir;
+    // The body's frame, fixed once (a frame following the point would turn with it): out from the chest across
+    // the body, ahead towards the front (without a front: across both).
+    Vec out = perp(at - chest, rise).normalized();
+    if (front.norm() > 0) out = rise.cross(front).normalized() * (rise.cross(front).dot(out) < 0 ? -1.0 : 1.0);
+    const Vec ahead = front.norm() > 0 ? Vec(perp(front, rise).normalized()) : Vec(rise.cross(out));
     auto centre = [&] {
-        const Vec out = perp(at - chest, rise).normalized(), ahead = rise.cross(out);
         at += std::clamp(c.reach_inside(at, out, 0.0, 2.0 * radius) - radius, -radius, radius) * out;
-        const double front = c.reach_inside(at, ahead, 0.0, 4.0 * radius);
-        at += 0.5 * (front - c.reach_inside(at, -ahead, 0.0, 4.0 * radius)) * ahead;
+        // Front to back: midway, or a radius behind the front where the shoulder is deeper than the arm is thick
+        // (the shoulder blade behind the joint); midway without a front.
+        const double ahead_reach = c.reach_inside(at, ahead, 0.0, 4.0 * radius);
+        const double middle = 0.5 * (ahead_reach - c.reach_inside(at, -ahead, 0.0, 4.0 * radius));
+        at += (front.norm() > 0 ? std::max(middle, ahead_reach - radius) : middle) * ahead;
     };
     centre();
     at += std::max(0.0, c.reach_inside(at, rise, 0.0, limit) - radius) * rise;
     centre();
+    for (int k = 0; k < kCornerSteps; ++k) {  // into the corner: a radius below the top, a radius in from the side
+        at += std::clamp(c.reach_inside(at, rise, 0.0, 2.0 * radius) - radius, -radius, radius) * rise;
+        centre();
+    }
     return at;
 }
 
@@ -104,7 +121,7 @@ std::vector<Vec> positions_of(const Chain4& chain, std::size_t from, std::size_t
 
 }  // namespace
 
-std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up) {
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up, const Vec& front) {
     const std::size_t own = own_start(chain);
     if (own == 0 || own + 3 >= chain.size()) return std::nullopt;
     const std::vector<double> arc = arc_of(chain);
@@ -114,17 +131,28 @@ std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, cons
     // upper arm.
     std::size_t top_end = own;
     while (top_end + 1 < chain.size() && arc[top_end + 1] - arc[own] <= kFusedTopRadii * r0) ++top_end;
-    std::optional<Vec> shoulder = shoulder_up_line(c, positions_of(chain, own, top_end), body_up, chest, r0, limit);
+    std::optional<Vec> shoulder = shoulder_up_line(c, positions_of(chain, own, top_end), body_up, front, chest, r0, limit);
     if (!shoulder) return std::nullopt;
     std::vector<std::size_t> cuts = fused_cuts(chain, own, *shoulder);
     if (cuts.empty()) return std::nullopt;
-    if (const auto better = shoulder_up_line(c, positions_of(chain, own, cuts[2]), body_up, chest, r0, limit)) {
+    if (const auto better = shoulder_up_line(c, positions_of(chain, own, cuts[2]), body_up, front, chest, r0, limit)) {
         if (auto again = fused_cuts(chain, own, *better); !again.empty()) {
             shoulder = better;
             cuts = std::move(again);
         }
     }
     return FusedArm{own, *shoulder, cuts};
+}
+
+void shoulder_on_top(const RigContext& c, Rig& rig, const Chain4& arm, std::size_t top, std::size_t elbow,
+                     const std::string& upper_arm, const Vec& body_up, const Vec& front) {
+    const std::int32_t b = bone_index(rig, upper_arm);
+    if (b < 0 || elbow <= top + 2) return;
+    double radius = 0;
+    for (std::size_t k = top; k <= elbow; ++k) radius += arm[k][3] / static_cast<double>(elbow - top + 1);
+    const double length = (bone_end(rig, static_cast<std::size_t>(b), 0) - bone_end(rig, static_cast<std::size_t>(b), 1)).norm();
+    if (const auto at = shoulder_up_line(c, positions_of(arm, top, elbow), body_up, front, arm.front().head<3>(), radius, length))
+        move_joint(rig, rig.bones[static_cast<std::size_t>(b)][0], *at);
 }
 
 void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& shoulder) {
@@ -175,9 +203,13 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     const Vec knee = chain[neck ? *neck : best].head<3>();
     move_joint(rig, rig.bones[static_cast<std::size_t>(thigh)][1], knee);
     // A knee found at its neck is the anatomical one: the hip goes up the thigh's line to the thigh's proportion
-    // of the shin, when the legs' fork left it shorter.
-    if (neck)
-        lengthen_proximal(c, rig, static_cast<std::size_t>(thigh), kLegProportions[1] / kLegProportions[2] * (ankle - knee).norm());
+    // of the knee's height above the sole, when the legs' fork left it shorter. The sole, not the ankle: where the
+    // ankle joint lies in a foot pointed down is less certain than how far the leg reaches below the knee.
+    if (!neck) return;
+    const Vec down = (ankle - knee).normalized();
+    double height = 0;
+    for (const auto& q : chain) height = std::max(height, (q.head<3>() - knee).dot(down) + q[3]);
+    lengthen_proximal(c, rig, static_cast<std::size_t>(thigh), kThighToKneeHeight * height);
 }
 
 void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx) {
@@ -232,26 +264,102 @@ void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     if (best) move_joint(rig, rig.bones[static_cast<std::size_t>(forearm)][1], chain[*best].head<3>());
 }
 
-void centre_chest(Rig& rig) {
-    const std::int32_t chest = bone_index(rig, "chest"), left = bone_index(rig, "upper_arm.L"),
-                       right = bone_index(rig, "upper_arm.R");
-    if (chest < 0 || left < 0 || right < 0) return;
-    const Vec l = bone_end(rig, static_cast<std::size_t>(left), 0), r = bone_end(rig, static_cast<std::size_t>(right), 0);
+namespace {
+
+/// Joint `end` of bone `name` moved between the heads of bones `left` and `right`: midway across and at their
+/// height along body_up; unchanged front to back.
+void between(Rig& rig, const std::string& name, int end, const std::string& left, const std::string& right,
+             const Vec& body_up) {
+    const std::int32_t b = bone_index(rig, name), lb = bone_index(rig, left), rb = bone_index(rig, right);
+    if (b < 0 || lb < 0 || rb < 0) return;
+    const Vec l = bone_end(rig, static_cast<std::size_t>(lb), 0), r = bone_end(rig, static_cast<std::size_t>(rb), 0);
     if ((l - r).norm() == 0) return;
-    const Vec across = (l - r).normalized();
-    const std::int32_t j = rig.bones[static_cast<std::size_t>(chest)][1];
-    const Vec at = bone_end(rig, static_cast<std::size_t>(chest), 1);
-    move_joint(rig, j, at + (0.5 * (l + r) - at).dot(across) * across);
+    const Vec across = (l - r).normalized(), up = perp(body_up, across).normalized();
+    const Vec at = bone_end(rig, static_cast<std::size_t>(b), end), to = 0.5 * (l + r) - at;
+    move_joint(rig, rig.bones[static_cast<std::size_t>(b)][static_cast<std::size_t>(end)],
+               at + to.dot(across) * across + to.dot(up) * up);
 }
 
-void head_up(const RigContext& c, Rig& rig, const Vec& body_up) {
-    const std::int32_t h = bone_index(rig, "head");
-    if (h < 0) return;
-    const Vec base = bone_end(rig, static_cast<std::size_t>(h), 0), tip = bone_end(rig, static_cast<std::size_t>(h), 1);
-    const double length = (tip - base).norm();
-    if (length == 0 || (tip - base).dot(body_up) >= kHeadUp * length) return;
-    const double reach = c.reach_inside(base, body_up, 0.0, 3.0 * length);
-    if (reach > 0) move_joint(rig, rig.bones[static_cast<std::size_t>(h)][1], base + reach * body_up);
+}  // namespace
+
+void centre_chest(Rig& rig, const Vec& body_up) {
+    between(rig, "chest", 1, "upper_arm.L", "upper_arm.R", body_up);
+    between(rig, "hips", 0, "thigh.L", "thigh.R", body_up);
+}
+
+void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& body_up) {
+    const std::int32_t h = bone_index(rig, "head"), n = bone_index(rig, "neck");
+    if (h < 0 || n < 0 || head.empty()) return;
+    const auto hb = static_cast<std::size_t>(h);
+    const Vec base = bone_end(rig, static_cast<std::size_t>(n), 0);
+    const Vec top = bone_end(rig, hb, 0) + c.reach_inside(bone_end(rig, hb, 0), body_up, 0.0, 1e9) * body_up;
+    const double height = (top - base).dot(body_up);
+    if (height <= 0) return;
+    const double want = (top - base).dot(body_up) - kHeadShare * height;
+    std::size_t at = 0;
+    for (std::size_t k = 1; k < head.size(); ++k)
+        if (std::abs((head[k].head<3>() - base).dot(body_up) - want) < std::abs((head[at].head<3>() - base).dot(body_up) - want))
+            at = k;
+    // Centred in the head's section at that height (the axis may run to the face or to the crown).
+    Vec joint = head[at].head<3>();
+    // Across the body (from the right shoulder to the left: the same axes whichever way the object is turned) and
+    // front to back.
+    const std::int32_t l = bone_index(rig, "upper_arm.L"), r = bone_index(rig, "upper_arm.R");
+    Vec across = body_up.unitOrthogonal();
+    if (l >= 0 && r >= 0)
+        if (const Vec a = perp(bone_end(rig, static_cast<std::size_t>(l), 0) - bone_end(rig, static_cast<std::size_t>(r), 0), body_up);
+            a.norm() > 0)
+            across = a.normalized();
+    for (const Vec& d : {across, Vec(body_up.cross(across))}) {
+        const double limit = 2.0 * height;
+        joint += 0.5 * (c.reach_inside(joint, d, 0.0, limit) - c.reach_inside(joint, -d, 0.0, limit)) * d;
+    }
+    move_joint(rig, rig.bones[hb][0], joint);
+    move_joint(rig, rig.bones[hb][1], joint + c.reach_inside(joint, body_up, 0.0, 2.0 * height) * body_up);
+}
+
+namespace {
+
+/// The points of the two lines a + s u and b + t v closest to each other, midway; none when they are parallel.
+std::optional<Vec> closest_between(const Vec& a, const Vec& u, const Vec& b, const Vec& v) {
+    const double uv = u.dot(v), den = 1 - uv * uv;
+    if (den < 1e-9) return std::nullopt;
+    const Vec w = a - b;
+    const double s = (uv * v.dot(w) - u.dot(w)) / den, t = (v.dot(w) - uv * u.dot(w)) / den;
+    return 0.5 * (a + s * u + b + t * v);
+}
+
+}  // namespace
+
+void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& limb, const std::string& proximal,
+                 const std::string& distal) {
+    const std::int32_t p = bone_index(rig, proximal), d = bone_index(rig, distal);
+    if (p < 0 || d < 0 || limb.size() < 7) return;
+    const Vec joint = bone_end(rig, static_cast<std::size_t>(p), 1);
+    const Chain4 chain = c.samples(limb);
+    const std::vector<double> arc = arc_of(chain);
+    std::size_t at = 0;  // the axis sample at the joint
+    for (std::size_t k = 1; k < chain.size(); ++k)
+        if ((chain[k].head<3>() - joint).norm() < (chain[at].head<3>() - joint).norm()) at = k;
+    const double radius = chain[at][3];
+    std::vector<Vec> before, after;  // each bone's axis, off the rounded bend
+    for (std::size_t k = 0; k < chain.size(); ++k)
+        if (std::abs(arc[k] - arc[at]) > kBendRound * radius) (k < at ? before : after).push_back(chain[k].head<3>());
+    if (before.size() < 3 || after.size() < 3) return;
+    auto [a, u] = line_through(before);
+    auto [b, v] = line_through(after);
+    if (u.dot(before.back() - before.front()) < 0) u = -u;  // both along the limb, outwards
+    if (v.dot(after.back() - after.front()) < 0) v = -v;
+    if (u.dot(v) > std::cos(kBendAngle)) return;  // straight: the axis shows the joint
+    const std::optional<Vec> corner = closest_between(a, u, b, v);
+    if (!corner) return;
+    const double dist = (*corner - joint).norm();
+    if (dist == 0) return;
+    const Vec dir = (*corner - joint) / dist;
+    // Towards the corner, at most a radius and staying half a radius inside the object.
+    const double reach = c.reach_inside(joint, dir, 0.0, dist + radius) - 0.5 * radius;
+    const double move = std::min({dist, radius, reach});
+    if (move > 0) move_joint(rig, rig.bones[static_cast<std::size_t>(p)][1], joint + move * dir);
 }
 
 }  // namespace volrig::rigging

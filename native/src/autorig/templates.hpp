@@ -51,6 +51,12 @@ struct PlanSearch {
 /// with `up`, its limbs hang down). The best assignment of each kind.
 PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
 
+/// The trunk from the pelvis to the chest cut into hips, spine and chest at these shares of its chord (a trunk's
+/// medial axis wiggles: cuts at its bends, or shares of its arc, wander between resolutions), or by fit_chain when
+/// it has too few samples.
+inline const std::vector<double> kSpineProportions{1.0, 1.0, 1.0};
+Fit trunk_fit(const Chain4& spine);
+
 /// Whether the extremities' bounding box is at least half the object's (a body plan spans the object).
 bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 
@@ -97,7 +103,12 @@ struct FusedArm {
 };
 /// The fused reading of an arm chain (from the chest), or none: no trunk samples beyond its root, a top across the
 /// body (a shoulder girdle, a raised arm), too few samples.
-std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up);
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up, const Vec& front);
+/// A free arm's shoulder joint the same way (the medial axis leaves the shoulder's corner, not the humeral head):
+/// from the line of the upper arm's axis (`arm`: the chain from the chest, `top` and `elbow` its upper arm's first
+/// and last samples) up to the shoulder's surface and its mean radius back in, centred front to back.
+void shoulder_on_top(const RigContext& c, Rig& rig, const Chain4& arm, std::size_t top, std::size_t elbow,
+                     const std::string& upper_arm, const Vec& body_up, const Vec& front);
 /// Moves the head of bone `upper_arm` to the fused arm's shoulder joint.
 void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& shoulder);
 
@@ -113,6 +124,16 @@ constexpr double kStraightLeg = 1.0;
 /// on both sides (thigh above, calf below: a human knee).
 constexpr double kNeckWindow = 2.0;
 constexpr double kNeckRise = 0.05;
+/// Between samples lo and hi of a chain: the sample where the radius dips deepest, the least of the widest sample
+/// before it and the widest after it being the most above its own radius, by kNeckRise at least (a knee between
+/// thigh and calf, a neck between trunk and head); else none. The deepest dip, not the narrowest sample: a leg
+/// narrows towards the ankle.
+std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi);
+/// A knee found at its neck lengthens the thigh to this share of the knee's height above the sole (measured down
+/// the shin's line to the farthest surface of the leg's axis samples): Drillis and Contini's thigh 0.245 H over
+/// knee height 0.285 H.
+constexpr double kThighToKneeHeight = 0.245 / 0.285;
+/// `leg`: the leg's nodes from the hip to the foot's tip.
 void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
 /// The wrist at its neck: a forearm narrows to the wrist, and a hand resting on something (the pelvis, a thigh)
@@ -128,14 +149,28 @@ void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_
 /// `leg`: the leg's nodes from the knee to the foot's tip.
 void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
 
-/// The chest joint (where neck and shoulders meet) midway between the shoulder joints across the body: a neck
-/// joining the trunk's medial sheet off its middle pulls the level-set tree's chest node aside.
-void centre_chest(Rig& rig);
+/// A bent limb's joint (elbow, knee) at the corner of its bones' axes: the medial axis rounds a bend on its
+/// inside, by about a radius, so the joint between `proximal` and `distal` goes to the point where the lines
+/// through their axes (the axis samples of `limb` more than kBendRound radii of arc from the joint) come closest,
+/// when they meet at more than kBendAngle (radians), at most one radius away and half a radius inside the object.
+constexpr double kBendRound = 0.5;
+constexpr double kBendAngle = 0.35;
+void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& limb, const std::string& proximal,
+                 const std::string& distal);
 
-/// A humanoid's head bone points up (Rigify's): when the head's extremity is the face (its bone more than 60
-/// degrees off the body's up: cos below kHeadUp), its tail goes up from the head joint to the top of the head.
-constexpr double kHeadUp = 0.5;
-void head_up(const RigContext& c, Rig& rig, const Vec& body_up);
+/// The chest joint (where neck and shoulders meet) between the shoulder joints, and the hips' head between the
+/// hip joints: midway across the body and at their height along `body_up` (shoulder and pelvis bones run across,
+/// Rigify's), unchanged front to back. The level-set tree's chest and pelvis nodes lie where the limbs' and the
+/// neck's medial axes join the trunk's medial sheet: lower, off the middle, and by how much varies with the
+/// resolution.
+void centre_chest(Rig& rig, const Vec& body_up);
+
+/// A humanoid's head bone points up (Rigify's), from the head joint to the top of the head, whichever extremity
+/// (the face, the crown) the medial axis reaches: the head joint goes to the head chain's sample (`head`: from the
+/// chest out) at kHeadShare of the height from the neck's base to the top of the head below the top (Rigify's
+/// metarig: the head 0.6 of the way from the neck's base to the crown), the tail straight up to the surface.
+constexpr double kHeadShare = 0.6;
+void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& body_up);
 
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
