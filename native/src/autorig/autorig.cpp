@@ -31,8 +31,12 @@
 //    runner-up is reported, and AutorigOptions::kind forces one.
 // 4. chain_fit and rig_builder: chains are cut into bones at bends by an optimal piecewise-linear fit in
 //    (position, radius); a humanoid's limbs by one optimisation of bends and anatomical proportions together
-//    (girdle, upper arm, forearm, hand; pelvis bone, thigh, shin, foot). End joints are extended along their bone
-//    to the object's surface.
+//    (girdle, upper arm, forearm, hand; pelvis bone, thigh, shin, foot), the trunk at thirds of its chord. End
+//    joints are extended along their bone to the object's surface.
+// 5. humanoid_limbs: a humanoid's joints the medial axis does not show are placed by rules on the object itself
+//    (walks along rays inside it): shoulders in the corner under the shoulder's top and outer side, bent elbows at
+//    the corner of the bones' lines, knees at the leg's deepest dip, hips and chest between their joints, the
+//    head bone up from 0.6 of the way down from the crown.
 #include <algorithm>
 #include <cmath>
 
