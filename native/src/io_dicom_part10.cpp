@@ -16,6 +16,7 @@
 #include <cstring>
 #include <functional>
 #include <map>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -163,8 +164,11 @@ void check_image_module(const Walker& w) {
 std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
     if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
     const std::uint64_t stop = end ? end : w.size;
+    std::set<std::uint32_t> seen;  // a tag twice in one data set: GDCM keeps the first, the checks below the last
     while (at < stop) {
         const Element e = header_at(w, at, w.explicit_vr, w.big);
+        if (e.group != kItemGroup && !seen.insert((std::uint32_t(e.group) << 16) | e.elem).second)
+            w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") appears twice in one data set");
         if (e.group == kItemGroup) {
             if (!end && e.elem == kItemEnd) {
                 if (e.length != 0) w.bad(at, "an item delimiter with a non-zero length");
@@ -199,8 +203,11 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
 std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments) {
     if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
     const std::uint64_t stop = end ? end : w.size;
+    std::set<std::uint32_t> seen;  // a tag twice in one data set: GDCM keeps the first, the checks below the last
     while (at < stop) {
         const Element e = header_at(w, at, w.explicit_vr, w.big);
+        if (e.group != kItemGroup && !seen.insert((std::uint32_t(e.group) << 16) | e.elem).second)
+            w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") appears twice in one data set");
         if (e.group != kItemGroup) w.bad(at, "an element where a sequence item was expected");
         if (e.elem == kSequenceEnd) {
             if (end) w.bad(at, "a sequence delimiter in a sequence of defined length");

@@ -877,6 +877,18 @@ TEST_CASE("trunk_fit cuts a wiggling spine at thirds of its chord", "[autorig]")
     const Fit fit = trunk_fit(spine);
     REQUIRE(fit.cuts.size() == 4);
     CHECK(fit.cuts == std::vector<std::size_t>{0, 10, 20, 30});
+    // Cut again between a hips' head moved up to z 6 and a chest's tail moved up to z 36: at z 16 and 26.
+    Rig rig;
+    rig.joints = {{0, 0, 6}, {0, 0, 10}, {0, 0, 20}, {0, 0, 36}};
+    rig.joint_points = {0, 0, 0, 0};
+    rig.bones = {{0, 1}, {1, 2}, {2, 3}};
+    rig.names = {"hips", "spine", "chest"};
+    rig.parents = {-1, 0, 1};
+    recut_spine(rig, spine);
+    CHECK(rig.joints[1][2] == 16);
+    CHECK(rig.joints[2][2] == 26);
+    CHECK(rig.joints[0][2] == 6);
+    CHECK(rig.joints[3][2] == 36);
 }
 
 TEST_CASE("bend_corner moves a bent elbow from the rounded axis to the corner of the bones' lines; a straight "

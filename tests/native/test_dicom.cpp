@@ -237,8 +237,25 @@ TEST_CASE("DICOM: broken Part-10 structure is refused before GDCM sees it", "[di
     REQUIRE(at != undefined.end());
     Bytes item = Bytes(undefined.begin(), at) + Bytes{0xfe, 0xff, 0x00, 0xe0, 0, 0, 0, 0} + Bytes(at, undefined.end());
     refuse(item, "an item tag where an element was expected");
+    Bytes twice = good;  // the modality element repeated: GDCM would keep the first, the checks see the last
+    at = std::search(twice.begin(), twice.end(), cs.begin(), cs.end());
+    const std::size_t n = 8 + (static_cast<std::size_t>(at[6]) | (static_cast<std::size_t>(at[7]) << 8));
+    twice = Bytes(twice.begin(), at + static_cast<std::ptrdiff_t>(n)) + Bytes(at, at + static_cast<std::ptrdiff_t>(n)) +
+            Bytes(at + static_cast<std::ptrdiff_t>(n), twice.end());
+    refuse(twice, "element (0008,0060) appears twice in one data set");
     Bytes bad_vr = good;
     at = std::search(bad_vr.begin(), bad_vr.end(), cs.begin(), cs.end());
     at[4] = 'c';
     refuse(bad_vr, "is not a DICOM VR");
+}
+
+TEST_CASE("DICOM: inputs that crashed GDCM are refused with an error", "[dicom][errors]") {
+    // A fuzzer's: RLE with Bits Allocated given twice, 4 then 16 (GDCM's RLE decoder asserted on the first).
+    for (const char* name : {"rle-duplicate-bits-allocated.dcm"}) {
+        std::ifstream f(fs::path(VOLRIG_FUZZ_CORPUS) / "dicom" / name, std::ios::binary);
+        REQUIRE(f);
+        const Bytes b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+        auto src = memory_source(b.data(), b.size(), name);
+        CHECK_THROWS_AS(read_dicom_file(*src), FileFormatError);
+    }
 }

@@ -265,6 +265,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
         }
     if (humanoid) {
         centre_chest(out.rig, up ? *up : out.up);
+        recut_spine(out.rig, c.samples(spine));
         place_head(c, out.rig, c.samples(head), up ? *up : out.up);
     }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);

@@ -287,6 +287,17 @@ void centre_chest(Rig& rig, const Vec& body_up) {
     between(rig, "hips", 0, "thigh.L", "thigh.R", body_up);
 }
 
+void recut_spine(Rig& rig, Chain4 spine) {
+    const std::int32_t h = bone_index(rig, "hips"), s = bone_index(rig, "spine"), c = bone_index(rig, "chest");
+    if (h < 0 || s < 0 || c < 0 || spine.size() < 4) return;
+    spine.front().head<3>() = bone_end(rig, static_cast<std::size_t>(h), 0);
+    spine.back().head<3>() = bone_end(rig, static_cast<std::size_t>(c), 1);
+    const Fit fit = trunk_fit(spine);
+    if (fit.cuts.size() != 4) return;
+    move_joint(rig, rig.bones[static_cast<std::size_t>(s)][0], spine[fit.cuts[1]].head<3>());
+    move_joint(rig, rig.bones[static_cast<std::size_t>(c)][0], spine[fit.cuts[2]].head<3>());
+}
+
 void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& body_up) {
     const std::int32_t h = bone_index(rig, "head"), n = bone_index(rig, "neck");
     if (h < 0 || n < 0 || head.empty()) return;

@@ -164,6 +164,9 @@ void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>
 /// neck's medial axes join the trunk's medial sheet: lower, off the middle, and by how much varies with the
 /// resolution.
 void centre_chest(Rig& rig, const Vec& body_up);
+/// The spine's inner joints cut again (trunk_fit) between the hips' head and the chest's tail where centre_chest
+/// put them (`spine`: the trunk's axis samples from the pelvis node to the chest node).
+void recut_spine(Rig& rig, Chain4 spine);
 
 /// A humanoid's head bone points up (Rigify's), from the head joint to the top of the head, whichever extremity
 /// (the face, the crown) the medial axis reaches: the head joint goes to the head chain's sample (`head`: from the
