@@ -108,8 +108,13 @@ void bind_rig(py::module_& m) {
         "bind",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
            const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,
-           const IntArray& parents, const std::string& mode, const py::object& progress) {
+           const IntArray& parents, const std::string& mode, const py::object& progress,
+           const std::optional<MaskArray>& rigid) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
+            if (rigid) grid_of(*rigid, spacing, origin, "rigid");
+            if (rigid && (rigid->shape(0) != mask.shape(0) || rigid->shape(1) != mask.shape(1) ||
+                          rigid->shape(2) != mask.shape(2)))
+                throw Error("bind: the rigid tissue must lie on the mask's grid");
             const PointSet pts = point_set(ijk, &radius, "bind");
             const Rig r = rig_of(joints, bones, names, parents);
             BindMode bm;
@@ -120,7 +125,7 @@ void bind_rig(py::module_& m) {
             Binding b;
             {
                 py::gil_scoped_release nogil;
-                b = volrig::bind(g, mask.data(), pts, r, bm, p);
+                b = volrig::bind(g, mask.data(), pts, r, bm, p, rigid ? rigid->data() : nullptr);
             }
             const auto n = static_cast<py::ssize_t>(pts.n);
             std::vector<std::int32_t> wb(3 * pts.n);
@@ -135,7 +140,8 @@ void bind_rig(py::module_& m) {
                                   to_numpy_shaped(std::move(b.unreachable), {n}).attr("view")("bool"));
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("joints"),
-        py::arg("bones"), py::arg("names"), py::arg("parents"), py::arg("mode"), py::arg("progress") = py::none());
+        py::arg("bones"), py::arg("names"), py::arg("parents"), py::arg("mode"), py::arg("progress") = py::none(),
+        py::arg("rigid") = py::none());
 
     m.def(
         "check_rig",

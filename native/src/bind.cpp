@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 
+#include "volrig/components.hpp"
 #include "volrig/rig.hpp"
 
 namespace volrig {
@@ -38,10 +39,47 @@ double smoothstep(double t) {
     return t * t * (3.0 - 2.0 * t);
 }
 
+/// Rigid tissue: every point on a rigid voxel moves with one bone alone (weight 1). A rigid component whose points
+/// the geodesic binding gives at least kRigidShare of their ball volume to one bone goes wholly to that bone (a
+/// bone the joint plane crosses near its end); a component spanning joints (bones touching in a coarse label map)
+/// keeps each point's own bone.
+constexpr double kRigidShare = 0.9;
+
+void keep_rigid(const Grid& g, const std::uint8_t* rigid, const PointSet& pts, std::size_t bones, Binding& out) {
+    const Components comp = label_components(g, rigid);
+    std::vector<std::int32_t> of(pts.n, 0);
+    std::vector<std::vector<double>> votes(comp.sizes.size() + 1, std::vector<double>());
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        const std::int32_t* q = pts.ijk + 3 * i;
+        of[i] = comp.labels[static_cast<std::size_t>(g.index(q[2], q[1], q[0]))];
+        if (of[i] == 0) continue;
+        auto& v = votes[static_cast<std::size_t>(of[i])];
+        if (v.empty()) v.assign(bones, 0.0);
+        v[static_cast<std::size_t>(out.bone[i])] += std::pow(static_cast<double>(pts.radius[i]), 3);
+    }
+    std::vector<std::int32_t> whole(votes.size(), -1);
+    for (std::size_t c = 1; c < votes.size(); ++c) {
+        const auto& v = votes[c];
+        if (v.empty()) continue;
+        const auto best = std::max_element(v.begin(), v.end());
+        double sum = 0;
+        for (double x : v) sum += x;
+        if (*best >= kRigidShare * sum) whole[c] = static_cast<std::int32_t>(best - v.begin());
+    }
+    for (std::size_t i = 0; i < pts.n; ++i) {
+        if (of[i] == 0) continue;
+        const std::int32_t c = whole[static_cast<std::size_t>(of[i])];
+        const std::int32_t b = c >= 0 ? c : out.bone[i];
+        out.bone[i] = b;
+        out.weight_bones[i] = {b, -1, -1};
+        out.weights[i] = {1.f, 0.f, 0.f};
+    }
+}
+
 }  // namespace
 
 Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
-             const Progress& progress) {
+             const Progress& progress, const std::uint8_t* rigid) {
     if (!pts.radius) throw Error("bind: radii are required");
     check_points(g, mask, pts, "bind");
     check_rig(rig);
@@ -154,6 +192,7 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
         }
         out.bone[i] = all[0].second;
     });
+    if (rigid) keep_rigid(g, rigid, pts, nb, out);
     report(progress, 1.0);
     return out;
 }

@@ -16,7 +16,7 @@ from .volume import Volume, dicom_series, load, write_vdb
 
 read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
-from .rig import Binding, Rig, autorig, bind, rest_pose, rotation_about
+from .rig import Binding, Rig, autorig, bind, rest_pose, rigid_tissue, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
@@ -30,7 +30,7 @@ __version__ = "0.1.0"
 
 __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
-           "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind",
+           "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind", "rigid_tissue",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
            "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",

@@ -16,6 +16,7 @@ import numpy as np
 from . import _volrig
 from ._volrig import VolrigError
 from .skeleton import ProgressFn, SkeletonPoints
+from .volume import Volume
 from .tree import SkeletonTree, _mask_for, _point_arrays
 
 
@@ -396,16 +397,47 @@ def weights_matrix(weight_bones: np.ndarray, weights: np.ndarray, bone_count: in
     return sparse.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(n, bone_count), dtype=np.float32)
 
 
-def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: ProgressFn = None) -> Binding:
+def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: ProgressFn = None,
+         rigid=None) -> Binding:
     """Binds every skeleton point to the bone that owns it.
 
     The owner is the bone nearest by geodesic distance inside the object: along a straight line to the bone's
     closest point when that line stays inside the object, otherwise along the contained neighbour graph from points
     that have one (so a hand resting on a thigh binds to the arm). ``mode="smooth"`` adds weights across each joint:
     within one radius of the joint plane the neighbouring bone takes up to half (summing to 1 with the owner).
+
+    ``rigid``: tissue that must not bend (a bool Volume or array on the mask's grid; ``rigid_tissue`` makes one
+    from label values or a value range of the source). Points on it move with one bone alone (weight 1): a
+    26-connected rigid component wholly with the bone holding 90% of its points' ball volume, one spanning joints
+    (bones touching in a coarse label map) point by point with each point's own bone. Only soft tissue blends.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
+    rigid_arr = None
+    if rigid is not None:
+        rigid_arr = _mask_for(points, rigid)
+        if rigid_arr.shape != arr.shape:
+            raise VolrigError(f"rigid tissue of shape {rigid_arr.shape} does not lie on the mask's grid {arr.shape}")
     bone, wb, w, unreachable = _volrig.bind(arr, points.spacing, points.origin, ijk, radii, rig.joints, rig.bones,
-                                            rig.names, rig.parents, mode, progress)
+                                            rig.names, rig.parents, mode, progress, rigid_arr)
     return Binding(bone, weights_matrix(wb, w, len(rig.bones)), mode, unreachable, list(rig.names))
+
+
+def rigid_tissue(source: Volume, labels=None, value_range=None) -> Volume:
+    """The voxels of ``source`` that must not bend, as a bool Volume for ``bind(..., rigid=...)``: those whose value
+    is one of ``labels`` (a label map's bone codes, e.g. the Visible Human's 84 and 92), or lies in
+    ``value_range`` = (low, high) inclusive (a CT's bone, e.g. (300, 3000) HU). Exactly one of the two."""
+    if (labels is None) == (value_range is None):
+        raise VolrigError("rigid_tissue: give labels or value_range (one of them)")
+    arr = np.asarray(source.array)
+    if labels is not None:
+        values = np.asarray(list(labels))
+        if values.size == 0:
+            raise VolrigError("rigid_tissue: no labels given")
+        out = np.isin(arr, values)
+    else:
+        lo, hi = (float(v) for v in value_range)
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise VolrigError(f"rigid_tissue: value_range must be finite with low <= high, got {value_range}")
+        out = (arr >= lo) & (arr <= hi)
+    return source.like(out)

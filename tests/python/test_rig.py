@@ -229,6 +229,43 @@ def test_smooth_weights_blend_across_joints_and_sum_to_one():
     assert rigid.bone[0] == 0  # the original is unchanged
 
 
+def test_rigid_tissue_moves_with_one_bone_and_only_soft_tissue_blends():
+    mask = capsule_mask((80, 20, 20), [((4, 10, 10), (76, 10, 10))], 6)
+    rig = Rig([[10, 10, 4], [10, 10, 40], [10, 10, 76]], [[0, 1], [1, 2]], ["upper", "lower"])
+    ijk = np.array([[z, 10, 10] for z in range(4, 77)])
+    pts = points_at(ijk, 5.0)
+    z = ijk[:, 0]
+    # Two bones with a soft gap at the joint (z 38..42): the bones' points take one bone, the gap still blends.
+    labels = np.zeros(mask.shape, dtype=np.uint8)
+    labels[6:38, 8:13, 8:13] = 84
+    labels[43:75, 8:13, 8:13] = 92
+    source = volrig.Volume(labels)
+    rigid = volrig.rigid_tissue(source, labels=[84, 92])
+    assert rigid.array.dtype == np.bool_ and rigid.array.sum() == 2 * 32 * 25
+    b = bind(pts, rig, mask, mode="smooth", rigid=rigid)
+    w = b.weights.toarray()
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-6)
+    on_bone = ((z >= 6) & (z < 38)) | ((z >= 43) & (z < 75))
+    assert (w[on_bone].max(axis=1) == 1.0).all()
+    assert (b.bone[(z >= 6) & (z < 38)] == 0).all() and (b.bone[(z >= 43) & (z < 75)] == 1).all()
+    np.testing.assert_allclose(w[z == 40], [[0.5, 0.5]], atol=1e-6)
+    # One bone across the joint (a coarse label map where they touch): each point keeps its own bone, unblended.
+    labels[38:43, 8:13, 8:13] = 84
+    b = bind(pts, rig, mask, mode="smooth", rigid=volrig.rigid_tissue(volrig.Volume(labels), value_range=(80, 95)))
+    w = b.weights.toarray()
+    assert (w.max(axis=1) == 1.0)[(z >= 6) & (z < 75)].all()
+    assert (b.bone[(z >= 6) & (z < 40)] == 0).all() and (b.bone[(z > 40) & (z < 75)] == 1).all()
+    # A bone mostly on one side of the joint goes wholly with that bone.
+    labels[:] = 0
+    labels[6:44, 8:13, 8:13] = 84
+    b = bind(pts, rig, mask, mode="smooth", rigid=volrig.rigid_tissue(volrig.Volume(labels), labels=[84]))
+    assert (b.bone[(z >= 6) & (z < 44)] == 0).all()
+    with pytest.raises(volrig.VolrigError, match="labels or value_range"):
+        volrig.rigid_tissue(source)
+    with pytest.raises(volrig.VolrigError, match="grid"):
+        bind(pts, rig, mask, rigid=np.zeros((10, 10, 10), dtype=bool))
+
+
 def test_snap_moves_joints_onto_skeleton_points():
     pts = points_at([[5, 5, 5], [5, 5, 9], [5, 9, 9]], 1.0)
     r = Rig([[5.2, 4.9, 5.1], [8.6, 5.3, 5.0]], [[0, 1]], ["a"]).snap(pts)

@@ -103,7 +103,10 @@ struct Binding {
 /// straight line to the closest point of a bone, or along the contained neighbour graph (skeleton_graph) from
 /// points that have one. Smooth mode adds a falloff across each joint: within one radius of the joint plane the
 /// neighbouring bone takes up to half the weight.
+/// `rigid` (optional, on the same grid): tissue that must not bend (bone). Points on it take weight 1 on one bone;
+/// a 26-connected rigid component goes wholly to the bone that holds at least 90% of its points' ball volume,
+/// one spanning joints (bones touching in a coarse label map) keeps each point's own bone.
 Binding bind(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
-             const Progress& progress = {});
+             const Progress& progress = {}, const std::uint8_t* rigid = nullptr);
 
 }  // namespace volrig
