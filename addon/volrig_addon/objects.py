@@ -3,6 +3,8 @@
 - ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
 - ``<name>_mask``     preview Volume object (child of ``<name>``) showing the segmentation mask.
 - ``<name>_thickness`` Volume object (child of ``<name>``): the mask coloured by its local thickness.
+- ``<name>_medial``   Mesh (child of ``<name>``): the medial surface of the plates, a ``thickness`` point attribute
+                      coloured through a ramp, the rods as loose edges with a ``radius`` point attribute.
 - ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
 - ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
 - ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
@@ -150,6 +152,52 @@ def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
     top = float(np.percentile(values, 99)) if values.size else 1.0
     materials.set_thickness_range(obj.active_material, top, density=40.0 / max(extent, 1e-9))
     return obj, values
+
+
+def update_medial_surface(volume_obj, ms) -> bpy.types.Object:
+    """Shows a ``volrig.MedialSurface`` as ``<name>_medial``, parented to the scan (its vertices are in the grid
+    frame, volume units, as the scan object's own space): triangles with a ``thickness`` point attribute, and the
+    rods as loose edges (``thickness`` there: twice the rod radius); replaces the mesh's geometry when it exists."""
+    verts = [np.asarray(ms.vertices, dtype=np.float64).reshape(-1, 3)]
+    thick = [np.asarray(ms.thickness, dtype=np.float64)]
+    edges = []
+    offset = len(verts[0])
+    for line, radii in zip(ms.rods, ms.rod_radii):
+        verts.append(np.asarray(line, dtype=np.float64))
+        thick.append(2.0 * np.asarray(radii, dtype=np.float64))
+        idx = np.arange(offset, offset + len(line))
+        edges.append(np.stack([idx[:-1], idx[1:]], axis=1))
+        offset += len(line)
+    co = np.concatenate(verts)
+    values = np.concatenate(thick)
+    faces = np.asarray(ms.faces, dtype=np.int32).reshape(-1, 3)
+    obj = members(volume_obj).get("MEDIAL")
+    if obj is None:
+        name = volume_obj.name + "_medial"
+        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "MEDIAL")
+        obj.parent = volume_obj
+        obj.matrix_parent_inverse.identity()
+        obj.data.materials.append(materials.medial_material(volume_obj.name))
+    mesh = obj.data
+    mesh.clear_geometry()
+    mesh.vertices.add(len(co))
+    mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    rod_edges = np.concatenate(edges).astype(np.int32) if edges else np.zeros((0, 2), np.int32)
+    if len(rod_edges):
+        mesh.edges.add(len(rod_edges))
+        mesh.edges.foreach_set("vertices", rod_edges.ravel())
+    if len(faces):
+        mesh.loops.add(3 * len(faces))
+        mesh.loops.foreach_set("vertex_index", faces.ravel())
+        mesh.polygons.add(len(faces))
+        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(faces), 3, dtype=np.int32))
+        mesh.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
+    mesh.update(calc_edges=True, calc_edges_loose=True)
+    attr = mesh.attributes.get("thickness") or mesh.attributes.new("thickness", "FLOAT", "POINT")
+    attr.data.foreach_set("value", values.astype(np.float32))
+    top = float(np.percentile(values, 99)) if values.size else 1.0
+    materials.set_medial_range(obj.active_material, top)
+    return obj
 
 
 def _mask_material():
