@@ -8,7 +8,6 @@
 #include <cmath>
 #include <numeric>
 
-#include "volrig/distance.hpp"
 #include "volrig/medial.hpp"
 
 namespace volrig {
@@ -558,20 +557,42 @@ void add_rods(const Grid& g, const std::vector<std::uint8_t>& cls, const std::ve
 
 }  // namespace
 
+namespace {
+
+/// The object's Euclidean DT read off the feature transform: the distance to the nearest background voxel's centre.
+std::vector<float> dt_of(const Grid& g, const std::uint8_t* mask, const std::vector<std::int64_t>& ft) {
+    std::vector<float> dt(ft.size());
+    const std::int64_t nx = g.dims[0], ny = g.dims[1];
+    tbb::parallel_for(std::int64_t(0), g.voxel_count(), [&](std::int64_t i) {
+        if (!mask[i]) {
+            dt[static_cast<std::size_t>(i)] = 0.0f;
+            return;
+        }
+        const P3 d = sub(at(g, double(i % nx), double((i / nx) % ny), double(i / (nx * ny))),
+                         feature_centre(g, ft[static_cast<std::size_t>(i)]));
+        dt[static_cast<std::size_t>(i)] = static_cast<float>(std::sqrt(dot(d, d)));
+    });
+    return dt;
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> medial_skeleton(const Grid& g, const std::uint8_t* mask, double t, const Progress& progress) {
     PlaneEdges e = plane_edges(g, mask, t, progress_span(progress, 0.0, 0.5));
     const std::vector<std::uint8_t> anchors = surface_voxels(g, e.edge, t);
-    const std::vector<float> dt = distance_transform(g, mask, Metric::Euclidean);
+    const std::vector<float> dt = dt_of(g, mask, e.feature);
     return thin_skeleton(g, mask, anchors.data(), dt.data(), progress_span(progress, 0.55, 1.0));
 }
 
 MedialSurface medial_surface(const Grid& g, const std::uint8_t* mask, double t, const Progress& progress) {
     PlaneEdges e = plane_edges(g, mask, t, progress_span(progress, 0.0, 0.5));
     const std::vector<std::uint8_t> anchors = surface_voxels(g, e.edge, t);
-    const std::vector<float> dt = distance_transform(g, mask, Metric::Euclidean);
-    report(progress, 0.55);
     MedialSurface out;
-    out.skeleton = thin_skeleton(g, mask, anchors.data(), dt.data(), progress_span(progress, 0.55, 0.85));
+    {
+        const std::vector<float> dt = dt_of(g, mask, e.feature);
+        report(progress, 0.55);
+        out.skeleton = thin_skeleton(g, mask, anchors.data(), dt.data(), progress_span(progress, 0.55, 0.85));
+    }
     mesh_plane_edges(g, e.feature, e.edge, t, out);
     report(progress, 0.95);
     add_rods(g, out.skeleton, e.feature, out);
