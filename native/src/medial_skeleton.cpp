@@ -73,6 +73,13 @@ std::uint32_t neighbourhood(const Grid& g, const std::uint8_t* m, std::int64_t x
     return bits;
 }
 
+/// True when at least two lines through the centre have set voxels at both ends (bits i and 26 - i are opposite).
+bool sheet_like(std::uint32_t nb) {
+    int lines = 0;
+    for (int i = 0; i < kCentre; ++i) lines += (nb >> i & 1u) && (nb >> (26 - i) & 1u);
+    return lines >= 2;
+}
+
 }  // namespace
 
 bool is_simple27(std::uint32_t nb) {
@@ -142,11 +149,17 @@ std::vector<std::uint8_t> thin_skeleton(const Grid& g, const std::uint8_t* mask,
                                         const float* dt, const Progress& progress) {
     std::vector<std::uint8_t> skel = thin(g, mask, anchors, dt);
     report(progress, 0.9);
-    // Classify: anchors are surface; the rest curve; curve voxels touching the surface are junctions.
+    // Classify: anchors are surface, and so are the kept voxels in a sheet of the skeleton (two or more lines
+    // through them with skeleton voxels on both sides: a membrane the thinning kept across a gap of the
+    // plane-like set, which a curve, its branch points or a rod's foot on a plate never have); the rest is curve,
+    // and curve voxels touching the surface are junctions.
     std::vector<std::uint8_t> cls(skel.size(), 0);
     const std::int64_t nx = g.dims[0], ny = g.dims[1];
     tbb::parallel_for(std::int64_t(0), g.voxel_count(), [&](std::int64_t i) {
-        if (skel[static_cast<std::size_t>(i)]) cls[static_cast<std::size_t>(i)] = std::uint8_t(anchors[i] ? 1 : 2);
+        const auto u = static_cast<std::size_t>(i);
+        if (!skel[u]) return;
+        cls[u] = static_cast<std::uint8_t>(anchors[i] || sheet_like(neighbourhood(g, skel.data(), i % nx, (i / nx) % ny, i / (nx * ny)))
+                                               ? SkeletonClass::Surface : SkeletonClass::Curve);
     });
     std::vector<std::uint8_t> surface(skel.size());
     for (std::size_t i = 0; i < skel.size(); ++i) surface[i] = cls[i] == 1;

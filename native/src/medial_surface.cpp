@@ -533,15 +533,78 @@ std::vector<std::vector<std::int64_t>> trace(const std::vector<std::vector<std::
     return out;
 }
 
-void add_rods(const Grid& g, const std::vector<std::uint8_t>& cls, const std::vector<std::int64_t>& ft,
+/// Removes `k` from the curve graph.
+void unlink(std::vector<std::vector<std::int64_t>>& adj, std::int64_t k) {
+    for (std::int64_t n : adj[static_cast<std::size_t>(k)]) {
+        auto& a = adj[static_cast<std::size_t>(n)];
+        a.erase(std::remove(a.begin(), a.end(), k), a.end());
+    }
+    adj[static_cast<std::size_t>(k)].clear();
+}
+
+/// Prunes spurs: chains of curve voxels from a free end to a branch point or a junction (a rod's foot on a plate)
+/// shorter than `t` (world units): bumps of a noisy boundary, below the scale t sets for plates too. A chain is
+/// deleted from its free end one simple point at a time (stopping at any that is not), so the skeleton keeps its
+/// topology; one pass, so the spurs of spurs are not eaten away.
+void prune_spurs(const Grid& g, const std::vector<std::int64_t>& nodes, std::vector<std::vector<std::int64_t>>& adj,
+                 std::vector<std::uint8_t>& cls, double t) {
+    const std::int64_t nx = g.dims[0], ny = g.dims[1];
+    auto centre = [&](std::int64_t k) {
+        const std::int64_t i = nodes[static_cast<std::size_t>(k)];
+        return at(g, double(i % nx), double((i / nx) % ny), double(i / (nx * ny)));
+    };
+    auto curve = [&](std::int64_t k) { return cls[static_cast<std::size_t>(nodes[static_cast<std::size_t>(k)])] == std::uint8_t(SkeletonClass::Curve); };
+    for (std::size_t e = 0; e < adj.size(); ++e) {
+        if (adj[e].size() != 1 || !curve(static_cast<std::int64_t>(e))) continue;
+        std::vector<std::int64_t> chain{static_cast<std::int64_t>(e)};
+        std::int64_t prev = chain[0], cur = adj[e][0];
+        double length = 0;
+        for (;;) {
+            const P3 d = sub(centre(cur), centre(prev));
+            length += std::sqrt(dot(d, d));
+            if (adj[static_cast<std::size_t>(cur)].size() != 2 || !curve(cur) || length >= t) break;
+            chain.push_back(cur);
+            const auto& a = adj[static_cast<std::size_t>(cur)];
+            const std::int64_t next = a[0] == prev ? a[1] : a[0];
+            prev = cur;
+            cur = next;
+        }
+        const bool foot = adj[static_cast<std::size_t>(cur)].size() >= 3 || !curve(cur);
+        if (length >= t || !foot) continue;
+        for (std::int64_t k : chain) {
+            const std::int64_t i = nodes[static_cast<std::size_t>(k)];
+            if (!is_simple(g, cls.data(), i % nx, (i / nx) % ny, i / (nx * ny))) break;
+            cls[static_cast<std::size_t>(i)] = 0;
+            unlink(adj, k);
+        }
+    }
+}
+
+void add_rods(const Grid& g, std::vector<std::uint8_t>& cls, const std::vector<std::int64_t>& ft, double t,
               MedialSurface& out) {
     std::vector<std::int64_t> nodes;
     for (std::size_t i = 0; i < cls.size(); ++i)
         if (cls[i] == std::uint8_t(SkeletonClass::Curve) || cls[i] == std::uint8_t(SkeletonClass::Junction))
             nodes.push_back(static_cast<std::int64_t>(i));
-    const auto lines = trace(curve_graph(g, nodes));
+    auto adj = curve_graph(g, nodes);
+    prune_spurs(g, nodes, adj, cls, t);
+    const auto lines = trace(adj);
     const std::int64_t nx = g.dims[0], ny = g.dims[1];
     for (const auto& line : lines) {
+        // A chain shorter than t whose every voxel touches the surface runs along the surface (a seam the thinning
+        // kept), not off it: not a rod.
+        bool seam = true;
+        double length = 0;
+        for (std::size_t k = 0; k < line.size(); ++k) {
+            const std::int64_t i = nodes[static_cast<std::size_t>(line[k])];
+            seam = seam && cls[static_cast<std::size_t>(i)] == std::uint8_t(SkeletonClass::Junction);
+            if (k == 0) continue;
+            const std::int64_t j = nodes[static_cast<std::size_t>(line[k - 1])];
+            const P3 d = sub(at(g, double(i % nx), double((i / nx) % ny), double(i / (nx * ny))),
+                             at(g, double(j % nx), double((j / nx) % ny), double(j / (nx * ny))));
+            length += std::sqrt(dot(d, d));
+        }
+        if (seam && length < t) continue;
         std::vector<P3> pts;
         std::vector<double> radii;
         for (std::int64_t k : line) {
@@ -595,7 +658,7 @@ MedialSurface medial_surface(const Grid& g, const std::uint8_t* mask, double t, 
     }
     mesh_plane_edges(g, e.feature, e.edge, t, out);
     report(progress, 0.95);
-    add_rods(g, out.skeleton, e.feature, out);
+    add_rods(g, out.skeleton, e.feature, t, out);
     report(progress, 1.0);
     return out;
 }

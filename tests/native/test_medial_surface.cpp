@@ -228,6 +228,8 @@ TEST_CASE("the skeleton keeps the object's topology on random blobs, and is thin
         const auto cls = medial_skeleton(g, m.data(), 5.0);
         const auto skel = skeleton_voxels(cls);
         CHECK(topology(g, skel) == topology(g, m));
+        // medial_surface's skeleton, its spurs pruned, too.
+        CHECK(topology(g, skeleton_voxels(medial_surface(g, m.data(), 2.0).skeleton)) == topology(g, m));
         for (std::size_t i = 0; i < m.size(); ++i) CHECK((!skel[i] || m[i]));
         // Thin: every remaining voxel that is not an anchor (surface) is not simple, or a curve end.
         std::int64_t deletable = 0;

@@ -8,8 +8,10 @@
 //   6-connected background) in order of increasing DT, never deleting an anchor: the upper voxel of every plane-like
 //   edge (the plane-like set of plane_measure) or a curve end (one 26-neighbour left). Simple deletions keep the
 //   object's topology, so plates keep no holes and stay connected; anchors keep the plates' medial surface; ends
-//   keep rods. Each kept voxel is classified: Surface (an anchor), Curve (kept for topology or as a rod), Junction
-//   (a curve voxel 26-adjacent to a surface voxel: where a rod meets a plate).
+//   keep rods. Each kept voxel is classified: Surface (an anchor, or a voxel in a sheet of the skeleton: two lines
+//   through it with skeleton voxels at both ends, a membrane kept across a gap of the plane-like set), Curve (the
+//   rest: kept for topology or as a rod), Junction (a curve voxel 26-adjacent to a surface voxel: where a rod
+//   meets a plate).
 // * Mesh (medial_surface): dual contouring of the plane-like edges (surface nets): one vertex per 2x2x2 cell of
 //   voxel centres holding a plane-like edge, at the mean of the points of its plane-like edges equidistant from the
 //   two nearest boundary voxels (the exact bisector on the edge), and a quad (two triangles, the shorter diagonal)
@@ -23,7 +25,9 @@
 //   boundary lies between the last object and the first background voxel), averaged over the vertex's edges. A plate
 //   n voxels thick reads n voxels; 2 DT (to background voxel centres) reads up to one voxel more (thickness.hpp).
 // * Rods: the curve and junction voxels of the skeleton, traced between their ends and branch points as polylines of
-//   voxel centres, with radii measured as the thickness is (half of it).
+//   voxel centres, with radii measured as the thickness is (half of it). Spurs (chains of curve voxels from a free
+//   end to a branch point or the surface, shorter than t) are pruned from the skeleton first, one simple point at
+//   a time; chains shorter than t lying along the surface (all junction voxels) are not reported as rods.
 //
 // Positions are in the grid frame (origin + spacing * index, as every volrig result; the add-on applies the
 // volume's grid-to-world matrix).
@@ -54,7 +58,8 @@ bool is_simple27(std::uint32_t neighbourhood);
 std::vector<std::uint8_t> thin_skeleton(const Grid& grid, const std::uint8_t* mask, const std::uint8_t* anchors,
                                         const float* dt, const Progress& progress = {});
 
-/// The homotopic skeleton of `mask` anchored on its plane-like voxels for threshold `t` (world units).
+/// The homotopic skeleton of `mask` anchored on its plane-like voxels for threshold `t` (world units), spurs not
+/// pruned (medial_surface's skeleton has them pruned).
 std::vector<std::uint8_t> medial_skeleton(const Grid& grid, const std::uint8_t* mask, double t,
                                           const Progress& progress = {});
 
