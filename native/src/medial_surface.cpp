@@ -180,8 +180,7 @@ std::vector<std::size_t> edge_groups(const std::vector<EdgeUse>& e) {
 /// At edges of more than two faces (a flap of a few quads hanging off a surface, where a rod's axis strip meets a
 /// plate, or a real junction of plates), keeps the two faces that continue each other best (the most nearly
 /// opposite in-plane directions away from the edge) and drops the others.
-void drop_fins(const std::vector<P3>& v, std::vector<std::array<std::int64_t, 3>>& faces) {
-    const std::vector<EdgeUse> e = edge_uses(faces);
+bool drop_fins(const std::vector<P3>& v, std::vector<std::array<std::int64_t, 3>>& faces, const std::vector<EdgeUse>& e) {
     const std::vector<std::size_t> groups = edge_groups(e);
     std::vector<std::uint8_t> drop(faces.size(), 0);
     for (std::size_t k = 0; k + 1 < groups.size(); ++k) {
@@ -212,13 +211,16 @@ void drop_fins(const std::vector<P3>& v, std::vector<std::array<std::int64_t, 3>
     std::size_t out = 0;
     for (std::size_t f = 0; f < faces.size(); ++f)
         if (!drop[f]) faces[out++] = faces[f];
+    const bool changed = out != faces.size();
     faces.resize(out);
+    return changed;
 }
 
 /// Gives each fan of faces around a vertex (faces linked over edges shared by two faces) a vertex of its own:
 /// where two sheets touch at a point only (a pinch), they no longer share it.
-void split_fans(std::vector<P3>& v, std::vector<double>& thickness, std::vector<std::array<std::int64_t, 3>>& faces) {
-    const std::vector<EdgeUse> e = edge_uses(faces);
+bool split_fans(std::vector<P3>& v, std::vector<double>& thickness, std::vector<std::array<std::int64_t, 3>>& faces,
+                const std::vector<EdgeUse>& e) {
+    const std::size_t before = v.size();
     const std::vector<std::size_t> groups = edge_groups(e);
     // Union-find over face corners (face * 3 + k): corners of the same vertex in faces sharing a two-face edge.
     std::vector<std::int64_t> up(faces.size() * 3);
@@ -260,12 +262,12 @@ void split_fans(std::vector<P3>& v, std::vector<double>& thickness, std::vector<
             }
             faces[f][k] = fan_vertex[r];
         }
+    return v.size() != before;
 }
 
 /// Drops connected components (over shared edges) of fewer than `min_faces` faces, and unused vertices.
-void drop_specks(std::vector<P3>& v, std::vector<double>& thickness, std::vector<std::array<std::int64_t, 3>>& faces,
-                 std::size_t min_faces) {
-    const std::vector<EdgeUse> e = edge_uses(faces);
+bool drop_specks(std::vector<P3>& v, std::vector<double>& thickness, std::vector<std::array<std::int64_t, 3>>& faces,
+                 const std::vector<EdgeUse>& e, std::size_t min_faces) {
     std::vector<std::int64_t> up(faces.size());
     std::iota(up.begin(), up.end(), 0);
     auto root = [&](std::int64_t a) {
@@ -279,6 +281,9 @@ void drop_specks(std::vector<P3>& v, std::vector<double>& thickness, std::vector
         }
     std::vector<std::size_t> size(faces.size(), 0);
     for (std::size_t f = 0; f < faces.size(); ++f) ++size[static_cast<std::size_t>(root(static_cast<std::int64_t>(f)))];
+    bool any = false;
+    for (std::size_t f = 0; f < faces.size() && !any; ++f) any = size[static_cast<std::size_t>(root(static_cast<std::int64_t>(f)))] < min_faces;
+    if (!any) return false;  // (every vertex is used: each comes from a kept quad, or a fan of one)
     std::vector<std::int64_t> remap(v.size(), -1);
     std::vector<P3> nv;
     std::vector<double> nt;
@@ -300,12 +305,12 @@ void drop_specks(std::vector<P3>& v, std::vector<double>& thickness, std::vector
     faces.resize(out);
     v.swap(nv);
     thickness.swap(nt);
+    return true;
 }
 
 /// Orients faces consistently across edges shared by exactly two faces (breadth first per component); returns
 /// false when some component cannot be (non-orientable, or junction edges close an odd loop).
-bool orient(std::vector<std::array<std::int64_t, 3>>& faces) {
-    const std::vector<EdgeUse> e = edge_uses(faces);
+bool orient(std::vector<std::array<std::int64_t, 3>>& faces, const std::vector<EdgeUse>& e) {
     std::vector<std::vector<std::pair<std::int64_t, bool>>> adj(faces.size());  // (neighbour, same direction)
     const std::vector<std::size_t> groups = edge_groups(e);
     for (std::size_t k = 0; k + 1 < groups.size(); ++k) {
@@ -411,11 +416,14 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
     }
     // Clean up to a manifold: fins off, pinches split, specks of a few quads (smaller than t across: no plate the
     // measure could see) dropped, then one orientation per component.
-    drop_fins(out.vertices, out.faces);
-    split_fans(out.vertices, out.thickness, out.faces);
+    // (each step sorts the edges again only when the one before changed the faces)
+    std::vector<EdgeUse> e = edge_uses(out.faces);
+    if (drop_fins(out.vertices, out.faces, e)) e = edge_uses(out.faces);
+    if (split_fans(out.vertices, out.thickness, out.faces, e)) e = edge_uses(out.faces);
     const double cell = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-    drop_specks(out.vertices, out.thickness, out.faces, static_cast<std::size_t>(2 * std::ceil(t / cell) * std::ceil(t / cell)));
-    orient(out.faces);
+    const auto min_faces = static_cast<std::size_t>(2 * std::ceil(t / cell) * std::ceil(t / cell));
+    if (drop_specks(out.vertices, out.thickness, out.faces, e, min_faces)) e = edge_uses(out.faces);
+    orient(out.faces, e);
 }
 
 namespace {
