@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Picture of the medial surface (issue 22): the Visible Human Male's skull at 1 mm (bone labels 84, 92, the top
-230 mm), volrig.medial_surface at t = 5 voxels, its triangles coloured by plate thickness and shaded by their
-facing, seen from the left and from the top; rods drawn as thin black lines. Needs ../shared/data.
+230 mm) seen from the left and from the top, and the lidc2 chest CT's bone (>= 200 of 255, 1.4 x 1.4 x 2.5 mm) seen
+from the front: volrig.medial_surface at t = 5 voxels, its triangles coloured by plate thickness and shaded by their
+facing; rods drawn as thin black lines. Needs ../shared/data.
 Writes docs/images/medial_surface.png.
 
     PYTHONPATH=python /usr/bin/python3 scripts/medial_pictures.py [--out docs/images] [--t 5]
@@ -20,12 +21,13 @@ sys.path.insert(0, os.path.join(ROOT, "python"))
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 
 import volrig  # noqa: E402
-from thickness_pictures import skull_1mm  # noqa: E402
+from thickness_pictures import DATA, skull_1mm  # noqa: E402
 
 
-def draw(ax, ms, view: int, flip: bool, top: float, title: str) -> None:
+def draw(ax, ms, view: int, flip: bool, top: float, title: str, upside_down: bool = False) -> None:
     """Orthographic view along world axis ``view`` (from its far end when ``flip``): faces painted far to near,
-    coloured by the mean thickness of their vertices, darkened where seen edge-on."""
+    coloured by the mean thickness of their vertices, darkened where seen edge-on (``upside_down``: the vertical
+    axis points down, for a scan whose z runs feet-wards)."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection, PolyCollection
     h, v = [a for a in range(3) if a != view]
@@ -39,12 +41,16 @@ def draw(ax, ms, view: int, flip: bool, top: float, title: str) -> None:
     xy = p[order][:, :, [h, v]]
     if flip:
         xy[:, :, 0] *= -1
+    if upside_down:
+        xy[:, :, 1] *= -1
     ax.add_collection(PolyCollection(xy, facecolors=colour[order], edgecolors="none", antialiased=False))
     segs = []
     for line in ms.rods:
         q = line[:, [h, v]].copy()
         if flip:
             q[:, 0] *= -1
+        if upside_down:
+            q[:, 1] *= -1
         segs.append(q)
     ax.add_collection(LineCollection(segs, colors="k", linewidths=0.3, alpha=0.6))
     ax.autoscale()
@@ -69,18 +75,28 @@ def main() -> int:
     q = np.percentile(ms.thickness, [5, 50, 95])
     print(f"{skull.array.shape} voxels, {int(skull.array.sum()):,} bone: {len(ms.faces):,} triangles, "
           f"{len(ms.rods):,} rods, {took:.1f} s; thickness 5/50/95% {q[0]:.1f}/{q[1]:.1f}/{q[2]:.1f} mm")
+    ct = volrig.load(os.path.join(DATA, "lidc2", "LIDC2.mha"))
+    chest = volrig.Volume(ct.array >= 200, ct.spacing, ct.origin)
+    t0 = time.perf_counter()
+    cs = volrig.medial_surface(chest, t=args.t)
+    chest_took = time.perf_counter() - t0
     top = 10.0
-    fig = plt.figure(figsize=(13, 6.2))
-    left = fig.add_axes([0.02, 0.04, 0.5, 0.84])
-    above = fig.add_axes([0.54, 0.04, 0.36, 0.84])
-    cax = fig.add_axes([0.92, 0.2, 0.015, 0.55])
-    draw(left, ms, 0, True, top, "from the left (y: front to back, z: up)")
-    draw(above, ms, 2, False, top, "from above (x, y)")
+    fig = plt.figure(figsize=(13, 12.6))
+    left = fig.add_axes([0.02, 0.5, 0.5, 0.43])
+    above = fig.add_axes([0.54, 0.5, 0.36, 0.43])
+    front = fig.add_axes([0.12, 0.02, 0.66, 0.43])
+    cax = fig.add_axes([0.92, 0.3, 0.015, 0.4])
+    draw(left, ms, 0, True, top, f"skull from the left: {len(ms.faces):,} triangles, {len(ms.rods):,} rods, {took:.0f} s; "
+                                 f"thickness 5/50/95% {q[0]:.1f}/{q[1]:.1f}/{q[2]:.1f} mm")
+    draw(above, ms, 2, False, top, "skull from above")
+    cq = np.percentile(cs.thickness, [5, 50, 95])
+    draw(front, cs, 1, False, top, f"lidc2 chest CT bone (>= 200) from the front: {len(cs.faces):,} triangles "
+                                   f"(scapulae, sternum, spine), {len(cs.rods):,} rods (the ribs), {chest_took:.1f} s; "
+                                   f"thickness 5/50/95% {cq[0]:.1f}/{cq[1]:.1f}/{cq[2]:.1f} mm", upside_down=True)
     sm = plt.cm.ScalarMappable(cmap="turbo", norm=plt.Normalize(0, top))
     fig.colorbar(sm, cax=cax, label="plate thickness (mm)")
-    fig.suptitle(f"Medial surface of the Visible Human's skull (1 mm, t = {args.t:g} voxels): {len(ms.faces):,} "
-                 f"triangles, {len(ms.rods):,} rods (black), {took:.0f} s on 2 cores; "
-                 f"thickness 5/50/95%: {q[0]:.1f}/{q[1]:.1f}/{q[2]:.1f} mm", fontsize=10)
+    fig.suptitle(f"volrig.medial_surface (t = {args.t:g} voxels) on 2 cores: triangles coloured by plate thickness, "
+                 f"rods black", fontsize=10)
     path = os.path.join(args.out, "medial_surface.png")
     from volrig.files import atomic_output
     with atomic_output(path, suffix=".png") as tmp:
