@@ -152,3 +152,23 @@ def test_errors_and_empty():
     assert s.vertices.shape == (0, 3) and s.faces.shape == (0, 3) and s.area == 0.0
     with pytest.raises(volrig.VolrigError):
         volrig.medial_surface(np.ones((4, 4), bool))
+
+
+def test_t_junction_of_plates_is_cut_into_two_manifold_sheets():
+    """A plate standing on another (rounded rims, 6 thick): at the junction the mesh keeps the two best-joined faces
+    of each edge, so the standing plate's sheet comes loose: two discs (Euler characteristic 2), a manifold."""
+    sp = (1.0, 1.1, 1.3)
+    X, Y, Z = field((int(50 / sp[2]), int(60 / sp[1]), int(60 / sp[0])), sp)
+
+    def box_distance(lo, hi):
+        d = [np.maximum(np.maximum(lo[i] - P, P - hi[i]), 0) for i, P in enumerate((X, Y, Z))]
+        return np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+
+    floor = box_distance((8, 8, 10.1), (52, 52, 10.1)) < 3
+    wall = box_distance((8, 30.2, 10.1), (52, 30.2, 42)) < 3
+    m = volrig.Volume(floor | wall, sp)
+    s = volrig.medial_surface(m, 5.0)
+    check_manifold(s, 2)
+    # the analytic medial surface: the floor's 44 x 44 and the wall's 44 x 31.9 above it; the junction loses some
+    assert abs(s.area / (44 * 44 + 44 * 31.9) - 1) < 0.10
+    assert skeleton_topology(s.skeleton.array > 0) == skeleton_topology(m.array)
