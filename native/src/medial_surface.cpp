@@ -350,9 +350,11 @@ bool orient(std::vector<std::array<std::int64_t, 3>>& faces, const std::vector<E
 
 }  // namespace
 
-void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const std::vector<float>& edge, double t,
-                      MedialSurface& out) {
-    // The plane-like edges (value above t; the caller zeroes those it does not want).
+namespace {
+
+/// The plane-like edges (value above t; the caller zeroes those it does not want) as crossings.
+std::vector<Crossing> crossings(const Grid& g, const std::vector<std::int64_t>& ft, const std::vector<float>& edge,
+                                double t) {
     std::vector<std::int64_t> slots;
     for (std::size_t i = 0; i < edge.size(); ++i)
         if (edge[i] > t) slots.push_back(static_cast<std::int64_t>(i));
@@ -360,19 +362,20 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
     tbb::parallel_for(std::size_t{0}, slots.size(), [&](std::size_t k) {
         cr[k] = crossing_of(g, ft, slots[k] / 3, static_cast<int>(slots[k] % 3));
     });
-    // Vertices: one per cell touched, at the mean of its crossings.
-    const Cells cells(g);
+    return cr;
+}
+
+/// One vertex per cell touched by a kept crossing, at the mean of its crossings' points (their thickness
+/// averaged); returns the cells, ascending (vertex i is cell ids[i]).
+std::vector<std::int64_t> cell_vertices(const Grid& g, const std::vector<Crossing>& cr,
+                                        const std::vector<std::array<std::int64_t, 4>>& around,
+                                        const std::vector<std::uint8_t>& kept, MedialSurface& out) {
     std::vector<std::pair<std::int64_t, std::int64_t>> touch;  // (cell, crossing)
     touch.reserve(cr.size() * 4);
-    std::vector<std::array<std::int64_t, 4>> around(cr.size());
-    for (std::size_t k = 0; k < cr.size(); ++k) {
-        around[k] = cells_around(g, cells, cr[k]);
-        for (std::int64_t c : around[k]) touch.push_back({c, static_cast<std::int64_t>(k)});
-    }
-    const std::vector<std::uint8_t> kept = peel(cr, around);
+    for (std::size_t k = 0; k < cr.size(); ++k)
+        if (kept[k])
+            for (std::int64_t c : around[k]) touch.push_back({c, static_cast<std::int64_t>(k)});
     tbb::parallel_sort(touch.begin(), touch.end());
-    touch.erase(std::remove_if(touch.begin(), touch.end(), [&](const auto& p) { return !kept[static_cast<std::size_t>(p.second)]; }),
-                touch.end());
     std::vector<std::int64_t> ids;
     out.vertices.clear();
     out.thickness.clear();
@@ -380,11 +383,10 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
         std::size_t j = i;
         P3 sum{0, 0, 0};
         double th = 0;
-        while (j < touch.size() && touch[j].first == touch[i].first) {
+        for (; j < touch.size() && touch[j].first == touch[i].first; ++j) {
             const Crossing& c = cr[static_cast<std::size_t>(touch[j].second)];
             for (int a = 0; a < 3; ++a) sum[a] += c.point[a];
             th += c.thickness;
-            ++j;
         }
         const double n = double(j - i);
         ids.push_back(touch[i].first);
@@ -392,20 +394,25 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
         out.thickness.push_back(th / n);
         i = j;
     }
-    // Faces: a quad around each crossing, split along its shorter diagonal.
+    return ids;
+}
+
+/// A quad around each kept crossing, split along its shorter diagonal.
+void quad_faces(const std::vector<std::int64_t>& ids, const std::vector<std::array<std::int64_t, 4>>& around,
+                const std::vector<std::uint8_t>& kept, MedialSurface& out) {
     auto vid = [&](std::int64_t cell) {
         return static_cast<std::int64_t>(std::lower_bound(ids.begin(), ids.end(), cell) - ids.begin());
     };
+    auto len = [&](std::int64_t a, std::int64_t b) {
+        const P3 d = sub(out.vertices[static_cast<std::size_t>(a)], out.vertices[static_cast<std::size_t>(b)]);
+        return dot(d, d);
+    };
     out.faces.clear();
-    out.faces.reserve(cr.size() * 2);
+    out.faces.reserve(around.size() * 2);
     for (std::size_t k = 0; k < around.size(); ++k) {
         if (!kept[k]) continue;
         const auto& q = around[k];
         const std::int64_t v[4] = {vid(q[0]), vid(q[1]), vid(q[2]), vid(q[3])};
-        auto len = [&](std::int64_t a, std::int64_t b) {
-            const P3 d = sub(out.vertices[static_cast<std::size_t>(a)], out.vertices[static_cast<std::size_t>(b)]);
-            return dot(d, d);
-        };
         if (len(v[0], v[2]) <= len(v[1], v[3])) {
             out.faces.push_back({v[0], v[1], v[2]});
             out.faces.push_back({v[0], v[2], v[3]});
@@ -414,9 +421,12 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
             out.faces.push_back({v[1], v[2], v[3]});
         }
     }
-    // Clean up to a manifold: fins off, pinches split, specks of a few quads (smaller than t across: no plate the
-    // measure could see) dropped, then one orientation per component.
-    // (each step sorts the edges again only when the one before changed the faces)
+}
+
+/// Clean up to a manifold: fins off, pinches split, specks of a few quads (smaller than t across: no plate the
+/// measure could see) dropped, then one orientation per component. Each step sorts the edges again only when the
+/// one before changed the faces.
+void clean_up(const Grid& g, double t, MedialSurface& out) {
     std::vector<EdgeUse> e = edge_uses(out.faces);
     if (drop_fins(out.vertices, out.faces, e)) e = edge_uses(out.faces);
     if (split_fans(out.vertices, out.thickness, out.faces, e)) e = edge_uses(out.faces);
@@ -424,6 +434,20 @@ void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const 
     const auto min_faces = static_cast<std::size_t>(2 * std::ceil(t / cell) * std::ceil(t / cell));
     if (drop_specks(out.vertices, out.thickness, out.faces, e, min_faces)) e = edge_uses(out.faces);
     orient(out.faces, e);
+}
+
+}  // namespace
+
+void mesh_plane_edges(const Grid& g, const std::vector<std::int64_t>& ft, const std::vector<float>& edge, double t,
+                      MedialSurface& out) {
+    const std::vector<Crossing> cr = crossings(g, ft, edge, t);
+    const Cells cells(g);
+    std::vector<std::array<std::int64_t, 4>> around(cr.size());
+    tbb::parallel_for(std::size_t{0}, cr.size(), [&](std::size_t k) { around[k] = cells_around(g, cells, cr[k]); });
+    const std::vector<std::uint8_t> kept = peel(cr, around);
+    const std::vector<std::int64_t> ids = cell_vertices(g, cr, around, kept, out);
+    quad_faces(ids, around, kept, out);
+    clean_up(g, t, out);
 }
 
 namespace {
