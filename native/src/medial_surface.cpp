@@ -695,8 +695,39 @@ MedialSurface medial_surface(const Grid& g, const std::uint8_t* mask, double t, 
     return out;
 }
 
+namespace {
+
+/// Vertices whose faces, linked over the two-face edges at the vertex (`links`), form more than one fan.
+std::int64_t fan_breaks(std::size_t vertex_count, const std::vector<std::array<std::int64_t, 3>>& faces,
+                        const std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>>& links) {
+    std::vector<std::vector<std::int64_t>> at_vertex(vertex_count);
+    for (std::size_t f = 0; f < faces.size(); ++f)
+        for (std::int64_t v : faces[f]) at_vertex[static_cast<std::size_t>(v)].push_back(static_cast<std::int64_t>(f));
+    std::int64_t breaks = 0;
+    for (std::size_t v = 0; v < vertex_count; ++v) {
+        const auto& fs = at_vertex[v];
+        std::vector<std::int64_t> up(fs.size());
+        std::iota(up.begin(), up.end(), 0);
+        auto local = [&](std::int64_t f) { return static_cast<std::int64_t>(std::find(fs.begin(), fs.end(), f) - fs.begin()); };
+        auto r = [&](std::int64_t x) {
+            while (up[static_cast<std::size_t>(x)] != x) x = up[static_cast<std::size_t>(x)];
+            return x;
+        };
+        for (const auto& [a, b] : links[v]) up[static_cast<std::size_t>(r(local(a)))] = r(local(b));
+        std::int64_t fans = 0;
+        for (std::size_t k = 0; k < fs.size(); ++k) fans += r(static_cast<std::int64_t>(k)) == static_cast<std::int64_t>(k);
+        breaks += fans > 1;
+    }
+    return breaks;
+}
+
+}  // namespace
+
 MeshTopology mesh_topology(std::size_t vertex_count, const std::vector<std::array<std::int64_t, 3>>& faces) {
     MeshTopology m;
+    for (const auto& f : faces)
+        for (std::int64_t v : f)
+            if (v < 0 || static_cast<std::size_t>(v) >= vertex_count) throw Error("mesh topology: a face refers to no vertex");
     for (const auto& f : faces)
         if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) m.degenerate_faces = true;
     std::vector<std::array<std::int64_t, 3>> sorted = faces;
@@ -704,22 +735,19 @@ MeshTopology mesh_topology(std::size_t vertex_count, const std::vector<std::arra
     std::sort(sorted.begin(), sorted.end());
     m.duplicate_faces = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
     const std::vector<EdgeUse> e = edge_uses(faces);
-    // Union-find of faces over shared edges (components), and of the faces around each vertex over the edges
-    // at that vertex shared by two faces (fans).
+    // Union-find of faces over shared edges (components); the two-face edges at each vertex (fans).
     std::vector<std::int64_t> parent(faces.size());
     std::iota(parent.begin(), parent.end(), 0);
     auto root = [&](std::int64_t a) {
         while (parent[static_cast<std::size_t>(a)] != a) a = parent[static_cast<std::size_t>(a)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(a)])];
         return a;
     };
-    std::int64_t edges = 0;
     std::vector<std::vector<std::pair<std::int64_t, std::int64_t>>> fan_links(vertex_count);
     const std::vector<std::size_t> groups = edge_groups(e);
     for (std::size_t gi = 0; gi + 1 < groups.size(); ++gi) {
         const std::size_t i = groups[gi], j = groups[gi + 1], n = j - i;
-        ++edges;
-        if (n == 1) ++m.boundary_edges;
-        if (n > 2) ++m.nonmanifold_edges;
+        m.boundary_edges += n == 1;
+        m.nonmanifold_edges += n > 2;
         if (n == 2) {
             const EdgeUse& a = e[i];
             const EdgeUse& b = e[i + 1];
@@ -732,28 +760,12 @@ MeshTopology mesh_topology(std::size_t vertex_count, const std::vector<std::arra
         }
     }
     for (std::size_t f = 0; f < faces.size(); ++f) m.components += root(static_cast<std::int64_t>(f)) == static_cast<std::int64_t>(f);
-    // Fans: the faces at a vertex, linked over its two-face edges, must form one group.
-    std::vector<std::vector<std::int64_t>> at_vertex(vertex_count);
-    for (std::size_t f = 0; f < faces.size(); ++f)
-        for (std::int64_t v : faces[f]) at_vertex[static_cast<std::size_t>(v)].push_back(static_cast<std::int64_t>(f));
-    for (std::size_t v = 0; v < vertex_count; ++v) {
-        auto& fs = at_vertex[v];
-        if (fs.empty()) continue;
-        std::vector<std::int64_t> up(fs.size());
-        std::iota(up.begin(), up.end(), 0);
-        auto local = [&](std::int64_t f) { return static_cast<std::int64_t>(std::find(fs.begin(), fs.end(), f) - fs.begin()); };
-        auto r = [&](std::int64_t a) {
-            while (up[static_cast<std::size_t>(a)] != a) a = up[static_cast<std::size_t>(a)];
-            return a;
-        };
-        for (const auto& [a, b] : fan_links[v]) up[static_cast<std::size_t>(r(local(a)))] = r(local(b));
-        std::int64_t fans = 0;
-        for (std::size_t k = 0; k < fs.size(); ++k) fans += r(static_cast<std::int64_t>(k)) == static_cast<std::int64_t>(k);
-        if (fans > 1) ++m.nonmanifold_vertices;
-    }
-    std::int64_t used = 0;
-    for (const auto& fs : at_vertex) used += !fs.empty();
-    m.euler = used - edges + static_cast<std::int64_t>(faces.size());
+    m.nonmanifold_vertices = fan_breaks(vertex_count, faces, fan_links);
+    std::vector<std::uint8_t> used(vertex_count, 0);
+    for (const auto& f : faces)
+        for (std::int64_t v : f) used[static_cast<std::size_t>(v)] = 1;
+    const auto edges = static_cast<std::int64_t>(groups.size()) - 1;
+    m.euler = std::count(used.begin(), used.end(), 1) - edges + static_cast<std::int64_t>(faces.size());
     return m;
 }
 

@@ -347,3 +347,27 @@ TEST_CASE("medial surface of an empty mask and of a ball", "[medial_surface]") {
     CHECK(topology(g, skeleton_voxels(s.skeleton)) == topology(g, m));
     CHECK_THROWS_AS(medial_surface(g, m.data(), -1.0), Error);
 }
+
+TEST_CASE("mesh topology of small hand-made meshes", "[medial_surface]") {
+    // A tetrahedron's surface: closed, oriented, Euler characteristic 2.
+    std::vector<std::array<std::int64_t, 3>> tet = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {2, 0, 3}};
+    MeshTopology m = mesh_topology(4, tet);
+    CHECK(m.manifold());
+    CHECK(m.consistent);
+    CHECK(m.euler == 2);
+    CHECK(m.boundary_edges == 0);
+    CHECK(m.components == 1);
+    std::swap(tet[0][1], tet[0][2]);  // one face flipped
+    CHECK_FALSE(mesh_topology(4, tet).consistent);
+    // Two triangles touching at a vertex (a bow tie): a non-manifold vertex, two components.
+    m = mesh_topology(5, {{0, 1, 2}, {0, 3, 4}});
+    CHECK(m.nonmanifold_vertices == 1);
+    CHECK(m.components == 2);
+    CHECK(m.euler == 1);  // 5 - 6 + 2: the shared vertex counted once
+    // Three triangles on one edge: a non-manifold edge; a repeated face; a degenerate one.
+    m = mesh_topology(5, {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}});
+    CHECK(m.nonmanifold_edges == 1);
+    CHECK(mesh_topology(3, {{0, 1, 2}, {2, 1, 0}}).duplicate_faces);
+    CHECK(mesh_topology(3, {{0, 1, 1}}).degenerate_faces);
+    CHECK_THROWS_AS(mesh_topology(2, {{0, 1, 2}}), Error);
+}
