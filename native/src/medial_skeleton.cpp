@@ -104,7 +104,8 @@ namespace {
 /// deleted when simple, not an anchor and not a curve end; a deletion queues its object neighbours again (with
 /// their own DT, so lower ones come back first), so voxels that were not simple are retried when their
 /// neighbourhood changes. Only simple deletions: the result has the object's topology.
-std::vector<std::uint8_t> thin(const Grid& g, const std::uint8_t* mask, const std::uint8_t* anchors, const float* dt) {
+std::vector<std::uint8_t> thin(const Grid& g, const std::uint8_t* mask, const std::uint8_t* anchors, const float* dt,
+                               const Progress& progress) {
     const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     std::vector<std::uint8_t> skel(mask, mask + g.voxel_count());
     std::vector<std::uint8_t> queued(skel.size(), 0);
@@ -127,7 +128,9 @@ std::vector<std::uint8_t> thin(const Grid& g, const std::uint8_t* mask, const st
     });
     for (const auto& b : border)
         for (std::int64_t i : b) push(i);
-    while (!heap.empty()) {
+    const double queued_first = double(std::max<std::size_t>(heap.size(), 1));
+    for (std::uint64_t pops = 0; !heap.empty(); ++pops) {
+        if ((pops & 0xFFFFF) == 0) report(progress, std::min(0.95, double(pops) / (2.0 * queued_first)));
         const std::int64_t i = heap.top().second;
         heap.pop();
         queued[static_cast<std::size_t>(i)] = 0;
@@ -147,7 +150,7 @@ std::vector<std::uint8_t> thin(const Grid& g, const std::uint8_t* mask, const st
 
 std::vector<std::uint8_t> thin_skeleton(const Grid& g, const std::uint8_t* mask, const std::uint8_t* anchors,
                                         const float* dt, const Progress& progress) {
-    std::vector<std::uint8_t> skel = thin(g, mask, anchors, dt);
+    std::vector<std::uint8_t> skel = thin(g, mask, anchors, dt, progress_span(progress, 0.0, 0.9));
     report(progress, 0.9);
     // Classify: anchors are surface, and so are the kept voxels in a sheet of the skeleton (two or more lines
     // through them with skeleton voxels on both sides: a membrane the thinning kept across a gap of the

@@ -346,6 +346,14 @@ TEST_CASE("medial surface of an empty mask and of a ball", "[medial_surface]") {
     s = medial_surface(g, m.data(), 5.0);
     CHECK(topology(g, skeleton_voxels(s.skeleton)) == topology(g, m));
     CHECK_THROWS_AS(medial_surface(g, m.data(), -1.0), Error);
+    CHECK_THROWS_AS(medial_surface(g, m.data(), 5.0, [](double) { return false; }), Cancelled);
+    std::vector<double> seen;
+    medial_surface(g, m.data(), 5.0, [&](double f) {
+        seen.push_back(f);
+        return true;
+    });
+    CHECK(std::is_sorted(seen.begin(), seen.end()));
+    CHECK(seen.back() == 1.0);
 }
 
 TEST_CASE("mesh topology of small hand-made meshes", "[medial_surface]") {

@@ -172,3 +172,12 @@ def test_t_junction_of_plates_is_cut_into_two_manifold_sheets():
     # the analytic medial surface: the floor's 44 x 44 and the wall's 44 x 31.9 above it; the junction loses some
     assert abs(s.area / (44 * 44 + 44 * 31.9) - 1) < 0.10
     assert skeleton_topology(s.skeleton.array > 0) == skeleton_topology(m.array)
+
+
+def test_progress_and_cancel():
+    m, _ = disc(R=10.0)
+    seen = []
+    volrig.medial_surface(m, 5.0, progress=lambda f: seen.append(f) or True)
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    with pytest.raises(volrig.Cancelled):
+        volrig.medial_surface(m, 5.0, progress=lambda f: False)
