@@ -1,6 +1,7 @@
 // The homotopic, classified voxel skeleton of medial_surface.hpp: simple points, anchored distance-ordered thinning,
 // surface / curve / junction classification.
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -100,39 +101,56 @@ bool is_simple(const Grid& g, const std::uint8_t* mask, std::int64_t x, std::int
 
 namespace {
 
+/// The border: object voxels, not anchors, with a background 6-neighbour, as (DT, index) ascending.
+std::vector<std::pair<float, std::int64_t>> border_by_dt(const Grid& g, const std::uint8_t* mask,
+                                                         const std::uint8_t* anchors, const float* dt) {
+    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    std::vector<std::vector<std::pair<float, std::int64_t>>> per_slice(static_cast<std::size_t>(nz));
+    tbb::parallel_for(std::int64_t(0), nz, [&](std::int64_t z) {
+        for (std::int64_t y = 0; y < ny; ++y)
+            for (std::int64_t x = 0; x < nx; ++x) {
+                const std::int64_t i = g.index(x, y, z);
+                if (mask[i] && !anchors[i] && (neighbourhood(g, mask, x, y, z) & tables().faces) != tables().faces)
+                    per_slice[static_cast<std::size_t>(z)].push_back({dt[i], i});
+            }
+    });
+    std::vector<std::pair<float, std::int64_t>> out;
+    for (const auto& v : per_slice) out.insert(out.end(), v.begin(), v.end());
+    tbb::parallel_sort(out.begin(), out.end());
+    return out;
+}
+
 /// Distance-ordered thinning (Pudney 1998): object voxels on the border enter a queue by DT; a popped voxel is
 /// deleted when simple, not an anchor and not a curve end; a deletion queues its object neighbours again (with
 /// their own DT, so lower ones come back first), so voxels that were not simple are retried when their
 /// neighbourhood changes. Only simple deletions: the result has the object's topology.
 std::vector<std::uint8_t> thin(const Grid& g, const std::uint8_t* mask, const std::uint8_t* anchors, const float* dt,
                                const Progress& progress) {
-    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+    const std::int64_t nx = g.dims[0], ny = g.dims[1];
     std::vector<std::uint8_t> skel(mask, mask + g.voxel_count());
-    std::vector<std::uint8_t> queued(skel.size(), 0);
     using Item = std::pair<float, std::int64_t>;
+    // The queue: the border sorted once, merged with a heap of the voxels queued again; both ordered by (DT,
+    // index), so the voxels come out exactly as from one heap, at a fraction of its cost.
+    const std::vector<Item> border = border_by_dt(g, mask, anchors, dt);
+    std::vector<std::uint8_t> queued(skel.size(), 0);
+    for (const Item& it : border) queued[static_cast<std::size_t>(it.second)] = 1;
+    std::size_t next = 0;
     std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
     auto push = [&](std::int64_t i) {
         if (!skel[static_cast<std::size_t>(i)] || anchors[i] || queued[static_cast<std::size_t>(i)]) return;
         queued[static_cast<std::size_t>(i)] = 1;
         heap.push({dt[i], i});
     };
-    // The border: object voxels with a background 6-neighbour (found slices in parallel, queued in order).
-    std::vector<std::vector<std::int64_t>> border(static_cast<std::size_t>(nz));
-    tbb::parallel_for(std::int64_t(0), nz, [&](std::int64_t z) {
-        for (std::int64_t y = 0; y < ny; ++y)
-            for (std::int64_t x = 0; x < nx; ++x) {
-                const std::int64_t i = g.index(x, y, z);
-                if (mask[i] && !anchors[i] && (neighbourhood(g, mask, x, y, z) & tables().faces) != tables().faces)
-                    border[static_cast<std::size_t>(z)].push_back(i);
-            }
-    });
-    for (const auto& b : border)
-        for (std::int64_t i : b) push(i);
-    const double queued_first = double(std::max<std::size_t>(heap.size(), 1));
-    for (std::uint64_t pops = 0; !heap.empty(); ++pops) {
-        if ((pops & 0xFFFFF) == 0) report(progress, std::min(0.95, double(pops) / (2.0 * queued_first)));
+    auto pop = [&]() {
+        if (heap.empty() || (next < border.size() && border[next] < heap.top())) return border[next++].second;
         const std::int64_t i = heap.top().second;
         heap.pop();
+        return i;
+    };
+    const double first = double(std::max<std::size_t>(border.size(), 1));
+    for (std::uint64_t pops = 0; next < border.size() || !heap.empty(); ++pops) {
+        if ((pops & 0xFFFFF) == 0) report(progress, std::min(0.95, double(pops) / (2.0 * first)));
+        const std::int64_t i = pop();
         queued[static_cast<std::size_t>(i)] = 0;
         const std::int64_t x = i % nx, y = (i / nx) % ny, z = i / (nx * ny);
         const std::uint32_t nb = neighbourhood(g, skel.data(), x, y, z);
