@@ -86,6 +86,35 @@ class MedialSurface:
         p = self.vertices[self.faces]
         return float(0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
 
+    def save_ply(self, path: str) -> None:
+        """Writes a binary little-endian PLY: the mesh's vertices (x, y, z float, ``thickness`` float) and faces,
+        then each rod's points as further vertices (``thickness`` twice their radius) joined by ``edge`` elements."""
+        from .files import atomic_output
+        rods = [np.asarray(r, np.float64).reshape(-1, 3) for r in self.rods]
+        v = np.concatenate([np.asarray(self.vertices, np.float64).reshape(-1, 3), *rods]) if rods else \
+            np.asarray(self.vertices, np.float64).reshape(-1, 3)
+        th = np.concatenate([np.asarray(self.thickness, np.float64), *[2.0 * np.asarray(r) for r in self.rod_radii]])
+        edges, at = [], len(self.vertices)
+        for r in rods:
+            i = np.arange(at, at + len(r), dtype=np.int32)
+            edges.append(np.stack([i[:-1], i[1:]], axis=1))
+            at += len(r)
+        e = np.concatenate(edges) if edges else np.zeros((0, 2), np.int32)
+        f = np.asarray(self.faces, np.int64).reshape(-1, 3)
+        head = ("ply\nformat binary_little_endian 1.0\ncomment volrig medial surface (world units, grid frame)\n"
+                f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+                f"property float thickness\nelement face {len(f)}\nproperty list uchar int vertex_indices\n"
+                f"element edge {len(e)}\nproperty int vertex1\nproperty int vertex2\nend_header\n")
+        verts = np.empty(len(v), dtype=[("p", "<f4", 3), ("t", "<f4")])
+        verts["p"], verts["t"] = v, th
+        faces = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", 3)])
+        faces["n"], faces["i"] = 3, f
+        with atomic_output(path, suffix=".ply") as tmp, open(tmp, "wb") as out:
+            out.write(head.encode("ascii"))
+            out.write(verts.tobytes())
+            out.write(faces.tobytes())
+            out.write(e.astype("<i4").tobytes())
+
     def euler_characteristic(self) -> int:
         """V - E + F over the vertices used by faces."""
         f = np.asarray(self.faces, dtype=np.int64)

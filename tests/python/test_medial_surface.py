@@ -181,3 +181,45 @@ def test_progress_and_cancel():
     assert seen == sorted(seen) and seen[-1] == 1.0
     with pytest.raises(volrig.Cancelled):
         volrig.medial_surface(m, 5.0, progress=lambda f: False)
+
+
+def read_ply(path):
+    """(vertices (V, 4): x, y, z, thickness; faces (F, 3); edges (E, 2)) of a PLY save_ply wrote."""
+    data = open(path, "rb").read()
+    head, body = data.split(b"end_header\n", 1)
+    counts = {l.split()[1].decode(): int(l.split()[2]) for l in head.splitlines() if l.startswith(b"element")}
+    v = np.frombuffer(body, "<f4", counts["vertex"] * 4).reshape(-1, 4)
+    body = body[v.nbytes:]
+    f = np.frombuffer(body, dtype=[("n", "u1"), ("i", "<i4", 3)], count=counts["face"])
+    body = body[f.nbytes:]
+    e = np.frombuffer(body, "<i4", counts["edge"] * 2).reshape(-1, 2)
+    assert len(body) == e.nbytes and np.all(f["n"] == 3)
+    return v, f["i"], e
+
+
+def test_cli_writes_the_medial_surface_as_ply(tmp_path):
+    import subprocess
+    import sys
+    sp = (1.0, 1.0, 1.4)
+    X, Y, Z = field((30, 44, 44), sp)
+    rho, dz = np.hypot(X - 22.13, Y - 22.21), Z - 7.0
+    plate = np.where(rho <= 16.0, np.abs(dz), np.hypot(rho - 16.0, dz)) < 3.0
+    rod = (np.hypot(X - 27.13, Y - 22.21) < 2.0) & (Z > 7.0) & (Z < 27.0)
+    vol = volrig.Volume(np.where(plate | rod, 200, 0).astype(np.uint8), sp, (5.0, -3.0, 2.0))
+    src, out = tmp_path / "plate.nrrd", tmp_path / "plate.ply"
+    vol.save(str(src))
+    r = subprocess.run([sys.executable, "-m", "volrig", "medial", str(src), "--lo", "100", "-o", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "triangles" in r.stdout and "rods" in r.stdout
+    want = volrig.medial_surface(volrig.Volume(vol.array >= 100, sp, vol.origin), 5.0)
+    v, f, e = read_ply(out)
+    nv = len(want.vertices)
+    np.testing.assert_allclose(v[:nv, :3], want.vertices, atol=1e-4)
+    np.testing.assert_allclose(v[:nv, 3], want.thickness, rtol=1e-5)
+    np.testing.assert_array_equal(f, want.faces)
+    assert len(v) == nv + sum(len(r) for r in want.rods) and len(e) == sum(len(r) - 1 for r in want.rods) > 0
+    np.testing.assert_allclose(v[nv:, 3], 2 * np.concatenate(want.rod_radii), rtol=1e-5)
+    bad = subprocess.run([sys.executable, "-m", "volrig", "medial", str(src), "-o", str(tmp_path / "m.obj")],
+                         capture_output=True, text=True)
+    assert bad.returncode != 0 and "must be .ply" in bad.stderr
