@@ -56,6 +56,20 @@ def test_medial_surface_makes_a_mesh_coloured_by_thickness(empty_scene, plate_fi
     assert nodes["volrig thickness ramp"].outputs["Color"].is_linked
     top = nodes["volrig thickness span"].inputs["From Max"].default_value
     assert top == pytest.approx(np.percentile(th, 99), rel=1e-5)
+    # The rods render as tubes (geometry nodes on the loose edges), coloured like the rest.
+    assert obj.modifiers["volrig rods"].node_group.name == "volrig rods"
+    rod_flags = np.array([d.value for d in mesh.attributes["rod"].data])
+    assert rod_flags.sum() == rod_points - 1
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert len(evaluated.polygons) >= len(mesh.polygons) + 8 * (rod_points - 1)
+    every = np.array([v.co[:] for v in evaluated.vertices])
+    base = np.array([v.co[:] for v in mesh.vertices])
+    new_points = np.min(np.linalg.norm(every[:, None, :] - base[None, :, :], axis=2), axis=1) > 1e-5
+    tube = every[new_points]
+    assert len(tube) == 8 * rod_points  # an 8-sided ring around each rod point
+    line = want.rods[0]
+    near = np.min(np.linalg.norm(tube[:, None, :] - line[None, :, :], axis=2), axis=1)
+    np.testing.assert_allclose(near, np.repeat(want.rod_radii[0], 8).min(), atol=0.6)  # at the rods' radii
     # Again (another t): the same object, new geometry; the panel shows the button.
     s.plane_t = 8.0
     run_op(bpy.ops.volrig.medial_surface)
