@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
-"""Benchmark: local thickness and the plane-like skeleton against the Euclidean distance transform (issue 22).
+"""Benchmark: local thickness, the plane-like skeleton and the medial surface against the Euclidean distance
+transform (issue 22).
 
 For each case, best and median of --repeat runs (the ratio of the bests is the steadier on a busy machine):
 volrig.distance_transform (the exact EDT), volrig.local_thickness (EDT + ridge centres + painting their balls) and
-volrig.plane_like at t = 5 voxels (feature transform + boundary geodesics), each with its ratio to the EDT. Cases:
+volrig.plane_like at t = 5 voxels (feature transform + boundary geodesics) and volrig.medial_surface at t = 5
+(plane_like's edges + EDT + thinning + mesh + rods), each with its ratio to the EDT. Cases:
   * shells: a 256^3 grid holding nested spherical shells 3, 6 and 12 voxels thick (plate-like);
   * rods and plates: a 256^3 frame of plates 8 voxels thick and rods of radius 4-16 (mixed);
   * the Visible Human Male's bone (labels 84, 92) at 2 mm, 342 x 187 x 939 (../shared/data; skipped when absent);
@@ -70,9 +72,10 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--only", choices=sorted(CASES), help="one case")
     args = ap.parse_args()
-    print(f"local thickness and plane_like (t = 5) vs the EDT, best / median of {args.repeat}, {os.cpu_count()} cores")
+    print(f"local thickness, plane_like and medial_surface (t = 5) vs the EDT, best / median of {args.repeat}, "
+          f"{os.cpu_count()} cores")
     print(f"  {'case':<16} {'grid':>12} {'object':>10} {'EDT s':>13} {'thickness s':>13} {'ratio':>12}"
-          f" {'plane_like s':>13} {'ratio':>12}")
+          f" {'plane_like s':>13} {'ratio':>12} {'medial s':>13} {'ratio':>12}")
     for name, make in CASES.items():
         if args.only and name != args.only:
             continue
@@ -83,10 +86,12 @@ def main() -> int:
         e_best, e_med, _ = timed(args.repeat, lambda: volrig.distance_transform(mask))
         t_best, t_med, _ = timed(args.repeat, lambda: volrig.local_thickness(mask))
         p_best, p_med, _ = timed(args.repeat, lambda: volrig.plane_like(mask, t=5.0))
+        m_best, m_med, _ = timed(args.repeat, lambda: volrig.medial_surface(mask, t=5.0))
         grid = "x".join(str(d) for d in mask.dims)
         print(f"  {name:<16} {grid:>12} {int(np.count_nonzero(mask.array)):>10,} {e_best:6.3f}/{e_med:6.3f} "
               f"{t_best:6.3f}/{t_med:6.3f} {t_best / e_best:5.2f}x/{t_med / e_med:5.2f}x "
-              f"{p_best:6.3f}/{p_med:6.3f} {p_best / e_best:5.2f}x/{p_med / e_med:5.2f}x")
+              f"{p_best:6.3f}/{p_med:6.3f} {p_best / e_best:5.2f}x/{p_med / e_med:5.2f}x "
+              f"{m_best:6.3f}/{m_med:6.3f} {m_best / e_best:5.2f}x/{m_med / e_med:5.2f}x")
     return 0
 
 

@@ -256,6 +256,57 @@ def thickness_material(name: str):
     return mat
 
 
+def _thickness_ramp(n, location):
+    """Attribute ``thickness`` -> map range 0..top (``volrig thickness span``) -> THICKNESS_STOPS ramp; returns
+    (attribute, span, ramp) nodes."""
+    attr = n.new("ShaderNodeAttribute")
+    attr.name = attr.label = "volrig thickness"
+    attr.attribute_name = "thickness"
+    attr.location = (location - 600, 0)
+    span = n.new("ShaderNodeMapRange")
+    span.name = span.label = "volrig thickness span"
+    span.location = (location - 400, 0)
+    ramp = n.new("ShaderNodeValToRGB")
+    ramp.name = ramp.label = "volrig thickness ramp"
+    ramp.location = (location - 200, 0)
+    r = ramp.color_ramp
+    r.elements[0].position, r.elements[0].color = THICKNESS_STOPS[0][0], (*THICKNESS_STOPS[0][1], 1.0)
+    r.elements[1].position, r.elements[1].color = THICKNESS_STOPS[-1][0], (*THICKNESS_STOPS[-1][1], 1.0)
+    for pos, rgb in THICKNESS_STOPS[1:-1]:
+        r.elements.new(pos).color = (*rgb, 1.0)
+    return attr, span, ramp
+
+
+def medial_material(name: str):
+    """``<name> medial``: a two-sided Principled BSDF whose base colour follows the mesh's ``thickness`` point
+    attribute through the thickness ramp (``set_medial_range`` sets the span)."""
+    mat = bpy.data.materials.new(f"{name} medial")
+    mat.use_nodes = True
+    mat.use_backface_culling = False
+    n = mat.node_tree.nodes
+    n.clear()
+    attr, span, ramp = _thickness_ramp(n, 0)
+    bsdf = n.new("ShaderNodeBsdfPrincipled")
+    bsdf.name = "volrig medial bsdf"
+    bsdf.location = (100, 0)
+    bsdf.inputs["Roughness"].default_value = 0.6
+    out = n.new("ShaderNodeOutputMaterial")
+    out.location = (400, 0)
+    link = mat.node_tree.links.new
+    link(attr.outputs["Fac"], span.inputs["Value"])
+    link(span.outputs["Result"], ramp.inputs["Fac"])
+    link(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def set_medial_range(mat, top: float) -> None:
+    """Thickness 0 .. ``top`` (world units) spans the ramp of a medial_material."""
+    span = mat.node_tree.nodes["volrig thickness span"]
+    span.inputs["From Min"].default_value = 0.0
+    span.inputs["From Max"].default_value = max(float(top), 1e-6)
+
+
 def set_thickness_range(mat, top: float, density: float) -> None:
     """Thickness 0 .. ``top`` (world units) spans the ramp; ``density`` per Blender unit inside the mask."""
     n = mat.node_tree.nodes

@@ -3,6 +3,9 @@
 - ``<name>``          Volume object showing source.vdb, later the baked VDB sequence; holds every setting.
 - ``<name>_mask``     preview Volume object (child of ``<name>``) showing the segmentation mask.
 - ``<name>_thickness`` Volume object (child of ``<name>``): the mask coloured by its local thickness.
+- ``<name>_medial``   Mesh (child of ``<name>``): the medial surface of the plates, a ``thickness`` point attribute
+                      coloured through a ramp, the rods as loose edges (``rod`` edge attribute) with a ``radius``
+                      point attribute, made tubes by the ``volrig rods`` geometry nodes.
 - ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
 - ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
 - ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
@@ -20,6 +23,7 @@ import volrig
 from . import materials
 
 SPHERE_NODES = "volrig spheres"
+ROD_NODES = "volrig rods"
 
 
 def volume_of(obj):
@@ -152,6 +156,62 @@ def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
     return obj, values
 
 
+def update_medial_surface(volume_obj, ms) -> bpy.types.Object:
+    """Shows a ``volrig.MedialSurface`` as ``<name>_medial``, parented to the scan (its vertices are in the grid
+    frame, volume units, as the scan object's own space): triangles with a ``thickness`` point attribute, and the
+    rods as loose edges (``thickness`` there: twice the rod radius); replaces the mesh's geometry when it exists."""
+    verts = [np.asarray(ms.vertices, dtype=np.float64).reshape(-1, 3)]
+    thick = [np.asarray(ms.thickness, dtype=np.float64)]
+    edges = []
+    offset = len(verts[0])
+    for line, radii in zip(ms.rods, ms.rod_radii):
+        verts.append(np.asarray(line, dtype=np.float64))
+        thick.append(2.0 * np.asarray(radii, dtype=np.float64))
+        idx = np.arange(offset, offset + len(line))
+        edges.append(np.stack([idx[:-1], idx[1:]], axis=1))
+        offset += len(line)
+    co = np.concatenate(verts)
+    values = np.concatenate(thick)
+    faces = np.asarray(ms.faces, dtype=np.int32).reshape(-1, 3)
+    obj = members(volume_obj).get("MEDIAL")
+    if obj is None:
+        name = volume_obj.name + "_medial"
+        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "MEDIAL")
+        obj.parent = volume_obj
+        obj.matrix_parent_inverse.identity()
+        obj.data.materials.append(materials.medial_material(volume_obj.name))
+    mesh = obj.data
+    mesh.clear_geometry()
+    mesh.vertices.add(len(co))
+    mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    rod_edges = np.concatenate(edges).astype(np.int32) if edges else np.zeros((0, 2), np.int32)
+    if len(rod_edges):
+        mesh.edges.add(len(rod_edges))
+        mesh.edges.foreach_set("vertices", rod_edges.ravel())
+    if len(faces):
+        mesh.loops.add(3 * len(faces))
+        mesh.loops.foreach_set("vertex_index", faces.ravel())
+        mesh.polygons.add(len(faces))
+        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(faces), 3, dtype=np.int32))
+        mesh.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
+    mesh.update(calc_edges=True, calc_edges_loose=True)
+    attr = mesh.attributes.get("thickness") or mesh.attributes.new("thickness", "FLOAT", "POINT")
+    attr.data.foreach_set("value", values.astype(np.float32))
+    # The rods as tubes (geometry nodes): the loose edges, of the rods' radii.
+    loose = np.zeros(len(mesh.edges), dtype=bool)
+    mesh.edges.foreach_get("is_loose", loose)
+    rod = mesh.attributes.get("rod") or mesh.attributes.new("rod", "BOOLEAN", "EDGE")
+    rod.data.foreach_set("value", loose)
+    radius = np.where(np.arange(len(co)) >= len(verts[0]), values / 2.0, 0.0)
+    attr = mesh.attributes.get("radius") or mesh.attributes.new("radius", "FLOAT", "POINT")
+    attr.data.foreach_set("value", radius.astype(np.float32))
+    if obj.modifiers.get(ROD_NODES) is None:
+        obj.modifiers.new(ROD_NODES, "NODES").node_group = rod_nodes()
+    top = float(np.percentile(values, 99)) if values.size else 1.0
+    materials.set_medial_range(obj.active_material, top)
+    return obj
+
+
 def _mask_material():
     mat = bpy.data.materials.get("volrig mask")
     if mat is None:
@@ -204,6 +264,40 @@ def sphere_nodes():
     link(inst.outputs["Instances"], join.inputs[0])
     link(join.outputs[0], gout.inputs[0])
     for i, node in enumerate((gin, radius, ico, inst, join, gout)):
+        node.location = (200 * i, 0)
+    return group
+
+
+def rod_nodes():
+    """The shared geometry-nodes group that turns a mesh's ``rod`` edges into tubes of the ``radius`` point
+    attribute (the other attributes, ``thickness`` among them, carried along) and keeps the mesh."""
+    group = bpy.data.node_groups.get(ROD_NODES)
+    if group is not None:
+        return group
+    group = bpy.data.node_groups.new(ROD_NODES, "GeometryNodeTree")
+    _new_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
+    _new_socket(group, "Geometry", "OUTPUT", "NodeSocketGeometry")
+    n = group.nodes
+    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+    rod, radius = n.new("GeometryNodeInputNamedAttribute"), n.new("GeometryNodeInputNamedAttribute")
+    rod.data_type, radius.data_type = "BOOLEAN", "FLOAT"
+    rod.inputs["Name"].default_value, radius.inputs["Name"].default_value = "rod", "radius"
+    to_curve, set_radius = n.new("GeometryNodeMeshToCurve"), n.new("GeometryNodeSetCurveRadius")
+    circle, to_mesh = n.new("GeometryNodeCurvePrimitiveCircle"), n.new("GeometryNodeCurveToMesh")
+    circle.inputs["Resolution"].default_value = 8
+    circle.inputs["Radius"].default_value = 1.0
+    join = n.new("GeometryNodeJoinGeometry")
+    link = group.links.new
+    link(gin.outputs[0], to_curve.inputs["Mesh"])
+    link(next(o for o in rod.outputs if o.enabled), to_curve.inputs["Selection"])
+    link(to_curve.outputs["Curve"], set_radius.inputs["Curve"])
+    link(next(o for o in radius.outputs if o.enabled), set_radius.inputs["Radius"])
+    link(set_radius.outputs["Curve"], to_mesh.inputs["Curve"])
+    link(circle.outputs["Curve"], to_mesh.inputs["Profile Curve"])
+    link(gin.outputs[0], join.inputs[0])
+    link(to_mesh.outputs["Mesh"], join.inputs[0])
+    link(join.outputs[0], gout.inputs[0])
+    for i, node in enumerate((gin, rod, to_curve, radius, set_radius, circle, to_mesh, join, gout)):
         node.location = (200 * i, 0)
     return group
 

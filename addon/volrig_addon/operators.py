@@ -217,6 +217,28 @@ class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class VOLRIG_OT_medial_surface(_OnVolume, bpy.types.Operator):
+    """Show the medial surface of the segmented object's plates as a mesh coloured by thickness (<name>_medial),
+    its rods as edges; Plate t sets which plates count"""
+    bl_idname = "volrig.medial_surface"
+    bl_label = "Medial Surface"
+
+    def run(self, context, vol):
+        t = vol.volrig.plane_t
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"medial": (0, 100)})
+            ms = volrig.medial_surface(mask, t=t, progress=lambda f: show("medial", f))
+        if len(ms.faces) == 0 and not ms.rods:
+            self.report({"WARNING"}, f"volrig: no plates or rods found at Plate t = {t:g} voxels (try a smaller t)")
+            return {"FINISHED"}
+        obj = objects.update_medial_surface(vol, ms)
+        med = float(np.median(ms.thickness)) if len(ms.thickness) else 0.0
+        self.report({"INFO"}, f"volrig: {obj.name}: {len(ms.faces):,} triangles, area {ms.area:.4g}, median "
+                              f"thickness {med:.3g}, {len(ms.rods)} rods (volume units), blue thin to red thick")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_skeletonize(_OnVolume, bpy.types.Operator):
     """Segment the volume and compute its thinness skeleton once; the Thinness slider then re-thresholds it"""
     bl_idname = "volrig.skeletonize"
@@ -662,7 +684,8 @@ def menu_import(self, context):
     self.layout.operator(VOLRIG_OT_import_volume.bl_idname, text="Volume for rigging (volrig)")
 
 
-CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_show_thickness, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
+CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_show_thickness,
+           VOLRIG_OT_medial_surface, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
            VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh,
            VOLRIG_OT_reset_bone_map, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
            VOLRIG_OT_straightening_rig)

@@ -68,6 +68,8 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
                      icon="INFO" if s.mask_count > 0 else "ERROR")
         layout.operator("volrig.preview_mask", icon="HIDE_OFF")
         layout.operator("volrig.show_thickness", icon="MOD_THICKNESS")  # (one row each: the sidebar is narrow)
+        layout.prop(s, "plane_t")
+        layout.operator("volrig.medial_surface", icon="SURFACE_NSURFACE")
 
 
 class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):

@@ -55,6 +55,7 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("SKELETON", "Skeleton preview", "The skeleton points at the current thinness"),
         ("MASK", "Mask preview", "The segmentation mask"),
         ("THICKNESS", "Thickness", "The segmented object coloured by its local thickness"),
+        ("MEDIAL", "Medial surface", "The medial surface of the object's plates coloured by thickness, its rods as edges"),
         ("PATH", "Centerline", "The fly-through's Bezier curve along the centerline"),
         ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
         ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),
@@ -94,6 +95,10 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("euclidean", "Euclidean", "Exact Euclidean distance, anisotropic spacing honoured (thinness 0 .. 1.416)"),
         ("chamfer345", "Chamfer <3,4,5>", "The thesis' chamfer distance (thinness 0 .. 4.077, grid units)"),
     ], default="euclidean")
+    plane_t: FloatProperty(name="Plate t", default=5.0, min=1.0, soft_max=30.0, precision=1,
+                           description="Plane-like threshold of Medial Surface, in voxels: plates whose sides lie "
+                                       "more than t apart around their rim get a medial surface (larger: only the "
+                                       "larger plates; at least 5 against noise)")
     thinness: FloatProperty(name="Thinness", default=0.5, min=0.0, max=4.1, soft_max=1.42, precision=3, step=1,
                             update=_thinness_changed,
                             description="Keep voxels whose thinness score exceeds this, in voxels (Euclidean: "

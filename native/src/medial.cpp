@@ -160,9 +160,10 @@ std::vector<std::uint8_t> boundary_of(const Grid& g, const std::uint8_t* mask, c
     return b;
 }
 
-/// A pair whose geodesic distance along the boundary d(M) needs: seed S(M), target S(X), and M.
+/// A pair whose geodesic distance along the boundary d(M) needs: seed S(M), target S(X), and the edge slot
+/// 3 M + axis of the lattice edge from X to M.
 struct Pair {
-    std::int64_t seed, target, voxel;
+    std::int64_t seed, target, slot;
     bool operator<(const Pair& o) const { return seed != o.seed ? seed < o.seed : target < o.target; }
 };
 
@@ -272,60 +273,67 @@ private:
 
 }  // namespace
 
-std::vector<float> plane_measure(const Grid& g, const std::uint8_t* mask, double t, const Progress& progress) {
+PlaneEdges plane_edges(const Grid& g, const std::uint8_t* mask, double t, const Progress& progress) {
     if (!(t > 0) || !std::isfinite(t)) throw Error("plane measure: t must be positive and finite");
-    const std::vector<std::int64_t> ft = feature_transform(g, mask, progress_span(progress, 0.0, 0.3));
+    PlaneEdges out;
+    out.feature = feature_transform(g, mask, progress_span(progress, 0.0, 0.3));
+    const std::vector<std::int64_t>& ft = out.feature;
     const Padded pad(g);
     const std::vector<std::uint8_t> boundary = boundary_of(g, mask, pad);
     const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     // The pairs (S(M), S(X)) with S(X) != S(M), gathered per slice.
     std::vector<std::vector<Pair>> per_slice(static_cast<std::size_t>(nz));
     tbb::parallel_for(std::int64_t(0), nz, [&](std::int64_t z) {
-        auto& out = per_slice[static_cast<std::size_t>(z)];
+        auto& sl = per_slice[static_cast<std::size_t>(z)];
         for (std::int64_t y = 0; y < ny; ++y)
             for (std::int64_t x = 0; x < nx; ++x) {
                 const std::int64_t m = g.index(x, y, z);
                 if (!mask[m]) continue;
                 const std::int64_t lower[3] = {x > 0 ? m - 1 : -1, y > 0 ? m - nx : -1, z > 0 ? m - nx * ny : -1};
-                for (std::int64_t xi : lower) {
+                for (std::int64_t a = 0; a < 3; ++a) {
+                    const std::int64_t xi = lower[a];
                     if (xi < 0 || !mask[xi] || ft[static_cast<std::size_t>(xi)] == ft[static_cast<std::size_t>(m)]) continue;
-                    out.push_back({ft[static_cast<std::size_t>(m)], ft[static_cast<std::size_t>(xi)], m});
+                    sl.push_back({ft[static_cast<std::size_t>(m)], ft[static_cast<std::size_t>(xi)], 3 * m + a});
                 }
             }
     });
     std::vector<Pair> pairs;
     for (auto& v : per_slice) pairs.insert(pairs.end(), v.begin(), v.end());
     per_slice = {};
-    std::vector<float> d(static_cast<std::size_t>(g.voxel_count()), 0.0f);
+    out.edge.assign(3 * static_cast<std::size_t>(g.voxel_count()), 0.0f);
     report(progress, 0.4);
     tbb::parallel_sort(pairs.begin(), pairs.end());
-    // Group starts, one Dijkstra per seed.
+    // Group starts, one search per seed.
     std::vector<std::size_t> starts;
     for (std::size_t i = 0; i < pairs.size(); ++i)
         if (i == 0 || pairs[i].seed != pairs[i - 1].seed) starts.push_back(i);
     starts.push_back(pairs.size());
-    std::vector<double> geo(pairs.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size() - 1, 64), [&](const tbb::blocked_range<std::size_t>& r) {
         BoundaryWalk walk(g, pad, boundary, t);
         std::vector<std::int64_t> targets;
-        std::vector<double> out;
+        std::vector<double> geo;
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             targets.clear();
             for (std::size_t i = starts[k]; i < starts[k + 1]; ++i)
                 if (targets.empty() || targets.back() != pairs[i].target) targets.push_back(pairs[i].target);
-            walk.run(pairs[starts[k]].seed, targets, out);
+            walk.run(pairs[starts[k]].seed, targets, geo);
             std::size_t j = 0;
             for (std::size_t i = starts[k]; i < starts[k + 1]; ++i) {
                 if (i > starts[k] && pairs[i].target != pairs[i - 1].target) ++j;
-                geo[i] = out[j];
+                out.edge[static_cast<std::size_t>(pairs[i].slot)] = static_cast<float>(geo[j]);  // slots are distinct
             }
         }
     });
-    report(progress, 0.95);
-    for (std::size_t i = 0; i < pairs.size(); ++i) {
-        float& v = d[static_cast<std::size_t>(pairs[i].voxel)];
-        v = std::max(v, static_cast<float>(geo[i]));
-    }
+    report(progress, 1.0);
+    return out;
+}
+
+std::vector<float> plane_measure(const Grid& g, const std::uint8_t* mask, double t, const Progress& progress) {
+    const PlaneEdges e = plane_edges(g, mask, t, progress_span(progress, 0.0, 0.95));
+    std::vector<float> d(static_cast<std::size_t>(g.voxel_count()));
+    tbb::parallel_for(std::size_t{0}, d.size(), [&](std::size_t i) {
+        d[i] = std::max({e.edge[3 * i], e.edge[3 * i + 1], e.edge[3 * i + 2]});
+    });
     report(progress, 1.0);
     return d;
 }

@@ -22,7 +22,7 @@ from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
 from .centerlines import (Centerline, CenterlineTree, StraighteningRig, StraightenMap, centerline, centerline_tree,
                           straighten, straightening_rig)
-from .medial import local_thickness, plane_like, plane_measure
+from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
 from . import pipeline
 
@@ -36,7 +36,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",
            "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
-           "local_thickness", "plane_like", "plane_measure"]
+           "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface"]
 
 
 def __getattr__(name):

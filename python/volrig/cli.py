@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -463,6 +463,26 @@ def cmd_thickness(args) -> int:
     return 0
 
 
+def cmd_medial(args) -> int:
+    from .medial import medial_surface
+    from .pipeline import Segmentation
+    if not args.output.lower().endswith(".ply"):
+        raise VolrigError(f"{args.output}: the output must be .ply")
+    seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
+    mask = seg.mask(_load(args), name=args.file)
+    t = time.perf_counter()
+    bars = StepBars() if _show_progress(args) else None
+    ms = medial_surface(mask, t=args.t, progress=(lambda f: bars("medial surface", f)) if bars else None)
+    if bars is not None:
+        bars.close()
+    elapsed = time.perf_counter() - t
+    ms.save_ply(args.output)
+    med = f"median thickness {np.median(ms.thickness):.3g}, " if len(ms.thickness) else ""
+    print(f"{len(ms.faces):,} triangles, area {ms.area:.4g}, {med}{len(ms.rods):,} rods (world units); medial "
+          f"surface in {elapsed:.2f} s -> {args.output}")
+    return 0
+
+
 def _contact_poses(saved, clip_path, args, frames=None):
     """(F, B, 4, 4) poses of a rig driven by a clip (or the rest pose held for `frames`, or one frame)."""
     from .mocap import load_bone_map, read_bvh
@@ -613,6 +633,17 @@ def main(argv=None) -> int:
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.add_argument("-o", "--output", required=True, help="output .nrrd, .mha or .vdb (grid 'thickness'), world units")
     p.set_defaults(run=cmd_thickness)
+
+    p = sub.add_parser("medial", help="medial surface of the object's plates (a mesh with per-vertex thickness) and "
+                                      "its rods, as a PLY")
+    _add_load_options(p)
+    _add_segmentation_options(p)
+    p.add_argument("--t", type=float, default=5.0,
+                   help="plane-like threshold in voxels of the smallest spacing (default 5; larger: larger plates)")
+    p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .ply: vertices with a 'thickness' property, triangles, rods as edges (world units)")
+    p.set_defaults(run=cmd_medial)
 
     p = sub.add_parser("contacts", help="frames where two rigged volumes touch, or one passes through itself, over "
                                         "BVH clips")

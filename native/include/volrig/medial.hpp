@@ -23,6 +23,15 @@ namespace volrig {
 /// go to the lower coordinates.
 std::vector<std::int64_t> feature_transform(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {});
 
+/// The plane-like measure per lattice edge: `edge[3 M + a]` is the geodesic distance along the boundary between
+/// S(M) and S(M - e_a) (axis a = x, y, z; world units), 0 where M - e_a is background, outside the array or has
+/// the same nearest boundary voxel, +infinity beyond `t`. `feature` is the feature transform it used.
+struct PlaneEdges {
+    std::vector<std::int64_t> feature;
+    std::vector<float> edge;
+};
+PlaneEdges plane_edges(const Grid& grid, const std::uint8_t* mask, double t, const Progress& progress = {});
+
 /// The plane-like measure d(M) of every object voxel (world units), 0 on the background; distances beyond `t`
 /// (world units) are not followed: such voxels get +infinity.
 std::vector<float> plane_measure(const Grid& grid, const std::uint8_t* mask, double t, const Progress& progress = {});
