@@ -216,21 +216,7 @@ def thickness_material(name: str):
     mat.use_nodes = True
     n = mat.node_tree.nodes
     n.clear()
-    attr = n.new("ShaderNodeAttribute")
-    attr.name = attr.label = "volrig thickness"
-    attr.attribute_name = "thickness"
-    attr.location = (-800, 0)
-    span = n.new("ShaderNodeMapRange")
-    span.name = span.label = "volrig thickness span"
-    span.location = (-600, 0)
-    ramp = n.new("ShaderNodeValToRGB")
-    ramp.name = ramp.label = "volrig thickness ramp"
-    ramp.location = (-400, 0)
-    r = ramp.color_ramp
-    r.elements[0].position, r.elements[0].color = THICKNESS_STOPS[0][0], (*THICKNESS_STOPS[0][1], 1.0)
-    r.elements[1].position, r.elements[1].color = THICKNESS_STOPS[-1][0], (*THICKNESS_STOPS[-1][1], 1.0)
-    for pos, rgb in THICKNESS_STOPS[1:-1]:
-        r.elements.new(pos).color = (*rgb, 1.0)
+    ramp = _thickness_ramp(mat.node_tree, -200)
     vol = n.new("ShaderNodeVolumePrincipled")
     vol.name = "volrig thickness volume"
     vol.location = (-100, 0)
@@ -246,8 +232,6 @@ def thickness_material(name: str):
     out = n.new("ShaderNodeOutputMaterial")
     out.location = (200, 0)
     link = mat.node_tree.links.new
-    link(attr.outputs["Fac"], span.inputs["Value"])
-    link(span.outputs["Result"], ramp.inputs["Fac"])
     link(ramp.outputs["Color"], vol.inputs["Color"])
     link(ramp.outputs["Color"], vol.inputs["Emission Color"])
     link(inside.outputs["Fac"], glow.inputs[0])
@@ -256,9 +240,10 @@ def thickness_material(name: str):
     return mat
 
 
-def _thickness_ramp(n, location):
-    """Attribute ``thickness`` -> map range 0..top (``volrig thickness span``) -> THICKNESS_STOPS ramp; returns
-    (attribute, span, ramp) nodes."""
+def _thickness_ramp(tree, location):
+    """Attribute ``thickness`` -> map range 0..top (``volrig thickness span``) -> THICKNESS_STOPS ramp, linked, in
+    node tree ``tree``, ending at x = ``location``; returns the ramp node."""
+    n = tree.nodes
     attr = n.new("ShaderNodeAttribute")
     attr.name = attr.label = "volrig thickness"
     attr.attribute_name = "thickness"
@@ -274,7 +259,9 @@ def _thickness_ramp(n, location):
     r.elements[1].position, r.elements[1].color = THICKNESS_STOPS[-1][0], (*THICKNESS_STOPS[-1][1], 1.0)
     for pos, rgb in THICKNESS_STOPS[1:-1]:
         r.elements.new(pos).color = (*rgb, 1.0)
-    return attr, span, ramp
+    tree.links.new(attr.outputs["Fac"], span.inputs["Value"])
+    tree.links.new(span.outputs["Result"], ramp.inputs["Fac"])
+    return ramp
 
 
 def medial_material(name: str):
@@ -285,7 +272,7 @@ def medial_material(name: str):
     mat.use_backface_culling = False
     n = mat.node_tree.nodes
     n.clear()
-    attr, span, ramp = _thickness_ramp(n, 0)
+    ramp = _thickness_ramp(mat.node_tree, 0)
     bsdf = n.new("ShaderNodeBsdfPrincipled")
     bsdf.name = "volrig medial bsdf"
     bsdf.location = (100, 0)
@@ -293,8 +280,6 @@ def medial_material(name: str):
     out = n.new("ShaderNodeOutputMaterial")
     out.location = (400, 0)
     link = mat.node_tree.links.new
-    link(attr.outputs["Fac"], span.inputs["Value"])
-    link(span.outputs["Result"], ramp.inputs["Fac"])
     link(ramp.outputs["Color"], bsdf.inputs["Base Color"])
     link(bsdf.outputs["BSDF"], out.inputs["Surface"])
     return mat

@@ -238,16 +238,21 @@ def _new_socket(group, name, in_out, socket_type):
         group.outputs.new(socket_type, name)
 
 
+def _geometry_group(name):
+    """A new geometry-nodes group ``name`` with one geometry input and output: (group, input node, output node)."""
+    group = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    _new_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
+    _new_socket(group, "Geometry", "OUTPUT", "NodeSocketGeometry")
+    return group, group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+
+
 def sphere_nodes():
     """The shared geometry-nodes group that shows each vertex's sphere (``radius`` attribute) and keeps the edges."""
     group = bpy.data.node_groups.get(SPHERE_NODES)
     if group is not None:
         return group
-    group = bpy.data.node_groups.new(SPHERE_NODES, "GeometryNodeTree")
-    _new_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
-    _new_socket(group, "Geometry", "OUTPUT", "NodeSocketGeometry")
+    group, gin, gout = _geometry_group(SPHERE_NODES)
     n = group.nodes
-    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
     ico = n.new("GeometryNodeMeshIcoSphere")
     ico.inputs["Radius"].default_value = 1.0
     ico.inputs["Subdivisions"].default_value = 1
@@ -274,11 +279,8 @@ def rod_nodes():
     group = bpy.data.node_groups.get(ROD_NODES)
     if group is not None:
         return group
-    group = bpy.data.node_groups.new(ROD_NODES, "GeometryNodeTree")
-    _new_socket(group, "Geometry", "INPUT", "NodeSocketGeometry")
-    _new_socket(group, "Geometry", "OUTPUT", "NodeSocketGeometry")
+    group, gin, gout = _geometry_group(ROD_NODES)
     n = group.nodes
-    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
     rod, radius = n.new("GeometryNodeInputNamedAttribute"), n.new("GeometryNodeInputNamedAttribute")
     rod.data_type, radius.data_type = "BOOLEAN", "FLOAT"
     rod.inputs["Name"].default_value, radius.inputs["Name"].default_value = "rod", "radius"
