@@ -841,6 +841,20 @@ TEST_CASE("centre_chest puts the chest joint between the shoulders and the hips'
     CHECK(rig.joints[6][2] == Approx(-6));
 }
 
+TEST_CASE("level_hips puts both hip joints at the mean of their heights", "[autorig]") {
+    Rig rig;
+    rig.joints = {{4, 0, 10}, {-4, 1, 6}, {4, 0, 0}, {-4, 0, 0}};
+    rig.joint_points = {0, 0, 0, 0};
+    rig.bones = {{0, 2}, {1, 3}};
+    rig.names = {"thigh.L", "thigh.R"};
+    rig.parents = {-1, -1};
+    level_hips(rig, Vec(0, 0, 1));
+    CHECK(rig.joints[0][2] == Approx(8));
+    CHECK(rig.joints[1][2] == Approx(8));
+    CHECK(rig.joints[1][1] == 1);  // across and front to back kept
+    CHECK(rig.joints[0][0] == 4);
+}
+
 TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and its tail straight up",
           "[autorig]") {
     // A neck from z 20 up to 30, the head's axis running forward to the face (y 2); the head's top at z 39.

@@ -264,6 +264,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
                            leg_sfx);
         }
     if (humanoid) {
+        level_hips(out.rig, up ? *up : out.up);
         centre_chest(out.rig, up ? *up : out.up);
         recut_spine(out.rig, c.samples(spine));
         place_head(c, out.rig, c.samples(head), up ? *up : out.up);

@@ -282,6 +282,15 @@ void between(Rig& rig, const std::string& name, int end, const std::string& left
 
 }  // namespace
 
+void level_hips(Rig& rig, const Vec& body_up) {
+    const std::int32_t l = bone_index(rig, "thigh.L"), r = bone_index(rig, "thigh.R");
+    if (l < 0 || r < 0) return;
+    const Vec hl = bone_end(rig, static_cast<std::size_t>(l), 0), hr = bone_end(rig, static_cast<std::size_t>(r), 0);
+    const double half = 0.5 * (hr - hl).dot(body_up);
+    move_joint(rig, rig.bones[static_cast<std::size_t>(l)][0], hl + half * body_up);
+    move_joint(rig, rig.bones[static_cast<std::size_t>(r)][0], hr - half * body_up);
+}
+
 void centre_chest(Rig& rig, const Vec& body_up) {
     between(rig, "chest", 1, "upper_arm.L", "upper_arm.R", body_up);
     between(rig, "hips", 0, "thigh.L", "thigh.R", body_up);

@@ -158,6 +158,10 @@ constexpr double kBendAngle = 0.35;
 void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& limb, const std::string& proximal,
                  const std::string& distal);
 
+/// A humanoid's hip joints lie level across its pelvis: each hip's estimate (its thigh's share of the knee
+/// height, or the legs' fork) is as good as the other's, so both go to the mean of their heights along `body_up`.
+void level_hips(Rig& rig, const Vec& body_up);
+
 /// The chest joint (where neck and shoulders meet) between the shoulder joints, and the hips' head between the
 /// hip joints: midway across the body and at their height along `body_up` (shoulder and pelvis bones run across,
 /// Rigify's), unchanged front to back. The level-set tree's chest and pelvis nodes lie where the limbs' and the
