@@ -109,6 +109,9 @@ struct Local {
     NearSpheres near;
     std::vector<double> near_power;
     std::vector<std::uint32_t> all_balls = iota(64);  // 0, 1, ...: all spheres of a small group, scanned at once
+    alignas(16) double ball_p[3][64];                   // ball_powers: a sub-block's preimages,
+    alignas(16) double ball_best[64], ball_arg[64];     // the least power and its sphere,
+    std::uint16_t ball_li[64];                          // and the voxels' places in the block
     std::int16_t least_hi[512];             // the least upper bound over the candidates
     std::int16_t best[512];                 // the candidate giving it
     std::int16_t rival_lo[512];             // the least lower bound over the others
@@ -297,6 +300,9 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
         loc.block_balls.resize(begin);
         return false;
     }
+    // in increasing global index (the sub-blocks' lists keep this order): ball_powers' ties keep the lower
+    std::sort(loc.block_balls.begin() + begin, loc.block_balls.end(),
+              [&](std::uint32_t a, std::uint32_t c) { return field.global[a] < field.global[c]; });
     loc.fields.push_back(f);
     loc.range.push_back(rg);
     loc.ball.push_back(1);
@@ -527,38 +533,54 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
 }
 
 /// Ball candidate k's exact power over sub-block sb: the least power at each preimage over the spheres that may give
-/// it there (ties to the lower global index), as tier 3 takes it, and its quantised range for the lanes (none where
-/// it does not cover: the field's power is not negative there).
+/// it there (in increasing global index, so that a tie keeps the lower), as tier 3 takes it, and its quantised
+/// range for the lanes (none where it does not cover: the field's power is not negative there). Sphere by sphere
+/// over all the voxels at once, so that the loop vectorises.
 void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const {
     const BoneField& f = s_.field(loc.fields[k]);
     const auto span = loc.sub_span[k * 8 + static_cast<std::size_t>(sb)];
-    const std::uint32_t* list = loc.sub_balls.data() + span[0];
-    const std::size_t n = span[1] - span[0];
+    double* const px = loc.ball_p[0];
+    double* const py = loc.ball_p[1];
+    double* const pz = loc.ball_p[2];
+    double* const best = loc.ball_best;
+    double* const arg = loc.ball_arg;  // the sphere, as a double (exact), so that it shares best's lanes
+    std::uint16_t* const at = loc.ball_li;
+    int nv = 0;
+    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
+        px[nv] = Pull::to_double(pf[0]);
+        py[nv] = Pull::to_double(pf[1]);
+        pz[nv] = Pull::to_double(pf[2]);
+        best[nv] = kInf;
+        arg[nv] = 0;
+        at[nv++] = static_cast<std::uint16_t>(li);
+    });
+    const double* s2 = s_.s2;
+    for (std::uint32_t i = span[0]; i < span[1]; ++i) {
+        const std::uint32_t j = loc.sub_balls[i];
+        const auto& sp = f.sph[j];
+        const double cx = sp.c[0], cy = sp.c[1], cz = sp.c[2], lim = sp.lim, dj = j;
+        for (int v = 0; v < nv; ++v) {
+            const double pw = length2(px[v] - cx, py[v] - cy, pz[v] - cz, s2) - lim;  // power_of's expression
+            const bool lt = pw < best[v];
+            best[v] = lt ? pw : best[v];
+            arg[v] = lt ? dj : arg[v];
+        }
+    }
     double* pw = loc.exact.data() + k * 512;
     std::uint32_t* who = loc.exact_local.data() + k * 512;
     std::int16_t* klo = loc.cube_lo.data() + k * 512;
     std::int16_t* khi = loc.cube_hi.data() + k * 512;
     const double inv_step = 1.0 / s_.bound_step;
-    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
-        double p[3];
-        Pull::to_double(pf, p);
-        double best = kInf;
-        std::uint32_t arg = kNone;
-        for (std::size_t i = 0; i < n; ++i) {
-            const double v = power_of(f, list[i], p, s_.s2);
-            if (beats(v, best, [&] { return f.global[list[i]] < f.global[arg]; })) {
-                best = v;
-                arg = list[i];
-            }
-        }
-        pw[li] = best;
-        who[li] = arg;
-        if (best < 0) {  // a range of a few quanta around it, without exact_bounds' floors (it runs per voxel)
-            const auto x = static_cast<std::int32_t>(std::max(best * inv_step, -32766.0));  // ceil: x < 0
+    for (int v = 0; v < nv; ++v) {
+        const std::size_t li = at[v];
+        pw[li] = best[v];
+        who[li] = static_cast<std::uint32_t>(arg[v]);
+        if (best[v] < 0) {  // a range of a few quanta around it, without exact_bounds' floors (it runs per voxel)
+            const auto x = static_cast<std::int32_t>(std::max(best[v] * inv_step, -32766.0));  // ceil: x < 0
             klo[li] = static_cast<std::int16_t>(x - 2);
             khi[li] = static_cast<std::int16_t>(x + 1);
         }
-    });
+    }
     ++loc.exact_pairs;
 }
 
