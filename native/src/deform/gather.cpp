@@ -8,6 +8,9 @@
 #include <atomic>
 #include <cmath>
 #include <thread>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "deform/closed_cubes.hpp"
 #include "deform/sampler.hpp"
@@ -109,9 +112,6 @@ struct Local {
     NearSpheres near;
     std::vector<double> near_power;
     std::vector<std::uint32_t> all_balls = iota(64);  // 0, 1, ...: all spheres of a small group, scanned at once
-    alignas(16) double ball_p[3][64];                   // ball_powers: a sub-block's preimages,
-    alignas(16) double ball_best[64], ball_arg[64];     // the least power and its sphere,
-    std::uint16_t ball_li[64];                          // and the voxels' places in the block
     std::int16_t least_hi[512];             // the least upper bound over the candidates
     std::int16_t best[512];                 // the candidate giving it
     std::int16_t rival_lo[512];             // the least lower bound over the others
@@ -532,6 +532,38 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
     ++loc.exact_pairs;
 }
 
+/// Lowers best[v] (with arg[v]) to sphere j's power at (px, py, pz)[v] where that is less, for v < nv (rounded up to
+/// even: the arrays hold one more). The very operations of power_of, two voxels at a time where SSE2 is at hand (the
+/// compiler does not vectorise the selects).
+inline void least_powers(const BoneField& f, std::uint32_t j, const double* px, const double* py, const double* pz,
+                         int nv, const double* s2, double* best, double* arg) {
+    const auto& sp = f.sph[j];
+    const double dj = j;
+#if defined(__SSE2__)
+    const __m128d c0 = _mm_set1_pd(sp.c[0]), c1 = _mm_set1_pd(sp.c[1]), c2 = _mm_set1_pd(sp.c[2]);
+    const __m128d w0 = _mm_set1_pd(s2[0]), w1 = _mm_set1_pd(s2[1]), w2 = _mm_set1_pd(s2[2]);
+    const __m128d lim = _mm_set1_pd(sp.lim), id = _mm_set1_pd(dj);
+    for (int v = 0; v < nv; v += 2) {
+        const __m128d dx = _mm_sub_pd(_mm_load_pd(px + v), c0), dy = _mm_sub_pd(_mm_load_pd(py + v), c1),
+                      dz = _mm_sub_pd(_mm_load_pd(pz + v), c2);
+        const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_mul_pd(w0, dx), dx), _mm_mul_pd(_mm_mul_pd(w1, dy), dy)),
+                                      _mm_mul_pd(_mm_mul_pd(w2, dz), dz));
+        const __m128d pw = _mm_sub_pd(d2, lim), old = _mm_load_pd(best + v);
+        const __m128d lt = _mm_cmplt_pd(pw, old);
+        _mm_store_pd(best + v, _mm_or_pd(_mm_and_pd(lt, pw), _mm_andnot_pd(lt, old)));
+        _mm_store_pd(arg + v, _mm_or_pd(_mm_and_pd(lt, id), _mm_andnot_pd(lt, _mm_load_pd(arg + v))));
+    }
+#else
+    for (int v = 0; v < nv; ++v) {
+        const double pw = length2(px[v] - sp.c[0], py[v] - sp.c[1], pz[v] - sp.c[2], s2) - sp.lim;
+        if (pw < best[v]) {
+            best[v] = pw;
+            arg[v] = dj;
+        }
+    }
+#endif
+}
+
 /// Ball candidate k's exact power over sub-block sb: the least power at each preimage over the spheres that may give
 /// it there (in increasing global index, so that a tie keeps the lower), as tier 3 takes it, and its quantised
 /// range for the lanes (none where it does not cover: the field's power is not negative there). Sphere by sphere
@@ -539,12 +571,9 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
 void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const {
     const BoneField& f = s_.field(loc.fields[k]);
     const auto span = loc.sub_span[k * 8 + static_cast<std::size_t>(sb)];
-    double* const px = loc.ball_p[0];
-    double* const py = loc.ball_p[1];
-    double* const pz = loc.ball_p[2];
-    double* const best = loc.ball_best;
-    double* const arg = loc.ball_arg;  // the sphere, as a double (exact), so that it shares best's lanes
-    std::uint16_t* const at = loc.ball_li;
+    alignas(16) double px[65], py[65], pz[65];  // the preimages (and one more: least_powers takes two at a time)
+    alignas(16) double best[65], arg[65];       // the least power and its sphere (a double, exact: best's lanes)
+    std::uint16_t at[64];                       // the voxels' places in the block
     int nv = 0;
     for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
         px[nv] = Pull::to_double(pf[0]);
@@ -554,18 +583,12 @@ void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) cons
         arg[nv] = 0;
         at[nv++] = static_cast<std::uint16_t>(li);
     });
-    const double* s2 = s_.s2;
-    for (std::uint32_t i = span[0]; i < span[1]; ++i) {
-        const std::uint32_t j = loc.sub_balls[i];
-        const auto& sp = f.sph[j];
-        const double cx = sp.c[0], cy = sp.c[1], cz = sp.c[2], lim = sp.lim, dj = j;
-        for (int v = 0; v < nv; ++v) {
-            const double pw = length2(px[v] - cx, py[v] - cy, pz[v] - cz, s2) - lim;  // power_of's expression
-            const bool lt = pw < best[v];
-            best[v] = lt ? pw : best[v];
-            arg[v] = lt ? dj : arg[v];
-        }
-    }
+    px[nv] = px[0];  // the pair's second half when nv is odd (its result is not read)
+    py[nv] = py[0];
+    pz[nv] = pz[0];
+    best[nv] = kInf;
+    arg[nv] = 0;
+    for (std::uint32_t i = span[0]; i < span[1]; ++i) least_powers(f, loc.sub_balls[i], px, py, pz, nv, s_.s2, best, arg);
     double* pw = loc.exact.data() + k * 512;
     std::uint32_t* who = loc.exact_local.data() + k * 512;
     std::int16_t* klo = loc.cube_lo.data() + k * 512;
@@ -609,6 +632,22 @@ void Gather::lanes(Local& loc) const {
         const std::int16_t* hk = khi + k * 512;
         const std::int16_t* lk = klo + k * 512;
         const auto kk = static_cast<std::int16_t>(k);
+#if defined(__SSE2__)  // eight lanes at a time (the compiler does not vectorise the selects)
+        const __m128i kv = _mm_set1_epi16(kk);
+        auto select = [](__m128i m, __m128i a, __m128i b) { return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b)); };
+        for (std::size_t li = 0; li < 512; li += 8) {
+            auto at = [li](std::int16_t* x) { return reinterpret_cast<__m128i*>(x + li); };
+            const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(hk + li));
+            const __m128i l = _mm_loadu_si128(reinterpret_cast<const __m128i*>(lk + li));
+            const __m128i uo = _mm_loadu_si128(at(u)), mlo = _mm_loadu_si128(at(ml));
+            const __m128i lt = _mm_cmplt_epi16(h, uo), below = _mm_cmplt_epi16(l, mlo);
+            _mm_storeu_si128(at(u), _mm_min_epi16(h, uo));
+            _mm_storeu_si128(at(arg), select(lt, kv, _mm_loadu_si128(at(arg))));
+            _mm_storeu_si128(at(m2), select(below, mlo, _mm_min_epi16(_mm_loadu_si128(at(m2)), l)));
+            _mm_storeu_si128(at(ml), _mm_min_epi16(l, mlo));
+            _mm_storeu_si128(at(arg_lo), select(below, kv, _mm_loadu_si128(at(arg_lo))));
+        }
+#else
         for (std::size_t li = 0; li < 512; ++li) {
             const bool lt = hk[li] < u[li];
             u[li] = lt ? hk[li] : u[li];
@@ -618,6 +657,7 @@ void Gather::lanes(Local& loc) const {
             ml[li] = below ? lk[li] : ml[li];
             arg_lo[li] = below ? kk : arg_lo[li];
         }
+#endif
     }
     for (std::size_t li = 0; li < 512; ++li) mo[li] = arg_lo[li] == arg[li] ? m2[li] : ml[li];
     const bool nearest = s_.nearest;
