@@ -246,14 +246,19 @@ CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::
     std::uint32_t k = kNone;
     for (std::size_t i = 0; i < n; ++i) {
         const auto& sp = f.sph[in[i]];
-        double near[3], far[3];
+        double near[3];
         for (int a = 0; a < 3; ++a) {
             const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
             near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
-            far[a] = std::max(std::abs(d0), std::abs(d1));
         }
+        const double near2 = length2(near[0], near[1], near[2], s2);
+        // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
+        near_power[i] = near2 - sp.lim - 1e-9 * (near2 + 2 * sp.lim + 1);
+        if (!(near_power[i] < 0)) continue;
+        double far[3];
+        for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
         const double far2 = length2(far[0], far[1], far[2], s2), m = 1e-9 * (far2 + sp.lim + 1);
-        near_power[i] = length2(near[0], near[1], near[2], s2) - sp.lim - m;
+        near_power[i] = near2 - sp.lim - m;
         least_far = std::min(least_far, far2 - sp.lim + m);
         const double pm = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
         if (pm < least_mid) {
@@ -264,7 +269,7 @@ CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::
         centre_power[i] = pm - m;  // less its margin
     }
     double least_near = kInf;
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; k != kNone && i < n; ++i) {
         const double v = near_power[i];
         if (!(v < 0) || v > least_far) continue;
         const double* c = f.sph[in[i]].c;
