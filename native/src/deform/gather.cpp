@@ -463,15 +463,15 @@ void Gather::lookups(const Block& b, Local& loc) const {
         loc.cands.resize(K);
     }
     for (std::size_t k = 0; k < K; ++k) {
-        std::uint32_t* at = loc.cube_cell.data() + k * 512;
-        std::fill(at, at + 512, kNoCell);
-        if (loc.ball[k]) {
+        if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
             std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
             std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
             for (int sb = 0; sb < 8; ++sb)
                 if (loc.live[k * 8 + static_cast<std::size_t>(sb)]) ball_powers(b, loc, k, sb);
             continue;
         }
+        std::uint32_t* at = loc.cube_cell.data() + k * 512;
+        std::fill(at, at + 512, kNoCell);
         for (int sb = 0; sb < 8; ++sb)
             if (loc.live[k * 8 + static_cast<std::size_t>(sb)] && loc.single[k * 8 + static_cast<std::size_t>(sb)] == kNone)
                 cube_cells(b, loc, k, sb);
@@ -603,11 +603,12 @@ void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) cons
         const std::size_t li = at[v];
         pw[li] = best[v];
         who[li] = static_cast<std::uint32_t>(arg[v]);
-        if (best[v] < 0) {  // a range of a few quanta around it, without exact_bounds' floors (it runs per voxel)
-            const auto x = static_cast<std::int32_t>(std::max(best[v] * inv_step, -32766.0));  // ceil: x < 0
-            klo[li] = static_cast<std::int16_t>(x - 2);
-            khi[li] = static_cast<std::int16_t>(x + 1);
-        }
+        // where it covers, a range of a few quanta around it, without exact_bounds' floors (it runs per voxel);
+        // branch-free: covered or not is as good as random here
+        const bool covers = best[v] < 0;
+        const auto x = static_cast<std::int32_t>(std::min(std::max(best[v] * inv_step, -32766.0), 0.0));  // ceil
+        klo[li] = covers ? static_cast<std::int16_t>(x - 2) : kBoundMax;
+        khi[li] = covers ? static_cast<std::int16_t>(x + 1) : kBoundMax;
     }
     ++loc.exact_pairs;
 }
