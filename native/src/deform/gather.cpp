@@ -238,7 +238,7 @@ CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::
                               std::vector<std::uint32_t>& out, Local& loc) const {
     loc.near_power.resize(2 * n);
     double* const near_power = loc.near_power.data();
-    double* const centre_power = near_power + n;  // and then the margins
+    double* const centre_power = near_power + n;  // at the box's centre, less a margin
     const double* s2 = s_.s2;
     const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
     const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
@@ -286,7 +286,8 @@ CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::
 }
 
 /// Field f (without lattice tables) as a candidate of the block: its range over the block's preimage and the
-/// spheres that may give its power there (found by the k-d tree); false when none of them covers any of it.
+/// spheres that may give its power there (a small group's scanned all, a large one's found by its k-d tree); false
+/// when none of them covers any of it.
 bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
     std::int64_t ra[3], rb[3];
     double box[6];
