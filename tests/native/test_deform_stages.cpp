@@ -70,6 +70,7 @@ struct RandomSpheres {
         for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
         return build_bone_field(grid, spheres(), members, radii, T(), (maxlim + 4 * T()) / 30000.0);
     }
+    BoneField ball_field() const { return build_ball_field(grid, spheres(), members, radii, T(), 1.0); }
 };
 
 /// One bone's field over random spheres, with a random source for the points a test probes.
@@ -485,11 +486,16 @@ TEST_CASE("the output box holds exactly the posed balls' lattice points; candida
         CHECK(bx[a] == lo[a]);
         CHECK(bx[3 + a] == hi[a] - lo[a] + 1);
     }
+    // The same spheres as a field with lattice tables (bit 0) and as one without (a blend group's, bit 1).
+    fields.push_back(rs.ball_field());
+    CHECK(!fields[1].lattice);
+    CHECK(fields[1].sph.size() == fields[0].sph.size());
+    motions.push_back(motions[0]);
     const std::vector<std::uint64_t> bits = candidate_bits(FieldSet{fields, motions, rs.grid.spacing.data(), {s2[0], s2[1], s2[2]}, rs.T(), 1.0, false}, bx);
     const std::int64_t obx = (bx[3] + 7) / 8, oby = (bx[4] + 7) / 8;
     for (const auto& q : covered) {
         const std::int64_t k = (((q[2] - bx[2]) / 8) * oby + (q[1] - bx[1]) / 8) * obx + (q[0] - bx[0]) / 8;
-        REQUIRE((bits[static_cast<std::size_t>(k)] & 1u));
+        REQUIRE((bits[static_cast<std::size_t>(k)] & 3u) == 3u);
     }
     // crop_to_extent keeps the extent, one voxel when nothing is covered.
     DeformedVolume f = frame_on(rs.grid, {0, 0, 0, 6, 5, 4});

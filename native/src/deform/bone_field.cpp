@@ -366,6 +366,19 @@ void block_sums(BoneField& f) {
 
 }  // namespace
 
+BoneField build_ball_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                           const std::vector<double>& r, double T, double step) {
+    BoneField f;
+    if (members.size() >= kClosedBit) throw Error("deform: too many spheres in one blend group");
+    place_spheres(f, g, s, members, r, T);
+    f.lattice = false;
+    f.lo = {0, 0, 0};
+    f.dims = f.bdims = {0, 0, 0};
+    f.step = step;
+    f.floor_T = T;
+    return f;
+}
+
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
                            const std::vector<double>& r, double T, double step) {
     BoneField f;

@@ -81,7 +81,12 @@ inline double concave_lower(const double* v, const double* u, const double* s2) 
     return L - 1e-9 * (std::abs(L) + 1.0);  // rounding margin
 }
 
+/// A field: one bone's spheres, or one smooth blend group's. A bone's field keeps lattice tables (power-diagram
+/// labels, cube ranges, corner powers) near its spheres; a blend group's (`lattice` false) keeps only its spheres and
+/// their k-d tree: groups are small and their balls overlap their neighbours' many times over, so the gather takes
+/// their powers from the few spheres meeting each preimage instead (gather.cpp, ball candidates).
 struct BoneField {
+    bool lattice = true;  // false: no lattice tables (lo, dims and the tables below stay empty)
     // spheres in local (k-d) order
     std::vector<std::uint32_t> global;
     struct Sphere {
@@ -272,6 +277,10 @@ inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const do
 /// covered (a quarter of the lattice cell's squared diagonal, with a margin), step the quantum of the power ranges
 /// (shared by every field, so that fields compare as integers).
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
+                           const std::vector<double>& r, double T, double step);
+
+/// A field without lattice tables (a blend group's): its spheres in k-d order and their k-d tree only.
+BoneField build_ball_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
                            const std::vector<double>& r, double T, double step);
 
 }  // namespace volrig::deform_detail

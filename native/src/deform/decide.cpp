@@ -20,11 +20,17 @@ std::int32_t Decider::settle(const CellBounds* r, std::size_t K, std::uint8_t* l
 }
 
 /// Loads candidate c's preimage of m3 and its cube; false when the field cannot cover it (no corner label, or a
-/// same or closed cube whose exact answer is not a cover).
-bool Decider::load_cube(Candidate& c, const std::int64_t* m3) const {
+/// same or closed cube whose exact answer is not a cover). A field without lattice tables (a blend group's) is
+/// searched exactly at once.
+bool Decider::load_cube(Candidate& c, const std::int64_t* m3, std::int64_t& queries) const {
     s_.pull(c.field).fixed(m3, c.pf);
     Pull::to_double(c.pf, c.p);
     const BoneField& f = s_.field(c.field);
+    if (!f.lattice) {
+        c.covered = false;
+        c.local = kNone;
+        return exact_cover(c, queries);
+    }
     if (!fetch_cube(f, c.p, c.cube)) return false;
     c.has_U = c.sharp_L = c.exact = c.covered = false;
     c.local = kNone;
@@ -82,7 +88,7 @@ std::int32_t Decider::resolve(const std::int32_t* running, std::size_t n, const 
     std::size_t m = 0;
     for (std::size_t k = 0; k < n; ++k) {
         c[m].field = running[k];
-        m += load_cube(c[m], m3);
+        m += load_cube(c[m], m3, queries);
     }
     if (m == 0) return kEmpty;
     if (m == 1) return covers(c[0], queries) ? c[0].field : kEmpty;

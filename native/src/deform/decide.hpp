@@ -75,7 +75,7 @@ public:
 private:
     std::uint32_t global(const Candidate& c) const { return s_.field(c.field).global[c.local]; }
     std::size_t best(const Candidate* c, std::size_t n) const;
-    bool load_cube(Candidate& c, const std::int64_t* m3) const;
+    bool load_cube(Candidate& c, const std::int64_t* m3, std::int64_t& queries) const;
     void sharpen(Candidate& c) const;
     void sharpen_lower(Candidate& c, double beat) const;
     void set_upper(Candidate& c, bool any_negative) const;

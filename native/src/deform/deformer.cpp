@@ -49,8 +49,8 @@ struct Deformer::Impl : SphereStore {
     // per-rig data for one (partition, radii) key
     bool built = false, built_smooth = false;
     std::vector<float> built_scale;
-    // Fields: one per bone (its rigid spheres), then, in smooth modes, one per group of spheres whose rounded
-    // weights agree (they share one blended transform). A field is identified by its key (its bone, or its group's
+    // Fields: one per bone (its rigid spheres, with lattice tables), then, in smooth modes, one per group of
+    // spheres whose rounded weights agree (they share one blended transform; spheres and k-d tree only). A field is identified by its key (its bone, or its group's
     // owner and weights) and its members; a rebuild takes over every field whose key and members are unchanged.
     std::vector<BoneField> fields;
     std::vector<FieldKey> field_keys;
@@ -133,7 +133,8 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
             fields.push_back(std::move(old[it->second]));
             ++reused;
         } else {
-            fields.push_back(build_bone_field(grid, view(), field_members[f], radii, T, bound_step));
+            fields.push_back(f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step)
+                                            : build_ball_field(grid, view(), field_members[f], radii, T, bound_step));
         }
         report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
     }

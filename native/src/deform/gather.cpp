@@ -8,20 +8,57 @@
 #include <atomic>
 #include <cmath>
 #include <thread>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
+#include "deform/closed_cubes.hpp"
 #include "deform/sampler.hpp"
 
 namespace volrig::deform_detail {
 
+namespace {
+
+/// Sets bit b in the output blocks (of the box bx, ob blocks per axis, `words` words a block) that meet the box
+/// {lo x, y, z, hi x, y, z} (absolute output lattice) widened by a voxel.
+void mark_blocks(std::vector<std::uint64_t>& bits, const double* box, const Box& bx, const std::int64_t* ob,
+                 std::size_t words, std::size_t b) {
+    std::int64_t a[3], e[3];
+    for (int k = 0; k < 3; ++k) {
+        a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(box[k])) - bx[k] - 1) / kBlock);
+        const std::int64_t top = static_cast<std::int64_t>(std::ceil(box[3 + k])) - bx[k] + 1;
+        if (top < 0) return;
+        e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
+        if (e[k] < a[k]) return;
+    }
+    for (std::int64_t z = a[2]; z <= e[2]; ++z)
+        for (std::int64_t y = a[1]; y <= e[1]; ++y)
+            for (std::int64_t x = a[0]; x <= e[0]; ++x)
+                bits[static_cast<std::size_t>((z * ob[1] + y) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+}
+
+}  // namespace
+
 std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
-    const std::int64_t obx = (bx[3] + kBlock - 1) / kBlock, oby = (bx[4] + kBlock - 1) / kBlock,
-                       obz = (bx[5] + kBlock - 1) / kBlock;
+    const std::int64_t ob[3] = {(bx[3] + kBlock - 1) / kBlock, (bx[4] + kBlock - 1) / kBlock,
+                                (bx[5] + kBlock - 1) / kBlock};
     const std::size_t words = (set.fields.size() + 63) / 64;
-    std::vector<std::uint64_t> bits(static_cast<std::size_t>(obx * oby * obz) * words, 0);
-    const std::int64_t ob[3] = {obx, oby, obz};
+    std::vector<std::uint64_t> bits(static_cast<std::size_t>(ob[0] * ob[1] * ob[2]) * words, 0);
     for (std::size_t b = 0; b < set.fields.size(); ++b) {
         const Affine& fw = set.motions[b].forward;
-        for (const auto& blk : set.fields[b].blocks) {
+        const BoneField& f = set.fields[b];
+        for (const auto& sp : f.sph) {  // a field without lattice tables: the box of each posed ball
+            if (f.lattice || !(sp.lim > 0)) continue;
+            double y[3], box[6];
+            fw.apply(sp.c, y);
+            for (int a = 0; a < 3; ++a) {
+                const double e = std::sqrt(sp.lim) / set.spacing[a] + 1;
+                box[a] = y[a] - e;
+                box[3 + a] = y[a] + e;
+            }
+            mark_blocks(bits, box, bx, ob, words, b);
+        }
+        for (const auto& blk : f.blocks) {
             double box[6] = {kInf, kInf, kInf, -kInf, -kInf, -kInf};  // the image of the dilated rest block
             for (int c = 0; c < 8; ++c) {
                 const double x[3] = {static_cast<double>(blk[0] + ((c & 1) ? kBlock : -1)),
@@ -34,26 +71,19 @@ std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
                     box[3 + a] = std::max(box[3 + a], y[a]);
                 }
             }
-            std::int64_t a[3], e[3];
-            bool empty = false;
-            for (int k = 0; k < 3; ++k) {
-                a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(box[k])) - bx[k] - 1) / kBlock);
-                const std::int64_t top = static_cast<std::int64_t>(std::ceil(box[3 + k])) - bx[k] + 1;
-                if (top < 0) empty = true;
-                e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
-                if (e[k] < a[k]) empty = true;
-            }
-            if (empty) continue;
-            for (std::int64_t z = a[2]; z <= e[2]; ++z)
-                for (std::int64_t y = a[1]; y <= e[1]; ++y)
-                    for (std::int64_t x = a[0]; x <= e[0]; ++x)
-                        bits[static_cast<std::size_t>((z * oby + y) * obx + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+            mark_blocks(bits, box, bx, ob, words, b);
         }
     }
     return bits;
 }
 
 namespace {
+
+std::vector<std::uint32_t> iota(std::size_t n) {
+    std::vector<std::uint32_t> v(n);
+    for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<std::uint32_t>(i);
+    return v;
+}
 
 /// One thread's scratch and tallies.
 struct Local {
@@ -73,6 +103,15 @@ struct Local {
     // preimage (kNone when there is none), and then per voxel of such sub-blocks that power, exact
     std::vector<std::uint32_t> single;
     std::vector<double> exact;
+    // Ball candidates (fields without lattice tables, blend groups): per candidate whether it is one and the spheres
+    // that may give its power over the block's preimage (a span of block_balls), per (candidate, sub-block) those
+    // over the sub-block's (a span of sub_balls), and per voxel of its live sub-blocks the sphere giving `exact`
+    std::vector<std::uint8_t> ball;
+    std::vector<std::uint32_t> block_balls, sub_balls, exact_local;
+    std::vector<std::array<std::uint32_t, 2>> block_span, sub_span;
+    NearSpheres near;
+    std::vector<double> near_power;
+    std::vector<std::uint32_t> all_balls = iota(64);  // 0, 1, ...: all spheres of a small group, scanned at once
     std::int16_t least_hi[512];             // the least upper bound over the candidates
     std::int16_t best[512];                 // the candidate giving it
     std::int16_t rival_lo[512];             // the least lower bound over the others
@@ -114,14 +153,21 @@ private:
         }
         return b;
     }
+    void preimage_box(std::int32_t f, const std::int64_t* q0, std::int64_t side, std::int64_t* ra, std::int64_t* rb,
+                      double* box) const;
     CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
                               std::uint32_t* single = nullptr) const;
+    CellBounds sub_range(std::size_t k, const std::int64_t* q0, int sb, Local& loc) const;
+    CellBounds ball_range(const BoneField& f, const double* box, const std::uint32_t* in, std::size_t n,
+                          std::vector<std::uint32_t>& out, Local& loc) const;
+    bool ball_candidate(const Block& b, std::int32_t f, Local& loc) const;
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
     void exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
+    void ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
     void lanes(Local& loc) const;
     void undecided(const Block& b, Local& loc) const;
     double cube_lower(const Local& loc, std::size_t k, std::size_t li) const;
@@ -143,15 +189,13 @@ private:
     tbb::enumerable_thread_specific<Local> locals_;
 };
 
-/// The quantised range of field f's power over the preimages of the output voxels q0 + [0, side)³ (absolute
-/// lattice): over the rest cubes holding them, from the bounding box of the preimage in fixed point (exact: the
-/// lookups' cells are the integer parts of the very same values). With `single`, also the sphere whose power is
-/// the field's on all of those cubes, or kNone; the range is then that sphere's over the box, when sharper.
-CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
-                                  std::uint32_t* single) const {
+/// The bounding box of field f's preimages of the output voxels q0 + [0, side)³ (absolute lattice), in fixed point:
+/// the cells [ra, rb] of the rest cubes holding them and the box itself as doubles (rest index space; exact: the
+/// lookups' cells are the integer parts of the very same values, and the samples' points those values).
+void Gather::preimage_box(std::int32_t f, const std::int64_t* q0, std::int64_t side, std::int64_t* ra,
+                          std::int64_t* rb, double* box) const {
     const Pull& pl = s_.pull(f);
-    std::int64_t p0[3], ra[3], rb[3];
-    double box[6];  // the preimages' bounding box, rest index space
+    std::int64_t p0[3];
     pl.fixed(q0, p0);
     for (int a = 0; a < 3; ++a) {
         std::int64_t lo_f = p0[a], hi_f = p0[a];
@@ -164,6 +208,16 @@ CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::i
         box[a] = Pull::to_double(lo_f);
         box[3 + a] = Pull::to_double(hi_f);
     }
+}
+
+/// The quantised range of field f's power over the preimages of the output voxels q0 + [0, side)³ (absolute
+/// lattice): over the rest cubes holding them (preimage_box). With `single`, also the sphere whose power is the
+/// field's on all of those cubes, or kNone; the range is then that sphere's over the box, when sharper.
+CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
+                                  std::uint32_t* single) const {
+    std::int64_t ra[3], rb[3];
+    double box[6];
+    preimage_box(f, q0, side, ra, rb, box);
     const BoneField& field = s_.field(f);
     const CellBounds r = field.range_bounds(ra, rb);
     if (!single) return r;
@@ -173,16 +227,112 @@ CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::i
     return CellBounds{std::max(r.lo, e.lo), std::min(r.hi, e.hi)};
 }
 
+/// A ball candidate's power range over a preimage box (rest index space) from the spheres `in` (local indices, a
+/// superset of those whose balls meet the box), and into `out` the spheres that may give its power there: those
+/// whose ball meets the box and that no other sphere beats all over it. Two spheres' powers differ by an affine
+/// function, so sphere i is beaten everywhere by the one least at the box's centre (k) when their difference there
+/// exceeds its largest change over the box, 2 Σ s²·h·|c_i − c_k| (h: the box's half extents). Lower bound: the least
+/// of the kept spheres' least powers over the box; upper bound: the least of their largest. Margins far above
+/// rounding, on the safe side.
+CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::uint32_t* in, std::size_t n,
+                              std::vector<std::uint32_t>& out, Local& loc) const {
+    loc.near_power.resize(2 * n);
+    double* const near_power = loc.near_power.data();
+    double* const centre_power = near_power + n;  // at the box's centre, less a margin
+    const double* s2 = s_.s2;
+    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
+    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
+    double least_far = kInf, least_mid = kInf, margin_k = 0;
+    std::uint32_t k = kNone;
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& sp = f.sph[in[i]];
+        double near[3];
+        for (int a = 0; a < 3; ++a) {
+            const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
+            near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
+        }
+        const double near2 = length2(near[0], near[1], near[2], s2);
+        // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
+        near_power[i] = near2 - sp.lim - 1e-9 * (near2 + 2 * sp.lim + 1);
+        if (!(near_power[i] < 0)) continue;
+        double far[3];
+        for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
+        const double far2 = length2(far[0], far[1], far[2], s2), m = 1e-9 * (far2 + sp.lim + 1);
+        near_power[i] = near2 - sp.lim - m;
+        least_far = std::min(least_far, far2 - sp.lim + m);
+        const double pm = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
+        if (pm < least_mid) {
+            least_mid = pm;
+            k = in[i];
+            margin_k = m;
+        }
+        centre_power[i] = pm - m;  // less its margin
+    }
+    double least_near = kInf;
+    for (std::size_t i = 0; k != kNone && i < n; ++i) {
+        const double v = near_power[i];
+        if (!(v < 0) || v > least_far) continue;
+        const double* c = f.sph[in[i]].c;
+        const double* ck = f.sph[k].c;
+        const double change = 2 * (s2[0] * h[0] * std::abs(c[0] - ck[0]) + s2[1] * h[1] * std::abs(c[1] - ck[1]) +
+                                   s2[2] * h[2] * std::abs(c[2] - ck[2]));
+        if (centre_power[i] - least_mid - margin_k > change * (1 + 1e-9)) continue;  // beaten by k all over the box
+        out.push_back(in[i]);
+        least_near = std::min(least_near, v);
+    }
+    if (!(least_near < 0)) return CellBounds{};
+    const double inv = 1.0 / s_.bound_step;
+    return CellBounds{exact_bounds(least_near, inv).lo, exact_bounds(least_far, inv).hi};
+}
+
+/// Field f (without lattice tables) as a candidate of the block: its range over the block's preimage and the
+/// spheres that may give its power there (a small group's scanned all, a large one's found by its k-d tree); false
+/// when none of them covers any of it.
+bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
+    std::int64_t ra[3], rb[3];
+    double box[6];
+    preimage_box(f, b.base, kBlock, ra, rb, box);
+    const BoneField& field = s_.field(f);
+    const std::uint32_t* in = loc.all_balls.data();
+    std::size_t n = field.sph.size();
+    if (n > loc.all_balls.size()) {  // a large group: the spheres whose balls meet the box, by its k-d tree
+        spheres_meeting(field, box, box + 3, s_.spacing, s_.s2, loc.near);
+        in = loc.near.id.data();
+        n = loc.near.id.size();
+    }
+    const auto begin = static_cast<std::uint32_t>(loc.block_balls.size());
+    const CellBounds rg = ball_range(field, box, in, n, loc.block_balls, loc);
+    if (rg.lo >= 0) {
+        loc.block_balls.resize(begin);
+        return false;
+    }
+    // in increasing global index (the sub-blocks' lists keep this order): ball_powers' ties keep the lower
+    std::sort(loc.block_balls.begin() + begin, loc.block_balls.end(),
+              [&](std::uint32_t a, std::uint32_t c) { return field.global[a] < field.global[c]; });
+    loc.fields.push_back(f);
+    loc.range.push_back(rg);
+    loc.ball.push_back(1);
+    loc.block_span.push_back({begin, static_cast<std::uint32_t>(loc.block_balls.size())});
+    return true;
+}
+
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.
 void Gather::block_candidates(const Block& b, Local& loc) const {
     loc.fields.clear();
     loc.range.clear();
+    loc.ball.clear();
+    loc.block_span.clear();
+    loc.block_balls.clear();
     const std::size_t blk = static_cast<std::size_t>((b.k[2] * nb_[1] + b.k[1]) * nb_[0] + b.k[0]);
     for (std::size_t w = 0; w < words_; ++w) {
         std::uint64_t m = bits_[blk * words_ + w];
         while (m) {
             const auto f = static_cast<std::int32_t>(w * 64 + static_cast<std::size_t>(__builtin_ctzll(m)));
             m &= m - 1;
+            if (!s_.field(f).lattice) {
+                ball_candidate(b, f, loc);
+                continue;
+            }
             double plo[3] = {kInf, kInf, kInf}, phi[3] = {-kInf, -kInf, -kInf};
             for (int c = 0; c < 8; ++c) {
                 const std::int64_t q[3] = {b.base[0] + ((c & 1) ? kBlock : 0), b.base[1] + (((c >> 1) & 1) ? kBlock : 0),
@@ -205,8 +355,27 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
             if (rg.lo >= 0) continue;
             loc.fields.push_back(f);
             loc.range.push_back(rg);
+            loc.ball.push_back(0);
+            loc.block_span.push_back({0, 0});
         }
     }
+}
+
+/// Candidate k's range over the preimage of the 4³ sub-block sb (first voxel q0): from the lattice tables (and
+/// loc.single), or from the spheres that may give a ball candidate's power over the block (and loc.sub_balls).
+CellBounds Gather::sub_range(std::size_t k, const std::int64_t* q0, int sb, Local& loc) const {
+    const std::int32_t f = loc.fields[k];
+    const std::size_t ks = k * 8 + static_cast<std::size_t>(sb);
+    if (!loc.ball[k]) return preimage_range(f, q0, 4, &loc.single[ks]);
+    std::int64_t ra[3], rb[3];
+    double box[6];
+    preimage_box(f, q0, 4, ra, rb, box);
+    const auto span = loc.block_span[k];
+    const auto begin = static_cast<std::uint32_t>(loc.sub_balls.size());
+    const CellBounds r = ball_range(s_.field(f), box, loc.block_balls.data() + span[0], span[1] - span[0],
+                                    loc.sub_balls, loc);
+    loc.sub_span[ks] = {begin, static_cast<std::uint32_t>(loc.sub_balls.size())};
+    return r;
 }
 
 /// The whole block first: a candidate that cannot win anywhere in it drops out, and one covering all of it and
@@ -229,8 +398,14 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
     auto& cand = loc.fields;
     std::size_t K = 0;
     for (std::size_t k = 0; k < cand.size(); ++k)
-        if (loc.live[k]) cand[K++] = cand[k];
+        if (loc.live[k]) {
+            loc.ball[K] = loc.ball[k];
+            loc.block_span[K] = loc.block_span[k];
+            cand[K++] = cand[k];
+        }
     cand.resize(K);
+    loc.sub_balls.clear();
+    loc.sub_span.resize(K * 8);
     std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
     loc.live.assign(K * 8, 0);
     loc.single.assign(K * 8, kNone);
@@ -242,7 +417,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         sub_win[sb] = kEmpty;
         if (s0[0] >= b.e[0] || s0[1] >= b.e[1] || s0[2] >= b.e[2]) continue;
         const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
-        for (std::size_t k = 0; k < K; ++k) sr[k] = preimage_range(cand[k], q0, 4, &loc.single[k * 8 + static_cast<std::size_t>(sb)]);
+        for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
         if (w >= 0) {
@@ -283,11 +458,19 @@ void Gather::lookups(const Block& b, Local& loc) const {
     loc.cube_hi.resize(K * 512);
     loc.cube_cell.resize(K * 512);
     loc.exact.resize(K * 512);
+    loc.exact_local.resize(K * 512);
     if (loc.running.size() < K) {
         loc.running.resize(K);
         loc.cands.resize(K);
     }
     for (std::size_t k = 0; k < K; ++k) {
+        if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
+            std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
+            std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
+            for (int sb = 0; sb < 8; ++sb)
+                if (loc.live[k * 8 + static_cast<std::size_t>(sb)]) ball_powers(b, loc, k, sb);
+            continue;
+        }
         std::uint32_t* at = loc.cube_cell.data() + k * 512;
         std::fill(at, at + 512, kNoCell);
         for (int sb = 0; sb < 8; ++sb)
@@ -355,6 +538,82 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
     ++loc.exact_pairs;
 }
 
+/// Lowers best[v] (with arg[v]) to sphere j's power at (px, py, pz)[v] where that is less, for v < nv (rounded up to
+/// even: the arrays hold one more). The very operations of power_of, two voxels at a time where SSE2 is at hand (the
+/// compiler does not vectorise the selects).
+inline void least_powers(const BoneField& f, std::uint32_t j, const double* px, const double* py, const double* pz,
+                         int nv, const double* s2, double* best, double* arg) {
+    const auto& sp = f.sph[j];
+    const double dj = j;
+#if defined(__SSE2__)
+    const __m128d c0 = _mm_set1_pd(sp.c[0]), c1 = _mm_set1_pd(sp.c[1]), c2 = _mm_set1_pd(sp.c[2]);
+    const __m128d w0 = _mm_set1_pd(s2[0]), w1 = _mm_set1_pd(s2[1]), w2 = _mm_set1_pd(s2[2]);
+    const __m128d lim = _mm_set1_pd(sp.lim), id = _mm_set1_pd(dj);
+    for (int v = 0; v < nv; v += 2) {
+        const __m128d dx = _mm_sub_pd(_mm_load_pd(px + v), c0), dy = _mm_sub_pd(_mm_load_pd(py + v), c1),
+                      dz = _mm_sub_pd(_mm_load_pd(pz + v), c2);
+        const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_mul_pd(w0, dx), dx), _mm_mul_pd(_mm_mul_pd(w1, dy), dy)),
+                                      _mm_mul_pd(_mm_mul_pd(w2, dz), dz));
+        const __m128d pw = _mm_sub_pd(d2, lim), old = _mm_load_pd(best + v);
+        const __m128d lt = _mm_cmplt_pd(pw, old);
+        _mm_store_pd(best + v, _mm_or_pd(_mm_and_pd(lt, pw), _mm_andnot_pd(lt, old)));
+        _mm_store_pd(arg + v, _mm_or_pd(_mm_and_pd(lt, id), _mm_andnot_pd(lt, _mm_load_pd(arg + v))));
+    }
+#else
+    for (int v = 0; v < nv; ++v) {
+        const double pw = length2(px[v] - sp.c[0], py[v] - sp.c[1], pz[v] - sp.c[2], s2) - sp.lim;
+        if (pw < best[v]) {
+            best[v] = pw;
+            arg[v] = dj;
+        }
+    }
+#endif
+}
+
+/// Ball candidate k's exact power over sub-block sb: the least power at each preimage over the spheres that may give
+/// it there (in increasing global index, so that a tie keeps the lower), as tier 3 takes it, and its quantised
+/// range for the lanes (none where it does not cover: the field's power is not negative there). Sphere by sphere
+/// over all the voxels at once, so that the loop vectorises.
+void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const {
+    const BoneField& f = s_.field(loc.fields[k]);
+    const auto span = loc.sub_span[k * 8 + static_cast<std::size_t>(sb)];
+    alignas(16) double px[65], py[65], pz[65];  // the preimages (and one more: least_powers takes two at a time)
+    alignas(16) double best[65], arg[65];       // the least power and its sphere (a double, exact: best's lanes)
+    std::uint16_t at[64];                       // the voxels' places in the block
+    int nv = 0;
+    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
+        px[nv] = Pull::to_double(pf[0]);
+        py[nv] = Pull::to_double(pf[1]);
+        pz[nv] = Pull::to_double(pf[2]);
+        best[nv] = kInf;
+        arg[nv] = 0;
+        at[nv++] = static_cast<std::uint16_t>(li);
+    });
+    px[nv] = px[0];  // the pair's second half when nv is odd (its result is not read)
+    py[nv] = py[0];
+    pz[nv] = pz[0];
+    best[nv] = kInf;
+    arg[nv] = 0;
+    for (std::uint32_t i = span[0]; i < span[1]; ++i) least_powers(f, loc.sub_balls[i], px, py, pz, nv, s_.s2, best, arg);
+    double* pw = loc.exact.data() + k * 512;
+    std::uint32_t* who = loc.exact_local.data() + k * 512;
+    std::int16_t* klo = loc.cube_lo.data() + k * 512;
+    std::int16_t* khi = loc.cube_hi.data() + k * 512;
+    const double inv_step = 1.0 / s_.bound_step;
+    for (int v = 0; v < nv; ++v) {
+        const std::size_t li = at[v];
+        pw[li] = best[v];
+        who[li] = static_cast<std::uint32_t>(arg[v]);
+        // where it covers, a range of a few quanta around it, without exact_bounds' floors (it runs per voxel);
+        // branch-free: covered or not is as good as random here
+        const bool covers = best[v] < 0;
+        const auto x = static_cast<std::int32_t>(std::min(std::max(best[v] * inv_step, -32766.0), 0.0));  // ceil
+        klo[li] = covers ? static_cast<std::int16_t>(x - 2) : kBoundMax;
+        khi[li] = covers ? static_cast<std::int16_t>(x + 1) : kBoundMax;
+    }
+    ++loc.exact_pairs;
+}
+
 /// Tier 2, over the block's voxels in int16 lanes: u = the least upper bound (candidate arg's), mo = the least
 /// lower bound of the others, ml = the least lower bound; a voxel is empty when ml >= 0, won for certain by arg
 /// when certain(u, mo), else open. One pass over the candidates: mo is the second least lower bound where the
@@ -380,6 +639,22 @@ void Gather::lanes(Local& loc) const {
         const std::int16_t* hk = khi + k * 512;
         const std::int16_t* lk = klo + k * 512;
         const auto kk = static_cast<std::int16_t>(k);
+#if defined(__SSE2__)  // eight lanes at a time (the compiler does not vectorise the selects)
+        const __m128i kv = _mm_set1_epi16(kk);
+        auto select = [](__m128i m, __m128i a, __m128i b) { return _mm_or_si128(_mm_and_si128(m, a), _mm_andnot_si128(m, b)); };
+        for (std::size_t li = 0; li < 512; li += 8) {
+            auto at = [li](std::int16_t* x) { return reinterpret_cast<__m128i*>(x + li); };
+            const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(hk + li));
+            const __m128i l = _mm_loadu_si128(reinterpret_cast<const __m128i*>(lk + li));
+            const __m128i uo = _mm_loadu_si128(at(u)), mlo = _mm_loadu_si128(at(ml));
+            const __m128i lt = _mm_cmplt_epi16(h, uo), below = _mm_cmplt_epi16(l, mlo);
+            _mm_storeu_si128(at(u), _mm_min_epi16(h, uo));
+            _mm_storeu_si128(at(arg), select(lt, kv, _mm_loadu_si128(at(arg))));
+            _mm_storeu_si128(at(m2), select(below, mlo, _mm_min_epi16(_mm_loadu_si128(at(m2)), l)));
+            _mm_storeu_si128(at(ml), _mm_min_epi16(l, mlo));
+            _mm_storeu_si128(at(arg_lo), select(below, kv, _mm_loadu_si128(at(arg_lo))));
+        }
+#else
         for (std::size_t li = 0; li < 512; ++li) {
             const bool lt = hk[li] < u[li];
             u[li] = lt ? hk[li] : u[li];
@@ -389,6 +664,7 @@ void Gather::lanes(Local& loc) const {
             ml[li] = below ? lk[li] : ml[li];
             arg_lo[li] = below ? kk : arg_lo[li];
         }
+#endif
     }
     for (std::size_t li = 0; li < 512; ++li) mo[li] = arg_lo[li] == arg[li] ? m2[li] : ml[li];
     const bool nearest = s_.nearest;
@@ -413,6 +689,13 @@ bool Gather::load_first_label(Local& loc, std::size_t r, std::size_t li, const s
     const auto k = static_cast<std::size_t>(loc.running[r]);
     Candidate& c = loc.cands[r];
     c.field = loc.fields[k];
+    if (loc.ball[k]) {  // computed already (ball_powers)
+        c.U = c.L = loc.exact[k * 512 + li];
+        c.local = loc.exact_local[k * 512 + li];
+        c.exact = c.sharp_L = true;
+        c.closed = false;
+        return true;
+    }
     const std::uint32_t one = loc.single[k * 8 + sub_of(li)];
     if (one != kNone) {  // one sphere's power is the field's here: computed already
         c.U = c.L = loc.exact[k * 512 + li];
