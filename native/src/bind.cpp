@@ -68,8 +68,8 @@ void keep_rigid(const Grid& g, const std::uint8_t* rigid, const PointSet& pts, s
     }
     for (std::size_t i = 0; i < pts.n; ++i) {
         if (of[i] == 0) continue;
-        const std::int32_t c = whole[static_cast<std::size_t>(of[i])];
-        const std::int32_t b = c >= 0 ? c : out.bone[i];
+        const std::int32_t w = whole[static_cast<std::size_t>(of[i])];
+        const std::int32_t b = w >= 0 ? w : out.bone[i];
         out.bone[i] = b;
         out.weight_bones[i] = {b, -1, -1};
         out.weights[i] = {1.f, 0.f, 0.f};

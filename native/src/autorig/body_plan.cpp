@@ -102,9 +102,9 @@ Fit trunk_fit(const Chain4& spine) {
     if (spine.size() < kSpineProportions.size() + 1) return fit_chain(spine, 3);
     // Shares of the chord from the pelvis to the chest, not of the arc: the axis' wiggles differ between
     // resolutions.
-    const Vec chord = spine.back().head<3>() - spine.front().head<3>();
-    std::vector<double> arc;
-    for (const auto& q : spine) arc.push_back((q.head<3>() - spine.front().head<3>()).dot(chord.normalized()));
+    const Vec chord = (spine.back().head<3>() - spine.front().head<3>()).normalized();
+    std::vector<double> along;
+    for (const auto& q : spine) along.push_back((q.head<3>() - spine.front().head<3>()).dot(chord));
     double sum = 0;
     for (double r : kSpineProportions) sum += r;
     Fit fit;
@@ -112,9 +112,9 @@ Fit trunk_fit(const Chain4& spine) {
     double share = 0;
     for (std::size_t k = 0; k + 1 < kSpineProportions.size(); ++k) {
         share += kSpineProportions[k] / sum;
-        std::size_t at = fit.cuts.back() + 1;  // the sample nearest that share of the arc, after the last cut
+        std::size_t at = fit.cuts.back() + 1;  // the sample nearest that share of the chord, after the last cut
         while (at + 1 < spine.size() - (kSpineProportions.size() - 1 - k) &&
-               std::abs(arc[at + 1] - share * arc.back()) < std::abs(arc[at] - share * arc.back()))
+               std::abs(along[at + 1] - share * along.back()) < std::abs(along[at] - share * along.back()))
             ++at;
         fit.cuts.push_back(at);
     }
@@ -264,10 +264,10 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
                            leg_sfx);
         }
     if (humanoid) {
-        level_hips(out.rig, up ? *up : out.up);
-        centre_chest(out.rig, up ? *up : out.up);
+        level_hips(out.rig, body_up);
+        centre_chest(out.rig, body_up);
         recut_spine(out.rig, c.samples(spine));
-        place_head(c, out.rig, c.samples(head), up ? *up : out.up);
+        place_head(c, out.rig, c.samples(head), body_up);
     }
     out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;

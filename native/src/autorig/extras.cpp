@@ -31,8 +31,8 @@ bool is_tail(const Rig& rig, const std::string& owner, const Vec& tip) {
 /// How far a part hanging from a humanoid's `owner` bone at `at` must stick out: the hand's (foot's) length when
 /// the owner is a hand (foot), or its forearm (shin) with `at` within that length of the wrist (ankle); else 0.
 double end_part_reach(const Rig& rig, const std::string& owner, const Vec& at) {
+    const std::string side = owner.substr(std::min(owner.find('.'), owner.size()));  // ".L", ".R" or ""
     for (const auto& [end, limb] : {std::pair{"hand", "forearm"}, std::pair{"foot", "shin"}}) {
-        const std::string side = owner.substr(owner.find('.') == std::string::npos ? owner.size() : owner.find('.'));
         const std::int32_t e = bone_index(rig, end + side);
         if (e < 0 || (owner != end + side && owner != limb + side)) continue;
         const Vec base = bone_end(rig, static_cast<std::size_t>(e), 0);

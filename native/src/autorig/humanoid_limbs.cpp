@@ -63,9 +63,10 @@ namespace {
 
 constexpr int kCornerSteps = 4;
 
-/// The shoulder joint of a fused arm from the visible upper arm's samples (from the top down): up the body
-/// (`body_up`) to the object's surface (at most `limit`), then `radius` back in, `radius` inside the surface away
-/// from the chest and midway front to back; none unless their line runs along `body_up`.
+/// The shoulder joint from the visible upper arm's samples (from the top down): up the body (`body_up`) to the
+/// object's surface (at most `limit`), then into the corner under the top and the outer side (`radius` in from
+/// each, kCornerSteps alternating steps), front to back midway or `radius` behind the front (`front`, when given)
+/// whichever lies further forward; none unless their line runs along `body_up`.
 std::optional<Vec> shoulder_up_line(const RigContext& c, const std::vector<Vec>& upper, const Vec& body_up,
                                     const Vec& front, const Vec& chest, double radius, double limit) {
     if (upper.size() < 3) return std::nullopt;
@@ -312,10 +313,12 @@ void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& bo
     if (h < 0 || n < 0 || head.empty()) return;
     const auto hb = static_cast<std::size_t>(h);
     const Vec base = bone_end(rig, static_cast<std::size_t>(n), 0);
-    const Vec top = bone_end(rig, hb, 0) + c.reach_inside(bone_end(rig, hb, 0), body_up, 0.0, 1e9) * body_up;
+    // The top of the head: up from the head joint, at most four times the neck and head's extent.
+    const double extent = (bone_end(rig, hb, 1) - base).norm() + (bone_end(rig, hb, 0) - base).norm();
+    const Vec top = bone_end(rig, hb, 0) + c.reach_inside(bone_end(rig, hb, 0), body_up, 0.0, 4.0 * extent) * body_up;
     const double height = (top - base).dot(body_up);
     if (height <= 0) return;
-    const double want = (top - base).dot(body_up) - kHeadShare * height;
+    const double want = (1.0 - kHeadShare) * height;  // above the neck's base
     std::size_t at = 0;
     for (std::size_t k = 1; k < head.size(); ++k)
         if (std::abs((head[k].head<3>() - base).dot(body_up) - want) < std::abs((head[at].head<3>() - base).dot(body_up) - want))
