@@ -58,12 +58,19 @@ def setup():
             for role, o in members(vol).items():
                 o.hide_set(role != "THICKNESS")
             vol.hide_set(True)
+        if os.environ.get("UI_MEDIAL"):  # the body's medial surface and rods, the scan and the rig hidden
+            print("medial_surface:", bpy.ops.volrig.medial_surface(), flush=True)
+            from volrig_addon.objects import members
+            for role, o in members(vol).items():
+                o.hide_set(role != "MEDIAL")
+            vol.hide_set(True)
     for area in win.screen.areas:
         if area.type == "VIEW_3D":
             for space in area.spaces:
                 if space.type == "VIEW_3D":
                     space.show_region_ui = True
-                    space.shading.type = "MATERIAL" if os.environ.get("UI_THICKNESS") else "SOLID"
+                    space.shading.type = ("MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
+                                          else "SOLID")
             for region in area.regions:
                 if region.type == "UI":
                     try:
