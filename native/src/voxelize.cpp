@@ -395,6 +395,12 @@ Grids voxelize_grids(const Mesh& mesh, double h, const VoxelizeOptions& opt) {
         g.out.dims[a] = std::max<std::int64_t>(1, static_cast<std::int64_t>(whole)) + 2 * pad;
         g.out.spacing[a] = h;
         g.out.origin[a] = lo[a] - (static_cast<double>(pad) - 0.5) * h;
+        if (opt.anchor) {  // down onto the anchor's lattice, one voxel longer to keep the box covered
+            const double at = (*opt.anchor)[a];
+            if (!std::isfinite(at)) throw Error("voxelize: the anchor must be finite");
+            g.out.origin[a] = at + h * std::floor((g.out.origin[a] - at) / h);
+            g.out.dims[a] += 1;
+        }
         g.work.dims[a] = g.out.dims[a] + 2 * g.extra;
         g.work.spacing[a] = h;
         g.work.origin[a] = g.out.origin[a] - static_cast<double>(g.extra) * h;

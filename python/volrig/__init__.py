@@ -8,7 +8,7 @@ Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
-from .mesh import read_mesh, read_tgf, voxelize
+from .mesh import read_mesh, read_tgf, subdivide, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
@@ -24,6 +24,7 @@ from .centerlines import (Centerline, CenterlineTree, StraighteningRig, Straight
                           straighten, straightening_rig)
 from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
+from .skin import MeshRig, pose_vertices, rig_mesh, skin_weights
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -36,7 +37,8 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",
            "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
-           "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface"]
+           "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
+           "rig_mesh", "skin_weights", "pose_vertices"]
 
 
 def __getattr__(name):

@@ -57,7 +57,7 @@ def _number(value, what: str) -> float:
 
 
 def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: ProgressFn = None, *,
-             closing_radius: float = 1.5) -> Volume:
+             closing_radius: float = 1.5, anchor=None) -> Volume:
     """The solid a triangle mesh encloses, as a boolean mask ``Volume``.
 
     vertices:       (V, 3) positions (x, y, z), any real dtype; finite.
@@ -68,6 +68,9 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     closing_radius: hole closing, in voxels (0.5 to 4, default 1.5): holes and gaps narrower than about twice this
                     are closed (creases that narrow are filled too). 0 uses OpenVDB's own inside/outside, which
                     needs a watertight mesh and loses the whole interior through any hole wider than ~1.5 voxels.
+    anchor:         (x, y, z) a point the voxel lattice must pass through (voxel centres at anchor + k * voxel_size;
+                    the grid may start a voxel lower), e.g. another voxelization's origin, to compare the two voxel
+                    for voxel (a mesh and its posed copy).
 
     The volume's origin is the world position of voxel (0, 0, 0)'s centre; voxel (x, y, z) is inside when its
     centre is. Raises ValueError for bad arguments, a grid above the size limit ($VOLRIG_MAX_BYTES, default 16 GiB
@@ -104,5 +107,22 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     closing = _number(closing_radius, "closing_radius")
     if not (closing == 0 or 0.5 <= closing <= 4):
         raise VolrigError(f"closing_radius must be 0 or between 0.5 and 4 voxels, got {closing}")
-    mask, spacing, origin = _volrig.voxelize(v, f, size, pad, closing, progress)
+    if anchor is not None:
+        anchor = tuple(_number(a, "anchor") for a in np.asarray(anchor, dtype=np.float64).reshape(3))
+    mask, spacing, origin = _volrig.voxelize(v, f, size, pad, closing, progress, anchor)
     return Volume(mask.view(np.bool_), spacing, origin)
+
+
+def subdivide(vertices, faces) -> Tuple[np.ndarray, np.ndarray]:
+    """Midpoint subdivision: every triangle split into four at its edges' midpoints (the surface is unchanged; a
+    shared edge gets one midpoint). Returns ``(vertices, faces)`` with V + E vertices and 4F faces."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+        raise VolrigError(f"subdivide needs vertices (V, 3) and faces (F, 3), got {v.shape} and {f.shape}")
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    unique, inverse = np.unique(edges, axis=0, return_inverse=True)
+    ab, bc, ca = (len(v) + inverse.reshape(-1)).reshape(3, -1)
+    a, b, c = f.T
+    quads = [np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))]
+    return np.concatenate([v, v[unique].mean(axis=1)]), np.concatenate(quads)

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -97,6 +98,10 @@ struct VoxelizeOptions {
     double closing_radius = 1.5;
     /// Limit on the dense grid (bytes; voxelization holds two bytes per voxel).
     std::uint64_t max_bytes = default_max_bytes();
+    /// When set, a point the output lattice passes through: voxel centres lie at anchor + voxel_size * k (the
+    /// grid then starts up to one voxel lower and is one voxel longer), so that two voxelizations (a mesh and its
+    /// posed copy) can be compared voxel for voxel.
+    std::optional<std::array<double, 3>> anchor;
 };
 
 /// Voxelizes the solid a triangle mesh encloses: a uint8 mask (1 inside) on a grid of spacing `voxel_size` in all

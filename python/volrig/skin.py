@@ -1,0 +1,225 @@
+"""Meshes rigged through their volume: ``rig_mesh`` voxelizes a mesh, skeletonizes, auto-rigs and skins it;
+``skin_weights`` gives any points' weights from a rig and a mask; ``MeshRig.pose`` and ``MeshRig.thicken`` move the
+vertices (linear blend skinning, as Blender's Armature modifier does; thickness editing along bones).
+
+Skin weights come from geodesic distances through the voxelized solid (native/include/volrig/skin.hpp): a vertex is
+weighted by the bones that reach it along the inside, so a hand resting on a thigh does not pull the thigh's skin.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Dict, Mapping, Optional, Union
+
+import numpy as np
+
+from . import _volrig
+from ._volrig import VolrigError
+from .mesh import ProgressFn, voxelize
+from .rig import Binding, Rig
+from .skeleton import Skeleton, SkeletonPoints
+from .tree import SkeletonTree
+from .volume import Volume
+
+#: voxels along the longest side of a mesh's bounding box when ``rig_mesh`` chooses the voxel size
+MESH_VOXELS = 160
+
+
+def _span(progress: ProgressFn, lo: float, hi: float) -> ProgressFn:
+    if progress is None:
+        return None
+    return lambda f: progress(lo + (hi - lo) * f)
+
+
+def _points(vertices) -> np.ndarray:
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise VolrigError(f"vertices must have shape (V, 3), got {v.shape}")
+    return v
+
+
+def skin_weights(mask: Volume, rig: Rig, vertices, influences: int = 4, blend: float = 1.0,
+                 progress: ProgressFn = None):
+    """Weights of ``vertices`` (V, 3; world positions in the mask's frame) for ``rig``'s bones, by geodesic distance
+    through ``mask`` (a bool Volume: the solid the vertices bound, e.g. ``voxelize``'s).
+
+    influences: bones per vertex at most (1 to 8). blend: falloff width across joints (default 1: a limb of radius r
+    blends its neighbour within about 1.5 r of the joint; larger is smoother, smaller stiffer).
+    Returns a (V, B) scipy.sparse CSR matrix, float32, every row 1 to ``influences`` entries summing to 1.
+    """
+    from scipy import sparse
+    v = _points(vertices)
+    m = np.ascontiguousarray(np.asarray(mask.array) != 0, dtype=np.uint8)
+    indptr, bone, weight, _ = _volrig.skin_weights(m, mask.spacing, mask.origin, rig.joints, rig.bones, rig.names,
+                                                   rig.parents, v, int(influences), float(blend), progress)
+    return sparse.csr_matrix((weight, bone, indptr), shape=(len(v), len(rig.bones)), dtype=np.float32)
+
+
+def _closest_on_bones(rig: Rig, vertices: np.ndarray) -> np.ndarray:
+    """(B, V, 3): each vertex's closest point on each bone segment."""
+    h, t = rig.heads(), rig.tails()
+    d = t - h
+    s = np.einsum("bvk,bk->bv", vertices[None] - h[:, None], d) / np.einsum("bk,bk->b", d, d)[:, None]
+    return h[:, None] + np.clip(s, 0.0, 1.0)[..., None] * d[:, None]
+
+
+@dataclass
+class MeshRig:
+    """A mesh rigged through its volume (``rig_mesh``).
+
+    vertices, faces: the mesh (as given). rig: the armature (``Rig``; bones named as autorig names them).
+    weights: (V, B) CSR skin weights (``skin_weights``). mask: the voxelized solid; voxel_size its edge.
+    skeleton, points, tree, binding: the volume's own rig data (the same rig binds the voxelized volume, so the
+    mesh and its volume can be posed alike with ``volrig.deform``).
+    """
+    vertices: np.ndarray
+    faces: np.ndarray
+    rig: Rig
+    weights: object
+    mask: Volume
+    voxel_size: float
+    skeleton: Skeleton
+    points: SkeletonPoints
+    tree: SkeletonTree
+    binding: Binding
+
+    def pose(self, bone_matrices, method: str = "linear") -> np.ndarray:
+        """The vertices moved by (B, 4, 4) rest-to-pose matrices (posed = M @ rest), blended by the weights:
+        ``pose_vertices`` (linear: Blender's Armature modifier; dual_quaternion: its Preserve Volume)."""
+        return pose_vertices(self.vertices, self.weights, bone_matrices, method)
+
+    def thicken(self, scales: Mapping[Union[str, int], float], vertices=None) -> np.ndarray:
+        """Thickness editing: the vertices (default: the rest mesh) with the local radius around the given bones
+        scaled, ``{bone name or index: factor}`` (1 = unchanged, 2 = twice as thick, 0.5 half). Each vertex moves
+        along its direction from its closest point on the bone, by its weight for that bone, so joints blend."""
+        v = _points(self.vertices if vertices is None else vertices)
+        return v + thickness_offsets(self.rig, self.weights, v, scales)
+
+
+def _check_matrices(weights, bone_matrices) -> np.ndarray:
+    m = np.asarray(bone_matrices, dtype=np.float64)
+    if m.ndim != 3 or m.shape[1:] != (4, 4) or m.shape[0] != weights.shape[1]:
+        raise VolrigError(f"bone_matrices must have shape ({weights.shape[1]}, 4, 4), got {m.shape}")
+    if not np.isfinite(m).all():
+        raise VolrigError("bone_matrices must be finite")
+    return m
+
+
+def _dual_quaternions(m: np.ndarray):
+    """(B, 4) rotation quaternions (w, x, y, z) and (B, 4) dual parts of rigid matrices."""
+    from scipy.spatial.transform import Rotation
+    xyzw = Rotation.from_matrix(m[:, :3, :3]).as_quat()
+    q = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    t = np.concatenate([np.zeros((len(m), 1)), m[:, :3, 3]], axis=1)
+    return q, 0.5 * _qmul(t, q)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
+
+
+def pose_vertices(vertices, weights, bone_matrices, method: str = "linear") -> np.ndarray:
+    """Skinning: ``method="linear"`` sums weight * (M_b @ v) over the bones (linear blend skinning: Blender's
+    Armature modifier); ``"dual_quaternion"`` blends the bones' rigid motions as dual quaternions (the modifier's
+    Preserve Volume: no collapse at bent joints). ``bone_matrices`` (B, 4, 4) rest-to-pose, rigid for dual
+    quaternions."""
+    v = _points(vertices)
+    m = _check_matrices(weights, bone_matrices)
+    if method == "linear":
+        out = np.zeros_like(v)
+        w = weights.tocsc()
+        for b in range(m.shape[0]):
+            rows = w.indices[w.indptr[b]:w.indptr[b + 1]]
+            if len(rows):
+                wb = w.data[w.indptr[b]:w.indptr[b + 1]].astype(np.float64)[:, None]
+                out[rows] += wb * (v[rows] @ m[b, :3, :3].T + m[b, :3, 3])
+        return out
+    if method != "dual_quaternion":
+        raise VolrigError(f"method must be 'linear' or 'dual_quaternion', got {method!r}")
+    q, d = _dual_quaternions(m)
+    w = weights.tocsr()
+    rows = np.repeat(np.arange(len(v)), np.diff(w.indptr))
+    first = w.indices[w.indptr[:-1]]  # the heaviest bone of each row (rows are stored heaviest first)
+    sign = np.sign(np.einsum("ij,ij->i", q[w.indices], q[first[rows]]))
+    sign[sign == 0] = 1
+    ww = (w.data * sign)[:, None]
+    qr = np.zeros((len(v), 4))
+    qd = np.zeros((len(v), 4))
+    np.add.at(qr, rows, ww * q[w.indices])
+    np.add.at(qd, rows, ww * d[w.indices])
+    n = np.linalg.norm(qr, axis=1, keepdims=True)
+    qr, qd = qr / n, qd / n
+    conj = qr * [1, -1, -1, -1]
+    p = np.concatenate([np.zeros((len(v), 1)), v], axis=1)
+    rotated = _qmul(_qmul(qr, p), conj)[:, 1:]
+    t = 2 * _qmul(qd, conj)[:, 1:]
+    return rotated + t
+
+
+def _scale_array(rig: Rig, scales: Mapping[Union[str, int], float]) -> np.ndarray:
+    s = np.ones(len(rig.bones))
+    for key, value in scales.items():
+        b = rig.index(key) if isinstance(key, str) else int(key)
+        if not 0 <= b < len(s):
+            raise VolrigError(f"thickness: no bone {key!r}")
+        f = float(value)
+        if not (np.isfinite(f) and 0 <= f <= 100):
+            raise VolrigError(f"thickness: the factor for {key!r} must lie in [0, 100], got {value!r}")
+        s[b] = f
+    return s
+
+
+def thickness_offsets(rig: Rig, weights, vertices, scales: Mapping[Union[str, int], float]) -> np.ndarray:
+    """(V, 3): what ``MeshRig.thicken`` adds to each vertex: sum over the scaled bones b of
+    (factor_b - 1) * w_b(v) * (v - closest point of bone b). Linear in each factor, so a shape key holding the
+    offset for factor 2 reproduces any factor as key value = factor - 1."""
+    v = _points(vertices)
+    s = _scale_array(rig, scales)
+    out = np.zeros_like(v)
+    w = weights.tocsc()
+    for b in np.flatnonzero(s != 1.0):
+        rows = w.indices[w.indptr[b]:w.indptr[b + 1]]
+        if not len(rows):
+            continue
+        wb = w.data[w.indptr[b]:w.indptr[b + 1]].astype(np.float64)[:, None]
+        near = _closest_on_bones(Rig.from_bones(rig.heads()[[b]], rig.tails()[[b]], ["b"], [-1]), v[rows])[0]
+        out[rows] += (s[b] - 1.0) * wb * (v[rows] - near)
+    return out
+
+
+def mesh_voxel_size(vertices, voxels: int = MESH_VOXELS) -> float:
+    """The voxel size ``rig_mesh`` chooses: the bounding box's longest side / ``voxels``."""
+    v = _points(vertices)
+    if not len(v):
+        raise VolrigError("the mesh has no vertices")
+    side = float((v.max(0) - v.min(0)).max())
+    if not side > 0:
+        raise VolrigError("the mesh has no extent (all vertices at one point)")
+    return side / int(voxels)
+
+
+def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
+             thinness: float = 0.5, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
+             **autorig_options) -> MeshRig:
+    """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
+    side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider), autorig
+    (``autorig_options``: kind=, up=, bones=, roles=... as ``volrig.autorig`` takes them), bind the skeleton points
+    (smooth) and compute the vertices' ``skin_weights`` (``influences``, ``blend``).
+
+    progress: callable(fraction) -> bool|None; False cancels (``volrig.Cancelled``).
+    """
+    from .pipeline import rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels
+    v = _points(vertices)
+    f = np.asarray(faces)
+    size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
+    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15))
+    step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
+    staged = None if progress is None else \
+        (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))
+    sk = skeleton_of(mask, progress=staged)
+    pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
+    r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
+    weights = skin_weights(mask, r.rig, v, influences, blend, progress=_span(progress, 0.7, 1.0))
+    return MeshRig(v, f, r.rig, weights, mask, size, sk, pts, r.tree, r.binding)
