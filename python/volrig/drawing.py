@@ -134,23 +134,23 @@ def _largest(mask: np.ndarray) -> np.ndarray:
 
 
 def foreground(rgb: np.ndarray, alpha: Optional[np.ndarray]) -> np.ndarray:
-    """The silhouette (see the module docstring, step 1); VolrigError when empty or when it fills the image."""
+    """The silhouette (see the module docstring, step 1); VolrigError when it is empty or when the image border is
+    not a background (an image that is all figure)."""
     if alpha is not None and (alpha <= 0.5).any():
         fg = alpha > 0.5
     else:
         border = np.concatenate([rgb[0], rgb[-1], rgb[:, 0], rgb[:, -1]])
         bg = np.median(border, axis=0)
         like_bg = np.abs(rgb - bg).max(axis=2) <= BACKGROUND_DIFFERENCE
+        ring = np.concatenate([like_bg[0], like_bg[-1], like_bg[:, 0], like_bg[:, -1]])
+        if ring.mean() < 0.5:
+            raise VolrigError("the drawing has no background: its border is not of one colour (draw the figure on "
+                              "a plain light background, or give it an alpha channel)")
         lab, _ = ndi.label(like_bg)
         edge = np.unique(np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]]))
         fg = ~np.isin(lab, edge[edge > 0])
-        if fg.all():
-            raise VolrigError("the drawing has no background: every pixel is opaque and no border colour "
-                              "surrounds a figure (draw it on a light background or give it an alpha channel)")
     if not fg.any():
         raise VolrigError("the drawing is empty: no pixel is opaque (alpha > 0.5) or differs from the background")
-    if fg.all():
-        raise VolrigError("the drawing is all foreground: nothing around the figure is transparent")
     return _largest(fg)
 
 
@@ -261,14 +261,16 @@ def layers(labels: np.ndarray, depth_scale: float, gap: int) -> List[Layer]:
     front_pixels = np.isin(labels, enclosed)
     base = _completed((labels > 0) & ~front_pixels, front_pixels)
     out = [Layer(0, base, half_depth(base, depth_scale), 0)]
-    nearest = np.where(base, -out[0].half, np.inf)  # the front-most y reached so far per pixel
+    # voxel y is in a layer where |y - centre| <= half, i.e. from centre - floor(half) to centre + floor(half)
+    nearest = np.where(base, -np.floor(out[0].half), np.inf)  # the front-most voxel so far per pixel
     for p in sorted(enclosed, key=lambda q: -int((labels == q).sum())):
         shape = labels == p
         half = half_depth(shape, depth_scale)
+        extent = np.floor(half)
         over = shape & np.isfinite(nearest)
-        centre = int(np.floor((nearest[over] - half[over]).min())) - gap if over.any() else 0
+        centre = int((nearest[over] - extent[over]).min()) - 1 - gap if over.any() else 0
         out.append(Layer(p, shape, half, centre))
-        nearest = np.where(shape, np.minimum(nearest, centre - half), nearest)
+        nearest = np.where(shape, np.minimum(nearest, centre - extent), nearest)
     return out
 
 
@@ -324,9 +326,8 @@ def inflate_parts(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, s
     y0, y1 = _depth_range(placed)
     ys = np.arange(y0, y1 + 1, dtype=np.float64)[None, :, None]
     out = np.zeros((r1 - r0, ys.shape[1], c1 - c0), np.int32)
-    pad = np.pad(np.zeros(d.silhouette.shape), 1)  # crops below may reach one pixel outside the image
     for i, layer in enumerate(placed, start=1):
-        half = pad.copy()
+        half = np.full((d.silhouette.shape[0] + 2, d.silhouette.shape[1] + 2), -1.0)  # crops reach 1 pixel out
         half[1:-1, 1:-1] = np.where(layer.shape, layer.half, -1.0)
         h = half[r0 + 1:r1 + 1, c0 + 1:c1 + 1][:, None, :]
         out[np.abs(ys - layer.centre) <= h] = i
@@ -356,11 +357,14 @@ def fill_colours(d: Drawing, stroke_width: float = 3.0) -> np.ndarray:
     """(H, W, 3) colours: the outline strokes (dark lines within stroke_width + 1 of the silhouette's edge) and the
     background take the colour of the nearest fill pixel (paper 002's border expansion)."""
     near_edge = ndi.distance_transform_edt(d.silhouette) <= stroke_width + 1
-    keep = d.silhouette & ~(d.strokes & near_edge)
-    if not keep.any():
+    fill = d.silhouette & ~d.strokes
+    if not fill.any():
         return d.rgb
-    idx = ndi.distance_transform_edt(~keep, return_distances=False, return_indices=True)
-    return d.rgb[idx[0], idx[1]]
+    idx = ndi.distance_transform_edt(~fill, return_distances=False, return_indices=True)
+    replace = (d.strokes & near_edge) | ~d.silhouette
+    out = d.rgb.copy()
+    out[replace] = d.rgb[idx[0][replace], idx[1][replace]]
+    return out
 
 
 def drawing_colours(image, volume: Volume, *, stroke_width: float = 3.0, stroke_level: float = 0.3,
@@ -376,3 +380,27 @@ def drawing_colours(image, volume: Volume, *, stroke_width: float = 3.0, stroke_
     rows = np.clip(colours.shape[0] - 1 - zs, 0, colours.shape[0] - 1)
     plane = colours[rows[:, None], cols[None, :]]  # (nz, nx, 3)
     return np.broadcast_to(plane[:, None, :, :], (nz, ny, nx, 3))
+
+
+#: the VDB grids of a coloured drawing: the solid and its colour channels (what the add-on's material reads)
+COLOUR_GRIDS = ("color_r", "color_g", "color_b")
+
+
+def drawing_grids(image, **options):
+    """``inflate(image, **options)`` and the grids to write for a renderer: (mask Volume, {"density": 0/1 float32,
+    "color_r"/"color_g"/"color_b": the projected colour on the solid, 0 elsewhere})."""
+    mask = inflate(image, **options)
+    keep = {k: options[k] for k in ("stroke_width", "stroke_level", "resolution") if k in options}
+    colours = drawing_colours(image, mask, **keep)
+    grids = {"density": mask.like(mask.array.astype(np.float32))}
+    for c, name in enumerate(COLOUR_GRIDS):
+        grids[name] = mask.like(np.where(mask.array, colours[..., c], np.float32(0)))
+    return mask, grids
+
+
+def write_drawing_vdb(path: str, image, **options) -> Volume:
+    """Inflates ``image`` and writes its grids (``drawing_grids``) to an OpenVDB file; returns the mask."""
+    from .volume import write_vdb
+    mask, grids = drawing_grids(image, **options)
+    write_vdb(path, grids, half=False)
+    return mask
