@@ -404,3 +404,22 @@ def write_drawing_vdb(path: str, image, **options) -> Volume:
     mask, grids = drawing_grids(image, **options)
     write_vdb(path, grids, half=False)
     return mask
+
+
+def colour_labels(image, max_colours: int = 24, **options):
+    """``inflate(image, **options)`` with its colour as a label map, which survives posing (a deformation
+    resamples labels nearest) and renders through a palette: (float32 Volume, 0 outside the solid and 1..K
+    inside, the label of each voxel's projected colour; palette (K, 3) float 0..1). The colours are quantized to
+    at most ``max_colours`` (8 levels per channel, the most common bins kept, every pixel to the nearest)."""
+    mask = inflate(image, **options)
+    keep = {k: options[k] for k in ("stroke_width", "stroke_level", "resolution") if k in options}
+    colours = drawing_colours(image, mask, **keep)[:, 0]  # (nz, nx, 3): the same along depth
+    seen = mask.array.any(axis=1)
+    bins = np.minimum((colours * 8).astype(np.int32), 7) @ np.array([64, 8, 1])
+    counts = np.bincount(bins[seen], minlength=512)
+    top = np.argsort(counts)[::-1][:max_colours]
+    top = top[counts[top] >= max(1, counts[top[0]] // 1000)]  # specks (a few pixels of one colour) dropped
+    palette = np.array([colours[seen & (bins == b)].mean(axis=0) for b in top])
+    nearest = np.argmin(((colours[:, :, None, :] - palette[None, None]) ** 2).sum(axis=3), axis=2)
+    labels = np.where(mask.array, (nearest + 1).astype(np.float32)[:, None, :], np.float32(0))
+    return mask.like(labels), palette
