@@ -42,8 +42,35 @@ def drawing_volume(context, path: str, *, height: float, resolution: int, depth_
     s.body_plan, s.use_scene_up = body_plan, True
     linear = np.where(palette <= 0.04045, palette / 12.92, ((palette + 0.055) / 1.055) ** 2.4)  # sRGB -> scene
     obj["volrig_palette"] = [float(c) for c in linear.ravel()]
-    materials.update_volume_material(obj)
+    whole_labels_only(materials.update_volume_material(obj))
     return obj
+
+
+def whole_labels_only(mat) -> None:
+    """Makes the volume material opaque only where the label grid holds a whole label (within 0.05). Cycles
+    interpolates the grid, so across the surface a part labelled 3 passes through 1 and 2: without this, every part
+    would wear a thin shell of colour 1 over its own colour. The volume material's own nodes are kept (it is still
+    updated by ``materials.update_volume_material``); a test multiplies its opacity."""
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    if "volrig whole label" in nodes:
+        return
+    rounded = nodes.new("ShaderNodeMath")
+    rounded.operation = "ROUND"
+    whole = nodes.new("ShaderNodeMath")
+    whole.name = whole.label = "volrig whole label"
+    whole.operation = "COMPARE"
+    whole.inputs[2].default_value = 0.05
+    solid = nodes.new("ShaderNodeMath")
+    solid.operation = "MULTIPLY"
+    density = nodes["volrig density"].outputs["Fac"]
+    links.new(density, rounded.inputs[0])
+    links.new(density, whole.inputs[0])
+    links.new(rounded.outputs[0], whole.inputs[1])
+    links.new(nodes["volrig opacity"].outputs[0], solid.inputs[0])
+    links.new(whole.outputs[0], solid.inputs[1])
+    for shader in ("volrig scatter", "volrig absorb", "volrig glow_density"):
+        target = nodes[shader].inputs["Density"] if shader != "volrig glow_density" else nodes[shader].inputs[1]
+        links.new(solid.outputs[0], target)
 
 
 def add_mesh(context, volume_obj):
