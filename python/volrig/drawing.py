@@ -278,13 +278,25 @@ def layers(labels: np.ndarray, depth_scale: float, gap: int) -> List[Layer]:
 
 @dataclass
 class Drawing:
-    """A drawing read and analysed: rgb (H, W, 3) float 0..1, the silhouette, its strokes and parts (labels 1..n),
-    the image rows (H) and the pixel size after any downscaling."""
+    """A drawing read and analysed, cropped to the figure and a margin: rgb (h, w, 3) float 0..1, the silhouette,
+    its strokes and parts (labels 1..n), the pixel size after any downscaling, the crop's first row and column and
+    the whole image's row count (which place the crop in the frame: see the module docstring)."""
     rgb: np.ndarray
     silhouette: np.ndarray
     strokes: np.ndarray
     parts: np.ndarray
     pixel_size: float
+    row0: int = 0
+    col0: int = 0
+    rows: int = 0
+
+    def x_of(self, col):
+        """World x of crop column(s) ``col``."""
+        return (np.asarray(col) + self.col0) * self.pixel_size
+
+    def z_of(self, row):
+        """World z of crop row(s) ``row``."""
+        return (self.rows - 1 - (np.asarray(row) + self.row0)) * self.pixel_size
 
 
 def analyse(image, *, pixel_size: float = 1.0, stroke_width: float = 3.0, stroke_level: float = 0.3,
@@ -300,8 +312,11 @@ def analyse(image, *, pixel_size: float = 1.0, stroke_width: float = 3.0, stroke
     a = _downscale(a, factor)
     rgb, alpha = _rgb_alpha(a)
     fg = foreground(rgb, alpha)
+    (r0, r1), (c0, c1) = ((max(i.min() - 4, 0), i.max() + 5) for i in np.nonzero(fg))  # 4: blocks the crop's edge
+    rgb, fg = rgb[r0:r1, c0:c1], fg[r0:r1, c0:c1]                                       # away from the figure
     lines = strokes(rgb, fg, stroke_width, stroke_level)
-    return Drawing(rgb, fg, lines, parts(fg, lines, stroke_width), float(pixel_size) * factor)
+    return Drawing(rgb, fg, lines, parts(fg, lines, stroke_width), float(pixel_size) * factor, int(r0), int(c0),
+                   int(a.shape[0]))
 
 
 def _depth_range(placed: List[Layer]):
@@ -332,8 +347,7 @@ def inflate_parts(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, s
         h = half[r0 + 1:r1 + 1, c0 + 1:c1 + 1][:, None, :]
         out[np.abs(ys - layer.centre) <= h] = i
     s = d.pixel_size
-    h_rows = d.silhouette.shape[0]
-    origin = (c0 * s, y0 * s, (h_rows - r1) * s)
+    origin = (float(d.x_of(c0)), y0 * s, float(d.z_of(r1 - 1)))
     return Volume(out[::-1].copy(), (s, s, s), origin), d
 
 
@@ -375,9 +389,9 @@ def drawing_colours(image, volume: Volume, *, stroke_width: float = 3.0, stroke_
     colours = fill_colours(d, stroke_width).astype(np.float32)
     s = volume.spacing[0]
     nx, ny, nz = volume.dims
-    cols = np.clip(np.round((volume.origin[0] + s * np.arange(nx)) / s).astype(int), 0, colours.shape[1] - 1)
-    zs = np.round((volume.origin[2] + s * np.arange(nz)) / s).astype(int)
-    rows = np.clip(colours.shape[0] - 1 - zs, 0, colours.shape[0] - 1)
+    cols = np.round((volume.origin[0] + s * np.arange(nx)) / s).astype(int) - d.col0
+    rows = d.rows - 1 - np.round((volume.origin[2] + s * np.arange(nz)) / s).astype(int) - d.row0
+    cols, rows = np.clip(cols, 0, colours.shape[1] - 1), np.clip(rows, 0, colours.shape[0] - 1)
     plane = colours[rows[:, None], cols[None, :]]  # (nz, nx, 3)
     return np.broadcast_to(plane[:, None, :, :], (nz, ny, nx, 3))
 
