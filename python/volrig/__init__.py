@@ -42,9 +42,9 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
 
 
 def __getattr__(name):
-    if name == "phantom":  # numpy-heavy generator, imported on first use
+    if name in ("phantom", "drawing", "sketches"):  # numpy/scipy-heavy modules, imported on first use
         import importlib
-        return importlib.import_module(".phantom", __name__)
+        return importlib.import_module("." + name, __name__)
     if name in ("inflate", "drawing_colours"):  # scipy.ndimage, imported on first use
         from . import drawing
         return getattr(drawing, name)
