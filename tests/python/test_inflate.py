@@ -135,6 +135,14 @@ def test_drawn_character_rigs_as_a_humanoid():
     assert left[0] > right[0]  # the character's left is image right = +x
 
 
+def test_character_with_an_arm_across_the_belly_rigs_as_a_humanoid():
+    img = K.character(arm_over=True)
+    labels, d = D.inflate_parts(img)
+    assert labels.array.max() >= 2  # the forearm drawn over the belly lies in front
+    rig = rig_of(labels.like(labels.array > 0))
+    assert rig.kind == "humanoid" and set(RIGIFY) <= set(rig.names)
+
+
 def test_drawn_quadruped_rigs_as_a_quadruped():
     img = K.quadruped()
     labels = D.analyse(img).parts
