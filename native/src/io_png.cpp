@@ -55,10 +55,11 @@ std::uint64_t checked_size(const ByteSource& src, const png_image& im, std::uint
                            const ReadOptions& opt) {
     const std::uint64_t w = im.width, h = im.height;
     if (w == 0 || h == 0) fail(src.name(), "the image has no pixels");
-    const std::uint64_t bytes = w * h * 4;  // both < 2^31 (PNG limit), so no overflow
-    if (bytes > opt.max_bytes)
-        fail(src.name(), std::to_string(w) + " x " + std::to_string(h) + " pixels need " + with_commas(bytes) +
+    if (w > opt.max_bytes / 4 / h)  // w * h * 4 > max_bytes, without overflowing
+        fail(src.name(), std::to_string(w) + " x " + std::to_string(h) + " pixels need " +
+                             with_commas(static_cast<std::uint64_t>(static_cast<double>(w) * h * 4)) +
                              " bytes, more than the limit of " + with_commas(opt.max_bytes));
+    const std::uint64_t bytes = w * h * 4;
     // The filtered rows the IDAT stream must hold: at least one byte per row and one bit per pixel.
     const std::uint64_t least = h * (1 + (w + 7) / 8);
     detail::check_inflate_bound(src.name(), least, compressed);
