@@ -61,10 +61,10 @@ def read_png(path: str) -> np.ndarray:
 
 
 def write_png(path: str, image: np.ndarray) -> None:
-    """Writes an (H, W, 3|4) uint8 array (or float 0..1) as an 8-bit RGB(A) PNG (zlib, no filters)."""
-    a = _as_float(image)
-    if a.shape[2] == 1:
-        a = np.repeat(a, 3, axis=2)
+    """Writes an image (as ``inflate`` takes it) as an 8-bit RGB or RGBA PNG (zlib, no filters), atomically."""
+    from .files import atomic_output
+    rgb, alpha = _rgb_alpha(_as_float(image))
+    a = rgb if alpha is None else np.dstack([rgb, alpha])
     a = np.round(a * 255).astype(np.uint8)
     h, w, c = a.shape
     raw = b"".join(b"\0" + a[r].tobytes() for r in range(h))
@@ -72,9 +72,10 @@ def write_png(path: str, image: np.ndarray) -> None:
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
     header = struct.pack(">IIBBBBB", w, h, 8, 6 if c == 4 else 2, 0, 0, 0)
-    with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6))
-                + chunk(b"IEND", b""))
+    with atomic_output(os.fspath(path), suffix=".png") as tmp:
+        with open(tmp, "wb") as f:
+            f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6))
+                    + chunk(b"IEND", b""))
 
 
 def _as_float(image) -> np.ndarray:

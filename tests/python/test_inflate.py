@@ -219,6 +219,18 @@ def test_malformed_png_is_refused(tmp_path):
         volrig.inflate(str(tmp_path / "missing.png"))
 
 
+@pytest.mark.parametrize("channels", [None, 2, 3, 4])
+def test_write_png_round_trips_through_the_native_reader(tmp_path, channels):
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (7, 9) if channels is None else (7, 9, channels)).astype(np.uint8)
+    D.write_png(str(tmp_path / "x.png"), img)
+    back = D.read_png(str(tmp_path / "x.png"))
+    assert back.shape == (7, 9, 4) and back.dtype == np.uint8
+    grey = img if channels is None else img[..., 0]
+    assert np.array_equal(back[..., 0], grey if channels in (None, 2) else img[..., 0])
+    assert np.array_equal(back[..., 3], img[..., -1] if channels in (2, 4) else np.full((7, 9), 255))
+
+
 def test_resolution_downscales():
     big = K.disc(r=60)
     v = volrig.inflate(big, resolution=70)
