@@ -192,8 +192,8 @@ def closing(shape: np.ndarray, r: float) -> np.ndarray:
 
 def in_front(labels: np.ndarray) -> List[int]:
     """The parts drawn in front of others: the rest of the silhouette, closed by a disc a little wider than the
-    part, covers at least a square of the part's width of it (the outline of what lies behind runs on under the
-    part: T-junctions). The largest part is never in front."""
+    part, covers at least ``COVERED`` squares of the part's width of it (the outline of what lies behind runs on
+    under the part: T-junctions). The largest part is never in front."""
     n = int(labels.max())
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     out = []
@@ -258,13 +258,13 @@ class Layer:
 
 def layers(labels: np.ndarray, depth_scale: float, gap: int) -> List[Layer]:
     """The base (label 0 stands for it) and each front part, placed along depth (step 4)."""
-    enclosed = in_front(labels)
-    front_pixels = np.isin(labels, enclosed)
+    front = in_front(labels)
+    front_pixels = np.isin(labels, front)
     base = _completed((labels > 0) & ~front_pixels, front_pixels)
     out = [Layer(0, base, half_depth(base, depth_scale), 0)]
     # voxel y is in a layer where |y - centre| <= half, i.e. from centre - floor(half) to centre + floor(half)
     nearest = np.where(base, -np.floor(out[0].half), np.inf)  # the front-most voxel so far per pixel
-    for p in sorted(enclosed, key=lambda q: -int((labels == q).sum())):
+    for p in sorted(front, key=lambda q: -int((labels == q).sum())):  # the larger first: behind the smaller
         shape = labels == p
         half = half_depth(shape, depth_scale)
         extent = np.floor(half)
