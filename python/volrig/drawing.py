@@ -222,13 +222,17 @@ def local_radius(shape: np.ndarray, dist: np.ndarray) -> np.ndarray:
                 medial &= q - dist < 0.999 * np.hypot(dy, dx)
     radius = np.zeros_like(dist)
     ys, xs = np.nonzero(medial)
+    order = np.argsort(dist[ys, xs], kind="stable")  # ascending radii: the largest disc is painted last
     h, w = dist.shape
-    for y, x, r in sorted(zip(ys, xs, dist[ys, xs]), key=lambda t: t[2]):
+    offsets = np.arange(-int(np.ceil(dist.max())), int(np.ceil(dist.max())) + 1)
+    squares = offsets * offsets
+    for y, x in zip(ys[order].tolist(), xs[order].tolist()):
+        r = dist[y, x]
         k = int(np.ceil(r))
         y0, y1, x0, x1 = max(y - k, 0), min(y + k + 1, h), max(x - k, 0), min(x + k + 1, w)
-        yy, xx = np.ogrid[y0 - y:y1 - y, x0 - x:x1 - x]
-        box = radius[y0:y1, x0:x1]
-        box[yy * yy + xx * xx <= r * r] = r  # ascending radii: the largest disc is painted last
+        c = len(offsets) // 2
+        inside = squares[c + y0 - y:c + y1 - y, None] + squares[None, c + x0 - x:c + x1 - x] <= r * r
+        radius[y0:y1, x0:x1][inside] = r
     return np.where(shape, np.maximum(radius, dist), 0.0)
 
 
