@@ -39,6 +39,9 @@ def test_import_drawing_rigs_a_coloured_humanoid(empty_scene, character_png):
     # coloured by the drawing: the label look with the drawing's palette (the red shirt among its colours)
     s = vol.volrig
     assert s.preset == "LABELS" and s.segment_by == "LABELS" and s.sampling == "nearest"
+    from volrig import drawing
+    labels, _ = drawing.colour_labels(character_png, resolution=150)
+    assert s.mask_count == int((labels.array > 0).sum())  # every voxel of the solid is object
     palette = np.reshape(vol["volrig_palette"], (-1, 3))
     assert 4 <= len(palette) <= 24
     ramp = vol.data.materials[0].node_tree.nodes["volrig ramp"].color_ramp
