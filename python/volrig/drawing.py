@@ -312,6 +312,8 @@ def analyse(image, *, pixel_size: float = 1.0, stroke_width: float = 3.0, stroke
         raise VolrigError(f"pixel_size must be a positive number, got {pixel_size!r}")
     if not (np.isfinite(stroke_width) and stroke_width > 0):
         raise VolrigError(f"stroke_width must be a positive number of pixels, got {stroke_width!r}")
+    if resolution is not None and not (int(resolution) == resolution and resolution >= 16):
+        raise VolrigError(f"resolution must be a whole number of pixels >= 16, got {resolution!r}")
     a = _as_float(image)
     factor = 1 if not resolution else max(1, int(np.ceil(max(a.shape[:2]) / float(resolution))))
     a = _downscale(a, factor)

@@ -199,7 +199,8 @@ def test_bad_images_are_refused(image, message):
 
 def test_bad_options_are_refused():
     for kw, message in [(dict(pixel_size=0), "pixel_size"), (dict(depth_scale=-1), "depth_scale"),
-                        (dict(gap=0.5), "gap"), (dict(stroke_width=float("nan")), "stroke_width")]:
+                        (dict(gap=0.5), "gap"), (dict(stroke_width=float("nan")), "stroke_width"),
+                        (dict(resolution=2), "resolution")]:
         with pytest.raises(volrig.VolrigError, match=message):
             volrig.inflate(K.disc(r=10), **kw)
 
