@@ -37,7 +37,7 @@ _find_volrig()
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
     for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
-               "panels"):
+               "drawing", "panels"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -45,6 +45,7 @@ import bpy  # noqa: E402
 
 from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
                staging)
+from . import drawing  # noqa: E402
 
 
 def register():
@@ -52,6 +53,7 @@ def register():
         print(f"volrig: Blender {bpy.app.version_string} is outside the supported range 3.4 .. 4.x")
     properties.register()
     operators.register()
+    drawing.register()
     panels.register()
     bpy.app.handlers.load_post.append(scans.forget_all)
 
@@ -61,5 +63,6 @@ def unregister():
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()
     panels.unregister()
+    drawing.unregister()
     operators.unregister()
     properties.unregister()

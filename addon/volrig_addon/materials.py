@@ -31,7 +31,7 @@ def _lumen_range(s):
     return s.low, s.high
 
 
-def _stops(preset, vmin, vmax, lumen=None):
+def _stops(preset, vmin, vmax, lumen=None, palette=None):
     if preset == "LUMEN":  # the lumen's values clear, everything else an opaque wall: seen from inside
         lo, hi = lumen
         span = (vmax - vmin) or 1.0
@@ -48,7 +48,8 @@ def _stops(preset, vmin, vmax, lumen=None):
     if preset == "LABELS":
         top = max(1, min(int(round(vmax)), 31))
         stops = [(0.0, (0.0, 0.0, 0.0), 0.0)]
-        stops += [((k - 0.5) / top, PALETTE[(k - 1) % len(PALETTE)], 1.0) for k in range(1, top + 1)]
+        colours = [tuple(c) for c in palette] if palette else PALETTE  # an imported drawing's own colours
+        stops += [((k - 0.5) / top, colours[(k - 1) % len(colours)], 1.0) for k in range(1, top + 1)]
         return 0.0, float(top), "CONSTANT", stops
     lo, hi, interpolation, stops = PRESETS[preset]
     span = (vmax - vmin) or 1.0
@@ -142,7 +143,9 @@ def update_volume_material(volume_obj):
         else:
             data.materials.append(mat)
     nd = _nodes(mat)
-    lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max, _lumen_range(s))
+    palette = volume_obj.get("volrig_palette")
+    palette = [tuple(palette[i:i + 3]) for i in range(0, len(palette), 3)] if palette else None
+    lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max, _lumen_range(s), palette)
     nd["window"].inputs["From Min"].default_value = lo
     nd["window"].inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
     ramp = nd["ramp"].color_ramp

@@ -35,6 +35,7 @@ class VOLRIG_PT_volume(_VolrigPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         layout.operator("volrig.import_volume", icon="IMPORT")
+        layout.operator("volrig.import_drawing", icon="IMAGE_DATA")
         vol = objects.volume_of(context.active_object)
         if vol is None:
             layout.label(text="Select a volrig volume, or import one")

@@ -172,5 +172,6 @@ void bind_deform(py::module_& m);
 void bind_bvh(py::module_& m);
 void bind_centerline(py::module_& m);
 void bind_collide(py::module_& m);
+void bind_image(py::module_& m);
 
 }  // namespace volrig::py

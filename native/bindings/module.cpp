@@ -31,4 +31,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_bvh(m);
     volrig::py::bind_centerline(m);
     volrig::py::bind_collide(m);
+    volrig::py::bind_image(m);
 }

@@ -4,7 +4,8 @@ Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> `
 -> ``bind`` (and ``reconstruct``) -> per frame ``deform`` (``Deformer``); ``save_rig`` / ``load_rig`` keep the result in one file.
 ``volrig.pipeline`` chains these steps as the command line, the Blender add-on and the demo use them.
 Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s). Motion capture: ``read_bvh``
--> ``animate(rig, motion)`` gives per-frame bone matrices.
+-> ``animate(rig, motion)`` gives per-frame bone matrices. Drawings come in through ``inflate`` (a mask, too)
+and ``drawing_colours``.
 """
 from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
@@ -38,11 +39,14 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
-           "rig_mesh", "skin_weights", "pose_vertices"]
+           "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours"]
 
 
 def __getattr__(name):
-    if name == "phantom":  # numpy-heavy generator, imported on first use
+    if name in ("phantom", "drawing", "sketches"):  # numpy/scipy-heavy modules, imported on first use
         import importlib
-        return importlib.import_module(".phantom", __name__)
+        return importlib.import_module("." + name, __name__)
+    if name in ("inflate", "drawing_colours"):  # scipy.ndimage, imported on first use
+        from . import drawing
+        return getattr(drawing, name)
     raise AttributeError(name)

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,demo}``. Run with -h for each command's options."""
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,inflate,demo}``. Run with -h for each command's options."""
 from __future__ import annotations
 
 import argparse
@@ -533,6 +533,19 @@ def cmd_contacts(args) -> int:
     return 0
 
 
+def cmd_inflate(args) -> int:
+    from .drawing import write_drawing_vdb
+    if not args.output.lower().endswith(".vdb"):
+        raise VolrigError(f"{args.output}: the output must be a .vdb file")
+    t = time.perf_counter()
+    mask = write_drawing_vdb(args.output, args.drawing, pixel_size=args.pixel_size, depth_scale=args.depth_scale,
+                             stroke_width=args.stroke_width, gap=args.gap, resolution=args.resolution)
+    x, y, z = mask.dims
+    print(f"{args.drawing}: {int(mask.array.sum()):,} voxels in {x} x {y} x {z} (spacing {mask.spacing[0]:g}; up +z, "
+          f"depth +y) with its colours, in {time.perf_counter() - t:.2f} s -> {args.output}")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(args.output, scale=args.scale, thinness=args.thinness)
@@ -682,6 +695,19 @@ def main(argv=None) -> int:
     p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
                                    "volrig_addon Python finds, else the one installed in Blender)")
     p.set_defaults(run=cmd_flythrough)
+
+    p = sub.add_parser("inflate", help="a front-view drawing (PNG with alpha or on a light background) inflated to a "
+                                       "rounded solid, with its colours, as a VDB (grids density, color_r/g/b)")
+    p.add_argument("drawing", help="the drawing (.png)")
+    p.add_argument("output", help="output .vdb")
+    p.add_argument("--pixel-size", type=float, default=1.0, help="world units per pixel (default 1)")
+    p.add_argument("--depth-scale", type=float, default=1.0, help="depth / round (default 1; < 1 flatter)")
+    p.add_argument("--stroke-width", type=float, default=3.0,
+                   help="widest inner line (pixels) separating parts (default 3)")
+    p.add_argument("--gap", type=int, default=0, help="voxels between a part drawn in front and what is behind it")
+    p.add_argument("--resolution", type=int, help="downscale the drawing to about this many pixels along its "
+                                                  "longer side first")
+    p.set_defaults(run=cmd_inflate)
 
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")

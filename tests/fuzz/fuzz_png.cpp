@@ -1,0 +1,19 @@
+// libFuzzer target for read_png_file (libpng on one file from memory): any input must either read or fail with
+// a volrig::Error (a FileFormatError naming the input). Any other exception, crash, leak or sanitizer report is a
+// finding. Built by scripts/fuzz.
+#include <cstddef>
+#include <cstdint>
+
+#include "volrig/image.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const auto src = volrig::memory_source(data, size, "fuzz.png");
+    volrig::ReadOptions opt;
+    opt.max_bytes = std::uint64_t(64) << 20;
+    try {
+        const volrig::Image im = volrig::read_png_file(*src, opt);
+        (void)im;
+    } catch (const volrig::Error&) {
+    }
+    return 0;
+}
