@@ -252,3 +252,34 @@ def test_posed_mesh_and_posed_volume_agree(name):
     rig = mr.rig
     assert voxel_difference(mr, volrig.rest_pose(len(rig.bones))) == 0.0
     assert voxel_difference(mr, bent(rig, np.array(S.MESHES[name][3], float))) <= 0.02
+
+
+def test_thicken_volume_stretches_a_bone_radially_and_poses():
+    """A bar volume of two bones: bone b at factor 1.5 gets 1.5 times the cross-section radius beside it, bone a
+    keeps its own; posing the thickened source with the scaled spheres at rest gives it back."""
+    v, f, _, rig = bar()
+    mask = volrig.voxelize(v, f, 0.1, padding=8)  # room to grow
+    source = mask.like(mask.array.astype(np.float32))
+    sk = volrig.skeletonize(mask)
+    pts = sk.at(0.0)
+    binding = volrig.bind(pts, rig, mask, mode="smooth")
+    thick, rs = volrig.skin.thicken_volume(source, pts, binding, rig, {"b": 1.5})
+    assert rs.shape == (len(pts),) and rs.min() >= 1.0 and rs.max() == pytest.approx(1.5)
+    a = np.asarray(thick.array) > 0.5
+    xs = np.array(mask.origin[0]) + np.arange(mask.dims[0]) * mask.spacing[0]
+    area = a.sum(axis=(0, 1)).astype(float)
+    rest_area = np.asarray(mask.array).sum(axis=(0, 1)).astype(float)
+    beside_b = (xs > 9) & (xs < 11)
+    beside_a = (xs > 1) & (xs < 3)
+    # the bar's square section: 20 voxels wide -> 30 across its middle beside b, the area grows; a's unchanged
+    assert (area[beside_b] > 1.5 * rest_area[beside_b]).all()
+    assert (area[beside_a] == rest_area[beside_a]).all()
+    middle = a[a.shape[0] // 2, :, beside_b].sum(axis=1)
+    assert np.abs(middle - 30).max() <= 2, middle
+    frame = volrig.Deformer(thick, pts, binding).frame(volrig.rest_pose(2), radius_scale=rs)
+    fv = np.asarray(frame.values.array) > 0.5
+    o = np.round((np.array(frame.values.origin) - np.array(mask.origin)) / 0.1).astype(int)[::-1]
+    inside = a[o[0]:o[0] + fv.shape[0], o[1]:o[1] + fv.shape[1], o[2]:o[2] + fv.shape[2]]
+    assert (fv == inside[:fv.shape[0], :fv.shape[1], :fv.shape[2]]).mean() > 0.999
+    same, rs1 = volrig.skin.thicken_volume(source, pts, binding, rig, {})
+    assert same is source and (rs1 == 1).all()
