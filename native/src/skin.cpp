@@ -1,6 +1,8 @@
 // skin: weights of surface points by geodesic distance through the object (see volrig/skin.hpp).
 #include "volrig/skin.hpp"
 
+#include "neighbourhood.hpp"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -165,18 +167,12 @@ void push_sources(Labels& L, const Rig& rig, std::size_t b, Heap& heap) {
 void nearest_bones(Labels& L, const Rig& rig, const Progress& progress) {
     Heap heap;
     for (std::size_t b = 0; b < rig.bones.size(); ++b) push_sources(L, rig, b, heap);
-    std::array<std::array<int, 3>, 26> step{};
     std::array<float, 26> len{};
-    int m = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-        for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-                if (!dx && !dy && !dz) continue;
-                step[static_cast<std::size_t>(m)] = {dx, dy, dz};
-                len[static_cast<std::size_t>(m++)] = static_cast<float>(
-                    std::sqrt(dx * dx * L.g.spacing[0] * L.g.spacing[0] + dy * dy * L.g.spacing[1] * L.g.spacing[1] +
-                              dz * dz * L.g.spacing[2] * L.g.spacing[2]));
-            }
+    for (std::size_t k = 0; k < 26; ++k) {
+        const auto& o = detail::kOffsets[k];
+        const double x = o.dx * L.g.spacing[0], y = o.dy * L.g.spacing[1], z = o.dz * L.g.spacing[2];
+        len[k] = static_cast<float>(std::sqrt(x * x + y * y + z * z));
+    }
     const double total = static_cast<double>(L.voxel.size()) * L.k;
     std::size_t settled = 0;
     while (!heap.empty()) {
@@ -188,10 +184,10 @@ void nearest_bones(Labels& L, const Rig& rig, const Progress& progress) {
         c.dist[c.filled++] = e.d;
         if ((++settled & 0xffff) == 0) report(progress, 0.8 * static_cast<double>(settled) / total);
         const auto at = L.xyz(e.v);
-        for (int s = 0; s < 26; ++s) {
-            const auto& o = step[static_cast<std::size_t>(s)];
-            const std::int32_t n = L.at(at[0] + o[0], at[1] + o[1], at[2] + o[2]);
-            const float d = e.d + len[static_cast<std::size_t>(s)];
+        for (std::size_t s = 0; s < 26; ++s) {
+            const auto& o = detail::kOffsets[s];
+            const std::int32_t n = L.at(at[0] + o.dx, at[1] + o.dy, at[2] + o.dz);
+            const float d = e.d + len[s];
             if (n >= 0 && L.open(n, e.b) && L.cell[static_cast<std::size_t>(n)].try_push(e.b, d)) heap.push({d, n, e.b});
         }
     }
