@@ -394,3 +394,33 @@ def test_bad_input_gets_clear_errors():
         volrig.Deformer(nan_volume, pts, binding)
     with pytest.raises(volrig.Cancelled):
         volrig.Deformer(volume, pts, binding).frame(volrig.rest_pose(3), progress=lambda f: f < 0.5)
+
+
+def test_coarse_level_previews_the_full_frame(phantom_half, phantom_rigged):
+    """The live preview's level: every 4th voxel, one point per coarse voxel; its frame of a bent pose covers what
+    the full frame covers (Dice > 0.9 on the coarse voxels) at a fraction of the voxels."""
+    from volrig.deform import coarse_level
+    volume = phantom_half.volume
+    mask, pts, rig, binding = phantom_rigged
+    src, cpts, cb = coarse_level(volume, pts, binding, 4)
+    assert src.spacing == tuple(4 * s for s in volume.spacing) and src.origin == volume.origin
+    assert src.array.shape == tuple((n + 3) // 4 for n in volume.array.shape)
+    assert 0 < len(cpts) < len(pts) and len(cb) == len(cpts)
+    assert len({tuple(p) for p in cpts.ijk}) == len(cpts)  # one point per coarse voxel
+    M = volrig.rest_pose(len(rig))
+    b = rig.index("forearm.L") if "forearm.L" in rig.names else 1
+    M[b] = volrig.rotation_about([1, 0, 0], 70, rig.heads()[b])
+    full = volrig.deform(volume, pts, binding, M)
+    coarse = volrig.deform(src, cpts, cb, M)
+    fa, ca = np.asarray(full.mask.array), np.asarray(coarse.mask.array)
+    fo, co = np.array(full.offset), np.array(coarse.offset) * 4
+    z, y, x = np.nonzero(np.ones_like(ca))
+    fz, fy, fx = co[2] + 4 * z - fo[2], co[1] + 4 * y - fo[1], co[0] + 4 * x - fo[0]
+    ok = (fz >= 0) & (fz < fa.shape[0]) & (fy >= 0) & (fy < fa.shape[1]) & (fx >= 0) & (fx < fa.shape[2])
+    sampled = np.zeros(ca.size, bool)
+    sampled[ok] = fa[fz[ok], fy[ok], fx[ok]]
+    c = ca.reshape(-1)
+    assert 2 * np.count_nonzero(c & sampled) / (c.sum() + sampled.sum()) > 0.9
+    with pytest.raises(volrig.VolrigError, match="factor"):
+        coarse_level(volume, pts, binding, 0)
+    assert coarse_level(volume, pts, binding, 1)[0] is volume
