@@ -28,6 +28,21 @@ def contacts(vol):
     scene.frame_set(20)
 
 
+def live_preview(vol):
+    """The left forearm keyed from straight (frame 1) to bent (frame 20); frame 20 is not baked: the preview."""
+    from mathutils import Euler
+    from volrig_addon.objects import members
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 40
+    pb = members(vol)["RIG"].pose.bones["forearm.L"]
+    pb.rotation_mode = "XYZ"
+    for frame, angle in ((1, 0.0), (20, 1.4)):
+        pb.rotation_euler = Euler((angle, 0.0, 0.0))
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    members(vol)["SPHERES"].hide_set(True)
+    scene.frame_set(20)
+
+
 def setup():
     ph = volrig.phantom.humanoid(0.4)
     path = os.path.join(WORK, "phantom.nrrd")
@@ -51,6 +66,8 @@ def setup():
         vol.select_set(True)
         if os.environ.get("UI_CONTACTS"):  # key the right arm swung through the body, then Find Contacts
             contacts(vol)
+        if os.environ.get("UI_PREVIEW"):
+            live_preview(vol)
         if os.environ.get("UI_THICKNESS"):  # the bone's thickness as colour, the scan and the rig hidden
             vol.volrig.low, vol.volrig.high, vol.volrig.largest = 150, 255, False
             print("show_thickness:", bpy.ops.volrig.show_thickness(), flush=True)

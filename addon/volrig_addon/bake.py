@@ -20,6 +20,10 @@ from volrig import pipeline
 from . import objects, scans
 
 
+#: > 0 while a bake sets frames (the live preview skips those frame changes)
+posing = 0
+
+
 def frames_dir(volume_obj) -> str:
     return os.path.join(scans.cache_dir(volume_obj), "frames")
 
@@ -102,7 +106,12 @@ class Baker(RigState):
     def pose(self, scene, frame: int, force: bool = False):
         """The (B, 4, 4) bone matrices of scene frame ``frame`` (Blender's side of a frame: the main thread only),
         or None when its file is up to date."""
-        scene.frame_set(frame)
+        global posing
+        posing += 1  # the live preview stays out of a bake's frame changes
+        try:
+            scene.frame_set(frame)
+        finally:
+            posing -= 1
         matrices = self.bone_matrices(bpy.context.evaluated_depsgraph_get())
         if not force and self.folder.up_to_date(frame, matrices):
             return None

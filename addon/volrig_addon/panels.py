@@ -205,6 +205,7 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
         row.operator("volrig.show_rest", icon="VOLUME_DATA")
+        layout.prop(context.scene, "volrig_live_preview")
         layout.operator("volrig.find_contacts", icon="MOD_PHYSICS")
         if s.baked_end >= s.baked_start:
             layout.label(text=f"plays frames {s.baked_start} .. {s.baked_end}")
