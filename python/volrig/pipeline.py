@@ -350,22 +350,30 @@ class BakeRate:
         return text
 
 
+def _no_thickness(thickness) -> bool:
+    return thickness is None or bool(np.all(np.asarray(thickness, np.float64) == 1.0))
+
+
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
     and ``bone``; written atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
     result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
-    re-bake; machines baking other frames into the same folder merge their entries.
+    re-bake; machines baking other frames into the same folder merge their entries. Frames may carry per-bone
+    thickness factors (``bake(..., thickness=)``: ``volrig.skin.thicken_volume``; needs ``rig``).
 
     A frame's file is written on a thread of its own while the next frame computes (the Deformer and the VDB
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
     calls at its end (it waits for the last write and frees the frames' memory)."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
-                 mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = ""):
+                 mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
+                 rig: Optional[Rig] = None):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
+        self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.deformer = Deformer(source, points, binding)
+        self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
         w = binding.weights.tocsr()
         h = hashlib.sha1()
@@ -380,24 +388,47 @@ class FolderBake:
     def path(self, number: int) -> str:
         return frame_file(self.folder, self.stem, number)
 
-    def pose_hash(self, matrices) -> str:
-        return hashlib.sha1(np.round(np.asarray(matrices, np.float64), 6).tobytes()
+    def pose_hash(self, matrices, thickness=None) -> str:
+        extra = b"" if _no_thickness(thickness) else np.round(np.asarray(thickness, np.float64), 4).tobytes()
+        return hashlib.sha1(np.round(np.asarray(matrices, np.float64), 6).tobytes() + extra
                             + self.setup_hash.encode()).hexdigest()
 
-    def up_to_date(self, number: int, matrices) -> bool:
-        """The frame's file exists and was baked from this pose and setup (always False without ``track``)."""
-        return (self.poses_path is not None and self.poses.get(str(number)) == self.pose_hash(matrices)
+    def up_to_date(self, number: int, matrices, thickness=None) -> bool:
+        """The frame's file exists and was baked from this pose, thickness and setup (always False without
+        ``track``)."""
+        return (self.poses_path is not None and self.poses.get(str(number)) == self.pose_hash(matrices, thickness)
                 and os.path.exists(self.path(number)))
 
-    def bake(self, number: int, matrices, progress=None) -> dict:
-        """Reconstructs one pose ((B, 4, 4) rest-to-pose matrices) into frame ``number``'s file; returns the
-        frame's stats. The frame's memory goes back to the Deformer for the next one."""
+    def _deformer_for(self, thickness):
+        """The Deformer and radius_scale for per-bone thickness factors (None or all 1: the source's own). A new
+        thickness thickens the source once (``volrig.skin.thicken_volume``) and builds a Deformer on it; the last
+        one is kept, so a held thickness costs nothing per frame."""
+        if _no_thickness(thickness):
+            return self.deformer, None
+        factors = tuple(np.round(np.asarray(thickness, np.float64), 4))
+        if self._thick is None or self._thick[0] != factors:
+            from .skin import thicken_volume
+            if self.rig is None:
+                raise VolrigError("thickness needs the rig: give FolderBake its rig")
+            scales = {b: f for b, f in enumerate(factors) if f != 1.0}
+            thick, radius_scale = thicken_volume(self.source, self.points, self.binding, self.rig, scales,
+                                                 sampling=self.sampling)
+            self._thick = None  # free the previous one first
+            self._thick = (factors, Deformer(thick, self.points, self.binding), radius_scale)
+        return self._thick[1], self._thick[2]
+
+    def bake(self, number: int, matrices, progress=None, thickness=None) -> dict:
+        """Reconstructs one pose ((B, 4, 4) rest-to-pose matrices; ``thickness``: None or (B,) per-bone thickness
+        factors, 1 = unchanged) into frame ``number``'s file; returns the frame's stats. The frame's memory goes back
+        to the Deformer for the next one."""
         os.makedirs(self.folder, exist_ok=True)
-        frame = self.deformer.frame(matrices, mode=self.mode, sampling=self.sampling, progress=progress)
+        deformer, radius_scale = self._deformer_for(thickness)
+        frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
+                               progress=progress)
         self._wait()
         if self._writer is None:
             self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")
-        self._pending = self._writer.submit(self._write, number, matrices, frame)
+        self._pending = self._writer.submit(self._write, number, self.pose_hash(matrices, thickness), frame)
         return frame.stats
 
     def finish(self) -> None:
@@ -415,10 +446,10 @@ class FolderBake:
         if pending is not None:
             pending.result()
 
-    def _write(self, number: int, matrices, frame) -> None:
+    def _write(self, number: int, pose_hash: str, frame) -> None:
         frame.save(self.path(number), half=True)
         if self.poses_path is not None:
-            self.poses[str(number)] = self.pose_hash(matrices)
+            self.poses[str(number)] = pose_hash
             self._write_poses()
 
     def _read_poses(self) -> dict:

@@ -333,3 +333,30 @@ def test_bake_rate_bar_counts_frames_and_their_pace():
     assert text.startswith("[####....] 2/4 frames, ") and " frames/s, " in text and text.endswith(" left")
     assert 0.9 < rate.per_second <= 1.0
     assert pipeline.BakeRate(0).bar(4) == "[####] 0/0 frames"
+
+
+def test_folder_bake_thickness_per_frame(tmp_path):
+    """A frame with a bone's thickness factor bakes the thickened volume (more voxels), records the thickness in
+    its pose hash, and a frame without one is the plain bake."""
+    import volrig
+    from volrig import pipeline
+    ph = volrig.phantom.humanoid(scale=0.3)
+    vol = volrig.Volume(np.pad(ph.volume.array, 8), ph.volume.spacing,
+                        tuple(np.array(ph.volume.origin) - 8 * np.array(ph.volume.spacing)))
+    mask = volrig.segment(vol, lo=1)
+    sk = volrig.skeletonize(mask)
+    r = pipeline.rig_skeleton(sk.at(0.5), mask, up=(0.0, 0.0, 1.0))
+    fb = pipeline.FolderBake(vol, r.points, r.binding, str(tmp_path), "ph", mode="rigid", track=True, rig=r.rig)
+    M = volrig.rest_pose(len(r.rig.bones))
+    thick = np.ones(len(r.rig.bones))
+    thick[r.rig.index("thigh.L")] = 1.5
+    fb.bake(1, M)
+    fb.bake(2, M, thickness=thick)
+    fb.finish()
+    plain = np.count_nonzero(volrig.load(fb.path(1), grid="density").array > 50)
+    thicker = np.count_nonzero(volrig.load(fb.path(2), grid="density").array > 50)
+    assert thicker > plain * 1.02
+    assert fb.up_to_date(2, M, thickness=thick) and not fb.up_to_date(2, M)
+    assert fb.up_to_date(1, M, thickness=np.ones(len(r.rig.bones)))
+    with pytest.raises(volrig.VolrigError, match="rig"):
+        pipeline.FolderBake(vol, r.points, r.binding, str(tmp_path), "x").bake(1, M, thickness=thick)
