@@ -20,6 +20,8 @@ from volrig import pipeline
 from . import objects, scans
 
 
+#: the pose-bone property holding a bone's thickness factor (1 = as scanned); keyframable
+THICKNESS = "volrig_thickness"
 #: > 0 while a bake sets frames (the live preview skips those frame changes)
 posing = 0
 
@@ -71,6 +73,13 @@ class RigState:
         index = {name: b for b, name in enumerate(self.names)}
         return [index[b.parent.name] if b.parent else -1 for b in self.rig_obj.data.bones]
 
+    def thickness(self, depsgraph):
+        """(B,) each bone's thickness factor now (its pose bone's ``volrig_thickness``, keyframable; 1 when unset),
+        or None when every bone is at 1."""
+        arm = self.rig_obj.evaluated_get(depsgraph)
+        out = np.array([float(arm.pose.bones[name].get(THICKNESS, 1.0)) for name in self.names])
+        return None if np.all(out == 1.0) else out
+
     def bone_matrices(self, depsgraph) -> np.ndarray:
         """(B, 4, 4) rest-to-pose matrices of the evaluated armature, in the bone order of the binding."""
         arm = self.rig_obj.evaluated_get(depsgraph)
@@ -92,7 +101,9 @@ class Baker(RigState):
         self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
                                           sampling=volume_obj.volrig.sampling, track=True,
-                                          setup=os.path.basename(self.path))
+                                          setup=os.path.basename(self.path),
+                                          rig=objects.armature_rig(self.rig_obj))
+        self._thickness = {}  # frame -> the thickness factors pose() read for it
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
         """Reconstruct scene frame ``frame`` into its VDB file (written while the next frame computes: ``finish``
@@ -112,8 +123,10 @@ class Baker(RigState):
             scene.frame_set(frame)
         finally:
             posing -= 1
-        matrices = self.bone_matrices(bpy.context.evaluated_depsgraph_get())
-        if not force and self.folder.up_to_date(frame, matrices):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        matrices = self.bone_matrices(depsgraph)
+        self._thickness[frame] = self.thickness(depsgraph)
+        if not force and self.folder.up_to_date(frame, matrices, self._thickness[frame]):
             return None
         return matrices
 
@@ -121,7 +134,7 @@ class Baker(RigState):
         """volrig's side of a frame: reconstructs the pose into its file; touches no Blender data, so it may run on
         a worker thread while Blender's stays responsive. ``progress(fraction)`` is called many times within the
         frame; returning False stops it there (``volrig.Cancelled``) and writes nothing for it."""
-        self.folder.bake(frame, matrices, progress=progress)
+        self.folder.bake(frame, matrices, progress=progress, thickness=self._thickness.get(frame))
 
     def finish(self) -> None:
         """Waits for the last frame's file (bake_frame returns while it is written) and frees the frames' memory;
