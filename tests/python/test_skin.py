@@ -252,3 +252,18 @@ def test_posed_mesh_and_posed_volume_agree(name):
     rig = mr.rig
     assert voxel_difference(mr, volrig.rest_pose(len(rig.bones))) == 0.0
     assert voxel_difference(mr, bent(rig, np.array(S.MESHES[name][3], float))) <= 0.02
+
+
+def test_rig_mesh_skins_given_points_instead_of_the_vertices():
+    """skin_points: the surface voxelized is one mesh (Blender's evaluated mesh after a subdivision), the points
+    skinned another (the mesh's own vertices): the weights are those the same points get as vertices."""
+    v, f, _, _ = bar()
+    coarse = v[::7]
+    a = rig_mesh(v, f, voxels=60, kind="chains")
+    b = rig_mesh(v, f, voxels=60, kind="chains", skin_points=coarse)
+    assert b.weights.shape == (len(coarse), len(a.rig.bones)) and b.faces.shape == (0, 3)
+    assert np.array_equal(b.vertices, coarse)
+    assert b.rig.names == a.rig.names
+    expected = skin_weights(a.mask, a.rig, coarse)
+    assert abs(b.weights - expected).max() == 0
+    assert np.allclose(b.pose(volrig.rest_pose(len(b.rig.bones))), coarse)
