@@ -1,15 +1,17 @@
 """For scripts/ui_screenshot: Blender with its UI (under Xvfb), the add-on enabled, the phantom imported,
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
-"UI READY" when the screen is ready for a screenshot."""
+"UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
+its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider)."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
 sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
 import bpy
 import volrig, volrig_addon
-from volrig_addon import panels
+from volrig_addon import mesh_rig, panels
 import inspect
-_panels = [c for c in vars(panels).values() if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
+_panels = [c for m in (panels, mesh_rig) for c in vars(m).values()
+           if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
 volrig_addon.register()
@@ -28,7 +30,37 @@ def contacts(vol):
     scene.frame_set(20)
 
 
+def knight_scene():
+    """The shared knight (+Y up in the file: turned to +Z) rigged by Rig Mesh, the left elbow bent 90 degrees and
+    the left forearm 1.6 times as thick, in pose mode with the forearm active."""
+    import math
+    import numpy as np
+    v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
+    v = np.asarray(v, float)
+    me = bpy.data.meshes.new("knight")
+    me.from_pydata([tuple(p) for p in np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)], [],
+                   [tuple(map(int, t)) for t in f])
+    for p in me.polygons:
+        p.use_smooth = True
+    obj = bpy.data.objects.new("knight", me)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
+    arm = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="POSE")
+    pb = arm.pose.bones["forearm.L"]
+    pb.rotation_mode = "XYZ"
+    pb.rotation_euler = (math.radians(-90.0), 0.0, 0.0)  # forwards (the knight faces -Y)
+    pb["volrig_thickness"] = 1.6
+    arm.data.bones.active = arm.data.bones["forearm.L"]
+    arm.data.bones["forearm.L"].select = True
+    arm.update_tag()
+
+
 def setup():
+    if os.environ.get("UI_MESH"):
+        return setup_mesh()
     ph = volrig.phantom.humanoid(0.4)
     path = os.path.join(WORK, "phantom.nrrd")
     if not os.path.exists(path):
@@ -83,5 +115,33 @@ def setup():
     bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     print("UI READY", flush=True)
     return None
+
+def setup_mesh():
+    win = bpy.context.window_manager.windows[0]
+    area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
+    region = [r for r in area.regions if r.type == "WINDOW"][0]
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        for o in list(bpy.data.objects):
+            bpy.data.objects.remove(o)
+        knight_scene()
+    for space in area.spaces:
+        if space.type == "VIEW_3D":
+            space.show_region_ui = True
+            space.shading.type = "SOLID"
+    for r in area.regions:
+        if r.type == "UI":
+            try:
+                r.active_panel_category = "volrig"
+            except Exception as e:
+                print("category:", e)
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.view3d.view_axis(type="FRONT")
+        bpy.ops.view3d.view_orbit(angle=0.7, type="ORBITLEFT")  # three-quarter: the bent elbow seen from the side
+        bpy.ops.view3d.view_orbit(angle=0.25, type="ORBITUP")
+        bpy.ops.view3d.view_all()
+    bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
+    print("UI READY", flush=True)
+    return None
+
 
 bpy.app.timers.register(setup, first_interval=1.0)
