@@ -28,18 +28,14 @@ from volrig_addon import mesh_rig, objects  # noqa: E402
 def knight(cuts: int):
     v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
     v = np.asarray(v, float)
-    me = bpy.data.meshes.new("knight")
-    me.from_pydata([tuple(p) for p in np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)], [],
-                   [tuple(map(int, t)) for t in f])
+    obj = mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f)
+    me = obj.data
     bm = bmesh.new()
     bm.from_mesh(me)
     bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=cuts, use_grid_fill=True)
     bmesh.ops.triangulate(bm, faces=bm.faces[:])
     bm.to_mesh(me)
     bm.free()
-    obj = bpy.data.objects.new("knight", me)
-    bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
     return obj
 
 

@@ -22,7 +22,7 @@ from mathutils import Vector  # noqa: E402
 import volrig  # noqa: E402
 import volrig_addon  # noqa: E402
 from volrig_addon import mesh_rig  # noqa: E402
-from blender_scenes import log, ok, quiet_stdout  # noqa: E402
+from blender_scenes import log, ok, quiet_stdout, sheet  # noqa: E402
 
 KNIGHT = os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off")
 #: bone -> (rotation about the bone's own x axis, degrees): the knight faces -Y, so -x bends an elbow forwards
@@ -33,16 +33,8 @@ THICKER = {"forearm.L": 1.8, "thigh.R": 1.6}
 def knight():
     v, f = volrig.read_mesh(KNIGHT)
     v = np.asarray(v, float)
-    me = bpy.data.meshes.new("knight")
-    me.from_pydata([tuple(p) for p in np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)], [],
-                   [tuple(map(int, t)) for t in f])
-    for p in me.polygons:
-        p.use_smooth = True
-    obj = bpy.data.objects.new("knight", me)
-    bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
-    obj.select_set(True)
-    return obj
+    return mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f,
+                                    smooth=True)
 
 
 def weight_colours(obj, arm):
@@ -112,21 +104,6 @@ def set_pose(arm, amount):
     pb = arm.pose.bones["head"]
     pb.rotation_mode = "XYZ"
     pb.rotation_euler = (0.0, math.radians(amount * 35.0), 0.0)  # about the head bone's own axis: turned
-
-
-def sheet(paths, titles, out_path, title):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.image as mpimg
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, len(paths), figsize=(3.0 * len(paths), 4.2))
-    for ax, path, t in zip(axes, paths, titles):
-        ax.imshow(mpimg.imread(path))
-        ax.set_title(t, fontsize=10)
-        ax.axis("off")
-    fig.suptitle(title, fontsize=11)
-    fig.savefig(out_path, dpi=100, bbox_inches="tight")
-    plt.close(fig)
 
 
 def main(argv):

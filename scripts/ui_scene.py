@@ -37,15 +37,7 @@ def knight_scene():
     import numpy as np
     v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
     v = np.asarray(v, float)
-    me = bpy.data.meshes.new("knight")
-    me.from_pydata([tuple(p) for p in np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)], [],
-                   [tuple(map(int, t)) for t in f])
-    for p in me.polygons:
-        p.use_smooth = True
-    obj = bpy.data.objects.new("knight", me)
-    bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
-    obj.select_set(True)
+    mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
     print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
     arm = bpy.context.active_object
     bpy.ops.object.mode_set(mode="POSE")
@@ -96,13 +88,19 @@ def setup():
             for role, o in members(vol).items():
                 o.hide_set(role != "MEDIAL")
             vol.hide_set(True)
+    return show_volrig_sidebar(win, "MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
+                               else "SOLID")
+
+
+def show_volrig_sidebar(win, shading, three_quarter=False):
+    """The 3D view with its sidebar on the volrig panels, ``shading``, from the front (or a three-quarter view from
+    above the front left), everything in view; then "UI READY"."""
     for area in win.screen.areas:
         if area.type == "VIEW_3D":
             for space in area.spaces:
                 if space.type == "VIEW_3D":
                     space.show_region_ui = True
-                    space.shading.type = ("MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
-                                          else "SOLID")
+                    space.shading.type = shading
             for region in area.regions:
                 if region.type == "UI":
                     try:
@@ -111,10 +109,14 @@ def setup():
                         print("category:", e)
             with bpy.context.temp_override(window=win, area=area, region=[r for r in area.regions if r.type == "WINDOW"][0]):
                 bpy.ops.view3d.view_axis(type="FRONT")
+                if three_quarter:  # the bent elbow seen from the side
+                    bpy.ops.view3d.view_orbit(angle=0.7, type="ORBITLEFT")
+                    bpy.ops.view3d.view_orbit(angle=0.25, type="ORBITUP")
                 bpy.ops.view3d.view_all()
     bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     print("UI READY", flush=True)
     return None
+
 
 def setup_mesh():
     win = bpy.context.window_manager.windows[0]
@@ -124,24 +126,7 @@ def setup_mesh():
         for o in list(bpy.data.objects):
             bpy.data.objects.remove(o)
         knight_scene()
-    for space in area.spaces:
-        if space.type == "VIEW_3D":
-            space.show_region_ui = True
-            space.shading.type = "SOLID"
-    for r in area.regions:
-        if r.type == "UI":
-            try:
-                r.active_panel_category = "volrig"
-            except Exception as e:
-                print("category:", e)
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        bpy.ops.view3d.view_axis(type="FRONT")
-        bpy.ops.view3d.view_orbit(angle=0.7, type="ORBITLEFT")  # three-quarter: the bent elbow seen from the side
-        bpy.ops.view3d.view_orbit(angle=0.25, type="ORBITUP")
-        bpy.ops.view3d.view_all()
-    bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
-    print("UI READY", flush=True)
-    return None
+    return show_volrig_sidebar(win, "SOLID", three_quarter=True)
 
 
 bpy.app.timers.register(setup, first_interval=1.0)

@@ -56,6 +56,22 @@ def rigged_mesh(obj):
     return obj if armature_of(obj) is not None else None
 
 
+def new_mesh_object(context, name, vertices, faces, smooth=False):
+    """A new mesh object ``name`` in the scene's collection from (V, 3) vertices and faces (vertex index lists, e.g.
+    ``volrig.read_mesh``'s triangles), selected and active: for scripts and tests."""
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(map(float, p)) for p in vertices], [], [tuple(map(int, t)) for t in faces])
+    me.polygons.foreach_set("use_smooth", [bool(smooth)] * len(me.polygons))
+    me.update()
+    obj = bpy.data.objects.new(name, me)
+    context.scene.collection.objects.link(obj)
+    for o in context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    return obj
+
+
 def _mesh_arrays(mesh):
     """(vertices (V, 3) float64, triangles (T, 3) int64) of a Blender mesh, loop triangles computed."""
     mesh.calc_loop_triangles()
@@ -68,11 +84,15 @@ def _mesh_arrays(mesh):
 
 def evaluated_triangles(context, obj):
     """The mesh object's surface as evaluated (modifiers and shape keys applied, the ``volrig`` Armature modifier
-    left out) in its local frame: (vertices, triangles)."""
+    and the thickness keys of an earlier Rig Mesh left out) in its local frame: (vertices, triangles)."""
     mod = obj.modifiers.get(MODIFIER)
     shown = mod.show_viewport if mod is not None else None
     if mod is not None:
         mod.show_viewport = False
+    key = obj.data.shape_keys
+    muted = [(kb, kb.mute) for kb in key.key_blocks if kb.name.startswith(KEY_PREFIX)] if key is not None else []
+    for kb, _ in muted:
+        kb.mute = True
     try:
         depsgraph = context.evaluated_depsgraph_get()
         evaluated = obj.evaluated_get(depsgraph)
@@ -84,6 +104,8 @@ def evaluated_triangles(context, obj):
     finally:
         if mod is not None:
             mod.show_viewport = shown
+        for kb, was in muted:
+            kb.mute = was
 
 
 def vertex_positions(obj) -> np.ndarray:
@@ -238,13 +260,13 @@ def revalidate_drivers(obj) -> None:
 
 def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, preserve_volume=False,
                     thickness_keys=True, progress=None):
-    """Rigs the mesh object ``obj`` (see the module's docstring); replaces an earlier Rig Mesh of it. Returns
+    """Rigs the mesh object ``obj`` (see the module's docstring); replaces an earlier Rig Mesh of it once the new
+    rig is computed. Returns
     (armature object, volrig.MeshRig, seconds spent writing the vertex groups)."""
     if obj.type != "MESH":
         raise volrig.VolrigError(f"{obj.name} is not a mesh")
     if context.mode != "OBJECT":
         bpy.ops.object.mode_set(mode="OBJECT")
-    unrig(obj)
     verts, tris = evaluated_triangles(context, obj)
     if not len(tris):
         raise volrig.VolrigError(f"{obj.name} has no faces: Rig Mesh needs a surface that encloses a volume")
@@ -258,6 +280,7 @@ def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, 
         raise
     except volrig.VolrigError as e:  # e.g. "voxelize: the mesh encloses no voxel centre ... (an open surface ...)"
         raise volrig.VolrigError(f"{obj.name}: {e}") from e
+    unrig(obj)  # only now: a failed Rig Mesh (not an undo step) leaves an earlier rig as it was
     arm = bpy.data.objects.new(obj.name + "_rig", bpy.data.armatures.new(obj.name + "_rig"))
     for coll in obj.users_collection or (context.scene.collection,):
         coll.objects.link(arm)
