@@ -66,7 +66,8 @@ def new_mesh_object(context, name, vertices, faces, smooth=False):
     obj = bpy.data.objects.new(name, me)
     context.scene.collection.objects.link(obj)
     for o in context.view_layer.objects:
-        o.select_set(False)
+        if o is not None:  # (None: an object removed since the view layer was last updated)
+            o.select_set(False)
     obj.select_set(True)
     context.view_layer.objects.active = obj
     return obj
