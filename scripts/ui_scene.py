@@ -57,12 +57,8 @@ def setup():
     path = os.path.join(WORK, "phantom.nrrd")
     if not os.path.exists(path):
         ph.volume.save(path)
-    win = bpy.context.window_manager.windows[0]
-    area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
-    region = [r for r in area.regions if r.type == "WINDOW"][0]
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        for o in list(bpy.data.objects):
-            bpy.data.objects.remove(o)
+    win, override = empty_view3d()
+    with override:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))
         bpy.ops.volrig.import_volume(filepath=path, unit="MM", name="phantom")
         vol = bpy.data.objects["phantom"]
@@ -118,13 +114,19 @@ def show_volrig_sidebar(win, shading, three_quarter=False):
     return None
 
 
-def setup_mesh():
+def empty_view3d():
+    """Removes every object; returns (the window, a context override on its 3D view)."""
     win = bpy.context.window_manager.windows[0]
     area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
     region = [r for r in area.regions if r.type == "WINDOW"][0]
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        for o in list(bpy.data.objects):
-            bpy.data.objects.remove(o)
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    return win, bpy.context.temp_override(window=win, area=area, region=region)
+
+
+def setup_mesh():
+    win, override = empty_view3d()
+    with override:
         knight_scene()
     return show_volrig_sidebar(win, "SOLID", three_quarter=True)
 
