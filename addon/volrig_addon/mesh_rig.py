@@ -272,6 +272,9 @@ def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, 
     if not len(tris):
         raise volrig.VolrigError(f"{obj.name} has no faces: Rig Mesh needs a surface that encloses a volume")
     own = vertex_positions(obj)
+    if not len(own):
+        raise volrig.VolrigError(f"{obj.name} has no vertices of its own (its surface comes from modifiers): "
+                                 "nothing for the Armature modifier to deform")
     same = own.shape == verts.shape and np.array_equal(own, verts)
     scaled = (lambda f: progress(0.9 * f)) if progress is not None else None
     try:

@@ -213,13 +213,19 @@ def test_rig_mesh_reports_meshes_without_volume(empty_scene):
     me = bpy.data.meshes.new("plane")
     bm.to_mesh(me)
     mesh_object("plane", [], []).data = me
-    n = len(bpy.data.objects)
     with pytest.raises(RuntimeError, match="encloses no"):
         bpy.ops.volrig.rig_mesh()
     mesh_object("points", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [])
     with pytest.raises(RuntimeError, match="no faces"):
         bpy.ops.volrig.rig_mesh()
-    assert len(bpy.data.objects) == n + 1 and not any(o.type == "ARMATURE" for o in bpy.data.objects)
+    from volrig_addon import objects
+    group, _, out = objects._geometry_group("a cube")  # a surface made by geometry nodes only
+    group.links.new(group.nodes.new("GeometryNodeMeshCube").outputs["Mesh"], out.inputs[0])
+    made = mesh_object("made", [], [])
+    made.modifiers.new("cube", "NODES").node_group = group
+    with pytest.raises(RuntimeError, match="no vertices of its own"):
+        bpy.ops.volrig.rig_mesh()
+    assert not any(o.type == "ARMATURE" for o in bpy.data.objects)
 
 
 def test_thickness_keys_operator_follows_painted_weights(empty_scene):
