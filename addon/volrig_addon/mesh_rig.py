@@ -262,8 +262,7 @@ def revalidate_drivers(obj) -> None:
 def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, preserve_volume=False,
                     thickness_keys=True, progress=None):
     """Rigs the mesh object ``obj`` (see the module's docstring); replaces an earlier Rig Mesh of it once the new
-    rig is computed. Returns
-    (armature object, volrig.MeshRig, seconds spent writing the vertex groups)."""
+    rig is computed. Returns (armature object, volrig.MeshRig, seconds spent writing the vertex groups)."""
     if obj.type != "MESH":
         raise volrig.VolrigError(f"{obj.name} is not a mesh")
     if context.mode != "OBJECT":
