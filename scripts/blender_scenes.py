@@ -142,6 +142,22 @@ def contact_sheet(paths, frames, out_path, title):
     plt.close(fig)
 
 
+def sheet(paths, titles, out_path, title):
+    """The images at ``paths`` side by side, each under its title, ``title`` above (one PNG at ``out_path``)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image as mpimg
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(paths), figsize=(3.0 * len(paths), 4.2))
+    for ax, path, t in zip(axes, paths, titles):
+        ax.imshow(mpimg.imread(path))
+        ax.set_title(t, fontsize=10)
+        ax.axis("off")
+    fig.suptitle(title, fontsize=11)
+    fig.savefig(out_path, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+
+
 def demo(out, scale, count):
     t0 = time.time()
     blend = os.path.join(os.path.abspath(out), "walk.blend")

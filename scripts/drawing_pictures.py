@@ -19,7 +19,7 @@ from mathutils import Quaternion, Vector  # noqa: E402
 import volrig_addon  # noqa: E402
 from volrig import drawing, sketches  # noqa: E402
 from volrig_addon import objects, staging  # noqa: E402
-from blender_scenes import log, new_scene, ok, render_frames  # noqa: E402
+from blender_scenes import log, new_scene, ok, render_frames, sheet  # noqa: E402
 
 #: the pose at frame 2: bone -> (world axis, radians): the left arm raised sideways and bent up, the right arm
 #: reaching forward, the right knee lifted, the head turned (the figure faces -Y; its left is +X)
@@ -41,21 +41,6 @@ def pose(rig_obj):
             pb.rotation_mode = "QUATERNION"
             pb.rotation_quaternion = Quaternion(local.normalized(), amount * angle)
             pb.keyframe_insert("rotation_quaternion", frame=frame)
-
-
-def sheet(paths, titles, out_path, title):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.image as mpimg
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, len(paths), figsize=(3.0 * len(paths), 4.2))
-    for ax, path, t in zip(axes, paths, titles):
-        ax.imshow(mpimg.imread(path))
-        ax.set_title(t, fontsize=10)
-        ax.axis("off")
-    fig.suptitle(title, fontsize=11)
-    fig.savefig(out_path, dpi=100, bbox_inches="tight")
-    plt.close(fig)
 
 
 def main(argv):

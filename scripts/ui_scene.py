@@ -1,15 +1,17 @@
 """For scripts/ui_screenshot: Blender with its UI (under Xvfb), the add-on enabled, the phantom imported,
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
-"UI READY" when the screen is ready for a screenshot."""
+"UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
+its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider)."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
 sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
 import bpy
 import volrig, volrig_addon
-from volrig_addon import panels
+from volrig_addon import mesh_rig, panels
 import inspect
-_panels = [c for c in vars(panels).values() if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
+_panels = [c for m in (panels, mesh_rig) for c in vars(m).values()
+           if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
 volrig_addon.register()
@@ -43,17 +45,35 @@ def live_preview(vol):
     scene.frame_set(20)
 
 
+def knight_scene():
+    """The shared knight (+Y up in the file: turned to +Z) rigged by Rig Mesh, the left elbow bent 90 degrees and
+    the left forearm 1.6 times as thick, in pose mode with the forearm active."""
+    import math
+    import numpy as np
+    v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
+    v = np.asarray(v, float)
+    mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
+    print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
+    arm = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="POSE")
+    pb = arm.pose.bones["forearm.L"]
+    pb.rotation_mode = "XYZ"
+    pb.rotation_euler = (math.radians(-90.0), 0.0, 0.0)  # forwards (the knight faces -Y)
+    pb["volrig_thickness"] = 1.6
+    arm.data.bones.active = arm.data.bones["forearm.L"]
+    arm.data.bones["forearm.L"].select = True
+    arm.update_tag()
+
+
 def setup():
+    if os.environ.get("UI_MESH"):
+        return setup_mesh()
     ph = volrig.phantom.humanoid(0.4)
     path = os.path.join(WORK, "phantom.nrrd")
     if not os.path.exists(path):
         ph.volume.save(path)
-    win = bpy.context.window_manager.windows[0]
-    area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
-    region = [r for r in area.regions if r.type == "WINDOW"][0]
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        for o in list(bpy.data.objects):
-            bpy.data.objects.remove(o)
+    win, override = empty_view3d()
+    with override:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))
         bpy.ops.volrig.import_volume(filepath=path, unit="MM", name="phantom")
         vol = bpy.data.objects["phantom"]
@@ -81,13 +101,19 @@ def setup():
             for role, o in members(vol).items():
                 o.hide_set(role != "MEDIAL")
             vol.hide_set(True)
+    return show_volrig_sidebar(win, "MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
+                               else "SOLID")
+
+
+def show_volrig_sidebar(win, shading, three_quarter=False):
+    """The 3D view with its sidebar on the volrig panels, ``shading``, from the front (or a three-quarter view from
+    above the front left), everything in view; then "UI READY"."""
     for area in win.screen.areas:
         if area.type == "VIEW_3D":
             for space in area.spaces:
                 if space.type == "VIEW_3D":
                     space.show_region_ui = True
-                    space.shading.type = ("MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
-                                          else "SOLID")
+                    space.shading.type = shading
             for region in area.regions:
                 if region.type == "UI":
                     try:
@@ -96,9 +122,30 @@ def setup():
                         print("category:", e)
             with bpy.context.temp_override(window=win, area=area, region=[r for r in area.regions if r.type == "WINDOW"][0]):
                 bpy.ops.view3d.view_axis(type="FRONT")
+                if three_quarter:  # the bent elbow seen from the side
+                    bpy.ops.view3d.view_orbit(angle=0.7, type="ORBITLEFT")
+                    bpy.ops.view3d.view_orbit(angle=0.25, type="ORBITUP")
                 bpy.ops.view3d.view_all()
     bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     print("UI READY", flush=True)
     return None
+
+
+def empty_view3d():
+    """Removes every object; returns (the window, a context override on its 3D view)."""
+    win = bpy.context.window_manager.windows[0]
+    area = [a for a in win.screen.areas if a.type == "VIEW_3D"][0]
+    region = [r for r in area.regions if r.type == "WINDOW"][0]
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    return win, bpy.context.temp_override(window=win, area=area, region=region)
+
+
+def setup_mesh():
+    win, override = empty_view3d()
+    with override:
+        knight_scene()
+    return show_volrig_sidebar(win, "SOLID", three_quarter=True)
+
 
 bpy.app.timers.register(setup, first_interval=1.0)

@@ -37,7 +37,7 @@ _find_volrig()
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
     for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
-               "drawing", "preview", "panels"):
+               "drawing", "preview", "mesh_rig", "panels"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -45,7 +45,7 @@ import bpy  # noqa: E402
 
 from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
                staging)
-from . import drawing, preview  # noqa: E402
+from . import drawing, mesh_rig, preview  # noqa: E402
 
 
 def register():
@@ -56,6 +56,7 @@ def register():
     drawing.register()
     panels.register()
     preview.register()
+    mesh_rig.register()  # after the panels: its Mesh panel follows the Volume panel
     bpy.app.handlers.load_post.append(scans.forget_all)
 
 
@@ -64,6 +65,7 @@ def unregister():
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()
     preview.unregister()
+    mesh_rig.unregister()
     panels.unregister()
     drawing.unregister()
     operators.unregister()

@@ -363,13 +363,19 @@ def build_armature(volume_obj, rig: volrig.Rig):
     if old is not None:
         _remove(old)
     arm = bpy.data.armatures.new(name)
-    arm.display_type = "STICK"
     obj = _new_object(volume_obj, name, arm, "RIG")
-    obj.show_in_front = True
-    obj.matrix_world = volume_obj.matrix_world if volume_obj.parent is None else \
-        volume_obj.parent.matrix_world @ volume_obj.matrix_local
-    _edit_armature(obj, lambda: _add_bones(arm, rig))
+    fill_armature(obj, rig, volume_obj.matrix_world if volume_obj.parent is None else
+                  volume_obj.parent.matrix_world @ volume_obj.matrix_local)
     return obj
+
+
+def fill_armature(obj, rig: volrig.Rig, matrix_world) -> None:
+    """Gives the (new, empty) armature object ``obj`` the rig's bones (in its own frame, roll 0: each bone's rest
+    matrix equals Rig.rest_matrices), shown as sticks in front, placed at ``matrix_world``."""
+    obj.data.display_type = "STICK"
+    obj.show_in_front = True
+    obj.matrix_world = matrix_world
+    _edit_armature(obj, lambda: _add_bones(obj.data, rig))
 
 
 def _edit_armature(obj, edit) -> None:

@@ -256,13 +256,16 @@ def mesh_voxel_size(vertices, voxels: int = MESH_VOXELS) -> float:
 
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
              thinness: float = 0.5, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
-             **autorig_options) -> MeshRig:
+             skin_points=None, **autorig_options) -> MeshRig:
     """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
     side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider), autorig
     (``autorig_options``: kind=, up=, bones=, roles=... as ``volrig.autorig`` takes them), bind the skeleton points
     (smooth) and compute the vertices' ``skin_weights`` (``influences``, ``blend``).
 
     progress: callable(fraction) -> bool|None; False cancels (``volrig.Cancelled``).
+    skin_points: (S, 3) points to skin instead of the vertices (same frame), e.g. a Blender mesh's own vertices when
+    the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
+    mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
     """
     from .pipeline import rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels
     v = _points(vertices)
@@ -275,5 +278,7 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     sk = skeleton_of(mask, progress=staged)
     pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
     r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
+    if skin_points is not None:
+        v, f = _points(skin_points), np.zeros((0, 3), dtype=np.int64)
     weights = skin_weights(mask, r.rig, v, influences, blend, progress=_span(progress, 0.7, 1.0))
     return MeshRig(v, f, r.rig, weights, mask, size, sk, pts, r.tree, r.binding)

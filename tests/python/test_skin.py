@@ -283,3 +283,18 @@ def test_thicken_volume_stretches_a_bone_radially_and_poses():
     assert (fv == inside[:fv.shape[0], :fv.shape[1], :fv.shape[2]]).mean() > 0.999
     same, rs1 = volrig.skin.thicken_volume(source, pts, binding, rig, {})
     assert same is source and (rs1 == 1).all()
+
+
+def test_rig_mesh_skins_given_points_instead_of_the_vertices():
+    """skin_points: the surface voxelized is one mesh (Blender's evaluated mesh after a subdivision), the points
+    skinned another (the mesh's own vertices): the weights are those the same points get as vertices."""
+    v, f, _, _ = bar()
+    coarse = v[::7]
+    a = rig_mesh(v, f, voxels=60, kind="chains")
+    b = rig_mesh(v, f, voxels=60, kind="chains", skin_points=coarse)
+    assert b.weights.shape == (len(coarse), len(a.rig.bones)) and b.faces.shape == (0, 3)
+    assert np.array_equal(b.vertices, coarse)
+    assert b.rig.names == a.rig.names
+    expected = skin_weights(a.mask, a.rig, coarse)
+    assert abs(b.weights - expected).max() == 0
+    assert np.allclose(b.pose(volrig.rest_pose(len(b.rig.bones))), coarse)
