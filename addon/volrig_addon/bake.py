@@ -20,8 +20,7 @@ from volrig import pipeline
 from . import objects, scans
 
 
-#: the pose-bone property holding a bone's thickness factor (1 = as scanned); keyframable
-THICKNESS = "volrig_thickness"
+THICKNESS = objects.THICKNESS
 #: > 0 while a bake sets frames (the live preview skips those frame changes)
 posing = 0
 

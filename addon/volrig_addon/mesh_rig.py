@@ -34,7 +34,7 @@ from volrig.skin import thickness_offsets
 from . import drawing, objects, operators
 
 MODIFIER = "volrig"
-THICKNESS = "volrig_thickness"
+THICKNESS = objects.THICKNESS
 KEY_PREFIX = "thickness."
 #: Rig Mesh makes thickness keys by default below this many vertices
 THICKNESS_KEYS_BELOW = 200_000
@@ -218,11 +218,7 @@ def add_thickness_keys(obj, arm, rig: volrig.Rig, weights, progress=None) -> int
         pb = arm.pose.bones.get(name)
         if pb is None or w.indptr[b + 1] == w.indptr[b]:
             continue
-        if THICKNESS not in pb:
-            pb[THICKNESS] = 1.0
-        ui = pb.id_properties_ui(THICKNESS)
-        ui.update(min=0.0, max=4.0, soft_min=0.0, soft_max=4.0, default=1.0, step=1, precision=3,
-                  description="Thickness of the mesh around this bone (1 = as modelled; keyframable)")
+        objects.thickness_property(pb)
         kb = obj.shape_key_add(name=KEY_PREFIX + name, from_mix=False)
         kb.slider_min, kb.slider_max = -1.0, 3.0
         moved = co + thickness_offsets(rig, weights, co, {b: 2.0})

@@ -405,6 +405,20 @@ def _add_bones(arm, rig: volrig.Rig) -> None:
             ebs[b].use_connect = bool(np.allclose(heads[b], tails[p]))
 
 
+#: the pose-bone property holding a bone's thickness factor (1 = as scanned or modelled, 0 .. 4); keyframable.
+#: Meshes read it through their thickness shape keys' drivers, volumes at bake time.
+THICKNESS = "volrig_thickness"
+
+
+def thickness_property(pose_bone) -> None:
+    """Gives ``pose_bone`` its ``volrig_thickness`` (1) with its slider range, unless it has one."""
+    if THICKNESS not in pose_bone:
+        pose_bone[THICKNESS] = 1.0
+    pose_bone.id_properties_ui(THICKNESS).update(
+        min=0.0, max=4.0, soft_min=0.0, soft_max=4.0, default=1.0, step=1, precision=3,
+        description="Thickness around this bone (1 = as scanned or modelled; keyframable)")
+
+
 def armature_rig(rig_obj) -> volrig.Rig:
     """The rig the armature describes now (after the user's edits), bones in the armature's order."""
     bones = list(rig_obj.data.bones)

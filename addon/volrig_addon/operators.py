@@ -617,6 +617,20 @@ class VOLRIG_OT_reset_bone_map(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class VOLRIG_OT_thickness(_OnVolume, bpy.types.Operator):
+    """Give every bone of the rig a keyframable Thickness (1 = as scanned): the bake thickens the volume around a
+    bone by it"""
+    bl_idname = "volrig.thickness"
+    bl_label = "Thickness per Bone"
+    modes, rigged = None, True
+
+    def run(self, context, vol):
+        for pb in objects.members(vol)["RIG"].pose.bones:
+            objects.thickness_property(pb)
+        self.report({"INFO"}, "volrig: select a bone in pose mode to set (and key) its thickness; Bake applies it")
+        return {"FINISHED"}
+
+
 class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
     """Show the imported volume again instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
@@ -687,7 +701,7 @@ def menu_import(self, context):
 CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_OT_show_thickness,
            VOLRIG_OT_medial_surface, VOLRIG_OT_skeletonize, VOLRIG_OT_rig, VOLRIG_OT_rebind,
            VOLRIG_OT_bake, VOLRIG_OT_find_contacts, VOLRIG_OT_walk_cycle, VOLRIG_OT_drive_with_bvh,
-           VOLRIG_OT_reset_bone_map, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
+           VOLRIG_OT_reset_bone_map, VOLRIG_OT_thickness, VOLRIG_OT_show_rest, VOLRIG_OT_fly_through, VOLRIG_OT_straighten,
            VOLRIG_OT_straightening_rig)
 
 

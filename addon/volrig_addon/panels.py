@@ -103,6 +103,11 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         parts = objects.members(vol)
         if "RIG" in parts:
             layout.operator("volrig.walk_cycle", icon="ANIM")
+            pb = context.active_pose_bone
+            if pb is not None and pb.id_data == parts["RIG"] and objects.THICKNESS in pb:
+                layout.prop(pb, f'["{objects.THICKNESS}"]', text=f"{pb.name} thickness", slider=True)
+            else:
+                layout.operator("volrig.thickness", icon="MOD_THICKNESS")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
             if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61)": kind and fit, then the runner-up
                 found, _, runner_up = s.rig_found.partition(" (")

@@ -31,3 +31,14 @@ def test_keyed_thickness_thickens_the_baked_frames(posed):  # noqa: F811
     pb.keyframe_insert(f'["{bake.THICKNESS}"]', frame=3)
     assert baker.bake_frame(scene, 3)
     baker.finish()
+
+
+def test_thickness_per_bone_gives_every_bone_the_property(posed):  # noqa: F811
+    from conftest import run_op
+    from volrig_addon import objects
+    vol = posed
+    bpy.context.view_layer.objects.active = vol
+    run_op(bpy.ops.volrig.thickness)
+    rig = _members(vol)["RIG"]
+    assert all(pb[objects.THICKNESS] == 1.0 for pb in rig.pose.bones)
+    assert rig.pose.bones[0].id_properties_ui(objects.THICKNESS).as_dict()["max"] == 4.0
