@@ -24,6 +24,7 @@ from .centerlines import (Centerline, CenterlineTree, StraighteningRig, Straight
                           straighten, straightening_rig)
 from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
+from .parts import Part, bone_parts, explode_matrices, part_grids
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -36,7 +37,8 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",
            "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
-           "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface"]
+           "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface",
+           "Part", "bone_parts", "part_grids", "explode_matrices"]
 
 
 def __getattr__(name):

@@ -26,12 +26,13 @@ from ._volrig import VolrigError
 from .deform import Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS
-from .rig import Binding, Rig, autorig, bind
+from .parts import part_grids
+from .rig import Binding, Rig, autorig, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
 from .tree import skeleton_tree
-from .volume import Volume, format_of, load
+from .volume import Volume, format_of, load, write_vdb
 
 #: progress(step, fraction) -> False cancels; step is one of STEPS.
 StepProgress = Optional[Callable[[str, float], Optional[bool]]]
@@ -350,9 +351,34 @@ class BakeRate:
         return text
 
 
+def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding) -> Volume:
+    """The bone label (bone index + 1, 0 = none) of every source voxel as the binding has it at rest: the rest
+    pose reconstructed by the Deformer (rigid), on the source's grid."""
+    frame = Deformer(source, points, binding).frame(rest_pose(binding.weights.shape[1]), mode="rigid", values=False)
+    labels = np.zeros(source.array.shape, dtype=np.int16)
+    lo = np.array(frame.offset[::-1])  # z, y, x
+    hi = np.minimum(lo + frame.bone.array.shape, labels.shape)
+    lo_in = np.maximum(lo, 0)
+    if (hi > lo_in).all():
+        src = tuple(slice(a - o, b - o) for a, b, o in zip(lo_in, hi, lo))
+        labels[tuple(slice(a, b) for a, b in zip(lo_in, hi))] = frame.bone.array[src]
+    return source.like(labels)
+
+
+def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts) -> None:
+    """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
+    (``rest_labels``) and each part's ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``)."""
+    labels = rest_labels(source, points, binding)
+    values = source.array.astype(np.float32, copy=False)
+    grids = {"density": values, "bone": labels.array}
+    grids.update(part_grids(values, labels.array, parts))
+    write_vdb(path, grids, source.spacing, source.origin, half=False)
+
+
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
-    and ``bone``; written atomically). The Deformer is built once.
+    and ``bone``, and each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``; written
+    atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
     result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
@@ -363,15 +389,18 @@ class FolderBake:
     calls at its end (it waits for the last write and frees the frames' memory)."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
-                 mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = ""):
+                 mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
+                 parts=()):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
+        self.parts = list(parts)
         self.deformer = Deformer(source, points, binding)
         self.poses_path = os.path.join(folder, "poses.json") if track else None
         w = binding.weights.tocsr()
         h = hashlib.sha1()
         for a in (w.indptr, w.indices, w.data):
             h.update(np.ascontiguousarray(a).tobytes())
-        h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]).encode())
+        h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]
+                            + ([[list(p) for p in self.parts]] if self.parts else [])).encode())
         self.setup_hash = h.hexdigest()
         self.poses = self._read_poses()
         self._writer = None   # the thread writing files, while a bake runs
@@ -416,7 +445,7 @@ class FolderBake:
             pending.result()
 
     def _write(self, number: int, matrices, frame) -> None:
-        frame.save(self.path(number), half=True)
+        frame.save(self.path(number), half=True, parts=self.parts)
         if self.poses_path is not None:
             self.poses[str(number)] = self.pose_hash(matrices)
             self._write_poses()
