@@ -37,7 +37,7 @@ _find_volrig()
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
     for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
-               "panels"):
+               "panels", "looks", "looks_ui"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -45,6 +45,7 @@ import bpy  # noqa: E402
 
 from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
                staging)
+from . import looks, looks_ui  # noqa: E402,F401
 
 
 def register():
@@ -53,6 +54,7 @@ def register():
     properties.register()
     operators.register()
     panels.register()
+    looks_ui.register()
     bpy.app.handlers.load_post.append(scans.forget_all)
 
 
@@ -60,6 +62,7 @@ def unregister():
     if scans.forget_all in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()
+    looks_ui.unregister()
     panels.unregister()
     operators.unregister()
     properties.unregister()

@@ -1,5 +1,7 @@
 """Baking: each frame of the evaluated rig reconstructs the volume (volrig.Deformer) into
-``<cache>/frames/<name>_<frame>.vdb`` (grids ``density`` and ``bone``), and the Volume object plays them.
+``<cache>/frames/<name>_<frame>.vdb`` (grids ``density``, ``bone`` and each part's ``density_<key>`` and
+``mask_<key>``: looks.py), and the Volume object plays them. The object's *Explode* factor (animatable) takes each
+frame's pose apart (``volrig.explode_matrices``).
 
 The weights come from the sphere mesh's vertex groups as they are now (weight painting counts); the points and the
 source from the cache. Bone matrices are rest-to-pose in armature space (= volume units): pose_bone.matrix @
@@ -17,7 +19,7 @@ import numpy as np
 import volrig
 from volrig import pipeline
 
-from . import objects, scans
+from . import looks, objects, scans
 
 
 def frames_dir(volume_obj) -> str:
@@ -60,6 +62,7 @@ class RigState:
             raise volrig.VolrigError(f"{self.spheres_obj.name} has {len(self.spheres_obj.data.vertices)} vertices "
                                      f"but the rig file has {len(saved.points)} points: press Rig again")
         self.binding = volrig.Binding.from_groups(groups, self.names, len(saved.points), fallback=fallback)
+        self.rig = objects.armature_rig(self.rig_obj)
 
     @property
     def parents(self):
@@ -88,7 +91,7 @@ class Baker(RigState):
         self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
                                           sampling=volume_obj.volrig.sampling, track=True,
-                                          setup=os.path.basename(self.path))
+                                          setup=os.path.basename(self.path), parts=looks.parts_of(volume_obj))
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
         """Reconstruct scene frame ``frame`` into its VDB file (written while the next frame computes: ``finish``
@@ -103,7 +106,11 @@ class Baker(RigState):
         """The (B, 4, 4) bone matrices of scene frame ``frame`` (Blender's side of a frame: the main thread only),
         or None when its file is up to date."""
         scene.frame_set(frame)
-        matrices = self.bone_matrices(bpy.context.evaluated_depsgraph_get())
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        matrices = self.bone_matrices(depsgraph)
+        explode = self.volume_obj.evaluated_get(depsgraph).volrig.explode
+        if explode:  # the animated pose taken apart (volrig.explode_matrices)
+            matrices = volrig.explode_matrices(self.rig, explode, matrices)
         if not force and self.folder.up_to_date(frame, matrices):
             return None
         return matrices

@@ -3,9 +3,10 @@
 A *part* is a group of bones ("left arm", "spine", "head" from Rigify-style names; one part per bone chain for other
 names). ``part_grids`` splits a labelled volume into per-part grids that a renderer can show or hide exactly:
 
-- ``density_<part>``: the values on the part's voxels, 0 elsewhere. Interpolation is linear, so the density with a
-  part hidden, ``density - density_<part>``, is exactly the interpolated density of the volume whose part voxels
-  are empty: nothing of the part is left, however the renderer interpolates.
+- ``density_<part>``: the values on the part's voxels, 0 elsewhere, and ``density_outside`` the values of the
+  voxels in no part (``outside=True``). The sum over the visible parts (and the outside) is the density of the
+  volume whose hidden voxels are empty, however the renderer interpolates (even stochastically, one neighbour
+  per lookup: a hidden part's values are in no grid that is read).
 - ``mask_<part>``: 1 on the part's voxels, 0 elsewhere: the weight of the part's colour and opacity. It is non-zero
   only within one voxel of the part's voxels, so a part's colour never reaches beyond that.
 
@@ -84,9 +85,15 @@ def part_key(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", name).strip("_") or "part"
 
 
-def part_grids(values: np.ndarray, labels: np.ndarray, parts: Sequence[Part]) -> Dict[str, np.ndarray]:
-    """``density_<key>`` (float32: ``values`` on the part's voxels) and ``mask_<key>`` (uint8 0/1) per part.
-    ``labels``: bone index + 1 per voxel (0 = no bone; a Frame's ``bone`` grid), the shape of ``values``."""
+#: The grid of the values of the voxels in no part.
+OUTSIDE = "density_outside"
+
+
+def part_grids(values: np.ndarray, labels: np.ndarray, parts: Sequence[Part],
+               outside: bool = False) -> Dict[str, np.ndarray]:
+    """``density_<key>`` (float32: ``values`` on the part's voxels) and ``mask_<key>`` (uint8 0/1) per part, and
+    with ``outside`` ``density_outside`` (``values`` on the voxels in no part). ``labels``: bone index + 1 per
+    voxel (0 = no bone; a Frame's ``bone`` grid), the shape of ``values``."""
     labels = np.asarray(labels)
     if labels.shape != np.shape(values):
         raise VolrigError(f"part_grids: labels {labels.shape} and values {np.shape(values)} differ in shape")
@@ -100,6 +107,8 @@ def part_grids(values: np.ndarray, labels: np.ndarray, parts: Sequence[Part]) ->
         inside = part_of == k + 1
         grids[f"density_{part.key}"] = np.where(inside, values, 0).astype(np.float32)
         grids[f"mask_{part.key}"] = inside.view(np.uint8)
+    if outside:
+        grids[OUTSIDE] = np.where(part_of == 0, values, 0).astype(np.float32)
     return grids
 
 

@@ -351,9 +351,10 @@ class BakeRate:
         return text
 
 
-def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding) -> Volume:
+def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding, mask: Optional[Volume] = None) -> Volume:
     """The bone label (bone index + 1, 0 = none) of every source voxel as the binding has it at rest: the rest
-    pose reconstructed by the Deformer (rigid), on the source's grid."""
+    pose reconstructed by the Deformer (rigid), on the source's grid. With the object's ``mask``, its voxels no
+    sphere covers (a few at the surface) take the label of the nearest covered voxel."""
     frame = Deformer(source, points, binding).frame(rest_pose(binding.weights.shape[1]), mode="rigid", values=False)
     labels = np.zeros(source.array.shape, dtype=np.int16)
     lo = np.array(frame.offset[::-1])  # z, y, x
@@ -362,16 +363,24 @@ def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding) -> Vol
     if (hi > lo_in).all():
         src = tuple(slice(a - o, b - o) for a, b, o in zip(lo_in, hi, lo))
         labels[tuple(slice(a, b) for a, b in zip(lo_in, hi))] = frame.bone.array[src]
+    if mask is not None and labels.any():
+        from scipy import ndimage
+        gap = np.asarray(mask.array, dtype=bool) & (labels == 0)
+        nearest = ndimage.distance_transform_edt(labels == 0, sampling=source.spacing[::-1], return_distances=False,
+                                                 return_indices=True)
+        labels[gap] = labels[tuple(i[gap] for i in nearest)]
     return source.like(labels)
 
 
-def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts) -> None:
+def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts,
+                     mask: Optional[Volume] = None) -> None:
     """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
-    (``rest_labels``) and each part's ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``)."""
-    labels = rest_labels(source, points, binding)
+    (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
+    ``density_outside`` (``volrig.part_grids``)."""
+    labels = rest_labels(source, points, binding, mask)
     values = source.array.astype(np.float32, copy=False)
     grids = {"density": values, "bone": labels.array}
-    grids.update(part_grids(values, labels.array, parts))
+    grids.update(part_grids(values, labels.array, parts, outside=True))
     write_vdb(path, grids, source.spacing, source.origin, half=False)
 
 

@@ -44,6 +44,8 @@ def test_part_grids_split_values_exactly():
     assert g["density_a"].tolist() == [[[0, 1, 2, 0, 0]]]
     assert g["density_b"].tolist() == [[[0, 0, 0, 3, 4]]]
     assert g["mask_a"].tolist() == [[[0, 1, 1, 0, 0]]] and g["mask_b"].tolist() == [[[0, 0, 0, 1, 1]]]
+    assert "density_outside" not in g
+    assert volrig.part_grids(values, labels, parts, outside=True)["density_outside"].tolist() == [[[5, 0, 0, 0, 0]]]
     with pytest.raises(volrig.VolrigError, match="shape"):
         volrig.part_grids(values[..., :2], labels, parts)
 
@@ -56,6 +58,11 @@ def test_rest_labels_cover_the_object(rigged):
     # the binding's spheres cover the object at rest; nothing outside it is labelled
     assert np.count_nonzero(labels.array[inside]) > 0.97 * np.count_nonzero(inside)
     assert not labels.array[~inside].any()
+    # with the object's mask, every object voxel has a bone (the nearest covered voxel's)
+    filled = pipeline.rest_labels(vol, r.points, r.binding, vol.like(inside))
+    assert filled.array[inside].all() and not filled.array[~inside].any()
+    covered = labels.array > 0
+    assert np.array_equal(filled.array[covered], labels.array[covered])
 
 
 def _voxels(frame, bone_count):
