@@ -135,7 +135,7 @@ def contact_sheet(paths, frames, out_path, title):
     fig, axes = plt.subplots(1, len(paths), figsize=(2.2 * len(paths), 3.4))
     for ax, p, f in zip(np.atleast_1d(axes), paths, frames):
         ax.imshow(mpimg.imread(p))
-        ax.set_title(f"frame {f}", fontsize=9)
+        ax.set_title(f if isinstance(f, str) else f"frame {f}", fontsize=9)  # a frame number or a caption
         ax.axis("off")
     fig.suptitle(title, fontsize=10)
     fig.savefig(out_path, dpi=100, bbox_inches="tight")

@@ -98,17 +98,24 @@ def part_grids(values: np.ndarray, labels: np.ndarray, parts: Sequence[Part],
     if labels.shape != np.shape(values):
         raise VolrigError(f"part_grids: labels {labels.shape} and values {np.shape(values)} differ in shape")
     bone_count = 1 + max((b for p in parts for b in p.bones), default=-1)
-    lut = np.zeros(bone_count + 1 + max(int(labels.max(initial=0)) - bone_count, 0), dtype=np.int32)
+    lut = np.zeros(max(bone_count, int(labels.max(initial=0))) + 1, dtype=np.int32)
     for k, part in enumerate(parts):
         lut[np.asarray(part.bones, dtype=np.int64) + 1] = k + 1
-    part_of = lut[labels]
+    # the labelled voxels only (a fraction of the box); the grids start as zeros the system hands out lazily
+    flat_values = np.asarray(values).reshape(-1)
+    labelled = np.flatnonzero(labels)
+    part_of = lut[labels.reshape(-1)[labelled]]
     grids = {}
     for k, part in enumerate(parts):
-        inside = part_of == k + 1
-        grids[f"density_{part.key}"] = np.where(inside, values, 0).astype(np.float32)
-        grids[f"mask_{part.key}"] = inside.view(np.uint8)
+        at = labelled[part_of == k + 1]
+        density, mask = np.zeros(labels.size, np.float32), np.zeros(labels.size, np.uint8)
+        density[at], mask[at] = flat_values[at], 1
+        grids[f"density_{part.key}"], grids[f"mask_{part.key}"] = density.reshape(labels.shape), mask.reshape(
+            labels.shape)
     if outside:
-        grids[OUTSIDE] = np.where(part_of == 0, values, 0).astype(np.float32)
+        density = np.array(flat_values, dtype=np.float32)
+        density[labelled[part_of > 0]] = 0
+        grids[OUTSIDE] = density.reshape(labels.shape)
     return grids
 
 
