@@ -4,7 +4,7 @@ per-part looks (the Parts list) and an exploded view (the Explode factor, baked)
     blender -b --factory-startup --python scripts/selective_pictures.py [-- --scale 0.5 --samples 16]
 
 Writes docs/images/selective_phantom.png, a contact sheet of four renders: the left arm red and the rest
-translucent, the left arm hidden, the skeleton's parts taken apart (Explode 0.5), and the same with every part in
+translucent, the left arm hidden, the skeleton's parts taken apart (Explode 0.5, baked), and the same with every part in
 its own colour. The .blend and its cache go to a temporary folder.
 """
 import argparse
@@ -30,13 +30,13 @@ OUT = os.path.join(REPO, "docs", "images", "selective_phantom.png")
 
 
 def set_looks(vol, colored=(), hidden=(), opacity=1.0, own_colours=False):
-    """Every part's look: ``colored`` parts red (or each its own colour), ``hidden`` parts hidden, the others at
-    ``opacity``."""
+    """Every part's look: ``colored`` parts red and denser (or each its own colour), ``hidden`` parts hidden, the
+    others at ``opacity``."""
     for k, p in enumerate(vol.volrig.parts):
         p.visible = p.name not in hidden
         p.colored = own_colours or p.name in colored
         p.color = looks.PART_COLORS[k % len(looks.PART_COLORS)] if own_colours else (1.0, 0.05, 0.02)
-        p.opacity = 1.0 if (own_colours or p.name in colored) else opacity
+        p.opacity = 2.0 if (own_colours or p.name in colored) else opacity
 
 
 def render(scene, path):
@@ -61,13 +61,13 @@ def main(argv):
         new_scene(os.path.join(work, "selective.blend"))
         vol = rigged_volume(source, "phantom", thinness=0.3, low=1.0)
         s = vol.volrig
-        s.preset, s.density_scale = "GREY", 120.0 / args.scale
+        s.preset, s.density_scale = "GREY", 0.15 / args.scale  # per mm (the Volume renders in object space)
         scene = bpy.context.scene
         scene.frame_start = scene.frame_end = 1
-        staging.stage(scene, vol, resolution=(200, 300), samples=args.samples, margin=1.3)
+        staging.stage(scene, vol, resolution=(200, 300), samples=args.samples, margin=1.8)
         scene.view_settings.view_transform = "Standard"  # (Filmic turns saturated colours towards white)
         shots = []
-        set_looks(vol, colored={"left arm"}, opacity=0.15)
+        set_looks(vol, colored={"left arm"}, opacity=0.08)
         shots.append((render(scene, os.path.join(work, "red_arm.png")), "left arm red, the rest translucent"))
         set_looks(vol, hidden={"left arm"})
         shots.append((render(scene, os.path.join(work, "hidden_arm.png")), "left arm hidden"))
@@ -77,7 +77,7 @@ def main(argv):
         set_looks(vol)
         shots.append((render(scene, os.path.join(work, "exploded.png")), "exploded (Explode 0.5)"))
         set_looks(vol, own_colours=True)
-        shots.append((render(scene, os.path.join(work, "exploded_parts.png")), "exploded, a colour per part"))
+        shots.append((render(scene, os.path.join(work, "exploded_parts.png")), "a colour per part"))
         contact_sheet([p for p, _ in shots], [t for _, t in shots], args.out,
                       f"volrig: per-part looks and an exploded view of the phantom in Cycles "
                       f"({len(s.parts)} parts from the rig's bone names)")

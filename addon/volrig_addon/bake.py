@@ -108,7 +108,7 @@ class Baker(RigState):
         scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         matrices = self.bone_matrices(depsgraph)
-        explode = self.volume_obj.evaluated_get(depsgraph).volrig.explode
+        explode = self.volume_obj.volrig.explode  # (frame_set writes the animated value back to the object)
         if explode:  # the animated pose taken apart (volrig.explode_matrices)
             matrices = volrig.explode_matrices(self.rig, explode, matrices)
         if not force and self.folder.up_to_date(frame, matrices):

@@ -24,14 +24,16 @@ class VOLRIG_UL_parts(bpy.types.UIList):
     """One line per part: visible, name, own colour, opacity."""
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        row = layout.row(align=True)
-        row.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
-        row.label(text=item.name)
-        row.prop(item, "colored", text="", icon="COLOR")
-        sub = row.row(align=True)
-        sub.active = item.colored
-        sub.prop(item, "color", text="")
-        row.prop(item, "opacity", text="", slider=True)
+        split = layout.split(factor=0.5)
+        left = split.row(align=True)
+        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
+        left.label(text=item.name)
+        right = split.row(align=True)
+        right.active = item.visible
+        right.prop(item, "colored", text="", icon="COLOR")
+        if item.colored:
+            right.prop(item, "color", text="")
+        right.prop(item, "opacity", text="", slider=True)
 
 
 class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
@@ -42,7 +44,7 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
         s, layout = _settings(self, context)
         layout.operator("volrig.find_parts", icon="GROUP_BONE")
         if len(s.parts):
-            layout.template_list("VOLRIG_UL_parts", "", s, "parts", s, "parts_index", rows=4)
+            layout.template_list("VOLRIG_UL_parts", "", s, "parts", s, "parts_index", rows=6)
             if 0 <= s.parts_index < len(s.parts):
                 layout.label(text=s.parts[s.parts_index].bones.replace(",", ", "), icon="BONE_DATA")
         layout.prop(s, "explode")

@@ -107,7 +107,7 @@ def test_hidden_and_coloured_parts_render_exactly(rigged, tmp_path):
     from volrig_addon import looks
     vol = rigged
     vol.volrig.preset = "GREY"
-    vol.volrig.density_scale = 1500.0  # nearly opaque: a pixel crossing the part is covered
+    vol.volrig.density_scale = 3.0  # per mm (object space): opaque, a pixel crossing the part is covered
     scene = _stage(vol, tmp_path)
     full = _render(scene, tmp_path / "full.png")
     keys = [p.key for p in vol.volrig.parts]
