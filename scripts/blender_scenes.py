@@ -196,7 +196,8 @@ def main(argv):
         samples(args.out)
 
 
-if __name__ == "__main__":
+def run_and_exit(main):
+    """Runs ``main`` with the arguments after Blender's ``--`` and exits Blender: 0, or 1 with the traceback."""
     try:
         main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else [])
         code = 0
@@ -207,3 +208,7 @@ if __name__ == "__main__":
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+if __name__ == "__main__":
+    run_and_exit(main)

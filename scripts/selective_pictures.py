@@ -21,7 +21,7 @@ import bpy  # noqa: E402
 
 import volrig  # noqa: E402
 import volrig_addon  # noqa: E402
-from blender_scenes import contact_sheet, log, new_scene, quiet_stdout, rigged_volume  # noqa: E402
+from blender_scenes import contact_sheet, log, new_scene, quiet_stdout, rigged_volume, run_and_exit  # noqa: E402
 
 volrig_addon.register()
 from volrig_addon import looks, staging  # noqa: E402
@@ -86,13 +86,4 @@ def main(argv):
         shutil.rmtree(work, ignore_errors=True)
 
 
-try:
-    main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else [])
-    code = 0
-except Exception:
-    import traceback
-    traceback.print_exc()
-    code = 1
-sys.stdout.flush()
-sys.stderr.flush()
-os._exit(code)
+run_and_exit(main)

@@ -1,8 +1,5 @@
 """Per-part looks (hidden, coloured parts rendered in Cycles without interpolation fringes) and the Explode factor."""
-import os
-
 import numpy as np
-import pytest
 
 import bpy
 import volrig
