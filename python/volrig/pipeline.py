@@ -364,24 +364,22 @@ def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding, mask: 
         src = tuple(slice(a - o, b - o) for a, b, o in zip(lo_in, hi, lo))
         labels[tuple(slice(a, b) for a, b in zip(lo_in, hi))] = frame.bone.array[src]
     if mask is not None and labels.any():
-        from scipy import ndimage
-        gap = np.asarray(mask.array, dtype=bool) & (labels == 0)
-        nearest = ndimage.distance_transform_edt(labels == 0, sampling=source.spacing[::-1], return_distances=False,
-                                                 return_indices=True)
-        labels[gap] = labels[tuple(i[gap] for i in nearest)]
+        _fill_labels(labels, np.asarray(mask.array, dtype=bool) & (labels == 0), source.spacing)
     return source.like(labels)
 
 
-def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts,
-                     mask: Optional[Volume] = None) -> None:
-    """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
-    (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
-    ``density_outside`` (``volrig.part_grids``)."""
-    labels = rest_labels(source, points, binding, mask)
-    values = source.array.astype(np.float32, copy=False)
-    grids = {"density": values, "bone": labels.array}
-    grids.update(part_grids(values, labels.array, parts, outside=True))
-    write_vdb(path, grids, source.spacing, source.origin, half=False)
+def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
+    """Gives the ``gap`` voxels, in place, the label of the nearest labelled voxel, found on a grid twice as
+    coarse (a few seconds for millions of voxels where the exact transform takes many)."""
+    from scipy import ndimage
+    coarse = labels[::2, ::2, ::2]
+    if not coarse.any():
+        coarse = labels
+    step = 2 if coarse is not labels else 1
+    nearest = ndimage.distance_transform_edt(coarse == 0, sampling=np.asarray(spacing[::-1]) * step,
+                                             return_distances=False, return_indices=True)
+    z, y, x = np.nonzero(gap)
+    labels[z, y, x] = coarse[tuple(i[z // step, y // step, x // step] for i in nearest)]
 
 
 class FolderBake:
