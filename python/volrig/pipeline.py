@@ -382,6 +382,18 @@ def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
     labels[z, y, x] = coarse[tuple(i[z // step, y // step, x // step] for i in nearest)]
 
 
+def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts,
+                     mask: Optional[Volume] = None) -> None:
+    """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
+    (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
+    ``density_outside`` (``volrig.part_grids``)."""
+    labels = rest_labels(source, points, binding, mask)
+    values = source.array.astype(np.float32, copy=False)
+    grids = {"density": values, "bone": labels.array}
+    grids.update(part_grids(values, labels.array, parts, outside=True))
+    write_vdb(path, grids, source.spacing, source.origin, half=False)
+
+
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
     and ``bone``, and each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``; written

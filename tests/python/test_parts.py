@@ -127,3 +127,16 @@ def test_explode_of_a_pose_starts_from_the_pose(rigged):
     assert np.dot(moved, posed_dir) > 0
     with pytest.raises(volrig.VolrigError, match="pose"):
         volrig.explode_matrices(rig, 1.0, pose[:3])
+
+
+def test_write_rest_parts(rigged, tmp_path):
+    vol, r = rigged
+    parts = volrig.bone_parts(r.rig.names, r.rig.parents)
+    path = str(tmp_path / "rest.vdb")
+    pipeline.write_rest_parts(path, vol, r.points, r.binding, parts, vol.like(vol.array > 0))
+    names = {g["name"]: g["active_voxels"] for g in volrig._volrig.vdb_grids(path)}
+    assert set(names) == {"density", "bone", "density_outside"} | {f"{kind}_{p.key}" for p in parts
+                                                                    for kind in ("density", "mask")}
+    # every object voxel is in one part: the part masks add up to the object, nothing is outside
+    assert sum(names[f"mask_{p.key}"] for p in parts) == names["density"] == np.count_nonzero(vol.array)
+    assert names["density_outside"] == 0
