@@ -87,10 +87,10 @@ class Frame:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
         floats when ``half``) and ``bone`` (int32), and for each of ``parts`` (``volrig.Part``) its
         ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``), placed by spacing and origin; atomically."""
-        density = self.values.array if self.values is not None else self.mask.array
-        grids = {"density": density, "bone": self.bone.array}
-        grids.update(part_grids(density, self.bone.array, parts) if parts else {})
-        write_vdb(os.fspath(path), grids, self.bone.spacing, self.bone.origin, half=half)
+        density = self.values if self.values is not None else self.mask
+        grids = {"density": density, "bone": self.bone}
+        grids.update(part_grids(density, self.bone, parts) if parts else {})
+        write_vdb(os.fspath(path), grids, half=half)
 
 
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):

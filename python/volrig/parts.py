@@ -21,6 +21,7 @@ import numpy as np
 
 from ._volrig import VolrigError
 from .rig import Rig
+from .volume import Volume
 
 #: Rigify-style bone names (side suffix and numbering removed) -> the part they belong to ("{side}" is left or
 #: right). Names not listed make one part per chain.
@@ -89,33 +90,36 @@ def part_key(name: str) -> str:
 OUTSIDE = "density_outside"
 
 
-def part_grids(values: np.ndarray, labels: np.ndarray, parts: Sequence[Part],
-               outside: bool = False) -> Dict[str, np.ndarray]:
-    """``density_<key>`` (float32: ``values`` on the part's voxels) and ``mask_<key>`` (uint8 0/1) per part, and
-    with ``outside`` ``density_outside`` (``values`` on the voxels in no part). ``labels``: bone index + 1 per
-    voxel (0 = no bone; a Frame's ``bone`` grid), the shape of ``values``."""
-    labels = np.asarray(labels)
-    if labels.shape != np.shape(values):
-        raise VolrigError(f"part_grids: labels {labels.shape} and values {np.shape(values)} differ in shape")
+def part_grids(values: Volume, labels: Volume, parts: Sequence[Part], outside: bool = False) -> Dict[str, Volume]:
+    """``density_<key>`` (float32: ``values`` on the part's voxels) and ``mask_<key>`` (uint8 0/1) per part, each
+    cropped to the part's voxels (its own origin on the same lattice: ``write_vdb`` writes it where it lies), and
+    with ``outside`` ``density_outside`` (``values`` on the voxels in no part, on the whole grid). ``labels``: bone
+    index + 1 per voxel (0 = no bone; a Frame's ``bone``), on the grid of ``values``."""
+    lab, flat_values = np.asarray(labels.array), np.asarray(values.array).reshape(-1)
+    if lab.shape != values.array.shape:
+        raise VolrigError(f"part_grids: labels {lab.shape} and values {values.array.shape} differ in shape")
     bone_count = 1 + max((b for p in parts for b in p.bones), default=-1)
-    lut = np.zeros(max(bone_count, int(labels.max(initial=0))) + 1, dtype=np.int32)
+    lut = np.zeros(max(bone_count, int(lab.max(initial=0))) + 1, dtype=np.int32)
     for k, part in enumerate(parts):
         lut[np.asarray(part.bones, dtype=np.int64) + 1] = k + 1
-    # the labelled voxels only (a fraction of the box); the grids start as zeros the system hands out lazily
-    flat_values = np.asarray(values).reshape(-1)
-    labelled = np.flatnonzero(labels)
-    part_of = lut[labels.reshape(-1)[labelled]]
+    labelled = np.flatnonzero(lab)  # the labelled voxels only: a fraction of the box
+    part_of = lut[lab.reshape(-1)[labelled]]
     grids = {}
     for k, part in enumerate(parts):
         at = labelled[part_of == k + 1]
-        density, mask = np.zeros(labels.size, np.float32), np.zeros(labels.size, np.uint8)
-        density[at], mask[at] = flat_values[at], 1
-        grids[f"density_{part.key}"], grids[f"mask_{part.key}"] = density.reshape(labels.shape), mask.reshape(
-            labels.shape)
+        zyx = np.array(np.unravel_index(at, lab.shape)) if len(at) else np.zeros((3, 0), np.int64)
+        lo = zyx.min(axis=1) if len(at) else np.zeros(3, np.int64)
+        shape = tuple(zyx.max(axis=1) - lo + 1) if len(at) else (1, 1, 1)
+        density, mask = np.zeros(shape, np.float32), np.zeros(shape, np.uint8)
+        local = tuple(zyx - lo[:, None])
+        density[local], mask[local] = flat_values[at], 1
+        origin = tuple(o + s * i for o, s, i in zip(values.origin, values.spacing, lo[::-1]))
+        grids[f"density_{part.key}"] = Volume(density, values.spacing, origin)
+        grids[f"mask_{part.key}"] = Volume(mask, values.spacing, origin)
     if outside:
         density = np.array(flat_values, dtype=np.float32)
         density[labelled[part_of > 0]] = 0
-        grids[OUTSIDE] = density.reshape(labels.shape)
+        grids[OUTSIDE] = values.like(density.reshape(lab.shape))
     return grids
 
 

@@ -388,10 +388,10 @@ def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding:
     (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
     ``density_outside`` (``volrig.part_grids``)."""
     labels = rest_labels(source, points, binding, mask)
-    values = source.array.astype(np.float32, copy=False)
-    grids = {"density": values, "bone": labels.array}
-    grids.update(part_grids(values, labels.array, parts, outside=True))
-    write_vdb(path, grids, source.spacing, source.origin, half=False)
+    values = source.like(source.array.astype(np.float32, copy=False))
+    grids = {"density": values, "bone": labels}
+    grids.update(part_grids(values, labels, parts, outside=True))
+    write_vdb(path, grids, half=False)
 
 
 class FolderBake:

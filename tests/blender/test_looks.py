@@ -13,16 +13,17 @@ def _part(vol, name=PART):
 
 
 def _grids(path, names):
-    """The named grids of a VDB file on one index box (each grid is stored over its own active voxels), and the
-    box's first voxel (x, y, z)."""
-    boxes = {g["name"]: (np.array(g["bbox_min"]), np.array(g["bbox_max"])) for g in volrig._volrig.vdb_grids(path)}
-    lo = np.min([boxes[n][0] for n in names], axis=0)
-    hi = np.max([boxes[n][1] for n in names], axis=0)
+    """The named grids of a VDB file on one box (each grid is stored cropped to its active voxels), and the box's
+    first voxel's position (x, y, z, volume units)."""
+    vols = {n: volrig.load(path, grid=n) for n in names}
+    spacing = np.asarray(next(iter(vols.values())).spacing)
+    lo = np.min([v.origin for v in vols.values()], axis=0)
+    starts = {n: np.rint((np.asarray(v.origin) - lo) / spacing).astype(int) for n, v in vols.items()}
+    hi = np.max([starts[n] + v.dims for n, v in vols.items()], axis=0)
     out = {}
-    for n in names:
-        v = volrig.load(path, grid=n)
-        a = np.zeros(tuple((hi - lo + 1)[::-1]), dtype=np.float64)
-        o = boxes[n][0] - lo
+    for n, v in vols.items():
+        a = np.zeros(tuple(hi[::-1]), dtype=np.float64)
+        o = starts[n]
         z, y, x = v.array.shape
         a[o[2]:o[2] + z, o[1]:o[1] + y, o[0]:o[0] + x] = v.array
         out[n] = a
@@ -78,14 +79,13 @@ def _render(scene, path):
 
 
 def _projected(scene, vol, mask_array, first, grow, outer=True):
-    """Pixels (rows top-down) onto which the voxels of ``mask_array`` (z, y, x from index ``first`` of the rest
-    grid), dilated by ``grow`` voxels (the trilinear support and the voxel's extent), project; dilated by one
+    """Pixels (rows top-down) onto which the voxels of ``mask_array`` (z, y, x; voxel 0 at ``first``, volume
+    units), dilated by ``grow`` voxels (the trilinear support and the voxel's extent), project; dilated by one
     pixel (``outer``: every pixel they touch) or eroded by one (the pixels they cover)."""
     from scipy import ndimage
-    s = vol.volrig
     padded = np.pad(mask_array > 0, grow)
-    voxels = np.argwhere(ndimage.binary_dilation(padded, iterations=grow) if grow else padded)[:, ::-1] + first - grow
-    local = np.asarray(s.origin) + voxels * np.asarray(s.spacing)
+    voxels = np.argwhere(ndimage.binary_dilation(padded, iterations=grow) if grow else padded)[:, ::-1] - grow
+    local = np.asarray(first) + voxels * np.asarray(vol.volrig.spacing)
     # the orthographic camera's view: camera-space x, y against its frame
     to_cam = np.array(scene.camera.matrix_world.inverted() @ vol.matrix_world)
     xy = local @ to_cam[:2, :3].T + to_cam[:2, 3]

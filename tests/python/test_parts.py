@@ -37,17 +37,19 @@ def test_other_names_make_one_part_per_chain():
 
 
 def test_part_grids_split_values_exactly():
-    labels = np.array([[[0, 1, 2, 3, 3]]], dtype=np.int16)
-    values = np.array([[[5.0, 1.0, 2.0, 3.0, 4.0]]], dtype=np.float32)
+    labels = volrig.Volume(np.array([[[0, 1, 2, 3, 3]]], dtype=np.int16), (2.0, 1.0, 1.0), (10.0, 0.0, 0.0))
+    values = labels.like(np.array([[[5.0, 1.0, 2.0, 3.0, 4.0]]], dtype=np.float32))
     parts = [volrig.Part("a", "a", [0, 1]), volrig.Part("b", "b", [2])]
     g = volrig.part_grids(values, labels, parts)
-    assert g["density_a"].tolist() == [[[0, 1, 2, 0, 0]]]
-    assert g["density_b"].tolist() == [[[0, 0, 0, 3, 4]]]
-    assert g["mask_a"].tolist() == [[[0, 1, 1, 0, 0]]] and g["mask_b"].tolist() == [[[0, 0, 0, 1, 1]]]
+    # each cropped to its part's voxels, placed on the same lattice
+    assert g["density_a"].array.tolist() == [[[1, 2]]] and g["density_a"].origin == (12.0, 0.0, 0.0)
+    assert g["density_b"].array.tolist() == [[[3, 4]]] and g["density_b"].origin == (16.0, 0.0, 0.0)
+    assert g["mask_a"].array.tolist() == [[[1, 1]]] and g["mask_b"].array.tolist() == [[[1, 1]]]
     assert "density_outside" not in g
-    assert volrig.part_grids(values, labels, parts, outside=True)["density_outside"].tolist() == [[[5, 0, 0, 0, 0]]]
+    outside = volrig.part_grids(values, labels, parts, outside=True)["density_outside"]
+    assert outside.array.tolist() == [[[5, 0, 0, 0, 0]]] and outside.origin == values.origin
     with pytest.raises(volrig.VolrigError, match="shape"):
-        volrig.part_grids(values[..., :2], labels, parts)
+        volrig.part_grids(values.like(values.array[..., :2]), labels, parts)
 
 
 def test_rest_labels_cover_the_object(rigged):
