@@ -135,7 +135,7 @@ def contact_sheet(paths, frames, out_path, title):
     fig, axes = plt.subplots(1, len(paths), figsize=(2.2 * len(paths), 3.4))
     for ax, p, f in zip(np.atleast_1d(axes), paths, frames):
         ax.imshow(mpimg.imread(p))
-        ax.set_title(f"frame {f}", fontsize=9)
+        ax.set_title(f if isinstance(f, str) else f"frame {f}", fontsize=9)  # a frame number or a caption
         ax.axis("off")
     fig.suptitle(title, fontsize=10)
     fig.savefig(out_path, dpi=100, bbox_inches="tight")
@@ -212,7 +212,8 @@ def main(argv):
         samples(args.out)
 
 
-if __name__ == "__main__":
+def run_and_exit(main):
+    """Runs ``main`` with the arguments after Blender's ``--`` and exits Blender: 0, or 1 with the traceback."""
     try:
         main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else [])
         code = 0
@@ -223,3 +224,7 @@ if __name__ == "__main__":
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+if __name__ == "__main__":
+    run_and_exit(main)

@@ -8,12 +8,14 @@ WORK = os.environ.get("UI_WORK", "/tmp")
 sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
 import bpy
 import volrig, volrig_addon
-from volrig_addon import mesh_rig, panels
+from volrig_addon import looks_ui, mesh_rig, panels
 import inspect
-_panels = [c for m in (panels, mesh_rig) for c in vars(m).values()
+_panels = [c for m in (panels, mesh_rig, looks_ui) for c in vars(m).values()
            if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
+    if os.environ.get("UI_LOOKS") and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
+        c.bl_options = {"DEFAULT_CLOSED"}  # room for the Parts panel
 volrig_addon.register()
 
 def contacts(vol):
@@ -95,6 +97,19 @@ def setup():
             for role, o in members(vol).items():
                 o.hide_set(role != "THICKNESS")
             vol.hide_set(True)
+        if os.environ.get("UI_LOOKS"):  # the Parts list: the left arm red, the right leg hidden, the rest translucent
+            s = vol.volrig
+            s.preset, s.density_scale = "GREY", 0.3
+            for p in s.parts:
+                p.colored, p.opacity = p.name == "left arm", 2.0 if p.name == "left arm" else 0.1
+                p.visible = p.name != "right leg"
+            _part = [p for p in s.parts if p.name == "left arm"][0]
+            _part.color = (1.0, 0.05, 0.02)
+            from volrig_addon import staging
+            scene = bpy.context.scene
+            staging.stage(scene, vol, samples=8).hide_set(True)  # a sun, a dim world, Cycles; the camera out of view
+            scene.cycles.preview_samples, scene.cycles.use_preview_denoising = 8, False
+            s.parts_index = [p.name for p in s.parts].index("left arm")
         if os.environ.get("UI_MEDIAL"):  # the body's medial surface and rods, the scan and the rig hidden
             print("medial_surface:", bpy.ops.volrig.medial_surface(), flush=True)
             from volrig_addon.objects import members

@@ -37,7 +37,7 @@ _find_volrig()
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
     for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
-               "drawing", "preview", "mesh_rig", "panels"):
+               "drawing", "preview", "mesh_rig", "panels", "looks", "looks_ui"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -45,7 +45,7 @@ import bpy  # noqa: E402
 
 from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
                staging)
-from . import drawing, mesh_rig, preview  # noqa: E402
+from . import drawing, looks, looks_ui, mesh_rig, preview  # noqa: E402,F401
 
 
 def register():
@@ -55,6 +55,7 @@ def register():
     operators.register()
     drawing.register()
     panels.register()
+    looks_ui.register()
     preview.register()
     mesh_rig.register()  # after the panels: its Mesh panel follows the Volume panel
     bpy.app.handlers.load_post.append(scans.forget_all)
@@ -66,6 +67,7 @@ def unregister():
     scans.forget_all()
     preview.unregister()
     mesh_rig.unregister()
+    looks_ui.unregister()
     panels.unregister()
     drawing.unregister()
     operators.unregister()

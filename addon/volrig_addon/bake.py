@@ -1,5 +1,7 @@
 """Baking: each frame of the evaluated rig reconstructs the volume (volrig.Deformer) into
-``<cache>/frames/<name>_<frame>.vdb`` (grids ``density`` and ``bone``), and the Volume object plays them.
+``<cache>/frames/<name>_<frame>.vdb`` (grids ``density``, ``bone`` and each part's ``density_<key>`` and
+``mask_<key>``: looks.py), and the Volume object plays them. The object's *Explode* factor (animatable) takes each
+frame's pose apart (``volrig.explode_matrices``).
 
 The weights come from the sphere mesh's vertex groups as they are now (weight painting counts); the points and the
 source from the cache. Bone matrices are rest-to-pose in armature space (= volume units): pose_bone.matrix @
@@ -17,7 +19,7 @@ import numpy as np
 import volrig
 from volrig import pipeline
 
-from . import objects, scans
+from . import looks, objects, scans
 
 
 THICKNESS = objects.THICKNESS
@@ -65,6 +67,7 @@ class RigState:
             raise volrig.VolrigError(f"{self.spheres_obj.name} has {len(self.spheres_obj.data.vertices)} vertices "
                                      f"but the rig file has {len(saved.points)} points: press Rig again")
         self.binding = volrig.Binding.from_groups(groups, self.names, len(saved.points), fallback=fallback)
+        self.rig = objects.armature_rig(self.rig_obj)
 
     @property
     def parents(self):
@@ -100,7 +103,7 @@ class Baker(RigState):
         self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
                                           sampling=volume_obj.volrig.sampling, track=True,
-                                          setup=os.path.basename(self.path),
+                                          setup=os.path.basename(self.path), parts=looks.parts_of(volume_obj),
                                           rig=objects.armature_rig(self.rig_obj))
         self._thickness = {}  # frame -> the thickness factors pose() read for it
 
@@ -124,6 +127,9 @@ class Baker(RigState):
             posing -= 1
         depsgraph = bpy.context.evaluated_depsgraph_get()
         matrices = self.bone_matrices(depsgraph)
+        explode = self.volume_obj.volrig.explode  # (frame_set writes the animated value back to the object)
+        if explode:  # the animated pose taken apart (volrig.explode_matrices)
+            matrices = volrig.explode_matrices(self.rig, explode, matrices)
         self._thickness[frame] = self.thickness(depsgraph)
         if not force and self.folder.up_to_date(frame, matrices, self._thickness[frame]):
             return None

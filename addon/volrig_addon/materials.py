@@ -1,6 +1,7 @@
 """The Cycles volume material of a volrig Volume object: a transfer function (a colour ramp over the ``density``
-grid, the scan's own values) driving scattering and absorption, a density multiplier, and a glow on the voxels of
-one bone read from the baked ``bone`` grid (bone index + 1 in the armature's bone order, 0 = empty)."""
+grid, the scan's own values) driving scattering and absorption, a density multiplier, a glow on the voxels of
+one bone read from the baked ``bone`` grid (bone index + 1 in the armature's bone order, 0 = empty), and each
+part's look (visible, colour, opacity: looks.py)."""
 import bpy
 
 #: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
@@ -162,6 +163,8 @@ def update_volume_material(volume_obj):
     nd["is_bone"].inputs[1].default_value = float(index) if index else -10.0
     nd["glow"].inputs[1].default_value = s.highlight_strength
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
+    from . import looks
+    looks.route(mat.node_tree, nd, s.parts)
     return mat
 
 

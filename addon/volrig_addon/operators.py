@@ -16,7 +16,7 @@ from volrig.collide import contact_runs
 from volrig.volume import FORMATS, format_of
 
 from . import bake as baking
-from . import flythrough, materials, mocap, objects, scans
+from . import flythrough, looks, materials, mocap, objects, scans
 from .properties import UNIT_FACTOR, UNIT_SCALES
 
 #: What a user mistake or a bad file raises (volrig.Cancelled and volrig.FileFormatError are VolrigErrors); reported
@@ -283,7 +283,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         preview = objects.members(vol).get("SKELETON")
         if preview is not None:
             preview.hide_set(True)
-        materials.update_volume_material(vol)
+        looks.refresh(vol)
         self.report({"INFO"}, f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
@@ -314,7 +314,7 @@ class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
         binding = volrig.bind(saved.points, rig, mask, mode=vol.volrig.bind_mode)
         objects.set_vertex_groups(parts["SPHERES"], binding)
         _save_rig(vol, saved.points, saved.tree, rig, binding)
-        materials.update_volume_material(vol)
+        looks.refresh(vol)
         self.report({"INFO"}, f"volrig: {len(saved.points):,} spheres bound to {len(rig)} bones")
         return {"FINISHED"}
 
@@ -632,13 +632,13 @@ class VOLRIG_OT_thickness(_OnVolume, bpy.types.Operator):
 
 
 class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
-    """Show the imported volume again instead of the baked sequence"""
+    """Show the imported volume again (with its parts once rigged) instead of the baked sequence"""
     bl_idname = "volrig.show_rest"
     bl_label = "Show Source"
     modes = None
 
     def run(self, context, vol):
-        objects.point_volume_at(vol, os.path.join(vol.volrig.cache_dir, "source.vdb"))
+        objects.point_volume_at(vol, looks.shown_at_rest(vol))
         return {"FINISHED"}
 
 

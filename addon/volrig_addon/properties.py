@@ -46,6 +46,20 @@ class VolrigBonePair(bpy.types.PropertyGroup):
     bone: StringProperty(name="Rig bone", description="The rig bone this joint drives (empty: not mapped)")
 
 
+class VolrigPart(bpy.types.PropertyGroup):
+    """One line of the Parts list: a group of bones ("left arm") and its look (see looks.py)."""
+    key: StringProperty(name="Key", description="The part's grids: density_<key> and mask_<key>")
+    bones: StringProperty(name="Bones", description="The part's bones, comma-separated")
+    visible: BoolProperty(name="Visible", default=True, update=_look_changed,
+                          description="Show the part's voxels (hidden: rendered as if they were empty)")
+    colored: BoolProperty(name="Colour", default=False, update=_look_changed,
+                          description="Give the part its own colour instead of the transfer function's")
+    color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.9, 0.15, 0.1), min=0.0, max=1.0,
+                               update=_look_changed)
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=10.0, update=_look_changed,
+                           description="The part's opacity, a factor on the transfer function's")
+
+
 class VolrigObject(bpy.types.PropertyGroup):
     role: EnumProperty(name="Role", items=[
         ("NONE", "None", "Not a volrig object"),
@@ -156,6 +170,12 @@ class VolrigObject(bpy.types.PropertyGroup):
     highlight_strength: FloatProperty(name="Glow", default=2.0, min=0.0, soft_max=20.0, update=_look_changed)
     highlight_color: FloatVectorProperty(name="Glow colour", subtype="COLOR", size=3, default=(1.0, 0.35, 0.05),
                                          min=0.0, max=1.0, update=_look_changed)
+    parts: CollectionProperty(type=VolrigPart, name="Parts",
+                              description="The rig's parts (bone groups), each with its own look")
+    parts_index: IntProperty(name="Part", default=0)
+    explode: FloatProperty(name="Explode", default=0.0, min=0.0, soft_max=2.0,
+                           description="Bake each part moved away from its parent by this many times its length "
+                                       "(animatable; added to the animated pose)")
 
     # --- centerline: fly-through and straightening ---
     fly_ends: EnumProperty(name="Ends", items=[
@@ -197,6 +217,7 @@ class VolrigObject(bpy.types.PropertyGroup):
 
 def register():
     bpy.utils.register_class(VolrigBonePair)
+    bpy.utils.register_class(VolrigPart)
     bpy.utils.register_class(VolrigObject)
     bpy.types.Object.volrig = PointerProperty(type=VolrigObject)
 
@@ -204,4 +225,5 @@ def register():
 def unregister():
     del bpy.types.Object.volrig
     bpy.utils.unregister_class(VolrigObject)
+    bpy.utils.unregister_class(VolrigPart)
     bpy.utils.unregister_class(VolrigBonePair)

@@ -53,21 +53,29 @@ void bind_vdb(py::module_& m) {
     m.def(
         "write_vdb",
         [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
-           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half) {
+           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half,
+           const std::vector<std::array<double, 3>>& origins) {
+            if (!origins.empty() && origins.size() != grids.size())
+                throw Error(path + ": " + std::to_string(origins.size()) + " origins for " +
+                            std::to_string(grids.size()) + " grids");
             std::vector<py::array> keep;  // C-contiguous versions of the arrays, alive while writing
             std::vector<std::pair<std::string, VolumeView>> views;
             keep.reserve(grids.size());
-            for (const auto& [name, array] : grids) {
+            for (std::size_t i = 0; i < grids.size(); ++i) {
+                const auto& [name, array] = grids[i];
                 keep.push_back(py::array::ensure(array, py::array::c_style));
                 if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
-                views.emplace_back(name, view_of(keep.back(), spacing, origin, path.c_str()));
+                views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i],
+                                                 path.c_str()));
             }
             py::gil_scoped_release release;
             write_vdb(path, views, half);
         },
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
-        "write_vdb(path, grids, spacing, origin, half=False)\n\n"
-        "grids: list of (name, numpy array [z, y, x]) sharing one shape; spacing and origin (x, y, z).\n"
+        py::arg("origins") = std::vector<std::array<double, 3>>{},
+        "write_vdb(path, grids, spacing, origin, half=False, origins=[])\n\n"
+        "grids: list of (name, numpy array [z, y, x]); spacing and origin (x, y, z), or one origin per grid\n"
+        "(origins), each a whole number of voxels from the first grid's (one voxel lattice).\n"
         "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
         "int32 grids. Only non-zero voxels are active. Written to a temporary file and renamed.");
 }

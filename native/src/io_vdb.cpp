@@ -411,6 +411,25 @@ typename GridT::Ptr build_from_view(const VolumeView& v, Overflow& overflow) {
 
 bool same(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max({1.0, std::abs(a), std::abs(b)}); }
 
+/// Same spacing, and an origin a whole number of voxels from g0's: the voxels of both grids coincide.
+bool on_lattice_of(const Grid& g, const Grid& g0) {
+    for (int a = 0; a < 3; ++a) {
+        if (!same(g.spacing[a], g0.spacing[a])) return false;
+        const double steps = (g.origin[a] - g0.origin[a]) / g0.spacing[a];
+        if (std::abs(steps - std::round(steps)) > 1e-6) return false;
+    }
+    return true;
+}
+
+/// index (i, j, k) -> origin + spacing * (i, j, k)
+openvdb::math::Transform::Ptr index_to_world(const Grid& g) {
+    openvdb::Mat4d scale = openvdb::Mat4d::identity();
+    for (int a = 0; a < 3; ++a) scale[a][a] = g.spacing[a];
+    auto xf = openvdb::math::Transform::createLinearTransform(scale);
+    xf->postTranslate(openvdb::Vec3d(g.origin[0], g.origin[1], g.origin[2]));
+    return xf;
+}
+
 std::string dims_string(const Grid& g) {
     std::ostringstream s;
     s << g.dims[0] << " x " << g.dims[1] << " x " << g.dims[2] << " spacing (" << g.spacing[0] << ", " << g.spacing[1]
@@ -523,20 +542,10 @@ void write_vdb(const std::string& path, const std::vector<std::pair<std::string,
         for (int a = 0; a < 3; ++a)
             if (view.grid.dims[a] > std::numeric_limits<std::int32_t>::max())
                 throw Error(subject + ": dimensions exceed OpenVDB's 32-bit index range");
-        bool match = true;
-        for (int a = 0; a < 3; ++a)
-            match = match && view.grid.dims[a] == g0.dims[a] && same(view.grid.spacing[a], g0.spacing[a]) &&
-                    same(view.grid.origin[a], g0.origin[a]);
-        if (!match)
+        if (!on_lattice_of(view.grid, g0))
             throw Error(subject + " has geometry " + dims_string(view.grid) + " but grid '" + grids.front().first +
-                        "' has " + dims_string(g0) + "; all grids of one file must share one geometry");
+                        "' has " + dims_string(g0) + "; all grids of one file must share one voxel lattice");
     }
-
-    // index (i, j, k) -> origin + spacing * (i, j, k)
-    openvdb::Mat4d scale = openvdb::Mat4d::identity();
-    for (int a = 0; a < 3; ++a) scale[a][a] = g0.spacing[a];
-    auto xf = openvdb::math::Transform::createLinearTransform(scale);
-    xf->postTranslate(openvdb::Vec3d(g0.origin[0], g0.origin[1], g0.origin[2]));
 
     openvdb::GridPtrVec out;
     for (const auto& [name, view] : grids) {
@@ -562,7 +571,7 @@ void write_vdb(const std::string& path, const std::vector<std::pair<std::string,
             throw Error(s.str());
         }
         grid->setName(name);
-        grid->setTransform(xf->copy());
+        grid->setTransform(index_to_world(view.grid));
         out.push_back(grid);
     }
 

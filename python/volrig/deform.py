@@ -14,6 +14,7 @@ import numpy as np
 
 from . import _volrig
 from ._volrig import VolrigError
+from .parts import part_grids
 from .rig import Binding
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
@@ -82,12 +83,14 @@ class Frame:
         b = other.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
         return int(np.count_nonzero((a > 0) & (b > 0)))
 
-    def save(self, path, half: bool = True) -> None:
+    def save(self, path, half: bool = True, parts=()) -> None:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
-        floats when ``half``) and ``bone`` (int32), placed by spacing and origin; atomically."""
-        density = self.values.array if self.values is not None else self.mask.array
-        write_vdb(os.fspath(path), {"density": density, "bone": self.bone.array}, self.bone.spacing,
-                  self.bone.origin, half=half)
+        floats when ``half``) and ``bone`` (int32), and for each of ``parts`` (``volrig.Part``) its
+        ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``), placed by spacing and origin; atomically."""
+        density = self.values if self.values is not None else self.mask
+        grids = {"density": density, "bone": self.bone}
+        grids.update(part_grids(density, self.bone, parts) if parts else {})
+        write_vdb(os.fspath(path), grids, half=half)
 
 
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):

@@ -26,12 +26,13 @@ from ._volrig import VolrigError
 from .deform import Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS
-from .rig import Binding, Rig, autorig, bind
+from .parts import part_grids
+from .rig import Binding, Rig, autorig, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
 from .tree import skeleton_tree
-from .volume import Volume, format_of, load
+from .volume import Volume, format_of, load, write_vdb
 
 #: progress(step, fraction) -> False cancels; step is one of STEPS.
 StepProgress = Optional[Callable[[str, float], Optional[bool]]]
@@ -350,13 +351,57 @@ class BakeRate:
         return text
 
 
+def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding, mask: Optional[Volume] = None) -> Volume:
+    """The bone label (bone index + 1, 0 = none) of every source voxel as the binding has it at rest: the rest
+    pose reconstructed by the Deformer (rigid), on the source's grid. With the object's ``mask``, its voxels no
+    sphere covers (a few at the surface) take the label of the nearest covered voxel."""
+    frame = Deformer(source, points, binding).frame(rest_pose(binding.weights.shape[1]), mode="rigid", values=False)
+    labels = np.zeros(source.array.shape, dtype=np.int16)
+    lo = np.array(frame.offset[::-1])  # z, y, x
+    hi = np.minimum(lo + frame.bone.array.shape, labels.shape)
+    lo_in = np.maximum(lo, 0)
+    if (hi > lo_in).all():
+        src = tuple(slice(a - o, b - o) for a, b, o in zip(lo_in, hi, lo))
+        labels[tuple(slice(a, b) for a, b in zip(lo_in, hi))] = frame.bone.array[src]
+    if mask is not None and labels.any():
+        _fill_labels(labels, np.asarray(mask.array, dtype=bool) & (labels == 0), source.spacing)
+    return source.like(labels)
+
+
+def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
+    """Gives the ``gap`` voxels, in place, the label of the nearest labelled voxel, found on a grid twice as
+    coarse (a few seconds for millions of voxels where the exact transform takes many)."""
+    from scipy import ndimage
+    coarse = labels[::2, ::2, ::2]
+    if not coarse.any():
+        coarse = labels
+    step = 2 if coarse is not labels else 1
+    nearest = ndimage.distance_transform_edt(coarse == 0, sampling=np.asarray(spacing[::-1]) * step,
+                                             return_distances=False, return_indices=True)
+    z, y, x = np.nonzero(gap)
+    labels[z, y, x] = coarse[tuple(i[z // step, y // step, x // step] for i in nearest)]
+
+
+def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts,
+                     mask: Optional[Volume] = None) -> None:
+    """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
+    (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
+    ``density_outside`` (``volrig.part_grids``)."""
+    labels = rest_labels(source, points, binding, mask)
+    values = source.like(source.array.astype(np.float32, copy=False))
+    grids = {"density": values, "bone": labels}
+    grids.update(part_grids(values, labels, parts, outside=True))
+    write_vdb(path, grids, half=False)
+
+
 def _no_thickness(thickness) -> bool:
     return thickness is None or bool(np.all(np.asarray(thickness, np.float64) == 1.0))
 
 
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
-    and ``bone``; written atomically). The Deformer is built once.
+    and ``bone``, and each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``; written
+    atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
     result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
@@ -369,9 +414,10 @@ class FolderBake:
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
-                 rig: Optional[Rig] = None):
+                 parts=(), rig: Optional[Rig] = None):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
+        self.parts = list(parts)
         self.deformer = Deformer(source, points, binding)
         self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
@@ -379,7 +425,8 @@ class FolderBake:
         h = hashlib.sha1()
         for a in (w.indptr, w.indices, w.data):
             h.update(np.ascontiguousarray(a).tobytes())
-        h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]).encode())
+        h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]
+                            + ([[list(p) for p in self.parts]] if self.parts else [])).encode())
         self.setup_hash = h.hexdigest()
         self.poses = self._read_poses()
         self._writer = None   # the thread writing files, while a bake runs
@@ -447,7 +494,7 @@ class FolderBake:
             pending.result()
 
     def _write(self, number: int, pose_hash: str, frame) -> None:
-        frame.save(self.path(number), half=True)
+        frame.save(self.path(number), half=True, parts=self.parts)
         if self.poses_path is not None:
             self.poses[str(number)] = pose_hash
             self._write_poses()

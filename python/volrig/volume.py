@@ -261,9 +261,10 @@ def dicom_series(path: str) -> list:
 def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) -> None:
     """Write several named grids on one geometry to an OpenVDB file.
 
-    grids:   mapping name -> Volume or array [z, y, x] (all the same shape), e.g. {"density": v, "bone": labels}.
-             Floating and uint8/bool arrays become float grids, other integer arrays (e.g. int16/int32
-             labels) int32 grids; only non-zero voxels are active.
+    grids:   mapping name -> Volume or array [z, y, x], e.g. {"density": v, "bone": labels}. Floating and
+             uint8/bool arrays become float grids, other integer arrays (e.g. int16/int32 labels) int32 grids;
+             only non-zero voxels are active. A Volume lies at its own origin (a grid cropped to its voxels), a
+             whole number of voxels from the others (one voxel lattice); an array at ``origin``.
     spacing, origin: (x, y, z) world geometry; taken from the first Volume when omitted.
     half:    store float grids as 16-bit half floats (smaller files, ~3 significant digits).
     The file is written to a temporary name and renamed.
@@ -274,10 +275,11 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) ->
     first = next((g for _, g in items if isinstance(g, Volume)), None)
     spacing = _vec3(spacing if spacing is not None else (first.spacing if first else 1.0), "spacing")
     origin = _vec3(origin if origin is not None else (first.origin if first else 0.0), "origin")
-    arrays = []
+    arrays, origins = [], []
     for name, g in items:
         a = np.ascontiguousarray(g.array if isinstance(g, Volume) else np.asarray(g))
         if a.dtype == np.bool_:
             a = a.view(np.uint8)
         arrays.append((str(name), a))
-    _volrig.write_vdb(os.fspath(path), arrays, spacing, origin, bool(half))
+        origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
+    _volrig.write_vdb(os.fspath(path), arrays, spacing, origin, bool(half), origins)

@@ -64,7 +64,8 @@ def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
     for c in counts:
         assert abs(c - rest_count) <= 0.01 * rest_count
     grids = {g["name"] for g in volrig._volrig.vdb_grids(files[1])}
-    assert grids == {"density", "bone"}
+    keys = [p.key for p in vol.volrig.parts]
+    assert grids == {"density", "bone"} | {f"{kind}_{k}" for k in keys for kind in ("density", "mask")}
     # frame 2 differs from the rest where the forearm moved
     f2 = volrig.load(files[1], grid="bone")
     assert f2.array.shape != rest.bone.array.shape or not np.array_equal(f2.array, rest.bone.array)

@@ -301,13 +301,27 @@ TEST_CASE("unreadable files raise FileFormatError or FileNotFound naming the fil
     }
 }
 
-TEST_CASE("write_vdb refuses grids of different geometry, duplicate or empty names and no grids", "[vdb]") {
+TEST_CASE("write_vdb writes grids of different boxes on one lattice, each where it lies", "[vdb]") {
+    TempDir tmp;
+    const std::string path = tmp / "boxes.vdb";
+    const Volume a = pattern_volume({10, 8, 6});
+    Volume b = pattern_volume({4, 5, 3});
+    for (int k = 0; k < 3; ++k) b.grid.origin[k] = a.grid.origin[k] + (k + 3) * a.grid.spacing[k];
+    write_vdb(path, {{"density", a.view()}, {"part", b.view()}});
+    const Volume r = read_vdb(path, "part");
+    require_same_geometry(r.grid, b.grid);
+    CHECK(r.data == b.data);
+    require_same_geometry(read_vdb(path, "density").grid, a.grid);
+}
+
+TEST_CASE("write_vdb refuses grids off one lattice, duplicate or empty names and no grids", "[vdb]") {
     TempDir tmp;
     const std::string path = tmp / "bad.vdb";
     const Volume a = pattern_volume({10, 8, 6});
     Volume b = pattern_volume({10, 8, 7});
+    b.grid.origin[0] += 0.25 * b.grid.spacing[0];
     CHECK_THAT(message_of([&] { write_vdb(path, {{"density", a.view()}, {"other", b.view()}}); }),
-               Catch::Contains("geometry") && Catch::Contains("'other'"));
+               Catch::Contains("lattice") && Catch::Contains("'other'"));
     b = pattern_volume({10, 8, 6});
     b.grid.spacing[1] = 1.3;
     CHECK_THROWS_AS(write_vdb(path, {{"density", a.view()}, {"other", b.view()}}), Error);

@@ -160,9 +160,10 @@ def test_bad_files(tmp_path):
 
 def test_mismatched_geometry_and_bad_names(tmp_path):
     path = tmp_path / "bad.vdb"
-    with pytest.raises(volrig.VolrigError, match="geometry"):
+    with pytest.raises(volrig.VolrigError, match="lattice"):
         _volrig.write_vdb(str(path), [("density", np.ones((4, 5, 6), np.float32)),
-                                      ("bone", np.ones((4, 5, 7), np.int32))], (1, 1, 1), (0, 0, 0), False)
+                                      ("bone", np.ones((4, 5, 7), np.int32))], (1, 1, 1), (0, 0, 0), False,
+                          [(0, 0, 0), (0.5, 0, 0)])
     with pytest.raises(volrig.VolrigError, match="twice"):
         _volrig.write_vdb(str(path), [("density", np.ones((4, 5, 6), np.float32))] * 2, (1, 1, 1), (0, 0, 0), False)
     with pytest.raises(volrig.VolrigError):
@@ -243,3 +244,16 @@ def test_write_vdb_stores_half_floats_by_default(tmp_path):
     volrig.write_vdb(tmp_path / "full.vdb", {"density": volrig.Volume(a, SPACING, ORIGIN)}, half=False)
     assert (tmp_path / "default.vdb").stat().st_size < (tmp_path / "full.vdb").stat().st_size
     assert np.allclose(volrig.load(tmp_path / "default.vdb").array, volrig.load(tmp_path / "full.vdb").array, rtol=1e-3)
+
+
+def test_grids_of_different_boxes_on_one_lattice(tmp_path):
+    """Grids cropped to their own boxes (Volumes with their own origins) lie where they lie."""
+    path = str(tmp_path / "boxes.vdb")
+    a = volrig.Volume(pattern((6, 8, 10)), SPACING, ORIGIN)
+    part = volrig.Volume(pattern((2, 3, 4)), SPACING, tuple(o + 2 * s for o, s in zip(ORIGIN, SPACING)))
+    volrig.write_vdb(path, {"density": a, "part": part}, half=False)
+    back = volrig.load(path, grid="part")
+    np.testing.assert_allclose(back.origin, part.origin)
+    np.testing.assert_array_equal(back.array, part.array)
+    with pytest.raises(volrig.VolrigError, match="lattice"):
+        volrig.write_vdb(path, {"density": a, "part": volrig.Volume(pattern((2, 3, 4)), SPACING, (0.3, 0, 0))})

@@ -126,9 +126,9 @@ std::vector<VdbGridInfo> vdb_grids(const std::string& path);
 /// bool grids uint8.
 Volume read_vdb(const std::string& path, const std::string& grid = "", const ReadOptions& opt = {});
 
-/// Writes named grids that share one geometry (spacing and origin go into each grid's transform). Floating and
-/// uint8 volumes (masks, 8-bit scans) become FloatGrids (stored as half floats when `half`); other integer
-/// volumes (e.g. int16/int32 bone labels) become Int32Grids. Only non-zero voxels are active; the background is 0.
+/// Writes named grids on one voxel lattice (one spacing, origins a whole number of voxels apart; each grid's
+/// spacing and origin go into its transform). Floating and uint8 volumes (masks, 8-bit scans) become FloatGrids
+/// (stored as half floats when `half`); other integer volumes (e.g. int16/int32 bone labels) become Int32Grids. Only non-zero voxels are active; the background is 0.
 void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
 
 }  // namespace volrig

@@ -1,0 +1,155 @@
+"""Per-part looks: the rig's parts (``volrig.bone_parts``: left arm, spine, head, ... or one per chain) listed on
+the Volume object (``volrig.parts``), each visible or hidden, in its own colour and opacity, in Cycles.
+
+Every baked frame, and the rest volume (``<rig file>_parts.vdb`` in the cache, written when the rig is bound),
+holds per part ``density_<key>`` (the values on the part's voxels) and ``mask_<key>`` (1 on them); the rest volume
+also ``density_outside`` (the voxels in no part). The material:
+
+- value   = the sum of the visible parts' density_<part> and density_outside: the density of the volume whose
+            hidden voxels are empty, so no shell of a hidden part is left (a hidden part's grid is not read at
+            all: Cycles' volume lookups may pick one neighbour at random, so even density - density_<part>
+            would leave speckles at the part's surface);
+- opacity = the transfer function's, times (1 + sum_p mask_p (opacity_p visible_p - 1)) / (1 - sum_hidden mask_p):
+            each part's opacity weighted by its mask, hidden parts' weight left out;
+- colour  = the transfer function's, mixed towards a coloured part's colour by its mask: non-zero only within a
+            voxel of the part's voxels, so the colour never reaches a neighbour beyond the shared voxel band.
+Frames baked before the parts were found have no part grids: they render empty until baked again (the bake
+re-bakes them: the parts are part of what a frame's file depends on).
+"""
+import os
+
+import bpy
+
+import volrig
+from volrig import pipeline
+
+from . import objects, scans
+
+#: Colours offered to new parts (a part keeps its settings when the parts are found again).
+PART_COLORS = [(0.9, 0.15, 0.1), (0.2, 0.55, 0.95), (0.95, 0.8, 0.2), (0.3, 0.8, 0.35), (0.7, 0.4, 0.9),
+               (0.95, 0.5, 0.15), (0.3, 0.85, 0.8), (0.9, 0.4, 0.65)]
+_PREFIX = "volrig part"
+
+
+def rest_file(volume_obj) -> str:
+    """The rest volume with its part grids: ``<rig file>_parts.vdb`` beside the rig file (one per rig, so undo
+    never points at a file that is gone)."""
+    return os.path.splitext(scans.rig_path(volume_obj))[0] + "_parts.vdb"
+
+
+def shown_at_rest(volume_obj) -> str:
+    """The file the Volume object shows when not playing a bake: the rest volume with parts, else the source."""
+    if volume_obj.volrig.rig_file and os.path.exists(rest_file(volume_obj)):
+        return rest_file(volume_obj)
+    return scans.source_path(volume_obj)
+
+
+def parts_of(volume_obj):
+    """The object's parts as ``volrig.Part`` (bone indices in the armature's order), for the bake."""
+    rig = objects.members(volume_obj).get("RIG")
+    if rig is None:
+        return []
+    index = {b.name: i for i, b in enumerate(rig.data.bones)}
+    out = []
+    for p in volume_obj.volrig.parts:
+        bones = [index[name] for name in p.bones.split(",") if name in index]
+        if bones:
+            out.append(volrig.Part(p.name, p.key, bones))
+    return out
+
+
+def refresh(volume_obj) -> int:
+    """Finds the rig's parts (keeping the settings of parts already listed by name), writes the rest volume with
+    their grids and shows it unless a bake is playing; returns the number of parts."""
+    from . import materials
+    from .bake import RigState
+    state = RigState(volume_obj)
+    s = volume_obj.volrig
+    kept = {p.name: (p.visible, p.colored, tuple(p.color), p.opacity) for p in s.parts}
+    s.parts.clear()
+    for k, part in enumerate(volrig.bone_parts(state.names, state.parents)):
+        item = s.parts.add()
+        item.name, item.key = part.name, part.key
+        item.bones = ",".join(state.names[b] for b in part.bones)
+        item.visible, item.colored, item.color, item.opacity = kept.get(
+            part.name, (True, False, PART_COLORS[k % len(PART_COLORS)], 1.0))
+    s.parts_index = min(s.parts_index, max(len(s.parts) - 1, 0))
+    pipeline.write_rest_parts(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
+                              parts_of(volume_obj), scans.mask(volume_obj))
+    if not volume_obj.data.is_sequence:
+        objects.point_volume_at(volume_obj, rest_file(volume_obj))
+    materials.update_volume_material(volume_obj)
+    return len(s.parts)
+
+
+def route(tree, nd, parts) -> None:
+    """Links the material's value (into the transfer function's window), opacity and colour (into the shaders)
+    through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role."""
+    for node in [x for x in tree.nodes if x.name.startswith(_PREFIX)]:
+        tree.nodes.remove(node)
+    value, opacity, colour = nd["density"].outputs["Fac"], nd["opacity"].outputs[0], nd["ramp"].outputs["Color"]
+    if len(parts):
+        value, opacity, colour = _part_nodes(tree, opacity, colour, parts)
+    link = tree.links.new
+    link(value, nd["window"].inputs["Value"])
+    for shader in (nd["scatter"], nd["absorb"]):
+        link(colour, shader.inputs["Color"])
+        link(opacity, shader.inputs["Density"])
+    link(opacity, nd["glow_density"].inputs[1])
+
+
+class _Builder:
+    """Adds named, placed nodes to a material's tree."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.count = 0
+
+    def node(self, kind, x, y, **props):
+        nd = self.tree.nodes.new(kind)
+        self.count += 1
+        nd.name = nd.label = f"{_PREFIX} {self.count}"
+        nd.location = (x, y)
+        for k, v in props.items():
+            setattr(nd, k, v)
+        return nd
+
+    def math(self, op, a, b, c=None, x=0, y=0):
+        """A Math node ``op`` of inputs a, b (and c): each a socket to link or a number."""
+        nd = self.node("ShaderNodeMath", x, y, operation=op)
+        for socket, v in zip(nd.inputs, (a, b, c)):
+            if isinstance(v, bpy.types.NodeSocket):
+                self.tree.links.new(v, socket)
+            elif v is not None:
+                socket.default_value = v
+        return nd.outputs[0]
+
+    def attribute(self, name, x, y):
+        return self.node("ShaderNodeAttribute", x, y, attribute_name=name).outputs["Fac"]
+
+    def mix(self, fac, a, b_color, x, y):
+        """Colour ``a`` (a socket) mixed towards the constant ``b_color`` by ``fac`` (a socket)."""
+        nd = self.node("ShaderNodeMix", x, y, data_type="RGBA")
+        self.tree.links.new(fac, nd.inputs[0])
+        self.tree.links.new(a, nd.inputs[6])
+        nd.inputs[7].default_value = (*b_color, 1.0)
+        return nd.outputs[2]
+
+
+def _part_nodes(tree, opacity, colour, parts):
+    """The parts' nodes (see the module's description); returns the (value, opacity, colour) sockets."""
+    b = _Builder(tree)
+    value, hidden_weight, opacity_weight = b.attribute(volrig.parts.OUTSIDE, -1900, -700), 0.0, 1.0
+    for k, p in enumerate(parts):
+        x, y = -1700 + 150 * k, -700 - 60 * k
+        m = b.attribute(f"mask_{p.key}", x, y - 500)
+        hide = 0.0 if p.visible else 1.0
+        if p.visible:
+            value = b.math("ADD", b.attribute(f"density_{p.key}", x, y - 300), value, x=x, y=y)
+        hidden_weight = b.math("MULTIPLY_ADD", m, hide, hidden_weight, x=x, y=y - 100)
+        opacity_weight = b.math("MULTIPLY_ADD", m, p.opacity * (1.0 - hide) - 1.0, opacity_weight, x=x, y=y - 200)
+        if p.colored and p.visible:
+            colour = b.mix(m, colour, p.color, x=x, y=y - 700)
+    weight = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, hidden_weight, x=-300, y=-900), 1e-4, x=-150, y=-900)
+    share = b.math("DIVIDE", opacity_weight, weight, x=0, y=-900)
+    return value, b.math("MULTIPLY", opacity, share, x=150, y=-900), colour

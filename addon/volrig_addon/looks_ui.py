@@ -1,0 +1,63 @@
+"""The Parts panel (under Look): the rig's parts in a list, each with visible, colour and opacity (looks.py), the
+*Find Parts* button, and the *Explode* factor the bake applies."""
+import bpy
+
+from . import looks
+from .operators import _OnVolume
+from .panels import _settings, _VolrigPanel
+
+
+class VOLRIG_OT_find_parts(_OnVolume, bpy.types.Operator):
+    """Group the rig's bones into parts (left arm, spine, head ... from the bone names; one part per chain
+    otherwise), keeping the looks of parts already listed, and write the rest volume's part grids"""
+    bl_idname = "volrig.find_parts"
+    bl_label = "Find Parts"
+    rigged = True
+
+    def run(self, context, vol):
+        n = looks.refresh(vol)
+        self.report({"INFO"}, f"volrig: {n} parts (bake again for the frames' part grids)")
+        return {"FINISHED"}
+
+
+class VOLRIG_UL_parts(bpy.types.UIList):
+    """One line per part: visible, name, own colour, opacity."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        split = layout.split(factor=0.5)
+        left = split.row(align=True)
+        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
+        left.label(text=item.name)
+        right = split.row(align=True)
+        right.active = item.visible
+        right.prop(item, "colored", text="", icon="COLOR")
+        if item.colored:
+            right.prop(item, "color", text="")
+        right.prop(item, "opacity", text="", slider=True)
+
+
+class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Parts"
+    bl_parent_id = "VOLRIG_PT_look"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        layout.operator("volrig.find_parts", icon="GROUP_BONE")
+        if len(s.parts):
+            layout.template_list("VOLRIG_UL_parts", "", s, "parts", s, "parts_index", rows=6)
+            if 0 <= s.parts_index < len(s.parts):
+                layout.label(text=s.parts[s.parts_index].bones.replace(",", ", "), icon="BONE_DATA")
+        layout.prop(s, "explode")
+
+
+CLASSES = (VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
