@@ -32,6 +32,7 @@ OUT = os.path.join(REPO, "docs", "images", "selective_phantom.png")
 def set_looks(vol, colored=(), hidden=(), opacity=1.0, own_colours=False):
     """Every part's look: ``colored`` parts red and denser (or each its own colour), ``hidden`` parts hidden, the
     others at ``opacity``."""
+    vol.volrig.use_parts = True
     for k, p in enumerate(vol.volrig.parts):
         p.visible = p.name not in hidden
         p.colored = own_colours or p.name in colored

@@ -100,6 +100,7 @@ def setup():
         if os.environ.get("UI_LOOKS"):  # the Parts list: the left arm red, the right leg hidden, the rest translucent
             s = vol.volrig
             s.preset, s.density_scale = "GREY", 0.3
+            s.use_parts = True
             for p in s.parts:
                 p.colored, p.opacity = p.name == "left arm", 2.0 if p.name == "left arm" else 0.1
                 p.visible = p.name != "right leg"

@@ -38,16 +38,18 @@ def rest_file(volume_obj) -> str:
 
 
 def shown_at_rest(volume_obj) -> str:
-    """The file the Volume object shows when not playing a bake: the rest volume with parts, else the source."""
-    if volume_obj.volrig.rig_file and os.path.exists(rest_file(volume_obj)):
+    """The file the Volume object shows when not playing a bake: the rest volume with parts (per-part looks on),
+    else the source."""
+    if volume_obj.volrig.use_parts and volume_obj.volrig.rig_file and os.path.exists(rest_file(volume_obj)):
         return rest_file(volume_obj)
     return scans.source_path(volume_obj)
 
 
 def parts_of(volume_obj):
-    """The object's parts as ``volrig.Part`` (bone indices in the armature's order), for the bake."""
+    """The object's parts as ``volrig.Part`` (bone indices in the armature's order), for the bake and the
+    material; none while per-part looks are off."""
     rig = objects.members(volume_obj).get("RIG")
-    if rig is None:
+    if rig is None or not volume_obj.volrig.use_parts:
         return []
     index = {b.name: i for i, b in enumerate(rig.data.bones)}
     out = []
@@ -58,9 +60,21 @@ def parts_of(volume_obj):
     return out
 
 
+def parts_toggled(volume_obj) -> None:
+    """Per-part looks turned on (the parts found, the rest volume with their grids written and shown) or off (the
+    source shown again), unless a bake is playing; the material follows."""
+    from . import materials
+    if volume_obj.volrig.use_parts and "RIG" in objects.members(volume_obj):
+        refresh(volume_obj)
+        return
+    if not volume_obj.data.is_sequence:
+        objects.point_volume_at(volume_obj, shown_at_rest(volume_obj))
+    materials.update_volume_material(volume_obj)
+
+
 def refresh(volume_obj) -> int:
-    """Finds the rig's parts (keeping the settings of parts already listed by name), writes the rest volume with
-    their grids and shows it unless a bake is playing; returns the number of parts."""
+    """Finds the rig's parts (keeping the settings of parts already listed by name); with per-part looks on,
+    writes the rest volume with their grids and shows it unless a bake is playing; returns the number of parts."""
     from . import materials
     from .bake import RigState
     state = RigState(volume_obj)
@@ -74,10 +88,11 @@ def refresh(volume_obj) -> int:
         item.visible, item.colored, item.color, item.opacity = kept.get(
             part.name, (True, False, PART_COLORS[k % len(PART_COLORS)], 1.0))
     s.parts_index = min(s.parts_index, max(len(s.parts) - 1, 0))
-    pipeline.write_rest_parts(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
-                              parts_of(volume_obj), scans.mask(volume_obj))
+    if s.use_parts:
+        pipeline.write_rest_parts(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
+                                  parts_of(volume_obj), scans.mask(volume_obj))
     if not volume_obj.data.is_sequence:
-        objects.point_volume_at(volume_obj, rest_file(volume_obj))
+        objects.point_volume_at(volume_obj, shown_at_rest(volume_obj))
     materials.update_volume_material(volume_obj)
     return len(s.parts)
 

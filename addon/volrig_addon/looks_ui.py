@@ -42,8 +42,12 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
 
     def draw(self, context):
         s, layout = _settings(self, context)
-        layout.operator("volrig.find_parts", icon="GROUP_BONE")
-        if len(s.parts):
+        layout.prop(s, "use_parts")
+        if s.use_parts and s.baked_end >= s.baked_start:
+            layout.label(text="Bake again if frames were baked without parts", icon="INFO")
+        if s.use_parts:
+            layout.operator("volrig.find_parts", icon="GROUP_BONE")
+        if s.use_parts and len(s.parts):
             layout.template_list("VOLRIG_UL_parts", "", s, "parts", s, "parts_index", rows=6)
             if 0 <= s.parts_index < len(s.parts):
                 layout.label(text=s.parts[s.parts_index].bones.replace(",", ", "), icon="BONE_DATA")

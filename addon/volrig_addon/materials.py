@@ -164,7 +164,7 @@ def update_volume_material(volume_obj):
     nd["glow"].inputs[1].default_value = s.highlight_strength
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
     from . import looks
-    looks.route(mat.node_tree, nd, s.parts)
+    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [])
     return mat
 
 

@@ -36,6 +36,11 @@ def _look_changed(self, context):
     materials.update_volume_material(self.id_data)
 
 
+def _parts_toggled(self, context):
+    from . import looks
+    looks.parts_toggled(self.id_data)
+
+
 def _volume_object(self, obj):
     return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
 
@@ -170,6 +175,10 @@ class VolrigObject(bpy.types.PropertyGroup):
     highlight_strength: FloatProperty(name="Glow", default=2.0, min=0.0, soft_max=20.0, update=_look_changed)
     highlight_color: FloatVectorProperty(name="Glow colour", subtype="COLOR", size=3, default=(1.0, 0.35, 0.05),
                                          min=0.0, max=1.0, update=_look_changed)
+    use_parts: BoolProperty(name="Per-part looks", default=False, update=_parts_toggled,
+                            description="Give each part of the rig its own look (visible, colour, opacity): the rest "
+                                        "volume and every baked frame get two grids per part (bakes take about "
+                                        "twice as long; bake again for frames baked without them)")
     parts: CollectionProperty(type=VolrigPart, name="Parts",
                               description="The rig's parts (bone groups), each with its own look")
     parts_index: IntProperty(name="Part", default=0)

@@ -64,8 +64,7 @@ def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
     for c in counts:
         assert abs(c - rest_count) <= 0.01 * rest_count
     grids = {g["name"] for g in volrig._volrig.vdb_grids(files[1])}
-    keys = [p.key for p in vol.volrig.parts]
-    assert grids == {"density", "bone"} | {f"{kind}_{k}" for k in keys for kind in ("density", "mask")}
+    assert grids == {"density", "bone"}  # per-part looks off (the default): no part grids (test_looks.py)
     # frame 2 differs from the rest where the forearm moved
     f2 = volrig.load(files[1], grid="bone")
     assert f2.array.shape != rest.bone.array.shape or not np.array_equal(f2.array, rest.bone.array)

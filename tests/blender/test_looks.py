@@ -33,6 +33,7 @@ def _grids(path, names):
 def test_rig_lists_parts_and_writes_the_rest_volume_with_their_grids(rigged):
     from volrig_addon import looks
     vol = rigged
+    vol.volrig.use_parts = True  # per-part looks on: the rest volume gets its part grids
     names = [p.name for p in vol.volrig.parts]
     assert set(names) == {"spine", "head", "left arm", "right arm", "left leg", "right leg"}
     assert _part(vol).bones.split(",") == ["shoulder.L", "upper_arm.L", "forearm.L", "hand.L"]
@@ -103,6 +104,7 @@ def _projected(scene, vol, mask_array, first, grow, outer=True):
 def test_hidden_and_coloured_parts_render_exactly(rigged, tmp_path):
     from volrig_addon import looks
     vol = rigged
+    vol.volrig.use_parts = True  # per-part looks on: the rest volume gets its part grids
     vol.volrig.preset = "GREY"
     vol.volrig.density_scale = 3.0  # per mm (object space): opaque, a pixel crossing the part is covered
     scene = _stage(vol, tmp_path)
@@ -138,6 +140,7 @@ def test_hidden_and_coloured_parts_render_exactly(rigged, tmp_path):
 def test_bake_writes_part_grids_and_explodes(rigged):
     from volrig_addon import bake
     vol = rigged
+    vol.volrig.use_parts = True  # per-part looks on: the rest volume gets its part grids
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, 2
     vol.volrig.explode = 0.0
