@@ -1,13 +1,14 @@
 """Live preview while scrubbing: on every frame change, a rigged volume whose frame is not baked shows a coarse
 reconstruction of the current pose (``volrig.deform.coarse_level``: every f-th voxel, f the smallest of 2, 4, 8 that
-keeps the coarse grid within ``BUDGET_VOXELS``) as ``<name>_preview``, a Volume object over it with its material;
-a baked frame hides the preview and shows the bake.
+keeps the coarse grid within ``BUDGET_VOXELS``), written to ``<cache>/preview.vdb`` and shown by the Volume object
+itself (with its own material; the object is never hidden, so selections and operators are untouched); a baked
+frame gives the object back its baked sequence, and so does the start of a render.
 
 The preview is computed in the frame-change handler itself, synchronously: the coarse level bounds its cost (the
 phantom at scale 1, 46 M voxels, previews at a quarter per axis in about 50 ms: ``benchmarks/bench_preview.py``), so
 scrubbing never waits on a queue and there is nothing to cancel. The coarse Deformer is built once per rig (the rig
 file's time stamp and the sphere mesh's weights are its key) and kept with the scan in memory. Renders never use
-the preview (hidden from render): bake for final frames.
+the preview: bake for final frames.
 """
 import os
 
@@ -76,11 +77,22 @@ class Preview:
         frame.save(path)
 
 
-def _preview_object(volume_obj):
-    material = volume_obj.data.materials[0] if volume_obj.data.materials else None
-    obj = objects._child_volume(volume_obj, "PREVIEW", "_preview", material)
-    obj.hide_render = True
-    return obj
+def showing_preview(volume_obj) -> bool:
+    """Whether the Volume object shows the preview file now."""
+    data = volume_obj.data
+    return not data.is_sequence and bpy.path.abspath(data.filepath) == preview_path(volume_obj)
+
+
+def restore(volume_obj) -> None:
+    """The Volume object back to what it shows without a preview: its baked sequence, else the rest volume."""
+    from . import looks
+    s = volume_obj.volrig
+    if s.baked_end >= s.baked_start:
+        first = bake.frame_path(volume_obj, s.baked_start)
+        objects.point_volume_at(volume_obj, bpy.path.relpath(first) if bpy.data.filepath else first,
+                                (s.baked_start, s.baked_end))
+    else:
+        objects.point_volume_at(volume_obj, looks.shown_at_rest(volume_obj))
 
 
 def _rigged_volumes(scene):
@@ -89,27 +101,17 @@ def _rigged_volumes(scene):
             yield obj
 
 
-def _set_hidden(obj, hidden: bool) -> None:
-    if obj.hide_get() != hidden:
-        obj.hide_set(hidden)
-
-
 def update(volume_obj, scene, depsgraph) -> bool:
-    """Shows the bake of the current frame when there is one, else the coarse preview; True when a preview was
-    made."""
+    """Shows the bake of the current frame when there is one, else the coarse preview, on the Volume object itself
+    (never hidden, so selections and operators are untouched); True when a preview was made."""
     baked = os.path.exists(bpy.path.abspath(bake.frame_path(volume_obj, scene.frame_current)))
-    existing = objects.members(volume_obj).get("PREVIEW")
     if baked or not scene.volrig_live_preview:
-        if existing is not None:
-            _set_hidden(existing, True)
-        _set_hidden(volume_obj, False)
+        if showing_preview(volume_obj):
+            restore(volume_obj)
         return False
     path = preview_path(volume_obj)
     Preview.of(volume_obj).write(volume_obj, depsgraph, path)
-    obj = existing or _preview_object(volume_obj)
-    objects.point_volume_at(obj, path)
-    _set_hidden(obj, False)
-    _set_hidden(volume_obj, True)
+    objects.point_volume_at(volume_obj, path)
     return True
 
 
@@ -132,9 +134,14 @@ _rendering = False
 
 
 @bpy.app.handlers.persistent
-def _render_started(*_args) -> None:
+def _render_started(scene, *_args) -> None:
+    """Renders use bakes: the previews give way to them and none is made while one runs (a farm's frames stay
+    fast)."""
     global _rendering
-    _rendering = True  # renders use bakes: no previews while one runs (a farm's frames stay fast)
+    _rendering = True
+    for obj in list(_rigged_volumes(scene)):
+        if showing_preview(obj):
+            restore(obj)
 
 
 @bpy.app.handlers.persistent

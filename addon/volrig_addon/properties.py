@@ -79,7 +79,6 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
         ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),
         ("LUMEN", "Lumen wall", "The wall around the segmented lumen, seen from inside"),
-        ("PREVIEW", "Live preview", "The coarse reconstruction of an unbaked frame shown while scrubbing"),
     ], default="NONE")
     volume: PointerProperty(name="Volume", type=bpy.types.Object, poll=_volume_object,
                             description="The volrig Volume object this object belongs to")
