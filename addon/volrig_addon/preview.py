@@ -73,7 +73,10 @@ class Preview:
     def write(self, volume_obj, depsgraph, path: str) -> None:
         """The current pose's coarse frame into ``path`` (atomically)."""
         s = volume_obj.volrig
-        frame = self.deformer.frame(self.state.bone_matrices(depsgraph), mode=s.deform_mode, sampling=s.sampling)
+        matrices = self.state.bone_matrices(depsgraph)
+        if s.explode:  # taken apart as the bake does it
+            matrices = volrig.explode_matrices(self.state.rig, s.explode, matrices)
+        frame = self.deformer.frame(matrices, mode=s.deform_mode, sampling=s.sampling)
         frame.save(path)
 
 

@@ -28,6 +28,12 @@ def test_unbaked_frames_preview_the_pose_and_baked_frames_show_the_bake(posed): 
         z, y, x = np.nonzero(np.asarray(v.array) == forearm)
         return np.array(v.origin) + np.array(v.spacing) * np.stack([x, y, z], 1).mean(0)
     assert np.linalg.norm(centre(volrig.load(path, grid="bone")) - centre(at_rest)) > 5 * source.spacing[0]
+    bent = centre(volrig.load(path, grid="bone"))
+    vol.volrig.explode = 1.0  # the preview takes the pose apart as the bake would
+    scene.frame_set(3)
+    assert np.linalg.norm(centre(volrig.load(path, grid="bone")) - bent) > 5 * source.spacing[0]
+    vol.volrig.explode = 0.0
+    scene.frame_set(3)
     run_op(bpy.ops.volrig.bake)  # frames 1..3: the object plays them
     for frame in (1, 2, 3):
         assert os.path.exists(bake.frame_path(vol, frame))
