@@ -57,11 +57,4 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

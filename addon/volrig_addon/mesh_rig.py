@@ -429,11 +429,4 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
 CLASSES = (VOLRIG_OT_rig_mesh, VOLRIG_OT_thickness_keys, VOLRIG_PT_mesh)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

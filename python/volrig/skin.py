@@ -54,9 +54,17 @@ def skin_weights(mask: Volume, rig: Rig, vertices, influences: int = 4, blend: f
     return sparse.csr_matrix((weight, bone, indptr), shape=(len(v), len(rig.bones)), dtype=np.float32)
 
 
+def _closest_on_bone(rig: Rig, b: int, points: np.ndarray) -> np.ndarray:
+    """(V, 3): each point's closest point on bone b's segment."""
+    return _closest_on_segments(rig.heads()[[b]], rig.tails()[[b]], points)[0]
+
+
 def _closest_on_bones(rig: Rig, vertices: np.ndarray) -> np.ndarray:
     """(B, V, 3): each vertex's closest point on each bone segment."""
-    h, t = rig.heads(), rig.tails()
+    return _closest_on_segments(rig.heads(), rig.tails(), vertices)
+
+
+def _closest_on_segments(h: np.ndarray, t: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     d = t - h
     s = np.einsum("bvk,bk->bv", vertices[None] - h[:, None], d) / np.einsum("bk,bk->b", d, d)[:, None]
     return h[:, None] + np.clip(s, 0.0, 1.0)[..., None] * d[:, None]
@@ -184,7 +192,7 @@ def thickness_offsets(rig: Rig, weights, vertices, scales: Mapping[Union[str, in
         if not len(rows):
             continue
         wb = w.data[w.indptr[b]:w.indptr[b + 1]].astype(np.float64)[:, None]
-        near = _closest_on_bones(Rig.from_bones(rig.heads()[[b]], rig.tails()[[b]], ["b"], [-1]), v[rows])[0]
+        near = _closest_on_bone(rig, b, v[rows])
         out[rows] += (s[b] - 1.0) * wb * (v[rows] - near)
     return out
 
@@ -234,7 +242,7 @@ def thicken_volume(source: Volume, points: SkeletonPoints, binding: Binding, rig
         if not len(zyx):
             continue
         q = origin + zyx[:, ::-1] * spacing
-        near = _closest_on_bones(Rig.from_bones(rig.heads()[[b]], rig.tails()[[b]], ["b"], [-1]), q)[0]
+        near = _closest_on_bone(rig, b, q)
         p = (near + (q - near) / factors[b] - origin) / spacing  # (x, y, z) voxel coordinates
         values = ndimage.map_coordinates(src.astype(np.float32, copy=False) if sampling == "trilinear" else src,
                                          p[:, ::-1].T, order=1 if sampling == "trilinear" else 0, mode="constant",
