@@ -234,9 +234,11 @@ std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int dep
 std::uint64_t walk_meta(Walker& w) {
     std::uint64_t at = 132;
     std::string syntax;
+    std::set<std::uint16_t> seen;  // GDCM keeps the first of a repeated element, the checks below would the last
     while (at < w.size) {
         const Element e = header_at(w, at, true, false);
         if (e.group != 0x0002) break;
+        if (!seen.insert(e.elem).second) w.bad(at, "element (0002," + hex4(e.elem) + ") appears twice in the file meta group");
         if (e.length == kUndefined) w.bad(at, "undefined length in the file meta group");
         if (std::strncmp(e.vr, "SQ", 2) == 0 || std::strncmp(e.vr, "UN", 2) == 0)  // GDCM asserts on these here
             w.bad(at, "a " + std::string(e.vr, 2) + " element in the file meta group");
