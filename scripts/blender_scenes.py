@@ -149,7 +149,7 @@ def sheet(paths, titles, out_path, title):
     import matplotlib.image as mpimg
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(paths), figsize=(3.0 * len(paths), 4.2))
-    for ax, path, t in zip(axes, paths, titles):
+    for ax, path, t in zip(np.atleast_1d(axes), paths, titles):
         ax.imshow(mpimg.imread(path))
         ax.set_title(t, fontsize=10)
         ax.axis("off")

@@ -305,3 +305,71 @@ def set_thickness_range(mat, top: float, density: float) -> None:
     span.inputs["From Min"].default_value = 0.0
     span.inputs["From Max"].default_value = max(float(top), 1e-6)
     n["volrig thickness volume"].inputs["Density"].default_value = float(density)
+
+
+def tissue_material(name: str, tissues, strength: float = 1.0):
+    """``<name> tissues``: a Principled Volume over a label map's per-tissue occupancy grids (``tissue_<key>``,
+    written by a bake with tissue looks: ``volrig.tissue_grids``). Each visible tissue adds its opacity (a Value
+    node ``volrig opacity <key>``) times its grid to the density and its colour (an RGB node ``volrig colour
+    <key>``) to the colour, weighted the same way; a hidden tissue's grid is not read at all, so it leaves no shell.
+    ``volrig tissue strength`` scales the density (per world unit: opacity 1 is about opaque within a voxel or two
+    at the default)."""
+    mat = bpy.data.materials.new(f"{name} tissues")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    link = tree.links.new
+
+    def node(kind, label, x, y, **props):
+        nd = tree.nodes.new(kind)
+        nd.name = nd.label = label
+        nd.location = (x, y)
+        for k, v in props.items():
+            setattr(nd, k, v)
+        return nd
+
+    density, colour = 0.0, None
+    for k, t in enumerate([t for t in tissues if t.visible]):
+        y = -220 * k
+        grid = node("ShaderNodeAttribute", f"volrig tissue {t.key}", -1100, y, attribute_name=f"tissue_{t.key}")
+        opacity = node("ShaderNodeValue", f"volrig opacity {t.key}", -1100, y - 110)
+        opacity.outputs[0].default_value = t.opacity
+        rgb = node("ShaderNodeRGB", f"volrig colour {t.key}", -900, y - 60)
+        rgb.outputs[0].default_value = (*t.color, 1.0)
+        weight = node("ShaderNodeMath", f"volrig weight {t.key}", -900, y + 60, operation="MULTIPLY")
+        link(grid.outputs["Fac"], weight.inputs[0])
+        link(opacity.outputs[0], weight.inputs[1])
+        tinted = node("ShaderNodeVectorMath", f"volrig tinted {t.key}", -700, y, operation="SCALE")
+        link(rgb.outputs[0], tinted.inputs[0])
+        link(weight.outputs[0], tinted.inputs["Scale"])
+        if colour is None:
+            density, colour = weight.outputs[0], tinted.outputs[0]
+            continue
+        d = node("ShaderNodeMath", f"volrig density {k}", -500, y + 60, operation="ADD")
+        link(density, d.inputs[0])
+        link(weight.outputs[0], d.inputs[1])
+        c = node("ShaderNodeVectorMath", f"volrig colour sum {k}", -500, y, operation="ADD")
+        link(colour, c.inputs[0])
+        link(tinted.outputs[0], c.inputs[1])
+        density, colour = d.outputs[0], c.outputs[0]
+    vol = node("ShaderNodeVolumePrincipled", "volrig tissue volume", 100, 0)
+    out = node("ShaderNodeOutputMaterial", "volrig output", 400, 0)
+    link(vol.outputs["Volume"], out.inputs["Volume"])
+    if colour is None:  # nothing visible
+        vol.inputs["Density"].default_value = 0.0
+        return mat
+    floor = node("ShaderNodeMath", "volrig density floor", -300, 200, operation="MAXIMUM")
+    link(density, floor.inputs[0])
+    floor.inputs[1].default_value = 1e-4
+    inverse = node("ShaderNodeMath", "volrig inverse density", -150, 200, operation="DIVIDE")
+    inverse.inputs[0].default_value = 1.0
+    link(floor.outputs[0], inverse.inputs[1])
+    mean = node("ShaderNodeVectorMath", "volrig mean colour", -100, 0, operation="SCALE")
+    link(colour, mean.inputs[0])
+    link(inverse.outputs[0], mean.inputs["Scale"])
+    scaled = node("ShaderNodeMath", "volrig tissue strength", -100, -200, operation="MULTIPLY")
+    link(density, scaled.inputs[0])
+    scaled.inputs[1].default_value = float(strength)
+    link(mean.outputs[0], vol.inputs["Color"])
+    link(scaled.outputs[0], vol.inputs["Density"])
+    return mat

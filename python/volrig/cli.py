@@ -188,13 +188,27 @@ def cmd_animate(args) -> int:
     return 0
 
 
+def _tissues(path: str, source):
+    """The tissue classes of a label map (``volrig.tissue_classes`` of the table at ``path``, the codes present)."""
+    from .tissues import read_tissue_table, tissue_classes
+    tissues = tissue_classes(read_tissue_table(path), present=np.unique(source.array))
+    if not tissues:
+        raise VolrigError(f"{path}: none of its tissue codes is in the volume")
+    sys.stderr.write("tissues: " + ", ".join(f"{t.name} ({len(t.codes)})" for t in tissues) + "\n")
+    return tissues
+
+
 def cmd_bake_mocap(args) -> int:
     from .pipeline import BakeRate, FolderBake, sequence_number
     t = time.perf_counter()
+    if args.tissues and args.sampling != "nearest":
+        raise VolrigError("--tissues needs the label map's own codes: add --sampling nearest")
     source = _load(args)
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args, args.step, binding=True)
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
-    bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling)
+    tissues = _tissues(args.tissues, source) if args.tissues else ()
+    bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling,
+                      tissues=tissues)
     todo = [(f, m) for f, m in zip(frames, matrices)
             if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
     rate = BakeRate(len(todo))
@@ -620,6 +634,9 @@ def main(argv=None) -> int:
     p.add_argument("--sampling", choices=SAMPLINGS, default="trilinear",
                    help="nearest for label maps")
     p.add_argument("--name", help="file name stem (default: the volume file's)")
+    p.add_argument("--tissues", help="label maps: a table of tissue codes and names (TSV or CSV); each frame also "
+                                     "holds a tissue_<class> grid per tissue class (skin, muscle, bone, ...) for "
+                                     "per-tissue looks; needs --sampling nearest")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)

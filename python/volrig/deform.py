@@ -15,6 +15,7 @@ import numpy as np
 from . import _volrig
 from ._volrig import VolrigError
 from .parts import part_grids
+from .tissues import tissue_grids
 from .rig import Binding
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
@@ -83,13 +84,16 @@ class Frame:
         b = other.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
         return int(np.count_nonzero((a > 0) & (b > 0)))
 
-    def save(self, path, half: bool = True, parts=()) -> None:
+    def save(self, path, half: bool = True, parts=(), tissues=()) -> None:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
-        floats when ``half``) and ``bone`` (int32), and for each of ``parts`` (``volrig.Part``) its
-        ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``), placed by spacing and origin; atomically."""
+        floats when ``half``) and ``bone`` (int32), for each of ``parts`` (``volrig.Part``) its
+        ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``) and for each of ``tissues``
+        (``volrig.Tissue``; the values a label map sampled nearest) its ``tissue_<key>`` (``volrig.tissue_grids``),
+        placed by spacing and origin; atomically."""
         density = self.values if self.values is not None else self.mask
         grids = {"density": density, "bone": self.bone}
         grids.update(part_grids(density, self.bone, parts) if parts else {})
+        grids.update(tissue_grids(density, tissues) if tissues else {})
         write_vdb(os.fspath(path), grids, half=half)
 
 

@@ -90,6 +90,24 @@ def part_key(name: str) -> str:
 OUTSIDE = "density_outside"
 
 
+def cropped_grids(like: Volume, at: np.ndarray, grids: Dict[str, tuple]) -> Dict[str, Volume]:
+    """Grids on ``like``'s lattice cropped to the voxels ``at`` (flat indices into ``like.array``): per name,
+    ``(dtype, values)`` with ``values`` a number or one value per voxel of ``at``; 0 elsewhere. No voxel: a 1-voxel
+    grid of zeros at the origin."""
+    shape_all = np.asarray(like.array).shape
+    zyx = np.array(np.unravel_index(at, shape_all)) if len(at) else np.zeros((3, 0), np.int64)
+    lo = zyx.min(axis=1) if len(at) else np.zeros(3, np.int64)
+    shape = tuple(zyx.max(axis=1) - lo + 1) if len(at) else (1, 1, 1)
+    origin = tuple(o + s * i for o, s, i in zip(like.origin, like.spacing, lo[::-1]))
+    local = tuple(zyx - lo[:, None])
+    out = {}
+    for name, (dtype, v) in grids.items():
+        a = np.zeros(shape, dtype)
+        a[local] = v
+        out[name] = Volume(a, like.spacing, origin)
+    return out
+
+
 def part_grids(values: Volume, labels: Volume, parts: Sequence[Part], outside: bool = False) -> Dict[str, Volume]:
     """``density_<key>`` (float32: ``values`` on the part's voxels) and ``mask_<key>`` (uint8 0/1) per part, each
     cropped to the part's voxels (its own origin on the same lattice: ``write_vdb`` writes it where it lies), and
@@ -107,15 +125,8 @@ def part_grids(values: Volume, labels: Volume, parts: Sequence[Part], outside: b
     grids = {}
     for k, part in enumerate(parts):
         at = labelled[part_of == k + 1]
-        zyx = np.array(np.unravel_index(at, lab.shape)) if len(at) else np.zeros((3, 0), np.int64)
-        lo = zyx.min(axis=1) if len(at) else np.zeros(3, np.int64)
-        shape = tuple(zyx.max(axis=1) - lo + 1) if len(at) else (1, 1, 1)
-        density, mask = np.zeros(shape, np.float32), np.zeros(shape, np.uint8)
-        local = tuple(zyx - lo[:, None])
-        density[local], mask[local] = flat_values[at], 1
-        origin = tuple(o + s * i for o, s, i in zip(values.origin, values.spacing, lo[::-1]))
-        grids[f"density_{part.key}"] = Volume(density, values.spacing, origin)
-        grids[f"mask_{part.key}"] = Volume(mask, values.spacing, origin)
+        grids.update(cropped_grids(values, at, {f"density_{part.key}": (np.float32, flat_values[at]),
+                                                f"mask_{part.key}": (np.uint8, 1)}))
     if outside:
         density = np.array(flat_values, dtype=np.float32)
         density[labelled[part_of > 0]] = 0

@@ -400,7 +400,8 @@ def _no_thickness(thickness) -> bool:
 
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
-    and ``bone``, and each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``; written
+    and ``bone``, each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``, and each of
+    ``tissues``' ``tissue_<key>``: ``volrig.tissue_grids``, label maps baked with nearest sampling; written
     atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
@@ -414,10 +415,12 @@ class FolderBake:
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
-                 parts=(), rig: Optional[Rig] = None):
+                 parts=(), rig: Optional[Rig] = None, tissues=()):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
-        self.parts = list(parts)
+        self.parts, self.tissues = list(parts), list(tissues)
+        if self.tissues and sampling != "nearest":
+            raise VolrigError("tissue looks need the label map's own codes: bake with nearest sampling")
         self.deformer = Deformer(source, points, binding)
         self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
@@ -426,7 +429,8 @@ class FolderBake:
         for a in (w.indptr, w.indices, w.data):
             h.update(np.ascontiguousarray(a).tobytes())
         h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]
-                            + ([[list(p) for p in self.parts]] if self.parts else [])).encode())
+                            + ([[list(p) for p in self.parts]] if self.parts else [])
+                            + ([[[t.key, t.codes] for t in self.tissues]] if self.tissues else [])).encode())
         self.setup_hash = h.hexdigest()
         self.poses = self._read_poses()
         self._writer = None   # the thread writing files, while a bake runs
@@ -494,7 +498,7 @@ class FolderBake:
             pending.result()
 
     def _write(self, number: int, pose_hash: str, frame) -> None:
-        frame.save(self.path(number), half=True, parts=self.parts)
+        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues)
         if self.poses_path is not None:
             self.poses[str(number)] = pose_hash
             self._write_poses()

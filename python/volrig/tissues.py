@@ -1,0 +1,148 @@
+"""Per-tissue looks for label maps (issue 21): tissue codes grouped into classes (skin, fat, muscle, bone, organs,
+...), each with its own colour, opacity and visibility, written as one occupancy grid per class so a renderer shows
+each class its own way without interpolating the codes.
+
+A label map's codes are not values: a renderer that interpolates them (Cycles does, even with closest sampling it
+may pick a neighbour) makes codes that are in neither tissue at every boundary (fat 136 next to muscle 180 passes
+through 152, gland). ``tissue_grids`` writes ``tissue_<key>``: 1 on the class's voxels, 0 elsewhere; interpolating
+an occupancy gives a mix of the two real neighbours and nothing else.
+
+The classes come from a label table (code -> tissue name: ``read_tissue_table`` reads TSV or CSV files such as the
+Visible Human's ``austinman_tissues.tsv``) matched against ``TISSUE_CLASSES``, a preset the user can edit or replace:
+each code goes to the first class whose pattern matches its name; codes no class matches go to "other"; code 0 and
+names matching ``OUTSIDE_NAMES`` (external air) are left out.
+"""
+from __future__ import annotations
+
+import csv
+import re
+from typing import Dict, List, NamedTuple, Sequence, Tuple
+
+import numpy as np
+
+from ._volrig import VolrigError
+from .volume import Volume
+
+
+class TissueClass(NamedTuple):
+    """A preset entry: ``pattern`` (a case-insensitive regular expression) matched against tissue names."""
+    name: str
+    pattern: str
+    color: Tuple[float, float, float]
+    opacity: float
+    visible: bool = True
+
+
+#: The preset: skin translucent over muscle red, fat yellow and faint, bone white, organs in their colours, gas
+#: hidden. Opacity is relative (the renderer scales it). First match wins, so specific names come before general
+#: ones ("BoneMarrow" is bone, not marrow fat; "HeartMuscle" and "HeartDCT" are heart; "InternalAir" is air).
+TISSUE_CLASSES: List[TissueClass] = [
+    TissueClass("skin", r"skin|nail", (0.95, 0.78, 0.66), 0.06),
+    TissueClass("bone", r"bone|tooth|teeth|skull|vertebra|rib|femur|tibia|humerus", (0.97, 0.94, 0.86), 1.0),
+    TissueClass("heart", r"heart|ventricle|atri|myocard", (0.80, 0.10, 0.12), 0.8),
+    TissueClass("cartilage", r"cartilage|menisc|disc|tendon|ligament|fascia|itband|dct", (0.80, 0.85, 0.92), 0.1),
+    TissueClass("vessels", r"aorta|vessel|vein|artery|blood|vena", (0.70, 0.04, 0.06), 0.8),
+    TissueClass("brain", r"brain|cerebell|pons|medulla|midbrain|spinalcord|spinal_cord|dura|csf|cerebrospinal",
+                (0.92, 0.80, 0.76), 0.6),
+    TissueClass("nerve", r"nerve", (0.98, 0.92, 0.40), 0.8),
+    TissueClass("lung", r"lung|trachea|bronch", (0.92, 0.62, 0.68), 0.05),
+    TissueClass("liver", r"liver|gall", (0.50, 0.13, 0.10), 0.6),
+    TissueClass("kidney", r"kidney|renal|adrenal|bladder|urethra|prostate|testis|ductus|erectile",
+                (0.65, 0.25, 0.38), 0.6),
+    TissueClass("gut", r"colon|intestine|duoden|stomach|esophag|bowel|rectum|peritoneal|mucous",
+                (0.88, 0.58, 0.48), 0.3),
+    TissueClass("glands", r"gland|pancrea|spleen|thymus|thyroid|lymph|tongue", (0.72, 0.35, 0.48), 0.5),
+    TissueClass("eye", r"eye|cornea|lens|vitreous|sclera", (0.95, 0.95, 1.00), 0.6),
+    TissueClass("muscle", r"muscle|diaphragm", (0.72, 0.16, 0.12), 0.1),
+    TissueClass("fat", r"fat|adipose|marrow", (0.96, 0.86, 0.48), 0.006),
+    TissueClass("air", r"air|gas", (1.0, 1.0, 1.0), 0.0, False),
+]
+#: Tissue names left out of every class (the air around the body; code 0 always is).
+OUTSIDE_NAMES = r"^external.?air$|^air$|^background$|^outside$"
+#: Codes in no class of the preset.
+OTHER = TissueClass("other", r"", (0.60, 0.60, 0.60), 0.3)
+
+
+class Tissue(NamedTuple):
+    """One class of a label map: its codes, its look, and ``key`` naming its grid ``tissue_<key>``."""
+    name: str
+    key: str
+    codes: List[int]
+    color: Tuple[float, float, float]
+    opacity: float
+    visible: bool
+
+
+def read_tissue_table(path: str) -> Dict[int, str]:
+    """Code -> tissue name from a TSV or CSV file: the first column the code (an integer), the second the name;
+    a header line and blank lines are skipped. Raises FileFormatError-style ``VolrigError`` on a malformed row."""
+    table: Dict[int, str] = {}
+    with open(path, newline="", encoding="utf-8") as f:
+        text = f.read()
+    dialect = "excel-tab" if "\t" in text.split("\n", 1)[0] else "excel"
+    for n, row in enumerate(csv.reader(text.splitlines(), dialect), start=1):
+        if not row or not "".join(row).strip():
+            continue
+        try:
+            code = int(row[0].strip())
+        except ValueError:
+            if n == 1:
+                continue  # the header
+            raise VolrigError(f"{path}: line {n}: {row[0]!r} is not an integer tissue code") from None
+        if len(row) < 2 or not row[1].strip():
+            raise VolrigError(f"{path}: line {n}: code {code} has no tissue name")
+        if code in table:
+            raise VolrigError(f"{path}: line {n}: code {code} appears twice")
+        table[code] = row[1].strip()
+    if not table:
+        raise VolrigError(f"{path}: no tissue codes")
+    return table
+
+
+def tissue_classes(table: Dict[int, str], classes: Sequence[TissueClass] = TISSUE_CLASSES,
+                   present: Sequence[int] = None) -> List[Tissue]:
+    """The table's codes grouped by ``classes`` (first match on the name), in the classes' order, then "other";
+    classes without codes are left out. ``present``: only these codes (e.g. ``np.unique`` of the labels)."""
+    keep = None if present is None else {int(c) for c in present}
+    codes: Dict[str, List[int]] = {}
+    for code, name in sorted(table.items()):
+        if code == 0 or re.search(OUTSIDE_NAMES, name, re.I) or (keep is not None and code not in keep):
+            continue
+        match = next((c for c in classes if c.pattern and re.search(c.pattern, name, re.I)), OTHER)
+        codes.setdefault(match.name, []).append(int(code))
+    out = []
+    for c in list(classes) + [OTHER]:
+        if c.name in codes:
+            key = re.sub(r"[^A-Za-z0-9]+", "_", c.name).strip("_") or "tissue"
+            out.append(Tissue(c.name, key, codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible)))
+    return out
+
+
+def tissue_grids(labels: Volume, tissues: Sequence[Tissue]) -> Dict[str, Volume]:
+    """``tissue_<key>`` per tissue class: uint8, 1 on the voxels whose code is one of the class's, each cropped to
+    those voxels (its own origin on the labels' lattice). ``labels``: an integer label map (a frame baked with
+    nearest sampling holds the codes themselves)."""
+    from .parts import cropped_grids
+    lab = np.asarray(labels.array)
+    if lab.dtype.kind == "f":
+        if not np.all(np.isfinite(lab)) or np.any(lab != np.round(lab)):
+            raise VolrigError("tissue_grids: the labels are not integers (bake label maps with nearest sampling)")
+    elif lab.dtype.kind not in "iub":
+        raise VolrigError(f"tissue_grids: labels of dtype {lab.dtype} are not integer codes")
+    # each voxel's class (1-based, 0 = none) by looking its code up among all classes' sorted codes
+    codes = np.array([c for t in tissues for c in t.codes], dtype=np.int64)
+    owner = np.array([k + 1 for k, t in enumerate(tissues) for _ in t.codes], dtype=np.int64)
+    order = np.argsort(codes, kind="stable")
+    codes, owner = codes[order], owner[order]
+    flat = lab.reshape(-1)
+    body = np.flatnonzero(flat)
+    values = flat[body].astype(np.int64)
+    i = np.minimum(np.searchsorted(codes, values), max(len(codes) - 1, 0))
+    cls = np.where(codes[i] == values, owner[i], 0) if len(codes) else np.zeros(len(body), np.int64)
+    by_class = np.argsort(cls, kind="stable")
+    bounds = np.searchsorted(cls[by_class], np.arange(len(tissues) + 2))
+    grids = {}
+    for k, t in enumerate(tissues):
+        at = body[by_class[bounds[k + 1]:bounds[k + 2]]]
+        grids.update(cropped_grids(labels, at, {f"tissue_{t.key}": (np.uint8, 1)}))
+    return grids

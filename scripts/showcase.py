@@ -1,0 +1,190 @@
+"""The animated Visible Human (issue 21's showcase): a labelled scan rigged automatically, driven by a motion-capture
+walk, baked with per-tissue grids and rendered in Cycles with per-tissue looks (skin translucent over the moving
+skeleton and muscles). Headless; point it at any labelled scan with its table of tissue codes:
+
+    blender -b --factory-startup --python scripts/showcase.py -- \\
+        [--labels ../shared/data/visible-human/austinman_4mm_labels.nii.gz] \\
+        [--tissues ../shared/data/visible-human/austinman_tissues.tsv] [--clip ../shared/data/bvh/131_01.bvh] \\
+        [--count 4] [--samples 16] [--height 640] [--hide fat,muscle] [--out docs/images/showcase_vhm.png]
+
+The scan is any label map volrig reads (NIfTI, NRRD, MetaImage, DICOM, TIFF) whose non-zero codes are the body
+(codes the table calls external air are left out); the table is TSV or CSV (code, name). Tissue classes come from
+``volrig.TISSUE_CLASSES`` (edit it, or the material's Value and RGB nodes, for other looks); --hide leaves classes
+out of the render. The body is rigged as a humanoid with +z up (--kind, --up to change), the clip retargeted in
+place, ``--count`` frames spread over its first ``--span`` BVH frames baked (linear, nearest sampling) into a
+temporary folder and rendered, and a contact sheet written to --out.
+
+The Visible Human data are not part of volrig (licence: CC BY-NC-ND 3.0): see ../shared/data/visible-human/README.md
+for where they come from (AustinMan v2.6, UT Austin, from the NLM Visible Human Project).
+"""
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "scripts")]
+DATA = os.path.normpath(os.path.join(REPO, "..", "shared", "data"))
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+import volrig  # noqa: E402
+from volrig import pipeline  # noqa: E402
+from blender_scenes import log, quiet_stdout, run_and_exit, sheet  # noqa: E402
+from volrig_addon import materials  # noqa: E402
+
+OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
+
+
+def body_of(labels: volrig.Volume, table) -> volrig.Volume:
+    """The body: every voxel with a non-zero code that the table does not call external air."""
+    import re
+    air = [c for c, name in table.items() if re.search(volrig.tissues.OUTSIDE_NAMES, name, re.I)]
+    a = np.asarray(labels.array)
+    return volrig.Volume((a != 0) & ~np.isin(a, air), labels.spacing, labels.origin)
+
+
+def rig_and_bake(args, work):
+    """Rig the scan, drive it with the clip and bake ``args.count`` frames; returns (frame files, tissues, rig)."""
+    t = time.perf_counter()
+    labels = volrig.load(args.labels)
+    table = volrig.read_tissue_table(args.tissues)
+    tissues = volrig.tissue_classes(table, present=np.unique(labels.array))
+    if not tissues:
+        raise SystemExit(f"showcase: none of {args.tissues}'s codes is in {args.labels}")
+    body = body_of(labels, table)
+    sk = pipeline.skeleton_of(body)
+    points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(args.thinness, sk.metric,
+                                                                                  body.spacing))
+    up = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "-z": (0, 0, -1)}[args.up]
+    r = pipeline.rig_skeleton(points, body, kind=args.kind, up=up)
+    log(f"rigged {os.path.basename(args.labels)}: {int(body.array.sum()):,} body voxels, {len(points):,} "
+        f"spheres, {r.rig.kind} ({len(r.rig)} bones) in {time.perf_counter() - t:.1f} s; tissues: "
+        + ", ".join(x.name for x in tissues))
+    motion = volrig.read_bvh(args.clip)
+    span = min(args.span, motion.frame_count)
+    frames = [round(k * (span - 1) / max(args.count, 1)) for k in range(args.count)]
+    _, matrices = pipeline.mocap_poses(r.rig, motion, frames, up_axis=args.clip_up)
+    bake = pipeline.FolderBake(labels, r.points, r.binding, work, "body", mode="linear", sampling="nearest",
+                               tissues=tissues)
+    try:
+        for k, m in enumerate(matrices):
+            started = time.perf_counter()
+            stats = bake.bake(k + 1, m)
+            log(f"baked {k + 1}/{len(frames)} (BVH frame {frames[k] + 1}): {stats['covered']:,} voxels, "
+                f"{time.perf_counter() - started:.1f} s")
+    finally:
+        bake.finish()
+    return [bake.path(k + 1) for k in range(len(frames))], tissues, frames, labels
+
+
+def scene_for(labels, height):
+    """An empty scene in Cycles with a camera three-quarters from the front and a soft key light, framing the
+    scan's box (world units: the scan's, shown at 1/1000: millimetres as metres)."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.use_denoising = False
+    scene.render.film_transparent = False
+    scene.render.resolution_y = height
+    scene.render.resolution_x = int(height * 0.6)
+    scene.cycles.volume_step_rate = 2.0
+    scene.cycles.volume_max_steps = 512
+    world = bpy.data.worlds.new("showcase")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.02, 0.025, 0.03, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    scene.world = world
+    box = np.array(labels.origin) + np.array(labels.spacing) * (np.array(labels.array.shape[::-1]) - 1)
+    lo, hi = np.minimum(labels.origin, box) / 1000.0, np.maximum(labels.origin, box) / 1000.0
+    centre, size = (lo + hi) / 2, hi - lo
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = float(size[2]) * 1.08
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    direction = np.array([0.45, -1.0, 0.12])  # from the front (-y in LPS-ordered scans), a little to the left
+    cam.location = tuple(centre + direction / np.linalg.norm(direction) * float(size.max()) * 2.0)
+    target = bpy.data.objects.new("target", None)
+    target.location = tuple(centre)
+    scene.collection.objects.link(target)
+    aim = cam.constraints.new("TRACK_TO")
+    aim.target, aim.track_axis, aim.up_axis = target, "TRACK_NEGATIVE_Z", "UP_Y"
+    for name, energy, angles in (("key", 4.0, (50.0, 10.0, 30.0)), ("fill", 1.5, (70.0, -20.0, -120.0))):
+        light = bpy.data.objects.new(name, bpy.data.lights.new(name, "SUN"))
+        light.data.energy = energy
+        light.rotation_euler = tuple(np.radians(angles))
+        scene.collection.objects.link(light)
+    return scene
+
+
+def show(scene, path, mat):
+    """A Volume object of one baked frame, at 1/1000 scale, with the tissue material (the previous one removed)."""
+    for ob in [o for o in scene.objects if o.type == "VOLUME"]:
+        bpy.data.objects.remove(ob)
+    data = bpy.data.volumes.new(os.path.basename(path))
+    data.filepath = path
+    ob = bpy.data.objects.new(os.path.basename(path), data)
+    ob.scale = (0.001, 0.001, 0.001)
+    data.materials.append(mat)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(prog="showcase.py")
+    ap.add_argument("--labels", default=os.path.join(DATA, "visible-human", "austinman_4mm_labels.nii.gz"))
+    ap.add_argument("--tissues", default=os.path.join(DATA, "visible-human", "austinman_tissues.tsv"))
+    ap.add_argument("--clip", default=os.path.join(DATA, "bvh", "131_01.bvh"))
+    ap.add_argument("--clip-up", choices=["y", "z"], default="y", help="the BVH's up axis")
+    ap.add_argument("--span", type=int, default=120, help="BVH frames the rendered frames spread over")
+    ap.add_argument("--count", type=int, default=4, help="frames to bake and render")
+    ap.add_argument("--thinness", type=float, default=0.5, help="thinness in voxels")
+    ap.add_argument("--kind", choices=volrig.rig.KINDS, default="humanoid")
+    ap.add_argument("--up", choices=["x", "y", "z", "-z"], default="z", help="the body's up axis in the scan")
+    ap.add_argument("--hide", default="", help="tissue classes to leave out, comma-separated (e.g. fat,muscle)")
+    ap.add_argument("--samples", type=int, default=16)
+    ap.add_argument("--height", type=int, default=640, help="image height in pixels")
+    ap.add_argument("--strength", type=float, default=0.06, help="density per world unit at opacity 1")
+    ap.add_argument("--out", default=OUT)
+    args = ap.parse_args(argv)
+    for what, path in (("labels", args.labels), ("tissues", args.tissues), ("clip", args.clip)):
+        if not os.path.exists(path):
+            raise SystemExit(f"showcase: {what} file {path} not found (the Visible Human and CMU clips live in "
+                             f"../shared/data; see its README for where they come from), or pass --{what}")
+    t0 = time.perf_counter()
+    work = tempfile.mkdtemp(prefix="volrig_showcase_")
+    try:
+        files, tissues, frames, labels = rig_and_bake(args, work)
+        hidden = {h.strip() for h in args.hide.split(",") if h.strip()}
+        unknown = hidden - {t.name for t in tissues}
+        if unknown:
+            raise SystemExit(f"showcase: --hide {', '.join(sorted(unknown))}: no such tissue class; classes: "
+                             + ", ".join(t.name for t in tissues))
+        tissues = [t._replace(visible=t.name not in hidden) for t in tissues]
+        scene = scene_for(labels, args.height)
+        scene.cycles.samples = args.samples
+        mat = materials.tissue_material("showcase", tissues, strength=args.strength)
+        paths = []
+        for k, path in enumerate(files):
+            show(scene, path, mat)
+            scene.render.filepath = os.path.join(work, f"render_{k + 1:02d}.png")
+            started = time.perf_counter()
+            with quiet_stdout():
+                bpy.ops.render.render(write_still=True)
+            paths.append(scene.render.filepath)
+            log(f"rendered {k + 1}/{len(files)} in {time.perf_counter() - started:.1f} s")
+        os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+        sheet(paths, [f"BVH frame {f + 1}" for f in frames], args.out,
+              f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by volrig, per-tissue "
+              f"looks in Cycles" + (f"; hidden: {', '.join(sorted(hidden))}" if hidden else ""))
+        log(f"wrote {args.out} in {time.perf_counter() - t0:.0f} s")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+run_and_exit(main)

@@ -1,0 +1,171 @@
+"""Per-tissue looks for label maps (issue 21): tissue tables, classes, per-class occupancy grids, and bakes that
+write them (the Python package and the command line)."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import SHARED_DATA
+
+import volrig
+from volrig.tissues import OTHER, TissueClass
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+TABLE = {0: "ExternalAir", 2: "InternalAir", 84: "BoneCortical", 92: "BoneMarrow", 136: "Fat", 180: "Muscle",
+         204: "SkinDry", 61: "HeartMuscle", 7: "Mystery"}
+
+
+def test_reads_tsv_and_csv_tables_with_or_without_a_header(tmp_path):
+    tsv = tmp_path / "t.tsv"
+    tsv.write_text("value\ttissue\tvoxels\n0\tExternalAir\t5\n84\tBoneCortical\t3\n\n180\t Muscle \t9\n")
+    assert volrig.read_tissue_table(str(tsv)) == {0: "ExternalAir", 84: "BoneCortical", 180: "Muscle"}
+    csv = tmp_path / "t.csv"
+    csv.write_text("1,skin\n2,bone\n")
+    assert volrig.read_tissue_table(str(csv)) == {1: "skin", 2: "bone"}
+
+
+@pytest.mark.parametrize("text, words", [
+    ("1\tskin\nx\tbone\n", "line 2: 'x' is not an integer"),
+    ("1\tskin\n1\tbone\n", "code 1 appears twice"),
+    ("1\tskin\n2\t\n", "code 2 has no tissue name"),
+    ("code\tname\n", "no tissue codes"),
+])
+def test_bad_tables_are_refused(tmp_path, text, words):
+    p = tmp_path / "bad.tsv"
+    p.write_text(text)
+    with pytest.raises(volrig.VolrigError, match=words):
+        volrig.read_tissue_table(str(p))
+
+
+def test_classes_group_codes_by_the_first_matching_name():
+    t = {x.name: x for x in volrig.tissue_classes(TABLE)}
+    assert t["bone"].codes == [84, 92]          # marrow is bone, not fat
+    assert t["heart"].codes == [61]             # heart muscle is heart, not muscle
+    assert t["muscle"].codes == [180] and t["fat"].codes == [136] and t["skin"].codes == [204]
+    assert t["air"].codes == [2] and not t["air"].visible  # gas inside the body: hidden
+    assert t[OTHER.name].codes == [7]           # no class matches
+    assert all(0 not in x.codes for x in t.values())  # outside air and code 0 are in no class
+    order = [x.name for x in volrig.tissue_classes(TABLE)]
+    assert order == [c.name for c in volrig.TISSUE_CLASSES if c.name in t] + [OTHER.name]
+    assert [x.name for x in volrig.tissue_classes(TABLE, present=[0, 84, 136])] == ["bone", "fat"]
+    mine = [TissueClass("hard", "bone", (1, 1, 1), 1.0), TissueClass("soft", "fat|muscle", (1, 0, 0), 0.2, False)]
+    got = {x.name: (x.codes, x.visible) for x in volrig.tissue_classes(TABLE, mine)}
+    assert got == {"hard": ([84, 92], True), "soft": ([61, 136, 180], False), "other": ([2, 7, 204], True)}
+
+
+def _place(grid: volrig.Volume, like: volrig.Volume) -> np.ndarray:
+    """A cropped grid put back on the full lattice of ``like``."""
+    full = np.zeros(like.array.shape, grid.array.dtype)
+    o = np.round((np.array(grid.origin) - np.array(like.origin)) / np.array(like.spacing)).astype(int)[::-1]
+    s = grid.array.shape
+    full[o[0]:o[0] + s[0], o[1]:o[1] + s[1], o[2]:o[2] + s[2]] = grid.array
+    return full
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.float32])
+def test_grids_are_each_class_occupancy_exactly(dtype):
+    rng = np.random.default_rng(7)
+    codes = np.array(sorted(TABLE))
+    lab = volrig.Volume(rng.choice(codes, size=(9, 11, 13)).astype(dtype), (0.5, 1.0, 2.0), (3.0, -1.0, 2.0))
+    tissues = volrig.tissue_classes(TABLE)
+    grids = volrig.tissue_grids(lab, tissues)
+    assert set(grids) == {f"tissue_{t.key}" for t in tissues}
+    for t in tissues:
+        g = grids[f"tissue_{t.key}"]
+        assert g.array.dtype == np.uint8 and g.spacing == lab.spacing
+        np.testing.assert_array_equal(_place(g, lab), np.isin(lab.array, t.codes).astype(np.uint8))
+        assert g.array.shape[0] <= lab.array.shape[0]  # cropped to its voxels: never larger than the labels
+
+
+def test_grids_of_an_absent_class_are_empty_and_bad_labels_are_refused():
+    lab = volrig.Volume(np.full((4, 4, 4), 180, np.uint8), (1, 1, 1))
+    grids = volrig.tissue_grids(lab, volrig.tissue_classes(TABLE))
+    assert grids["tissue_muscle"].array.sum() == 64 and grids["tissue_bone"].array.sum() == 0
+    with pytest.raises(volrig.VolrigError, match="not integers"):
+        volrig.tissue_grids(volrig.Volume(np.full((2, 2, 2), 1.5, np.float32), (1, 1, 1)),
+                            volrig.tissue_classes(TABLE))
+
+
+def test_the_visible_humans_table_puts_every_code_in_a_class():
+    path = SHARED_DATA / "visible-human" / "austinman_tissues.tsv"
+    if not path.exists():
+        pytest.skip(f"real data not available: {path}")
+    table = volrig.read_tissue_table(str(path))
+    assert len(table) == 64
+    t = {x.name: x for x in volrig.tissue_classes(table)}
+    names = {c: table[c] for c in table}
+    assert sorted(names[c] for c in t["bone"].codes) == ["BoneCortical", "BoneMarrow", "Tooth"]
+    assert sorted(names[c] for c in t["skin"].codes) == ["Nail", "SkinDry"]
+    assert names[180] == "Muscle" and 180 in t["muscle"].codes and 136 in t["fat"].codes
+    assert OTHER.name not in t, t[OTHER.name].codes  # the preset names every tissue of the Visible Human
+    assert sum(len(x.codes) for x in t.values()) == 63  # all but external air
+
+
+@pytest.fixture(scope="module")
+def labelled_rig(tmp_path_factory):
+    """A small label map (a bar of 'bone' inside 'muscle' inside 'skin') rigged with two bones."""
+    tmp = tmp_path_factory.mktemp("tissues")
+    lab = np.zeros((12, 12, 40), np.uint8)
+    lab[1:11, 1:11, 1:39] = 204
+    lab[2:10, 2:10, 2:38] = 180
+    lab[4:8, 4:8, 3:37] = 84
+    vol = volrig.Volume(lab, (1.0, 1.0, 1.0))
+    mask = volrig.Volume(lab > 0, vol.spacing)
+    pts = volrig.skeletonize(mask).at(0.5)
+    rig = volrig.Rig.from_bones([[2, 5.5, 5.5], [20, 5.5, 5.5]], [[20, 5.5, 5.5], [37, 5.5, 5.5]], ["a", "b"],
+                                [-1, 0])
+    binding = volrig.bind(pts, rig, mask, mode="smooth")
+    src = tmp / "bar.nrrd"
+    vol.save(str(src))
+    rig_file = tmp / "bar.vrig"
+    volrig.save_rig(str(rig_file), pts, rig=rig, binding=binding, source=str(src))
+    table = tmp / "bar.tsv"
+    table.write_text("code\tname\n0\tExternalAir\n84\tBoneCortical\n180\tMuscle\n204\tSkinDry\n")
+    return vol, pts, rig, binding, src, rig_file, table
+
+
+def test_folder_bake_writes_each_tissues_grid_of_the_posed_labels(tmp_path, labelled_rig):
+    vol, pts, rig, binding, *_ = labelled_rig
+    tissues = volrig.tissue_classes({84: "BoneCortical", 180: "Muscle", 204: "SkinDry"})
+    with pytest.raises(volrig.VolrigError, match="nearest sampling"):
+        volrig.pipeline.FolderBake(vol, pts, binding, str(tmp_path), "bar", tissues=tissues)
+    bake = volrig.pipeline.FolderBake(vol, pts, binding, str(tmp_path), "bar", sampling="nearest", tissues=tissues)
+    m = rig.pose({"b": ([0, 0, 1], 40.0)})
+    bake.bake(1, m)
+    bake.finish()
+    path = bake.path(1)
+    names = {g["name"] for g in volrig._volrig.vdb_grids(path)}
+    assert names == {"density", "bone", "tissue_bone", "tissue_muscle", "tissue_skin"}
+    frame = volrig.Deformer(vol, pts, binding).frame(m, mode="linear", sampling="nearest")
+    codes = np.asarray(frame.values.array)
+    for t in tissues:
+        g = volrig.load(path, grid=f"tissue_{t.key}")
+        np.testing.assert_array_equal(_place(g, frame.values) > 0.5, np.isin(codes, t.codes))
+
+
+def test_cli_bake_mocap_with_tissues(tmp_path, labelled_rig):
+    _, _, _, _, src, rig_file, table = labelled_rig
+    clip = SHARED_DATA / "bvh" / "131_01.bvh"
+    if not clip.exists():
+        pytest.skip(f"real data not available: {clip}")
+    env = dict(os.environ, PYTHONPATH=os.path.join(REPO, "python"))
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "volrig", "bake-mocap", str(src), str(rig_file), str(clip),
+                               "-o", str(tmp_path / "out"), "--frames", "1", "--map", str(bone_map), "--scale", "1",
+                               *args],
+                              capture_output=True, text=True, env=env)
+    bone_map = tmp_path / "map.json"
+    bone_map.write_text('{"LeftHip": "a", "LeftKnee": "b"}')
+    r = run("--tissues", str(table))
+    assert r.returncode == 2 and "--sampling nearest" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    r = run("--tissues", str(table), "--sampling", "nearest")
+    assert r.returncode == 0, r.stderr
+    assert "tissues: skin (1), bone (1), muscle (1)" in r.stderr
+    names = {g["name"] for g in volrig._volrig.vdb_grids(str(tmp_path / "out" / "bar_0001.vdb"))}
+    assert {"tissue_bone", "tissue_muscle", "tissue_skin"} <= names
+    r = run("--tissues", str(tmp_path / "missing.tsv"), "--sampling", "nearest")
+    assert r.returncode != 0 and "missing.tsv" in r.stderr and "Traceback" not in r.stderr
