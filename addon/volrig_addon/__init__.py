@@ -37,7 +37,7 @@ _find_volrig()
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
     for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
-               "drawing", "preview", "mesh_rig", "panels", "looks", "looks_ui"):
+               "drawing", "preview", "mesh_rig", "panels", "looks", "tissue_looks", "looks_ui"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -45,7 +45,7 @@ import bpy  # noqa: E402
 
 from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
                staging)
-from . import drawing, looks, looks_ui, mesh_rig, preview  # noqa: E402,F401
+from . import drawing, looks, looks_ui, mesh_rig, preview, tissue_looks  # noqa: E402,F401
 
 
 def register():

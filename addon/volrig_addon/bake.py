@@ -19,7 +19,7 @@ import numpy as np
 import volrig
 from volrig import pipeline
 
-from . import looks, objects, scans
+from . import looks, objects, scans, tissue_looks
 
 
 THICKNESS = objects.THICKNESS
@@ -104,7 +104,8 @@ class Baker(RigState):
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
                                           sampling=volume_obj.volrig.sampling, track=True,
                                           setup=os.path.basename(self.path), parts=looks.parts_of(volume_obj),
-                                          rig=objects.armature_rig(self.rig_obj))
+                                          rig=objects.armature_rig(self.rig_obj),
+                                          tissues=tissue_looks.tissues_of(volume_obj))
         self._thickness = {}  # frame -> the thickness factors pose() read for it
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:

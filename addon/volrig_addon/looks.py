@@ -38,11 +38,30 @@ def rest_file(volume_obj) -> str:
 
 
 def shown_at_rest(volume_obj) -> str:
-    """The file the Volume object shows when not playing a bake: the rest volume with parts (per-part looks on),
-    else the source."""
-    if volume_obj.volrig.use_parts and volume_obj.volrig.rig_file and os.path.exists(rest_file(volume_obj)):
+    """The file the Volume object shows when not playing a bake: the rest volume with parts (per-part looks on,
+    with the tissue grids too when per-tissue looks are on), else the rest volume with tissues, else the source."""
+    from . import tissue_looks
+    s = volume_obj.volrig
+    if s.use_parts and s.rig_file and os.path.exists(rest_file(volume_obj)):
         return rest_file(volume_obj)
+    if s.use_tissues and os.path.exists(tissue_looks.rest_file(volume_obj)):
+        return tissue_looks.rest_file(volume_obj)
     return scans.source_path(volume_obj)
+
+
+def write_rest(volume_obj) -> None:
+    """The rest volume's looks file: with per-part looks on (and a rig), the parts' grids and the tissues' (if on);
+    else, with per-tissue looks on, the tissues' alone."""
+    from . import tissue_looks
+    from .bake import RigState
+    s = volume_obj.volrig
+    if s.use_parts and "RIG" in objects.members(volume_obj):
+        state = RigState(volume_obj)
+        pipeline.write_rest_looks(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
+                                  parts_of(volume_obj), scans.mask(volume_obj),
+                                  tissues=tissue_looks.tissues_of(volume_obj))
+    elif s.use_tissues:
+        tissue_looks.write_rest(volume_obj)
 
 
 def parts_of(volume_obj):
@@ -89,23 +108,36 @@ def refresh(volume_obj) -> int:
             part.name, (True, False, PART_COLORS[k % len(PART_COLORS)], 1.0))
     s.parts_index = min(s.parts_index, max(len(s.parts) - 1, 0))
     if s.use_parts:
-        pipeline.write_rest_parts(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
-                                  parts_of(volume_obj), scans.mask(volume_obj))
+        write_rest(volume_obj)
     if not volume_obj.data.is_sequence:
         objects.point_volume_at(volume_obj, shown_at_rest(volume_obj))
     materials.update_volume_material(volume_obj)
     return len(s.parts)
 
 
-def route(tree, nd, parts) -> None:
+def route(tree, nd, parts, tissues=()) -> None:
     """Links the material's value (into the transfer function's window), opacity and colour (into the shaders)
-    through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role."""
-    for node in [x for x in tree.nodes if x.name.startswith(_PREFIX)]:
+    through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role. With
+    ``tissues`` (a label map's classes: tissue_looks.py) the opacity and colour come from the tissues' grids
+    (``materials.tissue_sums``) instead of the transfer function, the density multiplier kept."""
+    from .materials import TISSUE_PREFIX, tissue_sums
+    for node in [x for x in tree.nodes if x.name.startswith((_PREFIX, TISSUE_PREFIX))]:
         tree.nodes.remove(node)
+    link = tree.links.new
+    strength = nd["opacity"].inputs[0]
+    for old in list(strength.links):
+        tree.links.remove(old)
     value, opacity, colour = nd["density"].outputs["Fac"], nd["opacity"].outputs[0], nd["ramp"].outputs["Color"]
+    sums = tissue_sums(tree, tissues, x=-2300, y=900) if len(tissues) else None
+    if sums is not None:
+        link(sums[0], strength)
+        colour = sums[1]
+    elif len(tissues):  # every tissue hidden
+        strength.default_value = 0.0
+    else:
+        link(nd["ramp"].outputs["Alpha"], strength)
     if len(parts):
         value, opacity, colour = _part_nodes(tree, opacity, colour, parts)
-    link = tree.links.new
     link(value, nd["window"].inputs["Value"])
     for shader in (nd["scatter"], nd["absorb"]):
         link(colour, shader.inputs["Color"])

@@ -1,8 +1,9 @@
 """The Parts panel (under Look): the rig's parts in a list, each with visible, colour and opacity (looks.py), the
-*Find Parts* button, and the *Explode* factor the bake applies."""
+*Find Parts* button, and the *Explode* factor the bake applies. The Tissues panel (under Look): a label map's
+tissue classes in a list, each with visible, colour and opacity (tissue_looks.py), and the tissue table."""
 import bpy
 
-from . import looks
+from . import looks, tissue_looks
 from .operators import _OnVolume
 from .panels import _settings, _VolrigPanel
 
@@ -54,7 +55,55 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
         layout.prop(s, "explode")
 
 
-CLASSES = (VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts)
+class VOLRIG_OT_find_tissues(_OnVolume, bpy.types.Operator):
+    """Group the label map's codes into tissue classes (from the tissue table; one per label without one), keeping
+    the looks of classes already listed, and write the rest volume's tissue grids"""
+    bl_idname = "volrig.find_tissues"
+    bl_label = "Find Tissues"
+
+    def run(self, context, vol):
+        n = tissue_looks.refresh(vol)
+        self.report({"INFO"}, f"volrig: {n} tissue classes (bake again for the frames' tissue grids)")
+        return {"FINISHED"}
+
+
+class VOLRIG_UL_tissues(bpy.types.UIList):
+    """One line per tissue class: visible, name, colour, opacity."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        split = layout.split(factor=0.45)
+        left = split.row(align=True)
+        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
+        left.label(text=item.name)
+        right = split.row(align=True)
+        right.active = item.visible
+        right.prop(item, "color", text="")
+        right.prop(item, "opacity", text="", slider=True)
+
+
+class VOLRIG_PT_tissues(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Tissues"
+    bl_parent_id = "VOLRIG_PT_look"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        layout.prop(s, "use_tissues")
+        if not s.use_tissues:
+            return
+        layout.prop(s, "tissue_table")
+        if s.baked_end >= s.baked_start:
+            layout.label(text="Bake again if frames were baked without tissues", icon="INFO")
+        if s.sampling != "nearest":
+            layout.label(text="Label maps bake with Nearest sampling", icon="ERROR")
+        layout.operator("volrig.find_tissues", icon="MATERIAL")
+        if len(s.tissues):
+            layout.template_list("VOLRIG_UL_tissues", "", s, "tissues", s, "tissues_index", rows=6)
+            if 0 <= s.tissues_index < len(s.tissues):
+                layout.label(text="codes " + s.tissues[s.tissues_index].codes.replace(",", ", "))
+
+
+CLASSES = (VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts, VOLRIG_OT_find_tissues, VOLRIG_UL_tissues,
+           VOLRIG_PT_tissues)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -4,6 +4,8 @@ one bone read from the baked ``bone`` grid (bone index + 1 in the armature's bon
 part's look (visible, colour, opacity: looks.py)."""
 import bpy
 
+import volrig
+
 #: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
 #: (position, (r, g, b), opacity) over that window.
 PRESETS = {
@@ -16,8 +18,7 @@ PRESETS = {
 #: The lumen view's wall colour (a mucosa pink) and the colour of the lumen itself (clear).
 WALL_COLOR = (0.9, 0.45, 0.4)
 #: Label colours (label k uses PALETTE[(k - 1) % len]); a colour ramp holds at most 32 stops.
-PALETTE = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.45, 0.80, 0.40), (0.70, 0.45, 0.85),
-           (0.95, 0.55, 0.20), (0.35, 0.85, 0.80), (0.85, 0.40, 0.60), (0.60, 0.60, 0.60), (0.55, 0.35, 0.20)]
+PALETTE = volrig.tissues.LABEL_COLORS
 
 
 def _lumen_range(s):
@@ -164,7 +165,8 @@ def update_volume_material(volume_obj):
     nd["glow"].inputs[1].default_value = s.highlight_strength
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
     from . import looks
-    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [])
+    from . import tissue_looks
+    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [], tissue_looks.tissues_of(volume_obj))
     return mat
 
 
@@ -307,69 +309,89 @@ def set_thickness_range(mat, top: float, density: float) -> None:
     n["volrig thickness volume"].inputs["Density"].default_value = float(density)
 
 
-def tissue_material(name: str, tissues, strength: float = 1.0):
-    """``<name> tissues``: a Principled Volume over a label map's per-tissue occupancy grids (``tissue_<key>``,
-    written by a bake with tissue looks: ``volrig.tissue_grids``). Each visible tissue adds its opacity (a Value
-    node ``volrig opacity <key>``) times its grid to the density and its colour (an RGB node ``volrig colour
-    <key>``) to the colour, weighted the same way; a hidden tissue's grid is not read at all, so it leaves no shell.
-    ``volrig tissue strength`` scales the density (per world unit: opacity 1 is about opaque within a voxel or two
-    at the default)."""
-    mat = bpy.data.materials.new(f"{name} tissues")
-    mat.use_nodes = True
-    tree = mat.node_tree
-    tree.nodes.clear()
+
+#: Names of the nodes tissue_sums adds (looks.route removes them before building again).
+TISSUE_PREFIX = "volrig tissue look"
+
+
+def tissue_sums(tree, tissues, x=-1100, y=0):
+    """The nodes summing a label map's visible tissues in node tree ``tree``: each adds its opacity (a Value node)
+    times its ``tissue_<key>`` grid to the density, and its colour (an RGB node) weighted the same way to the
+    colour. Returns the (density, mean colour) sockets, or None when
+    no tissue is visible. A hidden tissue's grid is not read at all, so it leaves no shell. Nodes are named
+    ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and so on."""
     link = tree.links.new
 
-    def node(kind, label, x, y, **props):
+    def node(kind, label, dx, dy, **props):
         nd = tree.nodes.new(kind)
-        nd.name = nd.label = label
-        nd.location = (x, y)
+        nd.name = nd.label = f"{TISSUE_PREFIX} {label}"
+        nd.location = (x + dx, y + dy)
         for k, v in props.items():
             setattr(nd, k, v)
         return nd
 
-    density, colour = 0.0, None
+    density, colour = None, None
     for k, t in enumerate([t for t in tissues if t.visible]):
-        y = -220 * k
-        grid = node("ShaderNodeAttribute", f"volrig tissue {t.key}", -1100, y, attribute_name=f"tissue_{t.key}")
-        opacity = node("ShaderNodeValue", f"volrig opacity {t.key}", -1100, y - 110)
+        dy = -220 * k
+        grid = node("ShaderNodeAttribute", f"grid {t.key}", 0, dy, attribute_name=f"tissue_{t.key}")
+        opacity = node("ShaderNodeValue", f"opacity {t.key}", 0, dy - 110)
         opacity.outputs[0].default_value = t.opacity
-        rgb = node("ShaderNodeRGB", f"volrig colour {t.key}", -900, y - 60)
+        rgb = node("ShaderNodeRGB", f"colour {t.key}", 200, dy - 60)
         rgb.outputs[0].default_value = (*t.color, 1.0)
-        weight = node("ShaderNodeMath", f"volrig weight {t.key}", -900, y + 60, operation="MULTIPLY")
+        weight = node("ShaderNodeMath", f"weight {t.key}", 200, dy + 60, operation="MULTIPLY")
         link(grid.outputs["Fac"], weight.inputs[0])
         link(opacity.outputs[0], weight.inputs[1])
-        tinted = node("ShaderNodeVectorMath", f"volrig tinted {t.key}", -700, y, operation="SCALE")
+        tinted = node("ShaderNodeVectorMath", f"tinted {t.key}", 400, dy, operation="SCALE")
         link(rgb.outputs[0], tinted.inputs[0])
         link(weight.outputs[0], tinted.inputs["Scale"])
         if colour is None:
             density, colour = weight.outputs[0], tinted.outputs[0]
             continue
-        d = node("ShaderNodeMath", f"volrig density {k}", -500, y + 60, operation="ADD")
+        d = node("ShaderNodeMath", f"density sum {k}", 600, dy + 60, operation="ADD")
         link(density, d.inputs[0])
         link(weight.outputs[0], d.inputs[1])
-        c = node("ShaderNodeVectorMath", f"volrig colour sum {k}", -500, y, operation="ADD")
+        c = node("ShaderNodeVectorMath", f"colour sum {k}", 600, dy, operation="ADD")
         link(colour, c.inputs[0])
         link(tinted.outputs[0], c.inputs[1])
         density, colour = d.outputs[0], c.outputs[0]
-    vol = node("ShaderNodeVolumePrincipled", "volrig tissue volume", 100, 0)
-    out = node("ShaderNodeOutputMaterial", "volrig output", 400, 0)
-    link(vol.outputs["Volume"], out.inputs["Volume"])
-    if colour is None:  # nothing visible
-        vol.inputs["Density"].default_value = 0.0
-        return mat
-    floor = node("ShaderNodeMath", "volrig density floor", -300, 200, operation="MAXIMUM")
+    if colour is None:
+        return None
+    floor = node("ShaderNodeMath", "density floor", 800, 200, operation="MAXIMUM")
     link(density, floor.inputs[0])
     floor.inputs[1].default_value = 1e-4
-    inverse = node("ShaderNodeMath", "volrig inverse density", -150, 200, operation="DIVIDE")
+    inverse = node("ShaderNodeMath", "inverse density", 950, 200, operation="DIVIDE")
     inverse.inputs[0].default_value = 1.0
     link(floor.outputs[0], inverse.inputs[1])
-    mean = node("ShaderNodeVectorMath", "volrig mean colour", -100, 0, operation="SCALE")
+    mean = node("ShaderNodeVectorMath", "mean colour", 1000, 0, operation="SCALE")
     link(colour, mean.inputs[0])
     link(inverse.outputs[0], mean.inputs["Scale"])
-    scaled = node("ShaderNodeMath", "volrig tissue strength", -100, -200, operation="MULTIPLY")
-    link(density, scaled.inputs[0])
+    return density, mean.outputs[0]
+
+
+def tissue_material(name: str, tissues, strength: float = 1.0):
+    """``<name> tissues``: a Principled Volume over a label map's per-tissue occupancy grids (``tissue_<key>``,
+    written by a bake with tissue looks: ``volrig.tissue_grids``), colour and density from ``tissue_sums``;
+    ``volrig tissue strength`` scales the density (per world unit of the volume's grid)."""
+    mat = bpy.data.materials.new(f"{name} tissues")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    vol = tree.nodes.new("ShaderNodeVolumePrincipled")
+    vol.name = vol.label = "volrig tissue volume"
+    vol.location = (300, 0)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (600, 0)
+    tree.links.new(vol.outputs["Volume"], out.inputs["Volume"])
+    sums = tissue_sums(tree, tissues)
+    if sums is None:  # nothing visible
+        vol.inputs["Density"].default_value = 0.0
+        return mat
+    scaled = tree.nodes.new("ShaderNodeMath")
+    scaled.name = scaled.label = "volrig tissue strength"
+    scaled.operation = "MULTIPLY"
+    scaled.location = (100, -200)
+    tree.links.new(sums[0], scaled.inputs[0])
     scaled.inputs[1].default_value = float(strength)
-    link(mean.outputs[0], vol.inputs["Color"])
-    link(scaled.outputs[0], vol.inputs["Density"])
+    tree.links.new(sums[1], vol.inputs["Color"])
+    tree.links.new(scaled.outputs[0], vol.inputs["Density"])
     return mat

@@ -18,7 +18,7 @@ import numpy as np
 import volrig
 from volrig.deform import coarse_level
 
-from . import bake, objects, scans
+from . import bake, objects, scans, tissue_looks
 
 #: the coarse grid's size limit in voxels (a quarter per axis of the phantom at scale 1 is 0.72 M)
 BUDGET_VOXELS = 1_500_000
@@ -77,7 +77,7 @@ class Preview:
         if s.explode:  # taken apart as the bake does it
             matrices = volrig.explode_matrices(self.state.rig, s.explode, matrices)
         frame = self.deformer.frame(matrices, mode=s.deform_mode, sampling=s.sampling)
-        frame.save(path)
+        frame.save(path, tissues=tissue_looks.tissues_of(volume_obj))
 
 
 def showing_preview(volume_obj) -> bool:

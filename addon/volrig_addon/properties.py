@@ -41,6 +41,11 @@ def _parts_toggled(self, context):
     looks.parts_toggled(self.id_data)
 
 
+def _tissues_toggled(self, context):
+    from . import tissue_looks
+    tissue_looks.toggled(self.id_data)
+
+
 def _volume_object(self, obj):
     return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
 
@@ -63,6 +68,19 @@ class VolrigPart(bpy.types.PropertyGroup):
                                update=_look_changed)
     opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=10.0, update=_look_changed,
                            description="The part's opacity, a factor on the transfer function's")
+
+
+class VolrigTissue(bpy.types.PropertyGroup):
+    """One line of the Tissues list: a class of a label map's codes ("bone": 84, 92, 172) and its look
+    (tissue_looks.py)."""
+    key: StringProperty(name="Key", description="The class's grid: tissue_<key>")
+    codes: StringProperty(name="Codes", description="The label map's codes in this class, comma-separated")
+    visible: BoolProperty(name="Visible", default=True, update=_look_changed,
+                          description="Show the class's voxels (hidden: rendered as if they were empty)")
+    color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.8, 0.8, 0.8), min=0.0, max=1.0,
+                               update=_look_changed)
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, update=_look_changed,
+                           description="The class's opacity (times the Density multiplier)")
 
 
 class VolrigObject(bpy.types.PropertyGroup):
@@ -181,6 +199,17 @@ class VolrigObject(bpy.types.PropertyGroup):
     parts: CollectionProperty(type=VolrigPart, name="Parts",
                               description="The rig's parts (bone groups), each with its own look")
     parts_index: IntProperty(name="Part", default=0)
+    use_tissues: BoolProperty(name="Per-tissue looks", default=False, update=_tissues_toggled,
+                              description="Label maps: give each tissue class (skin, muscle, bone, ... from the "
+                                          "tissue table, or each label without one) its own colour, opacity and "
+                                          "visibility; the rest volume and every baked frame get one grid per "
+                                          "class, baked with nearest sampling")
+    tissue_table: StringProperty(name="Tissue table", subtype="FILE_PATH", update=_tissues_toggled,
+                                 description="A TSV or CSV file of tissue codes and names (code, name per line), "
+                                             "matched against volrig's tissue classes; empty: one class per label")
+    tissues: CollectionProperty(type=VolrigTissue, name="Tissues",
+                                description="The label map's tissue classes, each with its own look")
+    tissues_index: IntProperty(name="Tissue", default=0)
     explode: FloatProperty(name="Explode", default=0.0, min=0.0, soft_max=2.0,
                            description="Bake each part moved away from its parent by this many times its length "
                                        "(animatable; added to the animated pose)")
@@ -226,6 +255,7 @@ class VolrigObject(bpy.types.PropertyGroup):
 def register():
     bpy.utils.register_class(VolrigBonePair)
     bpy.utils.register_class(VolrigPart)
+    bpy.utils.register_class(VolrigTissue)
     bpy.utils.register_class(VolrigObject)
     bpy.types.Object.volrig = PointerProperty(type=VolrigObject)
 
@@ -233,5 +263,6 @@ def register():
 def unregister():
     del bpy.types.Object.volrig
     bpy.utils.unregister_class(VolrigObject)
+    bpy.utils.unregister_class(VolrigTissue)
     bpy.utils.unregister_class(VolrigPart)
     bpy.utils.unregister_class(VolrigBonePair)

@@ -38,8 +38,9 @@ def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15, azi
         cam.data.ortho_scale = margin * max(size[2], size[0] / aspect)
     else:
         cam.data.ortho_scale = margin * max(size[0], size[2] * aspect)
-    cam.data.clip_end = 10 * float(size.max()) + 100
     distance = 2.0 * float(size.max())
+    cam.data.clip_start = 0.01 * distance  # (Blender's 0.1 m would clip a small scan, a tooth in mm, away)
+    cam.data.clip_end = 10 * float(size.max()) + 100
     cam.matrix_world = Matrix.Translation(Vector(centre + distance * np.array([np.sin(a), -np.cos(a), 0.0]))) @ \
         Matrix.Rotation(a, 4, "Z") @ Matrix.Rotation(np.pi / 2, 4, "X")
     scene.camera = cam

@@ -27,6 +27,7 @@ from .deform import Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS
 from .parts import part_grids
+from .tissues import tissue_grids
 from .rig import Binding, Rig, autorig, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
@@ -382,15 +383,22 @@ def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
     labels[z, y, x] = coarse[tuple(i[z // step, y // step, x // step] for i in nearest)]
 
 
-def write_rest_parts(path: str, source: Volume, points: SkeletonPoints, binding: Binding, parts,
-                     mask: Optional[Volume] = None) -> None:
-    """The rest volume with its parts: an OpenVDB file of ``density`` (the source's values, float32), ``bone``
-    (``rest_labels``, the object's ``mask`` filled), each part's ``density_<key>`` and ``mask_<key>`` and
-    ``density_outside`` (``volrig.part_grids``)."""
-    labels = rest_labels(source, points, binding, mask)
+def write_rest_looks(path: str, source: Volume, points: Optional[SkeletonPoints] = None,
+                     binding: Optional[Binding] = None, parts=(), mask: Optional[Volume] = None,
+                     tissues=()) -> None:
+    """The rest volume with its looks: an OpenVDB file of ``density`` (the source's values, float32); with
+    ``parts`` (which need the rig's ``points`` and ``binding``) ``bone`` (``rest_labels``, the object's ``mask``
+    filled), each part's ``density_<key>`` and ``mask_<key>`` and ``density_outside`` (``volrig.part_grids``); with
+    ``tissues`` (a label map's classes) each one's ``tissue_<key>`` (``volrig.tissue_grids``)."""
     values = source.like(source.array.astype(np.float32, copy=False))
-    grids = {"density": values, "bone": labels}
-    grids.update(part_grids(values, labels, parts, outside=True))
+    grids = {"density": values}
+    if parts:
+        if points is None or binding is None:
+            raise VolrigError("write_rest_looks: parts need the rig's points and binding")
+        labels = rest_labels(source, points, binding, mask)
+        grids["bone"] = labels
+        grids.update(part_grids(values, labels, parts, outside=True))
+    grids.update(tissue_grids(values, tissues) if tissues else {})
     write_vdb(path, grids, half=False)
 
 

@@ -63,6 +63,11 @@ OUTSIDE_NAMES = r"^external.?air$|^air$|^background$|^outside$"
 OTHER = TissueClass("other", r"", (0.60, 0.60, 0.60), 0.3)
 
 
+#: Label colours for label maps without a table (label k uses LABEL_COLORS[(k - 1) % len]).
+LABEL_COLORS = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.45, 0.80, 0.40), (0.70, 0.45, 0.85),
+                (0.95, 0.55, 0.20), (0.35, 0.85, 0.80), (0.85, 0.40, 0.60), (0.60, 0.60, 0.60), (0.55, 0.35, 0.20)]
+
+
 class Tissue(NamedTuple):
     """One class of a label map: its codes, its look, and ``key`` naming its grid ``tissue_<key>``."""
     name: str
@@ -146,3 +151,13 @@ def tissue_grids(labels: Volume, tissues: Sequence[Tissue]) -> Dict[str, Volume]
         at = body[by_class[bounds[k + 1]:bounds[k + 2]]]
         grids.update(cropped_grids(labels, at, {f"tissue_{t.key}": (np.uint8, 1)}))
     return grids
+
+
+def label_classes(codes) -> List[Tissue]:
+    """One class per non-zero integer code (``label_<code>``), for a label map without a table: colours from
+    ``LABEL_COLORS`` in turn, all visible and opaque."""
+    out = []
+    for c in sorted({int(c) for c in np.asarray(codes).ravel() if c == int(c) and c != 0}):
+        out.append(Tissue(f"label {c}", f"label_{c}".replace("-", "m"), [c],
+                          LABEL_COLORS[(c - 1) % len(LABEL_COLORS)], 1.0, True))
+    return out

@@ -131,11 +131,11 @@ def test_explode_of_a_pose_starts_from_the_pose(rigged):
         volrig.explode_matrices(rig, 1.0, pose[:3])
 
 
-def test_write_rest_parts(rigged, tmp_path):
+def test_write_rest_looks(rigged, tmp_path):
     vol, r = rigged
     parts = volrig.bone_parts(r.rig.names, r.rig.parents)
     path = str(tmp_path / "rest.vdb")
-    pipeline.write_rest_parts(path, vol, r.points, r.binding, parts, vol.like(vol.array > 0))
+    pipeline.write_rest_looks(path, vol, r.points, r.binding, parts, vol.like(vol.array > 0))
     names = {g["name"]: g["active_voxels"] for g in volrig._volrig.vdb_grids(path)}
     assert set(names) == {"density", "bone", "density_outside"} | {f"{kind}_{p.key}" for p in parts
                                                                     for kind in ("density", "mask")}

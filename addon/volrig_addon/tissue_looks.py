@@ -1,0 +1,98 @@
+"""Per-tissue looks for label maps: the scan's tissue classes (``volrig.tissue_classes`` of a table of codes and
+names, or one class per label without a table) listed on the Volume object (``volrig.tissues``), each visible or
+hidden, in its own colour and opacity, in Cycles.
+
+The rest volume (``tissues.vdb`` in the cache, or the parts' rest file when per-part looks are on too) and every
+baked frame hold one occupancy grid per class (``tissue_<key>``: 1 on its voxels); the material sums the visible
+classes' opacity and colour over them (``materials.tissue_sums``), so an interpolated boundary mixes the two real
+neighbours and never a third tissue's colour, and a hidden class is not read at all. Label maps bake with nearest
+sampling (turning the looks on sets it; a bake with trilinear sampling and tissue looks is refused).
+"""
+import os
+
+import bpy
+import numpy as np
+
+import volrig
+from volrig import pipeline
+
+from . import objects, scans
+
+
+def rest_file(volume_obj) -> str:
+    """The rest volume with the tissue grids when per-part looks are off."""
+    return os.path.join(scans.cache_dir(volume_obj), "tissues.vdb")
+
+
+def tissues_of(volume_obj):
+    """The object's tissue classes as ``volrig.Tissue`` with their looks from the list; none while per-tissue looks
+    are off."""
+    s = volume_obj.volrig
+    if not s.use_tissues:
+        return []
+    return [volrig.Tissue(t.name, t.key, [int(c) for c in t.codes.split(",") if c], tuple(t.color), t.opacity,
+                          t.visible) for t in s.tissues]
+
+
+def classes(volume_obj):
+    """The source's tissue classes from the object's table (all codes present), or one per label without one."""
+    codes = np.unique(scans.source(volume_obj).array)
+    table = bpy.path.abspath(volume_obj.volrig.tissue_table)
+    if not volume_obj.volrig.tissue_table:
+        if len(codes) > 256 or np.any(codes != np.round(codes)):
+            raise volrig.VolrigError(f"{volume_obj.name} is not a label map ({len(codes)} distinct values, "
+                                     f"{'not all integers' if np.any(codes != np.round(codes)) else 'too many'}): "
+                                     f"per-tissue looks need integer tissue codes")
+        return volrig.label_classes(codes)
+    return volrig.tissue_classes(volrig.read_tissue_table(table), present=codes)
+
+
+def toggled(volume_obj) -> None:
+    """Per-tissue looks turned on (the classes found, the rest file written and shown, nearest sampling) or off
+    (the rest volume without them shown again); the material follows."""
+    from . import looks, materials
+    if volume_obj.volrig.use_tissues:
+        volume_obj.volrig.sampling = "nearest"
+        try:
+            refresh(volume_obj)
+            return
+        except (volrig.VolrigError, OSError) as e:  # not a label map, a bad table: say so, turn the looks off
+            _tell(f"volrig: per-tissue looks: {e}")
+            volume_obj.volrig.use_tissues = False  # runs this again, with the looks off
+            return
+    if not volume_obj.data.is_sequence:
+        objects.point_volume_at(volume_obj, looks.shown_at_rest(volume_obj))
+    materials.update_volume_material(volume_obj)
+
+
+def _tell(message: str) -> None:
+    """A message in a popup where there is a window (a property's update cannot report), and on the console."""
+    print(message)
+    wm = bpy.context.window_manager
+    if not bpy.app.background and wm is not None and wm.windows:
+        wm.popup_menu(lambda menu, _c: menu.layout.label(text=message), title="volrig", icon="ERROR")
+
+
+def refresh(volume_obj) -> int:
+    """Finds the tissue classes (keeping the looks of classes already listed by name), writes the rest volume with
+    their grids and shows it unless a bake is playing; returns the number of classes."""
+    from . import looks, materials
+    s = volume_obj.volrig
+    found = classes(volume_obj)
+    kept = {t.name: (t.visible, tuple(t.color), t.opacity) for t in s.tissues}
+    s.tissues.clear()
+    for t in found:
+        item = s.tissues.add()
+        item.name, item.key, item.codes = t.name, t.key, ",".join(str(c) for c in t.codes)
+        item.visible, item.color, item.opacity = kept.get(t.name, (t.visible, t.color, t.opacity))
+    s.tissues_index = min(s.tissues_index, max(len(s.tissues) - 1, 0))
+    looks.write_rest(volume_obj)
+    if not volume_obj.data.is_sequence:
+        objects.point_volume_at(volume_obj, looks.shown_at_rest(volume_obj))
+    materials.update_volume_material(volume_obj)
+    return len(s.tissues)
+
+
+def write_rest(volume_obj) -> None:
+    """The rest volume with the tissue grids (no rig needed)."""
+    pipeline.write_rest_looks(rest_file(volume_obj), scans.source(volume_obj), tissues=tissues_of(volume_obj))

@@ -1,0 +1,125 @@
+"""Per-tissue looks for label maps (issue 21): the Tissues list from a tissue table, the rest volume's and the baked
+frames' tissue grids, and renders where a hidden tissue leaves nothing and a coloured one no fringe."""
+import numpy as np
+import pytest
+
+import bpy
+import volrig
+from conftest import run_op
+from test_looks import _grids, _projected, _render, _stage
+
+PHANTOM_TABLE = "code\tname\n0\tExternalAir\n80\tMuscle\n100\tFat\n220\tBoneCortical\n"
+
+
+def _tissue(vol, name):
+    return next(t for t in vol.volrig.tissues if t.name == name)
+
+
+@pytest.fixture
+def blocks(empty_scene, tmp_path):
+    """A label map of three separate blocks side by side along x (bone 84, muscle 180, fat 136) and a muscle bridge
+    joining the last two, imported in mm, with its tissue table."""
+    lab = np.zeros((16, 12, 48), np.uint8)
+    lab[4:12, 3:9, 2:12] = 84
+    lab[4:12, 3:9, 18:30] = 180
+    lab[4:12, 3:9, 30:44] = 136
+    path = tmp_path / "blocks.nrrd"
+    volrig.Volume(lab, (1.0, 1.0, 1.0)).save(str(path))
+    table = tmp_path / "blocks.tsv"
+    table.write_text("code\tname\n84\tBoneCortical\n136\tFat\n180\tMuscle\n")
+    run_op(bpy.ops.volrig.import_volume, filepath=str(path), unit="MM")
+    vol = bpy.context.active_object
+    vol.volrig.tissue_table = str(table)
+    return vol, lab
+
+
+def test_tissues_list_and_rest_volume(blocks):
+    from volrig_addon import tissue_looks
+    vol, lab = blocks
+    vol.volrig.use_tissues = True
+    assert [t.name for t in vol.volrig.tissues] == ["bone", "muscle", "fat"]
+    assert [t.codes for t in vol.volrig.tissues] == ["84", "180", "136"]
+    assert vol.volrig.sampling == "nearest"
+    path = tissue_looks.rest_file(vol)
+    assert bpy.path.abspath(vol.data.filepath) == path and not vol.data.is_sequence
+    g, first = _grids(path, ["density", "tissue_bone", "tissue_muscle", "tissue_fat"])
+    for name, code in (("bone", 84), ("muscle", 180), ("fat", 136)):
+        assert np.array_equal(g[f"tissue_{name}"] > 0, g["density"] == code)
+    nodes = vol.data.materials[0].node_tree.nodes
+    assert {n.attribute_name for n in nodes if n.type == "ATTRIBUTE"} >= {"tissue_bone", "tissue_muscle",
+                                                                           "tissue_fat"}
+    _tissue(vol, "fat").visible = False  # a hidden tissue's grid is not read at all
+    nodes = vol.data.materials[0].node_tree.nodes
+    assert "tissue_fat" not in {n.attribute_name for n in nodes if n.type == "ATTRIBUTE"}
+    # looks survive Find Tissues; without a table every label is its own class
+    run_op(bpy.ops.volrig.find_tissues)
+    assert not _tissue(vol, "fat").visible
+    vol.volrig.tissue_table = ""
+    assert [t.name for t in vol.volrig.tissues] == ["label 84", "label 136", "label 180"]
+    vol.volrig.use_tissues = False
+    assert bpy.path.abspath(vol.data.filepath).endswith("source.vdb")
+
+
+def test_not_a_label_map_turns_the_looks_off_with_a_message(empty_scene, tmp_path, capsys):
+    rng = np.random.default_rng(3)
+    path = tmp_path / "ct.nrrd"
+    volrig.Volume(rng.normal(size=(8, 8, 8)).astype(np.float32), (1.0, 1.0, 1.0)).save(str(path))
+    run_op(bpy.ops.volrig.import_volume, filepath=str(path), unit="MM")
+    vol = bpy.context.active_object
+    vol.volrig.use_tissues = True
+    assert not vol.volrig.use_tissues and len(vol.volrig.tissues) == 0
+    assert "is not a label map" in capsys.readouterr().out
+
+
+def test_hidden_and_coloured_tissues_render_exactly(blocks, tmp_path):
+    from volrig_addon import tissue_looks
+    vol, lab = blocks
+    vol.volrig.use_tissues = True
+    vol.volrig.density_scale = 3.0
+    scene = _stage(vol, tmp_path)
+    full = _render(scene, tmp_path / "full.png")
+    g, first = _grids(tissue_looks.rest_file(vol), ["tissue_bone", "tissue_muscle", "tissue_fat"])
+    bone = _projected(scene, vol, g["tissue_bone"], first, grow=2)
+    only_bone = _projected(scene, vol, g["tissue_bone"], first, grow=0, outer=False)
+    assert only_bone.sum() >= 10 and full[..., 3][only_bone].mean() > 0.9
+
+    _tissue(vol, "bone").visible = False
+    hidden = _render(scene, tmp_path / "hidden.png")
+    # (one step of the 8-bit PNG allowed: the bone's grid no longer read shifts a few samples' random numbers)
+    changed = np.abs(hidden[..., 3] - full[..., 3]) > 1.5 / 255
+    assert changed.any() and not (changed & ~bone).any()  # the alpha changes inside the bone's region only
+    assert hidden[..., 3][only_bone].max() < 1e-3  # where the bone was, nothing is left
+
+    _tissue(vol, "bone").visible = True
+    muscle = _projected(scene, vol, g["tissue_muscle"], first, grow=2)
+    _tissue(vol, "muscle").color = (0.0, 0.0, 1.0)
+    blue = _render(scene, tmp_path / "blue.png")
+    assert np.abs(blue[~muscle] - full[~muscle]).max() < 1.5 / 255  # no fringe outside the muscle's region
+    inside = _projected(scene, vol, g["tissue_muscle"], first, grow=0, outer=False) & (full[..., 3] > 0.2)
+    assert inside.sum() >= 10
+    bluer = (blue[..., 2] - blue[..., 0])[inside] - (full[..., 2] - full[..., 0])[inside]
+    assert bluer.mean() > 0.1
+
+
+def test_bake_writes_tissue_grids_of_the_posed_labels(rigged, tmp_path):
+    from volrig_addon import bake
+    vol = rigged
+    table = tmp_path / "phantom.tsv"
+    table.write_text(PHANTOM_TABLE)
+    vol.volrig.tissue_table = str(table)
+    vol.volrig.use_tissues = True
+    assert [t.name for t in vol.volrig.tissues] == ["bone", "muscle", "fat"]
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 1
+    run_op(bpy.ops.volrig.bake)
+    path = bake.frame_path(vol, 1)
+    assert {g["name"] for g in volrig._volrig.vdb_grids(path)} >= {"density", "bone", "tissue_bone",
+                                                                    "tissue_muscle", "tissue_fat"}
+    g, _ = _grids(path, ["density", "tissue_bone", "tissue_muscle", "tissue_fat"])
+    for name, code in (("bone", 220), ("muscle", 80), ("fat", 100)):
+        assert g[f"tissue_{name}"].any()
+        assert np.array_equal(g[f"tissue_{name}"] > 0, np.isclose(g["density"], code))
+    # trilinear sampling would blend the codes: the bake refuses
+    vol.volrig.sampling = "trilinear"
+    with pytest.raises(RuntimeError, match="nearest sampling"):
+        bpy.ops.volrig.bake()
