@@ -14,7 +14,7 @@ _panels = [c for m in (panels, mesh_rig, looks_ui) for c in vars(m).values()
            if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
-    if os.environ.get("UI_LOOKS") and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
+    if (os.environ.get("UI_LOOKS") or os.environ.get("UI_TISSUES")) and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
         c.bl_options = {"DEFAULT_CLOSED"}  # room for the Parts panel
 volrig_addon.register()
 
@@ -111,6 +111,21 @@ def setup():
             staging.stage(scene, vol, samples=8).hide_set(True)  # a sun, a dim world, Cycles; the camera out of view
             scene.cycles.preview_samples, scene.cycles.use_preview_denoising = 8, False
             s.parts_index = [p.name for p in s.parts].index("left arm")
+        if os.environ.get("UI_TISSUES"):  # the Tissues list from a table: bone white, muscle red, fat hidden
+            table = os.path.join(WORK, "phantom_tissues.tsv")
+            with open(table, "w") as f:
+                f.write("code\tname\n80\tMuscle\n100\tFat\n220\tBoneCortical\n")
+            s = vol.volrig
+            s.tissue_table, s.use_tissues, s.density_scale = table, True, 0.5
+            for t in s.tissues:
+                t.visible = t.name != "fat"
+            from volrig_addon import staging
+            scene = bpy.context.scene
+            staging.stage(scene, vol, samples=8).hide_set(True)
+            scene.cycles.preview_samples, scene.cycles.use_preview_denoising = 8, False
+            from volrig_addon.objects import members
+            for role, o in members(vol).items():
+                o.hide_set(True)
         if os.environ.get("UI_MEDIAL"):  # the body's medial surface and rods, the scan and the rig hidden
             print("medial_surface:", bpy.ops.volrig.medial_surface(), flush=True)
             from volrig_addon.objects import members
@@ -118,7 +133,7 @@ def setup():
                 o.hide_set(role != "MEDIAL")
             vol.hide_set(True)
     return show_volrig_sidebar(win, "MATERIAL" if os.environ.get("UI_THICKNESS") or os.environ.get("UI_MEDIAL")
-                               else "SOLID")
+                               else "RENDERED" if os.environ.get("UI_TISSUES") else "SOLID")
 
 
 def show_volrig_sidebar(win, shading, three_quarter=False):

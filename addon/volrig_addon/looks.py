@@ -59,7 +59,8 @@ def write_rest(volume_obj) -> None:
         state = RigState(volume_obj)
         pipeline.write_rest_looks(rest_file(volume_obj), scans.source(volume_obj), state.points, state.binding,
                                   parts_of(volume_obj), scans.mask(volume_obj),
-                                  tissues=tissue_looks.tissues_of(volume_obj))
+                                  tissues=tissue_looks.tissues_of(volume_obj),
+                                  substitutes=substitutes_of(volume_obj))
     elif s.use_tissues:
         tissue_looks.write_rest(volume_obj)
 
@@ -77,6 +78,51 @@ def parts_of(volume_obj):
         if bones:
             out.append(volrig.Part(p.name, p.key, bones))
     return out
+
+
+_LOADED = {}  # substitute file -> (modification time, Volume): loaded once per change
+
+
+def substitutes_of(volume_obj) -> dict:
+    """``{part key: Volume}`` of the parts given a substitute file (per-part looks on), loaded once per change of
+    the file; VolrigError naming the part when a file cannot be read."""
+    if not volume_obj.volrig.use_parts:
+        return {}
+    out = {}
+    for p in volume_obj.volrig.parts:
+        if not p.substitute:
+            continue
+        path = bpy.path.abspath(p.substitute)
+        try:
+            stamp = os.path.getmtime(path)
+            held = _LOADED.get(path)
+            if held is None or held[0] != stamp:
+                held = _LOADED[path] = (stamp, volrig.load(path))
+        except (OSError, ValueError) as e:
+            raise volrig.VolrigError(f"the substitute of part {p.name!r}: {e}") from e
+        out[p.key] = held[1]
+    return out
+
+
+def tell(message: str) -> None:
+    """A message in a popup where there is a window (a property's update cannot report), and on the console."""
+    print(message)
+    wm = bpy.context.window_manager
+    if not bpy.app.background and wm is not None and wm.windows:
+        wm.popup_menu(lambda menu, _c: menu.layout.label(text=message), title="volrig", icon="ERROR")
+
+
+def substitute_changed(volume_obj) -> None:
+    """A part's substitute file changed: the rest volume is written again (the bake follows: the substitutes are part
+    of what a frame depends on); a file that cannot be read is reported (and again by the bake)."""
+    if volume_obj.volrig.use_parts and "RIG" in objects.members(volume_obj):
+        try:
+            write_rest(volume_obj)
+        except volrig.VolrigError as e:
+            tell(f"volrig: {e}")
+            return
+        if not volume_obj.data.is_sequence:
+            objects.point_volume_at(volume_obj, shown_at_rest(volume_obj))
 
 
 def parts_toggled(volume_obj) -> None:

@@ -51,7 +51,9 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
         if s.use_parts and len(s.parts):
             layout.template_list("VOLRIG_UL_parts", "", s, "parts", s, "parts_index", rows=6)
             if 0 <= s.parts_index < len(s.parts):
-                layout.label(text=s.parts[s.parts_index].bones.replace(",", ", "), icon="BONE_DATA")
+                part = s.parts[s.parts_index]
+                layout.label(text=part.bones.replace(",", ", "), icon="BONE_DATA")
+                layout.prop(part, "substitute")
         layout.prop(s, "explode")
 
 

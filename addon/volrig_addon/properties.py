@@ -41,6 +41,11 @@ def _parts_toggled(self, context):
     looks.parts_toggled(self.id_data)
 
 
+def _substitute_changed(self, context):
+    from . import looks
+    looks.substitute_changed(self.id_data)
+
+
 def _tissues_toggled(self, context):
     from . import tissue_looks
     tissue_looks.toggled(self.id_data)
@@ -68,6 +73,11 @@ class VolrigPart(bpy.types.PropertyGroup):
                                update=_look_changed)
     opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=10.0, update=_look_changed,
                            description="The part's opacity, a factor on the transfer function's")
+    substitute: StringProperty(name="Substitute", subtype="FILE_PATH", update=_substitute_changed,
+                               description="Take this part's values from another volume file in the same world frame "
+                                           "(any voxel size): the full-resolution scan under a downsampled one, or "
+                                           "another co-registered scan (its values through the same transfer "
+                                           "function); empty: the volume's own")
 
 
 class VolrigTissue(bpy.types.PropertyGroup):
@@ -79,7 +89,7 @@ class VolrigTissue(bpy.types.PropertyGroup):
                           description="Show the class's voxels (hidden: rendered as if they were empty)")
     color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.8, 0.8, 0.8), min=0.0, max=1.0,
                                update=_look_changed)
-    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, update=_look_changed,
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, precision=3, update=_look_changed,
                            description="The class's opacity (times the Density multiplier)")
 
 

@@ -57,20 +57,12 @@ def toggled(volume_obj) -> None:
             refresh(volume_obj)
             return
         except (volrig.VolrigError, OSError) as e:  # not a label map, a bad table: say so, turn the looks off
-            _tell(f"volrig: per-tissue looks: {e}")
+            looks.tell(f"volrig: per-tissue looks: {e}")
             volume_obj.volrig.use_tissues = False  # runs this again, with the looks off
             return
     if not volume_obj.data.is_sequence:
         objects.point_volume_at(volume_obj, looks.shown_at_rest(volume_obj))
     materials.update_volume_material(volume_obj)
-
-
-def _tell(message: str) -> None:
-    """A message in a popup where there is a window (a property's update cannot report), and on the console."""
-    print(message)
-    wm = bpy.context.window_manager
-    if not bpy.app.background and wm is not None and wm.windows:
-        wm.popup_menu(lambda menu, _c: menu.layout.label(text=message), title="volrig", icon="ERROR")
 
 
 def refresh(volume_obj) -> int:

@@ -84,16 +84,18 @@ class Frame:
         b = other.bone.array[lo[2] - ob[2]:hi[2] - ob[2], lo[1] - ob[1]:hi[1] - ob[1], lo[0] - ob[0]:hi[0] - ob[0]]
         return int(np.count_nonzero((a > 0) & (b > 0)))
 
-    def save(self, path, half: bool = True, parts=(), tissues=()) -> None:
+    def save(self, path, half: bool = True, parts=(), tissues=(), substitutes=None) -> None:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
         floats when ``half``) and ``bone`` (int32), for each of ``parts`` (``volrig.Part``) its
         ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``) and for each of ``tissues``
         (``volrig.Tissue``; the values a label map sampled nearest) its ``tissue_<key>`` (``volrig.tissue_grids``),
-        placed by spacing and origin; atomically."""
+        placed by spacing and origin; atomically. ``substitutes``: grids replacing some of those (``{name:
+        Volume}``, e.g. a part's ``density_<key>`` from another volume: ``volrig.parts.substitute_grid``)."""
         density = self.values if self.values is not None else self.mask
         grids = {"density": density, "bone": self.bone}
         grids.update(part_grids(density, self.bone, parts) if parts else {})
         grids.update(tissue_grids(density, tissues) if tissues else {})
+        grids.update(substitutes or {})
         write_vdb(os.fspath(path), grids, half=half)
 
 

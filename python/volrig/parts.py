@@ -179,3 +179,44 @@ def explode_matrices(rig: Rig, factor: float, pose=None) -> np.ndarray:
     if factor != 0.0:
         out[:, :3, 3] += explode_offsets(rig, factor, pose)
     return out
+
+
+def substitute_grid(labels: Volume, matrices, bones: Sequence[int], substitute: Volume,
+                    sampling: str = "trilinear") -> Volume:
+    """The values of the voxels labelled with ``bones`` taken from another volume: ``substitute`` (co-registered
+    with the source the labels were deformed from: same world frame, any lattice, e.g. the full-resolution scan
+    under a downsampled source, or a bone CT under a soft-tissue scan) gathered through each bone's rest-to-pose
+    matrix (one gather per output voxel per bone: what rigid mode does for those voxels). The grid lies on the
+    substitute's lattice and covers the labelled voxels' box; a voxel's bone is the label of the ``labels`` voxel
+    nearest it; 0 elsewhere. ``labels``: bone index + 1 per voxel (a Frame's ``bone``), ``matrices`` (B, 4, 4)."""
+    from . import _volrig
+    lab = np.asarray(labels.array)
+    if not isinstance(substitute, Volume):
+        raise TypeError(f"substitute must be a volrig.Volume, got {type(substitute).__name__}")
+    ids = np.asarray(bones, dtype=np.int64) + 1
+    zyx = np.argwhere(np.isin(lab, ids))
+    lab_sp, lab_org = np.asarray(labels.spacing, float), np.asarray(labels.origin, float)
+    sub_sp, sub_org = np.asarray(substitute.spacing, float), np.asarray(substitute.origin, float)
+    if not len(zyx):
+        return Volume(np.zeros((1, 1, 1), np.float32), substitute.spacing, substitute.origin)
+    # the labelled voxels' world box (half a voxel around their centres), on the substitute's lattice
+    lo_w = lab_org + zyx.min(axis=0)[::-1] * lab_sp - lab_sp / 2
+    hi_w = lab_org + zyx.max(axis=0)[::-1] * lab_sp + lab_sp / 2
+    lo = np.ceil((lo_w - sub_org) / sub_sp - 1e-9).astype(np.int64)
+    hi = np.floor((hi_w - sub_org) / sub_sp + 1e-9).astype(np.int64)
+    dims = np.maximum(hi - lo + 1, 1)
+    box = tuple(int(v) for v in lo) + tuple(int(v) for v in dims)
+    # each output voxel's bone: the nearest labels voxel's
+    axes = [np.clip(np.rint((sub_org[a] + (lo[a] + np.arange(dims[a])) * sub_sp[a] - lab_org[a]) / lab_sp[a]),
+                    0, lab.shape[2 - a] - 1).astype(np.int64) for a in range(3)]
+    near = lab[np.ix_(axes[2], axes[1], axes[0])]
+    out = np.zeros(tuple(dims[::-1]), np.float32)
+    src = np.ascontiguousarray(substitute.array.view(np.uint8) if substitute.array.dtype == np.bool_
+                               else substitute.array)
+    m = np.ascontiguousarray(matrices, dtype=np.float64)
+    for b in ids:
+        where = near == b
+        if where.any():
+            warped = _volrig.inverse_warp(src, substitute.spacing, substitute.origin, m[b - 1], sampling, box)
+            out[where] = warped[where]
+    return Volume(out, substitute.spacing, tuple(sub_org + lo * sub_sp))

@@ -26,7 +26,7 @@ from ._volrig import VolrigError
 from .deform import Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS
-from .parts import part_grids
+from .parts import part_grids, substitute_grid
 from .tissues import tissue_grids
 from .rig import Binding, Rig, autorig, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
@@ -385,11 +385,12 @@ def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
 
 def write_rest_looks(path: str, source: Volume, points: Optional[SkeletonPoints] = None,
                      binding: Optional[Binding] = None, parts=(), mask: Optional[Volume] = None,
-                     tissues=()) -> None:
+                     tissues=(), substitutes=None) -> None:
     """The rest volume with its looks: an OpenVDB file of ``density`` (the source's values, float32); with
     ``parts`` (which need the rig's ``points`` and ``binding``) ``bone`` (``rest_labels``, the object's ``mask``
     filled), each part's ``density_<key>`` and ``mask_<key>`` and ``density_outside`` (``volrig.part_grids``); with
-    ``tissues`` (a label map's classes) each one's ``tissue_<key>`` (``volrig.tissue_grids``)."""
+    ``tissues`` (a label map's classes) each one's ``tissue_<key>`` (``volrig.tissue_grids``); ``substitutes``
+    ({part key: Volume}) replace those parts' ``density_<key>`` (``volrig.parts.substitute_grid``)."""
     values = source.like(source.array.astype(np.float32, copy=False))
     grids = {"density": values}
     if parts:
@@ -398,8 +399,30 @@ def write_rest_looks(path: str, source: Volume, points: Optional[SkeletonPoints]
         labels = rest_labels(source, points, binding, mask)
         grids["bone"] = labels
         grids.update(part_grids(values, labels, parts, outside=True))
+        subs = check_substitutes(source, parts, substitutes)
+        grids.update(substituted(labels, rest_pose(binding.weights.shape[1]), parts, subs, "trilinear"))
     grids.update(tissue_grids(values, tissues) if tissues else {})
     write_vdb(path, grids, half=False)
+
+
+def check_substitutes(source: Volume, parts, substitutes) -> dict:
+    """``{part key: Volume}`` checked against the parts and the source (same axes: co-registered)."""
+    out = dict(substitutes or {})
+    keys = {p.key for p in parts}
+    for key, vol in out.items():
+        if key not in keys:
+            raise VolrigError(f"substitute for {key!r}: no such part (parts: {', '.join(sorted(keys)) or 'none'})")
+        if not isinstance(vol, Volume):
+            raise TypeError(f"substitute for {key!r} must be a volrig.Volume, got {type(vol).__name__}")
+        if not np.allclose(vol.direction, source.direction):
+            raise VolrigError(f"substitute for {key!r}: its axes differ from the source's (co-register it first)")
+    return out
+
+
+def substituted(labels: Volume, matrices, parts, substitutes: dict, sampling: str) -> dict:
+    """``{f"density_{key}": grid}`` of each part with a substitute (``volrig.parts.substitute_grid``)."""
+    return {f"density_{p.key}": substitute_grid(labels, matrices, p.bones, substitutes[p.key], sampling)
+            for p in parts if p.key in substitutes}
 
 
 def _no_thickness(thickness) -> bool:
@@ -423,10 +446,11 @@ class FolderBake:
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
-                 parts=(), rig: Optional[Rig] = None, tissues=()):
+                 parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.parts, self.tissues = list(parts), list(tissues)
+        self.substitutes = check_substitutes(source, self.parts, substitutes)
         if self.tissues and sampling != "nearest":
             raise VolrigError("tissue looks need the label map's own codes: bake with nearest sampling")
         self.deformer = Deformer(source, points, binding)
@@ -438,7 +462,9 @@ class FolderBake:
             h.update(np.ascontiguousarray(a).tobytes())
         h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]
                             + ([[list(p) for p in self.parts]] if self.parts else [])
-                            + ([[[t.key, t.codes] for t in self.tissues]] if self.tissues else [])).encode())
+                            + ([[[t.key, t.codes] for t in self.tissues]] if self.tissues else [])
+                            + ([sorted((k, v.path or id(v)) for k, v in self.substitutes.items())]
+                               if self.substitutes else [])).encode())
         self.setup_hash = h.hexdigest()
         self.poses = self._read_poses()
         self._writer = None   # the thread writing files, while a bake runs
@@ -487,7 +513,8 @@ class FolderBake:
         self._wait()
         if self._writer is None:
             self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")
-        self._pending = self._writer.submit(self._write, number, self.pose_hash(matrices, thickness), frame)
+        self._pending = self._writer.submit(self._write, number, self.pose_hash(matrices, thickness), frame,
+                                            matrices)
         return frame.stats
 
     def finish(self) -> None:
@@ -505,8 +532,9 @@ class FolderBake:
         if pending is not None:
             pending.result()
 
-    def _write(self, number: int, pose_hash: str, frame) -> None:
-        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues)
+    def _write(self, number: int, pose_hash: str, frame, matrices) -> None:
+        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues,
+                   substitutes=substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling))
         if self.poses_path is not None:
             self.poses[str(number)] = pose_hash
             self._write_poses()

@@ -1,5 +1,6 @@
 """Per-part looks (hidden, coloured parts rendered in Cycles without interpolation fringes) and the Explode factor."""
 import numpy as np
+import pytest
 
 import bpy
 import volrig
@@ -166,3 +167,25 @@ def test_bake_writes_part_grids_and_explodes(rigged):
     inside = g[f"mask_{key}"] > 0
     assert inside.any() and np.array_equal(g[f"density_{key}"][inside], g["density"][inside])
     assert not g[f"density_{key}"][~inside].any()
+
+
+def test_a_part_takes_its_values_from_a_substitute_volume(rigged, phantom_file, tmp_path, capsys):
+    from volrig_addon import bake, looks
+    vol = rigged
+    vol.volrig.use_parts = True
+    ph = phantom_file[1]
+    doubled = tmp_path / "doubled.nrrd"
+    ph.volume.like(ph.volume.array.astype(np.float32) * 2).save(str(doubled))
+    _part(vol).substitute = str(doubled)  # the rest volume is written again with the arm's values from it
+    top = float(ph.volume.array.max())
+    assert volrig.load(looks.rest_file(vol), grid=f"density_{_part(vol).key}").array.max() == 2 * top
+    assert volrig.load(looks.rest_file(vol), grid="density_right_leg").array.max() == top
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 1
+    run_op(bpy.ops.volrig.bake)
+    baked = volrig.load(bake.frame_path(vol, 1), grid=f"density_{_part(vol).key}")
+    assert baked.array.max() == pytest.approx(2 * top, rel=1e-3)
+    _part(vol).substitute = str(tmp_path / "missing.nrrd")
+    assert "the substitute of part 'left arm'" in capsys.readouterr().out  # said at once, nothing raised
+    with pytest.raises(RuntimeError, match="substitute of part 'left arm'"):
+        bpy.ops.volrig.bake()
