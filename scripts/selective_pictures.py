@@ -5,7 +5,13 @@ per-part looks (the Parts list) and an exploded view (the Explode factor, baked)
 
 Writes docs/images/selective_phantom.png, a contact sheet of four renders: the left arm red and the rest
 translucent, the left arm hidden, the skeleton's parts taken apart (Explode 0.5, baked), and the same with every part in
-its own colour. The .blend and its cache go to a temporary folder.
+its own colour; and, when ../shared/data/frogtissue is present, two more of the frog's label map rigged by the add-on,
+taken apart (Explode 0.5, baked) and seen from above with per-tissue looks: its skeleton alone, and the skeleton with
+the soft tissues as translucent context. The .blend and its cache go to a temporary folder.
+
+The frog's tissue codes follow VTK's frog examples (1 blood, 2 brain, 3 duodenum, 4 eye retina, 5 eye white, 6 heart,
+7 ileum, 8 kidney, 9 large intestine, 10 liver, 11 lung, 12 nerve, 13 skeleton, 14 spleen, 15 stomach; the file's few
+voxels of higher codes are "other"); code 13 is the one spanning the whole body.
 """
 import argparse
 import os
@@ -24,9 +30,12 @@ import volrig_addon  # noqa: E402
 from blender_scenes import contact_sheet, log, new_scene, quiet_stdout, rigged_volume, run_and_exit  # noqa: E402
 
 volrig_addon.register()
-from volrig_addon import looks, staging  # noqa: E402
+from volrig_addon import looks, objects, staging  # noqa: E402
 
 OUT = os.path.join(REPO, "docs", "images", "selective_phantom.png")
+FROG = os.path.normpath(os.path.join(REPO, "..", "shared", "data", "frogtissue", "frogtissue.mhd"))
+FROG_TISSUES = ["blood", "brain", "duodenum", "eye retina", "eye white", "heart", "ileum", "kidney",
+                "large intestine", "liver", "lung", "nerve", "skeleton", "spleen", "stomach"]
 
 
 def set_looks(vol, colored=(), hidden=(), opacity=1.0, own_colours=False):
@@ -47,6 +56,40 @@ def render(scene, path):
         bpy.ops.render.render(write_still=True)
     log(f"rendered {os.path.basename(path)} in {time.perf_counter() - started:.1f} s")
     return path
+
+
+def frog_shots(work, samples):
+    """The frog rigged, taken apart (Explode 0.5, baked) and rendered from above with per-tissue looks: the skeleton
+    alone, then with the other tissues as translucent context."""
+    from mathutils import Matrix
+    new_scene(os.path.join(work, "frog.blend"))
+    vol = rigged_volume(FROG, "frog", points=12000, largest=True, rig_kept_points=True)
+    table = os.path.join(work, "frog_tissues.tsv")
+    with open(table, "w") as f:
+        f.write("code\tname\n" + "".join(f"{k}\t{n}\n" for k, n in enumerate(FROG_TISSUES, start=1)))
+    s = vol.volrig
+    s.tissue_table, s.use_tissues, s.density_scale = table, True, 0.6
+    s.explode = 0.5
+    if bpy.ops.volrig.bake() != {"FINISHED"}:
+        raise RuntimeError("bake did not finish")
+    scene = bpy.context.scene
+    cam = staging.stage(scene, vol, resolution=(300, 300), samples=samples)
+    lo, hi = staging.volume_box(vol)
+    size = hi - lo
+    cam.data.ortho_scale = 1.6 * float(max(size[0], size[1]))  # taken apart, the frog spreads out
+    cam.data.clip_start, cam.data.clip_end = 0.001, 10.0
+    cam.matrix_world = Matrix.Translation(((lo + hi) / 2 + [0.0, 0.0, 2.0 * float(size.max())]).tolist())
+    scene.view_settings.view_transform = "Standard"
+    shots = []
+    for t in s.tissues:
+        t.visible = t.name == "bone"
+    shots.append((render(scene, os.path.join(work, "frog_bones.png")), "frog: skeleton, taken apart"))
+    for t in s.tissues:
+        t.visible, t.opacity = True, 1.0 if t.name == "bone" else 0.05
+    shots.append((render(scene, os.path.join(work, "frog_context.png")), "with soft tissue as context"))
+    log(f"frog: {len(objects.members(vol)['RIG'].data.bones)} bones, {len(s.parts)} parts, tissues "
+        + ", ".join(t.name for t in s.tissues))
+    return shots
 
 
 def main(argv):
@@ -79,9 +122,14 @@ def main(argv):
         shots.append((render(scene, os.path.join(work, "exploded.png")), "exploded (Explode 0.5)"))
         set_looks(vol, own_colours=True)
         shots.append((render(scene, os.path.join(work, "exploded_parts.png")), "a colour per part"))
+        parts = len(s.parts)
+        if os.path.exists(FROG):
+            shots += frog_shots(work, args.samples)
+        else:
+            log(f"skipped the frog: {FROG} is absent")
         contact_sheet([p for p, _ in shots], [t for _, t in shots], args.out,
-                      f"volrig: per-part looks and an exploded view of the phantom in Cycles "
-                      f"({len(s.parts)} parts from the rig's bone names)")
+                      f"volrig: per-part looks and exploded views in Cycles (the phantom's {parts} parts from its "
+                      f"bone names; the frog's label map with per-tissue looks)")
         log(f"wrote {args.out}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -1,18 +1,22 @@
 """The animated Visible Human (issue 21's showcase): a labelled scan rigged automatically, driven by a motion-capture
-walk, baked with per-tissue grids and rendered in Cycles with per-tissue looks (skin translucent over the moving
-skeleton and muscles). Headless; point it at any labelled scan with its table of tissue codes:
+walk, baked with per-tissue grids and rendered in Cycles with per-tissue looks (skin and muscle faint over the moving
+skeleton and organs, then the skeleton and organs alone). Headless; point it at any labelled scan with its table of
+tissue codes:
 
     blender -b --factory-startup --python scripts/showcase.py -- \\
         [--labels ../shared/data/visible-human/austinman_4mm_labels.nii.gz] \\
         [--tissues ../shared/data/visible-human/austinman_tissues.tsv] [--clip ../shared/data/bvh/131_01.bvh] \\
-        [--count 4] [--samples 16] [--height 640] [--hide fat,muscle] [--out docs/images/showcase_vhm.png]
+        [--count 4] [--samples 16] [--height 640] [--hide fat] [--opacity skin=0.015,muscle=0.012] \\
+        [--peel skin,muscle,cartilage] [--view 1 -0.35 0.1] [--out docs/images/showcase_vhm.png]
 
 The scan is any label map volrig reads (NIfTI, NRRD, MetaImage, DICOM, TIFF) whose non-zero codes are the body
 (codes the table calls external air are left out); the table is TSV or CSV (code, name). Tissue classes come from
 ``volrig.TISSUE_CLASSES`` (edit it, or the material's Value and RGB nodes, for other looks); --hide leaves classes
-out of the render. The body is rigged as a humanoid with +z up (--kind, --up to change), the clip retargeted in
-place, ``--count`` frames spread over its first ``--span`` BVH frames baked (linear, nearest sampling) into a
-temporary folder and rendered, and a contact sheet written to --out.
+out of the render, --opacity overrides classes' opacities (the defaults make skin, muscle and tendons faint) and
+--peel adds a second row without more classes (default: skin, muscle and tendons: the skeleton and organs walking);
+--view says where the camera looks from. The body is rigged as a humanoid with +z up (--kind, --up to change), the
+clip retargeted in place, ``--count`` frames spread over its first ``--span`` BVH frames baked (linear, nearest
+sampling) into a temporary folder and rendered, and a contact sheet written to --out.
 
 The Visible Human data are not part of volrig (licence: CC BY-NC-ND 3.0): see ../shared/data/visible-human/README.md
 for where they come from (AustinMan v2.6, UT Austin, from the NLM Visible Human Project).
@@ -33,7 +37,7 @@ import numpy as np  # noqa: E402
 
 import volrig  # noqa: E402
 from volrig import pipeline  # noqa: E402
-from blender_scenes import log, quiet_stdout, run_and_exit, sheet  # noqa: E402
+from blender_scenes import log, quiet_stdout, run_and_exit  # noqa: E402
 from volrig_addon import materials  # noqa: E402
 
 OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
@@ -81,7 +85,7 @@ def rig_and_bake(args, work):
     return [bake.path(k + 1) for k in range(len(frames))], tissues, frames, labels
 
 
-def scene_for(labels, height):
+def scene_for(labels, height, view):
     """An empty scene in Cycles with a camera three-quarters from the front and a soft key light, framing the
     scan's box (world units: the scan's, shown at 1/1000: millimetres as metres)."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
@@ -107,7 +111,7 @@ def scene_for(labels, height):
     cam.data.ortho_scale = float(size[2]) * 1.08
     scene.collection.objects.link(cam)
     scene.camera = cam
-    direction = np.array([0.45, -1.0, 0.12])  # from the front (-y in LPS-ordered scans), a little to the left
+    direction = np.asarray(view, dtype=float)
     cam.location = tuple(centre + direction / np.linalg.norm(direction) * float(size.max()) * 2.0)
     target = bpy.data.objects.new("target", None)
     target.location = tuple(centre)
@@ -135,6 +139,26 @@ def show(scene, path, mat):
     return ob
 
 
+def grid(rows, out, title):
+    """Rows of (image, caption) as one PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image as mpimg
+    import matplotlib.pyplot as plt
+    n = max(len(r) for r in rows)
+    fig, axes = plt.subplots(len(rows), n, figsize=(2.4 * n, 4.2 * len(rows)), squeeze=False)
+    for r, row in enumerate(rows):
+        for c in range(n):
+            ax = axes[r][c]
+            ax.axis("off")
+            if c < len(row):
+                ax.imshow(mpimg.imread(row[c][0]))
+                ax.set_title(row[c][1], fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.savefig(out, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+
+
 def main(argv):
     ap = argparse.ArgumentParser(prog="showcase.py")
     ap.add_argument("--labels", default=os.path.join(DATA, "visible-human", "austinman_4mm_labels.nii.gz"))
@@ -146,7 +170,13 @@ def main(argv):
     ap.add_argument("--thinness", type=float, default=0.5, help="thinness in voxels")
     ap.add_argument("--kind", choices=volrig.rig.KINDS, default="humanoid")
     ap.add_argument("--up", choices=["x", "y", "z", "-z"], default="z", help="the body's up axis in the scan")
-    ap.add_argument("--hide", default="", help="tissue classes to leave out, comma-separated (e.g. fat,muscle)")
+    ap.add_argument("--hide", default="fat", help="tissue classes to leave out, comma-separated (default: fat)")
+    ap.add_argument("--opacity", default="skin=0.015,muscle=0.012,cartilage=0.01",
+                    help="opacities replacing the preset's, class=value,... (default: skin, muscle and tendons faint)")
+    ap.add_argument("--peel", default="skin,muscle,cartilage",
+                    help="a second row without these classes too (default: the skeleton and organs); empty: none")
+    ap.add_argument("--view", type=float, nargs=3, default=(1.0, -0.35, 0.1),
+                    help="direction from the body to the camera (x, y, z in the scan; default: its left side)")
     ap.add_argument("--samples", type=int, default=16)
     ap.add_argument("--height", type=int, default=640, help="image height in pixels")
     ap.add_argument("--strength", type=float, default=0.06, help="density per world unit at opacity 1")
@@ -165,23 +195,37 @@ def main(argv):
         if unknown:
             raise SystemExit(f"showcase: --hide {', '.join(sorted(unknown))}: no such tissue class; classes: "
                              + ", ".join(t.name for t in tissues))
-        tissues = [t._replace(visible=t.name not in hidden) for t in tissues]
-        scene = scene_for(labels, args.height)
+        opacity = {}
+        for item in filter(None, (x.strip() for x in args.opacity.split(","))):
+            name, _, value = item.partition("=")
+            if name not in {t.name for t in tissues}:
+                raise SystemExit(f"showcase: --opacity {name}: no such tissue class")
+            opacity[name] = float(value)
+        tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
+        scene = scene_for(labels, args.height, args.view)
         scene.cycles.samples = args.samples
-        mat = materials.tissue_material("showcase", tissues, strength=args.strength)
-        paths = []
-        for k, path in enumerate(files):
-            show(scene, path, mat)
-            scene.render.filepath = os.path.join(work, f"render_{k + 1:02d}.png")
-            started = time.perf_counter()
-            with quiet_stdout():
-                bpy.ops.render.render(write_still=True)
-            paths.append(scene.render.filepath)
-            log(f"rendered {k + 1}/{len(files)} in {time.perf_counter() - started:.1f} s")
+        looks = [("", tissues)]
+        peeled = {h.strip() for h in args.peel.split(",") if h.strip()}
+        if peeled:
+            looks.append((", without " + ", ".join(sorted(peeled)),
+                          [t._replace(visible=t.visible and t.name not in peeled) for t in tissues]))
+        rows = []
+        for caption, look in looks:
+            mat = materials.tissue_material("showcase", look, strength=args.strength)
+            row = []
+            for k, path in enumerate(files):
+                show(scene, path, mat)
+                scene.render.filepath = os.path.join(work, f"render_{len(rows)}_{k + 1:02d}.png")
+                started = time.perf_counter()
+                with quiet_stdout():
+                    bpy.ops.render.render(write_still=True)
+                row.append((scene.render.filepath, f"BVH frame {frames[k] + 1}{caption}"))
+                log(f"rendered {k + 1}/{len(files)}{caption} in {time.perf_counter() - started:.1f} s")
+            rows.append(row)
         os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-        sheet(paths, [f"BVH frame {f + 1}" for f in frames], args.out,
-              f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by volrig, per-tissue "
-              f"looks in Cycles" + (f"; hidden: {', '.join(sorted(hidden))}" if hidden else ""))
+        grid(rows, args.out, f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by "
+                             f"volrig, per-tissue looks in Cycles" + (f"; hidden: {', '.join(sorted(hidden))}"
+                                                                       if hidden else ""))
         log(f"wrote {args.out} in {time.perf_counter() - t0:.0f} s")
     finally:
         shutil.rmtree(work, ignore_errors=True)

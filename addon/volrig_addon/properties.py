@@ -89,7 +89,8 @@ class VolrigTissue(bpy.types.PropertyGroup):
                           description="Show the class's voxels (hidden: rendered as if they were empty)")
     color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.8, 0.8, 0.8), min=0.0, max=1.0,
                                update=_look_changed)
-    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, precision=3, update=_look_changed,
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, precision=3,
+                           update=_look_changed,
                            description="The class's opacity (times the Density multiplier)")
 
 

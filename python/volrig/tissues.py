@@ -38,7 +38,7 @@ class TissueClass(NamedTuple):
 #: ones ("BoneMarrow" is bone, not marrow fat; "HeartMuscle" and "HeartDCT" are heart; "InternalAir" is air).
 TISSUE_CLASSES: List[TissueClass] = [
     TissueClass("skin", r"skin|nail", (0.95, 0.78, 0.66), 0.06),
-    TissueClass("bone", r"bone|tooth|teeth|skull|vertebra|rib|femur|tibia|humerus", (0.97, 0.94, 0.86), 1.0),
+    TissueClass("bone", r"bone|skeleton|tooth|teeth|skull|vertebra|rib|femur|tibia|humerus", (0.97, 0.94, 0.86), 1.0),
     TissueClass("heart", r"heart|ventricle|atri|myocard", (0.80, 0.10, 0.12), 0.8),
     TissueClass("cartilage", r"cartilage|menisc|disc|tendon|ligament|fascia|itband|dct", (0.80, 0.85, 0.92), 0.1),
     TissueClass("vessels", r"aorta|vessel|vein|artery|blood|vena", (0.70, 0.04, 0.06), 0.8),
@@ -49,7 +49,7 @@ TISSUE_CLASSES: List[TissueClass] = [
     TissueClass("liver", r"liver|gall", (0.50, 0.13, 0.10), 0.6),
     TissueClass("kidney", r"kidney|renal|adrenal|bladder|urethra|prostate|testis|ductus|erectile",
                 (0.65, 0.25, 0.38), 0.6),
-    TissueClass("gut", r"colon|intestine|duoden|stomach|esophag|bowel|rectum|peritoneal|mucous",
+    TissueClass("gut", r"colon|intestine|duoden|ileum|jejun|c[a]?ecum|stomach|esophag|bowel|rectum|peritoneal|mucous",
                 (0.88, 0.58, 0.48), 0.3),
     TissueClass("glands", r"gland|pancrea|spleen|thymus|thyroid|lymph|tongue", (0.72, 0.35, 0.48), 0.5),
     TissueClass("eye", r"eye|cornea|lens|vitreous|sclera", (0.95, 0.95, 1.00), 0.6),
