@@ -161,11 +161,12 @@ def refresh(volume_obj) -> int:
     return len(s.parts)
 
 
-def route(tree, nd, parts, tissues=()) -> None:
+def route(tree, nd, parts, tissues=(), settings=None) -> None:
     """Links the material's value (into the transfer function's window), opacity and colour (into the shaders)
     through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role. With
     ``tissues`` (a label map's classes: tissue_looks.py) the opacity and colour come from the tissues' grids
-    (``materials.tissue_sums``) instead of the transfer function, the density multiplier kept."""
+    (``materials.tissue_sums``) instead of the transfer function, the density multiplier kept. ``settings``: the
+    volume's (value range and density multiplier, for parts with their own transfer function)."""
     from .materials import TISSUE_PREFIX, tissue_sums
     for node in [x for x in tree.nodes if x.name.startswith((_PREFIX, TISSUE_PREFIX))]:
         tree.nodes.remove(node)
@@ -183,7 +184,7 @@ def route(tree, nd, parts, tissues=()) -> None:
     else:
         link(nd["ramp"].outputs["Alpha"], strength)
     if len(parts):
-        value, opacity, colour = _part_nodes(tree, opacity, colour, parts)
+        value, opacity, colour = _part_nodes(tree, opacity, colour, parts, settings)
     link(value, nd["window"].inputs["Value"])
     for shader in (nd["scatter"], nd["absorb"]):
         link(colour, shader.inputs["Color"])
@@ -221,28 +222,61 @@ class _Builder:
         return self.node("ShaderNodeAttribute", x, y, attribute_name=name).outputs["Fac"]
 
     def mix(self, fac, a, b_color, x, y):
-        """Colour ``a`` (a socket) mixed towards the constant ``b_color`` by ``fac`` (a socket)."""
+        """Colour ``a`` (a socket) mixed towards ``b_color`` (a constant colour or a socket) by ``fac`` (a
+        socket)."""
         nd = self.node("ShaderNodeMix", x, y, data_type="RGBA")
         self.tree.links.new(fac, nd.inputs[0])
         self.tree.links.new(a, nd.inputs[6])
-        nd.inputs[7].default_value = (*b_color, 1.0)
+        if isinstance(b_color, bpy.types.NodeSocket):
+            self.tree.links.new(b_color, nd.inputs[7])
+        else:
+            nd.inputs[7].default_value = (*b_color, 1.0)
         return nd.outputs[2]
 
 
-def _part_nodes(tree, opacity, colour, parts):
-    """The parts' nodes (see the module's description); returns the (value, opacity, colour) sockets."""
+def _part_nodes(tree, opacity, colour, parts, settings=None):
+    """The parts' nodes (see the module's description); returns the (value, opacity, colour) sockets. A part with
+    its own transfer function (``preset``) takes its colour and opacity from its own ramp over ``density_<key>``
+    where its mask is, instead of the volume's."""
     b = _Builder(tree)
     value, hidden_weight, opacity_weight = b.attribute(volrig.parts.OUTSIDE, -1900, -700), 0.0, 1.0
+    own = None  # the opacity of the parts with their own transfer function
     for k, p in enumerate(parts):
         x, y = -1700 + 150 * k, -700 - 60 * k
         m = b.attribute(f"mask_{p.key}", x, y - 500)
         hide = 0.0 if p.visible else 1.0
+        preset = getattr(p, "preset", "VOLUME") if settings is not None else "VOLUME"
         if p.visible:
-            value = b.math("ADD", b.attribute(f"density_{p.key}", x, y - 300), value, x=x, y=y)
+            density = b.attribute(f"density_{p.key}", x, y - 300)
+            value = b.math("ADD", density, value, x=x, y=y)
+            if preset != "VOLUME":
+                ramp = _own_ramp(b, density, preset, settings, x, y - 900)
+                colour = b.mix(m, colour, ramp.outputs["Color"], x=x, y=y - 700)
+                alpha = b.math("MULTIPLY", ramp.outputs["Alpha"], p.opacity * settings.density_scale, x=x, y=y - 1100)
+                term = b.math("MULTIPLY", m, alpha, x=x, y=y - 1200)
+                own = term if own is None else b.math("ADD", own, term, x=x, y=y - 1300)
         hidden_weight = b.math("MULTIPLY_ADD", m, hide, hidden_weight, x=x, y=y - 100)
-        opacity_weight = b.math("MULTIPLY_ADD", m, p.opacity * (1.0 - hide) - 1.0, opacity_weight, x=x, y=y - 200)
-        if p.colored and p.visible:
+        kept = p.opacity * (1.0 - hide) if preset == "VOLUME" else 0.0  # (an own ramp replaces the volume's)
+        opacity_weight = b.math("MULTIPLY_ADD", m, kept - 1.0, opacity_weight, x=x, y=y - 200)
+        if p.colored and p.visible and preset == "VOLUME":
             colour = b.mix(m, colour, p.color, x=x, y=y - 700)
     weight = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, hidden_weight, x=-300, y=-900), 1e-4, x=-150, y=-900)
     share = b.math("DIVIDE", opacity_weight, weight, x=0, y=-900)
-    return value, b.math("MULTIPLY", opacity, share, x=150, y=-900), colour
+    opacity = b.math("MULTIPLY", opacity, share, x=150, y=-900)
+    if own is not None:
+        opacity = b.math("ADD", opacity, own, x=300, y=-900)
+    return value, opacity, colour
+
+
+def _own_ramp(b, density, preset, settings, x, y):
+    """A part's own window and ramp (``preset`` over the volume's value range) on its ``density`` socket."""
+    from .materials import fill_ramp, part_transfer
+    lo, hi, interpolation, stops = part_transfer(preset, settings)
+    window = b.node("ShaderNodeMapRange", x, y, clamp=True)
+    window.inputs["From Min"].default_value = lo
+    window.inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
+    b.tree.links.new(density, window.inputs["Value"])
+    ramp = b.node("ShaderNodeValToRGB", x, y - 100)
+    fill_ramp(ramp.color_ramp, interpolation, stops)
+    b.tree.links.new(window.outputs["Result"], ramp.inputs["Fac"])
+    return ramp

@@ -53,6 +53,7 @@ class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
             if 0 <= s.parts_index < len(s.parts):
                 part = s.parts[s.parts_index]
                 layout.label(text=part.bones.replace(",", ", "), icon="BONE_DATA")
+                layout.prop(part, "preset")
                 layout.prop(part, "substitute")
         layout.prop(s, "explode")
 

@@ -120,6 +120,22 @@ def _nodes(mat):
     return _nodes(mat)
 
 
+def fill_ramp(ramp, interpolation, stops) -> None:
+    """A colour ramp set to ``stops`` ((position, (r, g, b), alpha), ...) with ``interpolation``."""
+    ramp.interpolation = interpolation
+    while len(ramp.elements) > 1:
+        ramp.elements.remove(ramp.elements[-1])
+    ramp.elements[0].position = stops[0][0]
+    ramp.elements[0].color = (*stops[0][1], stops[0][2])
+    for pos, rgb, alpha in stops[1:]:
+        ramp.elements.new(pos).color = (*rgb, alpha)
+
+
+def part_transfer(preset, settings):
+    """(window low, window high, interpolation, stops) of a part's own preset over the volume's value range."""
+    return _stops(preset, settings.value_min, settings.value_max)
+
+
 def bone_index(volume_obj, name: str) -> int:
     """1-based index of bone ``name`` in the rig (the ``bone`` grid's label), 0 when there is no such bone."""
     from .objects import members
@@ -150,14 +166,7 @@ def update_volume_material(volume_obj):
     lo, hi, interpolation, stops = _stops(s.preset, s.value_min, s.value_max, _lumen_range(s), palette)
     nd["window"].inputs["From Min"].default_value = lo
     nd["window"].inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
-    ramp = nd["ramp"].color_ramp
-    ramp.interpolation = interpolation
-    while len(ramp.elements) > 1:
-        ramp.elements.remove(ramp.elements[-1])
-    ramp.elements[0].position = stops[0][0]
-    ramp.elements[0].color = (*stops[0][1], stops[0][2])
-    for pos, rgb, alpha in stops[1:]:
-        ramp.elements.new(pos).color = (*rgb, alpha)
+    fill_ramp(nd["ramp"].color_ramp, interpolation, stops)
     nd["opacity"].inputs[1].default_value = s.density_scale
     nd["absorb"].inputs["Density"].default_value = 0.0
     index = bone_index(volume_obj, s.highlight_bone)
@@ -166,7 +175,7 @@ def update_volume_material(volume_obj):
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
     from . import looks
     from . import tissue_looks
-    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [], tissue_looks.tissues_of(volume_obj))
+    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [], tissue_looks.tissues_of(volume_obj), s)
     return mat
 
 

@@ -16,6 +16,17 @@ UNIT_SCALES = [
 UNIT_FACTOR = {"MM": 0.001, "CM": 0.01, "M": 1.0}
 
 
+#: The transfer-function presets (materials.PRESETS and the lumen view); stored by position: append only.
+PRESET_ITEMS = [
+    ("CT_BONE", "CT bone", "Dense values opaque and bone-white, soft values transparent"),
+    ("SOFT_TISSUE", "Soft tissue", "Low values reddish and translucent, dense values white"),
+    ("LABELS", "Label map", "One colour per integer label"),
+    ("GREY", "Grey", "Density proportional to the value"),
+    ("LUMEN", "Lumen view", "The segmented range clear, every other value an opaque pink wall: for cameras "
+                            "inside a hollow organ (Fly Through sets it)"),
+]
+
+
 def _menu(info):
     """EnumProperty items from volrig's {name: (label, description)} (volrig.deform.MODE_INFO, SAMPLING_INFO)."""
     return [(name, label, description) for name, (label, description) in info.items()]
@@ -73,6 +84,10 @@ class VolrigPart(bpy.types.PropertyGroup):
                                update=_look_changed)
     opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=10.0, update=_look_changed,
                            description="The part's opacity, a factor on the transfer function's")
+    preset: EnumProperty(name="Transfer function", update=_look_changed, items=[
+        ("VOLUME", "Volume's", "The volume's transfer function (with this part's colour and opacity)")]
+        + [item for item in PRESET_ITEMS if item[0] != "LUMEN"],
+        description="The part's own transfer function over its values (the volume's value range), or the volume's")
     substitute: StringProperty(name="Substitute", subtype="FILE_PATH", update=_substitute_changed,
                                description="Take this part's values from another volume file in the same world frame "
                                            "(any voxel size): the full-resolution scan under a downsampled one, or "
@@ -188,14 +203,7 @@ class VolrigObject(bpy.types.PropertyGroup):
     bone_map_index: IntProperty(name="Bone map line", default=0)
 
     # --- look ---
-    preset: EnumProperty(name="Transfer function", items=[
-        ("CT_BONE", "CT bone", "Dense values opaque and bone-white, soft values transparent"),
-        ("SOFT_TISSUE", "Soft tissue", "Low values reddish and translucent, dense values white"),
-        ("LABELS", "Label map", "One colour per integer label"),
-        ("GREY", "Grey", "Density proportional to the value"),
-        ("LUMEN", "Lumen view", "The segmented range clear, every other value an opaque pink wall: for cameras "
-                                "inside a hollow organ (Fly Through sets it)"),
-    ], default="SOFT_TISSUE", update=_look_changed)
+    preset: EnumProperty(name="Transfer function", items=PRESET_ITEMS, default="SOFT_TISSUE", update=_look_changed)
     density_scale: FloatProperty(name="Density", default=1.0, min=0.0, soft_max=100.0, update=_look_changed,
                                  description="Density multiplier (per Blender unit of the scaled object)")
     highlight_bone: StringProperty(name="Highlight bone", update=_look_changed,

@@ -189,3 +189,23 @@ def test_a_part_takes_its_values_from_a_substitute_volume(rigged, phantom_file, 
     assert "the substitute of part 'left arm'" in capsys.readouterr().out  # said at once, nothing raised
     with pytest.raises(RuntimeError, match="substitute of part 'left arm'"):
         bpy.ops.volrig.bake()
+
+
+def test_a_part_with_its_own_transfer_function(rigged, tmp_path):
+    from volrig_addon import looks
+    vol = rigged
+    vol.volrig.use_parts = True
+    vol.volrig.preset = "GREY"
+    vol.volrig.density_scale = 3.0
+    scene = _stage(vol, tmp_path)
+    full = _render(scene, tmp_path / "full.png")
+    g, first = _grids(looks.rest_file(vol), [f"mask_{p.key}" for p in vol.volrig.parts])
+    region = _projected(scene, vol, g[f"mask_{_part(vol).key}"], first, grow=2)
+    _part(vol).preset = "SOFT_TISSUE"  # reddish and translucent where the volume's look is grey
+    nodes = vol.data.materials[0].node_tree.nodes
+    assert sum(n.type == "VALTORGB" for n in nodes) == 2  # the volume's ramp and the arm's own
+    own = _render(scene, tmp_path / "own.png")
+    assert np.abs(own[~region] - full[~region]).max() < 1.5 / 255  # nothing outside the arm's region changes
+    inside = _projected(scene, vol, g[f"mask_{_part(vol).key}"], first, grow=0, outer=False) & (full[..., 3] > 0.2)
+    redder = (own[..., 0] - own[..., 2])[inside] - (full[..., 0] - full[..., 2])[inside]
+    assert inside.sum() >= 10 and redder.mean() > 0.05
