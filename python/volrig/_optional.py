@@ -217,3 +217,36 @@ def rotation_power(R: np.ndarray) -> "callable":
             [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
             [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)]])
     return power
+
+
+def gaussian_filter(a: np.ndarray, sigma: float) -> np.ndarray:
+    """``scipy.ndimage.gaussian_filter(a, sigma)`` for a float array without scipy, computed as scipy does it: the
+    kernel exp(-x^2 / 2 sigma^2) normalised, radius int(4 sigma + 0.5), axis after axis, the borders mirrored
+    ("reflect": d c b a | a b c d), sums in float64 pairing the symmetric taps, each pass stored in a's dtype."""
+    radius = int(4.0 * float(sigma) + 0.5)
+    x = np.arange(-radius, radius + 1)
+    phi = np.exp(-0.5 / (float(sigma) * float(sigma)) * x ** 2)
+    w = phi / phi.sum()
+    out = np.array(a)
+    for axis in range(out.ndim):
+        n = out.shape[axis]
+        padded = np.pad(out.astype(np.float64), [(radius, radius) if ax == axis else (0, 0)
+                                                 for ax in range(out.ndim)], mode="symmetric") \
+            if n >= radius else _reflect_pad(out.astype(np.float64), radius, axis)
+        take = (lambda s: padded[tuple(slice(s, s + n) if ax == axis else slice(None) for ax in range(out.ndim))])
+        acc = take(radius) * w[radius]
+        for j in range(1, radius + 1):
+            acc += (take(radius - j) + take(radius + j)) * w[radius + j]
+        out = acc.astype(out.dtype)
+    return out
+
+
+def _reflect_pad(a: np.ndarray, radius: int, axis: int) -> np.ndarray:
+    """``a`` padded by ``radius`` along ``axis`` in scipy's "reflect" mode when the axis is shorter than the radius
+    (the mirror repeats: a b | b a a b | b a)."""
+    n = a.shape[axis]
+    idx = np.arange(-radius, n + radius)
+    period = 2 * n
+    m = np.mod(idx, period)
+    m = np.where(m >= n, period - 1 - m, m)
+    return np.take(a, m, axis=axis)

@@ -499,12 +499,15 @@ def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.5) -> Volume:
     needs it (only the shell is non-zero, so it alone is stored and marched). The boundary is the 0.5 level of the
     mask blurred by ``sigma`` voxels (so it does not show the voxel steps), the rise a smoothstep across a third of
     the blurred range. Cropped to the shell's bounding box."""
-    ndimage = _optional.scipy_module("scipy.ndimage", "volrig.centerlines.lumen_wall")
     if not (np.isfinite(thickness) and 0 < thickness <= 100):
         raise VolrigError(f"thickness must be 0 to 100 voxels, got {thickness}")
     crop, _, spacing, origin, offset = _cropped_mask(mask, int(np.ceil(thickness + 3 * sigma)) + 1)
     inside = crop.astype(np.float32)
-    soft = ndimage.gaussian_filter(inside, sigma) if sigma > 0 else inside
+    try:
+        from scipy.ndimage import gaussian_filter
+    except ImportError:
+        gaussian_filter = _optional.gaussian_filter  # the same computation in numpy
+    soft = gaussian_filter(inside, sigma) if sigma > 0 else inside
     # the shell: within `thickness` (smallest) voxels of the lumen (the native Euclidean DT of the outside)
     # (the DT counts the grid's border as background: padded beyond reach)
     k = int(np.ceil(thickness)) + 2
