@@ -159,8 +159,9 @@ def bundle(module: str, root: str, work: str) -> tuple:
     for path in [out] + copies:
         # One kind of change per patchelf run, then a check: Debian 12's patchelf 0.14 garbles the string table when
         # one run makes two kinds of change (e.g. --set-soname with --replace-needed gave a SONAME of the replaced
-        # name). Each run copies .dynstr into a new segment: libopenvdb's 22 MB of C++ symbol names make it grow by
-        # that each time (the wheel, compressed, much less).
+        # name), and the version needs are checked too (a wrong name there stops the loader). Each run copies
+        # .dynstr into a new segment: libopenvdb's 22 MB of C++ symbol names make it grow by that each time (57 to
+        # 125 MB; patchelf 0.18 in one run grows it as much; the wheel, compressed, by little).
         _, needed, _ = dynamic(path)
         replace = [a for n in needed if n in rename for a in ("--replace-needed", n, rename[n])]
         if replace:
@@ -174,9 +175,18 @@ def bundle(module: str, root: str, work: str) -> tuple:
         subprocess.run(["patchelf", "--force-rpath", "--set-rpath", rpath, path], check=True)
         soname, got, runpath = dynamic(path)
         want = [rename.get(n, n) for n in needed]
-        if got != want or runpath != [rpath] or (path != out and soname != os.path.basename(path)):
-            raise RuntimeError(f"patchelf left {path} wrong: SONAME {soname}, NEEDED {got}, RPATH {runpath}")
+        versioned = version_files(path)  # the loader matches symbol versions to libraries by these names
+        if got != want or runpath != [rpath] or (path != out and soname != os.path.basename(path)) or \
+                not set(versioned) <= set(got):
+            raise RuntimeError(f"patchelf left {path} wrong: SONAME {soname}, NEEDED {got}, RPATH {runpath}, "
+                               f"version needs of {versioned}")
     return out, copies
+
+
+def version_files(path: str) -> list:
+    """The library names of an ELF file's version needs (.gnu.version_r), from `readelf -V`."""
+    out = subprocess.run(["readelf", "-V", "-W", path], capture_output=True, text=True, check=True).stdout
+    return re.findall(r"Version: \d+\s+File: (\S+)", out)
 
 
 def glibc_needed(paths) -> tuple:
