@@ -3,7 +3,6 @@ module needs but glibc, libstdc++ and libgcc_s is inside the wheel's volrig.libs
 cp313 wheel's come from the Debian 13 root it was built in. The last test unpacks the cp311 wheel into a bare
 Debian 12 root (scripts/bare_root: minbase, python3 and python3-numpy only: no OpenVDB, TBB, Boost, GDCM, libtiff,
 libpng, scipy) and runs volrig there: phantom -> skeletonize -> autorig -> bind -> deformed frame -> VDB."""
-import hashlib
 import os
 import re
 import shutil
