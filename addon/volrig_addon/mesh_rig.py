@@ -140,8 +140,9 @@ def set_weights(obj, names, weights) -> None:
 
 def read_weights(obj, names):
     """The weights the vertex groups ``names`` hold now, as a (V, B) CSR matrix, rows normalized (as the Armature
-    modifier does); vertices in none of them get an empty row."""
-    from scipy import sparse
+    modifier does); vertices in none of them get an empty row (a scipy CSR matrix; without scipy, volrig's own CSR
+    of the same arrays)."""
+    from volrig import _optional
     column = {obj.vertex_groups[n].index: b for b, n in enumerate(names) if n in obj.vertex_groups}
     rows, cols, vals = [], [], []
     for v in obj.data.vertices:
@@ -151,10 +152,12 @@ def read_weights(obj, names):
                 rows.append(v.index)
                 cols.append(b)
                 vals.append(g.weight)
-    w = sparse.csr_matrix((np.array(vals, dtype=np.float64), (rows, cols)), shape=(len(obj.data.vertices),
-                                                                                      len(names)))
-    sums = np.asarray(w.sum(axis=1)).ravel()
-    return sparse.diags(np.where(sums > 0, 1.0 / np.where(sums > 0, sums, 1.0), 0.0)) @ w
+    shape = (len(obj.data.vertices), len(names))
+    data, indices, indptr = _optional.coo_arrays(np.array(vals, dtype=np.float64), rows, cols, shape)
+    row = np.repeat(np.arange(shape[0]), np.diff(indptr))
+    sums = np.bincount(row, weights=data, minlength=shape[0])
+    scale = np.where(sums > 0, 1.0 / np.where(sums > 0, sums, 1.0), 0.0)
+    return _optional.csr_matrix(data * scale[row], indices, indptr, shape)
 
 
 def _move_first(obj, mod) -> None:

@@ -16,7 +16,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import _volrig
+from . import _optional, _volrig
 from ._volrig import VolrigError
 from .rig import Rig
 from .skeleton import ProgressFn, _geometry, _mask_array
@@ -281,7 +281,10 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _rotation_power(R: np.ndarray, t: float) -> np.ndarray:
     """R^t for a rotation R (same axis, t times the angle)."""
-    from scipy.spatial.transform import Rotation
+    try:
+        from scipy.spatial.transform import Rotation
+    except ImportError:
+        return _optional.rotation_power(R)(t)
     return Rotation.from_rotvec(Rotation.from_matrix(R).as_rotvec() * float(t)).as_matrix()
 
 
@@ -496,12 +499,15 @@ def lumen_wall(mask, thickness: float = 3.0, sigma: float = 1.5) -> Volume:
     needs it (only the shell is non-zero, so it alone is stored and marched). The boundary is the 0.5 level of the
     mask blurred by ``sigma`` voxels (so it does not show the voxel steps), the rise a smoothstep across a third of
     the blurred range. Cropped to the shell's bounding box."""
-    from scipy import ndimage
     if not (np.isfinite(thickness) and 0 < thickness <= 100):
         raise VolrigError(f"thickness must be 0 to 100 voxels, got {thickness}")
     crop, _, spacing, origin, offset = _cropped_mask(mask, int(np.ceil(thickness + 3 * sigma)) + 1)
     inside = crop.astype(np.float32)
-    soft = ndimage.gaussian_filter(inside, sigma) if sigma > 0 else inside
+    try:
+        from scipy.ndimage import gaussian_filter
+    except ImportError:
+        gaussian_filter = _optional.gaussian_filter  # the same computation in numpy
+    soft = gaussian_filter(inside, sigma) if sigma > 0 else inside
     # the shell: within `thickness` (smallest) voxels of the lumen (the native Euclidean DT of the outside)
     # (the DT counts the grid's border as background: padded beyond reach)
     k = int(np.ceil(thickness)) + 2

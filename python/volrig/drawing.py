@@ -39,11 +39,14 @@ from dataclasses import dataclass
 from typing import List, Optional
 
 import numpy as np
-from scipy import ndimage as ndi
 
 from . import _volrig
+from ._optional import LazyModule
 from ._volrig import VolrigError
 from .volume import Volume
+
+# scipy.ndimage on first use: importing this module (the add-on does) needs no scipy; reading a drawing does
+ndi = LazyModule("scipy.ndimage", "volrig.drawing (inflate, drawing_colours: drawings as volumes)")
 
 #: a pixel differs "clearly" from the background when a channel differs by more than this (0..1)
 BACKGROUND_DIFFERENCE = 0.2

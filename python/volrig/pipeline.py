@@ -372,7 +372,9 @@ def rest_labels(source: Volume, points: SkeletonPoints, binding: Binding, mask: 
 def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
     """Gives the ``gap`` voxels, in place, the label of the nearest labelled voxel, found on a grid twice as
     coarse (a few seconds for millions of voxels where the exact transform takes many)."""
-    from scipy import ndimage
+    from . import _optional
+    ndimage = _optional.scipy_module("scipy.ndimage", "volrig.pipeline.rest_labels with a mask (the rest "
+                                     "parts of write_rest_parts, Explode)")
     coarse = labels[::2, ::2, ::2]
     if not coarse.any():
         coarse = labels

@@ -13,7 +13,7 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from . import _volrig
+from . import _optional, _volrig
 from ._volrig import VolrigError
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume
@@ -274,7 +274,8 @@ class Binding:
 
     bone:        (N,) int32 owning bone of each point (the heaviest in smooth mode).
     weights:     (N, B) scipy.sparse CSR matrix of weights (rows sum to 1): one-hot in rigid mode; up to three
-                 bones per point in smooth mode.
+                 bones per point in smooth mode. Without scipy, a ``volrig._optional.CSR`` holding the same arrays
+                 (``data``, ``indices``, ``indptr``; ``tocsr``, ``tocsc``, ``to_scipy``).
     mode:        "rigid" or "smooth".
     unreachable: (N,) bool: points that no bone reaches inside the object (bound to the nearest bone in a straight
                  line instead; e.g. fragments separate from the rigged part).
@@ -298,7 +299,6 @@ class Binding:
     def reassign(self, points, bone) -> "Binding":
         """A copy with ``points`` (indices or a boolean mask) bound to ``bone`` (index or name) alone, as weight
         painting does."""
-        from scipy import sparse
         b = self.bone_names.index(bone) if isinstance(bone, str) else int(bone)
         nb = self.weights.shape[1]
         if not 0 <= b < nb:
@@ -307,16 +307,20 @@ class Binding:
         idx = np.flatnonzero(idx) if idx.dtype == np.bool_ else idx.astype(np.int64).reshape(-1)
         if len(idx) and (idx.min() < 0 or idx.max() >= len(self.bone)):
             raise IndexError(f"point indices must lie in 0..{len(self.bone) - 1}")
-        w = self.weights.tolil(copy=True)
-        for i in idx:
-            w.rows[i] = [b]
-            w.data[i] = [1.0]
+        data, cols, indptr = _canonical(self.weights)
+        rows = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+        painted = np.zeros(len(indptr) - 1, dtype=bool)
+        painted[idx] = True
+        keep = ~painted[rows]
+        w = _optional.csr_from_coo(np.concatenate([data[keep], np.ones(int(painted.sum()), data.dtype)]),
+                                   np.concatenate([rows[keep], np.flatnonzero(painted)]),
+                                   np.concatenate([cols[keep], np.full(int(painted.sum()), b, cols.dtype)]),
+                                   self.weights.shape, dtype=np.float32)
         owner = self.bone.copy()
         owner[idx] = b
         unreachable = self.unreachable.copy()
         unreachable[idx] = False
-        return Binding(owner, sparse.csr_matrix(w, dtype=np.float32), self.mode, unreachable, list(self.bone_names))
-
+        return Binding(owner, w, self.mode, unreachable, list(self.bone_names))
 
     def groups(self):
         """The weights bone by bone, as vertex groups hold them: a list over bones of (point indices int64,
@@ -338,7 +342,6 @@ class Binding:
         Rows are normalised to sum to 1; the owner is the heaviest bone; mode is "rigid" when every point has one
         bone, else "smooth".
         """
-        from scipy import sparse
         names = [str(n) for n in bone_names]
         rows, cols, vals = [], [], []
         for b, name in enumerate(names):
@@ -359,10 +362,8 @@ class Binding:
             vals.append(w[keep])
         nb = len(names)
         cat = (lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dt))
-        w = sparse.csr_matrix((cat(vals, np.float64), (cat(rows, np.int64), cat(cols, np.int64))),
-                              shape=(count, nb))
-        w.sum_duplicates()
-        total = np.asarray(w.sum(axis=1)).reshape(-1)
+        rows, cols, vals = cat(rows, np.int64), cat(cols, np.int64), cat(vals, np.float64)
+        total = np.bincount(rows, weights=vals, minlength=count) if count else np.zeros(0)
         empty = np.flatnonzero(total <= 0)
         unreachable = np.zeros(count, dtype=bool)
         if len(empty):
@@ -371,30 +372,41 @@ class Binding:
             if len(fallback) != count or fallback.weights.shape[1] != nb:
                 raise VolrigError(f"the fallback binding ({fallback.weights.shape}) does not match {count} points "
                                  f"and {nb} bones")
-            w = w.tolil()
-            fw = fallback.weights.tocsr()
-            for i in empty:
-                row = fw.getrow(i)
-                w.rows[i] = list(row.indices)
-                w.data[i] = list(row.data.astype(np.float64))
-            w = w.tocsr()
-            total = np.asarray(w.sum(axis=1)).reshape(-1)
+            fdata, fcols, findptr = _canonical(fallback.weights)
+            frows = np.repeat(np.arange(count), np.diff(findptr))
+            take = np.isin(frows, empty)
+            rows, cols = np.concatenate([rows, frows[take]]), np.concatenate([cols, fcols[take].astype(np.int64)])
+            vals = np.concatenate([vals, fdata[take].astype(np.float64)])
             unreachable[empty] = fallback.unreachable[empty]
-        w = sparse.csr_matrix(sparse.diags(1.0 / total) @ w, dtype=np.float32)
-        owner = np.asarray(w.argmax(axis=1)).reshape(-1).astype(np.int32)
-        mode = "rigid" if (np.diff(w.indptr) <= 1).all() else "smooth"
+        data, indices, indptr = _optional.coo_arrays(vals, rows, cols, (count, nb))
+        per_row = np.diff(indptr)
+        row_of = np.repeat(np.arange(count), per_row)
+        total = np.bincount(row_of, weights=data, minlength=count)
+        data = (data * (1.0 / total)[row_of]).astype(np.float32)
+        w = _optional.csr_matrix(data, indices, indptr, (count, nb), dtype=np.float32)
+        # the heaviest bone of each row, the first (lowest column) of equal ones
+        order = np.lexsort((-data, row_of))
+        owner = indices[order[indptr[:-1]]].astype(np.int32) if count else np.zeros(0, np.int32)
+        mode = "rigid" if (per_row <= 1).all() else "smooth"
         return cls(owner, w, mode, unreachable, names)
+
+
+def _canonical(weights):
+    """(data, column indices, indptr) of a CSR weights matrix (scipy's or a CSR), rows sorted by column and
+    duplicates summed, as scipy's ``sum_duplicates`` leaves them."""
+    w = weights.tocsr()
+    rows = np.repeat(np.arange(w.shape[0]), np.diff(w.indptr))
+    return _optional.coo_arrays(np.asarray(w.data), rows, np.asarray(w.indices), w.shape)
 
 
 def weights_matrix(weight_bones: np.ndarray, weights: np.ndarray, bone_count: int):
     """(N, B) CSR matrix from up to three (bone, weight) pairs per point (bone -1 = unused)."""
-    from scipy import sparse
     n = len(weight_bones)
     rows = np.repeat(np.arange(n), weight_bones.shape[1])
     cols = weight_bones.reshape(-1)
     vals = weights.reshape(-1)
     keep = cols >= 0
-    return sparse.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(n, bone_count), dtype=np.float32)
+    return _optional.csr_from_coo(vals[keep], rows[keep], cols[keep], (n, bone_count), dtype=np.float32)
 
 
 def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: ProgressFn = None,

@@ -13,6 +13,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import _optional
 from ._volrig import FileFormatError, VolrigError
 from .files import atomic_output
 from .rig import Binding, Rig
@@ -165,8 +166,7 @@ def load_rig(path) -> RiggedSkeleton:
         if indptr[0] != 0 or indptr[-1] != len(indices) or (np.diff(indptr) < 0).any() or \
                 (len(indices) and (indices.min() < 0 or indices.max() >= nb)):
             raise bad("binding weights are not a valid sparse matrix")
-        from scipy import sparse
-        w = sparse.csr_matrix((data.astype(np.float32), indices, indptr), shape=(n, nb))
+        w = _optional.csr_matrix(data.astype(np.float32), indices, indptr, (n, nb))
         mode = str(get("binding_mode", "U", 0))
         if mode not in ("rigid", "smooth"):
             raise bad(f"unknown binding mode {mode!r}")

@@ -10,7 +10,10 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage as ndi
+
+from ._optional import LazyModule
+
+ndi = LazyModule("scipy.ndimage", "volrig.sketches (the procedural test drawings)")
 
 OUTLINE = (0.05, 0.05, 0.05)
 

@@ -12,7 +12,7 @@ from typing import Dict, Mapping, Optional, Union
 
 import numpy as np
 
-from . import _volrig
+from . import _optional, _volrig
 from ._volrig import VolrigError
 from .mesh import ProgressFn, voxelize
 from .rig import Binding, Rig
@@ -44,14 +44,14 @@ def skin_weights(mask: Volume, rig: Rig, vertices, influences: int = 4, blend: f
 
     influences: bones per vertex at most (1 to 8). blend: falloff width across joints (default 1: a limb of radius r
     blends its neighbour within about 1.5 r of the joint; larger is smoother, smaller stiffer).
-    Returns a (V, B) scipy.sparse CSR matrix, float32, every row 1 to ``influences`` entries summing to 1.
+    Returns a (V, B) scipy.sparse CSR matrix, float32, every row 1 to ``influences`` entries summing to 1 (without
+    scipy, a ``volrig._optional.CSR`` of the same arrays).
     """
-    from scipy import sparse
     v = _points(vertices)
     m = np.ascontiguousarray(np.asarray(mask.array) != 0, dtype=np.uint8)
     indptr, bone, weight, _ = _volrig.skin_weights(m, mask.spacing, mask.origin, rig.joints, rig.bones, rig.names,
                                                    rig.parents, v, int(influences), float(blend), progress)
-    return sparse.csr_matrix((weight, bone, indptr), shape=(len(v), len(rig.bones)), dtype=np.float32)
+    return _optional.csr_matrix(weight, bone, indptr, (len(v), len(rig.bones)), dtype=np.float32)
 
 
 def _closest_on_bone(rig: Rig, b: int, points: np.ndarray) -> np.ndarray:
@@ -114,8 +114,12 @@ def _check_matrices(weights, bone_matrices) -> np.ndarray:
 
 def _dual_quaternions(m: np.ndarray):
     """(B, 4) rotation quaternions (w, x, y, z) and (B, 4) dual parts of rigid matrices."""
-    from scipy.spatial.transform import Rotation
-    xyzw = Rotation.from_matrix(m[:, :3, :3]).as_quat()
+    try:
+        from scipy.spatial.transform import Rotation
+    except ImportError:
+        xyzw = _optional.matrix_quaternions(m[:, :3, :3])
+    else:
+        xyzw = Rotation.from_matrix(m[:, :3, :3]).as_quat()
     q = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
     t = np.concatenate([np.zeros((len(m), 1)), m[:, :3, 3]], axis=1)
     return q, 0.5 * _qmul(t, q)
@@ -215,7 +219,6 @@ def thicken_volume(source: Volume, points: SkeletonPoints, binding: Binding, rig
     animate thickness. The grid is the source's: what would grow past its border is cut (pad the source first).
     sampling: "trilinear" (scans) or "nearest" (label maps, masks).
     """
-    from scipy import ndimage
     from .deform import Deformer
     from .rig import rest_pose
     if sampling not in ("trilinear", "nearest"):
@@ -224,6 +227,7 @@ def thicken_volume(source: Volume, points: SkeletonPoints, binding: Binding, rig
     radius_scale = point_scales(binding, rig, scales)
     if np.all(factors == 1.0):
         return source, radius_scale
+    ndimage = _optional.scipy_module("scipy.ndimage", "volrig.skin.thicken_volume (thickness editing of a volume)")
     covered = Deformer(source, points, binding).frame(rest_pose(len(rig.bones)), radius_scale=radius_scale,
                                                       values=False).bone
     label = np.zeros(source.array.shape, np.int16)  # the covering bone + 1 on the source grid (0 = uncovered)

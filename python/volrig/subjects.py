@@ -23,10 +23,13 @@ from pathlib import Path
 from typing import Dict, Optional
 
 import numpy as np
-from scipy import ndimage as ndi
+
+from ._optional import LazyModule
 
 from .mesh import read_mesh, read_tgf, voxelize
 from .volume import Volume, load
+
+ndi = LazyModule("scipy.ndimage", "volrig.subjects (the real test subjects)")
 
 #: voxels along a mesh's longest bounding-box side
 MESH_VOXELS = 160

@@ -35,8 +35,10 @@ assert bpy.ops.volrig.rig() == {"FINISHED"}
 rig = [o for o in bpy.data.objects if o.type == "ARMATURE"]
 bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 2
 bpy.ops.wm.save_mainfile()
+bundled = sorted({l.split()[-1].rsplit("/", 1)[-1] for l in open("/proc/self/maps") if "/volrig.libs/" in l})
 print("EXTINFO", enabled, volrig.__file__, addon.__file__, len(rig[0].data.bones) if rig else 0,
-      sys.version_info[:2])
+      ",".join(bundled), sys.version_info[:2])
+print("SCIPY", volrig._optional.have_scipy())
 sys.stdout.flush()
 os._exit(0)
 """
@@ -65,15 +67,33 @@ def test_extension_installs_from_file_enables_and_runs_operators(tmp_path):
     assert installed and str(user) in str(installed[0]), inst.stdout[-2000:]
     wheels_out = list(user.rglob(f"_volrig.cpython-{tag[2:]}*.so"))
     assert wheels_out, "the wheel for this Python was not unpacked: " + inst.stdout[-2000:]
+    assert list(user.rglob("volrig.libs/libopenvdb-*.so*")), "the wheel's bundled libraries were not unpacked"
     work = tmp_path / "work"
     work.mkdir()
     run = blender("-b", "--python-exit-code", "1", "--python-expr", CHECK, "--", str(work), "x", env=env)
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-4000:]
     line = next(ln for ln in run.stdout.splitlines() if ln.startswith("EXTINFO"))
-    _, enabled, volrig_file, addon_file, bones, _ = line.split(" ", 5)
+    _, enabled, volrig_file, addon_file, bones, bundled, _ = line.split(" ", 6)
     assert enabled == "True"
     assert volrig_file.startswith(str(user)) and addon_file.startswith(str(user)), line  # not the checkout
     assert int(bones) >= 5, line
+    # the wheel is self-contained: the module loaded its own, renamed OpenVDB and TBB from the wheel's volrig.libs
+    # (Blender may have loaded the system's as well: they do not clash)
+    assert any(n.startswith("libopenvdb-") for n in bundled.split(",")), line
+    assert any(n.startswith("libtbb-") for n in bundled.split(",")), line
+    assert "SCIPY True" in run.stdout  # Debian's Blender sees python3-scipy
+    # Blender's own builds have numpy but no scipy: the same run with scipy hidden (a sitecustomize that blocks it)
+    hide = tmp_path / "noscipy"
+    hide.mkdir()
+    (hide / "sitecustomize.py").write_text("import sys\nsys.modules['scipy'] = None\n")
+    work2 = tmp_path / "work2"
+    work2.mkdir()
+    run2 = blender("-b", "--python-use-system-env", "--python-exit-code", "1", "--python-expr", CHECK, "--",
+                   str(work2), "x", env=dict(env, PYTHONPATH=str(hide)))
+    assert run2.returncode == 0, run2.stdout[-4000:] + run2.stderr[-4000:]
+    assert "SCIPY False" in run2.stdout, run2.stdout[-2000:]
+    line2 = next(ln for ln in run2.stdout.splitlines() if ln.startswith("EXTINFO"))
+    assert line2.split(" ")[4] == bones, (line, line2)  # the same rig without scipy
     # `volrig bake` (headless Blender) finds the add-on as the extension when no volrig_addon is importable
     cli_env = dict(env, PYTHONPATH=os.path.join(REPO, "python"))
     bake = subprocess.run(["python3", "-m", "volrig", "bake", str(work / "scene.blend"), "--frames", "1-2",
