@@ -37,10 +37,33 @@ def preview_path(volume_obj) -> str:
     return os.path.join(scans.cache_dir(volume_obj), "preview.vdb")
 
 
-def _weights_key(spheres_obj) -> int:
-    """A cheap fingerprint of the sphere mesh's vertex groups (names and total weight)."""
-    groups = objects.vertex_groups(spheres_obj)
-    return hash(tuple((name, len(idx), round(float(np.sum(w)), 4)) for name, (idx, w) in sorted(groups.items())))
+#: Edits seen per mesh (by the original data-block's address: Blender 3.4 has no session_uid), bumped by depsgraph
+#: updates of its geometry (weight painting, vertex group changes from Python; not frame changes), so a preview
+#: notices new weights without reading them.
+_EDITS = {}
+_EPOCH = [0]  # bumped by undo, redo and file loads: every key changes
+
+
+def _weights_key(spheres_obj) -> tuple:
+    """A fingerprint of the sphere mesh's vertex groups that costs nothing per frame: the mesh and how many edits
+    of its geometry the depsgraph reported (reading the groups themselves took 0.3 s a frame at 81,000 spheres)."""
+    uid = spheres_obj.data.original.as_pointer()
+    return uid, _EDITS.get(uid, 0), _EPOCH[0], len(spheres_obj.vertex_groups)
+
+
+@bpy.app.handlers.persistent
+def _geometry_edited(scene, depsgraph) -> None:
+    """depsgraph_update_post: counts geometry edits per mesh (cheap: the updates list only)."""
+    for u in depsgraph.updates:
+        if u.is_updated_geometry and isinstance(u.id, bpy.types.Mesh):
+            uid = u.id.original.as_pointer()
+            _EDITS[uid] = _EDITS.get(uid, 0) + 1
+
+
+@bpy.app.handlers.persistent
+def _history_changed(*_args) -> None:
+    """undo_post, redo_post, load_post: weights may be anything now."""
+    _EPOCH[0] += 1
 
 
 class Preview:
@@ -154,7 +177,10 @@ def _render_ended(*_args) -> None:
 
 
 _HANDLERS = ((bpy.app.handlers.frame_change_post, on_frame_change), (bpy.app.handlers.render_init, _render_started),
-             (bpy.app.handlers.render_complete, _render_ended), (bpy.app.handlers.render_cancel, _render_ended))
+             (bpy.app.handlers.render_complete, _render_ended), (bpy.app.handlers.render_cancel, _render_ended),
+             (bpy.app.handlers.depsgraph_update_post, _geometry_edited),
+             (bpy.app.handlers.undo_post, _history_changed), (bpy.app.handlers.redo_post, _history_changed),
+             (bpy.app.handlers.load_post, _history_changed))
 
 
 def register():

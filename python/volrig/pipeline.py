@@ -374,7 +374,7 @@ def _fill_labels(labels: np.ndarray, gap: np.ndarray, spacing) -> None:
     coarse (a few seconds for millions of voxels where the exact transform takes many)."""
     from . import _optional
     ndimage = _optional.scipy_module("scipy.ndimage", "volrig.pipeline.rest_labels with a mask (the rest "
-                                     "parts of write_rest_parts, Explode)")
+                                     "parts of write_rest_looks, Explode)")
     coarse = labels[::2, ::2, ::2]
     if not coarse.any():
         coarse = labels

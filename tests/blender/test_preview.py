@@ -56,3 +56,25 @@ def test_unbaked_frames_preview_the_pose_and_baked_frames_show_the_bake(posed): 
         assert not preview.showing_preview(vol)
     finally:
         preview._render_ended()
+
+
+def test_the_preview_follows_weight_changes_without_reading_weights_each_frame(posed):  # noqa: F811
+    from volrig_addon import bake, objects, preview, scans
+    vol, scene = posed, bpy.context.scene
+    scene.frame_set(3)
+    first = scans._entry(vol)["preview"][1]
+    scene.frame_set(2)
+    assert scans._entry(vol)["preview"][1] is first  # nothing changed: the same coarse rig
+    forearm = bake.RigState(vol).names.index("forearm.L") + 1
+    assert (volrig.load(preview.preview_path(vol), grid="bone").array == forearm).any()
+    # "weight painting": every forearm sphere given to the upper arm (a geometry edit of the sphere mesh)
+    spheres = _members(vol)["SPHERES"]
+    fore, upper = spheres.vertex_groups["forearm.L"], spheres.vertex_groups["upper_arm.L"]
+    moved = [v.index for v in spheres.data.vertices if any(g.group == fore.index and g.weight > 0 for g in v.groups)]
+    assert moved
+    fore.remove(moved)
+    upper.add(moved, 1.0, "REPLACE")
+    bpy.context.view_layer.update()  # the depsgraph reports the mesh's edit
+    scene.frame_set(3)
+    assert scans._entry(vol)["preview"][1] is not first  # rebuilt for the new weights
+    assert not (volrig.load(preview.preview_path(vol), grid="bone").array == forearm).any()
