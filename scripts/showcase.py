@@ -139,21 +139,25 @@ def show(scene, path, mat):
     return ob
 
 
-def grid(rows, out, title):
-    """Rows of (image, caption) as one PNG."""
+def grid(rows, labels, out, title):
+    """Rows of (image, caption) as one PNG, each row's label at its left."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.image as mpimg
     import matplotlib.pyplot as plt
     n = max(len(r) for r in rows)
     fig, axes = plt.subplots(len(rows), n, figsize=(2.4 * n, 4.2 * len(rows)), squeeze=False)
-    for r, row in enumerate(rows):
+    for r, (row, label) in enumerate(zip(rows, labels)):
         for c in range(n):
             ax = axes[r][c]
-            ax.axis("off")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            for side in ax.spines.values():
+                side.set_visible(False)
             if c < len(row):
                 ax.imshow(mpimg.imread(row[c][0]))
-                ax.set_title(row[c][1], fontsize=8)
+                ax.set_title(row[c][1], fontsize=9)
+        axes[r][0].set_ylabel(label, fontsize=9)
     fig.suptitle(title, fontsize=10)
     fig.savefig(out, dpi=100, bbox_inches="tight")
     plt.close(fig)
@@ -165,7 +169,8 @@ def main(argv):
     ap.add_argument("--tissues", default=os.path.join(DATA, "visible-human", "austinman_tissues.tsv"))
     ap.add_argument("--clip", default=os.path.join(DATA, "bvh", "131_01.bvh"))
     ap.add_argument("--clip-up", choices=["y", "z"], default="y", help="the BVH's up axis")
-    ap.add_argument("--span", type=int, default=120, help="BVH frames the rendered frames spread over")
+    ap.add_argument("--span", type=int, default=150,
+                    help="BVH frames the rendered frames spread over (default: about one stride of a 120 fps walk)")
     ap.add_argument("--count", type=int, default=4, help="frames to bake and render")
     ap.add_argument("--thinness", type=float, default=0.5, help="thinness in voxels")
     ap.add_argument("--kind", choices=volrig.rig.KINDS, default="humanoid")
@@ -204,10 +209,11 @@ def main(argv):
         tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
         scene = scene_for(labels, args.height, args.view)
         scene.cycles.samples = args.samples
-        looks = [("", tissues)]
+        faint = ", ".join(sorted(opacity)) + " faint" if opacity else "as the preset"
+        looks = [(faint + (f"; {', '.join(sorted(hidden))} hidden" if hidden else ""), tissues)]
         peeled = {h.strip() for h in args.peel.split(",") if h.strip()}
         if peeled:
-            looks.append((", without " + ", ".join(sorted(peeled)),
+            looks.append((", ".join(sorted(peeled | hidden)) + " hidden",
                           [t._replace(visible=t.visible and t.name not in peeled) for t in tissues]))
         rows = []
         for caption, look in looks:
@@ -219,13 +225,13 @@ def main(argv):
                 started = time.perf_counter()
                 with quiet_stdout():
                     bpy.ops.render.render(write_still=True)
-                row.append((scene.render.filepath, f"BVH frame {frames[k] + 1}{caption}"))
-                log(f"rendered {k + 1}/{len(files)}{caption} in {time.perf_counter() - started:.1f} s")
+                row.append((scene.render.filepath, f"BVH frame {frames[k] + 1}"))
+                log(f"rendered {k + 1}/{len(files)} ({caption}) in {time.perf_counter() - started:.1f} s")
             rows.append(row)
         os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-        grid(rows, args.out, f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by "
-                             f"volrig, per-tissue looks in Cycles" + (f"; hidden: {', '.join(sorted(hidden))}"
-                                                                       if hidden else ""))
+        grid(rows, [caption for caption, _ in looks], args.out,
+             f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by volrig, baked "
+             f"and rendered in Cycles with per-tissue looks")
         log(f"wrote {args.out} in {time.perf_counter() - t0:.0f} s")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -21,20 +21,26 @@ class VOLRIG_OT_find_parts(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _look_line(layout, item, split, coloured_toggle):
+    """A list line: visible (the eye), name, then colour (behind a toggle for parts) and opacity."""
+    row = layout.split(factor=split)
+    left = row.row(align=True)
+    left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
+    left.label(text=item.name)
+    right = row.row(align=True)
+    right.active = item.visible
+    if coloured_toggle:
+        right.prop(item, "colored", text="", icon="COLOR")
+    if not coloured_toggle or item.colored:
+        right.prop(item, "color", text="")
+    right.prop(item, "opacity", text="", slider=True)
+
+
 class VOLRIG_UL_parts(bpy.types.UIList):
     """One line per part: visible, name, own colour, opacity."""
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        split = layout.split(factor=0.5)
-        left = split.row(align=True)
-        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
-        left.label(text=item.name)
-        right = split.row(align=True)
-        right.active = item.visible
-        right.prop(item, "colored", text="", icon="COLOR")
-        if item.colored:
-            right.prop(item, "color", text="")
-        right.prop(item, "opacity", text="", slider=True)
+        _look_line(layout, item, 0.5, coloured_toggle=True)
 
 
 class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
@@ -74,14 +80,7 @@ class VOLRIG_UL_tissues(bpy.types.UIList):
     """One line per tissue class: visible, name, colour, opacity."""
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        split = layout.split(factor=0.45)
-        left = split.row(align=True)
-        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
-        left.label(text=item.name)
-        right = split.row(align=True)
-        right.active = item.visible
-        right.prop(item, "color", text="")
-        right.prop(item, "opacity", text="", slider=True)
+        _look_line(layout, item, 0.45, coloured_toggle=False)
 
 
 class VOLRIG_PT_tissues(_VolrigPanel, bpy.types.Panel):
