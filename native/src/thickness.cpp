@@ -1,6 +1,7 @@
 #include "volrig/thickness.hpp"
 
 #include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -11,6 +12,7 @@
 #include <deque>
 #include <limits>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "ball_scan.hpp"
 #include "volrig/distance.hpp"
@@ -92,6 +94,15 @@ bool contains(const BallProfile& out, const BallProfile& in, const std::array<st
     return true;
 }
 
+/// A hash of floats (std::hash<float> hashes the bytes, slowly).
+struct FloatHash {
+    std::size_t operator()(float f) const {
+        std::uint32_t u = 0;
+        std::memcpy(&u, &f, sizeof u);
+        return static_cast<std::size_t>(u * 0x9E3779B97F4A7C15ull >> 20);
+    }
+};
+
 /// BallProfiles of the DT values met, per thread (a volume holds few distinct DT values), and the answers of the
 /// row test (contains) asked so far: a volume asks the same few (radius, radius, offset) questions again and again.
 class ProfileCache {
@@ -124,13 +135,6 @@ private:
     }
 
     const Grid& g_;
-    struct FloatHash {  // (std::hash<float> hashes the bytes: slow for this)
-        std::size_t operator()(float f) const {
-            std::uint32_t u = 0;
-            std::memcpy(&u, &f, sizeof u);
-            return static_cast<std::size_t>(u * 0x9E3779B97F4A7C15ull >> 20);
-        }
-    };
     std::unordered_map<float, std::size_t, FloatHash> ids_;
     std::deque<BallProfile> profiles_;  // (references stay valid as it grows)
     std::unordered_map<std::uint64_t, bool> answers_;
@@ -182,13 +186,25 @@ void rising_neighbours(const Grid& g, const float* dt, std::int64_t y, std::int6
     }
 }
 
-/// The first pass over row (y, z): up[v] for each of its object voxels (see kTop, kHeld).
+/// The first x >= from with row[x] > 0, or nx (eight voxels at a time through the background).
+std::int64_t next_object(const float* row, std::int64_t from, std::int64_t nx) {
+    for (; from + 8 <= nx; from += 8) {
+        bool any = false;
+        for (std::int64_t i = 0; i < 8; ++i) any |= row[from + i] > 0;
+        if (any) break;
+    }
+    while (from < nx && !(row[from] > 0)) ++from;
+    return from;
+}
+
+/// The first pass over row (y, z): up[v] for each of its object voxels (see kTop, kHeld); those not held are
+/// appended to `open`.
 void mark_row(const Grid& g, const float* dt, std::int64_t y, std::int64_t z, const std::vector<Neighbour>& nb,
-              double step, ProfileCache& balls, Slack& s, std::uint8_t* up) {
+              double step, ProfileCache& balls, Slack& s, std::uint8_t* up, std::vector<std::int64_t>& open) {
     const std::int64_t nx = g.dims[0], at = g.index(0, y, z);
     const float* row = dt + at;
     for (std::int64_t x0 = 0; x0 < nx;) {  // segments of object voxels, across gaps of up to 8 voxels
-        while (x0 < nx && !(row[x0] > 0)) ++x0;
+        x0 = next_object(row, x0, nx);
         std::int64_t x1 = x0;
         for (std::int64_t x = x0; x < nx && x - x1 <= 8; ++x)
             if (row[x] > 0) x1 = x + 1;
@@ -199,6 +215,7 @@ void mark_row(const Grid& g, const float* dt, std::int64_t y, std::int64_t z, co
             const double reach = balls.reach(row[x]);
             const bool held = s.best[static_cast<std::size_t>(x)] > reach + 1e-6 * (reach + step);
             up[at + x] = static_cast<std::uint8_t>(s.dir[static_cast<std::size_t>(x)] | (held ? kHeld : 0));
+            if (!held) open.push_back(at + x);
         }
         x0 = x1;
     }
@@ -256,11 +273,13 @@ public:
         for (std::int64_t y = 0; y < ny_; ++y) {
             std::uint64_t* bits = &done_[static_cast<std::size_t>(y * words_)];
             std::fill(bits, bits + words_, ~std::uint64_t(0));
-            for (std::int64_t x = 0; x < nx_; ++x)
-                if (dt[y * nx_ + x] > 0) bits[x >> 6] &= ~(std::uint64_t(1) << (x & 63));
-            for (std::int64_t w = 0; w + 1 < words_; ++w)
-                for (std::int64_t q = 0; q < 4; ++q)
-                    if (const int n = __builtin_popcountll(~bits[w] >> (16 * q) & 0xFFFF)) add_left(y, w, q, n);
+            for (std::int64_t x0 = 0; x0 < nx_; x0 += 16) {  // one tile's row at a time
+                std::uint64_t object = 0;
+                for (std::int64_t x = x0; x < std::min(x0 + 16, nx_); ++x)
+                    object |= static_cast<std::uint64_t>(dt[y * nx_ + x] > 0) << (x - x0);
+                bits[x0 >> 6] &= ~(object << (x0 & 63));
+            }
+            for (std::int64_t w = 0; w + 1 < words_; ++w) count_left(y, w, ~bits[w], +1);
         }
     }
 
@@ -288,10 +307,18 @@ private:
         return true;
     }
 
-    /// Adds n to the count of voxels not done of the tile holding bits 16q .. 16q + 15 of word w of row y.
-    void add_left(std::int64_t y, std::int64_t w, std::int64_t q, int n) {
-        left_[static_cast<std::size_t>((y >> 4) * tiles_x_ + 4 * w + q)] += static_cast<std::uint16_t>(n);
-        left_total_ += n;
+    /// Adds sign times the number of voxels `open` (bits of word w of row y) to the counts of their tiles.
+    void count_left(std::int64_t y, std::int64_t w, std::uint64_t open, int sign) {
+        if (open == 0) return;
+        std::uint64_t c = open - (open >> 1 & 0x5555555555555555u);  // a popcount per 16-bit lane (SWAR)
+        c = (c & 0x3333333333333333u) + (c >> 2 & 0x3333333333333333u);
+        c = (c + (c >> 4)) & 0x0F0F0F0F0F0F0F0Fu;
+        c = (c + (c >> 8)) & 0x00FF00FF00FF00FFu;
+        for (std::int64_t q = 0; q < 4 && 4 * w + q < tiles_x_; ++q) {
+            const int n = sign * static_cast<int>(c >> (16 * q) & 0xFF);
+            left_[static_cast<std::size_t>((y >> 4) * tiles_x_ + 4 * w + q)] += static_cast<std::uint16_t>(n);
+            left_total_ += n;
+        }
     }
 
     /// Sets the voxels x0 .. x1 of row y not done to d and marks them done, 64 voxels (two words) at a time.
@@ -305,17 +332,11 @@ private:
             if ((fresh0 | fresh1) == 0) continue;  // the common case: a larger ball got there first
             bits[w] |= fresh0;
             bits[w + 1] |= fresh1;
-            take(y, w, fresh0);
-            take(y, w + 1, fresh1);
+            count_left(y, w, fresh0, -1);
+            count_left(y, w + 1, fresh1, -1);
             for (; fresh0 != 0; fresh0 &= fresh0 - 1) row[(w << 6) + __builtin_ctzll(fresh0)] = d;
             for (; fresh1 != 0; fresh1 &= fresh1 - 1) row[(w << 6) + 64 + __builtin_ctzll(fresh1)] = d;
         }
-    }
-
-    /// Counts the voxels `fresh` of word w of row y as done.
-    void take(std::int64_t y, std::int64_t w, std::uint64_t fresh) {
-        for (std::int64_t q = 0; q < 4; ++q)
-            if (const int n = __builtin_popcountll(fresh >> (16 * q) & 0xFFFF)) add_left(y, w, q, -n);
     }
 
     std::int64_t nx_, ny_, words_, tiles_x_;
@@ -325,7 +346,7 @@ private:
     float* out_ = nullptr;
 };
 
-/// out[v] = the largest diameter among the balls over v (out starts at 0). `balls` come sorted by row table (by
+/// out[v] = the largest diameter among the balls over v, for the object voxels (DT > 0; out may be dt). `balls` come sorted by row table (by
 /// radius), then by voxel (z, y, x); table t's are balls[first[t] .. first[t + 1] - 1], and those over slice z
 /// the ones with |z' - z| <= its hz: a range. Slices in parallel, each on a SliceCanvas, largest balls first.
 void paint_largest_first(const Grid& g, const float* dt, const std::vector<BallProfile>& tables,
@@ -352,68 +373,105 @@ std::vector<std::int64_t> thickness_centres(const Grid& g, const float* dt) {
     const std::vector<Neighbour> nb = neighbours26(g);
     double step = 0.0;
     for (const Neighbour& n : nb) step = std::max(step, n.length);
-    const std::int64_t nx = g.dims[0], ny = g.dims[1], plane = nx * ny;
+    const std::int64_t nx = g.dims[0], ny = g.dims[1];
     tbb::enumerable_thread_specific<ProfileCache> caches([&] { return ProfileCache(g); });
     // First pass: each voxel's steepest rising neighbour, and whether a neighbour's ball holds its ball (most do).
     std::vector<std::uint8_t> up(static_cast<std::size_t>(g.voxel_count()), kHeld | kTop);
+    std::vector<std::vector<std::int64_t>> per_slice(static_cast<std::size_t>(g.dims[2]));  // not held, then centres
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, g.dims[2]), [&](const tbb::blocked_range<std::int64_t>& r) {
         Slack s{std::vector<float>(static_cast<std::size_t>(nx)), std::vector<std::int32_t>(static_cast<std::size_t>(nx))};
         for (std::int64_t z = r.begin(); z != r.end(); ++z)
-            for (std::int64_t y = 0; y < ny; ++y) mark_row(g, dt, y, z, nb, step, caches.local(), s, up.data());
+            for (std::int64_t y = 0; y < ny; ++y)
+                mark_row(g, dt, y, z, nb, step, caches.local(), s, up.data(), per_slice[static_cast<std::size_t>(z)]);
     });
     // Second pass: the others climb.
-    std::vector<std::vector<std::int64_t>> per_slice(static_cast<std::size_t>(g.dims[2]));
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, g.dims[2]), [&](const tbb::blocked_range<std::int64_t>& r) {
         ProfileCache& balls = caches.local();
-        for (std::int64_t z = r.begin(); z != r.end(); ++z)
-            for (std::int64_t v = z * plane; v < (z + 1) * plane; ++v)
-                if (!(up[static_cast<std::size_t>(v)] & kHeld) && !held_up_the_climb(g, dt, up.data(), v, nb, balls))
-                    per_slice[static_cast<std::size_t>(z)].push_back(v);
+        for (std::int64_t z = r.begin(); z != r.end(); ++z) {
+            auto& c = per_slice[static_cast<std::size_t>(z)];
+            c.erase(std::remove_if(c.begin(), c.end(),
+                                   [&](std::int64_t v) { return held_up_the_climb(g, dt, up.data(), v, nb, balls); }),
+                    c.end());
+        }
     });
     std::vector<std::int64_t> out;
     for (const auto& c : per_slice) out.insert(out.end(), c.begin(), c.end());
     return out;
 }
 
-std::vector<float> local_thickness_from_dt(const Grid& g, const float* dt, const Progress& progress) {
+namespace {
+
+/// The centres as balls to paint: one row table per distinct radius (few: painting looks widths up instead of
+/// taking square roots), and the balls sorted by table (by radius), each table's in voxel order, table t's being
+/// balls[first[t] .. first[t + 1] - 1].
+struct Balls {
+    std::vector<BallProfile> tables;
+    std::vector<PaintBall> balls;
+    std::vector<std::size_t> first;
+};
+
+Balls balls_of(const Grid& g, const float* dt, const std::vector<std::int64_t>& centres) {
+    const std::size_t n = centres.size();
+    tbb::combinable<std::unordered_set<float, FloatHash>> seen;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
+        auto& radii = seen.local();
+        for (std::size_t k = r.begin(); k != r.end(); ++k) radii.insert(dt[centres[k]]);
+    });
+    std::vector<float> radii;
+    seen.combine_each([&](const auto& some) { radii.insert(radii.end(), some.begin(), some.end()); });
+    std::sort(radii.begin(), radii.end());
+    radii.erase(std::unique(radii.begin(), radii.end()), radii.end());
+    std::unordered_map<float, std::uint32_t, FloatHash> table_of;
+    for (std::size_t t = 0; t < radii.size(); ++t) table_of.emplace(radii[t], static_cast<std::uint32_t>(t));
+    Balls b;
+    b.tables.resize(radii.size());
+    tbb::parallel_for(std::size_t(0), radii.size(), [&](std::size_t t) { b.tables[t] = profile_of(radii[t], g); });
+    // A counting sort of the (ascending) centres by table.
+    std::vector<std::uint32_t> table(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) table[k] = table_of.find(dt[centres[k]])->second;
+    });
+    b.first.assign(radii.size() + 1, 0);
+    for (const std::uint32_t t : table) ++b.first[t + 1];
+    for (std::size_t t = 0; t < radii.size(); ++t) b.first[t + 1] += b.first[t];
+    b.balls.resize(n);
+    std::vector<std::size_t> next(b.first.begin(), b.first.end() - 1);
+    const std::int64_t nx = g.dims[0], ny = g.dims[1];
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::int64_t i = centres[k];
+        b.balls[next[table[k]]++] = {static_cast<std::int32_t>(i % nx), static_cast<std::int32_t>(i / nx % ny),
+                                     static_cast<std::int32_t>(i / (nx * ny)), 2.0f * radii[table[k]], table[k]};
+    }
+    return b;
+}
+
+/// Local thickness from the DT into `out`, which may be the DT itself (the centres and their radii are taken
+/// first, and each slice reads its own DT before painting it; background voxels are not written).
+void thickness_into(const Grid& g, const float* dt, float* out, const Progress& progress) {
     check_grid(g, sizeof(float), std::numeric_limits<std::uint64_t>::max(), "local thickness");
     const std::vector<std::int64_t> centres = thickness_centres(g, dt);
     report(progress, 0.2);
     if (centres.size() > std::numeric_limits<std::uint32_t>::max())
         throw Error("local thickness: more than 2^32 ball centres");
-    // One row table per distinct radius (few), so painting looks widths up instead of taking square roots.
-    std::vector<float> radii(centres.size());
-    for (std::size_t k = 0; k < centres.size(); ++k) radii[k] = dt[centres[k]];
-    std::sort(radii.begin(), radii.end());
-    radii.erase(std::unique(radii.begin(), radii.end()), radii.end());
-    std::vector<BallProfile> tables(radii.size());
-    tbb::parallel_for(std::size_t(0), radii.size(), [&](std::size_t i) { tables[i] = profile_of(radii[i], g); });
-    // The balls by table, each table's in voxel order: a counting sort of the (ascending) centres.
-    std::vector<std::uint32_t> table(centres.size());
-    std::vector<std::size_t> first(tables.size() + 1, 0);  // table t's balls: first[t] .. first[t + 1] - 1
-    for (std::size_t k = 0; k < centres.size(); ++k) {
-        table[k] = static_cast<std::uint32_t>(std::lower_bound(radii.begin(), radii.end(), dt[centres[k]]) - radii.begin());
-        ++first[table[k] + 1];
-    }
-    for (std::size_t t = 0; t < tables.size(); ++t) first[t + 1] += first[t];
-    std::vector<PaintBall> balls(centres.size());
-    std::vector<std::size_t> next(first.begin(), first.end() - 1);
-    const std::int64_t nx = g.dims[0], ny = g.dims[1];
-    for (std::size_t k = 0; k < centres.size(); ++k) {
-        const std::int64_t i = centres[k];
-        balls[next[table[k]]++] = {static_cast<std::int32_t>(i % nx), static_cast<std::int32_t>(i / nx % ny),
-                                   static_cast<std::int32_t>(i / (nx * ny)), 2.0f * radii[table[k]], table[k]};
-    }
+    const Balls b = balls_of(g, dt, centres);
     report(progress, 0.3);
-    std::vector<float> out(static_cast<std::size_t>(g.voxel_count()), 0.0f);
-    paint_largest_first(g, dt, tables, balls, first, out.data());
+    paint_largest_first(g, dt, b.tables, b.balls, b.first, out);
     report(progress, 1.0);
+}
+
+}  // namespace
+
+std::vector<float> local_thickness_from_dt(const Grid& g, const float* dt, const Progress& progress) {
+    check_grid(g, sizeof(float), std::numeric_limits<std::uint64_t>::max(), "local thickness");
+    std::vector<float> out(dt, dt + g.voxel_count());  // (background: 0 as in the DT)
+    thickness_into(g, out.data(), out.data(), progress);
     return out;
 }
 
 std::vector<float> local_thickness(const Grid& g, const std::uint8_t* mask, const Progress& progress) {
-    const std::vector<float> dt = distance_transform(g, mask, Metric::Euclidean, progress_span(progress, 0.0, 0.4));
-    return local_thickness_from_dt(g, dt.data(), progress_span(progress, 0.4, 1.0));
+    std::vector<float> dt = distance_transform(g, mask, Metric::Euclidean, progress_span(progress, 0.0, 0.4));
+    thickness_into(g, dt.data(), dt.data(), progress_span(progress, 0.4, 1.0));  // (in place: no second volume)
+    return dt;
 }
 
 }  // namespace volrig
