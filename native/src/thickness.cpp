@@ -11,6 +11,7 @@
 #include <cstring>
 #include <deque>
 #include <limits>
+#include <memory>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -197,12 +198,13 @@ std::int64_t next_object(const float* row, std::int64_t from, std::int64_t nx) {
     return from;
 }
 
-/// The first pass over row (y, z): up[v] for each of its object voxels (see kTop, kHeld); those not held are
+/// The first pass over row (y, z): up[v] for each of its voxels (see kTop, kHeld); the object voxels not held are
 /// appended to `open`.
 void mark_row(const Grid& g, const float* dt, std::int64_t y, std::int64_t z, const std::vector<Neighbour>& nb,
               double step, ProfileCache& balls, Slack& s, std::uint8_t* up, std::vector<std::int64_t>& open) {
     const std::int64_t nx = g.dims[0], at = g.index(0, y, z);
     const float* row = dt + at;
+    std::fill(up + at, up + at + nx, std::uint8_t{kHeld | kTop});
     for (std::int64_t x0 = 0; x0 < nx;) {  // segments of object voxels, across gaps of up to 8 voxels
         x0 = next_object(row, x0, nx);
         std::int64_t x1 = x0;
@@ -274,9 +276,13 @@ public:
             std::uint64_t* bits = &done_[static_cast<std::size_t>(y * words_)];
             std::fill(bits, bits + words_, ~std::uint64_t(0));
             for (std::int64_t x0 = 0; x0 < nx_; x0 += 16) {  // one tile's row at a time
+                const float* d = dt + y * nx_ + x0;
+                const std::int64_t n = std::min<std::int64_t>(16, nx_ - x0);
+                bool any = false;  // (most are background: first a test that vectorises)
+                for (std::int64_t i = 0; i < n; ++i) any |= d[i] > 0;
+                if (!any) continue;
                 std::uint64_t object = 0;
-                for (std::int64_t x = x0; x < std::min(x0 + 16, nx_); ++x)
-                    object |= static_cast<std::uint64_t>(dt[y * nx_ + x] > 0) << (x - x0);
+                for (std::int64_t i = 0; i < n; ++i) object |= static_cast<std::uint64_t>(d[i] > 0) << i;
                 bits[x0 >> 6] &= ~(object << (x0 & 63));
             }
             for (std::int64_t w = 0; w + 1 < words_; ++w) count_left(y, w, ~bits[w], +1);
@@ -376,13 +382,13 @@ std::vector<std::int64_t> thickness_centres(const Grid& g, const float* dt) {
     const std::int64_t nx = g.dims[0], ny = g.dims[1];
     tbb::enumerable_thread_specific<ProfileCache> caches([&] { return ProfileCache(g); });
     // First pass: each voxel's steepest rising neighbour, and whether a neighbour's ball holds its ball (most do).
-    std::vector<std::uint8_t> up(static_cast<std::size_t>(g.voxel_count()), kHeld | kTop);
+    const std::unique_ptr<std::uint8_t[]> up(new std::uint8_t[static_cast<std::size_t>(g.voxel_count())]);  // (set there)
     std::vector<std::vector<std::int64_t>> per_slice(static_cast<std::size_t>(g.dims[2]));  // not held, then centres
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, g.dims[2]), [&](const tbb::blocked_range<std::int64_t>& r) {
         Slack s{std::vector<float>(static_cast<std::size_t>(nx)), std::vector<std::int32_t>(static_cast<std::size_t>(nx))};
         for (std::int64_t z = r.begin(); z != r.end(); ++z)
             for (std::int64_t y = 0; y < ny; ++y)
-                mark_row(g, dt, y, z, nb, step, caches.local(), s, up.data(), per_slice[static_cast<std::size_t>(z)]);
+                mark_row(g, dt, y, z, nb, step, caches.local(), s, up.get(), per_slice[static_cast<std::size_t>(z)]);
     });
     // Second pass: the others climb.
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, g.dims[2]), [&](const tbb::blocked_range<std::int64_t>& r) {
@@ -390,7 +396,7 @@ std::vector<std::int64_t> thickness_centres(const Grid& g, const float* dt) {
         for (std::int64_t z = r.begin(); z != r.end(); ++z) {
             auto& c = per_slice[static_cast<std::size_t>(z)];
             c.erase(std::remove_if(c.begin(), c.end(),
-                                   [&](std::int64_t v) { return held_up_the_climb(g, dt, up.data(), v, nb, balls); }),
+                                   [&](std::int64_t v) { return held_up_the_climb(g, dt, up.get(), v, nb, balls); }),
                     c.end());
         }
     });
