@@ -13,7 +13,6 @@
 #include <limits>
 #include <memory>
 #include <unordered_map>
-#include <unordered_set>
 
 #include "ball_scan.hpp"
 #include "volrig/distance.hpp"
@@ -104,6 +103,33 @@ struct FloatHash {
     }
 };
 
+/// Numbers for floats, in the order first met; a volume's DT values repeat, so a direct-mapped table of the recent
+/// ones answers most before the hash map.
+class FloatIds {
+public:
+    std::size_t operator()(float r) {
+        std::uint32_t bits = 0;
+        std::memcpy(&bits, &r, sizeof bits);
+        Recent& hit = recent_[(bits ^ bits >> 7 ^ bits >> 14) % recent_.size()];
+        if (hit.id != kNone && hit.r == r) return hit.id;
+        const std::size_t id = ids_.try_emplace(r, values_.size()).first->second;
+        if (id == values_.size()) values_.push_back(r);
+        hit = {r, id};
+        return id;
+    }
+    const std::vector<float>& values() const { return values_; }
+
+private:
+    static constexpr std::size_t kNone = ~std::size_t(0);
+    struct Recent {
+        float r = 0.0f;
+        std::size_t id = kNone;
+    };
+    std::array<Recent, 64> recent_{};
+    std::unordered_map<float, std::size_t, FloatHash> ids_;
+    std::vector<float> values_;
+};
+
 /// BallProfiles of the DT values met, per thread (a volume holds few distinct DT values), and the answers of the
 /// row test (contains) asked so far: a volume asks the same few (radius, radius, offset) questions again and again.
 class ProfileCache {
@@ -125,26 +151,15 @@ public:
 
 private:
     std::size_t id(float r) {
-        std::uint32_t bits = 0;
-        std::memcpy(&bits, &r, sizeof bits);
-        Recent& hit = recent_[(bits ^ bits >> 7 ^ bits >> 14) % recent_.size()];  // a DT met lately: most are
-        if (hit.id != kNone && hit.r == r) return hit.id;
-        auto [it, fresh] = ids_.try_emplace(r, profiles_.size());
-        if (fresh) profiles_.push_back(profile_of(r, g_));
-        hit = {r, it->second};
-        return it->second;
+        const std::size_t i = ids_(r);
+        if (i == profiles_.size()) profiles_.push_back(profile_of(r, g_));
+        return i;
     }
 
     const Grid& g_;
-    std::unordered_map<float, std::size_t, FloatHash> ids_;
+    FloatIds ids_;
     std::deque<BallProfile> profiles_;  // (references stay valid as it grows)
     std::unordered_map<std::uint64_t, bool> answers_;
-    static constexpr std::size_t kNone = ~std::size_t(0);
-    struct Recent {
-        float r = 0.0f;
-        std::size_t id = kNone;
-    };
-    std::array<Recent, 64> recent_{};
 };
 
 // Per voxel, the first pass of thickness_centres leaves: its steepest rising 26-neighbour (an index into
@@ -418,24 +433,26 @@ struct Balls {
 
 Balls balls_of(const Grid& g, const float* dt, const std::vector<std::int64_t>& centres) {
     const std::size_t n = centres.size();
-    tbb::combinable<std::unordered_set<float, FloatHash>> seen;
+    tbb::combinable<FloatIds> seen;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
-        auto& radii = seen.local();
-        for (std::size_t k = r.begin(); k != r.end(); ++k) radii.insert(dt[centres[k]]);
+        FloatIds& ids = seen.local();
+        for (std::size_t k = r.begin(); k != r.end(); ++k) ids(dt[centres[k]]);
     });
     std::vector<float> radii;
-    seen.combine_each([&](const auto& some) { radii.insert(radii.end(), some.begin(), some.end()); });
+    seen.combine_each([&](const FloatIds& some) { radii.insert(radii.end(), some.values().begin(), some.values().end()); });
     std::sort(radii.begin(), radii.end());
     radii.erase(std::unique(radii.begin(), radii.end()), radii.end());
-    std::unordered_map<float, std::uint32_t, FloatHash> table_of;
-    for (std::size_t t = 0; t < radii.size(); ++t) table_of.emplace(radii[t], static_cast<std::uint32_t>(t));
+    FloatIds table_of;  // numbered in ascending order: the table of each radius
+    for (const float r : radii) table_of(r);
     Balls b;
     b.tables.resize(radii.size());
     tbb::parallel_for(std::size_t(0), radii.size(), [&](std::size_t t) { b.tables[t] = profile_of(radii[t], g); });
     // A counting sort of the (ascending) centres by table.
     std::vector<std::uint32_t> table(n);
+    tbb::enumerable_thread_specific<FloatIds> tables_of(table_of);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t k = r.begin(); k != r.end(); ++k) table[k] = table_of.find(dt[centres[k]])->second;
+        FloatIds& ids = tables_of.local();
+        for (std::size_t k = r.begin(); k != r.end(); ++k) table[k] = static_cast<std::uint32_t>(ids(dt[centres[k]]));
     });
     b.first.assign(radii.size() + 1, 0);
     for (const std::uint32_t t : table) ++b.first[t + 1];
