@@ -110,7 +110,7 @@ public:
     std::size_t operator()(float r) {
         std::uint32_t bits = 0;
         std::memcpy(&bits, &r, sizeof bits);
-        Recent& hit = recent_[(bits ^ bits >> 7 ^ bits >> 14) % recent_.size()];
+        Recent& hit = recent_[(bits * 0x9E3779B1u) >> 24];
         if (hit.id != kNone && hit.r == r) return hit.id;
         const std::size_t id = ids_.try_emplace(r, values_.size()).first->second;
         if (id == values_.size()) values_.push_back(r);
@@ -125,7 +125,7 @@ private:
         float r = 0.0f;
         std::size_t id = kNone;
     };
-    std::array<Recent, 64> recent_{};
+    std::array<Recent, 256> recent_{};  // (indexed by the top byte of a multiplicative hash)
     std::unordered_map<float, std::size_t, FloatHash> ids_;
     std::vector<float> values_;
 };
@@ -186,18 +186,37 @@ void rising_neighbours(const Grid& g, const float* dt, std::int64_t y, std::int6
     std::int32_t* dir = s.dir.data();
     std::fill(best + x0, best + x1, -std::numeric_limits<float>::infinity());
     std::fill(dir + x0, dir + x1, std::int32_t{kTop});
+    // Three neighbours at a time: those in one row (dx = -1, 0, 1). In v's own row the middle one is v itself,
+    // which never rises above itself.
     for (std::size_t i = 0; i < nb.size(); ++i) {
         const Neighbour& n = nb[i];
-        if (y + n.dy < 0 || y + n.dy >= ny || z + n.dz < 0 || z + n.dz >= g.dims[2]) continue;
+        if (n.dx != -1 || y + n.dy < 0 || y + n.dy >= ny || z + n.dz < 0 || z + n.dz >= g.dims[2]) continue;
         const float* other = dt + g.index(0, y + n.dy, z + n.dz);
-        const auto len = static_cast<float>(n.length);
-        const auto id = static_cast<std::int32_t>(i);
-        const std::int64_t from = std::max(x0, -n.dx), to = std::min(x1, nx - n.dx);
-        for (std::int64_t x = from; x < to; ++x) {
-            const float u = other[x + n.dx], slack = u * kappa - len;
-            const bool more = (u > row[x]) & (slack > best[x]);
-            best[x] = more ? slack : best[x];
-            dir[x] = more ? id : dir[x];
+        const bool own = n.dy == 0 && n.dz == 0;
+        const std::array<std::int32_t, 3> id{static_cast<std::int32_t>(i), static_cast<std::int32_t>(own ? i : i + 1),
+                                             static_cast<std::int32_t>(own ? i + 1 : i + 2)};
+        const std::array<float, 3> len{static_cast<float>(n.length), static_cast<float>(nb[id[1]].length),
+                                       static_cast<float>(nb[id[2]].length)};
+        const auto rise = [&](std::int64_t x, std::int64_t dx, float& b, std::int32_t& d) {
+            const float u = other[x + dx], slack = u * kappa - len[static_cast<std::size_t>(dx + 1)];
+            const bool more = (u > row[x]) & (slack > b);
+            b = more ? slack : b;
+            d = more ? id[static_cast<std::size_t>(dx + 1)] : d;
+        };
+        for (std::int64_t x = std::max<std::int64_t>(x0, 1); x < std::min(x1, nx - 1); ++x) {  // (vectorised)
+            float b = best[x];
+            std::int32_t d = dir[x];
+            rise(x, -1, b, d);
+            rise(x, 0, b, d);
+            rise(x, 1, b, d);
+            best[x] = b;
+            dir[x] = d;
+        }
+        for (const std::int64_t x : {std::int64_t{0}, nx - 1}) {  // the row's ends: neighbours within the grid
+            if (x >= x0 && x < x1)
+                for (std::int64_t dx = -1; dx <= 1; ++dx)
+                    if (x + dx >= 0 && x + dx < nx) rise(x, dx, best[x], dir[x]);
+            if (nx == 1) break;  // (one voxel: both ends)
         }
     }
 }
@@ -249,19 +268,19 @@ bool held_up_the_climb(const Grid& g, const float* dt, const std::uint8_t* up, s
     const double reach = balls.reach(dt[v]);
     std::int64_t u = v, top = -1;
     std::array<std::int64_t, 3> o{0, 0, 0};  // u - v in voxels
-    double miss = 0.0;  // by how much the triangle test missed at the top
+    double far = 0.0, lim = 0.0;  // at the top
     for (int k = 0; k < kClimb && (up[u] & kTop) != kTop; ++k) {
         const Neighbour& n = nb[up[u] & kTop];
         u += n.offset;
         o = {o[0] + n.dx, o[1] + n.dy, o[2] + n.dz};
         const double dx = double(o[0]) * g.spacing[0], dy = double(o[1]) * g.spacing[1], dz = double(o[2]) * g.spacing[2];
-        const double far = reach + std::sqrt(dx * dx + dy * dy + dz * dz), lim = open_ball_limit_sq(dt[u]);
+        far = reach + std::sqrt(dx * dx + dy * dy + dz * dz);
+        lim = open_ball_limit_sq(dt[u]);
         if (far * far < lim * (1.0 - 1e-12)) return true;
         top = u;
-        miss = far - std::sqrt(lim);
     }
     // The row test can only succeed where the triangle bound is loose, by less than the lattice's step.
-    if (top < 0 || miss > std::min({g.spacing[0], g.spacing[1], g.spacing[2]})) return false;
+    if (top < 0 || far - std::sqrt(lim) > std::min({g.spacing[0], g.spacing[1], g.spacing[2]})) return false;
     return balls.holds(dt[top], dt[v], {-o[0], -o[1], -o[2]});
 }
 
