@@ -135,7 +135,6 @@ private:
 class ProfileCache {
 public:
     explicit ProfileCache(const Grid& g) : g_(g) {}
-    const BallProfile& operator()(float r) { return profiles_[id(r)]; }
     double reach(float r) { return profiles_[id(r)].reach; }
 
     /// contains(profile of r_out, profile of r_in, o), remembered.
@@ -386,9 +385,10 @@ private:
     float* out_ = nullptr;
 };
 
-/// out[v] = the largest diameter among the balls over v, for the object voxels (DT > 0; out may be dt). `balls` come sorted by row table (by
-/// radius), then by voxel (z, y, x); table t's are balls[first[t] .. first[t + 1] - 1], and those over slice z
-/// the ones with |z' - z| <= its hz: a range. Slices in parallel, each on a SliceCanvas, largest balls first.
+/// out[v] = the largest diameter among the balls over v, for the object voxels (DT > 0; out may be dt). `balls`
+/// come sorted by row table (by radius), then by voxel (z, y, x); table t's are balls[first[t] .. first[t + 1] - 1],
+/// and those over slice z the ones with |z' - z| <= its hz: a range. Slices in parallel, each on a SliceCanvas,
+/// largest balls first.
 void paint_largest_first(const Grid& g, const float* dt, const std::vector<BallProfile>& tables,
                          const std::vector<PaintBall>& balls, const std::vector<std::size_t>& first, float* out) {
     const std::int64_t plane = g.dims[0] * g.dims[1];
