@@ -1,8 +1,8 @@
 // ball_scan.hpp (internal): visiting the voxels of many open balls row by row, one z slice per task.
 //
-// Used by reconstruct (the union of the balls) and local_thickness (the largest ball over each voxel): both
-// bucket the balls by the z slices they touch, so each slice is written by one task without races, and walk each
-// ball as x-runs [x0, x1] of rows y at slice z.
+// Used by reconstruct (the union of the balls): the balls are bucketed by the z slices they touch, so each slice is
+// written by one task without races, and each ball is walked as x-runs [x0, x1] of rows y at slice z. (Local
+// thickness uses row_half_width for its ball tables and paints its own way: thickness.cpp.)
 #pragma once
 
 #include <tbb/blocked_range.h>
