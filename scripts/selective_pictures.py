@@ -6,7 +6,7 @@ per-part looks (the Parts list) and an exploded view (the Explode factor, baked)
 Writes docs/images/selective_phantom.png, a contact sheet of four renders: the left arm red and the rest
 translucent, the left arm hidden, the skeleton's parts taken apart (Explode 0.5, baked), and the same with every part in
 its own colour; and, when ../shared/data/frogtissue is present, two more of the frog's label map rigged by the add-on,
-taken apart (Explode 0.5, baked) and seen from above with per-tissue looks: its skeleton alone, and the skeleton with
+taken apart (Explode 0.3, baked) and seen from above with per-tissue looks: its skeleton alone, and the skeleton with
 the soft tissues as translucent context. The .blend and its cache go to a temporary folder.
 
 The frog's tissue codes follow VTK's frog examples (1 blood, 2 brain, 3 duodenum, 4 eye retina, 5 eye white, 6 heart,
@@ -59,7 +59,7 @@ def render(scene, path):
 
 
 def frog_shots(work, samples):
-    """The frog rigged, taken apart (Explode 0.5, baked) and rendered from above with per-tissue looks: the skeleton
+    """The frog rigged, taken apart (Explode 0.3, baked) and rendered from above with per-tissue looks: the skeleton
     alone, then with the other tissues as translucent context."""
     from mathutils import Matrix
     new_scene(os.path.join(work, "frog.blend"))
@@ -68,22 +68,23 @@ def frog_shots(work, samples):
     with open(table, "w") as f:
         f.write("code\tname\n" + "".join(f"{k}\t{n}\n" for k, n in enumerate(FROG_TISSUES, start=1)))
     s = vol.volrig
-    s.tissue_table, s.use_tissues, s.density_scale = table, True, 0.6
-    s.explode = 0.5
+    s.tissue_table, s.use_tissues, s.density_scale = table, True, 2.0
+    s.explode = 0.3
+    scene = bpy.context.scene
+    scene.frame_start = scene.frame_end = 1
     if bpy.ops.volrig.bake() != {"FINISHED"}:
         raise RuntimeError("bake did not finish")
-    scene = bpy.context.scene
     cam = staging.stage(scene, vol, resolution=(300, 300), samples=samples)
     lo, hi = staging.volume_box(vol)
     size = hi - lo
-    cam.data.ortho_scale = 1.6 * float(max(size[0], size[1]))  # taken apart, the frog spreads out
+    cam.data.ortho_scale = 1.3 * float(max(size[0], size[1]))  # taken apart, the frog spreads out
     cam.data.clip_start, cam.data.clip_end = 0.001, 10.0
     cam.matrix_world = Matrix.Translation(((lo + hi) / 2 + [0.0, 0.0, 2.0 * float(size.max())]).tolist())
     scene.view_settings.view_transform = "Standard"
     shots = []
     for t in s.tissues:
         t.visible = t.name == "bone"
-    shots.append((render(scene, os.path.join(work, "frog_bones.png")), "frog: skeleton, taken apart"))
+    shots.append((render(scene, os.path.join(work, "frog_bones.png")), "frog: skeleton, apart (0.3)"))
     for t in s.tissues:
         t.visible, t.opacity = True, 1.0 if t.name == "bone" else 0.05
     shots.append((render(scene, os.path.join(work, "frog_context.png")), "with soft tissue as context"))
