@@ -274,7 +274,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
             r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
                                       progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
                                       up=objects.scene_up(vol) if s.use_scene_up else None,
-                                      own_scale=not s.rig_kept_points)
+                                      own_scale=not s.rig_kept_points, rigid=scans.rigid(vol))
         _save_rig(vol, r.points, r.tree, r.rig, r.binding)
         s.rig_found = pipeline.describe_rig(r.rig)
         rig_obj = objects.build_armature(vol, r.rig)
@@ -311,7 +311,7 @@ class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
         saved = volrig.load_rig(scans.rig_path(vol))
         rig = objects.armature_rig(parts["RIG"])
         mask = scans.mask(vol)
-        binding = volrig.bind(saved.points, rig, mask, mode=vol.volrig.bind_mode)
+        binding = volrig.bind(saved.points, rig, mask, mode=vol.volrig.bind_mode, rigid=scans.rigid(vol))
         objects.set_vertex_groups(parts["SPHERES"], binding)
         _save_rig(vol, saved.points, saved.tree, rig, binding)
         looks.refresh(vol)

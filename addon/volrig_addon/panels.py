@@ -97,6 +97,13 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         row.prop(s, "body_plan", text="")
         row.prop(s, "use_scene_up", toggle=True, icon="EMPTY_SINGLE_ARROW")
         layout.prop(s, "bind_mode")
+        layout.prop(s, "rigid_by")
+        if s.rigid_by == "LABELS":
+            layout.prop(s, "rigid_labels")
+        elif s.rigid_by == "RANGE":
+            row = layout.row(align=True)
+            row.prop(s, "rigid_low")
+            row.prop(s, "rigid_high")
         row = layout.row(align=True)
         row.operator("volrig.rig", icon="ARMATURE_DATA")
         row.operator("volrig.rebind", icon="FILE_REFRESH")

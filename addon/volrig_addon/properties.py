@@ -194,6 +194,17 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),
         ("rigid", "Rigid", "Every point follows one bone"),
     ], default="smooth")
+    rigid_by: EnumProperty(name="Rigid tissue", default="AUTO", items=[
+        ("AUTO", "Automatic", "The tissue table's bone codes (Look > Tissues) when the volume has a table, else none"),
+        ("NONE", "None", "Every tissue bends at the joints"),
+        ("LABELS", "Labels", "The voxels with these label values do not bend (a label map's bone codes)"),
+        ("RANGE", "Value range", "The voxels with values in this range do not bend (a CT's bone, e.g. 300-3000 HU)"),
+    ], description="Tissue that must not bend: each connected piece is bound wholly to one bone, its spheres with "
+                   "weight 1; only the rest blends across joints (Rig and Rebind)")
+    rigid_labels: StringProperty(name="Rigid labels", default="",
+                                 description="Label values of the rigid tissue, e.g. 84, 92 or 80-90")
+    rigid_low: FloatProperty(name="From", default=300.0, description="Lowest value of the rigid tissue")
+    rigid_high: FloatProperty(name="To", default=3000.0, description="Highest value of the rigid tissue")
     rig_file: StringProperty(name="Rig file", description="The .vrig file (points, tree, rig, binding) in the cache")
 
     # --- motion capture ---

@@ -15,6 +15,7 @@ import os
 import tempfile
 
 import bpy
+import numpy as np
 
 import volrig
 from volrig import pipeline
@@ -154,3 +155,28 @@ def update_mask_count(volume_obj) -> None:
         s.mask_count = _segmentation(s).count(source(volume_obj).array)
     except (volrig.VolrigError, OSError):
         s.mask_count = -1
+
+
+def rigid(volume_obj):
+    """The tissue that must not bend (``volrig.rigid_tissue`` of the source), by the object's *Rigid tissue*
+    setting: the tissue table's bone class (Automatic, when the object has a table), the given labels or value
+    range, or None. VolrigError when the labels or range hold no voxel of the source."""
+    s = volume_obj.volrig
+    source_ = source(volume_obj)
+    if s.rigid_by == "NONE" or (s.rigid_by == "AUTO" and not s.tissue_table):
+        return None
+    if s.rigid_by == "AUTO":
+        table = volrig.read_tissue_table(bpy.path.abspath(s.tissue_table))
+        bone = [t for t in volrig.tissue_classes(table, present=np.unique(source_.array)) if t.name == "bone"]
+        if not bone:
+            return None
+        out, what = volrig.rigid_tissue(source_, labels=bone[0].codes), f"the table's bone codes {bone[0].codes}"
+    elif s.rigid_by == "LABELS":
+        labels = volrig.pipeline.parse_labels(s.rigid_labels)
+        out, what = volrig.rigid_tissue(source_, labels=labels), f"labels {s.rigid_labels!r}"
+    else:
+        out = volrig.rigid_tissue(source_, value_range=(s.rigid_low, s.rigid_high))
+        what = f"values {s.rigid_low:g} to {s.rigid_high:g}"
+    if not out.array.any():
+        raise volrig.VolrigError(f"rigid tissue: no voxel of {volume_obj.name} has {what}")
+    return out

@@ -123,3 +123,43 @@ def test_bake_writes_tissue_grids_of_the_posed_labels(rigged, tmp_path):
     vol.volrig.sampling = "trilinear"
     with pytest.raises(RuntimeError, match="nearest sampling"):
         bpy.ops.volrig.bake()
+
+
+def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp_path):
+    """Rigid tissue (issue 18) in the add-on: with a tissue table, Automatic binds its bone codes rigidly; Labels
+    and Value range say it explicitly; the binding is volrig.bind's with that rigid tissue."""
+    from volrig_addon import scans
+    table = tmp_path / "phantom.tsv"
+    table.write_text(PHANTOM_TABLE)
+    run_op(bpy.ops.volrig.import_volume, filepath=phantom_file[0], unit="MM")
+    vol = bpy.context.active_object
+    assert scans.rigid(vol) is None  # Automatic without a table: nothing rigid
+    vol.volrig.tissue_table = str(table)
+    rigid = scans.rigid(vol)
+    assert np.array_equal(rigid.array, phantom_file[1].volume.array == 220)
+    vol.volrig.rigid_by = "LABELS"
+    vol.volrig.rigid_labels = "220"
+    assert np.array_equal(scans.rigid(vol).array, rigid.array)
+    vol.volrig.rigid_by = "RANGE"
+    vol.volrig.rigid_low, vol.volrig.rigid_high = 200, 255
+    assert np.array_equal(scans.rigid(vol).array, rigid.array)
+    vol.volrig.rigid_low, vol.volrig.rigid_high = 230, 255
+    with pytest.raises(volrig.VolrigError, match="no voxel of"):
+        scans.rigid(vol)
+    vol.volrig.rigid_by = "AUTO"
+    bpy.ops.object.select_all(action="DESELECT")
+    vol.select_set(True)
+    bpy.context.view_layer.objects.active = vol
+    vol.volrig.low = 1.0
+    run_op(bpy.ops.volrig.skeletonize)
+    vol.volrig.thinness = 0.3
+    run_op(bpy.ops.volrig.rig)
+    saved = volrig.load_rig(scans.rig_path(vol))
+    expected = volrig.bind(saved.points, saved.rig, scans.mask(vol), mode="smooth", rigid=rigid)
+    got = saved.binding.weights.tocsr()
+    assert np.array_equal(got.indptr, expected.weights.tocsr().indptr)
+    np.testing.assert_allclose(got.data, expected.weights.tocsr().data, atol=1e-6)
+    # spheres centred on bone carry one bone; some elsewhere blend
+    on_bone = rigid.array[tuple(np.asarray(saved.points.ijk).T)]
+    rows = np.diff(got.indptr)
+    assert on_bone.any() and (rows[on_bone] == 1).all() and (rows[~on_bone] > 1).any()
