@@ -128,6 +128,20 @@ def _mask_and_skeleton(args):
     return mask, sk, skeleton_points(sk, thinness=args.thinness, count=args.count)
 
 
+def _rigid(args):
+    """The rigid tissue of ``--rigid-labels`` / ``--rigid-range`` (``volrig.rigid_tissue`` of the volume), or None."""
+    from .rig import rigid_tissue
+    if args.rigid_labels is None and args.rigid_range is None:
+        return None
+    if args.voxel_size is not None:
+        raise VolrigError("--rigid-labels / --rigid-range: a mesh has no tissue values")
+    source = _load(args)
+    out = rigid_tissue(source, labels=args.rigid_labels, value_range=args.rigid_range)
+    if not out.array.any():
+        raise VolrigError("rigid tissue: no voxel has the given " + ("labels" if args.rigid_labels else "values"))
+    return out
+
+
 def cmd_rig(args) -> int:
     from .pipeline import describe_rig, parse_up, rig_skeleton
     from .rigfile import save_rig
@@ -137,7 +151,8 @@ def cmd_rig(args) -> int:
     mask, sk, pts = _mask_and_skeleton(args)
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
                      bind_mode=args.bind, progress=StepBars() if _show_progress(args) else None, source=args.file,
-                     kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points)
+                     kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points,
+                     rigid=_rigid(args))
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
     print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {describe_rig(rig)}: {len(rig)} "
@@ -594,6 +609,11 @@ def main(argv=None) -> int:
                    help="rig the kept skeleton points themselves, not autorig's own skeleton (thin, fragmented "
                         "objects such as bones without flesh; the rig then depends on --count / --thinness)")
     p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--rigid-labels", type=int, nargs="+", metavar="LABEL",
+                   help="tissue that must not bend: these label values (a label map's bone codes, e.g. 84 92)")
+    g.add_argument("--rigid-range", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                   help="tissue that must not bend: values in this range (a CT's bone, e.g. 300 3000)")
     p.set_defaults(run=cmd_rig)
 
     p = sub.add_parser("bake", help="bake a saved .blend's volrig volumes in headless Blender (then render with "

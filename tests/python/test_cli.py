@@ -97,6 +97,20 @@ def test_rig_writes_a_rig_file(tmp_path):
     loaded = volrig.load_rig(out)  # joints on the kept points themselves (end joints aside)
     on = loaded.rig.joint_points >= 0
     assert on.any() and np.allclose(loaded.rig.joints[on], loaded.points.centers[loaded.rig.joint_points[on]])
+    # rigid tissue: the bone (220) bound as volrig.bind(..., rigid=) binds it; none of a label: a clear error
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-labels", 220, "-o", out)
+    assert r.returncode == 0, r.stderr
+    loaded = volrig.load_rig(out)
+    mask = volrig.segment(ph.volume, lo=1)
+    expected = volrig.bind(loaded.points, loaded.rig, mask, mode="smooth",
+                           rigid=volrig.rigid_tissue(ph.volume, labels=[220]))
+    assert np.array_equal(loaded.binding.weights.tocsr().indptr, expected.weights.tocsr().indptr)
+    on_bone = (ph.volume.array == 220)[tuple(np.asarray(loaded.points.ijk).T)]
+    assert on_bone.any() and (np.diff(loaded.binding.weights.tocsr().indptr)[on_bone] == 1).all()
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-range", 200, 255, "-o", out)
+    assert r.returncode == 0, r.stderr
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-labels", 7, "-o", out)
+    assert r.returncode == 2 and "no voxel has the given labels" in r.stderr and "Traceback" not in r.stderr
     r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "sideways", "-o", out)
     assert r.returncode == 2 and "sideways" in r.stderr
     bad = run("rig", src, "--lo", 1, "--count", 4000, "-o", tmp_path / "x.npz")
