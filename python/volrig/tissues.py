@@ -127,30 +127,53 @@ def tissue_grids(labels: Volume, tissues: Sequence[Tissue]) -> Dict[str, Volume]
     """``tissue_<key>`` per tissue class: uint8, 1 on the voxels whose code is one of the class's, each cropped to
     those voxels (its own origin on the labels' lattice). ``labels``: an integer label map (a frame baked with
     nearest sampling holds the codes themselves)."""
-    from .parts import cropped_grids
     lab = np.asarray(labels.array)
     if lab.dtype.kind == "f":
-        if not np.all(np.isfinite(lab)) or np.any(lab != np.round(lab)):
+        if not np.all(np.isfinite(lab)) or np.any(lab != np.round(lab)) or np.abs(lab).max(initial=0) >= 2 ** 31:
             raise VolrigError("tissue_grids: the labels are not integers (bake label maps with nearest sampling)")
+        lab = lab.astype(np.int32)  # (codes: the lookup table's path)
     elif lab.dtype.kind not in "iub":
         raise VolrigError(f"tissue_grids: labels of dtype {lab.dtype} are not integer codes")
-    # each voxel's class (1-based, 0 = none) by looking its code up among all classes' sorted codes
-    codes = np.array([c for t in tissues for c in t.codes], dtype=np.int64)
-    owner = np.array([k + 1 for k, t in enumerate(tissues) for _ in t.codes], dtype=np.int64)
-    order = np.argsort(codes, kind="stable")
-    codes, owner = codes[order], owner[order]
-    flat = lab.reshape(-1)
-    body = np.flatnonzero(flat)
-    values = flat[body].astype(np.int64)
-    i = np.minimum(np.searchsorted(codes, values), max(len(codes) - 1, 0))
-    cls = np.where(codes[i] == values, owner[i], 0) if len(codes) else np.zeros(len(body), np.int64)
-    by_class = np.argsort(cls, kind="stable")
-    bounds = np.searchsorted(cls[by_class], np.arange(len(tissues) + 2))
+    cls = _class_of(lab, tissues)
     grids = {}
     for k, t in enumerate(tissues):
-        at = body[by_class[bounds[k + 1]:bounds[k + 2]]]
-        grids.update(cropped_grids(labels, at, {f"tissue_{t.key}": (np.uint8, 1)}))
+        grids[f"tissue_{t.key}"] = _cropped(labels, cls == k + 1)
     return grids
+
+
+def _class_of(lab: np.ndarray, tissues: Sequence[Tissue]) -> np.ndarray:
+    """Each voxel's class (1-based, 0 = none), uint8: a lookup table over the codes when they are small
+    non-negative integers, else a search among the classes' sorted codes."""
+    codes = np.array([c for t in tissues for c in t.codes], dtype=np.int64)
+    owner = np.array([k + 1 for k, t in enumerate(tissues) for _ in t.codes], dtype=np.uint8)
+    if len(tissues) > 254:
+        raise VolrigError(f"tissue_grids: {len(tissues)} classes (at most 254)")
+    if not len(codes):
+        return np.zeros(lab.shape, np.uint8)
+    if lab.dtype.kind in "iub" and lab.size and 0 <= lab.min() and lab.max() < 1 << 20:
+        lut = np.zeros(int(lab.max()) + 1, np.uint8)
+        keep = codes <= lab.max()
+        lut[codes[keep]] = owner[keep]
+        return lut[lab]
+    order = np.argsort(codes, kind="stable")
+    codes, owner = codes[order], owner[order]
+    values = lab.astype(np.int64)
+    i = np.minimum(np.searchsorted(codes, values), len(codes) - 1)
+    return np.where(codes[i] == values, owner[i], 0).astype(np.uint8)
+
+
+def _cropped(like: Volume, m: np.ndarray) -> Volume:
+    """``m`` (bool, on ``like``'s grid) as uint8 cropped to its true voxels (its origin on the same lattice); one
+    zero voxel at the origin when there is none."""
+    zs = np.flatnonzero(m.any(axis=(1, 2)))
+    if not len(zs):
+        return Volume(np.zeros((1, 1, 1), np.uint8), like.spacing, like.origin)
+    slab = m[zs[0]:zs[-1] + 1]
+    ys, xs = np.flatnonzero(slab.any(axis=(0, 2))), np.flatnonzero(slab.any(axis=(0, 1)))
+    box = slab[:, ys[0]:ys[-1] + 1, xs[0]:xs[-1] + 1]
+    lo = np.array([xs[0], ys[0], zs[0]])
+    origin = tuple(o + sp * i for o, sp, i in zip(like.origin, like.spacing, lo))
+    return Volume(box.astype(np.uint8), like.spacing, origin)
 
 
 def label_classes(codes) -> List[Tissue]:

@@ -169,3 +169,13 @@ def test_cli_bake_mocap_with_tissues(tmp_path, labelled_rig):
     assert {"tissue_bone", "tissue_muscle", "tissue_skin"} <= names
     r = run("--tissues", str(tmp_path / "missing.tsv"), "--sampling", "nearest")
     assert r.returncode != 0 and "missing.tsv" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_grids_of_negative_and_large_codes():
+    """Codes a lookup table cannot index (negative, huge) take the search path and give the same grids."""
+    rng = np.random.default_rng(5)
+    table = {-7: "BoneCortical", 3: "Muscle", 5_000_000: "Fat"}
+    lab = volrig.Volume(rng.choice([0, -7, 3, 5_000_000], size=(6, 7, 8)).astype(np.int64), (1.0, 1.0, 1.0))
+    for t in volrig.tissue_classes(table):
+        g = volrig.tissue_grids(lab, [t])[f"tissue_{t.key}"]
+        np.testing.assert_array_equal(_place(g, lab), np.isin(lab.array, t.codes).astype(np.uint8))
