@@ -176,11 +176,31 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
         s.segment_by, s.labels = "LABELS", d.labels
     scans.update_mask_count(obj)
     materials.update_volume_material(obj)
+    _take_tissue_table(obj, vol, source)
     for o in context.view_layer.objects:
         o.select_set(False)
     obj.select_set(True)
     context.view_layer.objects.active = obj
     return obj
+
+
+def _take_tissue_table(obj, vol: volrig.Volume, source: str) -> None:
+    """A label map with its tissue table beside the file (``volrig.find_tissue_table``; integer values, at most
+    256 of them): segmented as its body codes, per-tissue looks on (nearest sampling), and Automatic rigid tissue
+    then binds its bone."""
+    some = np.unique(vol.array[:: max(1, vol.array.shape[0] // 32)])
+    if not source or len(some) > 256 or not np.array_equal(some, np.round(some)):
+        return
+    codes = np.unique(vol.array)
+    table = volrig.find_tissue_table(source, codes)
+    if not table:
+        return
+    s = obj.volrig
+    body = volrig.tissues.body_codes(volrig.read_tissue_table(table), codes)
+    s.segment_by, s.labels = "LABELS", pipeline.labels_text(body)
+    s.tissue_table = table
+    s.use_tissues = True
+    scans.update_mask_count(obj)
 
 
 class VOLRIG_OT_preview_mask(_OnVolume, bpy.types.Operator):

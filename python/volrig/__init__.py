@@ -27,8 +27,8 @@ from .medial import MedialSurface, local_thickness, medial_surface, plane_like, 
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
 from .skin import MeshRig, pose_vertices, rig_mesh, skin_weights
 from .parts import Part, bone_parts, explode_matrices, part_grids
-from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, label_classes, read_tissue_table, tissue_classes,
-                      tissue_grids)
+from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
+                      tissue_classes, tissue_grids)
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -43,7 +43,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
-           "tissue_classes", "tissue_grids", "label_classes",
+           "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
            "part_grids", "explode_matrices"]
 
 

@@ -128,6 +128,21 @@ def _ranges(text: str, what: str, example: str):
         yield part, int(m.group(1)), int(m.group(2) or m.group(1))
 
 
+def labels_text(labels) -> str:
+    """[1, 2, 3, 7, 9, 10] -> '1-3, 7, 9-10' (what ``parse_labels`` reads back)."""
+    out, run = [], []
+    for v in sorted({int(x) for x in labels}):
+        if run and v == run[-1] + 1:
+            run.append(v)
+            continue
+        if run:
+            out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+        run = [v]
+    if run:
+        out.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+    return ", ".join(out)
+
+
 def parse_labels(text: str) -> List[int]:
     """'1 4 7-9' -> [1, 4, 7, 8, 9] (commas and semicolons separate too); VolrigError naming the bad part."""
     out: List[int] = []

@@ -104,6 +104,37 @@ def read_tissue_table(path: str) -> Dict[int, str]:
     return table
 
 
+def find_tissue_table(path: str, codes) -> str:
+    """The tissue table beside a label map's file, or "": a ``.tsv``, ``.csv`` or ``.txt`` file in the same folder
+    whose name says "tissue" or "label", that reads as a table and names at least 90% of the non-zero ``codes``
+    present (the first such file by name)."""
+    import os
+    folder = os.path.dirname(os.path.abspath(path))
+    wanted = {int(c) for c in np.asarray(codes).ravel() if c != 0 and c == int(c)}
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return ""
+    for name in names:
+        low = name.lower()
+        if not low.endswith((".tsv", ".csv", ".txt")) or not ("tissue" in low or "label" in low):
+            continue
+        try:
+            table = read_tissue_table(os.path.join(folder, name))
+        except (OSError, UnicodeDecodeError, VolrigError):
+            continue
+        if wanted and len(wanted & set(table)) >= 0.9 * len(wanted):
+            return os.path.join(folder, name)
+    return ""
+
+
+def body_codes(table: Dict[int, str], present) -> List[int]:
+    """The codes of ``present`` that are body: named by the table, not 0, not outside (external air)."""
+    keep = {int(c) for c in np.asarray(present).ravel() if c == int(c)}
+    return sorted(c for c, name in table.items()
+                  if c in keep and c != 0 and not re.search(OUTSIDE_NAMES, name, re.I))
+
+
 def tissue_classes(table: Dict[int, str], classes: Sequence[TissueClass] = TISSUE_CLASSES,
                    present: Sequence[int] = None) -> List[Tissue]:
     """The table's codes grouped by ``classes`` (first match on the name), in the classes' order, then "other";

@@ -128,13 +128,22 @@ def test_bake_writes_tissue_grids_of_the_posed_labels(rigged, tmp_path):
 def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp_path):
     """Rigid tissue (issue 18) in the add-on: with a tissue table, Automatic binds its bone codes rigidly; Labels
     and Value range say it explicitly; the binding is volrig.bind's with that rigid tissue."""
+    import shutil
     from volrig_addon import scans
-    table = tmp_path / "phantom.tsv"
-    table.write_text(PHANTOM_TABLE)
     run_op(bpy.ops.volrig.import_volume, filepath=phantom_file[0], unit="MM")
     vol = bpy.context.active_object
-    assert scans.rigid(vol) is None  # Automatic without a table: nothing rigid
-    vol.volrig.tissue_table = str(table)
+    assert vol.volrig.tissue_table == "" and scans.rigid(vol) is None  # Automatic without a table: nothing rigid
+    # a table beside the label map's file is found on import
+    shutil.copy(phantom_file[0], tmp_path / "phantom.nrrd")
+    table = tmp_path / "phantom_tissues.tsv"
+    table.write_text(PHANTOM_TABLE)
+    (tmp_path / "notes.txt").write_text("not a table\n")
+    run_op(bpy.ops.volrig.import_volume, filepath=str(tmp_path / "phantom.nrrd"), unit="MM")
+    vol = bpy.context.active_object
+    assert bpy.path.abspath(vol.volrig.tissue_table) == str(table)
+    s = vol.volrig  # taken as a label map: its body codes, per-tissue looks on, nearest sampling
+    assert s.use_tissues and s.sampling == "nearest" and s.segment_by == "LABELS" and s.labels == "80, 100, 220"
+    assert [t.name for t in s.tissues] == ["bone", "muscle", "fat"]
     rigid = scans.rigid(vol)
     assert np.array_equal(rigid.array, phantom_file[1].volume.array == 220)
     vol.volrig.rigid_by = "LABELS"

@@ -179,3 +179,25 @@ def test_grids_of_negative_and_large_codes():
     for t in volrig.tissue_classes(table):
         g = volrig.tissue_grids(lab, [t])[f"tissue_{t.key}"]
         np.testing.assert_array_equal(_place(g, lab), np.isin(lab.array, t.codes).astype(np.uint8))
+
+
+def test_finds_the_tissue_table_beside_a_label_map(tmp_path):
+    lab = tmp_path / "body_labels.nii.gz"
+    lab.write_bytes(b"")  # (only its folder matters)
+    assert volrig.find_tissue_table(str(lab), [0, 84, 180]) == ""
+    (tmp_path / "readme.txt").write_text("84\tBoneCortical\n180\tMuscle\n")        # not named for tissues
+    (tmp_path / "labels_other.csv").write_text("1,skin\n2,bone\n")                 # names other codes
+    (tmp_path / "tissue_broken.tsv").write_text("x\tBone\n84\tBone\n")            # not a table
+    assert volrig.find_tissue_table(str(lab), [0, 84, 180]) == ""
+    good = tmp_path / "body_tissues.tsv"
+    good.write_text("value\ttissue\n84\tBoneCortical\n180\tMuscle\n")
+    assert volrig.find_tissue_table(str(lab), [0, 84, 180]) == str(good)
+
+
+def test_body_codes_and_label_text_round_trip():
+    table = {0: "ExternalAir", 1: "Void", 2: "InternalAir", 3: "Skin", 4: "Bone", 9: "Fat", 10: "Muscle"}
+    body = volrig.tissues.body_codes(table, [0, 2, 3, 4, 9, 10, 77])
+    assert body == [2, 3, 4, 9, 10]  # present, named, not outside; 77 is in no table, 1 not present
+    text = volrig.pipeline.labels_text(body)
+    assert text == "2-4, 9-10" and volrig.pipeline.parse_labels(text) == body
+    assert volrig.pipeline.labels_text([5]) == "5"
