@@ -14,7 +14,7 @@ _panels = [c for m in (panels, mesh_rig, looks_ui) for c in vars(m).values()
            if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
-    if (os.environ.get("UI_LOOKS") or os.environ.get("UI_TISSUES")) and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
+    if (os.environ.get("UI_LOOKS") or os.environ.get("UI_TISSUES") or os.environ.get("UI_VHM")) and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
         c.bl_options = {"DEFAULT_CLOSED"}  # room for the Parts panel
 volrig_addon.register()
 
@@ -70,6 +70,8 @@ def knight_scene():
 def setup():
     if os.environ.get("UI_MESH"):
         return setup_mesh()
+    if os.environ.get("UI_VHM"):
+        return setup_vhm()
     ph = volrig.phantom.humanoid(0.4)
     path = os.path.join(WORK, "phantom.nrrd")
     if not os.path.exists(path):
@@ -160,6 +162,26 @@ def show_volrig_sidebar(win, shading, three_quarter=False):
     bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     print("UI READY", flush=True)
     return None
+
+
+def setup_vhm():
+    """UI_VHM=1: the Visible Human's 4 mm labels imported (its tissue table found beside it: per-tissue looks on),
+    rendered in the viewport from the front with fat and muscle hidden."""
+    path = os.path.join(REPO, "..", "shared", "data", "visible-human", "austinman_4mm_labels.nii.gz")
+    win, override = empty_view3d()
+    with override:
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))
+        print("import:", bpy.ops.volrig.import_volume(filepath=os.path.normpath(path), unit="MM", name="vhm"), flush=True)
+        vol = bpy.data.objects["vhm"]
+        s = vol.volrig
+        s.density_scale = 0.5
+        for t in s.tissues:
+            t.visible = t.name not in ("fat", "muscle", "skin", "cartilage")
+        from volrig_addon import staging
+        scene = bpy.context.scene
+        staging.stage(scene, vol, samples=8).hide_set(True)
+        scene.cycles.preview_samples, scene.cycles.use_preview_denoising = 8, False
+    return show_volrig_sidebar(win, "RENDERED")
 
 
 def empty_view3d():
