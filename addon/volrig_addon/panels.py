@@ -165,7 +165,9 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
     def draw(self, context):
         s, layout = _settings(self, context)
         vol = s.id_data
-        layout.prop(s, "preset")
+        row = layout.row()
+        row.active = not s.use_tissues  # (per-tissue looks colour the volume instead)
+        row.prop(s, "preset")
         layout.prop(s, "density_scale")
         rig = objects.members(vol).get("RIG")
         if rig is not None:
