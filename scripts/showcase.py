@@ -51,14 +51,26 @@ def body_of(labels: volrig.Volume, table) -> volrig.Volume:
     return volrig.Volume((a != 0) & ~np.isin(a, air), labels.spacing, labels.origin)
 
 
-def rig_and_bake(args, work):
-    """Rig the scan, drive it with the clip and bake ``args.count`` frames; returns (frame files, tissues, rig)."""
+def looks_of(args, tissues):
+    """The tissues with --hide and --opacity applied, and the set hidden; SystemExit naming an unknown class."""
+    names = {t.name for t in tissues}
+    hidden = {h.strip() for h in args.hide.split(",") if h.strip()}
+    peeled = {h.strip() for h in args.peel.split(",") if h.strip()}
+    opacity = {}
+    for item in filter(None, (x.strip() for x in args.opacity.split(","))):
+        name, _, value = item.partition("=")
+        opacity[name] = float(value)
+    unknown = (hidden | peeled | set(opacity)) - names
+    if unknown:
+        raise SystemExit(f"showcase: {', '.join(sorted(unknown))}: no such tissue class; classes: "
+                         + ", ".join(t.name for t in tissues))
+    tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
+    return tissues, hidden, peeled, opacity
+
+
+def rig_and_bake(args, work, labels, table, tissues):
+    """Rig the scan, drive it with the clip and bake ``args.count`` frames; returns (frame files, BVH frames)."""
     t = time.perf_counter()
-    labels = volrig.load(args.labels)
-    table = volrig.read_tissue_table(args.tissues)
-    tissues = volrig.tissue_classes(table, present=np.unique(labels.array))
-    if not tissues:
-        raise SystemExit(f"showcase: none of {args.tissues}'s codes is in {args.labels}")
     body = body_of(labels, table)
     sk = pipeline.skeleton_of(body)
     points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(args.thinness, sk.metric,
@@ -82,7 +94,7 @@ def rig_and_bake(args, work):
                 f"{time.perf_counter() - started:.1f} s")
     finally:
         bake.finish()
-    return [bake.path(k + 1) for k in range(len(frames))], tissues, frames, labels
+    return [bake.path(k + 1) for k in range(len(frames))], frames
 
 
 def scene_for(labels, height, view):
@@ -194,24 +206,17 @@ def main(argv):
     t0 = time.perf_counter()
     work = tempfile.mkdtemp(prefix="volrig_showcase_")
     try:
-        files, tissues, frames, labels = rig_and_bake(args, work)
-        hidden = {h.strip() for h in args.hide.split(",") if h.strip()}
-        unknown = hidden - {t.name for t in tissues}
-        if unknown:
-            raise SystemExit(f"showcase: --hide {', '.join(sorted(unknown))}: no such tissue class; classes: "
-                             + ", ".join(t.name for t in tissues))
-        opacity = {}
-        for item in filter(None, (x.strip() for x in args.opacity.split(","))):
-            name, _, value = item.partition("=")
-            if name not in {t.name for t in tissues}:
-                raise SystemExit(f"showcase: --opacity {name}: no such tissue class")
-            opacity[name] = float(value)
-        tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
+        labels = volrig.load(args.labels)
+        table = volrig.read_tissue_table(args.tissues)
+        found = volrig.tissue_classes(table, present=np.unique(labels.array))
+        if not found:
+            raise SystemExit(f"showcase: none of {args.tissues}'s codes is in {args.labels}")
+        tissues, hidden, peeled, opacity = looks_of(args, found)  # (before the work: a typo fails at once)
+        files, frames = rig_and_bake(args, work, labels, table, found)
         scene = scene_for(labels, args.height, args.view)
         scene.cycles.samples = args.samples
         faint = ", ".join(sorted(opacity)) + " faint" if opacity else "as the preset"
         looks = [(faint + (f"; {', '.join(sorted(hidden))} hidden" if hidden else ""), tissues)]
-        peeled = {h.strip() for h in args.peel.split(",") if h.strip()}
         if peeled:
             looks.append((", ".join(sorted(peeled | hidden)) + " hidden",
                           [t._replace(visible=t.visible and t.name not in peeled) for t in tissues]))
