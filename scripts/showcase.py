@@ -15,8 +15,9 @@ The scan is any label map volrig reads (NIfTI, NRRD, MetaImage, DICOM, TIFF) who
 out of the render, --opacity overrides classes' opacities (the defaults make skin, muscle and tendons faint) and
 --peel adds a second row without more classes (default: skin, muscle and tendons: the skeleton and organs walking);
 --view says where the camera looks from. The body is rigged as a humanoid with +z up (--kind, --up to change), the
-clip retargeted in place, ``--count`` frames spread over its first ``--span`` BVH frames baked (linear, nearest
-sampling) into a temporary folder and rendered, and a contact sheet written to --out.
+clip retargeted in place, ``--count`` frames from the pose with one foot farthest ahead to the pose with the other
+(searched in the clip's first ``--span`` BVH frames) baked (linear, nearest sampling) into a temporary folder and
+rendered, and a contact sheet written to --out.
 
 The Visible Human data are not part of volrig (licence: CC BY-NC-ND 3.0): see ../shared/data/visible-human/README.md
 for where they come from (AustinMan v2.6, UT Austin, from the NLM Visible Human Project).
@@ -68,6 +69,31 @@ def looks_of(args, tissues):
     return tissues, hidden, peeled, opacity
 
 
+def stride_frames(rig, motion, args, up):
+    """``args.count`` BVH frames (0-based) from the pose with one foot farthest ahead to the pose with the other
+    farthest ahead, within the clip's first ``args.span`` frames: half a stride, the walk's clearest motion. Rigs
+    without Rigify feet (or a clip without steps) take frames spread over the span."""
+    span = min(args.span, motion.frame_count)
+    spread = [round(k * (span - 1) / max(args.count, 1)) for k in range(args.count)]
+    if "foot.L" not in rig.names or "foot.R" not in rig.names:
+        return spread
+    candidates = list(range(0, span, 2))
+    _, M = pipeline.mocap_poses(rig, motion, candidates, up_axis=args.clip_up)
+    feet = [rig.index("foot.L"), rig.index("foot.R")]
+    heads = rig.heads()
+    at = [np.einsum("fij,j->fi", M[:, b], np.r_[heads[b], 1.0])[:, :3] for b in feet]
+    side = heads[feet[0]] - heads[feet[1]]
+    forward = np.cross(up, side)
+    if np.linalg.norm(forward) < 1e-9:
+        return spread
+    ahead = (at[0] - at[1]) @ (forward / np.linalg.norm(forward))
+    a, b = sorted((int(np.argmin(ahead)), int(np.argmax(ahead))))
+    if ahead.max() - ahead.min() < 0.05 * np.linalg.norm(side) or b == a:
+        return spread
+    return [candidates[a] + round(k * (candidates[b] - candidates[a]) / max(args.count - 1, 1))
+            for k in range(args.count)]
+
+
 def rig_and_bake(args, work, labels, table, tissues):
     """Rig the scan, drive it with the clip and bake ``args.count`` frames; returns (frame files, BVH frames)."""
     t = time.perf_counter()
@@ -81,8 +107,7 @@ def rig_and_bake(args, work, labels, table, tissues):
         f"spheres, {r.rig.kind} ({len(r.rig)} bones) in {time.perf_counter() - t:.1f} s; tissues: "
         + ", ".join(x.name for x in tissues))
     motion = volrig.read_bvh(args.clip)
-    span = min(args.span, motion.frame_count)
-    frames = [round(k * (span - 1) / max(args.count, 1)) for k in range(args.count)]
+    frames = stride_frames(r.rig, motion, args, np.asarray(up, float))
     _, matrices = pipeline.mocap_poses(r.rig, motion, frames, up_axis=args.clip_up)
     bake = pipeline.FolderBake(labels, r.points, r.binding, work, "body", mode="linear", sampling="nearest",
                                tissues=tissues)
@@ -107,7 +132,7 @@ def scene_for(labels, height, view):
     scene.cycles.use_denoising = False
     scene.render.film_transparent = False
     scene.render.resolution_y = height
-    scene.render.resolution_x = int(height * 0.6)
+    scene.render.resolution_x = int(height * 0.75)  # (room for a leg swung forward)
     scene.cycles.volume_step_rate = 2.0
     scene.cycles.volume_max_steps = 512
     world = bpy.data.worlds.new("showcase")
@@ -181,8 +206,9 @@ def main(argv):
     ap.add_argument("--tissues", default=os.path.join(DATA, "visible-human", "austinman_tissues.tsv"))
     ap.add_argument("--clip", default=os.path.join(DATA, "bvh", "131_01.bvh"))
     ap.add_argument("--clip-up", choices=["y", "z"], default="y", help="the BVH's up axis")
-    ap.add_argument("--span", type=int, default=150,
-                    help="BVH frames the rendered frames spread over (default: about one stride of a 120 fps walk)")
+    ap.add_argument("--span", type=int, default=300,
+                    help="BVH frames searched for half a stride (one foot farthest ahead, then the other); the "
+                         "rendered frames go from the one to the other (default: 300)")
     ap.add_argument("--count", type=int, default=4, help="frames to bake and render")
     ap.add_argument("--thinness", type=float, default=0.5, help="thinness in voxels")
     ap.add_argument("--kind", choices=volrig.rig.KINDS, default="humanoid")
