@@ -50,8 +50,8 @@ def shown_at_rest(volume_obj) -> str:
 
 
 def write_rest(volume_obj) -> None:
-    """The rest volume's looks file: with per-part looks on (and a rig), the parts' grids and the tissues' (if on);
-    else, with per-tissue looks on, the tissues' alone."""
+    """The rest volume's looks files: with per-part looks on (and a rig), the parts' grids and the tissues' (if on);
+    with per-tissue looks on, also the tissues' alone (shown once per-part looks are turned off)."""
     from . import tissue_looks
     from .bake import RigState
     s = volume_obj.volrig
@@ -61,7 +61,7 @@ def write_rest(volume_obj) -> None:
                                   parts_of(volume_obj), scans.mask(volume_obj),
                                   tissues=tissue_looks.tissues_of(volume_obj),
                                   substitutes=substitutes_of(volume_obj))
-    elif s.use_tissues:
+    if s.use_tissues:
         tissue_looks.write_rest(volume_obj)
 
 

@@ -172,3 +172,22 @@ def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp
     on_bone = rigid.array[tuple(np.asarray(saved.points.ijk).T)]
     rows = np.diff(got.indptr)
     assert on_bone.any() and (rows[on_bone] == 1).all() and (rows[~on_bone] > 1).any()
+
+
+def test_tissues_with_parts_on_and_off(rigged, tmp_path):
+    """Per-tissue looks turned on while per-part looks are on: the parts' rest file carries the tissue grids, and
+    turning the parts off shows the tissues' own rest file (never the bare source under a tissue material)."""
+    from volrig_addon import looks, tissue_looks
+    vol = rigged
+    table = tmp_path / "phantom.tsv"
+    table.write_text(PHANTOM_TABLE)
+    vol.volrig.use_parts = True
+    vol.volrig.tissue_table = str(table)
+    vol.volrig.use_tissues = True
+    shown = bpy.path.abspath(vol.data.filepath)
+    assert shown == looks.rest_file(vol)
+    assert {"tissue_bone", "mask_left_arm"} <= {g["name"] for g in volrig._volrig.vdb_grids(shown)}
+    vol.volrig.use_parts = False
+    shown = bpy.path.abspath(vol.data.filepath)
+    assert shown == tissue_looks.rest_file(vol)
+    assert "tissue_bone" in {g["name"] for g in volrig._volrig.vdb_grids(shown)}
