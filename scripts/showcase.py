@@ -45,11 +45,9 @@ OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
 
 
 def body_of(labels: volrig.Volume, table) -> volrig.Volume:
-    """The body: every voxel with a non-zero code that the table does not call external air."""
-    import re
-    air = [c for c, name in table.items() if re.search(volrig.tissues.OUTSIDE_NAMES, name, re.I)]
-    a = np.asarray(labels.array)
-    return volrig.Volume((a != 0) & ~np.isin(a, air), labels.spacing, labels.origin)
+    """The body: every voxel whose code is not outside (0, or named like external air by the table)."""
+    outside = np.isin(labels.array, volrig.tissues.outside_codes(table))
+    return volrig.Volume(~outside, labels.spacing, labels.origin)
 
 
 def looks_of(args, tissues):

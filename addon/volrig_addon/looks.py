@@ -101,6 +101,9 @@ def substitutes_of(volume_obj) -> dict:
         except (OSError, ValueError) as e:
             raise volrig.VolrigError(f"the substitute of part {p.name!r}: {e}") from e
         out[p.key] = held[1]
+    used = {bpy.path.abspath(p.substitute) for p in volume_obj.volrig.parts if p.substitute}
+    for path in set(_LOADED) - used:  # (a full-resolution substitute no longer used is not kept)
+        del _LOADED[path]
     return out
 
 
@@ -161,7 +164,7 @@ def refresh(volume_obj) -> int:
     return len(s.parts)
 
 
-def route(tree, nd, parts, tissues=(), settings=None) -> None:
+def route(tree, nd, parts, tissues, settings) -> None:
     """Links the material's value (into the transfer function's window), opacity and colour (into the shaders)
     through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role. With
     ``tissues`` (a label map's classes: tissue_looks.py) the opacity and colour come from the tissues' grids
@@ -234,7 +237,7 @@ class _Builder:
         return nd.outputs[2]
 
 
-def _part_nodes(tree, opacity, colour, parts, settings=None):
+def _part_nodes(tree, opacity, colour, parts, settings):
     """The parts' nodes (see the module's description); returns the (value, opacity, colour) sockets. A part with
     its own transfer function (``preset``) takes its colour and opacity from its own ramp over ``density_<key>``
     where its mask is, instead of the volume's."""
@@ -245,7 +248,7 @@ def _part_nodes(tree, opacity, colour, parts, settings=None):
         x, y = -1700 + 150 * k, -700 - 60 * k
         m = b.attribute(f"mask_{p.key}", x, y - 500)
         hide = 0.0 if p.visible else 1.0
-        preset = getattr(p, "preset", "VOLUME") if settings is not None else "VOLUME"
+        preset = p.preset
         if p.visible:
             density = b.attribute(f"density_{p.key}", x, y - 300)
             value = b.math("ADD", density, value, x=x, y=y)

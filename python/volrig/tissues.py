@@ -128,30 +128,29 @@ def find_tissue_table(path: str, codes) -> str:
     return ""
 
 
-def body_codes(table: Dict[int, str], present) -> List[int]:
-    """The codes of ``present`` that are body: named by the table, not 0, not outside (external air)."""
-    keep = {int(c) for c in np.asarray(present).ravel() if c == int(c)}
-    return sorted(c for c, name in table.items()
-                  if c in keep and c != 0 and not re.search(OUTSIDE_NAMES, name, re.I))
+def outside_codes(table: Dict[int, str]) -> List[int]:
+    """The table's codes that are not body: 0 and those named like external air (``OUTSIDE_NAMES``)."""
+    return sorted({0} | {c for c, name in table.items() if re.search(OUTSIDE_NAMES, name, re.I)})
+
+
+def body_codes(table: Dict[int, str], present=None) -> List[int]:
+    """The table's body codes (not ``outside_codes``), only those in ``present`` when given."""
+    keep = None if present is None else {int(c) for c in np.asarray(present).ravel() if c == int(c)}
+    outside = set(outside_codes(table))
+    return sorted(c for c in table if c not in outside and (keep is None or c in keep))
 
 
 def tissue_classes(table: Dict[int, str], classes: Sequence[TissueClass] = TISSUE_CLASSES,
                    present: Sequence[int] = None) -> List[Tissue]:
-    """The table's codes grouped by ``classes`` (first match on the name), in the classes' order, then "other";
-    classes without codes are left out. ``present``: only these codes (e.g. ``np.unique`` of the labels)."""
-    keep = None if present is None else {int(c) for c in present}
+    """The table's body codes grouped by ``classes`` (first match on the name), in the classes' order, then
+    "other"; classes without codes are left out. ``present``: only these codes (e.g. ``np.unique`` of the labels)."""
+    from .parts import part_key
     codes: Dict[str, List[int]] = {}
-    for code, name in sorted(table.items()):
-        if code == 0 or re.search(OUTSIDE_NAMES, name, re.I) or (keep is not None and code not in keep):
-            continue
-        match = next((c for c in classes if c.pattern and re.search(c.pattern, name, re.I)), OTHER)
+    for code in body_codes(table, present):
+        match = next((c for c in classes if c.pattern and re.search(c.pattern, table[code], re.I)), OTHER)
         codes.setdefault(match.name, []).append(int(code))
-    out = []
-    for c in list(classes) + [OTHER]:
-        if c.name in codes:
-            key = re.sub(r"[^A-Za-z0-9]+", "_", c.name).strip("_") or "tissue"
-            out.append(Tissue(c.name, key, codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible)))
-    return out
+    return [Tissue(c.name, part_key(c.name), codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible))
+            for c in list(classes) + [OTHER] if c.name in codes]
 
 
 def tissue_grids(labels: Volume, tissues: Sequence[Tissue]) -> Dict[str, Volume]:
