@@ -3,9 +3,12 @@
 as the rigid tissue) is rigged, a knee and an elbow are bent, and the dual-quaternion frame of a smooth binding
 (with and without ``rigid=``) is compared with the rigid frame of the same pose: per rig bone, the Dice overlap of
 the bone tissue that bone carries at rest (its piece of the label map's bone, sampled nearest) where it lands,
-and the body's voxel count against rest.
+against that piece moved by its bone's matrix alone; the body's voxel count against rest and the background
+voxels the frame encloses that the rest frame does not (holes in the soft tissue). Binding time with and without
+rigid tissue.
 
     PYTHONPATH=python /usr/bin/python3 benchmarks/anatomy_eval.py [--mm 4] [--points 15000] [--knee 90] [--elbow 70]
+                                                  [--mode dual_quaternion]
 
 --knee and --elbow are the pose's rotations (degrees) of shin.L and forearm.R about the body's left-right axis
 (the Visible Human's elbows are bent about 50 degrees at rest: --elbow 70 makes about 120).
@@ -20,20 +23,53 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
 import volrig  # noqa: E402
 from volrig import subjects as S  # noqa: E402
+from volrig.deform import Frame  # noqa: E402
 
 BONE = (84, 92)
 
 
-def bone_pieces(labels, pts, rig, binding):
-    """The source's bone tissue labelled by the rig bone carrying it at rest (1 + bone; 0 elsewhere): the rest
-    frame's bone labels where the label map says bone, on the source grid."""
-    rest = volrig.deform(labels, pts, binding, rig.pose({}), sampling="nearest")
+def layer_pieces(labels, pts, binding, pose_mode):
+    """The label map's bone tissue labelled by the rig bone whose rigid layer carries it (1 + bone; 0 elsewhere),
+    on the source grid: the pieces ``volrig.rigid_layer`` reads from the binding's rest frame."""
+    d = volrig.Deformer(labels, pts, binding)
+    d.frame(volrig.rest_pose(binding.weights.shape[1]), mode=pose_mode, sampling="nearest", values=False)
     out = np.zeros(labels.array.shape, dtype=np.int16)
-    o = np.array(rest.offset)
-    sx, sy, sz = rest.bone.array.shape[::-1]
-    out[o[2]:o[2] + sz, o[1]:o[1] + sy, o[0]:o[0] + sx] = np.asarray(rest.bone.array)
-    out[~np.isin(np.asarray(labels.array), BONE)] = 0
-    return labels.like(out)
+    for p in d._layer.pieces:
+        x, y, z = p.box[:3]
+        sz, sy, sx = p.voxels.shape
+        out[z:z + sz, y:y + sy, x:x + sx][p.voxels > 0] = p.bone + 1
+    return labels.like(out), d._layer.pieces
+
+
+def piece_moved(piece, matrix, spacing, origin):
+    """The output voxels (source-lattice x, y, z; n x 3) of one piece moved by ``matrix``: those whose rest
+    position (the inverse matrix, in float64) rounds to one of the piece's voxels. Plain numpy, written apart from
+    the core's rigid layer as its reference."""
+    sp, org = np.asarray(spacing), np.asarray(origin)
+    lo = np.asarray(piece.box[:3]) - 0.5
+    corners = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)]) * np.asarray(piece.box[3:]) + lo
+    moved = ((org + corners * sp) @ matrix[:3, :3].T + matrix[:3, 3] - org) / sp
+    blo, bhi = np.floor(moved.min(0)).astype(np.int64) - 1, np.ceil(moved.max(0)).astype(np.int64) + 2
+    z, y, x = np.mgrid[blo[2]:bhi[2], blo[1]:bhi[1], blo[0]:bhi[0]]
+    q = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    inv = np.linalg.inv(matrix)
+    r = np.floor(((org + q * sp) @ inv[:3, :3].T + inv[:3, 3] - org) / sp + 0.5).astype(np.int64) - piece.box[:3]
+    inside = np.flatnonzero(((r >= 0) & (r < np.asarray(piece.box[3:]))).all(axis=1))
+    return q[inside[piece.voxels[r[inside, 2], r[inside, 1], r[inside, 0]] > 0]]
+
+
+def moved_pieces(pieces, pose, labels):
+    """The reference: each piece moved by its bone's matrix alone, as a Frame (values = 1 + bone) on the source
+    lattice."""
+    claims = [(p.bone, piece_moved(p, np.asarray(pose[p.bone]), labels.spacing, labels.origin)) for p in pieces]
+    q_all = np.concatenate([q for _, q in claims])
+    lo, hi = q_all.min(0), q_all.max(0) + 1
+    arr = np.zeros(tuple((hi - lo)[::-1]), np.int16)
+    for b, q in claims:
+        i = q - lo
+        arr[i[:, 2], i[:, 1], i[:, 0]] = b + 1
+    return Frame(volrig.Volume(arr.astype(np.float32), labels.spacing),
+                 volrig.Volume(arr, labels.spacing), tuple(int(v) for v in lo), {})
 
 
 def on_common_grid(frames):
@@ -57,12 +93,19 @@ def dice(a, b):
     return 1.0 if s == 0 else 2.0 * np.logical_and(a, b).sum() / s
 
 
+def enclosed_background(covered):
+    """Background voxels the covered voxels enclose (holes inside the body)."""
+    from scipy import ndimage
+    return int((ndimage.binary_fill_holes(covered) & ~covered).sum())
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mm", type=int, default=4)
     ap.add_argument("--points", type=int, default=15000)
     ap.add_argument("--knee", type=float, default=90.0)
     ap.add_argument("--elbow", type=float, default=70.0)
+    ap.add_argument("--mode", default="dual_quaternion", choices=("dual_quaternion", "linear"))
     args = ap.parse_args()
     labels = S.visible_human_labels(args.mm)
     mask = labels.like(np.asarray(labels.array) > 0)
@@ -71,31 +114,45 @@ def main():
     rig = volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask, up=np.array([0.0, 0.0, 1.0]))
     pose = rig.pose({"shin.L": ([1, 0, 0], args.knee), "forearm.R": ([1, 0, 0], -args.elbow)})
     t0 = time.perf_counter()
-    rigid_binding = volrig.bind(pts, rig, mask)
-    pieces = bone_pieces(labels, pts, rig, rigid_binding)
+    plain = volrig.bind(pts, rig, mask, mode="smooth")
+    t_plain = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    anatomy = volrig.bind(pts, rig, mask, mode="smooth", rigid=bone)
+    t_anatomy = time.perf_counter() - t0
+    print(f"binding: plain {t_plain:.3f} s, with rigid tissue {t_anatomy:.3f} s ({t_anatomy / t_plain:.2f}x)")
+    pieces, piece_list = layer_pieces(labels, pts, anatomy, args.mode)
+    t0 = time.perf_counter()
     frames = {
-        "rigid binding, rigid": volrig.deform(pieces, pts, rigid_binding, pose, sampling="nearest"),
-        "smooth, dual quaternion": volrig.deform(pieces, pts, volrig.bind(pts, rig, mask, mode="smooth"), pose,
-                                                 mode="dual_quaternion", sampling="nearest"),
-        "smooth + rigid bone, dual quaternion": volrig.deform(
-            pieces, pts, volrig.bind(pts, rig, mask, mode="smooth", rigid=bone), pose, mode="dual_quaternion",
-            sampling="nearest"),
+        "each piece moved by its bone (reference)": moved_pieces(piece_list, pose, labels),
+        "thesis rigid frame (rigid binding)": volrig.deform(pieces, pts, volrig.bind(pts, rig, mask), pose,
+                                                            sampling="nearest"),
+        f"smooth, {args.mode}": volrig.deform(pieces, pts, plain, pose, mode=args.mode, sampling="nearest"),
+        f"smooth + rigid layer, {args.mode}": volrig.deform(pieces, pts, anatomy, pose, mode=args.mode,
+                                                            sampling="nearest"),
     }
     print(f"Visible Human {args.mm} mm, {len(pts)} points, {len(rig)} bones; knee {args.knee:g}, elbow "
-          f"{args.elbow:g} degrees; three frames in {time.perf_counter() - t0:.1f} s")
+          f"{args.elbow:g} degrees; frames in {time.perf_counter() - t0:.1f} s")
+    rest_frames = {name: volrig.deform(pieces, pts, b, volrig.rest_pose(len(rig)), mode=args.mode,
+                                       sampling="nearest") for name, b in (("plain", plain), ("anatomy", anatomy))}
+    rest_holes = {k: enclosed_background(np.asarray(f.bone.array) > 0) for k, f in rest_frames.items()}
     grids = on_common_grid(list(frames.values()))
-    (t_ref, l_ref) = grids[0]
+    (t_ref, _) = grids[0]
     rest = int(np.asarray(mask.array).sum())
     watch = ["thigh.L", "shin.L", "upper_arm.R", "forearm.R", "hand.R"]
-    print(f"{'frame':38s} {'body voxels vs rest':>20s}  " + "  ".join(f"{n:>11s}" for n in watch) + "   worst bone")
+    print(f"{'frame':42s} {'body vs rest':>12s} {'holes':>6s}  " + "  ".join(f"{n:>11s}" for n in watch) +
+          "   worst bone")
     for (name, f), (t, l) in zip(frames.items(), grids):
-        body = int((np.asarray(f.bone.array) > 0).sum())
-        per = {}
-        for b, n in enumerate(rig.names):  # the bone tissue rig bone b carries at rest, where it lands
-            per[n] = dice(t == b + 1, t_ref == b + 1)
+        covered = l > 0 if "reference" not in name else None
+        body = "" if covered is None else f"{100.0 * (int(covered.sum()) - rest) / rest:+11.2f}%"
+        holes = ""
+        if covered is not None:
+            base = rest_holes["anatomy" if "rigid layer" in name else "plain"]
+            holes = f"{enclosed_background(covered) - base:+d}"
+        per = {n: dice(t == b + 1, t_ref == b + 1) for b, n in enumerate(rig.names)
+               if (np.asarray(pieces.array) == b + 1).any()}
         worst = min(per, key=per.get)
-        print(f"{name:38s} {100.0 * (body - rest) / rest:+19.2f}%  " +
-              "  ".join(f"{per[n]:11.3f}" for n in watch) + f"   {worst} {per[worst]:.3f}")
+        print(f"{name:42s} {body:>12s} {holes:>6s}  " + "  ".join(f"{per.get(n, float('nan')):11.3f}" for n in watch)
+              + f"   {worst} {per[worst]:.3f}")
     return 0
 
 

@@ -19,6 +19,8 @@ struct PyDeformer {
     py::array source;  // keeps the samples alive
     SphereArrays spheres;
     std::unique_ptr<Deformer> deformer;
+    py::array layer_source;  // the rigid layer's samples and pieces, kept alive
+    std::vector<MaskArray> layer_pieces;
 };
 
 DeformOptions options_of(const std::string& mode, const std::string& proximity, const std::string& sampling,
@@ -48,8 +50,29 @@ py::dict frame_dict(DeformedVolume&& f) {
     stats["by_sphere"] = f.stats.by_sphere;
     stats["by_search"] = f.stats.by_search;
     stats["exact_sub_blocks"] = f.stats.exact_sub_blocks;
+    stats["rigid_layer"] = f.stats.rigid_layer;
     d["stats"] = stats;
     return d;
+}
+
+/// The rigid pieces of a Python list of (bone, box {offset, dims}, uint8 voxels [z, y, x] of the box's dims); the
+/// arrays stay alive in `keep`.
+std::vector<RigidPiece> pieces_of(const py::list& pieces, std::vector<MaskArray>& keep) {
+    std::vector<RigidPiece> out;
+    for (const py::handle& h : pieces) {
+        const auto t = h.cast<py::tuple>();
+        if (t.size() != 3) throw Error("rigid layer: a piece is (bone, box, voxels)");
+        RigidPiece p;
+        p.bone = t[0].cast<std::int32_t>();
+        p.box = t[1].cast<std::array<std::int64_t, 6>>();
+        keep.push_back(t[2].cast<MaskArray>());
+        const MaskArray& v = keep.back();
+        if (v.ndim() != 3 || v.shape(0) != p.box[5] || v.shape(1) != p.box[4] || v.shape(2) != p.box[3])
+            throw Error("rigid layer: a piece's voxels do not have its box's dims");
+        p.voxels = v.data();
+        out.push_back(p);
+    }
+    return out;
 }
 
 }  // namespace
@@ -103,7 +126,28 @@ void bind_deform(py::module_& m) {
             },
             py::arg("ijk"), py::arg("radius"), py::arg("bone"), py::arg("bone_count"),
             py::arg("weight_offsets") = py::none(), py::arg("weight_bones") = py::none(), py::arg("weights") = py::none())
-        .def_property_readonly("reused_fields", [](const PyDeformer& d) { return d.deformer->reused_fields(); });
+        .def_property_readonly("reused_fields", [](const PyDeformer& d) { return d.deformer->reused_fields(); })
+        .def(
+            "set_source",
+            [](PyDeformer& d, const py::array& source, const Vec3& spacing, const Vec3& origin) {
+                const py::array src = py::array::ensure(source, py::array::c_style);
+                if (!src) throw Error("deform: the source is not a numeric array");
+                d.deformer->set_source(view_of(src, spacing, origin, "deform source"));
+                d.source = src;
+            },
+            py::arg("source"), py::arg("spacing"), py::arg("origin"))
+        .def(
+            "set_rigid_layer",
+            [](PyDeformer& d, const py::array& source, const Vec3& spacing, const Vec3& origin, const py::list& pieces) {
+                const py::array src = py::array::ensure(source, py::array::c_style);
+                if (!src) throw Error("rigid layer: the source is not a numeric array");
+                std::vector<MaskArray> keep;
+                auto p = pieces_of(pieces, keep);
+                d.deformer->set_rigid_layer(view_of(src, spacing, origin, "rigid layer source"), std::move(p));
+                d.layer_source = src;
+                d.layer_pieces = std::move(keep);
+            },
+            py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("pieces"));
     // The option names, spelled once in the core (volrig/deform.hpp), in enum order.
     m.attr("DEFORM_MODES") = names_tuple(kDeformModeNames);
     m.attr("PROXIMITIES") = names_tuple(kProximityNames);
@@ -136,6 +180,49 @@ void bind_deform(py::module_& m) {
         py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
         py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
         py::arg("box") = py::none());
+
+    m.def(
+        "rigid_pieces_box",
+        [](const std::array<std::int64_t, 3>& shape_zyx, const Vec3& spacing, const Vec3& origin,
+           const py::list& pieces, const DoubleArray& matrices, std::size_t bone_count) {
+            Grid g;
+            g.dims = {shape_zyx[2], shape_zyx[1], shape_zyx[0]};
+            g.spacing = spacing;
+            g.origin = origin;
+            std::vector<MaskArray> keep;
+            const auto p = pieces_of(pieces, keep);
+            return rigid_pieces_box(g, p, matrices_of(matrices, bone_count), bone_count);
+        },
+        py::arg("shape"), py::arg("spacing"), py::arg("origin"), py::arg("pieces"), py::arg("matrices"),
+        py::arg("bone_count"));
+
+    m.def(
+        "paint_rigid_pieces",
+        [](const py::array& source, const Vec3& spacing, const Vec3& origin, const py::list& pieces,
+           const DoubleArray& matrices, std::size_t bone_count, const std::string& sampling,
+           const std::array<std::int64_t, 6>& box, std::optional<py::array_t<float, py::array::c_style>> values,
+           py::array_t<std::int16_t, py::array::c_style> bone) {
+            const py::array src = py::array::ensure(source, py::array::c_style);
+            if (!src) throw Error("rigid layer: the source is not a numeric array");
+            const VolumeView v = view_of(src, spacing, origin, "rigid layer source");
+            const auto fits = [&](const py::array& a) {
+                return a.ndim() == 3 && a.shape(0) == box[5] && a.shape(1) == box[4] && a.shape(2) == box[3] &&
+                       a.writeable();
+            };
+            if (!fits(bone) || (values && !fits(*values)))
+                throw Error("rigid layer: the output arrays must be writable and have the box's dims");
+            std::vector<MaskArray> keep;
+            const auto p = pieces_of(pieces, keep);
+            const double* mat = matrices_of(matrices, bone_count);
+            const Sampling smp = sampling_from_name(sampling);
+            float* out_values = values ? values->mutable_data() : nullptr;
+            std::int16_t* out_bone = bone.mutable_data();
+            py::gil_scoped_release nogil;
+            return paint_rigid_pieces(v, p, mat, bone_count, smp, box, out_values, out_bone);
+        },
+        py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("pieces"), py::arg("matrices"),
+        py::arg("bone_count"), py::arg("sampling"), py::arg("box"), py::arg("values").noconvert(),
+        py::arg("bone").noconvert());
 
     m.def(
         "inverse_warp",

@@ -180,6 +180,20 @@ void bind_skeleton(py::module_& m) {
         py::arg("mask"), py::arg("progress") = py::none());
 
     m.def(
+        "nearest_seed_fill",
+        [](const Mask& code) {
+            const Grid g = mask_grid(code, {1, 1, 1});
+            std::vector<std::int64_t> pairs;
+            {
+                py::gil_scoped_release nogil;
+                pairs = nearest_seed_fill(g, code.data());
+            }
+            const auto n = static_cast<py::ssize_t>(pairs.size() / 2);
+            return to_numpy_shaped(std::move(pairs), {n, 2});
+        },
+        py::arg("code"));
+
+    m.def(
         "largest_component",
         [](const Mask& mask, const py::object& progress) {
             const Grid g = mask_grid(mask, {1, 1, 1});

@@ -46,12 +46,10 @@ double smoothstep(double t) {
 constexpr double kRigidShare = 0.9;
 
 void keep_rigid(const Grid& g, const std::uint8_t* rigid, const PointSet& pts, std::size_t bones, Binding& out) {
-    const Components comp = label_components(g, rigid);
-    std::vector<std::int32_t> of(pts.n, 0);
-    std::vector<std::vector<double>> votes(comp.sizes.size() + 1, std::vector<double>());
+    const std::vector<std::int32_t> of = point_components(g, rigid, pts.ijk, pts.n);
+    const std::int32_t count = of.empty() ? 0 : *std::max_element(of.begin(), of.end());
+    std::vector<std::vector<double>> votes(static_cast<std::size_t>(count) + 1, std::vector<double>());
     for (std::size_t i = 0; i < pts.n; ++i) {
-        const std::int32_t* q = pts.ijk + 3 * i;
-        of[i] = comp.labels[static_cast<std::size_t>(g.index(q[2], q[1], q[0]))];
         if (of[i] == 0) continue;
         auto& v = votes[static_cast<std::size_t>(of[i])];
         if (v.empty()) v.assign(bones, 0.0);

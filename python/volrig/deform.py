@@ -15,8 +15,9 @@ import numpy as np
 from . import _volrig
 from ._volrig import VolrigError
 from .parts import part_grids
+from .rigid_layer import RigidLayer
 from .tissues import tissue_grids
-from .rig import Binding
+from .rig import Binding, rest_pose
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, write_vdb
 
@@ -143,6 +144,10 @@ class Deformer:
 
     The first frame (and any change of mode family or radius_scale) builds each bone's rest-space power diagram
     and k-d tree; later frames cost about one gather per output voxel.
+
+    A binding with rigid tissue (``bind(..., rigid=)``) deforms in two layers (``volrig.rigid_layer``): the spheres
+    sample a source whose rigid voxels hold the nearest soft tissue, and each bone's piece of rigid tissue, moved by
+    that bone alone, is drawn over them.
     """
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, proximity: str = DEFAULT_PROXIMITY):
@@ -157,6 +162,7 @@ class Deformer:
         self.points = points
         self.binding = binding
         self.proximity = proximity
+        self._layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
         self.bone_count = nb
         self._native = _volrig.Deformer(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb,
@@ -164,8 +170,8 @@ class Deformer:
 
     @property
     def memory_bytes(self) -> int:
-        """Bytes of per-rig data currently held."""
-        return int(self._native.memory_bytes)
+        """Bytes of per-rig data currently held (the rigid layer's soft source and pieces included)."""
+        return int(self._native.memory_bytes) + (0 if self._layer is None else self._layer.memory_bytes)
 
     @property
     def kept_frame_bytes(self) -> int:
@@ -180,9 +186,16 @@ class Deformer:
     def rebind(self, binding: Binding) -> None:
         """Takes a new binding of the same points (say, weights repainted). The next frame rebuilds only the per-rig
         data of the bones and blend groups whose spheres changed (``reused_fields`` says how many it kept)."""
+        old = self.binding.rigid
+        if (old is None) != (binding.rigid is None) or (old is not None and not np.array_equal(old, binding.rigid)):
+            self.__init__(self.source, self.points, binding, self.proximity)  # other rigid tissue: another source
+            return
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(self.points, binding)
         self._native.rebind(ijk, radii, bone, nb, off, wb, w)
         self.binding = binding
+        if self._layer is not None:  # which bone carries which rigid voxel follows the binding
+            self._layer.pieces = None
+            self._native.set_source(_source_array(self.source), self.source.spacing, self.source.origin)
 
     @property
     def reused_fields(self) -> int:
@@ -192,9 +205,24 @@ class Deformer:
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates."""
-        d = self._native.frame(_matrices(bone_matrices), mode, proximity or self.proximity, sampling,
-                               _radius_scale(radius_scale, len(self.points)), bool(values), progress)
+        m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
+        if self._layer is not None and self._layer.pieces is None:
+            self._label_layer(mode, proximity or self.proximity, scale)
+        d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress)
         return _frame(d, self.source)
+
+    def _label_layer(self, mode: str, proximity: str, scale) -> None:
+        """The rigid layer from this binding's rest frame (in the mode family asked for, so that its per-rig data
+        serves the frames after it): the spheres then sample the soft source and the pieces are drawn."""
+        src = _source_array(self.source)
+        self._native.set_rigid_layer(src, self.source.spacing, self.source.origin, [])
+        rest = self._native.frame(_matrices(rest_pose(self.bone_count)), mode, proximity, "nearest", scale, False,
+                                  None)
+        self._layer.build(np.asarray(rest["bone"]), rest["offset"])
+        del rest
+        self._native.set_source(self._layer.soft, self.source.spacing, self.source.origin)
+        self._native.set_rigid_layer(src, self.source.spacing, self.source.origin,
+                                     [p.native() for p in self._layer.pieces])
 
 
 def coarse_level(source: Volume, points: SkeletonPoints, binding: Binding, factor: int):
@@ -220,8 +248,9 @@ def coarse_level(source: Volume, points: SkeletonPoints, binding: Binding, facto
     radii = np.asarray(points.radii)[keep]
     pts = SkeletonPoints(ijk, centers, radii, np.asarray(points.dt)[keep], np.asarray(points.scores)[keep],
                          points.metric, coarse.spacing, coarse.origin, points.thinness)
+    rigid = None if binding.rigid is None else np.ascontiguousarray(binding.rigid[::f, ::f, ::f])
     b = Binding(np.asarray(binding.bone)[keep], binding.weights.tocsr()[keep], binding.mode,
-                np.asarray(binding.unreachable)[keep], list(binding.bone_names))
+                np.asarray(binding.unreachable)[keep], list(binding.bone_names), rigid)
     return coarse, pts, b
 
 
@@ -249,12 +278,25 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
                      values: bool = True, like: Optional[Frame] = None) -> Frame:
     """The literal thesis algorithm (every moved sphere scattered over its bounding box with a proximity buffer,
     in point order): the reference that tests and benchmarks compare ``deform`` with. ``like`` fixes the output
-    grid to another frame's."""
+    grid to another frame's. A binding with rigid tissue scatters the soft source and draws the rigid layer
+    over it, as ``Deformer`` does."""
     ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
     box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
-    d = _volrig.deform_reference(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb, off, wb,
-                                 w, _matrices(bone_matrices), mode, proximity, sampling,
-                                 _radius_scale(radius_scale, len(points)), bool(values), box)
+    scale = _radius_scale(radius_scale, len(points))
+    layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
+
+    def scatter(src, matrices, sampling_, values_, box_):
+        return _volrig.deform_reference(_source_array(src), source.spacing, source.origin, ijk, radii, bone, nb, off,
+                                        wb, w, _matrices(matrices), mode, proximity, sampling_, scale, values_, box_)
+    if layer is not None:  # the rigid layer from the rest pose, as the Deformer builds it
+        rest = scatter(source, rest_pose(nb), "nearest", False, None)
+        layer.build(np.asarray(rest["bone"]), rest["offset"])
+        source_ = source.like(layer.soft)
+    else:
+        source_ = source
+    d = scatter(source_, bone_matrices, sampling, bool(values), box)
+    if layer is not None:
+        d = layer.paint(d, _matrices(bone_matrices), sampling, fixed=box is not None)
     return _frame(d, source)
 
 

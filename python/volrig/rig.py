@@ -280,6 +280,8 @@ class Binding:
     unreachable: (N,) bool: points that no bone reaches inside the object (bound to the nearest bone in a straight
                  line instead; e.g. fragments separate from the rigged part).
     bone_names:  the rig's bone names, for reference.
+    rigid:       None, or the tissue that must not bend (bool, on the mask's grid, z, y, x) the binding was made
+                 with (``bind(..., rigid=)``): deforming draws it as a rigid layer (``volrig.rigid_layer``).
     """
 
     bone: np.ndarray
@@ -287,6 +289,7 @@ class Binding:
     mode: str
     unreachable: np.ndarray
     bone_names: List[str] = field(default_factory=list)
+    rigid: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.bone)
@@ -320,7 +323,7 @@ class Binding:
         owner[idx] = b
         unreachable = self.unreachable.copy()
         unreachable[idx] = False
-        return Binding(owner, w, self.mode, unreachable, list(self.bone_names))
+        return Binding(owner, w, self.mode, unreachable, list(self.bone_names), self.rigid)
 
     def groups(self):
         """The weights bone by bone, as vertex groups hold them: a list over bones of (point indices int64,
@@ -338,7 +341,8 @@ class Binding:
         groups:     mapping bone name -> (point indices, weights), e.g. read from vertex groups; names that are
                     not bones are ignored, bones without a group get no weight.
         bone_names: the rig's bones, in order; count: the number of points.
-        fallback:   the binding to keep for points left without any weight (else they are an error).
+        fallback:   the binding to keep for points left without any weight (else they are an error); its rigid
+                    tissue is kept too.
         Rows are normalised to sum to 1; the owner is the heaviest bone; mode is "rigid" when every point has one
         bone, else "smooth".
         """
@@ -388,7 +392,7 @@ class Binding:
         order = np.lexsort((-data, row_of))
         owner = indices[order[indptr[:-1]]].astype(np.int32) if count else np.zeros(0, np.int32)
         mode = "rigid" if (per_row <= 1).all() else "smooth"
-        return cls(owner, w, mode, unreachable, names)
+        return cls(owner, w, mode, unreachable, names, None if fallback is None else fallback.rigid)
 
 
 def _canonical(weights):
@@ -432,7 +436,17 @@ def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: 
             raise VolrigError(f"rigid tissue of shape {rigid_arr.shape} does not lie on the mask's grid {arr.shape}")
     bone, wb, w, unreachable = _volrig.bind(arr, points.spacing, points.origin, ijk, radii, rig.joints, rig.bones,
                                             rig.names, rig.parents, mode, progress, rigid_arr)
-    return Binding(bone, weights_matrix(wb, w, len(rig.bones)), mode, unreachable, list(rig.names))
+    return Binding(bone, weights_matrix(wb, w, len(rig.bones)), mode, unreachable, list(rig.names),
+                   _rigid_kept(rigid, rigid_arr))
+
+
+def _rigid_kept(rigid, arr: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    """The rigid tissue a binding keeps: the caller's bool array itself (not copied: a Visible Human at 1 mm is
+    480 MB), None when there is none."""
+    if arr is None or not arr.any():
+        return None
+    given = rigid.array if isinstance(rigid, Volume) else np.asarray(rigid)
+    return given if given.dtype == np.bool_ and given.flags.c_contiguous else arr != 0
 
 
 def rigid_tissue(source: Volume, labels=None, value_range=None) -> Volume:

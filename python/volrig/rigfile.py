@@ -69,9 +69,22 @@ def save_rig(path, points: SkeletonPoints, tree: Optional[SkeletonTree] = None, 
         a.update(binding_mode=np.array(binding.mode), binding_bone=binding.bone,
                  binding_unreachable=binding.unreachable, weights_data=w.data.astype(np.float32),
                  weights_indices=w.indices.astype(np.int64), weights_indptr=w.indptr.astype(np.int64))
+        if binding.rigid is not None:  # one bit a voxel
+            a.update(binding_rigid_shape=np.array(binding.rigid.shape, np.int64),
+                     binding_rigid_bits=np.packbits(np.asarray(binding.rigid, bool).reshape(-1)))
     with atomic_output(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **a)
+
+
+def _rigid(get, bad) -> np.ndarray:
+    """The binding's rigid tissue (bool, z, y, x) from its shape and packed bits."""
+    shape = get("binding_rigid_shape", "i", 1, (3,))
+    if (shape <= 0).any() or int(np.prod(shape.astype(np.float64))) > 2 ** 34:
+        raise bad(f"rigid tissue of impossible shape {tuple(int(v) for v in shape)}")
+    count = int(np.prod(shape))
+    bits = get("binding_rigid_bits", "u", 1, ((count + 7) // 8,))
+    return np.unpackbits(bits, count=count).astype(bool).reshape(tuple(int(v) for v in shape))
 
 
 def load_rig(path) -> RiggedSkeleton:
@@ -170,5 +183,6 @@ def load_rig(path) -> RiggedSkeleton:
         mode = str(get("binding_mode", "U", 0))
         if mode not in ("rigid", "smooth"):
             raise bad(f"unknown binding mode {mode!r}")
-        binding = Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names))
+        binding = Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names),
+                          _rigid(get, bad) if "binding_rigid_shape" in a else None)
     return RiggedSkeleton(points, tree, rig, binding, source)

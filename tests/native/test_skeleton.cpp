@@ -434,3 +434,97 @@ TEST_CASE("largest 26-connected component", "[components]") {
     const auto e = largest_component(g, empty.data());
     CHECK(std::count(e.begin(), e.end(), 1) == 0);
 }
+
+namespace {
+
+// Steps from `from` (seeds with 0) through voxels to fill (code 2), 26-connected, by relaxation until nothing
+// changes: the brute-force reference of nearest_seed_fill.
+std::vector<int> fill_steps(const Grid& g, const std::vector<std::uint8_t>& code, const std::vector<std::int64_t>& from) {
+    const int inf = 1 << 20;
+    std::vector<int> d(code.size(), inf);
+    for (std::int64_t s : from) d[static_cast<std::size_t>(s)] = 0;
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (std::int64_t z = 0; z < g.dims[2]; ++z)
+            for (std::int64_t y = 0; y < g.dims[1]; ++y)
+                for (std::int64_t x = 0; x < g.dims[0]; ++x) {
+                    const auto i = static_cast<std::size_t>(g.index(x, y, z));
+                    if (code[i] != 2) continue;
+                    for (int dz = -1; dz <= 1; ++dz)
+                        for (int dy = -1; dy <= 1; ++dy)
+                            for (int dx = -1; dx <= 1; ++dx) {
+                                const std::int64_t X = x + dx, Y = y + dy, Z = z + dz;
+                                if (X < 0 || Y < 0 || Z < 0 || X >= g.dims[0] || Y >= g.dims[1] || Z >= g.dims[2]) continue;
+                                const int via = d[static_cast<std::size_t>(g.index(X, Y, Z))] + 1;
+                                if (via < d[i]) d[i] = via, changed = true;
+                            }
+                }
+    }
+    return d;
+}
+
+}  // namespace
+
+TEST_CASE("nearest_seed_fill gives each reachable voxel a seed fewest steps away", "[components]") {
+    std::mt19937 rng(7);
+    for (int round = 0; round < 20; ++round) {
+        Grid g;
+        g.dims = {9, 7, 6};
+        std::vector<std::uint8_t> code(static_cast<std::size_t>(g.voxel_count()));
+        std::vector<std::int64_t> seeds;
+        for (std::size_t i = 0; i < code.size(); ++i) {
+            const auto r = rng() % 100;
+            code[i] = r < 4 ? 1 : (r < 70 ? 2 : 0);
+            if (code[i] == 1) seeds.push_back(static_cast<std::int64_t>(i));
+        }
+        const auto pairs = nearest_seed_fill(g, code.data());
+        const auto steps = fill_steps(g, code, seeds);
+        std::vector<int> filled(code.size(), 0);
+        for (std::size_t k = 0; k < pairs.size(); k += 2) {
+            const auto v = static_cast<std::size_t>(pairs[k]);
+            const std::int64_t s = pairs[k + 1];
+            REQUIRE(code[v] == 2);
+            REQUIRE(code[static_cast<std::size_t>(s)] == 1);
+            REQUIRE(++filled[v] == 1);  // once each
+            REQUIRE(fill_steps(g, code, {s})[v] == steps[v]);  // its seed is one of the nearest
+        }
+        for (std::size_t i = 0; i < code.size(); ++i)  // every reachable voxel to fill, and no other
+            REQUIRE((filled[i] == 1) == (code[i] == 2 && steps[i] < (1 << 20)));
+    }
+}
+
+TEST_CASE("point_components agrees with label_components", "[components]") {
+    std::mt19937 rng(11);
+    for (int round = 0; round < 30; ++round) {
+        Grid g;
+        g.dims = {static_cast<std::int64_t>(5 + rng() % 12), static_cast<std::int64_t>(3 + rng() % 9),
+                  static_cast<std::int64_t>(2 + rng() % 8)};
+        std::vector<std::uint8_t> mask(static_cast<std::size_t>(g.voxel_count()));
+        const auto fill = 20 + rng() % 50;
+        for (auto& m : mask) m = rng() % 100 < fill;
+        std::vector<std::int32_t> ijk;  // every voxel, plus points off the grid
+        for (std::int64_t z = 0; z < g.dims[2]; ++z)
+            for (std::int64_t y = 0; y < g.dims[1]; ++y)
+                for (std::int64_t x = 0; x < g.dims[0]; ++x)
+                    ijk.insert(ijk.end(), {static_cast<std::int32_t>(z), static_cast<std::int32_t>(y),
+                                           static_cast<std::int32_t>(x)});
+        ijk.insert(ijk.end(), {-1, 0, 0, 0, static_cast<std::int32_t>(g.dims[1]), 0});
+        const auto got = point_components(g, mask.data(), ijk.data(), ijk.size() / 3);
+        const Components ref = label_components(g, mask.data());
+        const auto nv = static_cast<std::size_t>(g.voxel_count());
+        REQUIRE(got[nv] == 0);
+        REQUIRE(got[nv + 1] == 0);
+        std::vector<std::int32_t> to(ref.sizes.size() + 1, -1);  // the same partition, whatever the numbering
+        std::vector<std::int32_t> back(nv + 2, -1);
+        for (std::size_t i = 0; i < nv; ++i) {
+            REQUIRE((got[i] == 0) == (ref.labels[i] == 0));
+            if (!got[i]) continue;
+            auto& a = to[static_cast<std::size_t>(ref.labels[i])];
+            auto& b = back[static_cast<std::size_t>(got[i])];
+            if (a < 0) a = got[i];
+            if (b < 0) b = ref.labels[i];
+            REQUIRE(a == got[i]);
+            REQUIRE(b == ref.labels[i]);
+        }
+    }
+}

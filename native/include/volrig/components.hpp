@@ -21,4 +21,18 @@ Components label_components(const Grid& grid, const std::uint8_t* mask, const Pr
 /// Mask (0/1 bytes) of the largest 26-connected component; all zeros for an empty mask.
 std::vector<std::uint8_t> largest_component(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {});
 
+/// The 26-connected component of `mask` each of `n` points lies on (`ijk`: n rows [z, y, x] of voxel indices):
+/// 1..count numbered by each component's first run in scan order, 0 for points off the mask or the grid. Works
+/// on the mask's runs along x (union-find over runs of neighbouring rows), so it costs one read of the mask and
+/// memory per run, not per voxel, unlike label_components.
+std::vector<std::int32_t> point_components(const Grid& grid, const std::uint8_t* mask, const std::int32_t* ijk,
+                                           std::size_t n);
+
+/// Nearest-seed fill: `code` holds per voxel 0 (neither), 1 (a seed) or 2 (to fill). Every voxel to fill that a
+/// 26-connected path of voxels to fill joins to a seed takes the seed reached in fewest steps (breadth first from
+/// all seeds at once; ties to the first voxel in scan order, then the first neighbour in z, y, x order). Returns
+/// the pairs (voxel filled, its seed) as linear indices, 2 per filled voxel, in the order filled; voxels no path
+/// joins to a seed are left out. Memory: the pairs (16 bytes per filled voxel) and one bit per voxel.
+std::vector<std::int64_t> nearest_seed_fill(const Grid& grid, const std::uint8_t* code);
+
 }  // namespace volrig

@@ -81,6 +81,9 @@ struct DeformStats {
     /// (candidate field, 4³ output sub-block) pairs looked up voxel by voxel whose powers came straight from the one
     /// sphere that is the field's nearest over the whole sub-block's preimage (no per-voxel table lookups).
     std::int64_t exact_sub_blocks = 0;
+    /// Piece voxels the rigid layer drew (Deformer::set_rigid_layer), over or beside the spheres' (an output voxel
+    /// two pieces land on counts twice).
+    std::int64_t rigid_layer = 0;
 };
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel
@@ -97,6 +100,14 @@ struct DeformedVolume {
 
 /// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
 using BoneMatrices = const double*;
+
+/// One bone's piece of rigid tissue (issue 18's rigid layer): `voxels` (1 = the piece's, C order [z, y, x]) on the
+/// box {offset x, y, z, dims x, y, z} of the source lattice.
+struct RigidPiece {
+    std::int32_t bone = 0;
+    std::array<std::int64_t, 6> box{0, 0, 0, 0, 0, 0};
+    const std::uint8_t* voxels = nullptr;
+};
 
 /// Per-rig precomputation (per-bone rest-space power diagrams and k-d trees) and per-frame reconstruction.
 /// Keeps a copy of the spheres and a view of the source samples (which must outlive the Deformer).
@@ -119,6 +130,15 @@ public:
     /// How many fields the last build took over from the build before (the rest were built anew).
     std::size_t reused_fields() const;
 
+    /// The rigid layer (issue 18): from the next frame on, each piece moved by its bone alone is drawn over the
+    /// spheres' reconstruction (as paint_rigid_pieces draws it), sampled from `source` (the scan itself, while the
+    /// spheres may sample a copy whose rigid voxels hold soft tissue); the output box grows to hold the pieces.
+    /// The pieces' voxels and `source` must outlive the Deformer (or the next call). No pieces: no layer.
+    void set_rigid_layer(const VolumeView& source, std::vector<RigidPiece> pieces);
+    /// Replaces the samples the spheres take (same grid; any element type), e.g. by the rigid layer's soft copy;
+    /// must outlive the Deformer (or the next call).
+    void set_source(const VolumeView& source);
+
     std::size_t bone_count() const;
     std::size_t sphere_count() const;
     /// Bytes held by the per-rig data currently built (per-cube power ranges, labels and corner powers, k-d trees,
@@ -138,6 +158,19 @@ private:
 /// Crops a frame, in place, to the bounding box of its covered voxels (one voxel at its offset when none is covered).
 /// Deformer::frame returns frames already cropped unless a box was imposed.
 void crop_to_covered(DeformedVolume& frame);
+
+/// The box of the source lattice ({offset, dims}) that holds every piece moved by its bone's matrix (empty dims
+/// when there are no pieces).
+std::array<std::int64_t, 6> rigid_pieces_box(const Grid& grid, const std::vector<RigidPiece>& pieces,
+                                             BoneMatrices matrices, std::size_t bone_count);
+
+/// Draws the pieces, each moved rigidly by its bone, over a frame's arrays on `box` (C order, dims of the box):
+/// every output voxel whose rest position (through the bone's posed-to-rest map, rounded to the nearest lattice
+/// point) is one of the piece's voxels takes bone + 1 and the source sampled at that rest position; pieces later
+/// in the list win where two land on one voxel. `values` may be null (binary frames). Returns the voxels drawn.
+std::int64_t paint_rigid_pieces(const VolumeView& source, const std::vector<RigidPiece>& pieces,
+                                BoneMatrices matrices, std::size_t bone_count, Sampling sampling,
+                                const std::array<std::int64_t, 6>& box, float* values, std::int16_t* bone);
 
 /// The literal thesis algorithm, for tests and benchmarks: every sphere is transformed and scattered over the
 /// bounding box of its ball into an output buffer with a proximity buffer, in sphere index order. Same output

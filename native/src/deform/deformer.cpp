@@ -9,6 +9,7 @@
 #include "deform/frame_box.hpp"
 #include "deform/gather.hpp"
 #include "deform/motion.hpp"
+#include "deform/rigid_layer.hpp"
 #include "deform/spheres.hpp"
 #include "volrig/deform.hpp"
 #include "volrig/reconstruct.hpp"
@@ -60,6 +61,8 @@ struct Deformer::Impl : SphereStore {
     SmoothGroups groups;                    // fields from bone_count on are its groups, in order
     std::int64_t blended_spheres = 0;
     std::vector<double> radii;              // scaled radii
+    VolumeView layer_source;                // the rigid layer: what its pieces sample, and the pieces
+    std::vector<RigidPiece> pieces;
     double bound_step = 1;                  // the quantum of the fields' power bounds
 
     /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
@@ -71,6 +74,7 @@ struct Deformer::Impl : SphereStore {
     void build(bool smooth, const DeformOptions& o, const Progress& progress);
     std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
+    Box frame_reach(const std::vector<Motion>& motions) const;
     DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress, const Box* fixed_box);
 };
 
@@ -143,6 +147,19 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     built_scale = o.radius_scale;
 }
 
+/// The output box: the moved spheres', grown to hold the rigid layer's pieces.
+Box Deformer::Impl::frame_reach(const std::vector<Motion>& motions) const {
+    Box bx = posed_box(fields, motions, grid);
+    if (pieces.empty()) return bx;
+    const Box p = pieces_reach(pieces, motions);
+    Box u;
+    for (int a = 0; a < 3; ++a) {
+        u[a] = std::min(bx[a], p[a]);
+        u[3 + a] = std::max(bx[a] + bx[3 + a], p[a] + p[3 + a]) - u[a];
+    }
+    return u;
+}
+
 /// After the bones' motions, each group's blend: every field's motion.
 void Deformer::Impl::add_group_motions(std::vector<Motion>& m, DeformMode mode) const {
     for (std::size_t k = 0; k < groups.weights.size(); ++k)
@@ -155,7 +172,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     std::vector<Motion> motions = bone_motions(matrices, bone_count, grid);
     build(o.mode != DeformMode::Rigid && has_weights, o, progress);
     add_group_motions(motions, o.mode);
-    const Box bx = fixed_box ? *fixed_box : posed_box(fields, motions, grid);
+    const Box bx = fixed_box ? *fixed_box : frame_reach(motions);
     check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
     const auto total = static_cast<std::size_t>(bx[3] * bx[4] * bx[5]);
@@ -166,11 +183,16 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const auto& sp = grid.spacing;
     const FieldSet set{fields, motions, sp.data(), {sp[0] * sp[0], sp[1] * sp[1], sp[2] * sp[2]}, threshold(),
                        bound_step, o.proximity == Proximity::Nearest};
-    const GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
+    GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
+    Drawn layer;
+    if (!pieces.empty()) {
+        layer = paint_layer_pooled(layer_source, pieces, motions, o.sampling, bx, out);
+        for (int a = 0; a < 3; ++a) r.lo[a] = std::min(r.lo[a], layer.lo[a]), r.hi[a] = std::max(r.hi[a], layer.hi[a]);
+    }
     if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
     report(progress, 1.0);
     out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search,
-                 r.exact_sub_blocks};
+                 r.exact_sub_blocks, layer.count};
     return out;
 }
 
@@ -199,6 +221,21 @@ void Deformer::rebind(const BoundSpheres& spheres) {
 }
 
 std::size_t Deformer::reused_fields() const { return impl_->reused; }
+
+void Deformer::set_source(const VolumeView& source) {
+    if (source.grid.dims != impl_->grid.dims) throw Error("set_source: the samples do not have the Deformer's grid");
+    check_source(source, "deform");
+    impl_->source = source;
+}
+
+void Deformer::set_rigid_layer(const VolumeView& source, std::vector<RigidPiece> pieces) {
+    Impl& m = *impl_;
+    if (source.grid.dims != m.grid.dims) throw Error("rigid layer: its source does not have the Deformer's grid");
+    check_source(source, "rigid layer");
+    check_pieces(m.grid, pieces, m.bone_count);
+    m.layer_source = source;
+    m.pieces = std::move(pieces);
+}
 
 std::size_t Deformer::bone_count() const { return impl_->bone_count; }
 std::size_t Deformer::sphere_count() const { return impl_->n; }
