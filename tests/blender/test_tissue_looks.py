@@ -172,6 +172,21 @@ def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp
     on_bone = rigid.array[tuple(np.asarray(saved.points.ijk).T)]
     rows = np.diff(got.indptr)
     assert on_bone.any() and (rows[on_bone] == 1).all() and (rows[~on_bone] > 1).any()
+    # the rig file keeps the rigid tissue, and the bake's Deformer draws it as the rigid layer (issue 18)
+    assert np.array_equal(saved.binding.rigid, rigid.array)
+    from volrig_addon import bake
+    baker = bake.Baker(vol)
+    assert np.array_equal(baker.binding.rigid, rigid.array)
+    rig_obj = next(o for o in bpy.data.objects if o.type == "ARMATURE")
+    pb = rig_obj.pose.bones["shin.L"]
+    pb.rotation_mode = "XYZ"
+    pb.rotation_euler = (1.2, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    frame = baker.folder.deformer.frame(baker.bone_matrices(bpy.context.evaluated_depsgraph_get()), mode="linear",
+                                        sampling="nearest")
+    # bone only where the layer drew it (the spheres sample soft tissue there), about as much as at rest
+    bone_values = np.count_nonzero(np.asarray(frame.values.array) == 220)
+    assert 0.9 * rigid.array.sum() <= bone_values <= frame.stats["rigid_layer"]
 
 
 def test_tissues_with_parts_on_and_off(rigged, tmp_path):

@@ -107,8 +107,10 @@ def test_rig_writes_a_rig_file(tmp_path):
     assert np.array_equal(loaded.binding.weights.tocsr().indptr, expected.weights.tocsr().indptr)
     on_bone = (ph.volume.array == 220)[tuple(np.asarray(loaded.points.ijk).T)]
     assert on_bone.any() and (np.diff(loaded.binding.weights.tocsr().indptr)[on_bone] == 1).all()
+    assert np.array_equal(loaded.binding.rigid, ph.volume.array == 220)  # bake-mocap's Deformer draws its layer
     r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-range", 200, 255, "-o", out)
     assert r.returncode == 0, r.stderr
+    assert np.array_equal(volrig.load_rig(out).binding.rigid, ph.volume.array >= 200)
     r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-labels", 7, "-o", out)
     assert r.returncode == 2 and "no voxel has the given labels" in r.stderr and "Traceback" not in r.stderr
     r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "sideways", "-o", out)
