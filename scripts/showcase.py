@@ -100,7 +100,9 @@ def rig_and_bake(args, work, labels, table, tissues):
     points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(args.thinness, sk.metric,
                                                                                   body.spacing))
     up = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "-z": (0, 0, -1)}[args.up]
-    r = pipeline.rig_skeleton(points, body, kind=args.kind, up=up)
+    bone = [t for t in tissues if t.name == "bone"] if args.rigid_bone else []
+    rigid = volrig.rigid_tissue(labels, labels=bone[0].codes) if bone else None  # the rigid layer (issue 18)
+    r = pipeline.rig_skeleton(points, body, kind=args.kind, up=up, rigid=rigid)
     log(f"rigged {os.path.basename(args.labels)}: {int(body.array.sum()):,} body voxels, {len(points):,} "
         f"spheres, {r.rig.kind} ({len(r.rig)} bones) in {time.perf_counter() - t:.1f} s; tissues: "
         + ", ".join(x.name for x in tissues))
@@ -210,6 +212,8 @@ def main(argv):
     ap.add_argument("--count", type=int, default=4, help="frames to bake and render")
     ap.add_argument("--thinness", type=float, default=0.5, help="thinness in voxels")
     ap.add_argument("--kind", choices=volrig.rig.KINDS, default="humanoid")
+    ap.add_argument("--no-rigid-bone", dest="rigid_bone", action="store_false",
+                    help="let the bones bend with the flesh (default: the tissue table's bone is rigid tissue)")
     ap.add_argument("--up", choices=["x", "y", "z", "-z"], default="z", help="the body's up axis in the scan")
     ap.add_argument("--hide", default="fat", help="tissue classes to leave out, comma-separated (default: fat)")
     ap.add_argument("--opacity", default="skin=0.015,muscle=0.012,cartilage=0.01",

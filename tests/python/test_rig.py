@@ -367,7 +367,9 @@ def test_rig_file_round_trip(phantom_rig, tmp_path):
 def test_rig_file_errors(phantom_rig, tmp_path):
     ph, mask, pts, tree, rig, binding = phantom_rig
     good = tmp_path / "good.vrig"
-    volrig.save_rig(good, pts, tree, rig, binding)
+    rigid = np.asarray(mask.array).copy()
+    rigid[:rigid.shape[0] // 2] = False  # rigid tissue in the file too (the damage below reaches its bits)
+    volrig.save_rig(good, pts, tree, rig, bind(pts, rig, mask, rigid=rigid))
     with pytest.raises(FileNotFoundError):
         volrig.load_rig(tmp_path / "absent.vrig")
     # a newer version says so
@@ -383,7 +385,10 @@ def test_rig_file_errors(phantom_rig, tmp_path):
                                 ("rig_bones", a["rig_bones"] * 100, "inconsistent rig"),
                                 ("binding_bone", a["binding_bone"] + 99, "outside"),
                                 ("centers", np.full_like(a["centers"], np.nan), "non-finite"),
-                                ("ijk", a["ijk"].astype(np.float32), "type"), ("format", np.array("other"), "format")):
+                                ("ijk", a["ijk"].astype(np.float32), "type"), ("format", np.array("other"), "format"),
+                                ("binding_rigid_bits", a["binding_rigid_bits"][:-1], "shape"),
+                                ("binding_rigid_shape", np.array([-1, 2, 3]), "impossible shape"),
+                                ("binding_rigid_shape", a["binding_rigid_shape"].astype(np.float64), "type")):
         p = tmp_path / f"bad_{key}.vrig"
         with open(p, "wb") as f:
             np.savez(f, **{**a, key: value})

@@ -227,3 +227,10 @@ def test_the_visible_human_knee_and_elbow_keep_their_bones_rigid():
     assert abs(body - rest_body) < 0.03 * rest_body
     covered = np.asarray(f.bone.array) > 0
     assert int((ndimage.binary_fill_holes(covered) & ~covered).sum()) <= rest_holes
+
+
+def test_rigid_tissue_off_the_source_grid_is_refused(limb):
+    source, mask, pts, rig, rigid, binding = limb
+    bigger = volrig.Volume(np.zeros((100, 28, 28), np.uint8), source.spacing, source.origin)
+    with pytest.raises(volrig.VolrigError, match="does not lie on the source's grid"):
+        volrig.Deformer(bigger, pts, binding)
