@@ -47,41 +47,50 @@ class Piece:
         return (self.bone, self.box, self.voxels)
 
 
-def on_source_grid(array: np.ndarray, offset, shape) -> np.ndarray:
-    """A frame's array (at source-lattice ``offset``) placed on the source grid of ``shape`` (z, y, x); what lies
-    outside is dropped."""
-    out = np.zeros(shape, dtype=array.dtype)
-    o = np.asarray(offset, dtype=np.int64)
-    lo, hi = np.maximum(o, 0), np.minimum(o + np.array(array.shape[::-1]), np.array(shape[::-1]))
+def _covered(rest_bone: np.ndarray, rest_offset, shape) -> np.ndarray:
+    """The rest frame's covered voxels (bool) on the source grid of ``shape`` (z, y, x)."""
+    out = np.zeros(shape, dtype=bool)
+    o = np.asarray(rest_offset, dtype=np.int64)
+    lo, hi = np.maximum(o, 0), np.minimum(o + np.array(rest_bone.shape[::-1]), np.array(shape[::-1]))
     if (hi > lo).all():
-        out[lo[2]:hi[2], lo[1]:hi[1], lo[0]:hi[0]] = array[lo[2] - o[2]:hi[2] - o[2], lo[1] - o[1]:hi[1] - o[1],
-                                                           lo[0] - o[0]:hi[0] - o[0]]
+        out[lo[2]:hi[2], lo[1]:hi[1], lo[0]:hi[0]] = rest_bone[lo[2] - o[2]:hi[2] - o[2], lo[1] - o[1]:hi[1] - o[1],
+                                                           lo[0] - o[0]:hi[0] - o[0]] > 0
     return out
 
 
-def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray) -> List[Piece]:
+def _labels_at(index: np.ndarray, shape, rest_bone: np.ndarray, rest_offset) -> np.ndarray:
+    """The rest frame's bone labels (index + 1; 0 where it covers nothing) at the source voxels ``index`` (flat)."""
+    zyx = np.stack(np.unravel_index(index, shape), axis=1) - np.asarray(rest_offset, dtype=np.int64)[::-1]
+    inside = ((zyx >= 0) & (zyx < np.array(rest_bone.shape))).all(axis=1)
+    out = np.zeros(len(index), dtype=np.int16)
+    out[inside] = rest_bone[zyx[inside, 0], zyx[inside, 1], zyx[inside, 2]]
+    return out
+
+
+def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray, rest_offset=(0, 0, 0)) -> List[Piece]:
     """The rigid voxels grouped by the bone they come from in the rest frame (``rest_bone``: its bone labels,
-    index + 1, on the source grid); rigid voxels the rest frame leaves uncovered take the label of the nearest
-    labelled rigid voxel."""
-    label = np.where(rigid, rest_bone, 0).astype(np.int16)
-    missing = rigid & (label == 0)
-    if missing.any():
-        code = (label > 0).astype(np.uint8)
-        code[missing] = 2
-        pairs = _volrig.nearest_seed_fill(code)
-        flat = label.reshape(-1)
-        flat[pairs[:, 0]] = flat[pairs[:, 1]]
-    z, y, x = np.nonzero(label)
-    which = label[z, y, x]
-    order = np.argsort(which, kind="stable")
-    which, starts = np.unique(which[order], return_index=True)
+    index + 1, at source-lattice ``rest_offset``); rigid voxels the rest frame leaves uncovered take the label of the
+    nearest labelled rigid voxel. Memory: a few bytes per rigid voxel, and one byte a voxel while some are uncovered."""
+    index = np.flatnonzero(rigid)
+    label = _labels_at(index, rigid.shape, rest_bone, rest_offset)
+    missing = label == 0
+    if missing.any() and not missing.all():
+        code = np.zeros(rigid.shape, dtype=np.uint8).reshape(-1)
+        code[index] = np.where(missing, 2, 1)
+        pairs = _volrig.nearest_seed_fill(code.reshape(rigid.shape))
+        label[np.searchsorted(index, pairs[:, 0])] = label[np.searchsorted(index, pairs[:, 1])]
+    keep = label > 0
+    index, label = index[keep], label[keep]
+    order = np.argsort(label, kind="stable")
+    bones, starts = np.unique(label[order], return_index=True)
     pieces = []
-    for b, lo_idx, hi_idx in zip(which, starts, list(starts[1:]) + [len(order)]):
-        k = order[lo_idx:hi_idx]
-        lo = (int(x[k].min()), int(y[k].min()), int(z[k].min()))
-        hi = (int(x[k].max()) + 1, int(y[k].max()) + 1, int(z[k].max()) + 1)
-        crop = label[lo[2]:hi[2], lo[1]:hi[1], lo[0]:hi[0]] == b
-        pieces.append(Piece(int(b) - 1, lo + tuple(h - l for h, l in zip(hi, lo)), crop.view(np.uint8)))
+    for b, first, last in zip(bones, starts, list(starts[1:]) + [len(order)]):
+        zyx = np.stack(np.unravel_index(index[order[first:last]], rigid.shape), axis=1)
+        lo, hi = zyx.min(axis=0), zyx.max(axis=0) + 1
+        voxels = np.zeros(tuple(hi - lo), dtype=np.uint8)
+        voxels[tuple((zyx - lo).T)] = 1
+        pieces.append(Piece(int(b) - 1, tuple(int(v) for v in lo[::-1]) + tuple(int(v) for v in (hi - lo)[::-1]),
+                            voxels))
     return pieces
 
 
@@ -105,9 +114,11 @@ class RigidLayer:
 
     def build(self, rest_bone: np.ndarray, rest_offset) -> None:
         """From the rest frame's bone labels (at source-lattice ``rest_offset``): the body is what it covers."""
-        rest = on_source_grid(rest_bone, rest_offset, self.rigid.shape)
-        self.soft = soft_source(self.source, (rest > 0) & ~self.rigid, self.rigid)
-        self.pieces = pieces_from_rest(self.rigid, rest)
+        body = _covered(rest_bone, rest_offset, self.rigid.shape)
+        body &= ~self.rigid
+        self.soft = soft_source(self.source, body, self.rigid)
+        del body
+        self.pieces = pieces_from_rest(self.rigid, rest_bone, rest_offset)
 
     def paint(self, frame: dict, matrices, sampling: str, fixed: bool) -> dict:
         """A frame (the core's dict: values, bone, offset) with the pieces drawn over it: the brute-force

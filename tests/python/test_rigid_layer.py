@@ -189,8 +189,10 @@ def test_the_rig_file_keeps_the_rigid_tissue(limb, tmp_path):
 
 def test_coarse_levels_and_painted_weights_keep_the_rigid_tissue(limb):
     source, mask, pts, rig, rigid, binding = limb
-    _, _, coarse = coarse_level(source, pts, binding, 2)
+    src2, pts2, coarse = coarse_level(source, pts, binding, 2)
     assert np.array_equal(coarse.rigid, rigid.array[::2, ::2, ::2])
+    preview = volrig.Deformer(src2, pts2, coarse).frame(bent(rig, 60), mode="linear", sampling="nearest")
+    assert preview.stats["rigid_layer"] > 0.9 * coarse.rigid.sum()  # the live preview draws its layer too
     groups = {n: g for n, g in zip(binding.bone_names, binding.groups())}
     assert volrig.Binding.from_groups(groups, binding.bone_names, len(pts), fallback=binding).rigid is binding.rigid
 
