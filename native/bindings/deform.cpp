@@ -55,21 +55,25 @@ py::dict frame_dict(DeformedVolume&& f) {
     return d;
 }
 
-/// The rigid pieces of a Python list of (bone, box {offset, dims}, uint8 voxels [z, y, x] of the box's dims); the
+/// The rigid pieces of a Python list of (bone, box {offset, dims}, packed bits of the box's voxels: RigidPiece); the
 /// arrays stay alive in `keep`.
 std::vector<RigidPiece> pieces_of(const py::list& pieces, std::vector<MaskArray>& keep) {
     std::vector<RigidPiece> out;
     for (const py::handle& h : pieces) {
         const auto t = h.cast<py::tuple>();
-        if (t.size() != 3) throw Error("rigid layer: a piece is (bone, box, voxels)");
+        if (t.size() != 3) throw Error("rigid layer: a piece is (bone, box, bits)");
         RigidPiece p;
         p.bone = t[0].cast<std::int32_t>();
         p.box = t[1].cast<std::array<std::int64_t, 6>>();
         keep.push_back(t[2].cast<MaskArray>());
         const MaskArray& v = keep.back();
-        if (v.ndim() != 3 || v.shape(0) != p.box[5] || v.shape(1) != p.box[4] || v.shape(2) != p.box[3])
-            throw Error("rigid layer: a piece's voxels do not have its box's dims");
-        p.voxels = v.data();
+        if (p.box[3] < 1 || p.box[4] < 1 || p.box[5] < 1 || p.box[3] > (1 << 30) || p.box[4] > (1 << 30) ||
+            p.box[5] > (1 << 30))
+            throw Error("rigid layer: a piece's box has impossible dims");
+        const std::int64_t n = p.box[3] * p.box[4] * p.box[5];
+        if (v.ndim() != 1 || v.shape(0) != (n + 7) / 8)
+            throw Error("rigid layer: a piece's bits do not hold its box's voxels");
+        p.bits = v.data();
         out.push_back(p);
     }
     return out;

@@ -36,15 +36,21 @@ def soft_source(source: Volume, body: np.ndarray, rigid: np.ndarray) -> np.ndarr
 
 @dataclass
 class Piece:
-    """One bone's rigid tissue: ``voxels`` (uint8, 1 = the piece's; z, y, x) on the source-lattice box
-    ``box`` = (offset x, y, z, dims x, y, z)."""
+    """One bone's rigid tissue on the source-lattice box ``box`` = (offset x, y, z, dims x, y, z): ``bits``, one bit
+    a voxel of the box (C order z, y, x; ``np.packbits(..., bitorder="little")``), 1 = the piece's."""
 
     bone: int
     box: Tuple[int, int, int, int, int, int]
-    voxels: np.ndarray
+    bits: np.ndarray
+
+    @property
+    def voxels(self) -> np.ndarray:
+        """The piece as uint8 (z, y, x) over its box (unpacked)."""
+        n = int(np.prod(self.box[3:]))
+        return np.unpackbits(self.bits, count=n, bitorder="little").reshape(self.box[3:][::-1])
 
     def native(self):
-        return (self.bone, self.box, self.voxels)
+        return (self.bone, self.box, self.bits)
 
 
 def _covered(rest_bone: np.ndarray, rest_offset, shape) -> np.ndarray:
@@ -70,7 +76,8 @@ def _labels_at(index: np.ndarray, shape, rest_bone: np.ndarray, rest_offset) -> 
 def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray, rest_offset=(0, 0, 0)) -> List[Piece]:
     """The rigid voxels grouped by the bone they come from in the rest frame (``rest_bone``: its bone labels,
     index + 1, at source-lattice ``rest_offset``); rigid voxels the rest frame leaves uncovered take the label of the
-    nearest labelled rigid voxel. Memory: a few bytes per rigid voxel, and one byte a voxel while some are uncovered."""
+    nearest labelled rigid voxel. Memory: a few bytes per rigid voxel, one byte a voxel while some are uncovered, and kept, a bit a voxel of each
+    piece's box."""
     index = np.flatnonzero(rigid)
     label = _labels_at(index, rigid.shape, rest_bone, rest_offset)
     missing = label == 0
@@ -87,10 +94,10 @@ def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray, rest_offset=(0, 0
     for b, first, last in zip(bones, starts, list(starts[1:]) + [len(order)]):
         zyx = np.stack(np.unravel_index(index[order[first:last]], rigid.shape), axis=1)
         lo, hi = zyx.min(axis=0), zyx.max(axis=0) + 1
-        voxels = np.zeros(tuple(hi - lo), dtype=np.uint8)
-        voxels[tuple((zyx - lo).T)] = 1
+        voxels = np.zeros(tuple(hi - lo), dtype=bool)
+        voxels[tuple((zyx - lo).T)] = True
         pieces.append(Piece(int(b) - 1, tuple(int(v) for v in lo[::-1]) + tuple(int(v) for v in (hi - lo)[::-1]),
-                            voxels))
+                            np.packbits(voxels.reshape(-1), bitorder="little")))
     return pieces
 
 
@@ -110,7 +117,7 @@ class RigidLayer:
     @property
     def memory_bytes(self) -> int:
         """Bytes held once built: the soft source and the pieces (the rigid mask is the binding's)."""
-        return (0 if self.soft is None else self.soft.nbytes) + sum(p.voxels.nbytes for p in self.pieces or ())
+        return (0 if self.soft is None else self.soft.nbytes) + sum(p.bits.nbytes for p in self.pieces or ())
 
     def build(self, rest_bone: np.ndarray, rest_offset) -> None:
         """From the rest frame's bone labels (at source-lattice ``rest_offset``): the body is what it covers."""

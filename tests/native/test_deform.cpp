@@ -216,9 +216,17 @@ namespace {
 
 /// The limb's bright core (220) split into two pieces by the joint plane z = 10: bone 0 above, bone 1 below.
 struct CorePieces {
-    std::vector<std::uint8_t> upper, lower;
+    std::vector<std::uint8_t> upper, lower;          // one byte a voxel, for the brute force
+    std::vector<std::uint8_t> upper_bits, lower_bits;  // packed, for the pieces
     std::vector<RigidPiece> pieces;
 };
+
+std::vector<std::uint8_t> packed(const std::vector<std::uint8_t>& v) {
+    std::vector<std::uint8_t> out((v.size() + 7) / 8, 0);
+    for (std::size_t k = 0; k < v.size(); ++k)
+        if (v[k]) out[k >> 3] = static_cast<std::uint8_t>(out[k >> 3] | (1u << (k & 7)));
+    return out;
+}
 
 CorePieces core_pieces(const Limb& L) {
     CorePieces c;
@@ -232,7 +240,9 @@ CorePieces core_pieces(const Limb& L) {
                 if (L.samples[i] == 220) (z >= 10 ? c.upper : c.lower)[i] = 1;
             }
     const std::array<std::int64_t, 6> all{0, 0, 0, L.dims[0], L.dims[1], L.dims[2]};
-    c.pieces = {RigidPiece{0, all, c.upper.data()}, RigidPiece{1, all, c.lower.data()}};
+    c.upper_bits = packed(c.upper);
+    c.lower_bits = packed(c.lower);
+    c.pieces = {RigidPiece{0, all, c.upper_bits.data()}, RigidPiece{1, all, c.lower_bits.data()}};
     return c;
 }
 

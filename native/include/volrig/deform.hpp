@@ -101,12 +101,17 @@ struct DeformedVolume {
 /// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
 using BoneMatrices = const double*;
 
-/// One bone's piece of rigid tissue (issue 18's rigid layer): `voxels` (1 = the piece's, C order [z, y, x]) on the
-/// box {offset x, y, z, dims x, y, z} of the source lattice.
+/// One bone's piece of rigid tissue (issue 18's rigid layer): one bit a voxel of the box {offset x, y, z, dims x, y,
+/// z} of the source lattice, C order [z, y, x], bit k of the flat index in byte k / 8 at bit k % 8 (numpy's
+/// packbits with bitorder "little"); 1 = the piece's.
 struct RigidPiece {
     std::int32_t bone = 0;
     std::array<std::int64_t, 6> box{0, 0, 0, 0, 0, 0};
-    const std::uint8_t* voxels = nullptr;
+    const std::uint8_t* bits = nullptr;
+    bool at(std::int64_t i, std::int64_t j, std::int64_t k) const {
+        const std::int64_t n = (k * box[4] + j) * box[3] + i;
+        return (bits[n >> 3] >> (n & 7)) & 1;
+    }
 };
 
 /// Per-rig precomputation (per-bone rest-space power diagrams and k-d trees) and per-frame reconstruction.

@@ -25,7 +25,7 @@ void check_pieces(const Grid& g, const std::vector<RigidPiece>& pieces, std::siz
         for (int a = 0; a < 3; ++a)
             if (p.box[a] < 0 || p.box[3 + a] < 1 || p.box[a] + p.box[3 + a] > g.dims[a])
                 throw Error("rigid layer: a piece's box lies outside the source grid");
-        if (!p.voxels) throw Error("rigid layer: a piece without voxels");
+        if (!p.bits) throw Error("rigid layer: a piece without voxels");
     }
 }
 
@@ -86,7 +86,7 @@ Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampli
                 for (std::int64_t x = lo[0]; x < hi[0]; ++x, m.pull.step(r, 0)) {
                     const std::int64_t i = nearest_index(r[0]) - p.box[0], j = nearest_index(r[1]) - p.box[1],
                                        k = nearest_index(r[2]) - p.box[2];
-                    if (i < 0 || j < 0 || k < 0 || i >= px || j >= py || k >= pz || !p.voxels[(k * py + j) * px + i])
+                    if (i < 0 || j < 0 || k < 0 || i >= px || j >= py || k >= pz || !p.at(i, j, k))
                         continue;
                     bone[row + x] = label;
                     if (values) values[row + x] = sampler.sample(r, sampling);
