@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Issue 18's measure: do bones stay rigid when a labelled body bends? The Visible Human (bone codes 84 and 92
 as the rigid tissue) is rigged, a knee and an elbow are bent, and the dual-quaternion frame of a smooth binding
-(with and without ``rigid=``) is compared with the rigid frame of the same pose: per rig bone, the Dice overlap of
+(with and without ``rigid=``, with the default ``keep_volume`` and with the plain blend) is compared with the rigid frame of the same pose: per rig bone, the Dice overlap of
 the bone tissue that bone carries at rest (its piece of the label map's bone, sampled nearest) where it lands,
 and the body's voxel count against rest.
 
@@ -73,28 +73,29 @@ def main():
     t0 = time.perf_counter()
     rigid_binding = volrig.bind(pts, rig, mask)
     pieces = bone_pieces(labels, pts, rig, rigid_binding)
-    frames = {
-        "rigid binding, rigid": volrig.deform(pieces, pts, rigid_binding, pose, sampling="nearest"),
-        "smooth, dual quaternion": volrig.deform(pieces, pts, volrig.bind(pts, rig, mask, mode="smooth"), pose,
-                                                 mode="dual_quaternion", sampling="nearest"),
-        "smooth + rigid bone, dual quaternion": volrig.deform(
-            pieces, pts, volrig.bind(pts, rig, mask, mode="smooth", rigid=bone), pose, mode="dual_quaternion",
-            sampling="nearest"),
-    }
+    smooth = volrig.bind(pts, rig, mask, mode="smooth")
+    with_bone = volrig.bind(pts, rig, mask, mode="smooth", rigid=bone)
+    frames = {"rigid binding, rigid": volrig.deform(pieces, pts, rigid_binding, pose, sampling="nearest")}
+    for keep in (True, False):  # keep_volume: the smooth modes' volume kept at bends (the default), or the plain blend
+        tag = "" if keep else ", plain blend"
+        frames["smooth, dual quaternion" + tag] = volrig.deform(pieces, pts, smooth, pose, mode="dual_quaternion",
+                                                                 sampling="nearest", keep_volume=keep)
+        frames["smooth + rigid bone, dual quaternion" + tag] = volrig.deform(
+            pieces, pts, with_bone, pose, mode="dual_quaternion", sampling="nearest", keep_volume=keep)
     print(f"Visible Human {args.mm} mm, {len(pts)} points, {len(rig)} bones; knee {args.knee:g}, elbow "
-          f"{args.elbow:g} degrees; three frames in {time.perf_counter() - t0:.1f} s")
+          f"{args.elbow:g} degrees; {len(frames)} frames in {time.perf_counter() - t0:.1f} s")
     grids = on_common_grid(list(frames.values()))
     (t_ref, l_ref) = grids[0]
     rest = int(np.asarray(mask.array).sum())
     watch = ["thigh.L", "shin.L", "upper_arm.R", "forearm.R", "hand.R"]
-    print(f"{'frame':38s} {'body voxels vs rest':>20s}  " + "  ".join(f"{n:>11s}" for n in watch) + "   worst bone")
+    print(f"{'frame':50s} {'body voxels vs rest':>20s}  " + "  ".join(f"{n:>11s}" for n in watch) + "   worst bone")
     for (name, f), (t, l) in zip(frames.items(), grids):
         body = int((np.asarray(f.bone.array) > 0).sum())
         per = {}
         for b, n in enumerate(rig.names):  # the bone tissue rig bone b carries at rest, where it lands
             per[n] = dice(t == b + 1, t_ref == b + 1)
         worst = min(per, key=per.get)
-        print(f"{name:38s} {100.0 * (body - rest) / rest:+19.2f}%  " +
+        print(f"{name:50s} {100.0 * (body - rest) / rest:+19.2f}%  " +
               "  ".join(f"{per[n]:11.3f}" for n in watch) + f"   {worst} {per[worst]:.3f}")
     return 0
 

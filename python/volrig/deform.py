@@ -190,10 +190,14 @@ class Deformer:
         return int(self._native.reused_fields)
 
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
-              values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:
-        """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates."""
+              values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None,
+              keep_volume: bool = True) -> Frame:
+        """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates.
+        ``keep_volume`` (smooth modes; the default): the blended spheres' radii follow the pose so that a bent limb
+        keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it."""
         d = self._native.frame(_matrices(bone_matrices), mode, proximity or self.proximity, sampling,
-                               _radius_scale(radius_scale, len(self.points)), bool(values), progress)
+                               _radius_scale(radius_scale, len(self.points)), bool(values), progress,
+                               keep_volume=bool(keep_volume))
         return _frame(d, self.source)
 
 
@@ -227,7 +231,7 @@ def coarse_level(source: Volume, points: SkeletonPoints, binding: Binding, facto
 
 def deform(source: Volume, points: SkeletonPoints, binding: Binding, bone_matrices, mode: str = "rigid",
            proximity: str = DEFAULT_PROXIMITY, sampling: str = "trilinear", radius_scale=None,
-           progress: ProgressFn = None) -> Frame:
+           progress: ProgressFn = None, keep_volume: bool = True) -> Frame:
     """The deformed volume of one pose.
 
     source:        the scan (any dtype); points: the skeleton points the rig was bound with; binding: their bones.
@@ -238,15 +242,17 @@ def deform(source: Volume, points: SkeletonPoints, binding: Binding, bone_matric
                    nearest centre).
     sampling:      "trilinear" or "nearest" (use nearest for label maps).
     radius_scale:  a number or one factor per point, for bulge and pinch.
+    keep_volume:   smooth modes: blended spheres' radii follow the pose so that bent limbs keep their volume
+                   (the default; False: the plain blend).
     For many frames of one rig, build a ``Deformer`` once.
     """
     return Deformer(source, points, binding, proximity).frame(bone_matrices, mode, sampling, radius_scale,
-                                                              progress=progress)
+                                                              progress=progress, keep_volume=keep_volume)
 
 
 def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, bone_matrices, mode: str = "rigid",
                      proximity: str = DEFAULT_PROXIMITY, sampling: str = "trilinear", radius_scale=None,
-                     values: bool = True, like: Optional[Frame] = None) -> Frame:
+                     values: bool = True, like: Optional[Frame] = None, keep_volume: bool = True) -> Frame:
     """The literal thesis algorithm (every moved sphere scattered over its bounding box with a proximity buffer,
     in point order): the reference that tests and benchmarks compare ``deform`` with. ``like`` fixes the output
     grid to another frame's."""
@@ -254,7 +260,8 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
     d = _volrig.deform_reference(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb, off, wb,
                                  w, _matrices(bone_matrices), mode, proximity, sampling,
-                                 _radius_scale(radius_scale, len(points)), bool(values), box)
+                                 _radius_scale(radius_scale, len(points)), bool(values), box,
+                                 keep_volume=bool(keep_volume))
     return _frame(d, source)
 
 
