@@ -16,10 +16,11 @@ struct PyCollider {
     std::unique_ptr<Collider> collider;
 };
 
-CollideOptions collide_options(const std::string& mode, const py::object& radius_scale) {
+CollideOptions collide_options(const std::string& mode, const py::object& radius_scale, bool keep_volume) {
     CollideOptions o;
     o.mode = deform_mode_from_name(mode);
     o.radius_scale = radius_scale_of(radius_scale);
+    o.keep_volume = keep_volume;
     return o;
 }
 
@@ -86,8 +87,9 @@ void bind_collide(py::module_& m) {
     auto two_body = [](bool reference) {
         return [reference](const PyCollider& a, const DoubleArray& ma, const std::string& mode_a,
                            const py::object& scale_a, const PyCollider& b, const DoubleArray& mb,
-                           const std::string& mode_b, const py::object& scale_b, bool points) {
-            const CollideOptions oa = collide_options(mode_a, scale_a), ob = collide_options(mode_b, scale_b);
+                           const std::string& mode_b, const py::object& scale_b, bool points, bool keep_volume) {
+            const CollideOptions oa = collide_options(mode_a, scale_a, keep_volume),
+                                 ob = collide_options(mode_b, scale_b, keep_volume);
             const double* pa = matrices_of(ma, a.collider->bone_count());
             const double* pb = matrices_of(mb, b.collider->bone_count());
             return released([&] {
@@ -98,8 +100,9 @@ void bind_collide(py::module_& m) {
     };
     auto self = [](bool reference) {
         return [reference](const PyCollider& a, const DoubleArray& ma, const std::string& mode,
-                           const py::object& scale, int min_bone_distance, bool ignore_rest_contact, bool points) {
-            const CollideOptions o = collide_options(mode, scale);
+                           const py::object& scale, int min_bone_distance, bool ignore_rest_contact, bool points,
+                           bool keep_volume) {
+            const CollideOptions o = collide_options(mode, scale, keep_volume);
             const double* p = matrices_of(ma, a.collider->bone_count());
             return released([&] {
                 return reference ? self_collide_reference(*a.collider, p, o, min_bone_distance, ignore_rest_contact)
@@ -110,10 +113,10 @@ void bind_collide(py::module_& m) {
     for (bool reference : {false, true}) {
         m.def(reference ? "collide_reference" : "collide", two_body(reference), py::arg("a"), py::arg("matrices_a"),
               py::arg("mode_a"), py::arg("radius_scale_a"), py::arg("b"), py::arg("matrices_b"), py::arg("mode_b"),
-              py::arg("radius_scale_b"), py::arg("points") = false);
+              py::arg("radius_scale_b"), py::arg("points") = false, py::arg("keep_volume") = true);
         m.def(reference ? "self_collide_reference" : "self_collide", self(reference), py::arg("a"),
               py::arg("matrices"), py::arg("mode"), py::arg("radius_scale"), py::arg("min_bone_distance"),
-              py::arg("ignore_rest_contact"), py::arg("points") = false);
+              py::arg("ignore_rest_contact"), py::arg("points") = false, py::arg("keep_volume") = true);
     }
 }
 

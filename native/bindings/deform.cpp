@@ -24,12 +24,13 @@ struct PyDeformer {
 };
 
 DeformOptions options_of(const std::string& mode, const std::string& proximity, const std::string& sampling,
-                         const py::object& radius_scale, bool values) {
+                         const py::object& radius_scale, bool values, bool keep_volume) {
     DeformOptions o;
     o.mode = deform_mode_from_name(mode);
     o.proximity = proximity_from_name(proximity);
     o.sampling = sampling_from_name(sampling);
     o.values = values;
+    o.keep_volume = keep_volume;
     o.radius_scale = radius_scale_of(radius_scale);
     return o;
 }
@@ -103,8 +104,8 @@ void bind_deform(py::module_& m) {
             "frame",
             [](PyDeformer& d, const DoubleArray& matrices, const std::string& mode, const std::string& proximity,
                const std::string& sampling, const py::object& radius_scale, bool values, const py::object& progress,
-               const Box& box) {
-                const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values);
+               const Box& box, bool keep_volume) {
+                const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values, keep_volume);
                 const double* mat = matrices_of(matrices, d.deformer->bone_count());
                 Progress p = progress_of(progress);
                 DeformedVolume f;
@@ -116,7 +117,7 @@ void bind_deform(py::module_& m) {
             },
             py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
             py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
-            py::arg("progress") = py::none(), py::arg("box") = py::none())
+            py::arg("progress") = py::none(), py::arg("box") = py::none(), py::arg("keep_volume") = true)
         .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); })
         .def_property_readonly("kept_frame_bytes", [](const PyDeformer& d) { return d.deformer->kept_frame_bytes(); })
         .def("release_frame_memory", [](PyDeformer& d) { d.deformer->release_frame_memory(); })
@@ -163,14 +164,14 @@ void bind_deform(py::module_& m) {
            const FloatArray& radius, const Int32Array& bone, std::size_t bone_count, std::optional<Int64Array> offsets,
            std::optional<Int32Array> wbones, std::optional<FloatArray> weights, const DoubleArray& matrices,
            const std::string& mode, const std::string& proximity, const std::string& sampling,
-           const py::object& radius_scale, bool values, const Box& box) {
+           const py::object& radius_scale, bool values, const Box& box, bool keep_volume) {
             const py::array src = py::array::ensure(source, py::array::c_style);
             if (!src) throw Error("deform: the source is not a numeric array");
             const SphereArrays arrays{ijk, radius, bone, bone_count, std::move(offsets), std::move(wbones),
                                       std::move(weights)};
             const BoundSpheres s = arrays.view();
             const VolumeView v = view_of(src, spacing, origin, "deform source");
-            const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values);
+            const DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values, keep_volume);
             const double* mat = matrices_of(matrices, bone_count);
             DeformedVolume f;
             {
@@ -183,7 +184,7 @@ void bind_deform(py::module_& m) {
         py::arg("bone_count"), py::arg("weight_offsets"), py::arg("weight_bones"), py::arg("weights"),
         py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
         py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
-        py::arg("box") = py::none());
+        py::arg("box") = py::none(), py::arg("keep_volume") = true);
 
     m.def(
         "rigid_pieces_box",

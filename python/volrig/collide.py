@@ -109,17 +109,20 @@ def _check(c, what: str) -> Collider:
 
 
 def collide(a: Collider, matrices_a, b: Collider, matrices_b, mode: str = "rigid", mode_b: Optional[str] = None,
-            radius_scale_a=None, radius_scale_b=None, points: bool = False, reference: bool = False) -> Collision:
+            radius_scale_a=None, radius_scale_b=None, points: bool = False, reference: bool = False,
+            keep_volume: bool = True) -> Collision:
     """Contact between two posed bodies: ``matrices_a`` (B_a, 4, 4) and ``matrices_b`` rest-to-pose bone matrices
     (world coordinates, as ``deform`` takes them); ``mode`` how their spheres move ("rigid", "linear",
-    "dual_quaternion"; ``mode_b`` for B, default the same); radius scales as ``deform``'s. ``points``: also the
+    "dual_quaternion"; ``mode_b`` for B, default the same); radius scales and ``keep_volume`` (smooth modes: the
+    blended spheres' radii follow the pose) as ``deform``'s. ``points``: also the
     contact voxels' world centres (``Collision.points``). ``reference``: the brute force (every lattice point
     against every ball), for tests."""
     _check(a, "a")
     _check(b, "b")
     f = _volrig.collide_reference if reference else _volrig.collide
     d = f(a._native, _matrices(matrices_a), mode, _radius_scale(radius_scale_a, len(a)), b._native,
-          _matrices(matrices_b), mode_b or mode, _radius_scale(radius_scale_b, len(b)), bool(points or reference))
+          _matrices(matrices_b), mode_b or mode, _radius_scale(radius_scale_b, len(b)), bool(points or reference),
+          keep_volume=bool(keep_volume))
     return _collision(d, a, b.names, points)
 
 
@@ -133,7 +136,7 @@ def _min_distance(exclude_adjacent: bool, min_bone_distance: Optional[int]) -> i
 
 def self_collide(a: Collider, matrices, exclude_adjacent: bool = True, min_bone_distance: Optional[int] = None,
                  ignore_rest_contact: bool = True, mode: str = "rigid", radius_scale=None, points: bool = False,
-                 reference: bool = False) -> Collision:
+                 reference: bool = False, keep_volume: bool = True) -> Collision:
     """Parts of one posed body that interpenetrate (a hand through a thigh).
 
     A contact voxel lies inside two moved balls of bones at least ``min_bone_distance`` bones apart in the rig
@@ -146,7 +149,7 @@ def self_collide(a: Collider, matrices, exclude_adjacent: bool = True, min_bone_
         raise VolrigError("self_collide needs the rig's bone parents: build the Collider with rig=")
     f = _volrig.self_collide_reference if reference else _volrig.self_collide
     d = f(a._native, _matrices(matrices), mode, _radius_scale(radius_scale, len(a)), k, bool(ignore_rest_contact),
-          bool(points or reference))
+          bool(points or reference), keep_volume=bool(keep_volume))
     return _collision(d, a, a.names, points)
 
 

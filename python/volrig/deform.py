@@ -203,12 +203,16 @@ class Deformer:
         return int(self._native.reused_fields)
 
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
-              values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None) -> Frame:
-        """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates."""
+              values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None,
+              keep_volume: bool = True) -> Frame:
+        """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates.
+        ``keep_volume`` (smooth modes; the default): the blended spheres' radii follow the pose so that a bent limb
+        keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
         if self._layer is not None and self._layer.pieces is None:
             self._label_layer(mode, proximity or self.proximity, scale)
-        d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress)
+        d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress,
+                               keep_volume=bool(keep_volume))
         return _frame(d, self.source)
 
     def _label_layer(self, mode: str, proximity: str, scale) -> None:
@@ -256,7 +260,7 @@ def coarse_level(source: Volume, points: SkeletonPoints, binding: Binding, facto
 
 def deform(source: Volume, points: SkeletonPoints, binding: Binding, bone_matrices, mode: str = "rigid",
            proximity: str = DEFAULT_PROXIMITY, sampling: str = "trilinear", radius_scale=None,
-           progress: ProgressFn = None) -> Frame:
+           progress: ProgressFn = None, keep_volume: bool = True) -> Frame:
     """The deformed volume of one pose.
 
     source:        the scan (any dtype); points: the skeleton points the rig was bound with; binding: their bones.
@@ -267,15 +271,17 @@ def deform(source: Volume, points: SkeletonPoints, binding: Binding, bone_matric
                    nearest centre).
     sampling:      "trilinear" or "nearest" (use nearest for label maps).
     radius_scale:  a number or one factor per point, for bulge and pinch.
+    keep_volume:   smooth modes: blended spheres' radii follow the pose so that bent limbs keep their volume
+                   (the default; False: the plain blend).
     For many frames of one rig, build a ``Deformer`` once.
     """
     return Deformer(source, points, binding, proximity).frame(bone_matrices, mode, sampling, radius_scale,
-                                                              progress=progress)
+                                                              progress=progress, keep_volume=keep_volume)
 
 
 def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, bone_matrices, mode: str = "rigid",
                      proximity: str = DEFAULT_PROXIMITY, sampling: str = "trilinear", radius_scale=None,
-                     values: bool = True, like: Optional[Frame] = None) -> Frame:
+                     values: bool = True, like: Optional[Frame] = None, keep_volume: bool = True) -> Frame:
     """The literal thesis algorithm (every moved sphere scattered over its bounding box with a proximity buffer,
     in point order): the reference that tests and benchmarks compare ``deform`` with. ``like`` fixes the output
     grid to another frame's. A binding with rigid tissue scatters the soft source and draws the rigid layer
@@ -287,7 +293,8 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
 
     def scatter(src, matrices, sampling_, values_, box_):
         return _volrig.deform_reference(_source_array(src), source.spacing, source.origin, ijk, radii, bone, nb, off,
-                                        wb, w, _matrices(matrices), mode, proximity, sampling_, scale, values_, box_)
+                                        wb, w, _matrices(matrices), mode, proximity, sampling_, scale, values_, box_,
+                                        keep_volume=bool(keep_volume))
     if layer is not None:  # the rigid layer from the rest pose, as the Deformer builds it
         rest = scatter(source, rest_pose(nb), "nearest", False, None)
         layer.build(np.asarray(rest["bone"]), rest["offset"])

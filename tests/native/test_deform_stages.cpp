@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "deform/bend.hpp"
 #include "deform/bone_field.hpp"
 #include "deform/closed_cubes.hpp"
 #include "deform/decide.hpp"
@@ -539,4 +540,81 @@ TEST_CASE("rebind rebuilds only the fields whose spheres changed, and frames sta
     CHECK(std::equal(a.values.data(), a.values.data() + a.values.size(), b.values.data()));
     rs.radius[0] += 1;
     CHECK_THROWS_WITH(d.rebind(s), Catch::Contains("make a new Deformer"));
+}
+
+TEST_CASE("volume at bends: the slab factor, per-frame ball radii, and factors from poses", "[deform][stages]") {
+    CHECK(disc_segment(1) == 0);
+    CHECK(disc_segment(-1) == Approx(M_PI));
+    CHECK(disc_segment(0) == Approx(M_PI / 2));
+    CHECK(slab_factor(kInf, 1) == 1);                        // no crossing, no stretch: exactly 1
+    CHECK(slab_factor(0, 1) == Approx(std::sqrt(2.0)));      // half the disc past the plane: area doubled
+    CHECK(slab_factor(kInf, 4) == Approx(0.5).margin(1e-9));  // stretched four-fold: thinner
+    CHECK(slab_factor(-5, 1) == kMaxBend);
+    CHECK(slab_factor(0.3, 1) > slab_factor(0.6, 1));
+    CHECK(slab_factor(0.6, 1) > 1);
+
+    // A blend group's radii change per frame: the k-d tree's ball boxes and largest limits follow.
+    RandomSpheres rs(11, 40);
+    BoneField f = rs.ball_field();
+    scale_ball_field(f, rs.radii, 1.3, rs.grid);
+    for (std::size_t k = 0; k < f.sph.size(); ++k)
+        CHECK(f.sph[k].lim == open_ball_limit_sq(bent_radius(rs.radii[f.global[k]], 1.3)));
+    for (const KdNode& n : f.nodes) {
+        double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf}, top = 0;
+        for (std::uint32_t k = n.begin; k < n.end; ++k)
+            for (int a = 0; a < 3; ++a) {
+                const double c = f.sph[k].c[a] * rs.grid.spacing[a], r = std::sqrt(f.sph[k].lim);
+                lo[a] = std::min(lo[a], c - r);
+                hi[a] = std::max(hi[a], c + r);
+                top = std::max(top, f.sph[k].lim);
+            }
+        for (int a = 0; a < 3; ++a) CHECK((n.blo[a] == lo[a] && n.bhi[a] == hi[a]));
+        CHECK(n.max_lim == top);
+    }
+
+    // A straight tube of spheres along x, blended across a joint at x = 16: at rest every factor is 1; bent to
+    // 150 degrees the slabs grow (within the factor's bounds).
+    Grid g;
+    g.dims = {32, 24, 24};
+    g.spacing = {1.0, 1.0, 1.0};
+    std::vector<std::int32_t> ijk, bone, wb;
+    std::vector<float> radius, w;
+    std::vector<std::int64_t> off = {0};
+    for (int x = 4; x < 28; ++x) {
+        ijk.insert(ijk.end(), {12, 12, x});
+        radius.push_back(4.0f);
+        bone.push_back(x < 16 ? 0 : 1);
+        const float t = std::clamp((static_cast<float>(x) - 10.0f) / 12.0f, 0.0f, 1.0f);
+        wb.insert(wb.end(), {0, 1});
+        w.insert(w.end(), {1 - t, t});
+        off.push_back(static_cast<std::int64_t>(wb.size()));
+    }
+    BoundSpheres s;
+    s.ijk = ijk.data();
+    s.radius = radius.data();
+    s.n = radius.size();
+    s.bone = bone.data();
+    s.bone_count = 2;
+    s.weight_offsets = off.data();
+    s.weight_bones = wb.data();
+    s.weights = w.data();
+    const SmoothGroups groups = smooth_groups(s, g);
+    const std::vector<double> radii(radius.begin(), radius.end());
+    const BendModel m = bend_model(s, groups, radii, g);
+    REQUIRE(m.gradient.size() == 1);
+    for (const Eigen::Vector3d& side : m.gradient[0]) CHECK(side.normalized().dot(Eigen::Vector3d::UnitX()) == Approx(1));
+    const auto rest = rotation_z(0, {0, 0, 0});
+    std::vector<double> mats(rest.begin(), rest.end());
+    mats.insert(mats.end(), rest.begin(), rest.end());
+    for (DeformMode mode : {DeformMode::Linear, DeformMode::DualQuaternion}) {
+        for (double f0 : bend_factors(m, groups, bone_motions(mats.data(), 2, g), mode)) CHECK(f0 == 1);
+        // 150 degrees about z through the joint (16, 12, 12): translation = p - R p
+        const double t = 150 * M_PI / 180, c = std::cos(t), sn = std::sin(t);
+        std::vector<double> bent(rest.begin(), rest.end());
+        bent.insert(bent.end(), {c, -sn, 0, 16 - (c * 16 - sn * 12), sn, c, 0, 12 - (sn * 16 + c * 12), 0, 0, 1, 0,
+                                 0, 0, 0, 1});
+        const std::vector<double> fs = bend_factors(m, groups, bone_motions(bent.data(), 2, g), mode);
+        CHECK(*std::max_element(fs.begin(), fs.end()) > 1.05);
+        for (double f0 : fs) CHECK((f0 >= kMinBend && f0 <= kMaxBend));
+    }
 }

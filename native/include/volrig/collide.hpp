@@ -38,6 +38,7 @@ namespace volrig {
 struct CollideOptions {
     DeformMode mode = DeformMode::Rigid;
     std::vector<float> radius_scale;
+    bool keep_volume = true;  ///< smooth modes: the blend groups' radii follow the pose, as DeformOptions::keep_volume
 };
 
 struct CollideStats {

@@ -69,6 +69,9 @@ struct DeformOptions {
     Sampling sampling = Sampling::Trilinear;
     std::vector<float> radius_scale;  ///< empty, or n factors (>= 0) for bulge and pinch
     bool values = true;               ///< false: binary reconstruction (bone labels only, values left empty)
+    /// Smooth modes: each blend group's radii take a factor from its pose that keeps the limb's volume at bends
+    /// (docs/ALGORITHMS.md §7, "Volume at bends"; issue 18). Weight-1 spheres and the rigid mode never change.
+    bool keep_volume = true;
 };
 
 struct DeformStats {

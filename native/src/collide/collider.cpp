@@ -6,6 +6,7 @@
 #include <string>
 
 #include "collide/posed.hpp"
+#include "deform/bend.hpp"
 #include "volrig/reconstruct.hpp"
 
 namespace volrig {
@@ -203,9 +204,16 @@ Posed pose(const Collider::Impl& c, BoneMatrices matrices, const CollideOptions&
     for (std::size_t i = 0; i < c.radius.size(); ++i) {
         const double k = o.radius_scale.empty() ? 1.0 : o.radius_scale[i];
         p.radius[i] = static_cast<double>(c.radius[i]) * k;
-        p.scale = std::max(p.scale, k);
     }
-    if (!o.radius_scale.empty() && p.scale == 1.0) p.scale = 1.0 + 1e-12;  // shrunk balls: the scaled bound
+    if (o.mode != DeformMode::Rigid && c.has_weights && o.keep_volume)  // as deformation sizes them
+        deform_detail::bend_radii(c.view(), p.part->groups, bones, o.mode, c.grid, p.radius);
+    bool scaled = false;
+    for (std::size_t i = 0; i < c.radius.size(); ++i) {
+        if (p.radius[i] == static_cast<double>(c.radius[i])) continue;
+        scaled = true;
+        if (c.radius[i] > 0) p.scale = std::max(p.scale, p.radius[i] / static_cast<double>(c.radius[i]) * (1 + 1e-12));
+    }
+    if (scaled && p.scale == 1.0) p.scale = 1.0 + 1e-12;  // shrunk balls: the scaled bound
     for (int a = 0; a < 3; ++a) p.s2[a] = c.grid.spacing[a] * c.grid.spacing[a];
     return p;
 }

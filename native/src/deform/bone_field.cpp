@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 
+#include "deform/bend.hpp"
 #include "deform/closed_cubes.hpp"
 #include "volrig/reconstruct.hpp"
 
@@ -377,6 +378,48 @@ BoneField build_ball_field(const Grid& g, const BoundSpheres& s, const std::vect
     f.step = step;
     f.floor_T = T;
     return f;
+}
+
+namespace {
+
+/// A k-d node's ball box and largest limit from its spheres (a leaf) or its children (made first).
+void refit_node(BoneField& f, std::size_t j, const Grid& g) {
+    KdNode& n = f.nodes[j];
+    n.max_lim = 0;
+    for (int a = 0; a < 3; ++a) {
+        n.blo[a] = kInf;
+        n.bhi[a] = -kInf;
+    }
+    if (n.left < 0) {
+        for (std::uint32_t k = n.begin; k < n.end; ++k) {
+            const auto& sp = f.sph[k];
+            const double r = std::sqrt(std::max(0.0, sp.lim));
+            for (int a = 0; a < 3; ++a) {
+                n.blo[a] = std::min(n.blo[a], sp.c[a] * g.spacing[a] - r);
+                n.bhi[a] = std::max(n.bhi[a], sp.c[a] * g.spacing[a] + r);
+            }
+            n.max_lim = std::max(n.max_lim, sp.lim);
+        }
+        return;
+    }
+    for (const std::int32_t c : {n.left, n.right}) {
+        const KdNode& m = f.nodes[static_cast<std::size_t>(c)];
+        for (int a = 0; a < 3; ++a) {
+            n.blo[a] = std::min(n.blo[a], m.blo[a]);
+            n.bhi[a] = std::max(n.bhi[a], m.bhi[a]);
+        }
+        n.max_lim = std::max(n.max_lim, m.max_lim);
+    }
+}
+
+}  // namespace
+
+void scale_ball_field(BoneField& f, const std::vector<double>& r, double factor, const Grid& g) {
+    for (std::size_t k = 0; k < f.sph.size(); ++k) {
+        const double rk = bent_radius(r[f.global[k]], factor);
+        f.sph[k].lim = rk > 0 ? open_ball_limit_sq(rk) : 0.0;
+    }
+    for (std::size_t j = f.nodes.size(); j-- > 0;) refit_node(f, j, g);  // children come after their parents
 }
 
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,

@@ -283,4 +283,8 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
 BoneField build_ball_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
                            const std::vector<double>& r, double T, double step);
 
+/// Sets a field's open-ball limits to its spheres' radii r times `factor` (bent_radius) and refits its k-d tree's
+/// ball boxes and largest limits: a blend group's field, per frame (its spheres and their order stay).
+void scale_ball_field(BoneField& f, const std::vector<double>& r, double factor, const Grid& g);
+
 }  // namespace volrig::deform_detail

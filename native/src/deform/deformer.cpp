@@ -5,6 +5,7 @@
 #include <map>
 #include <string>
 
+#include "deform/bend.hpp"
 #include "deform/bone_field.hpp"
 #include "deform/frame_box.hpp"
 #include "deform/gather.hpp"
@@ -63,6 +64,7 @@ struct Deformer::Impl : SphereStore {
     std::vector<double> radii;              // scaled radii
     VolumeView layer_source;                // the rigid layer: what its pieces sample, and the pieces
     std::vector<RigidPiece> pieces;
+    BendModel bend;                         // the blend groups' bend model (volume kept at bends)
     double bound_step = 1;                  // the quantum of the fields' power bounds
 
     /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
@@ -75,6 +77,7 @@ struct Deformer::Impl : SphereStore {
     std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
     Box frame_reach(const std::vector<Motion>& motions) const;
+    void bend_groups(const std::vector<Motion>& m, const DeformOptions& o);
     DeformedVolume frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress, const Box* fixed_box);
 };
 
@@ -142,6 +145,7 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
         }
         report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
     }
+    bend = smooth ? bend_model(view(), groups, radii, grid) : BendModel{};
     built = true;
     built_smooth = smooth;
     built_scale = o.radius_scale;
@@ -166,11 +170,21 @@ void Deformer::Impl::add_group_motions(std::vector<Motion>& m, DeformMode mode) 
         m.push_back(blended_motion(m, groups.weights[k], groups.owner[k], mode, grid, groups.pivot[k]));
 }
 
+/// The blend groups' radii in this pose: their factors from the bend model (all 1 without keep_volume), set on
+/// their fields (lattice-free, so that this costs a pass over their spheres, not a rebuild).
+void Deformer::Impl::bend_groups(const std::vector<Motion>& m, const DeformOptions& o) {
+    if (groups.weights.empty()) return;
+    const std::vector<double> f =
+        o.keep_volume ? bend_factors(bend, groups, m, o.mode) : std::vector<double>(groups.weights.size(), 1.0);
+    for (std::size_t k = 0; k < f.size(); ++k) scale_ball_field(fields[bone_count + k], radii, f[k], grid);
+}
+
 DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions& o, const Progress& progress,
                                      const Box* fixed_box) {
     check_options(o, n);
     std::vector<Motion> motions = bone_motions(matrices, bone_count, grid);
     build(o.mode != DeformMode::Rigid && has_weights, o, progress);
+    bend_groups(motions, o);
     add_group_motions(motions, o.mode);
     const Box bx = fixed_box ? *fixed_box : frame_reach(motions);
     check_box_reach(bx);

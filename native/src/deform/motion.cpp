@@ -90,16 +90,14 @@ std::vector<Motion> bone_motions(BoneMatrices mat, std::size_t bones, const Grid
     return out;
 }
 
-Motion blended_motion(const std::vector<Motion>& bones, const Weights& w, std::int32_t owner, DeformMode mode,
-                      const Grid& g, const Eigen::Vector3d& pivot) {
-    double total = 0;
-    for (const auto& [b, q] : w) total += q;
+Rigid blend_rigid(const std::vector<Motion>& bones, const std::vector<std::pair<std::int32_t, double>>& w,
+                  std::int32_t owner, DeformMode mode, const Eigen::Vector3d& pivot) {
     if (mode == DeformMode::Linear) {
         Eigen::Matrix3d L = Eigen::Matrix3d::Zero();
         Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        for (const auto& [b, q] : w) {
-            L += (q / total) * bones[static_cast<std::size_t>(b)].R;
-            d += (q / total) * bones[static_cast<std::size_t>(b)].d;
+        for (const auto& [b, f] : w) {
+            L += f * bones[static_cast<std::size_t>(b)].R;
+            d += f * bones[static_cast<std::size_t>(b)].d;
         }
         Eigen::JacobiSVD<Eigen::Matrix3d> svd(L, Eigen::ComputeFullU | Eigen::ComputeFullV);
         Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
@@ -108,27 +106,37 @@ Motion blended_motion(const std::vector<Motion>& bones, const Weights& w, std::i
             U.col(2) = -U.col(2);
             R = U * svd.matrixV().transpose();
         }
-        return motion_of(R, L * pivot + d - R * pivot, g);
+        return {R, L * pivot + d - R * pivot};
     }
     const Eigen::Quaterniond ref(bones[static_cast<std::size_t>(owner)].R);
     Eigen::Vector4d real = Eigen::Vector4d::Zero(), dual = Eigen::Vector4d::Zero();
-    for (const auto& [b, q] : w) {
+    for (const auto& [b, f] : w) {
         const Motion& m = bones[static_cast<std::size_t>(b)];
         Eigen::Quaterniond r(m.R);
         if (r.coeffs().dot(ref.coeffs()) < 0) r.coeffs() = -r.coeffs();
         const Eigen::Quaterniond t(0, m.d[0], m.d[1], m.d[2]);
         Eigen::Quaterniond rd = t * r;
         rd.coeffs() *= 0.5;
-        real += (q / total) * r.coeffs();
-        dual += (q / total) * rd.coeffs();
+        real += f * r.coeffs();
+        dual += f * rd.coeffs();
     }
     const double n = real.norm();
     Eigen::Quaterniond qr, qd;
     qr.coeffs() = real / n;
     qd.coeffs() = dual / n;
     const Eigen::Quaterniond tq = qd * qr.conjugate();
-    const Eigen::Vector3d d = 2.0 * tq.vec();
-    return motion_of(qr.toRotationMatrix(), d, g);
+    return {qr.toRotationMatrix(), 2.0 * tq.vec()};
+}
+
+Motion blended_motion(const std::vector<Motion>& bones, const Weights& w, std::int32_t owner, DeformMode mode,
+                      const Grid& g, const Eigen::Vector3d& pivot) {
+    double total = 0;
+    for (const auto& [b, q] : w) total += q;
+    std::vector<std::pair<std::int32_t, double>> f;
+    f.reserve(w.size());
+    for (const auto& [b, q] : w) f.emplace_back(b, q / total);
+    const Rigid r = blend_rigid(bones, f, owner, mode, pivot);
+    return motion_of(r.R, r.d, g);
 }
 
 }  // namespace volrig::deform_detail

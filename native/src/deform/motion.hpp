@@ -108,4 +108,13 @@ constexpr std::int32_t kWeightSteps = 16;
 Motion blended_motion(const std::vector<Motion>& bones, const Weights& w, std::int32_t owner, DeformMode mode,
                       const Grid& g, const Eigen::Vector3d& pivot);
 
+/// A rigid world transform x -> R x + d.
+struct Rigid {
+    Eigen::Matrix3d R;
+    Eigen::Vector3d d;
+};
+/// The blend blended_motion makes, from real weights summing to 1 (bone, weight): the world transform alone.
+Rigid blend_rigid(const std::vector<Motion>& bones, const std::vector<std::pair<std::int32_t, double>>& w,
+                  std::int32_t owner, DeformMode mode, const Eigen::Vector3d& pivot);
+
 }  // namespace volrig::deform_detail

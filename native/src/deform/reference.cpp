@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "deform/bend.hpp"
 #include "deform/frame_box.hpp"
 #include "deform/motion.hpp"
 #include "deform/sampler.hpp"
@@ -26,13 +27,14 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     check_spheres(grid, s);
     check_options(o, s.n);
     const std::vector<Motion> motions = bone_motions(matrices, s.bone_count, grid);
-    const std::vector<double> radii = scaled_radii(s, o);
+    std::vector<double> radii = scaled_radii(s, o);
     const bool smooth = o.mode != DeformMode::Rigid && s.weight_offsets;
     const double s2[3] = {grid.spacing[0] * grid.spacing[0], grid.spacing[1] * grid.spacing[1],
                           grid.spacing[2] * grid.spacing[2]};
     std::vector<Motion> mot(s.n);
     std::vector<std::array<double, 3>> centre(s.n), rest(s.n);
     const SmoothGroups groups = smooth ? smooth_groups(s, grid) : SmoothGroups{};
+    if (smooth && o.keep_volume) bend_radii(s, groups, motions, o.mode, grid, radii);
     Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (std::size_t i = 0; i < s.n; ++i) {
         const std::int32_t k = smooth ? groups.group_of[i] : -1;
