@@ -177,11 +177,35 @@ def setup_vhm():
         s.density_scale = 0.5
         for t in s.tissues:
             t.visible = t.name not in ("fat", "muscle", "skin", "cartilage")
+        if os.environ.get("UI_VHM_RIG"):  # rigged (Rigid tissue: Automatic, the table's bone), the left knee bent
+            vhm_knee(vol)
         from volrig_addon import staging
         scene = bpy.context.scene
         staging.stage(scene, vol, samples=8).hide_set(True)
         scene.cycles.preview_samples, scene.cycles.use_preview_denoising = 8, False
     return show_volrig_sidebar(win, "RENDERED")
+
+
+def vhm_knee(vol):
+    """UI_VHM_RIG=1: skeletonized, rigged (the table's bone as rigid tissue, by Automatic), the left knee keyed
+    from straight (frame 1) to bent 90 degrees (frame 10), shown at frame 10 unbaked: the live preview."""
+    from mathutils import Euler
+    from volrig_addon.objects import members
+    bpy.context.view_layer.objects.active = vol
+    vol.select_set(True)
+    print("skeletonize:", bpy.ops.volrig.skeletonize(), flush=True)
+    print("rig:", bpy.ops.volrig.rig(), flush=True)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 10
+    pb = members(vol)["RIG"].pose.bones["shin.L"]
+    pb.rotation_mode = "XYZ"
+    for frame, angle in ((1, 0.0), (10, 1.5708)):
+        pb.rotation_euler = Euler((angle, 0.0, 0.0))
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    members(vol)["SPHERES"].hide_set(True)
+    scene.volrig_live_preview = True
+    scene.frame_set(10)
+    bpy.context.view_layer.objects.active = vol
 
 
 def empty_view3d():

@@ -186,8 +186,8 @@ class Deformer:
     def rebind(self, binding: Binding) -> None:
         """Takes a new binding of the same points (say, weights repainted). The next frame rebuilds only the per-rig
         data of the bones and blend groups whose spheres changed (``reused_fields`` says how many it kept)."""
-        old = self.binding.rigid
-        if (old is None) != (binding.rigid is None) or (old is not None and not np.array_equal(old, binding.rigid)):
+        old, new = self.binding.rigid, binding.rigid
+        if old is not new and ((old is None) != (new is None) or not np.array_equal(old, new)):
             self.__init__(self.source, self.points, binding, self.proximity)  # other rigid tissue: another source
             return
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(self.points, binding)
