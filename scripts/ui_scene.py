@@ -18,33 +18,32 @@ for c in _panels:
         c.bl_options = {"DEFAULT_CLOSED"}  # room for the Parts panel
 volrig_addon.register()
 
-def contacts(vol):
+def key_bone(vol, name, axis, keys, end):
+    """Keys pose bone ``name`` of the volume's rig turned about its local ``axis`` (0, 1, 2) by (frame, radians)
+    ``keys``; the scene runs from frame 1 to ``end``."""
     from mathutils import Euler
     from volrig_addon.objects import members
     scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, 40
-    pb = members(vol)["RIG"].pose.bones["forearm.R"]
+    scene.frame_start, scene.frame_end = 1, end
+    pb = members(vol)["RIG"].pose.bones[name]
     pb.rotation_mode = "XYZ"
-    for frame, angle in ((1, 0.0), (20, -0.8), (40, 0.0)):
-        pb.rotation_euler = Euler((0.0, 0.0, angle))
+    for frame, angle in keys:
+        pb.rotation_euler = Euler(tuple(angle if a == axis else 0.0 for a in range(3)))
         pb.keyframe_insert("rotation_euler", frame=frame)
+
+
+def contacts(vol):
+    key_bone(vol, "forearm.R", 2, ((1, 0.0), (20, -0.8), (40, 0.0)), 40)
     print("find_contacts:", bpy.ops.volrig.find_contacts(), flush=True)
-    scene.frame_set(20)
+    bpy.context.scene.frame_set(20)
 
 
 def live_preview(vol):
     """The left forearm keyed from straight (frame 1) to bent (frame 20); frame 20 is not baked: the preview."""
-    from mathutils import Euler
     from volrig_addon.objects import members
-    scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, 40
-    pb = members(vol)["RIG"].pose.bones["forearm.L"]
-    pb.rotation_mode = "XYZ"
-    for frame, angle in ((1, 0.0), (20, 1.4)):
-        pb.rotation_euler = Euler((angle, 0.0, 0.0))
-        pb.keyframe_insert("rotation_euler", frame=frame)
+    key_bone(vol, "forearm.L", 0, ((1, 0.0), (20, 1.4)), 40)
     members(vol)["SPHERES"].hide_set(True)
-    scene.frame_set(20)
+    bpy.context.scene.frame_set(20)
 
 
 def knight_scene():
@@ -189,22 +188,14 @@ def setup_vhm():
 def vhm_knee(vol):
     """UI_VHM_RIG=1: skeletonized, rigged (the table's bone as rigid tissue, by Automatic), the left knee keyed
     from straight (frame 1) to bent 90 degrees (frame 10), shown at frame 10 unbaked: the live preview."""
-    from mathutils import Euler
     from volrig_addon.objects import members
     bpy.context.view_layer.objects.active = vol
     vol.select_set(True)
     print("skeletonize:", bpy.ops.volrig.skeletonize(), flush=True)
     print("rig:", bpy.ops.volrig.rig(), flush=True)
-    scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, 10
-    pb = members(vol)["RIG"].pose.bones["shin.L"]
-    pb.rotation_mode = "XYZ"
-    for frame, angle in ((1, 0.0), (10, 1.5708)):
-        pb.rotation_euler = Euler((angle, 0.0, 0.0))
-        pb.keyframe_insert("rotation_euler", frame=frame)
+    key_bone(vol, "shin.L", 0, ((1, 0.0), (10, 1.5708)), 10)
     members(vol)["SPHERES"].hide_set(True)
-    scene.volrig_live_preview = True
-    scene.frame_set(10)
+    bpy.context.scene.frame_set(10)
     bpy.context.view_layer.objects.active = vol
 
 
