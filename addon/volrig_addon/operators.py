@@ -313,6 +313,7 @@ def _save_rig(vol, pts, tree, rig, binding) -> None:
     name = f"rig-{uuid.uuid4().hex[:8]}.vrig"
     volrig.save_rig(os.path.join(scans.cache_dir(vol), name), pts, tree, rig, binding, source="source.vdb")
     vol.volrig.rig_file = name
+    vol.volrig.rigid_voxels = 0 if binding.rigid is None else int(np.count_nonzero(binding.rigid))
 
 
 class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):

@@ -122,6 +122,8 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
                 col.label(text=found, icon="INFO")
                 if runner_up:
                     col.label(text=runner_up.rstrip(")"), icon="BLANK1")
+            if s.rigid_voxels:  # the rigid layer: bones move whole
+                layout.label(text=f"rigid layer: {s.rigid_voxels:,} voxels", icon="MOD_SOLIDIFY")
         if "SPHERES" in parts:
             layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
                          icon="MESH_UVSPHERE")

@@ -190,6 +190,9 @@ class VolrigObject(bpy.types.PropertyGroup):
                                               "of the object (for bones without flesh; the rig then follows the "
                                               "thinness)")
     rig_found: StringProperty(name="Found", description="What the last rig found: kind, fit and runner-up")
+    rigid_voxels: IntProperty(name="Rigid voxels", default=0, min=0,
+                              description="Voxels of rigid tissue the last Rig or Rebind bound: they move whole, as "
+                                          "the rigid layer, while the flesh bends (0: none)")
     bind_mode: EnumProperty(name="Binding", items=[
         ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),
         ("rigid", "Rigid", "Every point follows one bone"),

@@ -174,6 +174,7 @@ def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp
     assert on_bone.any() and (rows[on_bone] == 1).all() and (rows[~on_bone] > 1).any()
     # the rig file keeps the rigid tissue, and the bake's Deformer draws it as the rigid layer (issue 18)
     assert np.array_equal(saved.binding.rigid, rigid.array)
+    assert vol.volrig.rigid_voxels == rigid.array.sum()  # the Rig panel says so
     from volrig_addon import bake
     baker = bake.Baker(vol)
     assert np.array_equal(baker.binding.rigid, rigid.array)
