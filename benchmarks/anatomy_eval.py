@@ -25,6 +25,10 @@ import volrig  # noqa: E402
 from volrig import subjects as S  # noqa: E402
 from volrig.deform import Frame  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "python"))
+# the reference of "a piece moved by its bone": plain numpy, written apart from the core's painter
+from test_rigid_layer import piece_moved  # noqa: E402
+
 BONE = (84, 92)
 
 
@@ -39,23 +43,6 @@ def layer_pieces(labels, pts, binding, pose_mode):
         sz, sy, sx = p.voxels.shape
         out[z:z + sz, y:y + sy, x:x + sx][p.voxels > 0] = p.bone + 1
     return labels.like(out), d._layer.pieces
-
-
-def piece_moved(piece, matrix, spacing, origin):
-    """The output voxels (source-lattice x, y, z; n x 3) of one piece moved by ``matrix``: those whose rest
-    position (the inverse matrix, in float64) rounds to one of the piece's voxels. Plain numpy, written apart from
-    the core's rigid layer as its reference."""
-    sp, org = np.asarray(spacing), np.asarray(origin)
-    lo = np.asarray(piece.box[:3]) - 0.5
-    corners = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)]) * np.asarray(piece.box[3:]) + lo
-    moved = ((org + corners * sp) @ matrix[:3, :3].T + matrix[:3, 3] - org) / sp
-    blo, bhi = np.floor(moved.min(0)).astype(np.int64) - 1, np.ceil(moved.max(0)).astype(np.int64) + 2
-    z, y, x = np.mgrid[blo[2]:bhi[2], blo[1]:bhi[1], blo[0]:bhi[0]]
-    q = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-    inv = np.linalg.inv(matrix)
-    r = np.floor(((org + q * sp) @ inv[:3, :3].T + inv[:3, 3] - org) / sp + 0.5).astype(np.int64) - piece.box[:3]
-    inside = np.flatnonzero(((r >= 0) & (r < np.asarray(piece.box[3:]))).all(axis=1))
-    return q[inside[piece.voxels[r[inside, 2], r[inside, 1], r[inside, 0]] > 0]]
 
 
 def moved_pieces(pieces, pose, labels):

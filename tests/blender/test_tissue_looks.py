@@ -175,11 +175,10 @@ def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp
     # the rig file keeps the rigid tissue, and the bake's Deformer draws it as the rigid layer (issue 18)
     assert np.array_equal(saved.binding.rigid, rigid.array)
     assert vol.volrig.rigid_voxels == rigid.array.sum()  # the Rig panel says so
-    from volrig_addon import bake
+    from volrig_addon import bake, objects
     baker = bake.Baker(vol)
     assert np.array_equal(baker.binding.rigid, rigid.array)
-    rig_obj = next(o for o in bpy.data.objects if o.type == "ARMATURE")
-    pb = rig_obj.pose.bones["shin.L"]
+    pb = objects.members(vol)["RIG"].pose.bones["shin.L"]
     pb.rotation_mode = "XYZ"
     pb.rotation_euler = (1.2, 0.0, 0.0)
     bpy.context.view_layer.update()

@@ -14,6 +14,26 @@ namespace volrig {
 
 namespace {
 
+/// A view of sphere arrays as BoundSpheres (weights optional: all three or none).
+inline BoundSpheres bound_spheres(const std::vector<std::int32_t>& ijk, const std::vector<float>& radius,
+                           const std::vector<std::int32_t>& bone, std::size_t bone_count,
+                           const std::vector<std::int64_t>* offsets = nullptr,
+                           const std::vector<std::int32_t>* wbones = nullptr,
+                           const std::vector<float>* weights = nullptr) {
+    BoundSpheres s;
+    s.ijk = ijk.data();
+    s.radius = radius.data();
+    s.n = radius.size();
+    s.bone = bone.data();
+    s.bone_count = bone_count;
+    if (offsets) {
+        s.weight_offsets = offsets->data();
+        s.weight_bones = wbones->data();
+        s.weights = weights->data();
+    }
+    return s;
+}
+
 /// An L-shaped limb (two capsules meeting at a joint) with a brighter core, and spheres on a sparse subset of
 /// its voxels (radius = DT), bound to the capsule they lie in; near the joint, weights blend both bones.
 struct Limb {
@@ -28,23 +48,13 @@ struct Limb {
     std::array<std::int64_t, 3> dims{30, 24, 34};
 
     BoundSpheres spheres(bool with_weights) const {
-        BoundSpheres s;
-        s.ijk = ijk.data();
-        s.radius = radius.data();
-        s.n = radius.size();
-        s.bone = bone.data();
-        s.bone_count = 2;
-        if (with_weights) {
-            s.weight_offsets = offsets.data();
-            s.weight_bones = wbones.data();
-            s.weights = weights.data();
-        }
-        return s;
+        return with_weights ? bound_spheres(ijk, radius, bone, 2, &offsets, &wbones, &weights)
+                            : bound_spheres(ijk, radius, bone, 2);
     }
     VolumeView view() const { return VolumeView{grid, DType::UInt8, samples.data()}; }
 };
 
-double segment_distance(const double* q, const double* a, const double* b) {
+inline double segment_distance(const double* q, const double* a, const double* b) {
     double d[3], w[3], dd = 0, t = 0;
     for (int k = 0; k < 3; ++k) {
         d[k] = b[k] - a[k];
@@ -59,7 +69,7 @@ double segment_distance(const double* q, const double* a, const double* b) {
 }
 
 /// `thick` scales the limb (radius 5 * thick), its grid and its joint; spheres sit on every third voxel.
-Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
+inline Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
     Limb L;
     L.dims = {30 * thick, 24 * thick, 34 * thick};
     L.grid.dims = L.dims;
@@ -107,7 +117,7 @@ Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
 }
 
 /// Rotation by `deg` about `axis` through the world point `pivot`, plus a shift; row-major 4x4.
-std::array<double, 16> motion(std::array<double, 3> axis, double deg, std::array<double, 3> pivot,
+inline std::array<double, 16> motion(std::array<double, 3> axis, double deg, std::array<double, 3> pivot,
                               std::array<double, 3> shift) {
     const double n = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
     const double x = axis[0] / n, y = axis[1] / n, z = axis[2] / n, t = deg * M_PI / 180.0;
@@ -123,7 +133,7 @@ std::array<double, 16> motion(std::array<double, 3> axis, double deg, std::array
     return m;
 }
 
-std::array<double, 3> world(const Grid& g, const double* v) {
+inline std::array<double, 3> world(const Grid& g, const double* v) {
     return {g.origin[0] + g.spacing[0] * v[0], g.origin[1] + g.spacing[1] * v[1], g.origin[2] + g.spacing[2] * v[2]};
 }
 

@@ -18,6 +18,7 @@
 #include "deform/sampler.hpp"
 #include "deform/spheres.hpp"
 #include "volrig/reconstruct.hpp"
+#include "limb_fixture.hpp"
 
 using namespace volrig;
 using namespace volrig::deform_detail;
@@ -50,15 +51,7 @@ struct RandomSpheres {
             members.push_back(static_cast<std::uint32_t>(i));
         }
     }
-    BoundSpheres spheres() const {
-        BoundSpheres s;
-        s.ijk = ijk.data();
-        s.radius = radius.data();
-        s.n = radius.size();
-        s.bone = bone.data();
-        s.bone_count = 1;
-        return s;
-    }
+    BoundSpheres spheres() const { return bound_spheres(ijk, radius, bone, 1); }
     double T() const {
         const auto& sp = grid.spacing;
         return 0.25 * (sp[0] * sp[0] + sp[1] * sp[1] + sp[2] * sp[2]) * (1 + 1e-9);
@@ -589,15 +582,7 @@ TEST_CASE("volume at bends: the slab factor, per-frame ball radii, and factors f
         w.insert(w.end(), {1 - t, t});
         off.push_back(static_cast<std::int64_t>(wb.size()));
     }
-    BoundSpheres s;
-    s.ijk = ijk.data();
-    s.radius = radius.data();
-    s.n = radius.size();
-    s.bone = bone.data();
-    s.bone_count = 2;
-    s.weight_offsets = off.data();
-    s.weight_bones = wb.data();
-    s.weights = w.data();
+    const BoundSpheres s = bound_spheres(ijk, radius, bone, 2, &off, &wb, &w);
     const SmoothGroups groups = smooth_groups(s, g);
     const std::vector<double> radii(radius.begin(), radius.end());
     const BendModel m = bend_model(s, groups, radii, g);
