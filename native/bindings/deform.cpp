@@ -52,6 +52,7 @@ py::dict frame_dict(DeformedVolume&& f) {
     stats["by_search"] = f.stats.by_search;
     stats["exact_sub_blocks"] = f.stats.exact_sub_blocks;
     stats["rigid_layer"] = f.stats.rigid_layer;
+    stats["contact"] = f.stats.contact;
     d["stats"] = stats;
     return d;
 }

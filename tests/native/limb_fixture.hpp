@@ -68,8 +68,9 @@ inline double segment_distance(const double* q, const double* a, const double* b
     return std::sqrt(r);
 }
 
-/// `thick` scales the limb (radius 5 * thick), its grid and its joint; spheres sit on every third voxel.
-inline Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
+/// `thick` scales the limb (radius 5 * thick), its grid and its joint; spheres sit on every third voxel. `straight`:
+/// the second capsule continues the first (along z, cut by the grid at z = 0) instead of turning along x.
+inline Limb make_limb(std::array<double, 3> spacing, int thick = 1, bool straight = false) {
     Limb L;
     L.dims = {30 * thick, 24 * thick, 34 * thick};
     L.grid.dims = L.dims;
@@ -80,7 +81,8 @@ inline Limb make_limb(std::array<double, 3> spacing, int thick = 1) {
     L.samples.assign(n, 0);
     std::vector<std::uint8_t> mask(n, 0);
     const double t = thick;
-    const double a[3] = {14 * t, 12 * t, 26 * t}, b[3] = {14 * t, 12 * t, 10 * t}, c[3] = {26 * t, 12 * t, 8 * t};
+    const double a[3] = {14 * t, 12 * t, 26 * t}, b[3] = {14 * t, 12 * t, 10 * t};
+    const double c[3] = {straight ? 14 * t : 26 * t, 12 * t, straight ? -6 * t : 8 * t};
     for (std::int64_t z = 0; z < L.dims[2]; ++z)
         for (std::int64_t y = 0; y < L.dims[1]; ++y)
             for (std::int64_t x = 0; x < L.dims[0]; ++x) {

@@ -75,6 +75,8 @@ void require_brute_force(const Limb& L, bool with_weights, const std::vector<dou
 TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[deform]") {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
+    std::int64_t contact = 0;  // voxels given up at contact planes (the weights blend along z on both sides of the
+                               // joint: to the bend model the limb is straight there)
     for (auto spacing : {std::array<double, 3>{1.0, 1.0, 1.0}, std::array<double, 3>{0.9, 1.2, 1.5}}) {
         const Limb L = make_limb(spacing);
         Deformer d(L.view(), L.spheres(true));
@@ -95,6 +97,7 @@ TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[defor
                     const DeformedVolume fast = d.frame(mats.data(), o);
                     require_brute_force(L, true, mats, o, fast);
                     if (mode != DeformMode::Rigid) REQUIRE(fast.stats.blended_spheres > 0);
+                    contact += fast.stats.contact;
                     if (trial == 0) {  // the reference on its own box (every posed ball), cropped: the same frame
                         DeformedVolume wide = deform_reference(L.view(), L.spheres(true), mats.data(), o);
                         REQUIRE(wide.bone.size() > fast.bone.size());
@@ -108,6 +111,7 @@ TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[defor
                 }
         }
     }
+    REQUIRE(contact > 0);
 }
 
 TEST_CASE("every decision tier of the Deformer is used, and it still equals the brute-force scatter", "[deform]") {
@@ -162,6 +166,57 @@ TEST_CASE("sub-blocks whose powers come from one sphere (smooth blend groups) st
                 require_brute_force(L, true, mats, o, fast);
             }
         }
+}
+
+/// Voxels labelled with bone 0 lying more than 1.5 voxels past the plane through `joint` (world) with unit normal n.
+std::int64_t past_plane(const DeformedVolume& f, const std::array<double, 3>& joint, const double* n) {
+    std::int64_t count = 0;
+    const double margin = 1.5 * std::max({f.grid.spacing[0], f.grid.spacing[1], f.grid.spacing[2]});
+    for (std::int64_t z = 0; z < f.grid.dims[2]; ++z)
+        for (std::int64_t y = 0; y < f.grid.dims[1]; ++y)
+            for (std::int64_t x = 0; x < f.grid.dims[0]; ++x) {
+                if (f.bone[static_cast<std::size_t>((z * f.grid.dims[1] + y) * f.grid.dims[0] + x)] != 1) continue;
+                const std::int64_t v[3] = {x, y, z};
+                double s = 0;
+                for (int a = 0; a < 3; ++a) s += n[a] * (f.grid.origin[a] + f.grid.spacing[a] * static_cast<double>(v[a]) - joint[a]);
+                count += s > margin;
+            }
+    return count;
+}
+
+TEST_CASE("sliding contact: a straight limb folded to 150 degrees meets itself at the bisector plane", "[deform]") {
+    // Bone 1 (below the joint) folds up by 150 degrees about y: its tissue presses on bone 0's. With keep_volume the
+    // two meet at the bisector plane (bone 0's spheres yield past it wherever bone 1's cover), still exactly the
+    // brute-force scatter with the key (yields, power); without, the radical planes of their balls decide.
+    for (auto spacing : {std::array<double, 3>{1.0, 1.0, 1.0}, std::array<double, 3>{0.9, 1.2, 1.1}}) {
+        const Limb L = make_limb(spacing, 2, true);
+        Deformer d(L.view(), L.spheres(true));
+        const auto joint = world(L.grid, L.joint);
+        const auto rest = motion({0, 1, 0}, 0, joint, {0, 0, 0}), fold = motion({0, 1, 0}, 150, joint, {0, 0, 0});
+        std::vector<double> mats(rest.begin(), rest.end());
+        mats.insert(mats.end(), fold.begin(), fold.end());
+        // the arms leave the joint along +z (bone 0) and the folded -z (bone 1); the bisector's normal points to 1
+        const double t = 150 * M_PI / 180, arm1[3] = {-std::sin(t), 0, -std::cos(t)};  // R_y(t) (0, 0, -1)
+        double n[3] = {arm1[0], arm1[1], arm1[2] - 1}, len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (double& c : n) c /= len;
+        for (DeformMode mode : {DeformMode::Linear, DeformMode::DualQuaternion})
+            for (Proximity prox : {Proximity::Power, Proximity::Nearest}) {
+                INFO("spacing " << spacing[1] << " mode " << int(mode) << " prox " << int(prox));
+                DeformOptions o;
+                o.mode = mode;
+                o.proximity = prox;
+                const DeformedVolume slide = d.frame(mats.data(), o);
+                require_brute_force(L, true, mats, o, slide);
+                o.keep_volume = false;
+                const DeformedVolume plain = d.frame(mats.data(), o);
+                require_brute_force(L, true, mats, o, plain);
+                CHECK(plain.stats.contact == 0);
+                CHECK(slide.stats.contact > 100);
+                const std::int64_t before = past_plane(plain, joint, n), after = past_plane(slide, joint, n);
+                INFO("bone 0 past the plane: " << before << " plain, " << after << " with contact");
+                CHECK(after * 3 < before);  // what stays: the joint's own slabs, and bone 0 where bone 1 does not reach
+            }
+    }
 }
 
 TEST_CASE("deform refuses non-rigid matrices and bad options, and can be cancelled", "[deform]") {

@@ -601,5 +601,32 @@ TEST_CASE("volume at bends: the slab factor, per-frame ball radii, and factors f
         const std::vector<double> fs = bend_factors(m, groups, bone_motions(bent.data(), 2, g), mode);
         CHECK(*std::max_element(fs.begin(), fs.end()) > 1.05);
         for (double f0 : fs) CHECK((f0 >= kMinBend && f0 <= kMaxBend));
+
+        // Sliding contact: none at rest; folded, each bone's field yields past the bisector (its normal towards the
+        // other bone, turned by 75 degrees from x) within min(4, 2 tan(75°)) = 4 limb radii of the joint; so do the
+        // blend groups the bisector cuts off.
+        const FieldContacts still = contacts(m, groups, bone_motions(mats.data(), 2, g), mode, 2, g);
+        REQUIRE(still.size() == 2 + groups.weights.size());
+        for (const auto& planes : still) CHECK(planes.empty());
+        const FieldContacts folded = contacts(m, groups, bone_motions(bent.data(), 2, g), mode, 2, g);
+        REQUIRE(folded[0].size() == 1);
+        REQUIRE(folded[1].size() == 1);
+        const double turn = 75 * M_PI / 180;
+        CHECK(folded[0][0].normal[0] == Approx(std::cos(turn)).margin(1e-9));
+        CHECK(folded[0][0].normal[1] == Approx(std::sin(turn)).margin(1e-9));
+        CHECK(folded[1][0].normal[1] == Approx(-std::sin(turn)).margin(1e-9));
+        CHECK(folded[0][0].joint[0] == Approx(16).margin(0.5));
+        CHECK(folded[0][0].joint[1] == Approx(12).margin(0.5));
+        CHECK(folded[0][0].reach2 == Approx(16.0 * 16.0));
+        const std::int64_t beyond[3] = {17, 15, 12}, before[3] = {16, 9, 12}, far[3] = {16, 12 + 17, 12};
+        const double s2[3] = {1, 1, 1};
+        CHECK(yields(folded[0], beyond, s2));
+        CHECK_FALSE(yields(folded[0], before, s2));
+        CHECK(yields(folded[1], before, s2));
+        CHECK_FALSE(yields(folded[1], beyond, s2));
+        CHECK_FALSE(yields(folded[0], far, s2));
+        std::size_t cut = 0;
+        for (std::size_t k = 2; k < folded.size(); ++k) cut += folded[k].size();
+        CHECK(cut > 0);
     }
 }

@@ -316,6 +316,47 @@ def test_smooth_bends_keep_the_cylinder_volume():
     assert np.array_equal(a.values.array, b.values.array) and a.offset == b.offset
 
 
+def test_bent_limbs_meet_at_the_bisector_plane():
+    """Issue 18, sliding contact: where the folded cylinder's two limbs press together, each ends at the bend's
+    bisector plane (with keep_volume, the smooth modes' default): no tissue of the lower limb lies past the plane
+    where the upper limb's spheres cover (it shows only where the upper limb does not reach); without keep_volume the
+    radical planes of the balls decide and the lower limb punches into the upper one. Coverage is the same either
+    way: contact decides which limb's tissue shows, not whether a voxel is covered."""
+    volume, rig, _ = bend_phantom()
+    mask = volrig.segment(volume)
+    pts = volrig.skeletonize(mask, metric="chamfer345").at(1.0)
+    smooth = volrig.bind(pts, rig, mask, mode="smooth")
+    z = np.indices(mask.array.shape)[0]
+    # which limb each voxel comes from: 1 lower, 2 upper (one limb radius or more from the joint), 3 in between
+    limb = np.where(mask.array, np.where(z >= 64 + 16, 2, np.where(z < 64 - 16, 1, 3)), 0).astype(np.uint8)
+    d = volrig.Deformer(volrig.Volume(limb), pts, smooth)
+    upper = (smooth.weights.toarray()[:, 1] > 0.5).astype(np.float32)
+    joint = np.asarray(rig.joints[1], float)
+
+    def lower_in_upper(M, mode, keep):
+        f = d.frame(M, mode=mode, sampling="nearest", keep_volume=keep)
+        fu = d.frame(M, mode=mode, sampling="nearest", keep_volume=keep, radius_scale=upper)  # the upper's cover
+        cover = np.zeros(f.bone.array.shape, bool)
+        zz, yy, xx = np.nonzero(fu.bone.array)
+        o = np.subtract(fu.offset, f.offset)
+        zz, yy, xx = zz + o[2], yy + o[1], xx + o[0]
+        inside = (zz >= 0) & (zz < cover.shape[0]) & (yy >= 0) & (yy < cover.shape[1]) & (xx >= 0) & (xx < cover.shape[2])
+        cover[zz[inside], yy[inside], xx[inside]] = True
+        a = M[1][:3, :3] @ np.array([0, 0, 1.0]) - np.array([0, 0, -1.0])  # the arms' difference: towards upper
+        q = np.stack(np.indices(cover.shape)[::-1], -1) + np.asarray(f.offset)
+        past = (q - joint) @ (a / np.linalg.norm(a)) > 1
+        return int((past & cover & (f.values.array == 1)).sum()), f.stats
+
+    for mode in ("linear", "dual_quaternion"):
+        for degrees in (135, 150, 165):
+            slid, stats = lower_in_upper(bend(rig, degrees), mode, True)
+            punched, plain = lower_in_upper(bend(rig, degrees), mode, False)
+            assert slid == 0 and stats["contact"] > 0, (mode, degrees, slid, stats["contact"])
+            assert plain["contact"] == 0
+            if degrees >= 150:
+                assert punched > 100, (mode, degrees, punched)
+
+
 # ---- the thesis' reversibility test (§6.3.2) ---------------------------------------------------------------
 
 def pull_back(rest, posed, M):

@@ -87,6 +87,9 @@ struct DeformStats {
     /// Piece voxels the rigid layer drew (Deformer::set_rigid_layer), over or beside the spheres' (an output voxel
     /// two pieces land on counts twice).
     std::int64_t rigid_layer = 0;
+    /// Covered voxels a limb gave up to the other limb of its bent joint past their contact plane (keep_volume's
+    /// sliding contact, smooth modes).
+    std::int64_t contact = 0;
 };
 
 /// One deformed frame. The output grid has the source spacing and lies on the source lattice: output voxel

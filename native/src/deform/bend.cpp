@@ -126,7 +126,11 @@ struct PairPose {
     std::array<double, 2> radius{0, 0};
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // rest
     Plane posed, rest;
+    double bend = 0;  // how much the arms' angle closed from rest (radians, >= 0)
 };
+
+/// The angle between two unit vectors.
+double angle(const Eigen::Vector3d& u, const Eigen::Vector3d& v) { return std::acos(std::clamp(u.dot(v), -1.0, 1.0)); }
 
 PairPose pair_pose(const BendModel& m, std::size_t pair, std::int32_t a, std::int32_t b,
                    const std::vector<Motion>& bones, DeformMode mode) {
@@ -145,6 +149,7 @@ PairPose pair_pose(const BendModel& m, std::size_t pair, std::int32_t a, std::in
     const Eigen::Matrix3d& Rb = bones[static_cast<std::size_t>(b)].R;
     p.rest = bisector(p.centre, -p.t[0], p.t[1]);
     p.posed = bisector(half.R * p.centre + half.d, -(Ra * p.t[0]), Rb * p.t[1]);
+    p.bend = std::max(0.0, angle(-p.t[0], p.t[1]) - angle(-(Ra * p.t[0]), Rb * p.t[1]));
     return p;
 }
 
@@ -155,6 +160,18 @@ double crossing(const Plane& pl, const Eigen::Vector3d& P, const Eigen::Vector3d
     const double own = (side_a ? -1.0 : 1.0) * pl.normal.dot(P - pl.joint);
     const double c = pl.normal.dot(axis), q = std::sqrt(std::max(0.0, 1 - c * c));
     return q > 1e-9 ? own / q / R : (own >= 0 ? kInf : -kInf);
+}
+
+/// Whether the bend model cuts a group's slab off at the bisector: a two-bone group on one side of the joint, within
+/// two limb radii of the joint's centre and wholly on its own side at rest (a limb straight there, or bent less
+/// than its thickness allows); elsewhere (shoulders, hips, limbs bent at rest, the joint's own slab on the bisector)
+/// only the slab's stretch counts.
+bool cut_by_bisector(const BendGroup& bg, const PairPose& pp, const Eigen::Vector3d& pivot) {
+    if (bg.a < 0 || bg.junction || bg.w == 0.5 || !(bg.radius > 0)) return false;
+    const auto side = static_cast<std::size_t>(bg.w < 0.5 ? 0 : 1);
+    const double R = pp.radius[side];
+    if (!(pp.rate[side] > 0) || !((pivot - pp.centre).norm() <= 2 * R)) return false;
+    return crossing(pp.rest, pivot, pp.t[side], side == 0, R) >= 1;
 }
 
 /// The factor of one group: its slab's stretch along its posed axis (finite differences of the two-bone blend
@@ -175,14 +192,28 @@ double group_factor(const BendGroup& bg, const PairPose& pp, const std::vector<M
     const Eigen::Vector3d axis = r0.R * t;
     const Eigen::Vector3d dp = (hi.R * (pivot + ds * t) + hi.d - lo.R * (pivot - ds * t) - lo.d) / (2 * ds);
     const double stretch = std::clamp(dp.dot(axis), 0.25, 4.0);
-    if (bg.w == 0.5) return slab_factor(kInf, stretch);  // its disc lies along the bisector
-    // The bisector term holds for slabs within two limb radii of the joint's centre that lie wholly on their own
-    // side at rest (a limb straight there, or bent less than its thickness allows); elsewhere (shoulders, hips,
-    // limbs bent at rest) only the slab's stretch counts.
+    if (!cut_by_bisector(bg, pp, pivot)) return slab_factor(kInf, stretch);
     const double R = pp.radius[static_cast<std::size_t>(side)];
-    const bool near = (pivot - pp.centre).norm() <= 2 * R;
-    if (!near || crossing(pp.rest, pivot, t, side == 0, R) < 1) return slab_factor(kInf, stretch);
     return slab_factor(crossing(pp.posed, r0.R * pivot + r0.d, axis, side == 0, R), stretch);
+}
+
+/// Whether a limb is straight at its joint at rest: its arms leave the joint's centre more than 120 degrees apart.
+bool straight_at_rest(const PairPose& pp) {
+    return pp.rest.valid && pp.posed.valid && pp.t[0].dot(pp.t[1]) > 0.5;
+}
+
+/// A field's contact plane: the posed bisector, its normal towards b's side when the field is a's (`side_a`). Its
+/// zone grows with the bend β from nothing at rest: two tubes of radius R bent by β overlap within R·tan(β/2) of
+/// the joint along the limb; the zone reaches twice that, at most four limb radii.
+Contact contact_of(const PairPose& pp, bool side_a, const Grid& g) {
+    Contact c;
+    const double reach = std::min(4.0, 2 * std::tan(std::min(pp.bend, 3.0) / 2)) * std::max(pp.radius[0], pp.radius[1]);
+    c.reach2 = reach * reach;
+    for (int a = 0; a < 3; ++a) {
+        c.joint[a] = (pp.posed.joint[a] - g.origin[static_cast<std::size_t>(a)]) / g.spacing[static_cast<std::size_t>(a)];
+        c.normal[a] = (side_a ? 1.0 : -1.0) * pp.posed.normal[a] * g.spacing[static_cast<std::size_t>(a)];
+    }
+    return c;
 }
 
 }  // namespace
@@ -247,6 +278,28 @@ std::vector<double> bend_factors(const BendModel& m, const SmoothGroups& groups,
         f[k] = group_factor(bg, poses[bg.pair], bones, groups.owner[k], mode, groups.pivot[k]);
     }
     return f;
+}
+
+FieldContacts contacts(const BendModel& m, const SmoothGroups& groups, const std::vector<Motion>& bones,
+                       DeformMode mode, std::size_t bone_count, const Grid& g) {
+    FieldContacts fc(bone_count + m.groups.size());
+    std::vector<PairPose> poses(m.gradient.size());
+    std::vector<bool> posed(m.gradient.size(), false);
+    for (const BendGroup& bg : m.groups)
+        if (bg.a >= 0 && !posed[bg.pair]) {
+            poses[bg.pair] = pair_pose(m, bg.pair, bg.a, bg.b, bones, mode);
+            posed[bg.pair] = true;
+            if (!straight_at_rest(poses[bg.pair]) || !(poses[bg.pair].bend > 0)) continue;
+            fc[static_cast<std::size_t>(bg.a)].push_back(contact_of(poses[bg.pair], true, g));
+            fc[static_cast<std::size_t>(bg.b)].push_back(contact_of(poses[bg.pair], false, g));
+        }
+    for (std::size_t k = 0; k < m.groups.size(); ++k) {
+        const BendGroup& bg = m.groups[k];
+        const PairPose& pp = poses[bg.pair];
+        if (bg.a < 0 || !straight_at_rest(pp) || !(pp.bend > 0) || !cut_by_bisector(bg, pp, groups.pivot[k])) continue;
+        fc[bone_count + k].push_back(contact_of(pp, bg.w < 0.5, g));
+    }
+    return fc;
 }
 
 void bend_radii(const BoundSpheres& s, const SmoothGroups& groups, const std::vector<Motion>& bones, DeformMode mode,

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "deform/common.hpp"
 #include "deform/motion.hpp"
 #include "deform/spheres.hpp"
 
@@ -66,6 +67,42 @@ void bend_radii(const BoundSpheres& s, const SmoothGroups& groups, const std::ve
 /// A blended sphere's radius in a frame: its (radius_scale'd) radius times its group's factor. The one expression
 /// the Deformer and the reference both use.
 inline double bent_radius(double r, double factor) { return r * factor; }
+
+// ---- sliding contact -----------------------------------------------------------------------------------------
+// Where the two limbs of a bent joint meet, each yields to the other past the bend's bisector plane: within a zone
+// round the joint, a voxel past the plane taken by a limb's own spheres (its bone's, and the blend groups whose
+// slabs the bend model cuts off at the plane) goes to any other field that covers it. The proximity key becomes
+// (yields, power): the radical planes of the limbs' balls no longer decide where one ends and the other begins, the
+// bisector does, and the part of a limb past it is the other limb's tissue (as the bend model counts it, growing
+// the slabs to keep their volume). Where nothing else covers, a limb keeps its own voxels (no hole opens). The zone
+// grows with the bend from nothing at rest (contact_of), so that rest frames and twists are untouched.
+
+/// One contact plane of a field in a pose, in index space of the source lattice.
+struct Contact {
+    double joint[3];   ///< the joint's posed centre
+    double normal[3];  ///< the plane's world normal times the spacing, towards the side the field yields on
+    double reach2;     ///< the zone: squared world distance from the joint
+};
+/// Per field (the bones' first, then the blend groups'), its contact planes in this pose.
+using FieldContacts = std::vector<std::vector<Contact>>;
+
+/// The contact planes of this pose (keep_volume, smooth modes): for each bone pair whose limb is straight at rest
+/// and bent in the pose, both bones' fields and the groups cut off at the bisector (none at rest). Per field:
+/// bone_count + the groups.
+FieldContacts contacts(const BendModel& m, const SmoothGroups& groups, const std::vector<Motion>& bones,
+                       DeformMode mode, std::size_t bone_count, const Grid& g);
+
+/// Whether a field with these planes yields at output lattice point q (absolute index): past one of them, within
+/// its zone. The one expression the Deformer and the reference both use.
+inline bool yields(const std::vector<Contact>& planes, const std::int64_t* q, const double* s2) {
+    for (const Contact& c : planes) {
+        const double d[3] = {static_cast<double>(q[0]) - c.joint[0], static_cast<double>(q[1]) - c.joint[1],
+                             static_cast<double>(q[2]) - c.joint[2]};
+        if (c.normal[0] * d[0] + c.normal[1] * d[1] + c.normal[2] * d[2] > 0 && length2(d[0], d[1], d[2], s2) < c.reach2)
+            return true;
+    }
+    return false;
+}
 
 /// The unit disc's area beyond a chord at signed distance y from its centre (0 for y >= 1, π for y <= -1).
 double disc_segment(double y);

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "deform/bend.hpp"
 #include "deform/bone_field.hpp"
 #include "deform/queries.hpp"
 
@@ -28,6 +29,7 @@ struct FieldSet {
     double T;           // the power at or above which nothing is covered
     double bound_step;  // the quantum of the fields' power ranges
     bool nearest;       // nearest-centre proximity (else power)
+    const FieldContacts* contacts = nullptr;  // per field its contact planes (bend.hpp, sliding contact), or none
 
     const BoneField& field(std::int32_t f) const { return fields[static_cast<std::size_t>(f)]; }
     const Pull& pull(std::int32_t f) const { return motions[static_cast<std::size_t>(f)].pull; }

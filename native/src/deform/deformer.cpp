@@ -185,6 +185,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     std::vector<Motion> motions = bone_motions(matrices, bone_count, grid);
     build(o.mode != DeformMode::Rigid && has_weights, o, progress);
     bend_groups(motions, o);
+    const bool contact = o.keep_volume && !groups.weights.empty() && o.mode != DeformMode::Rigid;
+    const FieldContacts planes = contact ? contacts(bend, groups, motions, o.mode, bone_count, grid) : FieldContacts{};
     add_group_motions(motions, o.mode);
     const Box bx = fixed_box ? *fixed_box : frame_reach(motions);
     check_box_reach(bx);
@@ -196,7 +198,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     report(progress, 0.55);
     const auto& sp = grid.spacing;
     const FieldSet set{fields, motions, sp.data(), {sp[0] * sp[0], sp[1] * sp[1], sp[2] * sp[2]}, threshold(),
-                       bound_step, o.proximity == Proximity::Nearest};
+                       bound_step, o.proximity == Proximity::Nearest, contact ? &planes : nullptr};
     GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
     Drawn layer;
     if (!pieces.empty()) {
@@ -206,7 +208,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
     report(progress, 1.0);
     out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search,
-                 r.exact_sub_blocks, layer.count};
+                 r.exact_sub_blocks, layer.count, r.contact};
     return out;
 }
 

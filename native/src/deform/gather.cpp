@@ -93,7 +93,9 @@ struct Local {
     std::int64_t hi[3] = {-1, -1, -1};
     std::int64_t covered = 0, queries = 0, by[4] = {0, 0, 0, 0};  // block, cube, sphere, search
     std::int64_t exact_pairs = 0;  // (candidate, sub-block) pairs whose powers came from one sphere
+    std::int64_t contact = 0;      // voxels given up by a yielding field
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
+    std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
     std::vector<CellBounds> range, range_sub;
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
@@ -134,6 +136,7 @@ public:
         : s_(set), decide_(set), owner_(owner), bx_(bx), o_(o), out_(out), bits_(candidate_bits(set, bx)) {
         for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
         words_ = (set.fields.size() + 63) / 64;
+        mark_contact_zones();
     }
 
     template <class S>
@@ -163,6 +166,9 @@ private:
     bool ball_candidate(const Block& b, std::int32_t f, Local& loc) const;
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
+    void mark_contact_zones();
+    bool block_meets(const Contact& c, const std::int64_t* k) const;
+    void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
@@ -184,6 +190,7 @@ private:
     const DeformOptions& o_;
     DeformedVolume& out_;
     const std::vector<std::uint64_t> bits_;
+    std::vector<std::uint8_t> zone_;  // per output block: whether a contact zone meets it (empty: no contacts)
     std::int64_t nb_[3];
     std::size_t words_;
     tbb::enumerable_thread_specific<Local> locals_;
@@ -741,6 +748,63 @@ bool Gather::load_first_labels(Local& loc, std::size_t& n_run, std::size_t li, c
     return loaded;
 }
 
+/// Whether some voxel of the output block k (x, y, z) may lie past the contact plane within its zone: a corner of
+/// the block past the plane (margin for rounding), and the block's box within reach of the joint.
+bool Gather::block_meets(const Contact& c, const std::int64_t* k) const {
+    double past = 0, d2 = 0;  // the most any corner lies past the plane; the box's squared distance from the joint
+    for (int a = 0; a < 3; ++a) {
+        const double lo = static_cast<double>(bx_[a] + k[a] * kBlock), hi = lo + kBlock - 1;
+        past += std::max(c.normal[a] * (lo - c.joint[a]), c.normal[a] * (hi - c.joint[a]));
+        const double gap = std::max({lo - c.joint[a], 0.0, c.joint[a] - hi});
+        d2 += s_.s2[a] * gap * gap;
+    }
+    return past > -1e-9 && d2 < c.reach2 * (1 + 1e-9);
+}
+
+/// The output blocks where a contact plane may make a field yield: past the plane within its zone.
+void Gather::mark_contact_zones() {
+    if (!s_.contacts) return;
+    for (const auto& planes : *s_.contacts)
+        for (const Contact& c : planes) {
+            if (zone_.empty()) zone_.assign(static_cast<std::size_t>(nb_[0] * nb_[1] * nb_[2]), 0);
+            std::int64_t k0[3], k1[3];
+            for (int a = 0; a < 3; ++a) {
+                const double r = std::sqrt(c.reach2) / s_.spacing[a];
+                k0[a] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((c.joint[a] - r - static_cast<double>(bx_[a])) / kBlock)));
+                k1[a] = std::min<std::int64_t>(nb_[a] - 1, static_cast<std::int64_t>(std::floor((c.joint[a] + r - static_cast<double>(bx_[a])) / kBlock)));
+            }
+            std::int64_t k[3];
+            for (k[2] = k0[2]; k[2] <= k1[2]; ++k[2])
+                for (k[1] = k0[1]; k[1] <= k1[1]; ++k[1])
+                    for (k[0] = k0[0]; k[0] <= k1[0]; ++k[0])
+                        if (block_meets(c, k)) zone_[static_cast<std::size_t>((k[2] * nb_[1] + k[1]) * nb_[0] + k[0])] = 1;
+        }
+}
+
+/// Sliding contact (bend.hpp) over a block in a contact zone: where the winner yields, the least power over the
+/// block's other candidates that do not yield there, when one covers (exactly the scatter's (yields, power) key:
+/// a winner that does not yield has the least power of all; one that does keeps the voxel only when every field
+/// covering it yields).
+void Gather::slide(const Block& b, Local& loc) const {
+    const FieldContacts& fc = *s_.contacts;
+    if (loc.cands.size() < loc.all_fields.size()) loc.cands.resize(loc.all_fields.size());
+    for (std::size_t li = 0; li < 512; ++li) {
+        const std::int32_t w = loc.win[li];
+        if (w < 0 || fc[static_cast<std::size_t>(w)].empty()) continue;
+        const std::int64_t m3[3] = {b.base[0] + static_cast<std::int64_t>(li & 7),
+                                    b.base[1] + static_cast<std::int64_t>((li >> 3) & 7),
+                                    b.base[2] + static_cast<std::int64_t>(li >> 6)};
+        if (!yields(fc[static_cast<std::size_t>(w)], m3, s_.s2)) continue;
+        loc.others.clear();
+        for (const std::int32_t f : loc.all_fields)
+            if (f != w && !yields(fc[static_cast<std::size_t>(f)], m3, s_.s2)) loc.others.push_back(f);
+        const std::int32_t v = decide_.resolve(loc.others.data(), loc.others.size(), m3, loc.cands.data(), loc.queries);
+        if (v < 0) continue;
+        loc.win[li] = v;
+        ++loc.contact;
+    }
+}
+
 /// The voxels the lanes left open, one by one: tier 3, then tier 4.
 void Gather::undecided(const Block& b, Local& loc) const {
     const std::size_t K = loc.fields.size();
@@ -854,7 +918,10 @@ void Gather::run(const S& sampler, const Progress& progress) {
             if (loc.fields.empty()) continue;
             if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
             std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
+            const bool contact = !zone_.empty() && zone_[static_cast<std::size_t>(k)];
+            if (contact) loc.all_fields = loc.fields;  // decide_block drops the candidates that cannot win
             decide_block(b, loc);
+            if (contact) slide(b, loc);
             const std::int64_t ncov = write_block(b, loc, sampler);
             if (!ncov) continue;
             loc.covered += ncov;
@@ -883,6 +950,7 @@ GatherResult Gather::result() const {
         r.by_sphere += loc.by[2];
         r.by_search += loc.by[3];
         r.exact_sub_blocks += loc.exact_pairs;
+        r.contact += loc.contact;
         for (int a = 0; a < 3; ++a) {
             r.lo[a] = std::min(r.lo[a], loc.lo[a]);
             r.hi[a] = std::max(r.hi[a], loc.hi[a]);

@@ -18,6 +18,7 @@ struct GatherResult {
     std::int64_t covered = 0, queries = 0;
     std::int64_t by_block = 0, by_cube = 0, by_sphere = 0, by_search = 0;
     std::int64_t exact_sub_blocks = 0;
+    std::int64_t contact = 0;  // voxels a yielding field gave up to another (sliding contact)
     std::int64_t lo[3], hi[3];
 };
 

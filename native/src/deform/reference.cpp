@@ -34,7 +34,18 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     std::vector<Motion> mot(s.n);
     std::vector<std::array<double, 3>> centre(s.n), rest(s.n);
     const SmoothGroups groups = smooth ? smooth_groups(s, grid) : SmoothGroups{};
-    if (smooth && o.keep_volume) bend_radii(s, groups, motions, o.mode, grid, radii);
+    // keep_volume: the bend model's radii, and its contact planes (sliding contact) per field
+    FieldContacts planes;
+    if (smooth && o.keep_volume) {
+        planes = contacts(bend_model(s, groups, radii, grid), groups, motions, o.mode, s.bone_count, grid);
+        bend_radii(s, groups, motions, o.mode, grid, radii);
+    }
+    const std::vector<Contact> none;
+    auto planes_of = [&](std::size_t i) -> const std::vector<Contact>& {
+        if (planes.empty()) return none;
+        const std::int32_t k = groups.group_of[i];
+        return planes[k < 0 ? static_cast<std::size_t>(groups.bone_of[i]) : s.bone_count + static_cast<std::size_t>(k)];
+    };
     Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (std::size_t i = 0; i < s.n; ++i) {
         const std::int32_t k = smooth ? groups.group_of[i] : -1;
@@ -56,6 +67,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     const std::int64_t nx = bx[3], ny = bx[4], nz = bx[5];
     const auto total = static_cast<std::size_t>(nx * ny * nz);
     std::vector<double> P(total, kInf);        // the proximity buffer
+    std::vector<std::uint8_t> Y(total, 1);     // ... and its first key: whether the writer yields (sliding contact)
     std::vector<std::int64_t> who(total, -1);  // the sphere that wrote each voxel
     if (o.values) out.values = ZeroedArray<float>(total);
     out.bone = ZeroedArray<std::int16_t>(total);
@@ -67,6 +79,7 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                 const double r = radii[i];
                 if (!(r > 0)) continue;
                 const double lim = open_ball_limit_sq(r);
+                const std::vector<Contact>& yield_planes = planes_of(i);
                 const double cx = centre[i][0] - static_cast<double>(bx[0]),
                              cy = centre[i][1] - static_cast<double>(bx[1]),
                              cz = centre[i][2] - static_cast<double>(bx[2]);
@@ -84,7 +97,10 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
                             if (!(d2 < lim)) continue;
                             const double key = nearest ? d2 : d2 - lim;
                             const auto idx = static_cast<std::size_t>((z * ny + y) * nx + x);
-                            if (key < P[idx]) {  // mark q, R(q) = S(T⁻¹q), P(q) = proximity: as the thesis writes it
+                            const std::uint8_t yk = !yield_planes.empty() && yields(yield_planes, q, s2);
+                            // mark q, R(q) = S(T⁻¹q), P(q) = proximity: as the thesis writes it, the key (yields, key)
+                            if (yk < Y[idx] || (yk == Y[idx] && key < P[idx])) {
+                                Y[idx] = yk;
                                 P[idx] = key;
                                 who[idx] = static_cast<std::int64_t>(i);
                                 out.bone[idx] = static_cast<std::int16_t>(s.bone[i] + 1);
