@@ -540,7 +540,8 @@ TEST_CASE("volume at bends: the slab factor, per-frame ball radii, and factors f
     CHECK(disc_segment(-1) == Approx(M_PI));
     CHECK(disc_segment(0) == Approx(M_PI / 2));
     CHECK(slab_factor(kInf, 1) == 1);                        // no crossing, no stretch: exactly 1
-    CHECK(slab_factor(0, 1) == Approx(std::sqrt(2.0)));      // half the disc past the plane: area doubled
+    CHECK(slab_factor(0, 1) == kMaxBend);                     // half the disc past the plane: √2 wanted, capped
+    CHECK(slab_factor(kInf, 0.64) == Approx(1.25).margin(1e-9));  // squeezed to 0.64: 1/0.8 wider
     CHECK(slab_factor(kInf, 4) == Approx(0.5).margin(1e-9));  // stretched four-fold: thinner
     CHECK(slab_factor(-5, 1) == kMaxBend);
     CHECK(slab_factor(0.3, 1) > slab_factor(0.6, 1));

@@ -52,7 +52,9 @@ struct BendModel {
 BendModel bend_model(const BoundSpheres& s, const SmoothGroups& groups, const std::vector<double>& radii,
                      const Grid& g);
 
-constexpr double kMinBend = 0.5, kMaxBend = 2.0;
+/// A slab's radius factor stays within [kMinBend, kMaxBend]: past +40% the few balls of a slab (at a coarse point
+/// count) stand out of the limb as fins rather than swelling it (the bend test's cylinder never needs more).
+constexpr double kMinBend = 0.5, kMaxBend = 1.4;
 
 /// Per group, the radius factor (in [kMinBend, kMaxBend]) that keeps its slab's volume in this pose. `bones`: the
 /// frame's bone motions.
