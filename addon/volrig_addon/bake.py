@@ -106,7 +106,8 @@ class Baker(RigState):
                                           setup=os.path.basename(self.path), parts=looks.parts_of(volume_obj),
                                           rig=objects.armature_rig(self.rig_obj),
                                           tissues=tissue_looks.tissues_of(volume_obj),
-                                          substitutes=looks.substitutes_of(volume_obj))
+                                          substitutes=looks.substitutes_of(volume_obj),
+                                          keep_volume=volume_obj.volrig.keep_volume)
         self._thickness = {}  # frame -> the thickness factors pose() read for it
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:

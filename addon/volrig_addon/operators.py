@@ -513,7 +513,7 @@ class VOLRIG_OT_find_contacts(_OnVolume, bpy.types.Operator):
             cb = volrig.Collider(b.points, b.binding, parents=b.parents)
         frames = list(range(scene.frame_start, scene.frame_end + 1))
         current, results = scene.frame_current, []
-        mode = vol.volrig.deform_mode
+        mode, keep = vol.volrig.deform_mode, vol.volrig.keep_volume
         with _ProgressBar(context) as bar:
             try:
                 for k, f in enumerate(frames):
@@ -521,11 +521,12 @@ class VOLRIG_OT_find_contacts(_OnVolume, bpy.types.Operator):
                     depsgraph = context.evaluated_depsgraph_get()
                     ma = a.bone_matrices(depsgraph)
                     if b is None:
-                        results.append(volrig.self_collide(ca, ma, min_bone_distance=self.min_distance, mode=mode))
+                        results.append(volrig.self_collide(ca, ma, min_bone_distance=self.min_distance, mode=mode,
+                                                           keep_volume=keep))
                     else:  # B's rest (its armature space) -> B posed -> A's armature space, as they stand now
                         to_a = _to_frame_of(a.rig_obj.evaluated_get(depsgraph), b.rig_obj.evaluated_get(depsgraph))
                         mb = to_a @ b.bone_matrices(depsgraph)
-                        results.append(volrig.collide(ca, ma, cb, mb, mode=mode))
+                        results.append(volrig.collide(ca, ma, cb, mb, mode=mode, keep_volume=keep))
                     bar.wm.progress_update(100.0 * (k + 1) / len(frames))
             finally:
                 scene.frame_set(current)

@@ -217,7 +217,11 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
 
     def draw(self, context):
         s, layout = _settings(self, context)
-        _props(layout, s, "deform_mode", "sampling", "bake_frames")
+        _props(layout, s, "deform_mode")
+        row = layout.row()
+        row.active = s.deform_mode != "rigid"
+        row.prop(s, "keep_volume")
+        _props(layout, s, "sampling", "bake_frames")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
         row.operator("volrig.show_rest", icon="VOLUME_DATA")

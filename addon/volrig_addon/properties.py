@@ -278,6 +278,9 @@ class VolrigObject(bpy.types.PropertyGroup):
 
     # --- bake ---
     deform_mode: EnumProperty(name="Deform", items=_menu(MODE_INFO), default="linear")
+    keep_volume: BoolProperty(name="Keep Volume at Bends", default=True,
+                              description="Smooth modes: bent limbs keep their volume and meet at the bend's "
+                                          "bisector plane (off: the plain blend)")
     sampling: EnumProperty(name="Sampling", items=_menu(SAMPLING_INFO), default="trilinear")
     bake_frames: StringProperty(name="Frames", default="",
                                 description="Frames to bake, e.g. '1-48' or '1-10,20'; empty = the scene range")

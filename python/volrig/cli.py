@@ -223,7 +223,7 @@ def cmd_bake_mocap(args) -> int:
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
     tissues = _tissues(args.tissues, source) if args.tissues else ()
     bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling,
-                      tissues=tissues)
+                      tissues=tissues, keep_volume=not args.plain_blend)
     todo = [(f, m) for f, m in zip(frames, matrices)
             if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
     rate = BakeRate(len(todo))
@@ -651,6 +651,8 @@ def main(argv=None) -> int:
                    help="bake every STEP-th BVH frame (1, 1+STEP, ...; files numbered 1, 2, ...), e.g. 5 for 120 fps "
                         "-> 24 fps")
     p.add_argument("--mode", choices=MODES, default="linear", help="deform mode")
+    p.add_argument("--plain-blend", action="store_true",
+                   help="smooth modes: blend without keeping the volume at bends or the limbs' contact plane")
     p.add_argument("--sampling", choices=SAMPLINGS, default="trilinear",
                    help="nearest for label maps")
     p.add_argument("--name", help="file name stem (default: the volume file's)")

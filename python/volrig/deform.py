@@ -37,6 +37,10 @@ SAMPLING_INFO = {
     "nearest": ("Nearest", "Take the nearest sample (label maps)"),
 }
 SAMPLINGS = tuple(SAMPLING_INFO)
+#: The revision of what a frame holds for the same inputs: bumped when the deformation's output changes (a bake
+#: record made with another revision is out of date). 2: sliding contact and the slab factor's bound (issue 18).
+DEFORM_REVISION = 2
+
 #: The default proximity: the power distance |q - c|² - r² (the sphere q lies deepest inside). It keeps the
 #: thesis' bend test unbroken further and reverses more exactly than the nearest centre; see the README.
 DEFAULT_PROXIMITY = "power"

@@ -23,7 +23,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ._volrig import VolrigError
-from .deform import Deformer
+from .deform import DEFORM_REVISION, Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS
 from .parts import part_grids, substitute_grid
@@ -454,7 +454,8 @@ class FolderBake:
     atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
-    result depends on (the weights, ``setup``, mode and sampling), so ``up_to_date`` tells a frame that needs no
+    result depends on (the weights, ``setup``, mode, sampling, ``keep_volume`` and the deformation's revision), so
+    ``up_to_date`` tells a frame that needs no
     re-bake; machines baking other frames into the same folder merge their entries. Frames may carry per-bone
     thickness factors (``bake(..., thickness=)``: ``volrig.skin.thicken_volume``; needs ``rig``).
 
@@ -464,8 +465,9 @@ class FolderBake:
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
-                 parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None):
+                 parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None, keep_volume: bool = True):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
+        self.keep_volume = bool(keep_volume)
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.parts, self.tissues = list(parts), list(tissues)
         self.substitutes = check_substitutes(source, self.parts, substitutes)
@@ -479,6 +481,7 @@ class FolderBake:
         for a in (w.indptr, w.indices, w.data):
             h.update(np.ascontiguousarray(a).tobytes())
         h.update(json.dumps([setup, list(binding.bone_names), mode, sampling]
+                            + ([] if self.keep_volume else ["plain blend"]) + [DEFORM_REVISION]
                             + ([[list(p) for p in self.parts]] if self.parts else [])
                             + ([[[t.key, t.codes] for t in self.tissues]] if self.tissues else [])
                             + ([sorted((k, v.path or id(v)) for k, v in self.substitutes.items())]
@@ -527,7 +530,7 @@ class FolderBake:
         os.makedirs(self.folder, exist_ok=True)
         deformer, radius_scale = self._deformer_for(thickness)
         frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
-                               progress=progress)
+                               keep_volume=self.keep_volume, progress=progress)
         self._wait()
         if self._writer is None:
             self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")

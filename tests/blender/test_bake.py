@@ -123,6 +123,28 @@ def test_a_frame_stops_inside_its_computation(posed):
     baker.finish()
 
 
+def test_keep_volume_goes_to_the_bake_and_off_rebakes(posed):
+    """*Keep Volume at Bends* (on by default) is the bake's; turned off, every baked frame is out of date and the
+    frame is the plain blend's."""
+    from volrig_addon import bake
+    vol = posed
+    scene = bpy.context.scene
+    assert vol.volrig.keep_volume
+    baker = bake.Baker(vol, "linear")
+    assert baker.folder.keep_volume
+    baker.bake_frame(scene, 3, force=True)
+    baker.finish()
+    assert not bake.Baker(vol, "linear").bake_frame(scene, 3)
+    vol.volrig.keep_volume = False
+    try:
+        baker = bake.Baker(vol, "linear")
+        assert not baker.folder.keep_volume
+        assert baker.bake_frame(scene, 3)
+        baker.finish()
+    finally:
+        vol.volrig.keep_volume = True
+
+
 def test_painted_weights_change_the_bake(posed):
     """Moving the forearm's spheres to the upper arm's group (weight painting) keeps them still when the forearm
     bends."""

@@ -625,6 +625,13 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
     r = run("bake-mocap", src, rig_file, walk.source, "-o", part, "--frames", "31", "--step", 30, "--name",
             "phantom", "--skip-existing")
     assert r.returncode == 0 and "exists, skipped" in r.stderr and "0 of 1 frames" in r.stdout
+    # --plain-blend: the smooth blend without the bend model and the contact planes
+    plain = tmp_path / "plain"
+    r = run("bake-mocap", src, rig_file, walk.source, "-o", plain, "--frames", "31", "--step", 30, "--name",
+            "phantom", "--plain-blend")
+    assert r.returncode == 0, r.stderr
+    np.testing.assert_array_equal(volrig.load(str(plain / "phantom_0002.vdb"), grid="bone").array,
+                                  deformer.frame(m, mode="linear", keep_volume=False).bone.array)
 
     # clear errors: exit 2, no traceback
     bare = tmp_path / "bare.vrig"

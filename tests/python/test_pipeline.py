@@ -269,7 +269,7 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     again = pipeline.FolderBake(source, pts, binding, folder, "bar", mode="linear", track=True, setup="rig-1")
     assert again.up_to_date(1, bent) and again.up_to_date(2, volrig.rest_pose(2))
     # a different mode, setup or weights makes every frame out of date
-    for kw in ({"mode": "rigid"}, {"setup": "rig-2"}, {"sampling": "nearest"}):
+    for kw in ({"mode": "rigid"}, {"setup": "rig-2"}, {"sampling": "nearest"}, {"keep_volume": False}):
         other = pipeline.FolderBake(source, pts, binding, folder, "bar", track=True, **{"mode": "linear",
                                                                                       "setup": "rig-1", **kw})
         assert not other.up_to_date(1, bent), kw
@@ -280,6 +280,19 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     again.finish()
     record = json.loads((tmp_path / "frames" / "poses.json").read_text())
     assert sorted(record) == ["1", "2", "3"]
+    # a record made by another revision of the deformation is out of date
+    stale = pipeline.FolderBake(source, pts, binding, folder, "bar", mode="linear", track=True, setup="rig-1")
+    import volrig.pipeline as P
+    revision, P.DEFORM_REVISION = P.DEFORM_REVISION, P.DEFORM_REVISION + 1
+    try:
+        newer = pipeline.FolderBake(source, pts, binding, folder, "bar", mode="linear", track=True, setup="rig-1")
+    finally:
+        P.DEFORM_REVISION = revision
+    assert stale.up_to_date(1, bent) and not newer.up_to_date(1, bent)
+    # keep_volume=False bakes the plain blend
+    blend = pipeline.FolderBake(source, pts, binding, str(tmp_path / "blend"), "bar", mode="linear", keep_volume=False)
+    assert blend.bake(1, bent) == deformer.frame(bent, mode="linear", keep_volume=False).stats
+    blend.finish()
     # without tracking nothing is recorded and nothing is up to date
     plain = pipeline.FolderBake(source, pts, binding, str(tmp_path / "plain"), "bar")
     plain.bake(1, bent)
