@@ -1,7 +1,8 @@
 """For scripts/ui_screenshot: Blender with its UI (under Xvfb), the add-on enabled, the phantom imported,
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
-its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider)."""
+its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
+UI_BAKE=1: every volrig panel closed but Bake."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
@@ -16,6 +17,8 @@ for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab
     if (os.environ.get("UI_LOOKS") or os.environ.get("UI_TISSUES") or os.environ.get("UI_VHM")) and c.__name__ in ("VOLRIG_PT_volume", "VOLRIG_PT_segment", "VOLRIG_PT_skeleton"):
         c.bl_options = {"DEFAULT_CLOSED"}  # room for the Parts panel
+    if os.environ.get("UI_BAKE") and c.__name__ not in ("VOLRIG_PT_bake",):
+        c.bl_options = {"DEFAULT_CLOSED"}  # room for the Bake panel
 volrig_addon.register()
 
 def key_bone(vol, name, axis, keys, end):
