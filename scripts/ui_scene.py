@@ -190,13 +190,15 @@ def setup_vhm():
 
 def vhm_knee(vol):
     """UI_VHM_RIG=1: skeletonized, rigged (the table's bone as rigid tissue, by Automatic), the left knee keyed
-    from straight (frame 1) to bent 90 degrees (frame 10), shown at frame 10 unbaked: the live preview."""
+    from straight (frame 1) to bent UI_KNEE degrees (default 90; frame 10), shown at frame 10 unbaked: the live
+    preview."""
+    import math
     from volrig_addon.objects import members
     bpy.context.view_layer.objects.active = vol
     vol.select_set(True)
     print("skeletonize:", bpy.ops.volrig.skeletonize(), flush=True)
     print("rig:", bpy.ops.volrig.rig(), flush=True)
-    key_bone(vol, "shin.L", 0, ((1, 0.0), (10, 1.5708)), 10)
+    key_bone(vol, "shin.L", 0, ((1, 0.0), (10, math.radians(float(os.environ.get("UI_KNEE", "90"))))), 10)
     members(vol)["SPHERES"].hide_set(True)
     bpy.context.scene.frame_set(10)
     bpy.context.view_layer.objects.active = vol
