@@ -295,8 +295,9 @@ FieldContacts contacts(const BendModel& m, const SmoothGroups& groups, const std
         }
     for (std::size_t k = 0; k < m.groups.size(); ++k) {
         const BendGroup& bg = m.groups[k];
+        if (bg.a < 0) continue;
         const PairPose& pp = poses[bg.pair];
-        if (bg.a < 0 || !straight_at_rest(pp) || !(pp.bend > 0) || !cut_by_bisector(bg, pp, groups.pivot[k])) continue;
+        if (!straight_at_rest(pp) || !(pp.bend > 0) || !cut_by_bisector(bg, pp, groups.pivot[k])) continue;
         fc[bone_count + k].push_back(contact_of(pp, bg.w < 0.5, g));
     }
     return fc;

@@ -791,9 +791,10 @@ void Gather::slide(const Block& b, Local& loc) const {
     for (std::size_t li = 0; li < 512; ++li) {
         const std::int32_t w = loc.win[li];
         if (w < 0 || fc[static_cast<std::size_t>(w)].empty()) continue;
-        const std::int64_t m3[3] = {b.base[0] + static_cast<std::int64_t>(li & 7),
-                                    b.base[1] + static_cast<std::int64_t>((li >> 3) & 7),
-                                    b.base[2] + static_cast<std::int64_t>(li >> 6)};
+        const std::int64_t d[3] = {static_cast<std::int64_t>(li & 7), static_cast<std::int64_t>((li >> 3) & 7),
+                                   static_cast<std::int64_t>(li >> 6)};
+        if (d[0] >= b.e[0] || d[1] >= b.e[1] || d[2] >= b.e[2]) continue;  // past the box's edge
+        const std::int64_t m3[3] = {b.base[0] + d[0], b.base[1] + d[1], b.base[2] + d[2]};
         if (!yields(fc[static_cast<std::size_t>(w)], m3, s_.s2)) continue;
         loc.others.clear();
         for (const std::int32_t f : loc.all_fields)
