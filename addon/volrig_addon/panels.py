@@ -15,6 +15,15 @@ def _props(layout, settings, *names) -> None:
         layout.prop(settings, name)
 
 
+def _labelled(layout, settings, *names, text: str = "") -> None:
+    """Drop-downs and text fields with their names on the left half (the sidebar's default cuts them to a few
+    letters: "Bindi...", "Rigid ..."); ``text`` replaces a single property's name."""
+    for name in names:
+        split = layout.split(factor=0.45)
+        split.label(text=text or settings.bl_rna.properties[name].name)
+        split.prop(settings, name, text="")
+
+
 class _VolrigPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -96,8 +105,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(s, "body_plan", text="")
         row.prop(s, "use_scene_up", toggle=True, icon="EMPTY_SINGLE_ARROW")
-        layout.prop(s, "bind_mode")
-        layout.prop(s, "rigid_by")
+        _labelled(layout, s, "bind_mode", "rigid_by")
         if s.rigid_by == "LABELS":
             layout.prop(s, "rigid_labels")
         elif s.rigid_by == "RANGE":
@@ -167,17 +175,21 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
     def draw(self, context):
         s, layout = _settings(self, context)
         vol = s.id_data
-        row = layout.row()
-        row.active = not s.use_tissues  # (per-tissue looks colour the volume instead)
-        row.prop(s, "preset")
+        col = layout.column()
+        col.active = not s.use_tissues  # (per-tissue looks colour the volume instead)
+        _labelled(col, s, "preset", text="Transfer")
         layout.prop(s, "density_scale")
         rig = objects.members(vol).get("RIG")
+        split = layout.split(factor=0.45)
+        split.label(text="Highlight")
         if rig is not None:
-            layout.prop_search(s, "highlight_bone", rig.data, "bones")
+            split.prop_search(s, "highlight_bone", rig.data, "bones", text="")
         else:
-            layout.prop(s, "highlight_bone")
-        row = layout.row(align=True)
-        row.prop(s, "highlight_strength")
+            split.prop(s, "highlight_bone", text="")
+        split = layout.split(factor=0.45)
+        split.label(text="Glow")
+        row = split.row(align=True)
+        row.prop(s, "highlight_strength", text="")
         row.prop(s, "highlight_color", text="")
 
 
@@ -217,11 +229,11 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
 
     def draw(self, context):
         s, layout = _settings(self, context)
-        _props(layout, s, "deform_mode")
+        _labelled(layout, s, "deform_mode")
         row = layout.row()
         row.active = s.deform_mode != "rigid"
         row.prop(s, "keep_volume")
-        _props(layout, s, "sampling", "bake_frames")
+        _labelled(layout, s, "sampling", "bake_frames")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
         row.operator("volrig.show_rest", icon="VOLUME_DATA")

@@ -321,7 +321,7 @@ class _Layout:
     def row(self, **kw):
         return self
 
-    column = box = row
+    column = box = split = row
 
 
 def test_panels_draw_every_stage(rigged):
