@@ -201,7 +201,6 @@ def vhm_knee(vol):
     key_bone(vol, "shin.L", 0, ((1, 0.0), (10, math.radians(float(os.environ.get("UI_KNEE", "90"))))), 10)
     members(vol)["SPHERES"].hide_set(True)
     bpy.context.scene.frame_set(10)
-    bpy.context.view_layer.objects.active = vol
 
 
 def empty_view3d():

@@ -263,19 +263,29 @@ BendModel bend_model(const BoundSpheres& s, const SmoothGroups& groups, const st
     return m;
 }
 
-std::vector<double> bend_factors(const BendModel& m, const SmoothGroups& groups, const std::vector<Motion>& bones,
-                                 DeformMode mode) {
+namespace {
+
+/// Every bone pair's bend in this pose (its two bones from the first two-bone group of the pair).
+std::vector<PairPose> pair_poses(const BendModel& m, const std::vector<Motion>& bones, DeformMode mode) {
     std::vector<PairPose> poses(m.gradient.size());
     std::vector<bool> posed(m.gradient.size(), false);
-    std::vector<double> f(m.groups.size(), 1.0);
-    for (std::size_t k = 0; k < m.groups.size(); ++k) {
-        const BendGroup& bg = m.groups[k];
-        if (bg.a < 0) continue;
-        if (!posed[bg.pair]) {
+    for (const BendGroup& bg : m.groups)
+        if (bg.a >= 0 && !posed[bg.pair]) {
             poses[bg.pair] = pair_pose(m, bg.pair, bg.a, bg.b, bones, mode);
             posed[bg.pair] = true;
         }
-        f[k] = group_factor(bg, poses[bg.pair], bones, groups.owner[k], mode, groups.pivot[k]);
+    return poses;
+}
+
+}  // namespace
+
+std::vector<double> bend_factors(const BendModel& m, const SmoothGroups& groups, const std::vector<Motion>& bones,
+                                 DeformMode mode) {
+    const std::vector<PairPose> poses = pair_poses(m, bones, mode);
+    std::vector<double> f(m.groups.size(), 1.0);
+    for (std::size_t k = 0; k < m.groups.size(); ++k) {
+        const BendGroup& bg = m.groups[k];
+        if (bg.a >= 0) f[k] = group_factor(bg, poses[bg.pair], bones, groups.owner[k], mode, groups.pivot[k]);
     }
     return f;
 }
@@ -283,29 +293,33 @@ std::vector<double> bend_factors(const BendModel& m, const SmoothGroups& groups,
 FieldContacts contacts(const BendModel& m, const SmoothGroups& groups, const std::vector<Motion>& bones,
                        DeformMode mode, std::size_t bone_count, const Grid& g) {
     FieldContacts fc(bone_count + m.groups.size());
-    std::vector<PairPose> poses(m.gradient.size());
-    std::vector<bool> posed(m.gradient.size(), false);
-    for (const BendGroup& bg : m.groups)
-        if (bg.a >= 0 && !posed[bg.pair]) {
-            poses[bg.pair] = pair_pose(m, bg.pair, bg.a, bg.b, bones, mode);
-            posed[bg.pair] = true;
-            if (!straight_at_rest(poses[bg.pair]) || !(poses[bg.pair].bend > 0)) continue;
-            fc[static_cast<std::size_t>(bg.a)].push_back(contact_of(poses[bg.pair], true, g));
-            fc[static_cast<std::size_t>(bg.b)].push_back(contact_of(poses[bg.pair], false, g));
-        }
+    const std::vector<PairPose> poses = pair_poses(m, bones, mode);
+    auto touching = [&](const BendGroup& bg) {  // a pair whose limb is straight at rest and bent now
+        return bg.a >= 0 && straight_at_rest(poses[bg.pair]) && poses[bg.pair].bend > 0;
+    };
+    std::vector<bool> done(poses.size(), false);
     for (std::size_t k = 0; k < m.groups.size(); ++k) {
         const BendGroup& bg = m.groups[k];
-        if (bg.a < 0) continue;
+        if (!touching(bg)) continue;
         const PairPose& pp = poses[bg.pair];
-        if (!straight_at_rest(pp) || !(pp.bend > 0) || !cut_by_bisector(bg, pp, groups.pivot[k])) continue;
-        fc[bone_count + k].push_back(contact_of(pp, bg.w < 0.5, g));
+        if (!done[bg.pair]) {  // the pair's two bones, once
+            done[bg.pair] = true;
+            fc[static_cast<std::size_t>(bg.a)].push_back(contact_of(pp, true, g));
+            fc[static_cast<std::size_t>(bg.b)].push_back(contact_of(pp, false, g));
+        }
+        if (cut_by_bisector(bg, pp, groups.pivot[k])) fc[bone_count + k].push_back(contact_of(pp, bg.w < 0.5, g));
     }
     return fc;
 }
 
 void bend_radii(const BoundSpheres& s, const SmoothGroups& groups, const std::vector<Motion>& bones, DeformMode mode,
                 const Grid& g, std::vector<double>& radii) {
-    const std::vector<double> f = bend_factors(bend_model(s, groups, radii, g), groups, bones, mode);
+    bend_radii(bend_model(s, groups, radii, g), s, groups, bones, mode, radii);
+}
+
+void bend_radii(const BendModel& m, const BoundSpheres& s, const SmoothGroups& groups,
+                const std::vector<Motion>& bones, DeformMode mode, std::vector<double>& radii) {
+    const std::vector<double> f = bend_factors(m, groups, bones, mode);
     for (std::size_t i = 0; i < s.n; ++i)
         if (groups.group_of[i] >= 0) radii[i] = bent_radius(radii[i], f[static_cast<std::size_t>(groups.group_of[i])]);
 }

@@ -65,6 +65,9 @@ std::vector<double> bend_factors(const BendModel& m, const SmoothGroups& groups,
 /// (radius_scale'd) times its group's factor in this pose.
 void bend_radii(const BoundSpheres& s, const SmoothGroups& groups, const std::vector<Motion>& bones, DeformMode mode,
                 const Grid& g, std::vector<double>& radii);
+/// The same with the bend model built already (from these radii).
+void bend_radii(const BendModel& m, const BoundSpheres& s, const SmoothGroups& groups,
+                const std::vector<Motion>& bones, DeformMode mode, std::vector<double>& radii);
 
 /// A blended sphere's radius in a frame: its (radius_scale'd) radius times its group's factor. The one expression
 /// the Deformer and the reference both use.

@@ -37,8 +37,9 @@ DeformedVolume deform_reference(const VolumeView& source, const BoundSpheres& s,
     // keep_volume: the bend model's radii, and its contact planes (sliding contact) per field
     FieldContacts planes;
     if (smooth && o.keep_volume) {
-        planes = contacts(bend_model(s, groups, radii, grid), groups, motions, o.mode, s.bone_count, grid);
-        bend_radii(s, groups, motions, o.mode, grid, radii);
+        const BendModel model = bend_model(s, groups, radii, grid);
+        planes = contacts(model, groups, motions, o.mode, s.bone_count, grid);
+        bend_radii(model, s, groups, motions, o.mode, radii);
     }
     const std::vector<Contact> none;
     auto planes_of = [&](std::size_t i) -> const std::vector<Contact>& {
