@@ -177,12 +177,32 @@ void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F,
             }
         }
     });
+    // z columns eight at a time, copied out and back: one pass down the slices per eight columns, not eight
+    tbb::enumerable_thread_specific<std::pair<std::vector<double>, std::vector<std::uint32_t>>> columns;
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
+        auto& [cf, cl] = columns.local();
+        cf.resize(static_cast<std::size_t>(8 * nz));
+        cl.resize(static_cast<std::size_t>(8 * nz));
         for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
-            for (std::int64_t x = 0; x < nx; ++x) {
-                const auto base = static_cast<std::size_t>(y * nx + x);
-                e.run(F.data() + base, lab.data() + base, nz, nx * ny, s2[2]);
+            for (std::int64_t x0 = 0; x0 < nx; x0 += 8) {
+                const std::int64_t w = std::min<std::int64_t>(8, nx - x0);
+                for (std::int64_t z = 0; z < nz; ++z) {
+                    const auto at = static_cast<std::size_t>((z * ny + y) * nx + x0);
+                    for (std::int64_t i = 0; i < w; ++i) {
+                        cf[static_cast<std::size_t>(i * nz + z)] = F[at + static_cast<std::size_t>(i)];
+                        cl[static_cast<std::size_t>(i * nz + z)] = lab[at + static_cast<std::size_t>(i)];
+                    }
+                }
+                for (std::int64_t i = 0; i < w; ++i)
+                    e.run(cf.data() + i * nz, cl.data() + i * nz, nz, 1, s2[2]);
+                for (std::int64_t z = 0; z < nz; ++z) {
+                    const auto at = static_cast<std::size_t>((z * ny + y) * nx + x0);
+                    for (std::int64_t i = 0; i < w; ++i) {
+                        F[at + static_cast<std::size_t>(i)] = cf[static_cast<std::size_t>(i * nz + z)];
+                        lab[at + static_cast<std::size_t>(i)] = cl[static_cast<std::size_t>(i * nz + z)];
+                    }
+                }
             }
     });
 }
@@ -240,41 +260,83 @@ struct CellPass {
     const double* s2;
     double T, step;
     double quarter;  // the concave term's largest value over a cube, Σ s²/4
-    double slack;    // rounding margin of the quantised bounds
+    double slack;    // rounding margin of the quantised bounds (far above the rounding of a product by inv_step)
+    double inv_step;
+};
+
+/// The power diagram at the 9³ lattice points of one block's cubes (its 8³ cells and the next one along each
+/// axis), copied row by row so that each cell's eight corners are read from a small local tile. Points outside
+/// the field hold the label kOutside (no sphere) and the power T (at least that there).
+struct Tile {
+    static constexpr std::uint32_t kOutside = kNone - 1;
+    double F[729];
+    std::uint32_t lab[729];
+
+    void load(const BoneField& f, std::size_t slot, const std::vector<double>& F_all,
+              const std::vector<std::uint32_t>& lab_all, double T) {
+        const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+        const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
+        const std::int64_t ex = std::min<std::int64_t>(9, nx - x0);
+        for (std::int64_t z = 0; z < 9; ++z)
+            for (std::int64_t y = 0; y < 9; ++y) {
+                double* tf = F + (z * 9 + y) * 9;
+                std::uint32_t* tl = lab + (z * 9 + y) * 9;
+                std::int64_t n = 0;
+                if (z0 + z < nz && y0 + y < ny) {
+                    const auto row = static_cast<std::size_t>(((z0 + z) * ny + y0 + y) * nx + x0);
+                    n = ex;
+                    for (std::int64_t i = 0; i < n; ++i) {  // (a loop: a library copy costs more for 9)
+                        tf[i] = F_all[row + static_cast<std::size_t>(i)];
+                        tl[i] = lab_all[row + static_cast<std::size_t>(i)];
+                    }
+                }
+                std::fill(tf + n, tf + 9, T);
+                std::fill(tl + n, tl + 9, kOutside);
+            }
+    }
 };
 
 /// One allocated block's cells: the corner power (quantised down), the label word (with the same bit), and the
 /// power's range over each cube with its first corner at the cell: at least the least corner value minus Σ s²/4
-/// (corners outside the field hold at least T); at most, for any sphere labelling a corner, its largest corner
-/// value (convexity). The cubes whose ranges leave coverage open go to `pending`; returns their count.
-int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Pending* pending) {
+/// (corners outside the field hold at least T); at most, for any sphere labelling a corner, its largest value over
+/// the cube's corners, which is its value at the corner farthest from its centre along every axis (convexity; and
+/// the same rounded number, the distance expression rounding monotonically). The cubes whose ranges leave coverage
+/// open go to `pending`; returns their count.
+int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, Pending* pending) {
+    t.load(f, slot, c.F, c.lab, c.T);
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
     int n_pending = 0;
     CellBounds* out = f.bounds.data() + 1 + slot * 512;
     std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
     std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
     const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
-    for (std::int64_t z = z0; z < std::min(nz, z0 + kBlock); ++z)
-        for (std::int64_t y = y0; y < std::min(ny, y0 + kBlock); ++y)
-            for (std::int64_t x = x0; x < std::min(nx, x0 + kBlock); ++x) {
-                const int li = static_cast<int>(((z - z0) * 8 + (y - y0)) * 8 + (x - x0));
-                std::uint32_t word = c.lab[static_cast<std::size_t>((z * ny + y) * nx + x)];
-                out_corner[li] = quantize_down(c.F[static_cast<std::size_t>((z * ny + y) * nx + x)] - c.slack, c.step);
+    constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
+    for (std::int64_t z = 0; z < std::min<std::int64_t>(kBlock, nz - z0); ++z)
+        for (std::int64_t y = 0; y < std::min<std::int64_t>(kBlock, ny - y0); ++y)
+            for (std::int64_t x = 0; x < std::min<std::int64_t>(kBlock, nx - x0); ++x) {
+                const int li = static_cast<int>((z * 8 + y) * 8 + x);
+                const int ti = static_cast<int>((z * 9 + y) * 9 + x);
+                std::uint32_t word = t.lab[ti];
+                out_corner[li] = quantized_down((t.F[ti] - c.slack) * c.inv_step);
                 double fmin = kInf;
                 std::uint32_t ks[8];
                 int nk = 0;
                 bool complete = true;  // all eight corners inside the field and labelled
+                std::uint32_t l[8];
+                bool one = true;  // all eight corners one label (most cells)
                 for (int k = 0; k < 8; ++k) {
-                    const std::int64_t cx = x + (k & 1), cy = y + ((k >> 1) & 1), cz = z + ((k >> 2) & 1);
-                    if (cx >= nx || cy >= ny || cz >= nz) {
-                        fmin = std::min(fmin, c.T);
-                        complete = false;
-                        continue;
+                    l[k] = t.lab[ti + kCorner[k]];
+                    fmin = std::min(fmin, t.F[ti + kCorner[k]]);
+                    one = one && l[k] == l[0];
+                }
+                if (one) {
+                    complete = l[0] < Tile::kOutside;
+                    if (complete) ks[nk++] = l[0];
+                } else {
+                    for (int k = 0; k < 8; ++k) {
+                        complete = complete && l[k] < Tile::kOutside;
+                        if (l[k] < Tile::kOutside && std::find(ks, ks + nk, l[k]) == ks + nk) ks[nk++] = l[k];
                     }
-                    const auto i = static_cast<std::size_t>((cz * ny + cy) * nx + cx);
-                    fmin = std::min(fmin, c.F[i]);
-                    complete = complete && c.lab[i] != kNone;
-                    if (c.lab[i] != kNone && std::find(ks, ks + nk, c.lab[i]) == ks + nk) ks[nk++] = c.lab[i];
                 }
                 if (complete && nk == 1) word |= kSameBit;
                 out_word[li] = word;
@@ -284,17 +346,15 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Pending*
                     continue;
                 }
                 double upper = kInf;
-                const double rest[3] = {static_cast<double>(x + f.lo[0]), static_cast<double>(y + f.lo[1]),
-                                        static_cast<double>(z + f.lo[2])};
+                const double rest[3] = {static_cast<double>(x0 + x + f.lo[0]), static_cast<double>(y0 + y + f.lo[1]),
+                                        static_cast<double>(z0 + z + f.lo[2])};
                 for (int k = 0; k < nk; ++k) {
-                    double mx = -kInf;
-                    for (int q = 0; q < 8 && mx < upper; ++q) {
-                        const double corner[3] = {rest[0] + (q & 1), rest[1] + ((q >> 1) & 1), rest[2] + ((q >> 2) & 1)};
-                        mx = std::max(mx, power_of(f, ks[k], corner, c.s2));
-                    }
-                    upper = std::min(upper, mx);
+                    const auto& sp = f.sph[ks[k]];
+                    double far[3];
+                    for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(rest[a] - sp.c[a]), std::abs(rest[a] + 1 - sp.c[a]));
+                    upper = std::min(upper, length2(far[0], far[1], far[2], c.s2) - sp.lim);
                 }
-                out[li] = CellBounds{quantize_down(lower - c.slack, c.step), quantize_up(upper + c.slack, c.step)};
+                out[li] = CellBounds{quantized_down((lower - c.slack) * c.inv_step), quantized_up((upper + c.slack) * c.inv_step)};
                 // A cube the ranges leave undecided (it may or may not be covered) is worth closing.
                 if (word != kNone && !(word & kSameBit) && out[li].hi >= 0) {
                     Pending& pc = pending[n_pending++];
@@ -306,18 +366,33 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Pending*
     return n_pending;
 }
 
-/// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes.
+/// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes, and
+/// those narrowed per 4³ sub-block to the ones meeting its cubes' box (a ball meeting a cube meets that box, and
+/// the test's margin only grows with the distance), so that each cube scans a few.
 void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_pending, const Grid& g,
-                 const double* s2, NearSpheres& near) {
+                 const double* s2, NearSpheres& near, NearSpheres& sub) {
     std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
     const double blo[3] = {static_cast<double>(f.blocks[slot][0]), static_cast<double>(f.blocks[slot][1]),
                            static_cast<double>(f.blocks[slot][2])};
     const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
     spheres_meeting(f, blo, bhi, g.spacing.data(), s2, near);
-    for (int k = 0; k < n_pending; ++k) {
-        const Pending& pc = pending[k];
-        const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
-        if (closed_cube(f, base, pc.ks, pc.nk, near, s2)) out_word[pc.li] |= kClosedBit;
+    auto sub_of_cell = [](int li) { return ((li >> 8) & 1) * 4 + ((li >> 5) & 1) * 2 + ((li >> 2) & 1); };
+    for (int sb = 0; sb < 8; ++sb) {
+        bool filtered = false;
+        for (int k = 0; k < n_pending; ++k) {
+            const Pending& pc = pending[k];
+            if (sub_of_cell(pc.li) != sb) continue;
+            if (!filtered) {
+                filtered = true;
+                const double lo[3] = {blo[0] + (sb & 1) * 4, blo[1] + ((sb >> 1) & 1) * 4, blo[2] + (sb >> 2) * 4};
+                const double hi[3] = {lo[0] + 4, lo[1] + 4, lo[2] + 4};
+                sub.clear();
+                for (std::size_t j = 0; j < near.id.size(); ++j)
+                    if (ball_meets_box(f.sph[near.id[j]], lo, hi, s2)) sub.add(f, near.id[j]);
+            }
+            const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
+            if (closed_cube(f, base, pc.ks, pc.nk, sub, s2)) out_word[pc.li] |= kClosedBit;
+        }
     }
 }
 
@@ -438,17 +513,18 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     double maxlim = 0;
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
     const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
-    const CellPass pass{F, lab, s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter)};
+    const CellPass pass{F, lab, s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter), 1.0 / step};
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);
-        NearSpheres near;
+        NearSpheres near, sub;
+        Tile tile;
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         Scratch& sc = scratch.local();
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
-            const int n_pending = fill_block_cells(f, slot, pass, sc.pending.data());
-            if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near);
+            const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.pending.data());
+            if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);
             sub_block_ranges(f, slot);
             pair_spheres(f, slot);
         }

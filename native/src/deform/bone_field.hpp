@@ -32,16 +32,19 @@ struct CellBounds {
 };
 constexpr std::int16_t kBoundMin = -32768, kBoundMax = 32767;
 
-inline std::int16_t quantize_down(double v, double step) {
-    const double q = std::floor(v / step);
+/// q (a power in steps) rounded down / up to an int16 bound, clamped as above. No libm call: it runs per cell.
+inline std::int16_t quantized_down(double q) {
     if (!(q >= -32767)) return kBoundMin;
-    return static_cast<std::int16_t>(std::min(q, 32767.0));
+    if (q >= 32767) return kBoundMax;
+    return static_cast<std::int16_t>(fast_floor(q));
 }
-inline std::int16_t quantize_up(double v, double step) {
-    const double q = std::ceil(v / step);
+inline std::int16_t quantized_up(double q) {
     if (!(q <= 32766)) return kBoundMax;
-    return static_cast<std::int16_t>(std::max(q, -32767.0));
+    if (q <= -32767) return -32767;
+    return static_cast<std::int16_t>(-fast_floor(-q));
 }
+inline std::int16_t quantize_down(double v, double step) { return quantized_down(v / step); }
+inline std::int16_t quantize_up(double v, double step) { return quantized_up(v / step); }
 
 /// A lattice cell of a bone's field holds the power's quantised range over the cube with that first corner
 /// (BoneField::bounds) and a word (BoneField::words): the power-diagram label at the cell, top bit set when the cube

@@ -37,6 +37,40 @@ void mark_blocks(std::vector<std::uint64_t>& bits, const double* box, const Box&
                 bits[static_cast<std::size_t>((z * ob[1] + y) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
 }
 
+/// Sets bit b in the output blocks (as mark_blocks) within two voxels of the ball of squared world radius lim
+/// around y (output index space): a blend's map does not stretch (a blend of rotations shrinks or keeps
+/// lengths), so a posed ball lies in the ball of its radius around its posed centre, and the margin covers the
+/// preimage boxes' widening by a voxel.
+void mark_ball_blocks(std::vector<std::uint64_t>& bits, const double* y, double lim, const double* s2, const Box& bx,
+                      const std::int64_t* ob, std::size_t words, std::size_t b) {
+    const double reach = lim * (1 + 1e-9) + 1e-9;
+    std::int64_t a[3], e[3];
+    for (int k = 0; k < 3; ++k) {
+        const double r = std::sqrt(reach / s2[k]) + 2;
+        a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(y[k] - r)) - bx[k]) / kBlock);
+        const std::int64_t top = static_cast<std::int64_t>(std::ceil(y[k] + r)) - bx[k];
+        if (top < 0) return;
+        e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
+        if (e[k] < a[k]) return;
+    }
+    auto gap2 = [&](int k, std::int64_t blk) {  // the squared world gap along axis k to the block grown by 2 voxels
+        const double lo = static_cast<double>(bx[k] + blk * kBlock - 2), hi = lo + kBlock - 1 + 4;
+        const double g = std::max({lo - y[k], 0.0, y[k] - hi});
+        return s2[k] * g * g;
+    };
+    for (std::int64_t z = a[2]; z <= e[2]; ++z) {
+        const double gz = gap2(2, z);
+        if (gz > reach) continue;
+        for (std::int64_t yy = a[1]; yy <= e[1]; ++yy) {
+            const double gy = gz + gap2(1, yy);
+            if (gy > reach) continue;
+            for (std::int64_t x = a[0]; x <= e[0]; ++x)
+                if (gy + gap2(0, x) <= reach)
+                    bits[static_cast<std::size_t>((z * ob[1] + yy) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+        }
+    }
+}
+
 }  // namespace
 
 std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
@@ -47,16 +81,11 @@ std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
     for (std::size_t b = 0; b < set.fields.size(); ++b) {
         const Affine& fw = set.motions[b].forward;
         const BoneField& f = set.fields[b];
-        for (const auto& sp : f.sph) {  // a field without lattice tables: the box of each posed ball
+        for (const auto& sp : f.sph) {  // a field without lattice tables: the blocks each posed ball meets
             if (f.lattice || !(sp.lim > 0)) continue;
-            double y[3], box[6];
+            double y[3];
             fw.apply(sp.c, y);
-            for (int a = 0; a < 3; ++a) {
-                const double e = std::sqrt(sp.lim) / set.spacing[a] + 1;
-                box[a] = y[a] - e;
-                box[3 + a] = y[a] + e;
-            }
-            mark_blocks(bits, box, bx, ob, words, b);
+            mark_ball_blocks(bits, y, sp.lim, set.s2, bx, ob, words, b);
         }
         for (const auto& blk : f.blocks) {
             double box[6] = {kInf, kInf, kInf, -kInf, -kInf, -kInf};  // the image of the dilated rest block
@@ -97,6 +126,7 @@ struct Local {
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
     std::vector<CellBounds> range, range_sub;
+    std::vector<std::int16_t> sub_lo;       // per (candidate, sub-block): the lower bound of its range there
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
     std::vector<std::int16_t> cube_lo, cube_hi;
@@ -171,6 +201,7 @@ private:
     void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
+    void lattice_bar(const Block& b, Local& loc, std::int16_t* bar) const;
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
     void exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
     void ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
@@ -416,6 +447,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
     std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
     loc.live.assign(K * 8, 0);
     loc.single.assign(K * 8, kNone);
+    loc.sub_lo.assign(K * 8, kBoundMax);
     bool any_open = false;
     auto& sr = loc.range_sub;
     sr.resize(K);
@@ -424,7 +456,10 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         sub_win[sb] = kEmpty;
         if (s0[0] >= b.e[0] || s0[1] >= b.e[1] || s0[2] >= b.e[2]) continue;
         const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
-        for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
+        for (std::size_t k = 0; k < K; ++k) {
+            sr[k] = sub_range(k, q0, sb, loc);
+            loc.sub_lo[k * 8 + static_cast<std::size_t>(sb)] = sr[k].lo;
+        }
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
         if (w >= 0) {
@@ -458,7 +493,9 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
 
 /// Per candidate and voxel of its live sub-blocks: the range of the cube holding the voxel's preimage, or, where
 /// one sphere's power is the field's over the whole sub-block, that power itself (exact_powers). The cells' ranges
-/// are loaded apart from the address arithmetic, so that many loads are in flight at once.
+/// are loaded apart from the address arithmetic, so that many loads are in flight at once. The lattice candidates
+/// come first: a ball candidate whose range over a sub-block lies above every voxel's least upper bound among them
+/// cannot win there, so its exact powers are not computed (power proximity only).
 void Gather::lookups(const Block& b, Local& loc) const {
     const std::size_t K = loc.fields.size();
     loc.cube_lo.resize(K * 512);
@@ -470,12 +507,10 @@ void Gather::lookups(const Block& b, Local& loc) const {
         loc.running.resize(K);
         loc.cands.resize(K);
     }
+    bool any_ball = false;
     for (std::size_t k = 0; k < K; ++k) {
-        if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
-            std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
-            std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
-            for (int sb = 0; sb < 8; ++sb)
-                if (loc.live[k * 8 + static_cast<std::size_t>(sb)]) ball_powers(b, loc, k, sb);
+        if (loc.ball[k]) {
+            any_ball = true;
             continue;
         }
         std::uint32_t* at = loc.cube_cell.data() + k * 512;
@@ -495,6 +530,38 @@ void Gather::lookups(const Block& b, Local& loc) const {
             if (loc.live[k * 8 + static_cast<std::size_t>(sb)] && loc.single[k * 8 + static_cast<std::size_t>(sb)] != kNone)
                 exact_powers(b, loc, k, sb);
     }
+    if (!any_ball) return;
+    std::int16_t bar[8];  // per sub-block: the largest over its voxels of the lattice candidates' least upper bound
+    lattice_bar(b, loc, bar);
+    for (std::size_t k = 0; k < K; ++k) {
+        if (!loc.ball[k]) continue;
+        std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
+        std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
+        for (int sb = 0; sb < 8; ++sb) {
+            const std::size_t ks = k * 8 + static_cast<std::size_t>(sb);
+            if (loc.live[ks] && (s_.nearest || loc.sub_lo[ks] <= bar[sb])) ball_powers(b, loc, k, sb);
+        }
+    }
+}
+
+/// Per sub-block, the largest over its voxels (inside the box) of the least upper bound of the lattice candidates'
+/// powers there (kBoundMax where none bounds it): no candidate whose power exceeds it anywhere can win there.
+void Gather::lattice_bar(const Block& b, Local& loc, std::int16_t* bar) const {
+    std::int16_t least[512];
+    std::fill(least, least + 512, kBoundMax);
+    for (std::size_t k = 0; k < loc.fields.size(); ++k) {
+        if (loc.ball[k]) continue;
+        const std::int16_t* khi = loc.cube_hi.data() + k * 512;
+        for (std::size_t li = 0; li < 512; ++li) least[li] = std::min(least[li], khi[li]);
+    }
+    std::fill(bar, bar + 8, kBoundMin);
+    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
+        for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
+            for (std::int64_t dx = 0; dx < b.e[0]; ++dx) {
+                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
+                std::int16_t& m = bar[sub_of(li)];
+                m = std::max(m, least[li]);
+            }
 }
 
 /// Calls f(li, pf) for each voxel of sub-block sb of the block with its preimage under pull pl (fixed point,
