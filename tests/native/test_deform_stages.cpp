@@ -504,6 +504,46 @@ TEST_CASE("the output box holds exactly the posed balls' lattice points; candida
     CHECK_THROWS_WITH(box_of({0, 0, 0}, {3000, 3000, 3000}), Catch::Contains("more than 2^31"));
 }
 
+TEST_CASE("a blend group's candidate blocks: every voxel its posed balls hold, under a strongly shrinking blend", "[deform][stages]") {
+    RandomSpheres rs(77, 25, {0.9, 1.2, 1.0});
+    for (double& r : rs.radii) r *= 3;  // balls of several blocks
+    const auto s2 = rs.s2();
+    std::vector<BoneField> fields{rs.ball_field()};
+    // Half-way linear blend of rotations 0° and 130° about z: the blended map shrinks (cos 65° across), so the
+    // posed balls are ellipsoids inside the balls of their radii round their posed centres.
+    const auto A = rotation_z(0, {0, 0, 0}), B = rotation_z(130, {2.5, -1.5, 0.7});
+    std::vector<double> mats(A.begin(), A.end());
+    mats.insert(mats.end(), B.begin(), B.end());
+    const auto bones = bone_motions(mats.data(), 2, rs.grid);
+    std::vector<Motion> motions{blended_motion(bones, {{0, 8}, {1, 8}}, 0, DeformMode::Linear, rs.grid,
+                                               Eigen::Vector3d(12, 10, 14))};
+    const Box bx = posed_box(fields, motions, rs.grid);
+    const std::vector<std::uint64_t> bits =
+        candidate_bits(FieldSet{fields, motions, rs.grid.spacing.data(), {s2[0], s2[1], s2[2]}, rs.T(), 1.0, false}, bx);
+    const std::int64_t ob[3] = {(bx[3] + 7) / 8, (bx[4] + 7) / 8, (bx[5] + 7) / 8};
+    std::int64_t covered = 0;
+    std::vector<std::uint8_t> needed(bits.size(), 0);
+    for (std::int64_t z = bx[2]; z < bx[2] + bx[5]; ++z)
+        for (std::int64_t y = bx[1]; y < bx[1] + bx[4]; ++y)
+            for (std::int64_t x = bx[0]; x < bx[0] + bx[3]; ++x) {
+                const std::int64_t q[3] = {x, y, z};
+                bool in = false;
+                for (const auto& sp : fields[0].sph) in = in || moved_length2(motions[0], sp.c, q, s2.data()) < sp.lim;
+                if (!in) continue;
+                ++covered;
+                const std::int64_t k = (((z - bx[2]) / 8) * ob[1] + (y - bx[1]) / 8) * ob[0] + (x - bx[0]) / 8;
+                REQUIRE((bits[static_cast<std::size_t>(k)] & 1u) == 1u);
+                needed[static_cast<std::size_t>(k)] = 1;
+            }
+    CHECK(covered > 1000);
+    std::int64_t marked = 0, spare = 0;
+    for (std::size_t k = 0; k < bits.size(); ++k) {
+        marked += (bits[k] & 1u) != 0;
+        spare += (bits[k] & 1u) != 0 && !needed[k];
+    }
+    CHECK(spare * 4 < marked);  // a few blocks the balls only graze (the margin), not the corners of their boxes
+}
+
 TEST_CASE("rebind rebuilds only the fields whose spheres changed, and frames stay equal to a fresh Deformer's", "[deform][stages]") {
     RandomSpheres rs(61, 90);
     std::vector<std::uint8_t> samples(static_cast<std::size_t>(rs.grid.voxel_count()));
