@@ -126,7 +126,6 @@ struct Local {
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
     std::vector<CellBounds> range, range_sub;
-    std::vector<std::int16_t> sub_lo;       // per (candidate, sub-block): the lower bound of its range there
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
     std::vector<std::int16_t> cube_lo, cube_hi;
@@ -201,7 +200,6 @@ private:
     void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
-    void lattice_bar(const Block& b, Local& loc, std::int16_t* bar) const;
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
     void exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
     void ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
@@ -447,7 +445,6 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
     std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field
     loc.live.assign(K * 8, 0);
     loc.single.assign(K * 8, kNone);
-    loc.sub_lo.assign(K * 8, kBoundMax);
     bool any_open = false;
     auto& sr = loc.range_sub;
     sr.resize(K);
@@ -456,10 +453,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         sub_win[sb] = kEmpty;
         if (s0[0] >= b.e[0] || s0[1] >= b.e[1] || s0[2] >= b.e[2]) continue;
         const std::int64_t q0[3] = {b.base[0] + s0[0], b.base[1] + s0[1], b.base[2] + s0[2]};
-        for (std::size_t k = 0; k < K; ++k) {
-            sr[k] = sub_range(k, q0, sb, loc);
-            loc.sub_lo[k * 8 + static_cast<std::size_t>(sb)] = sr[k].lo;
-        }
+        for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
         if (w >= 0) {
@@ -493,9 +487,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
 
 /// Per candidate and voxel of its live sub-blocks: the range of the cube holding the voxel's preimage, or, where
 /// one sphere's power is the field's over the whole sub-block, that power itself (exact_powers). The cells' ranges
-/// are loaded apart from the address arithmetic, so that many loads are in flight at once. The lattice candidates
-/// come first: a ball candidate whose range over a sub-block lies above every voxel's least upper bound among them
-/// cannot win there, so its exact powers are not computed (power proximity only).
+/// are loaded apart from the address arithmetic, so that many loads are in flight at once.
 void Gather::lookups(const Block& b, Local& loc) const {
     const std::size_t K = loc.fields.size();
     loc.cube_lo.resize(K * 512);
@@ -507,10 +499,12 @@ void Gather::lookups(const Block& b, Local& loc) const {
         loc.running.resize(K);
         loc.cands.resize(K);
     }
-    bool any_ball = false;
     for (std::size_t k = 0; k < K; ++k) {
-        if (loc.ball[k]) {
-            any_ball = true;
+        if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
+            std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
+            std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
+            for (int sb = 0; sb < 8; ++sb)
+                if (loc.live[k * 8 + static_cast<std::size_t>(sb)]) ball_powers(b, loc, k, sb);
             continue;
         }
         std::uint32_t* at = loc.cube_cell.data() + k * 512;
@@ -530,38 +524,6 @@ void Gather::lookups(const Block& b, Local& loc) const {
             if (loc.live[k * 8 + static_cast<std::size_t>(sb)] && loc.single[k * 8 + static_cast<std::size_t>(sb)] != kNone)
                 exact_powers(b, loc, k, sb);
     }
-    if (!any_ball) return;
-    std::int16_t bar[8];  // per sub-block: the largest over its voxels of the lattice candidates' least upper bound
-    lattice_bar(b, loc, bar);
-    for (std::size_t k = 0; k < K; ++k) {
-        if (!loc.ball[k]) continue;
-        std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
-        std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
-        for (int sb = 0; sb < 8; ++sb) {
-            const std::size_t ks = k * 8 + static_cast<std::size_t>(sb);
-            if (loc.live[ks] && (s_.nearest || loc.sub_lo[ks] <= bar[sb])) ball_powers(b, loc, k, sb);
-        }
-    }
-}
-
-/// Per sub-block, the largest over its voxels (inside the box) of the least upper bound of the lattice candidates'
-/// powers there (kBoundMax where none bounds it): no candidate whose power exceeds it anywhere can win there.
-void Gather::lattice_bar(const Block& b, Local& loc, std::int16_t* bar) const {
-    std::int16_t least[512];
-    std::fill(least, least + 512, kBoundMax);
-    for (std::size_t k = 0; k < loc.fields.size(); ++k) {
-        if (loc.ball[k]) continue;
-        const std::int16_t* khi = loc.cube_hi.data() + k * 512;
-        for (std::size_t li = 0; li < 512; ++li) least[li] = std::min(least[li], khi[li]);
-    }
-    std::fill(bar, bar + 8, kBoundMin);
-    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
-        for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
-            for (std::int64_t dx = 0; dx < b.e[0]; ++dx) {
-                const auto li = static_cast<std::size_t>((dz * 8 + dy) * 8 + dx);
-                std::int16_t& m = bar[sub_of(li)];
-                m = std::max(m, least[li]);
-            }
 }
 
 /// Calls f(li, pf) for each voxel of sub-block sb of the block with its preimage under pull pl (fixed point,
