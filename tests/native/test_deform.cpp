@@ -1,6 +1,7 @@
 // Per-frame sampled reconstruction (docs/ALGORITHMS.md §7): the Deformer against the thesis' brute-force scatter on
 // small random rigs, the identity pose against reconstruct(), and bad input. Also run under ASan/UBSan.
 #include <catch2/catch.hpp>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <random>
@@ -237,6 +238,25 @@ TEST_CASE("deform refuses non-rigid matrices and bad options, and can be cancell
     o.radius_scale.clear();
     REQUIRE_THROWS_AS(d.frame(mats.data(), o, [](double f) { return f < 0.6; }), Cancelled);
     REQUIRE(d.frame(mats.data(), o).stats.covered > 0);  // still usable after a cancel
+    {  // cancelled while the fields are built: the next frame builds them all again, as a fresh Deformer would
+        const Limb S = make_limb({1.0, 1.0, 1.0}, 2, true);
+        Deformer part(S.view(), S.spheres(true)), fresh(S.view(), S.spheres(true));
+        const auto joint = world(S.grid, S.joint);
+        const auto rest = motion({0, 1, 0}, 0, joint, {0, 0, 0}), fold = motion({0, 1, 0}, 90, joint, {0, 0, 0});
+        std::vector<double> bent(rest.begin(), rest.end());
+        bent.insert(bent.end(), fold.begin(), fold.end());
+        DeformOptions lin;
+        lin.mode = DeformMode::Linear;
+        tbb::task_arena one(1);  // one thread: the cancel comes after the first field, before any other is built
+        one.execute([&] {
+            REQUIRE_THROWS_AS(part.frame(bent.data(), lin, [](double f) { return f <= 0; }), Cancelled);
+        });
+        const DeformedVolume a = part.frame(bent.data(), lin), b = fresh.frame(bent.data(), lin);
+        REQUIRE(a.stats.covered > 0);
+        CHECK(a.stats.covered == b.stats.covered);
+        CHECK(a.bone == b.bone);
+        CHECK(a.values == b.values);
+    }
     // A bone sent millions of voxels away, and a lattice more than 64 times finer along one axis: clear errors.
     std::vector<double> far = mats;
     far[3] = 5e7;

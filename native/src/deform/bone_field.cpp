@@ -296,71 +296,85 @@ struct Tile {
     }
 };
 
+/// The eight corners of the cube whose first corner is tile point ti: their least power, their distinct labels
+/// (in corner order) and whether all eight lie inside the field and are labelled.
+struct Corners {
+    double fmin = kInf;
+    std::uint32_t ks[8];
+    int nk = 0;
+    bool complete = false;
+
+    Corners(const Tile& t, int ti) {
+        constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
+        std::uint32_t l[8];
+        bool one = true;  // all eight corners one label (most cells)
+        for (int k = 0; k < 8; ++k) {
+            l[k] = t.lab[ti + kCorner[k]];
+            fmin = std::min(fmin, t.F[ti + kCorner[k]]);
+            one = one && l[k] == l[0];
+        }
+        complete = true;
+        for (int k = 0; k < (one ? 1 : 8); ++k) {
+            complete = complete && l[k] < Tile::kOutside;
+            if (l[k] < Tile::kOutside && std::find(ks, ks + nk, l[k]) == ks + nk) ks[nk++] = l[k];
+        }
+    }
+};
+
+/// The least over the spheres ks of each one's largest power over the cube with first corner `rest`: its value at
+/// the corner farthest from its centre along every axis (convexity; and the same rounded number as the largest of
+/// the eight corners' values, the distance expression rounding monotonically in each offset).
+double cube_upper(const BoneField& f, const double* rest, const std::uint32_t* ks, int nk, const double* s2) {
+    double upper = kInf;
+    for (int k = 0; k < nk; ++k) {
+        const auto& sp = f.sph[ks[k]];
+        double far[3];
+        for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(rest[a] - sp.c[a]), std::abs(rest[a] + 1 - sp.c[a]));
+        upper = std::min(upper, length2(far[0], far[1], far[2], s2) - sp.lim);
+    }
+    return upper;
+}
+
 /// One allocated block's cells: the corner power (quantised down), the label word (with the same bit), and the
 /// power's range over each cube with its first corner at the cell: at least the least corner value minus Σ s²/4
-/// (corners outside the field hold at least T); at most, for any sphere labelling a corner, its largest value over
-/// the cube's corners, which is its value at the corner farthest from its centre along every axis (convexity; and
-/// the same rounded number, the distance expression rounding monotonically). The cubes whose ranges leave coverage
-/// open go to `pending`; returns their count.
+/// (corners outside the field hold at least T); at most cube_upper over the spheres labelling a corner. The cubes
+/// whose ranges leave coverage open go to `pending`; returns their count.
 int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, Pending* pending) {
     t.load(f, slot, c.F, c.lab, c.T);
-    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
     int n_pending = 0;
     CellBounds* out = f.bounds.data() + 1 + slot * 512;
     std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
     std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
-    const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
-    constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
-    for (std::int64_t z = 0; z < std::min<std::int64_t>(kBlock, nz - z0); ++z)
-        for (std::int64_t y = 0; y < std::min<std::int64_t>(kBlock, ny - y0); ++y)
-            for (std::int64_t x = 0; x < std::min<std::int64_t>(kBlock, nx - x0); ++x) {
+    std::int64_t first[3], e[3];  // the block's first cell (relative to lo) and its extent inside the field
+    for (int a = 0; a < 3; ++a) {
+        first[a] = f.blocks[slot][static_cast<std::size_t>(a)] - f.lo[static_cast<std::size_t>(a)];
+        e[a] = std::min<std::int64_t>(kBlock, f.dims[static_cast<std::size_t>(a)] - first[a]);
+    }
+    for (std::int64_t z = 0; z < e[2]; ++z)
+        for (std::int64_t y = 0; y < e[1]; ++y)
+            for (std::int64_t x = 0; x < e[0]; ++x) {
                 const int li = static_cast<int>((z * 8 + y) * 8 + x);
                 const int ti = static_cast<int>((z * 9 + y) * 9 + x);
-                std::uint32_t word = t.lab[ti];
-                out_corner[li] = quantized_down((t.F[ti] - c.slack) * c.inv_step);
-                double fmin = kInf;
-                std::uint32_t ks[8];
-                int nk = 0;
-                bool complete = true;  // all eight corners inside the field and labelled
-                std::uint32_t l[8];
-                bool one = true;  // all eight corners one label (most cells)
-                for (int k = 0; k < 8; ++k) {
-                    l[k] = t.lab[ti + kCorner[k]];
-                    fmin = std::min(fmin, t.F[ti + kCorner[k]]);
-                    one = one && l[k] == l[0];
-                }
-                if (one) {
-                    complete = l[0] < Tile::kOutside;
-                    if (complete) ks[nk++] = l[0];
-                } else {
-                    for (int k = 0; k < 8; ++k) {
-                        complete = complete && l[k] < Tile::kOutside;
-                        if (l[k] < Tile::kOutside && std::find(ks, ks + nk, l[k]) == ks + nk) ks[nk++] = l[k];
-                    }
-                }
-                if (complete && nk == 1) word |= kSameBit;
+                const Corners k(t, ti);
+                const std::uint32_t word = t.lab[ti] | (k.complete && k.nk == 1 ? kSameBit : 0u);
                 out_word[li] = word;
-                const double lower = fmin - c.quarter;
+                out_corner[li] = quantized_down((t.F[ti] - c.slack) * c.inv_step);
+                const double lower = k.fmin - c.quarter;
                 if (!(lower < 0)) {
                     out[li] = CellBounds{kBoundMax, kBoundMax};
                     continue;
                 }
-                double upper = kInf;
-                const double rest[3] = {static_cast<double>(x0 + x + f.lo[0]), static_cast<double>(y0 + y + f.lo[1]),
-                                        static_cast<double>(z0 + z + f.lo[2])};
-                for (int k = 0; k < nk; ++k) {
-                    const auto& sp = f.sph[ks[k]];
-                    double far[3];
-                    for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(rest[a] - sp.c[a]), std::abs(rest[a] + 1 - sp.c[a]));
-                    upper = std::min(upper, length2(far[0], far[1], far[2], c.s2) - sp.lim);
-                }
+                const double rest[3] = {static_cast<double>(first[0] + x + f.lo[0]),
+                                        static_cast<double>(first[1] + y + f.lo[1]),
+                                        static_cast<double>(first[2] + z + f.lo[2])};
+                const double upper = cube_upper(f, rest, k.ks, k.nk, c.s2);
                 out[li] = CellBounds{quantized_down((lower - c.slack) * c.inv_step), quantized_up((upper + c.slack) * c.inv_step)};
                 // A cube the ranges leave undecided (it may or may not be covered) is worth closing.
                 if (word != kNone && !(word & kSameBit) && out[li].hi >= 0) {
                     Pending& pc = pending[n_pending++];
                     pc.li = li;
-                    pc.nk = nk;
-                    std::copy(ks, ks + nk, pc.ks);
+                    pc.nk = k.nk;
+                    std::copy(k.ks, k.ks + k.nk, pc.ks);
                 }
             }
     return n_pending;
@@ -376,12 +390,11 @@ void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_p
                            static_cast<double>(f.blocks[slot][2])};
     const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
     spheres_meeting(f, blo, bhi, g.spacing.data(), s2, near);
-    auto sub_of_cell = [](int li) { return ((li >> 8) & 1) * 4 + ((li >> 5) & 1) * 2 + ((li >> 2) & 1); };
     for (int sb = 0; sb < 8; ++sb) {
         bool filtered = false;
         for (int k = 0; k < n_pending; ++k) {
             const Pending& pc = pending[k];
-            if (sub_of_cell(pc.li) != sb) continue;
+            if (sub_of(static_cast<std::size_t>(pc.li)) != static_cast<std::size_t>(sb)) continue;
             if (!filtered) {
                 filtered = true;
                 const double lo[3] = {blo[0] + (sb & 1) * 4, blo[1] + ((sb >> 1) & 1) * 4, blo[2] + (sb >> 2) * 4};
@@ -402,7 +415,7 @@ void sub_block_ranges(BoneField& f, std::size_t slot) {
     CellBounds* sb = f.sub.data() + slot * 8;
     for (int k = 0; k < 8; ++k) sb[k] = CellBounds{kBoundMax, kBoundMin};
     for (int li = 0; li < 512; ++li) {
-        CellBounds& t = sb[(((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1)];
+        CellBounds& t = sb[sub_of(static_cast<std::size_t>(li))];
         t.lo = std::min(t.lo, cells[li].lo);
         t.hi = std::max(t.hi, cells[li].hi);
     }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 
@@ -15,6 +16,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Per output voxel (and per block or sub-block): the winning field when decided, else one of these.
 constexpr std::int32_t kEmpty = -1;  // no sphere covers it
 constexpr std::int32_t kOpen = -2;   // the bounds at hand do not decide
+
+/// The 4³ sub-block (bits x, y, z) holding cell or voxel li (x + 8 y + 64 z) of an 8³ block.
+inline std::size_t sub_of(std::size_t li) { return (((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1); }
 
 using Vec3d = std::array<double, 3>;
 /// An output box on the source lattice: {offset x, y, z, dims x, y, z}.

@@ -151,7 +151,14 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
             todo.push_back(f);
         }
     }
-    build_fields(todo, T, progress);
+    try {
+        build_fields(todo, T, progress);
+    } catch (...) {  // cancelled or failed part-way: nothing of this build may be taken over by the next one
+        fields.clear();
+        field_keys.clear();
+        field_members.clear();
+        throw;
+    }
     bend = smooth ? bend_model(view(), groups, radii, grid) : BendModel{};
     built = true;
     built_smooth = smooth;

@@ -155,8 +155,6 @@ struct Local {
 
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
 std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
-/// The 4³ sub-block holding voxel li (x + 8 y + 64 z) of an 8³ block.
-std::size_t sub_of(std::size_t li) { return (((li >> 8) & 1) * 2 + ((li >> 5) & 1)) * 2 + ((li >> 2) & 1); }
 
 class Gather {
 public:
