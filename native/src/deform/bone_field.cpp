@@ -66,6 +66,8 @@ struct LabelEnvelope {
     std::vector<std::int64_t> v;
     std::vector<double> z, fv;
     std::vector<std::uint32_t> lv;
+    std::vector<double> column_f;  // the z pass's columns, copied out of the field's lattice
+    std::vector<std::uint32_t> column_lab;
 
     void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
         v.resize(static_cast<std::size_t>(n));
@@ -178,31 +180,23 @@ void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F,
         }
     });
     // z columns eight at a time, copied out and back: one pass down the slices per eight columns, not eight
-    tbb::enumerable_thread_specific<std::pair<std::vector<double>, std::vector<std::uint32_t>>> columns;
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
-        auto& [cf, cl] = columns.local();
-        cf.resize(static_cast<std::size_t>(8 * nz));
-        cl.resize(static_cast<std::size_t>(8 * nz));
+        e.column_f.resize(static_cast<std::size_t>(8 * nz));
+        e.column_lab.resize(static_cast<std::size_t>(8 * nz));
         for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
             for (std::int64_t x0 = 0; x0 < nx; x0 += 8) {
                 const std::int64_t w = std::min<std::int64_t>(8, nx - x0);
-                for (std::int64_t z = 0; z < nz; ++z) {
-                    const auto at = static_cast<std::size_t>((z * ny + y) * nx + x0);
-                    for (std::int64_t i = 0; i < w; ++i) {
-                        cf[static_cast<std::size_t>(i * nz + z)] = F[at + static_cast<std::size_t>(i)];
-                        cl[static_cast<std::size_t>(i * nz + z)] = lab[at + static_cast<std::size_t>(i)];
-                    }
-                }
+                // column i's z-th value <-> the lattice's at (x0 + i, y, z)
+                auto each = [&](auto&& move) {
+                    for (std::int64_t z = 0; z < nz; ++z)
+                        for (std::int64_t i = 0; i < w; ++i)
+                            move(static_cast<std::size_t>(i * nz + z), static_cast<std::size_t>((z * ny + y) * nx + x0 + i));
+                };
+                each([&](std::size_t c, std::size_t l) { e.column_f[c] = F[l], e.column_lab[c] = lab[l]; });
                 for (std::int64_t i = 0; i < w; ++i)
-                    e.run(cf.data() + i * nz, cl.data() + i * nz, nz, 1, s2[2]);
-                for (std::int64_t z = 0; z < nz; ++z) {
-                    const auto at = static_cast<std::size_t>((z * ny + y) * nx + x0);
-                    for (std::int64_t i = 0; i < w; ++i) {
-                        F[at + static_cast<std::size_t>(i)] = cf[static_cast<std::size_t>(i * nz + z)];
-                        lab[at + static_cast<std::size_t>(i)] = cl[static_cast<std::size_t>(i * nz + z)];
-                    }
-                }
+                    e.run(e.column_f.data() + i * nz, e.column_lab.data() + i * nz, nz, 1, s2[2]);
+                each([&](std::size_t c, std::size_t l) { F[l] = e.column_f[c], lab[l] = e.column_lab[c]; });
             }
     });
 }
@@ -285,7 +279,7 @@ struct Tile {
                 if (z0 + z < nz && y0 + y < ny) {
                     const auto row = static_cast<std::size_t>(((z0 + z) * ny + y0 + y) * nx + x0);
                     n = ex;
-                    for (std::int64_t i = 0; i < n; ++i) {  // (a loop: a library copy costs more for 9)
+                    for (std::int64_t i = 0; i < n; ++i) {
                         tf[i] = F_all[row + static_cast<std::size_t>(i)];
                         tl[i] = lab_all[row + static_cast<std::size_t>(i)];
                     }

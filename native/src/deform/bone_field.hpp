@@ -43,8 +43,6 @@ inline std::int16_t quantized_up(double q) {
     if (q <= -32767) return -32767;
     return static_cast<std::int16_t>(-fast_floor(-q));
 }
-inline std::int16_t quantize_down(double v, double step) { return quantized_down(v / step); }
-inline std::int16_t quantize_up(double v, double step) { return quantized_up(v / step); }
 
 /// A lattice cell of a bone's field holds the power's quantised range over the cube with that first corner
 /// (BoneField::bounds) and a word (BoneField::words): the power-diagram label at the cell, top bit set when the cube

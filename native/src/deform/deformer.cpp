@@ -1,15 +1,9 @@
 // deform/deformer.cpp: the Deformer: per-rig fields built once, and per frame the outline of the algorithm
 // (docs/ALGORITHMS.md §7): motions, output box, gather, crop.
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include <algorithm>
-#include <atomic>
 #include <limits>
 #include <map>
 #include <string>
-#include <thread>
 
 #include "deform/bend.hpp"
 #include "deform/bone_field.hpp"
@@ -80,7 +74,6 @@ struct Deformer::Impl : SphereStore {
     }
     std::vector<std::vector<std::uint32_t>> partition(bool smooth);
     void build(bool smooth, const DeformOptions& o, const Progress& progress);
-    void build_fields(const std::vector<std::size_t>& todo, double T, const Progress& progress);
     std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
     Box frame_reach(const std::vector<Motion>& motions) const;
@@ -139,20 +132,20 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     double maxlim = 0;
     for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
     bound_step = (maxlim + 4 * T) / 30000.0;
-    fields.resize(field_members.size());
+    fields.reserve(field_members.size());
     reused = 0;
-    std::vector<std::size_t> todo;
-    for (std::size_t f = 0; f < field_members.size(); ++f) {
-        const auto it = old_index.find(field_keys[f]);
-        if (it != old_index.end() && old_members[it->second] == field_members[f]) {
-            fields[f] = std::move(old[it->second]);
-            ++reused;
-        } else {
-            todo.push_back(f);
-        }
-    }
     try {
-        build_fields(todo, T, progress);
+        for (std::size_t f = 0; f < field_members.size(); ++f) {
+            const auto it = old_index.find(field_keys[f]);
+            if (it != old_index.end() && old_members[it->second] == field_members[f]) {
+                fields.push_back(std::move(old[it->second]));
+                ++reused;
+            } else {
+                fields.push_back(f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step)
+                                                : build_ball_field(grid, view(), field_members[f], radii, T, bound_step));
+            }
+            report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
+        }
     } catch (...) {  // cancelled or failed part-way: nothing of this build may be taken over by the next one
         fields.clear();
         field_keys.clear();
@@ -163,26 +156,6 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     built = true;
     built_smooth = smooth;
     built_scale = o.radius_scale;
-}
-
-/// Builds the fields `todo` several at a time (each one's own loops are parallel too, but its serial parts, the
-/// k-d tree and the power diagram's allocation, are not); each waits for its own loops without starting another
-/// (isolated), so that at most one field's scratch per thread is alive. Progress from the calling thread.
-void Deformer::Impl::build_fields(const std::vector<std::size_t>& todo, double T, const Progress& progress) {
-    std::atomic<std::size_t> done{0};
-    const std::thread::id caller = std::this_thread::get_id();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<std::size_t>& rg) {
-        for (std::size_t j = rg.begin(); j != rg.end(); ++j) {
-            const std::size_t f = todo[j];
-            tbb::this_task_arena::isolate([&] {
-                fields[f] = f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step)
-                                           : build_ball_field(grid, view(), field_members[f], radii, T, bound_step);
-            });
-            const std::size_t finished = ++done;
-            if (std::this_thread::get_id() == caller)
-                report(progress, 0.5 * static_cast<double>(finished) / static_cast<double>(todo.size()));
-        }
-    });
 }
 
 /// The output box: the moved spheres', grown to hold the rigid layer's pieces.

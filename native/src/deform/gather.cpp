@@ -19,39 +19,45 @@ namespace volrig::deform_detail {
 
 namespace {
 
-/// Sets bit b in the output blocks (of the box bx, ob blocks per axis, `words` words a block) that meet the box
-/// {lo x, y, z, hi x, y, z} (absolute output lattice) widened by a voxel.
+/// The output blocks [a, e] (of the box bx, ob blocks per axis) along axis k that the lattice span [lo, hi] meets;
+/// false when none does.
+bool block_range(double lo, double hi, const Box& bx, const std::int64_t* ob, int k, std::int64_t& a, std::int64_t& e) {
+    a = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(lo)) - bx[k]) / kBlock);
+    const std::int64_t top = static_cast<std::int64_t>(std::ceil(hi)) - bx[k];
+    if (top < 0) return false;
+    e = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
+    return e >= a;
+}
+
+/// Sets bit b of output block (x, y, z) (`words` words a block).
+void set_bit(std::vector<std::uint64_t>& bits, const std::int64_t* ob, std::size_t words, std::size_t b, std::int64_t x,
+             std::int64_t y, std::int64_t z) {
+    bits[static_cast<std::size_t>((z * ob[1] + y) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+}
+
+/// Sets bit b in the output blocks that meet the box {lo x, y, z, hi x, y, z} (absolute output lattice) widened by
+/// a voxel.
 void mark_blocks(std::vector<std::uint64_t>& bits, const double* box, const Box& bx, const std::int64_t* ob,
                  std::size_t words, std::size_t b) {
     std::int64_t a[3], e[3];
-    for (int k = 0; k < 3; ++k) {
-        a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(box[k])) - bx[k] - 1) / kBlock);
-        const std::int64_t top = static_cast<std::int64_t>(std::ceil(box[3 + k])) - bx[k] + 1;
-        if (top < 0) return;
-        e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
-        if (e[k] < a[k]) return;
-    }
+    for (int k = 0; k < 3; ++k)
+        if (!block_range(box[k] - 1, box[3 + k] + 1, bx, ob, k, a[k], e[k])) return;
     for (std::int64_t z = a[2]; z <= e[2]; ++z)
         for (std::int64_t y = a[1]; y <= e[1]; ++y)
-            for (std::int64_t x = a[0]; x <= e[0]; ++x)
-                bits[static_cast<std::size_t>((z * ob[1] + y) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+            for (std::int64_t x = a[0]; x <= e[0]; ++x) set_bit(bits, ob, words, b, x, y, z);
 }
 
-/// Sets bit b in the output blocks (as mark_blocks) within two voxels of the ball of squared world radius lim
-/// around y (output index space): a blend's map does not stretch (a blend of rotations shrinks or keeps
-/// lengths), so a posed ball lies in the ball of its radius around its posed centre, and the margin covers the
-/// preimage boxes' widening by a voxel.
+/// Sets bit b in the output blocks within two voxels of the ball of squared world radius lim around y (output
+/// index space): a blend's map does not stretch (a blend of rotations shrinks or keeps lengths), so a posed ball
+/// lies in the ball of its radius around its posed centre, and the margin covers the preimage boxes' widening by a
+/// voxel.
 void mark_ball_blocks(std::vector<std::uint64_t>& bits, const double* y, double lim, const double* s2, const Box& bx,
                       const std::int64_t* ob, std::size_t words, std::size_t b) {
     const double reach = lim * (1 + 1e-9) + 1e-9;
     std::int64_t a[3], e[3];
     for (int k = 0; k < 3; ++k) {
         const double r = std::sqrt(reach / s2[k]) + 2;
-        a[k] = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(y[k] - r)) - bx[k]) / kBlock);
-        const std::int64_t top = static_cast<std::int64_t>(std::ceil(y[k] + r)) - bx[k];
-        if (top < 0) return;
-        e[k] = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
-        if (e[k] < a[k]) return;
+        if (!block_range(y[k] - r, y[k] + r, bx, ob, k, a[k], e[k])) return;
     }
     auto gap2 = [&](int k, std::int64_t blk) {  // the squared world gap along axis k to the block grown by 2 voxels
         const double lo = static_cast<double>(bx[k] + blk * kBlock - 2), hi = lo + kBlock - 1 + 4;
@@ -65,8 +71,7 @@ void mark_ball_blocks(std::vector<std::uint64_t>& bits, const double* y, double 
             const double gy = gz + gap2(1, yy);
             if (gy > reach) continue;
             for (std::int64_t x = a[0]; x <= e[0]; ++x)
-                if (gy + gap2(0, x) <= reach)
-                    bits[static_cast<std::size_t>((z * ob[1] + yy) * ob[0] + x) * words + b / 64] |= std::uint64_t{1} << (b % 64);
+                if (gy + gap2(0, x) <= reach) set_bit(bits, ob, words, b, x, yy, z);
         }
     }
 }
