@@ -55,16 +55,18 @@ py::array_t<T> to_numpy(std::vector<T>&& data, const Grid& grid) {
 
 /// Same for a ZeroedArray (calloc'd: its untouched pages stay shared zero pages; or pooled: see ZeroedPool). The
 /// array is read-only, since a pool re-zeroes only what its writers marked.
+/// With `bricks`, the array is 6-D: [brick z, y, x, z, y, x] (DeformedVolume::bricks).
 template <class T>
-py::array_t<T> to_numpy(ZeroedArray<T>&& data, const Grid& grid) {
+py::array_t<T> to_numpy(ZeroedArray<T>&& data, const Grid& grid, bool bricks = false) {
     const py::ssize_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
-    const auto e = static_cast<py::ssize_t>(sizeof(T));
+    std::vector<py::ssize_t> shape{nz, ny, nx};
+    if (bricks) shape = {nz / 8, ny / 8, nx / 8, 8, 8, 8};
     auto holder = std::make_unique<std::shared_ptr<void>>(data.owner());
     T* p = data.data();
     data = ZeroedArray<T>();
     py::capsule owner(holder.get(), [](void* q) { delete static_cast<std::shared_ptr<void>*>(q); });
     holder.release();
-    py::array_t<T> a({nz, ny, nx}, {ny * nx * e, nx * e, e}, p, owner);
+    py::array_t<T> a(shape, p, owner);
     py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
     return a;
 }
@@ -88,8 +90,18 @@ py::array_t<T> rows(std::vector<std::array<T, K>>&& v) {
 }
 
 /// Grid of a C-contiguous 3-D array [z, y, x] with the given spacing and origin (x, y, z).
+/// With `bricks`, a 6-D array [brick z, y, x, z, y, x] of 8³ bricks is taken too (DeformedVolume::bricks).
 inline Grid grid_of(const py::array& a, const std::array<double, 3>& spacing, const std::array<double, 3>& origin,
-                    const char* what) {
+                    const char* what, bool bricks = false) {
+    if (bricks && a.ndim() == 6 && a.shape(3) == 8 && a.shape(4) == 8 && a.shape(5) == 8) {  // in 8³ bricks
+        if (!(a.flags() & py::array::c_style)) throw Error(std::string(what) + ": array must be C-contiguous");
+        Grid g;
+        g.dims = {static_cast<std::int64_t>(a.shape(2)) * 8, static_cast<std::int64_t>(a.shape(1)) * 8,
+                  static_cast<std::int64_t>(a.shape(0)) * 8};
+        g.spacing = spacing;
+        g.origin = origin;
+        return g;
+    }
     if (a.ndim() != 3) throw Error(std::string(what) + ": expected a 3-D array [z, y, x], got " +
                                    std::to_string(a.ndim()) + "-D");
     if (!(a.flags() & py::array::c_style)) throw Error(std::string(what) + ": array must be C-contiguous");
@@ -101,13 +113,15 @@ inline Grid grid_of(const py::array& a, const std::array<double, 3>& spacing, co
     return g;
 }
 
-/// A view of a C-contiguous numpy volume (no copy). The array must outlive the view.
+/// A view of a C-contiguous numpy volume (no copy; with `bricks`, also of a 6-D array of 8³ bricks, as grid_of).
+/// The array must outlive the view.
 inline VolumeView view_of(const py::array& a, const std::array<double, 3>& spacing,
-                          const std::array<double, 3>& origin, const char* what) {
+                          const std::array<double, 3>& origin, const char* what, bool bricks = false) {
     VolumeView v;
-    v.grid = grid_of(a, spacing, origin, what);
+    v.grid = grid_of(a, spacing, origin, what, bricks);
     v.dtype = from_numpy_dtype(a);
     v.data = a.data();
+    v.bricked = a.ndim() == 6;
     return v;
 }
 

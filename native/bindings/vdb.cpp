@@ -66,7 +66,7 @@ void bind_vdb(py::module_& m) {
                 keep.push_back(py::array::ensure(array, py::array::c_style));
                 if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
                 views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i],
-                                                 path.c_str()));
+                                                 path.c_str(), true));
             }
             py::gil_scoped_release release;
             write_vdb(path, views, half);
@@ -74,7 +74,8 @@ void bind_vdb(py::module_& m) {
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
         py::arg("origins") = std::vector<std::array<double, 3>>{},
         "write_vdb(path, grids, spacing, origin, half=False, origins=[])\n\n"
-        "grids: list of (name, numpy array [z, y, x]); spacing and origin (x, y, z), or one origin per grid\n"
+        "grids: list of (name, numpy array [z, y, x], or [brick z, y, x, z, y, x] in 8³ bricks as a Deformer's\n"
+        "frame in bricks); spacing and origin (x, y, z), or one origin per grid\n"
         "(origins), each a whole number of voxels from the first grid's (one voxel lattice).\n"
         "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
         "int32 grids. Only non-zero voxels are active. Written to a temporary file and renamed.");

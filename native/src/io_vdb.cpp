@@ -310,11 +310,12 @@ bool fits(In v) {
 /// Builds a grid holding the non-zero voxels of `src` (C-order [z, y, x], dims of `g`) at index coordinates
 /// (x, y, z). Leaf-sized blocks are filled in parallel, one task per (z, y) row of blocks, then inserted serially.
 template <class GridT, class In>
-typename GridT::Ptr build_grid(const In* src, const Grid& g, Overflow& overflow) {
+typename GridT::Ptr build_grid(const In* src, const Grid& g, bool bricked, Overflow& overflow) {
     using ValueT = typename GridT::ValueType;
     using TreeT = typename GridT::TreeType;
     using LeafT = typename TreeT::LeafNodeType;
     constexpr int D = static_cast<int>(LeafT::DIM);
+    static_assert(D == 8, "bricked views are 8³ bricks: leaf-sized");
     const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const std::int64_t bx = (nx + D - 1) / D, by = (ny + D - 1) / D, bz = (nz + D - 1) / D;
     const ValueT zero = openvdb::zeroVal<ValueT>();
@@ -344,7 +345,8 @@ typename GridT::Ptr build_grid(const In* src, const Grid& g, Overflow& overflow)
                     for (std::int64_t z = 0; z < ez; ++z) {
                         for (std::int64_t y = 0; y < ey; ++y) {
                             const std::int64_t row = ((z0 + z) * ny + (y0 + y)) * nx + x0;
-                            const In* p = src + row;
+                            // a bricked view's leaf-sized blocks are its bricks (dims multiples of D)
+                            const In* p = src + (bricked ? ((kz * by + ky) * bx + kx) * D * D * D + (z * D + y) * D : row);
                             for (std::int64_t x = 0; x < ex; ++x) {
                                 const In v = p[x];
                                 if (v == In(0)) continue;
@@ -395,16 +397,16 @@ typename GridT::Ptr build_grid(const In* src, const Grid& g, Overflow& overflow)
 template <class GridT>
 typename GridT::Ptr build_from_view(const VolumeView& v, Overflow& overflow) {
     switch (v.dtype) {
-        case DType::UInt8: return build_grid<GridT>(static_cast<const std::uint8_t*>(v.data), v.grid, overflow);
-        case DType::Int8: return build_grid<GridT>(static_cast<const std::int8_t*>(v.data), v.grid, overflow);
-        case DType::UInt16: return build_grid<GridT>(static_cast<const std::uint16_t*>(v.data), v.grid, overflow);
-        case DType::Int16: return build_grid<GridT>(static_cast<const std::int16_t*>(v.data), v.grid, overflow);
-        case DType::UInt32: return build_grid<GridT>(static_cast<const std::uint32_t*>(v.data), v.grid, overflow);
-        case DType::Int32: return build_grid<GridT>(static_cast<const std::int32_t*>(v.data), v.grid, overflow);
-        case DType::UInt64: return build_grid<GridT>(static_cast<const std::uint64_t*>(v.data), v.grid, overflow);
-        case DType::Int64: return build_grid<GridT>(static_cast<const std::int64_t*>(v.data), v.grid, overflow);
-        case DType::Float32: return build_grid<GridT>(static_cast<const float*>(v.data), v.grid, overflow);
-        case DType::Float64: return build_grid<GridT>(static_cast<const double*>(v.data), v.grid, overflow);
+        case DType::UInt8: return build_grid<GridT>(static_cast<const std::uint8_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Int8: return build_grid<GridT>(static_cast<const std::int8_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::UInt16: return build_grid<GridT>(static_cast<const std::uint16_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Int16: return build_grid<GridT>(static_cast<const std::int16_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::UInt32: return build_grid<GridT>(static_cast<const std::uint32_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Int32: return build_grid<GridT>(static_cast<const std::int32_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::UInt64: return build_grid<GridT>(static_cast<const std::uint64_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Int64: return build_grid<GridT>(static_cast<const std::int64_t*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Float32: return build_grid<GridT>(static_cast<const float*>(v.data), v.grid, v.bricked, overflow);
+        case DType::Float64: return build_grid<GridT>(static_cast<const double*>(v.data), v.grid, v.bricked, overflow);
     }
     throw Error("unknown dtype");
 }
@@ -542,6 +544,8 @@ void write_vdb(const std::string& path, const std::vector<std::pair<std::string,
         for (int a = 0; a < 3; ++a)
             if (view.grid.dims[a] > std::numeric_limits<std::int32_t>::max())
                 throw Error(subject + ": dimensions exceed OpenVDB's 32-bit index range");
+        if (view.bricked && (view.grid.dims[0] % 8 || view.grid.dims[1] % 8 || view.grid.dims[2] % 8))
+            throw Error(subject + ": a grid in 8³ bricks needs dimensions that are multiples of 8");
         if (!on_lattice_of(view.grid, g0))
             throw Error(subject + " has geometry " + dims_string(view.grid) + " but grid '" + grids.front().first +
                         "' has " + dims_string(g0) + "; all grids of one file must share one voxel lattice");

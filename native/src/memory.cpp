@@ -12,10 +12,12 @@ namespace {
 
 constexpr std::size_t kPage = 4096;
 
-/// Zeroes the granules of `s` marked written since it was handed out, a run of them at a time, and clears the marks.
+/// Zeroes the granules of `s` marked written since it was handed out, a run of them at a time, and moves the marks
+/// to `zeroed` (release_stale's).
 void rezero_written(ZeroedPool::Slab& s) {
     char* base = static_cast<char*>(s.p);
     std::atomic<std::uint8_t>* flags = s.written.get();
+    std::atomic<std::uint8_t>* zeroed = s.zeroed.get();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s.bytes / kZeroGranule, 65536),
                       [&](const tbb::blocked_range<std::size_t>& rg) {
                           for (std::size_t k = rg.begin(); k != rg.end();) {
@@ -24,12 +26,44 @@ void rezero_written(ZeroedPool::Slab& s) {
                                   continue;
                               }
                               std::size_t e = k;
-                              for (; e != rg.end() && flags[e].load(std::memory_order_relaxed); ++e)
+                              for (; e != rg.end() && flags[e].load(std::memory_order_relaxed); ++e) {
                                   flags[e].store(0, std::memory_order_relaxed);
+                                  zeroed[e].store(1, std::memory_order_relaxed);
+                              }
                               std::memset(base + k * kZeroGranule, 0, (e - k) * kZeroGranule);
                               k = e;
                           }
                       });
+}
+
+/// Gives the pages that were zeroed for the slab's last use (rezero_written) and that it did not write back to the
+/// kernel, and clears those marks: a slab kept for reuse then holds resident only what its last frame wrote, not
+/// the union of what all its frames wrote (frames' boxes move, and their covered bricks with them).
+void release_stale(ZeroedPool::Slab& s) {
+    constexpr std::size_t per_page = kPage / kZeroGranule;
+    char* base = static_cast<char*>(s.p);
+    std::atomic<std::uint8_t>* written = s.written.get();
+    std::atomic<std::uint8_t>* zeroed = s.zeroed.get();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s.bytes / kPage, 4096), [&](const tbb::blocked_range<std::size_t>& rg) {
+        std::size_t run = rg.end();  // the first page of a run of stale pages
+        auto flush = [&](std::size_t end) {
+            if (run < end) madvise(base + run * kPage, (end - run) * kPage, MADV_DONTNEED);
+            run = rg.end();
+        };
+        for (std::size_t page = rg.begin(); page != rg.end(); ++page) {
+            bool was = false, now = false;
+            for (std::size_t k = page * per_page; k < (page + 1) * per_page; ++k) {
+                was = was || zeroed[k].exchange(0, std::memory_order_relaxed);
+                now = now || written[k].load(std::memory_order_relaxed);
+            }
+            if (was && !now) {
+                if (run == rg.end()) run = page;
+            } else {
+                flush(page);
+            }
+        }
+        flush(rg.end());
+    });
 }
 
 }  // namespace
@@ -68,12 +102,14 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
     s->p = p;
     s->bytes = cap;
     s->written.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
+    s->zeroed.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
     return s.release();
 }
 
 void ZeroedPool::give_back(const std::weak_ptr<ZeroedPool>& pool, Slab* s) {
     std::unique_ptr<Slab> owned(s);
     if (auto p = pool.lock()) {
+        release_stale(*owned);
         std::lock_guard<std::mutex> lock(p->mutex_);
         p->free_.push_back(std::move(owned));
         if (p->free_.size() > p->keep_) p->free_.erase(p->free_.begin());  // the oldest goes

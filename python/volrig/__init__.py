@@ -19,7 +19,7 @@ read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
 from .rig import Binding, Rig, autorig, bind, rest_pose, rigid_tissue, rotation_about
 from .rigfile import RiggedSkeleton, load_rig, save_rig
-from .deform import Deformer, Frame, deform, deform_reference, inverse_warp
+from .deform import BrickedFrame, Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
 from .centerlines import (Centerline, CenterlineTree, StraighteningRig, StraightenMap, centerline, centerline_tree,
                           straighten, straightening_rig)
@@ -36,7 +36,7 @@ __version__ = "0.1.0"
 __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind", "rigid_tissue",
-           "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "deform",
+           "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "BrickedFrame", "deform",
            "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",
            "default_bone_map", "load_bone_map", "save_bone_map", "pipeline", "Centerline", "CenterlineTree",
            "StraightenMap", "centerline", "centerline_tree", "straighten", "StraighteningRig", "straightening_rig",

@@ -104,6 +104,66 @@ class Frame:
         write_vdb(os.fspath(path), grids, half=half)
 
 
+class BrickedFrame:
+    """A frame in 8³ bricks (``Deformer.frame(..., bricks=True)``; what a bake writes): its box is the posed
+    spheres' grown to multiples of 8, held brick by brick, so that it costs memory only in the bricks it covers, and
+    ``save`` writes the bricks as OpenVDB leaves without a dense copy. ``values``, ``bone``, ``offset``, ``mask``
+    and ``shared_voxels`` are a ``Frame``'s (``dense()``, made on first use: the covered voxels' box, C order), so
+    that it stands in for one; ``stats`` and ``extent`` (the covered box in the brick box, {x, y, z, dims}) are at
+    hand without it.
+
+    brick_values / brick_bone: arrays [brick z, y, x, z, y, x] (read-only, the Deformer's recycled memory);
+    box_offset: the source-lattice index of the brick box's first voxel."""
+
+    def __init__(self, d: dict, source: Volume):
+        self.brick_values, self.brick_bone = d["values"], d["bone"]
+        self.box_offset = tuple(int(x) for x in d["offset"])
+        self.extent = tuple(int(x) for x in d["extent"])
+        self.stats = dict(d["stats"])
+        self.spacing, self._origin = tuple(source.spacing), tuple(d["origin"])
+        self._dense = None
+
+    def dense(self) -> Frame:
+        """The same frame as a ``Frame``: C-order arrays over the covered voxels' box (made once, then kept)."""
+        if self._dense is None:
+            e = np.array(self.extent)
+            lo, n = e[:3], np.maximum(e[3:], 1)  # a frame covering nothing: one empty voxel, as a cropped one
+            b0, b1 = lo // 8, (lo + n + 7) // 8  # the bricks holding the extent, then the voxels in them
+
+            def cut(a):
+                if a is None:
+                    return None
+                part = a[b0[2]:b1[2], b0[1]:b1[1], b0[0]:b1[0]]
+                nb = part.shape[:3]
+                whole = part.transpose(0, 3, 1, 4, 2, 5).reshape(nb[0] * 8, nb[1] * 8, nb[2] * 8)
+                r = lo - b0 * 8
+                return np.ascontiguousarray(whole[r[2]:r[2] + n[2], r[1]:r[1] + n[1], r[0]:r[0] + n[0]])
+
+            origin = tuple(o + sp * float(x) for o, sp, x in zip(self._origin, self.spacing, lo))
+            vals = cut(self.brick_values)
+            self._dense = Frame(None if vals is None else Volume(vals, self.spacing, origin),
+                                Volume(cut(self.brick_bone), self.spacing, origin),
+                                tuple(int(o + x) for o, x in zip(self.box_offset, lo)), self.stats)
+        return self._dense
+
+    values = property(lambda self: self.dense().values)
+    bone = property(lambda self: self.dense().bone)
+    offset = property(lambda self: self.dense().offset)
+    mask = property(lambda self: self.dense().mask)
+
+    def shared_voxels(self, other) -> int:
+        return self.dense().shared_voxels(other)
+
+    def save(self, path, half: bool = True, parts=(), tissues=(), substitutes=None) -> None:
+        """As ``Frame.save``; the grids ``density`` and ``bone`` straight from the bricks (parts, tissues and
+        substitutes from ``dense()``)."""
+        if parts or tissues or substitutes:
+            return self.dense().save(path, half, parts, tissues, substitutes)
+        density = self.brick_values if self.brick_values is not None else (self.brick_bone > 0).view(np.uint8)
+        write_vdb(os.fspath(path), {"density": density, "bone": self.brick_bone}, self.spacing, self._origin,
+                  half=half)
+
+
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):
     """The arrays the core's BoundSpheres views (conversion only: the bindings and the core check them)."""
     if not isinstance(points, SkeletonPoints):
@@ -137,7 +197,9 @@ def _radius_scale(radius_scale, n: int):
     return np.full(n, float(s), dtype=np.float32) if s.ndim == 0 else s
 
 
-def _frame(d: dict, source: Volume) -> Frame:
+def _frame(d: dict, source: Volume):
+    if d["bricks"]:
+        return BrickedFrame(d, source)
     sp = source.spacing
     values = Volume(d["values"], sp, d["origin"]) if d["values"] is not None else None
     return Frame(values, Volume(d["bone"], sp, d["origin"]), tuple(int(x) for x in d["offset"]), dict(d["stats"]))
@@ -208,15 +270,17 @@ class Deformer:
 
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None,
-              keep_volume: bool = True) -> Frame:
+              keep_volume: bool = True, bricks: bool = False):
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates.
         ``keep_volume`` (smooth modes; the default): the blended spheres' radii follow the pose so that a bent limb
-        keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it."""
+        keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it. Returns a
+        ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
+        written to OpenVDB without a dense copy; what bakes use)."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
         if self._layer is not None and self._layer.pieces is None:
             self._label_layer(mode, proximity or self.proximity, scale)
         d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress,
-                               keep_volume=bool(keep_volume))
+                               keep_volume=bool(keep_volume), bricks=bool(bricks))
         return _frame(d, self.source)
 
     def _label_layer(self, mode: str, proximity: str, scale) -> None:

@@ -530,7 +530,7 @@ class FolderBake:
         os.makedirs(self.folder, exist_ok=True)
         deformer, radius_scale = self._deformer_for(thickness)
         frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
-                               keep_volume=self.keep_volume, progress=progress)
+                               keep_volume=self.keep_volume, progress=progress, bricks=True)
         self._wait()
         if self._writer is None:
             self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")
@@ -554,8 +554,8 @@ class FolderBake:
             pending.result()
 
     def _write(self, number: int, pose_hash: str, frame, matrices) -> None:
-        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues,
-                   substitutes=substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling))
+        subs = substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling) if self.substitutes else {}
+        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues, substitutes=subs)
         if self.poses_path is not None:
             self.poses[str(number)] = pose_hash
             self._write_poses()

@@ -392,3 +392,81 @@ TEST_CASE("the rigid layer draws each piece moved by its bone over the spheres' 
     bad[1].box[3] += 1;
     REQUIRE_THROWS_WITH(layered.set_rigid_layer(L.view(), bad), Catch::Contains("outside the source grid"));
 }
+
+namespace {
+
+/// A frame in bricks holds the cropped frame `dense`: the same voxels at the same lattice places, nothing else, on
+/// a box aligned to the bricks, with the covered box as its extent.
+void require_same_in_bricks(const DeformedVolume& dense, const DeformedVolume& bricked) {
+    REQUIRE(bricked.bricks);
+    REQUIRE(dense.stats.covered == bricked.stats.covered);
+    REQUIRE(dense.values.empty() == bricked.values.empty());
+    for (int a = 0; a < 3; ++a) {
+        REQUIRE(bricked.offset[a] % 8 == 0);
+        REQUIRE(bricked.grid.dims[a] % 8 == 0);
+        REQUIRE(bricked.extent[a] == dense.offset[a] - bricked.offset[a]);
+        REQUIRE(bricked.extent[3 + a] == dense.grid.dims[a]);
+        REQUIRE(bricked.grid.origin[a] == Approx(dense.grid.origin[a] - dense.grid.spacing[a] * static_cast<double>(bricked.extent[a])));
+    }
+    REQUIRE(bricked.bone.size() == static_cast<std::size_t>(bricked.grid.voxel_count()));
+    std::int64_t seen = 0;
+    for (std::int64_t z = 0; z < bricked.grid.dims[2]; ++z)
+        for (std::int64_t y = 0; y < bricked.grid.dims[1]; ++y)
+            for (std::int64_t x = 0; x < bricked.grid.dims[0]; ++x) {
+                const std::size_t i = brick_index(x, y, z, bricked.grid.dims);
+                const std::int64_t d[3] = {x - bricked.extent[0], y - bricked.extent[1], z - bricked.extent[2]};
+                const bool inside = d[0] >= 0 && d[1] >= 0 && d[2] >= 0 && d[0] < dense.grid.dims[0] &&
+                                    d[1] < dense.grid.dims[1] && d[2] < dense.grid.dims[2];
+                const auto j = inside ? static_cast<std::size_t>(dense.grid.index(d[0], d[1], d[2])) : 0;
+                const std::int16_t want = inside ? dense.bone[j] : 0;
+                if (bricked.bone[i] != want) FAIL("bone differs at (" << x << ", " << y << ", " << z << ")");
+                if (!dense.values.empty() && bricked.values[i] != (inside ? dense.values[j] : 0.0f))
+                    FAIL("value differs at (" << x << ", " << y << ", " << z << ")");
+                seen += want != 0;
+            }
+    std::int64_t labelled = 0;  // the spheres' covered voxels and the rigid layer's beside them
+    for (std::size_t i = 0; i < dense.bone.size(); ++i) labelled += dense.bone[i] != 0;
+    REQUIRE(seen == labelled);
+    REQUIRE(seen >= dense.stats.covered);
+}
+
+}  // namespace
+
+TEST_CASE("frames in 8³ bricks hold the cropped frames' voxels, the rigid layer's too, frame after frame", "[deform]") {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    const Limb L = make_limb({0.9, 1.2, 1.5});
+    const CorePieces c = core_pieces(L);
+    Deformer plain(L.view(), L.spheres(true)), layered(L.view(), L.spheres(true));
+    layered.set_rigid_layer(L.view(), c.pieces);
+    const auto joint = world(L.grid, L.joint);
+    for (int trial = 0; trial < 6; ++trial) {  // in a row: the bricks' recycled memory is re-zeroed right
+        std::vector<double> mats;
+        for (int b = 0; b < 2; ++b) {
+            const auto m = motion({U(rng), U(rng), U(rng)}, 60 * U(rng), joint, {9 * U(rng), 9 * U(rng), 9 * U(rng)});
+            mats.insert(mats.end(), m.begin(), m.end());
+        }
+        DeformOptions o;
+        o.mode = trial % 3 == 0 ? DeformMode::Rigid : trial % 3 == 1 ? DeformMode::Linear : DeformMode::DualQuaternion;
+        o.values = trial != 4;
+        INFO("trial " << trial);
+        for (Deformer* d : {&plain, &layered}) {
+            DeformOptions ob = o;
+            ob.bricks = true;
+            const DeformedVolume dense = d->frame(mats.data(), o);
+            const DeformedVolume bricked = d->frame(mats.data(), ob);
+            require_same_in_bricks(dense, bricked);
+        }
+    }
+    DeformOptions ob;
+    ob.bricks = true;
+    const auto rest = motion({0, 0, 1}, 0, {0, 0, 0}, {0, 0, 0});
+    std::vector<double> mats(rest.begin(), rest.end());
+    mats.insert(mats.end(), rest.begin(), rest.end());
+    const std::array<std::int64_t, 6> box{0, 0, 0, 8, 8, 8};
+    REQUIRE_THROWS_WITH(plain.frame(mats.data(), ob, {}, &box), Catch::Contains("bricks and an imposed box"));
+    ob.radius_scale.assign(L.spheres(true).n, 0.0f);  // nothing covered: an empty extent
+    const DeformedVolume none = plain.frame(mats.data(), ob);
+    REQUIRE(none.stats.covered == 0);
+    REQUIRE(none.extent[3] == 0);
+}

@@ -1,8 +1,11 @@
 // The zeroed memory frames are written into (volrig/memory.hpp): a ZeroedPool recycles what dropped arrays held,
-// re-zeroing only the granules they marked written.
+// re-zeroing only the granules they marked written, and giving back to the kernel the pages a use did not write.
 #include <catch2/catch.hpp>
 
+#include <sys/mman.h>
+
 #include <cstdint>
+#include <vector>
 
 #include "volrig/memory.hpp"
 
@@ -45,4 +48,46 @@ TEST_CASE("a ZeroedPool hands its memory out again zeroed, and outlives nothing 
     late.mark_written(4999, 5000);
     REQUIRE(late[4999] == 7);
     REQUIRE_THROWS_AS(ZeroedPool::create()->take<double>(std::size_t(-1) / 4), std::bad_alloc);
+}
+
+namespace {
+
+/// Resident pages of [p, p + bytes) (page-aligned p), by mincore.
+std::size_t resident_pages(const void* p, std::size_t bytes) {
+    const std::size_t pages = (bytes + 4095) / 4096;
+    std::vector<unsigned char> in(pages);
+    REQUIRE(mincore(const_cast<void*>(p), pages * 4096, in.data()) == 0);
+    std::size_t n = 0;
+    for (unsigned char c : in) n += c & 1;
+    return n;
+}
+
+}  // namespace
+
+TEST_CASE("a ZeroedPool keeps resident what the last use wrote, not what every use wrote", "[memory]") {
+    auto pool = ZeroedPool::create(1);
+    constexpr std::size_t n = 1 << 20;  // 4 MiB of floats: 1024 pages
+    const float* at = nullptr;
+    {
+        ZeroedArray<float> a = pool->take<float>(n);
+        for (std::size_t i = 0; i < n / 2; ++i) a[i] = 1.0f;  // the first half: 512 pages
+        a.mark_written(0, n / 2);
+        at = a.data();
+    }
+    REQUIRE(resident_pages(at, n * 4) >= 512);
+    {
+        ZeroedArray<float> b = pool->take<float>(n);  // re-zeroed: still resident while in use
+        REQUIRE(b.data() == at);
+        for (std::size_t i = n / 2; i < n / 2 + 1024 * 100; ++i) b[i] = 2.0f;  // 100 other pages
+        b.mark_written(n / 2, n / 2 + 1024 * 100);
+        b[10] = 3.0f;  // and one of the old ones
+        b.mark_written(10, 11);
+    }
+    // given back: the old pages it did not write went back to the kernel
+    const std::size_t kept = resident_pages(at, n * 4);
+    REQUIRE(kept >= 101);
+    REQUIRE(kept <= 110);
+    ZeroedArray<float> c = pool->take<float>(n);  // and all of it reads zero again
+    REQUIRE(c.data() == at);
+    for (std::size_t i = 0; i < n; ++i) REQUIRE(c[i] == 0.0f);
 }

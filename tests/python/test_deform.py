@@ -448,6 +448,38 @@ def test_binary_reconstruction_and_vdb_output(tmp_path):
     assert np.allclose(density.array, full.values.array[z0:z1, y0:y1, x0:x1], rtol=2e-3, atol=0.05)  # half floats
 
 
+@pytest.mark.parametrize("mode", ["rigid", "linear", "dual_quaternion"])
+def test_frames_in_bricks_are_the_same_frames_and_files(tmp_path, mode):
+    """A frame in 8³ bricks (what a bake writes) is the cropped frame: the same arrays once made dense, the same
+    grids once saved (read back), values or binary; a pose covering nothing too."""
+    volume, rig = capsule_chain(6)
+    mask, pts, binding = rigged(volume, rig, 300, bind="smooth")
+    d = volrig.Deformer(volume, pts, binding)
+    for k, M in enumerate([random_pose(rig, np.random.default_rng(s), shift=6.0) for s in (1, 2)]):
+        for values in (True, False):
+            full = d.frame(M, mode=mode, values=values)
+            bricks = d.frame(M, mode=mode, values=values, bricks=True)
+            assert isinstance(bricks, volrig.BrickedFrame)
+            assert bricks.brick_bone.shape[3:] == (8, 8, 8) and all(o % 8 == 0 for o in bricks.box_offset)
+            assert bricks.stats["covered"] == full.stats["covered"]
+            assert bricks.offset == full.offset and bricks.bone.dims == full.bone.dims
+            assert np.allclose(bricks.bone.origin, full.bone.origin)
+            assert np.array_equal(bricks.bone.array, full.bone.array)
+            assert (bricks.values is None) == (not values)
+            if values:
+                assert np.array_equal(bricks.values.array, full.values.array)
+            assert bricks.shared_voxels(full) == full.stats["covered"]
+            a, b = tmp_path / f"dense{k}.vdb", tmp_path / f"bricks{k}.vdb"
+            full.save(a)
+            bricks.save(b)
+            for grid in ("density", "bone"):
+                ga, gb = volrig.load(str(a), grid=grid), volrig.load(str(b), grid=grid)
+                assert np.allclose(ga.origin, gb.origin) and np.array_equal(ga.array, gb.array), grid
+    empty = d.frame(volrig.rest_pose(3), mode=mode, radius_scale=0.0, bricks=True)
+    assert empty.stats["covered"] == 0 and empty.extent[3:] == (0, 0, 0)
+    assert empty.bone.dims == (1, 1, 1) and not empty.bone.array.any()
+
+
 def test_bad_input_gets_clear_errors():
     volume, rig = capsule_chain(6)
     mask, pts, binding = rigged(volume, rig, 200)

@@ -72,6 +72,9 @@ struct DeformOptions {
     /// Smooth modes: each blend group's radii take a factor from its pose that keeps the limb's volume at bends
     /// (docs/ALGORITHMS.md §7, "Volume at bends"; issue 18). Weight-1 spheres and the rigid mode never change.
     bool keep_volume = true;
+    /// The output in 8³ bricks (DeformedVolume::bricks) instead of cropped C-order arrays: a frame then costs
+    /// memory only in the bricks it covers (a bake's frames; issue 17). Not with an imposed box.
+    bool bricks = false;
 };
 
 struct DeformStats {
@@ -96,13 +99,26 @@ struct DeformStats {
 /// (x, y, z) is source lattice index offset + (x, y, z), so grid.origin = source origin + spacing * offset.
 /// Unless a box is imposed, it is the bounding box of the covered voxels. The Deformer's frames live in memory it
 /// recycles (ZeroedPool): whoever writes into their arrays must mark_written what they write.
+///
+/// With DeformOptions::bricks the frame is not cropped: its box is the posed spheres' grown to multiples of 8 (offset
+/// and dims), and the arrays hold it brick by brick: voxel (x, y, z) at brick_index (bricks in C order [z, y, x],
+/// 512 voxels each, [z, y, x] inside), so that only the bricks a frame covers become resident. `extent` is the
+/// covered voxels' box inside it {x, y, z, dims x, y, z} (all of it for a cropped frame; dims 0 when none is).
 struct DeformedVolume {
     Grid grid;
     std::array<std::int64_t, 3> offset{0, 0, 0};
     ZeroedArray<float> values;       ///< source samples (0 where empty); empty when options.values is false
     ZeroedArray<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
     DeformStats stats;
+    bool bricks = false;
+    std::array<std::int64_t, 6> extent{0, 0, 0, 0, 0, 0};
 };
+
+/// The element of voxel (x, y, z) in an array of 8³ bricks over dims (multiples of 8; DeformedVolume::bricks).
+inline std::size_t brick_index(std::int64_t x, std::int64_t y, std::int64_t z, const std::array<std::int64_t, 3>& dims) {
+    const std::int64_t brick = ((z >> 3) * (dims[1] >> 3) + (y >> 3)) * (dims[0] >> 3) + (x >> 3);
+    return static_cast<std::size_t>(brick * 512 + ((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
+}
 
 /// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
 using BoneMatrices = const double*;

@@ -105,8 +105,9 @@ private:
 };
 
 /// Recycles the large zero-filled outputs of a sequence of frames: an array given back (when its last owner goes)
-/// keeps its pages, and the next take() re-zeroes only the granules marked written, instead of the kernel faulting in
-/// and zeroing fresh pages one by one. Keeps at most `keep` free blocks of memory; thread-safe.
+/// keeps the pages it wrote, and the next take() re-zeroes only the granules marked written, instead of the kernel
+/// faulting in and zeroing fresh pages one by one; pages zeroed for a use that did not write them go back to the
+/// kernel when it ends. Keeps at most `keep` free blocks of memory; thread-safe.
 class ZeroedPool : public std::enable_shared_from_this<ZeroedPool> {
 public:
     static std::shared_ptr<ZeroedPool> create(std::size_t keep = 2);
@@ -133,6 +134,7 @@ public:
         void* p = nullptr;
         std::size_t bytes = 0;
         std::unique_ptr<std::atomic<std::uint8_t>[]> written;  // a flag per kZeroGranule bytes
+        std::unique_ptr<std::atomic<std::uint8_t>[]> zeroed;   // likewise: zeroed when last handed out
         ~Slab();
     };
 

@@ -48,6 +48,9 @@ struct VolumeView {
     Grid grid;
     DType dtype = DType::UInt8;
     const void* data = nullptr;
+    /// The samples in 8³ bricks (volrig/deform.hpp, brick_index; dims multiples of 8), not in C order. Only the
+    /// OpenVDB writer takes such views.
+    bool bricked = false;
 };
 
 /// An owning volume. `data` holds voxel_count() * dtype_size(dtype) bytes in native byte order.

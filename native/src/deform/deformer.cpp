@@ -195,7 +195,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const bool contact = o.keep_volume && !groups.weights.empty() && o.mode != DeformMode::Rigid;
     const FieldContacts planes = contact ? contacts(bend, groups, motions, o.mode, bone_count, grid) : FieldContacts{};
     add_group_motions(motions, o.mode);
-    const Box bx = fixed_box ? *fixed_box : frame_reach(motions);
+    if (o.bricks && fixed_box) throw Error("deform: bricks and an imposed box do not go together");
+    const Box bx = o.bricks ? brick_aligned(frame_reach(motions)) : fixed_box ? *fixed_box : frame_reach(motions);
     check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
     const auto total = static_cast<std::size_t>(bx[3] * bx[4] * bx[5]);
@@ -209,10 +210,11 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     GatherResult r = gather(set, field_owner, source, bx, o, out, progress);
     Drawn layer;
     if (!pieces.empty()) {
-        layer = paint_layer_pooled(layer_source, pieces, motions, o.sampling, bx, out);
+        layer = paint_layer_pooled(layer_source, pieces, motions, o.sampling, bx, out, o.bricks);
         for (int a = 0; a < 3; ++a) r.lo[a] = std::min(r.lo[a], layer.lo[a]), r.hi[a] = std::max(r.hi[a], layer.hi[a]);
     }
-    if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
+    if (o.bricks) set_extent(out, r.lo, r.hi);
+    else if (!fixed_box) crop_to_extent(out, r.lo, r.hi, &grid);
     report(progress, 1.0);
     out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search,
                  r.exact_sub_blocks, layer.count, r.contact};

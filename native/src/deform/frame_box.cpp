@@ -66,6 +66,7 @@ DeformedVolume frame_on(const Grid& source, const Box& bx) {
     DeformedVolume out;
     out.offset = {bx[0], bx[1], bx[2]};
     out.grid.dims = {bx[3], bx[4], bx[5]};
+    out.extent = {0, 0, 0, bx[3], bx[4], bx[5]};
     out.grid.spacing = source.spacing;
     for (int a = 0; a < 3; ++a) out.grid.origin[a] = source.origin[a] + source.spacing[a] * static_cast<double>(bx[a]);
     return out;
@@ -95,8 +96,28 @@ void crop(DeformedVolume& f, const Box& sub, const Grid* source) {
     for (int a = 0; a < 3; ++a) {
         f.offset[a] += sub[a];
         f.grid.dims[a] = sub[3 + a];
+        f.extent[a] = 0;
+        f.extent[3 + a] = sub[3 + a];
         f.grid.origin[a] = source ? source->origin[a] + source->spacing[a] * static_cast<double>(f.offset[a])
                                   : f.grid.origin[a] + f.grid.spacing[a] * static_cast<double>(sub[a]);
+    }
+}
+
+Box brick_aligned(const Box& bx) {
+    Box out;
+    for (int a = 0; a < 3; ++a) {
+        out[a] = bx[a] - (((bx[a] % kBlock) + kBlock) % kBlock);
+        out[3 + a] = (bx[a] + bx[3 + a] - out[a] + kBlock - 1) / kBlock * kBlock;
+    }
+    return out;
+}
+
+void set_extent(DeformedVolume& f, const std::int64_t* lo, const std::int64_t* hi) {
+    f.bricks = true;
+    const bool none = hi[0] < lo[0] || hi[1] < lo[1] || hi[2] < lo[2];
+    for (int a = 0; a < 3; ++a) {
+        f.extent[a] = none ? 0 : lo[a];
+        f.extent[3 + a] = none ? 0 : hi[a] - lo[a] + 1;
     }
 }
 

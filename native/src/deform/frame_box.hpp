@@ -25,6 +25,12 @@ void crop(DeformedVolume& f, const Box& sub, const Grid* source = nullptr);
 
 /// Crops a frame to the voxels [lo, hi] (relative to its offset, inclusive); one voxel at the offset along an axis
 /// where hi < lo (nothing covered).
+/// bx grown to multiples of 8 (offset and dims), for a frame in bricks.
+Box brick_aligned(const Box& bx);
+
+/// A frame in bricks: marks it so, with the covered voxels' box [lo, hi] (inclusive; hi < lo: none) as its extent.
+void set_extent(DeformedVolume& f, const std::int64_t* lo, const std::int64_t* hi);
+
 void crop_to_extent(DeformedVolume& f, const std::int64_t* lo, const std::int64_t* hi, const Grid* source = nullptr);
 
 }  // namespace volrig::deform_detail

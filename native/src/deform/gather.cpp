@@ -866,9 +866,10 @@ void Gather::undecided(const Block& b, Local& loc) const {
     }
 }
 
-/// The covered voxels, straight into the output row by row: the bone label, and the sample through the winning
-/// field's map, as the decisions saw it (along a row, a run of one field steps its preimage by a column). Marks
-/// what it writes, records the covered voxels in loc.layer, and returns their count.
+/// The covered voxels, straight into the output row by row (C order, or the block's brick: the box is then aligned
+/// to them): the bone label, and the sample through the winning field's map, as the decisions saw it (along a row,
+/// a run of one field steps its preimage by a column). Marks what it writes, records the covered voxels in
+/// loc.layer, and returns their count.
 template <class S>
 std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) const {
     const std::int64_t nx = bx_[3], ny = bx_[4];
@@ -878,7 +879,8 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
             const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
-            const auto row = static_cast<std::size_t>(((b.k[2] * kBlock + dz) * ny + b.k[1] * kBlock + dy) * nx + b.k[0] * kBlock);
+            const auto row = o_.bricks ? static_cast<std::size_t>((((b.k[2] * nb_[1] + b.k[1]) * nb_[0] + b.k[0]) * 8 + dz) * 64 + dy * 8)
+                                       : static_cast<std::size_t>(((b.k[2] * kBlock + dz) * ny + b.k[1] * kBlock + dy) * nx + b.k[0] * kBlock);
             std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
             std::int64_t pf[3] = {0, 0, 0};
             std::uint64_t xs = 0;

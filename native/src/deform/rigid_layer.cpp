@@ -62,7 +62,8 @@ void merge(Drawn& into, const Drawn& d) {
 /// One piece over the box: rows of its posed box, each voxel whose rest position rounds into the piece.
 template <class S, class Mark>
 Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampling sampling, const Box& bx,
-                  float* values, std::int16_t* bone, Mark& mark) {
+                  float* values, std::int16_t* bone, Mark& mark, bool bricks) {
+    const std::array<std::int64_t, 3> dims{bx[3], bx[4], bx[5]};
     const auto b = posed_bounds(p, m);
     std::int64_t lo[3], hi[3];
     for (int a = 0; a < 3; ++a) {
@@ -88,14 +89,17 @@ Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampli
                                        k = nearest_index(r[2]) - p.box[2];
                     if (i < 0 || j < 0 || k < 0 || i >= px || j >= py || k >= pz || !p.at(i, j, k))
                         continue;
-                    bone[row + x] = label;
-                    if (values) values[row + x] = sampler.sample(r, sampling);
+                    const std::size_t at = bricks ? brick_index(x - bx[0], y - bx[1], z - bx[2], dims)
+                                                  : static_cast<std::size_t>(row + x);
+                    bone[at] = label;
+                    if (values) values[at] = sampler.sample(r, sampling);
+                    if (bricks) mark(at, at + 1);
                     if (first < 0) first = x;
                     last = x;
                     ++n;
                 }
                 if (!n) continue;
-                mark(static_cast<std::size_t>(row + first), static_cast<std::size_t>(row + last + 1));
+                if (!bricks) mark(static_cast<std::size_t>(row + first), static_cast<std::size_t>(row + last + 1));
                 mine.count += n;
                 const std::int64_t at[2][3] = {{first - bx[0], y - bx[1], z - bx[2]}, {last - bx[0], y - bx[1], z - bx[2]}};
                 for (int a = 0; a < 3; ++a)
@@ -123,25 +127,28 @@ Box pieces_reach(const std::vector<RigidPiece>& pieces, const std::vector<Motion
 
 template <class Mark>
 Drawn paint_layer(const VolumeView& source, const std::vector<RigidPiece>& pieces, const std::vector<Motion>& motions,
-                  Sampling sampling, const Box& bx, float* values, std::int16_t* bone, Mark&& mark) {
+                  Sampling sampling, const Box& bx, float* values, std::int16_t* bone, Mark&& mark, bool bricks = false) {
     Drawn all = Drawn{};
     with_sampler(source, [&](const auto& sampler) {
         for (const RigidPiece& p : pieces)
             merge(all, paint_piece(sampler, p, motions[static_cast<std::size_t>(p.bone)], sampling, bx, values, bone,
-                                   mark));
+                                   mark, bricks));
     });
     return all;
 }
 
-/// The Deformer's use: pooled output arrays, marked as written.
+/// The Deformer's use: pooled output arrays (C order, or in bricks), marked as written.
 Drawn paint_layer_pooled(const VolumeView& source, const std::vector<RigidPiece>& pieces,
-                         const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out) {
+                         const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out,
+                         bool bricks) {
     float* values = out.values.empty() ? nullptr : out.values.data();
-    return paint_layer(source, pieces, motions, sampling, bx, values, out.bone.data(),
-                       [&](std::size_t i0, std::size_t i1) {
-                           out.bone.mark_written(i0, i1);
-                           if (values) out.values.mark_written(i0, i1);
-                       });
+    return paint_layer(
+        source, pieces, motions, sampling, bx, values, out.bone.data(),
+        [&](std::size_t i0, std::size_t i1) {
+            out.bone.mark_written(i0, i1);
+            if (values) out.values.mark_written(i0, i1);
+        },
+        bricks);
 }
 
 }  // namespace volrig::deform_detail

@@ -26,8 +26,10 @@ struct Drawn {
     std::int64_t lo[3] = {kNone, kNone, kNone}, hi[3] = {-1, -1, -1};
 };
 
-/// Draws the pieces over a frame on box `bx` (the Deformer's pooled output: marks what it writes).
+/// Draws the pieces over a frame on box `bx` (the Deformer's pooled output, C order or in bricks: marks what it
+/// writes).
 Drawn paint_layer_pooled(const VolumeView& source, const std::vector<RigidPiece>& pieces,
-                         const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out);
+                         const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out,
+                         bool bricks);
 
 }  // namespace volrig::deform_detail
