@@ -7,6 +7,31 @@
 
 namespace volrig::py {
 
+namespace {
+
+/// The views of write_vdb's / build_vdb's arguments, with the C-contiguous arrays they view (kept alive).
+std::vector<std::pair<std::string, VolumeView>> vdb_views(const std::string& path,
+                                                          const std::vector<std::pair<std::string, py::array>>& grids,
+                                                          const std::array<double, 3>& spacing,
+                                                          const std::array<double, 3>& origin,
+                                                          const std::vector<std::array<double, 3>>& origins,
+                                                          std::vector<py::array>& keep) {
+    if (!origins.empty() && origins.size() != grids.size())
+        throw Error(path + ": " + std::to_string(origins.size()) + " origins for " + std::to_string(grids.size()) +
+                    " grids");
+    std::vector<std::pair<std::string, VolumeView>> views;
+    keep.reserve(grids.size());
+    for (std::size_t i = 0; i < grids.size(); ++i) {
+        const auto& [name, array] = grids[i];
+        keep.push_back(py::array::ensure(array, py::array::c_style));
+        if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
+        views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i], path.c_str(), true));
+    }
+    return views;
+}
+
+}  // namespace
+
 void bind_vdb(py::module_& m) {
     m.def(
         "read_vdb",
@@ -55,19 +80,8 @@ void bind_vdb(py::module_& m) {
         [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
            const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half,
            const std::vector<std::array<double, 3>>& origins) {
-            if (!origins.empty() && origins.size() != grids.size())
-                throw Error(path + ": " + std::to_string(origins.size()) + " origins for " +
-                            std::to_string(grids.size()) + " grids");
-            std::vector<py::array> keep;  // C-contiguous versions of the arrays, alive while writing
-            std::vector<std::pair<std::string, VolumeView>> views;
-            keep.reserve(grids.size());
-            for (std::size_t i = 0; i < grids.size(); ++i) {
-                const auto& [name, array] = grids[i];
-                keep.push_back(py::array::ensure(array, py::array::c_style));
-                if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
-                views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i],
-                                                 path.c_str(), true));
-            }
+            std::vector<py::array> keep;
+            const auto views = vdb_views(path, grids, spacing, origin, origins, keep);
             py::gil_scoped_release release;
             write_vdb(path, views, half);
         },
@@ -79,6 +93,31 @@ void bind_vdb(py::module_& m) {
         "(origins), each a whole number of voxels from the first grid's (one voxel lattice).\n"
         "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
         "int32 grids. Only non-zero voxels are active. Written to a temporary file and renamed.");
+
+    py::class_<VdbGrids>(m, "VdbGrids", "Grids built by build_vdb, for one write (then freed).")
+        .def(
+            "write",
+            [](VdbGrids& g, const std::string& path) {
+                py::gil_scoped_release release;
+                g.write(path);
+            },
+            py::arg("path"))
+        .def_property_readonly("written", &VdbGrids::written);
+    m.def(
+        "build_vdb",
+        [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
+           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half,
+           const std::vector<std::array<double, 3>>& origins) {
+            std::vector<py::array> keep;
+            const auto views = vdb_views(path, grids, spacing, origin, origins, keep);
+            py::gil_scoped_release release;
+            return build_vdb(path, views, half);
+        },
+        py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
+        py::arg("origins") = std::vector<std::array<double, 3>>{},
+        "build_vdb(path, grids, spacing, origin, half=False, origins=[]) -> VdbGrids\n\n"
+        "write_vdb's first half: the grids built (and checked) now, written by VdbGrids.write(path) later; the\n"
+        "arrays may go in between. path names the file in errors.");
 }
 
 }  // namespace volrig::py

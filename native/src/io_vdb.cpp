@@ -28,6 +28,10 @@
 #include <openvdb/tools/Dense.h>
 
 #include <tbb/blocked_range2d.h>
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -530,7 +534,42 @@ Volume read_vdb(const std::string& path, const std::string& grid_name, const Rea
     return vol;
 }
 
+struct VdbGrids::Impl {
+    openvdb::GridPtrVec grids;
+    bool written = false;
+};
+
+VdbGrids::VdbGrids() : impl_(std::make_unique<Impl>()) {}
+VdbGrids::~VdbGrids() = default;
+VdbGrids::VdbGrids(VdbGrids&&) noexcept = default;
+VdbGrids& VdbGrids::operator=(VdbGrids&&) noexcept = default;
+bool VdbGrids::written() const { return impl_->written; }
+
+void VdbGrids::write(const std::string& path) {
+    if (impl_->written) throw Error(path + ": these grids were written already");
+    try {
+        write_atomically(path, [&](const std::string& tmp) {
+            openvdb::io::File file(tmp);
+            file.write(impl_->grids);
+            file.close();
+        });
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw Error(path + ": cannot write the OpenVDB file (" + e.what() + ")");
+    }
+    impl_->written = true;
+    impl_->grids.clear();
+#if defined(__GLIBC__)
+    malloc_trim(0);  // the leaves were small blocks of this thread's heap: give the pages back
+#endif
+}
+
 void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
+    build_vdb(path, grids, half).write(path);
+}
+
+VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
     initialize_openvdb();
     if (grids.empty()) throw Error(path + ": no grids to write");
     const Grid& g0 = grids.front().second.grid;
@@ -578,18 +617,9 @@ void write_vdb(const std::string& path, const std::vector<std::pair<std::string,
         grid->setTransform(index_to_world(view.grid));
         out.push_back(grid);
     }
-
-    try {
-        write_atomically(path, [&](const std::string& tmp) {
-            openvdb::io::File file(tmp);
-            file.write(out);
-            file.close();
-        });
-    } catch (const Error&) {
-        throw;
-    } catch (const std::exception& e) {
-        throw Error(path + ": cannot write the OpenVDB file (" + e.what() + ")");
-    }
+    VdbGrids built;
+    built.impl_->grids = std::move(out);
+    return built;
 }
 
 }  // namespace volrig

@@ -19,7 +19,7 @@ from .rigid_layer import RigidLayer
 from .tissues import tissue_grids
 from .rig import Binding, rest_pose
 from .skeleton import ProgressFn, SkeletonPoints
-from .volume import Volume, write_vdb
+from .volume import Volume, build_vdb
 
 #: The deform modes (the core's names, ``_volrig.DEFORM_MODES``), each with a label and a description for menus:
 #: the one list the command line's choices and the add-on's menu come from. The add-on stores a choice by its
@@ -96,12 +96,17 @@ class Frame:
         (``volrig.Tissue``; the values a label map sampled nearest) its ``tissue_<key>`` (``volrig.tissue_grids``),
         placed by spacing and origin; atomically. ``substitutes``: grids replacing some of those (``{name:
         Volume}``, e.g. a part's ``density_<key>`` from another volume: ``volrig.parts.substitute_grid``)."""
+        self.vdb(path, half, parts, tissues, substitutes).write(os.fspath(path))
+
+    def vdb(self, path, half: bool = True, parts=(), tissues=(), substitutes=None):
+        """``save``'s grids built, for ``.write(path)`` later (``volrig.volume.build_vdb``): the frame may go in
+        between (a bake writes on another thread)."""
         density = self.values if self.values is not None else self.mask
         grids = {"density": density, "bone": self.bone}
         grids.update(part_grids(density, self.bone, parts) if parts else {})
         grids.update(tissue_grids(density, tissues) if tissues else {})
         grids.update(substitutes or {})
-        write_vdb(os.fspath(path), grids, half=half)
+        return build_vdb(os.fspath(path), grids, half=half)
 
 
 class BrickedFrame:
@@ -155,13 +160,17 @@ class BrickedFrame:
         return self.dense().shared_voxels(other)
 
     def save(self, path, half: bool = True, parts=(), tissues=(), substitutes=None) -> None:
-        """As ``Frame.save``; the grids ``density`` and ``bone`` straight from the bricks (parts, tissues and
+        """As ``Frame.save``."""
+        self.vdb(path, half, parts, tissues, substitutes).write(os.fspath(path))
+
+    def vdb(self, path, half: bool = True, parts=(), tissues=(), substitutes=None):
+        """As ``Frame.vdb``; the grids ``density`` and ``bone`` straight from the bricks (parts, tissues and
         substitutes from ``dense()``)."""
         if parts or tissues or substitutes:
-            return self.dense().save(path, half, parts, tissues, substitutes)
+            return self.dense().vdb(path, half, parts, tissues, substitutes)
         density = self.brick_values if self.brick_values is not None else (self.brick_bone > 0).view(np.uint8)
-        write_vdb(os.fspath(path), {"density": density, "bone": self.brick_bone}, self.spacing, self._origin,
-                  half=half)
+        return build_vdb(os.fspath(path), {"density": density, "bone": self.brick_bone}, self.spacing,
+                         self._origin, half=half)
 
 
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):

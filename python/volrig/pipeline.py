@@ -531,12 +531,15 @@ class FolderBake:
         deformer, radius_scale = self._deformer_for(thickness)
         frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
                                keep_volume=self.keep_volume, progress=progress, bricks=True)
-        self._wait()
+        self._wait()  # the previous frame's grids are written and freed before this one's are built
+        subs = substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling) if self.substitutes else {}
+        grids = frame.vdb(self.path(number), half=True, parts=self.parts, tissues=self.tissues, substitutes=subs)
+        stats = frame.stats
+        del frame, subs  # the frame's memory goes back to the Deformer for the next one while its file is written
         if self._writer is None:
             self._writer = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="volrig-vdb")
-        self._pending = self._writer.submit(self._write, number, self.pose_hash(matrices, thickness), frame,
-                                            matrices)
-        return frame.stats
+        self._pending = self._writer.submit(self._write, number, self.pose_hash(matrices, thickness), grids)
+        return stats
 
     def finish(self) -> None:
         """Waits for the last frame's file (raising its error, if any) and frees the frames' memory."""
@@ -553,9 +556,8 @@ class FolderBake:
         if pending is not None:
             pending.result()
 
-    def _write(self, number: int, pose_hash: str, frame, matrices) -> None:
-        subs = substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling) if self.substitutes else {}
-        frame.save(self.path(number), half=True, parts=self.parts, tissues=self.tissues, substitutes=subs)
+    def _write(self, number: int, pose_hash: str, grids) -> None:
+        grids.write(self.path(number))
         if self.poses_path is not None:
             self.poses[str(number)] = pose_hash
             self._write_poses()

@@ -269,6 +269,17 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) ->
     half:    store float grids as 16-bit half floats (smaller files, ~3 significant digits).
     The file is written to a temporary name and renamed.
     """
+    _volrig.write_vdb(*_vdb_arguments(path, grids, spacing, origin, half))
+
+
+def build_vdb(path: str, grids, spacing=None, origin=None, half: bool = True):
+    """``write_vdb`` in two steps: the grids built now (checked as ``write_vdb`` checks them; ``path`` names the
+    file in errors), written by ``.write(path)`` later, say on another thread once the arrays are gone (a bake's
+    frame goes back to its Deformer as soon as its grids are built). The grids are freed once written."""
+    return _volrig.build_vdb(*_vdb_arguments(path, grids, spacing, origin, half))
+
+
+def _vdb_arguments(path, grids, spacing, origin, half):
     items = list(grids.items()) if hasattr(grids, "items") else list(grids)
     if not items:
         raise VolrigError(f"{path}: no grids to write")
@@ -282,4 +293,4 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) ->
             a = a.view(np.uint8)
         arrays.append((str(name), a))
         origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
-    _volrig.write_vdb(os.fspath(path), arrays, spacing, origin, bool(half), origins)
+    return os.fspath(path), arrays, spacing, origin, bool(half), origins

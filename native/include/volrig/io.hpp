@@ -131,4 +131,25 @@ Volume read_vdb(const std::string& path, const std::string& grid = "", const Rea
 /// (stored as half floats when `half`); other integer volumes (e.g. int16/int32 bone labels) become Int32Grids. Only non-zero voxels are active; the background is 0.
 void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
 
+/// write_vdb in two steps: the grids built while the samples are at hand (build_vdb, checked as write_vdb checks
+/// them; `path` names the file in errors), written later, say on another thread once the samples are gone (a
+/// bake's frame goes back to its Deformer as soon as its grids are built). Built grids cost about 4 bytes per voxel
+/// of every 8³ block holding an active one, per grid.
+class VdbGrids {
+public:
+    VdbGrids();
+    ~VdbGrids();
+    VdbGrids(VdbGrids&&) noexcept;
+    VdbGrids& operator=(VdbGrids&&) noexcept;
+    /// Writes the grids to `path` atomically and frees them (once: a second call throws).
+    void write(const std::string& path);
+    bool written() const;
+
+private:
+    friend VdbGrids build_vdb(const std::string&, const std::vector<std::pair<std::string, VolumeView>>&, bool);
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
+
 }  // namespace volrig
