@@ -207,8 +207,8 @@ def main() -> int:
                  ("whole bake, VDBs written", f"{fig['bake_wall_s']:.1f} s",
                   f"{fig['bake_ratio']:.2f}x (<= 1.3x), {fig['bake_frames_per_s']:.2f} frames/s")]
     if "bake_bytes_per_source_voxel" in fig:
-        rows += [(f"peak memory, {fig['memory_frames']}-frame bake less loaded child (reference)",
-                  f"{fig['peak_bake_mb']:.0f} MB", f"loaded: {fig['peak_loaded_mb']:.0f} MB"),
+        rows += [(f"peak memory of a child baking {fig['memory_frames']} frames", f"{fig['peak_bake_mb']:.0f} MB",
+                  f"the same child loaded only (reference): {fig['peak_loaded_mb']:.0f} MB"),
                  ("  per source voxel above the source", f"{fig['bake_bytes_per_source_voxel']:.1f} B",
                   f"source {fig['source_bytes_per_voxel']} B/voxel (<= 3 B above it)")]
     for name, value, note in rows:

@@ -37,6 +37,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <memory>
@@ -313,6 +314,21 @@ bool fits(In v) {
 
 /// Builds a grid holding the non-zero voxels of `src` (C-order [z, y, x], dims of `g`) at index coordinates
 /// (x, y, z). Leaf-sized blocks are filled in parallel, one task per (z, y) row of blocks, then inserted serially.
+/// Whether the n values at p are all bytes zero (a quick test before a block's voxels are looked at one by one).
+template <class In>
+bool all_zero_bytes(const In* p, std::int64_t n) {
+    const auto* b = reinterpret_cast<const unsigned char*>(p);
+    const auto bytes = static_cast<std::size_t>(n) * sizeof(In);
+    std::uint64_t acc = 0;
+    for (std::size_t i = 0; i + 8 <= bytes; i += 8) {
+        std::uint64_t w;
+        std::memcpy(&w, b + i, 8);
+        acc |= w;
+    }
+    for (std::size_t i = bytes / 8 * 8; i < bytes; ++i) acc |= b[i];
+    return acc == 0;
+}
+
 template <class GridT, class In>
 typename GridT::Ptr build_grid(const In* src, const Grid& g, bool bricked, Overflow& overflow) {
     using ValueT = typename GridT::ValueType;
@@ -340,6 +356,8 @@ typename GridT::Ptr build_grid(const In* src, const Grid& g, bool bricked, Overf
                     const std::int64_t ex = std::min<std::int64_t>(D, nx - x0), ey = std::min<std::int64_t>(D, ny - y0),
                                        ez = std::min<std::int64_t>(D, nz - z0);
                     const openvdb::Coord origin(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(z0));
+                    if (bricked && all_zero_bytes(src + ((kz * by + ky) * bx + kx) * D * D * D, D * D * D))
+                        continue;  // (most bricks of a frame's box: never written, shared zero pages)
                     if (!leaf) leaf = std::make_unique<LeafT>(origin, zero, false);
                     else {
                         leaf->setOrigin(origin);
