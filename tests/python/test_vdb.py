@@ -257,3 +257,32 @@ def test_grids_of_different_boxes_on_one_lattice(tmp_path):
     np.testing.assert_array_equal(back.array, part.array)
     with pytest.raises(volrig.VolrigError, match="lattice"):
         volrig.write_vdb(path, {"density": a, "part": volrig.Volume(pattern((2, 3, 4)), SPACING, (0.3, 0, 0))})
+
+
+def test_grids_built_now_written_later_and_in_bricks(tmp_path):
+    """build_vdb checks and builds now (the arrays may go), VdbGrids.write writes once; arrays in 8³ bricks
+    [brick z, y, x, z, y, x] give the grids of the same volume in C order."""
+    from volrig.volume import build_vdb
+    rng = np.random.default_rng(4)
+    a = np.zeros((24, 16, 32), np.float32)
+    a[3:20, 2:13, 5:29] = rng.random((17, 11, 24)).astype(np.float32) + 0.5
+    labels = (a > 1.0).astype(np.int16) * 3
+    bricks = lambda v: np.ascontiguousarray(v.reshape(3, 8, 2, 8, 4, 8).transpose(0, 2, 4, 1, 3, 5))
+    path = tmp_path / "later.vdb"
+    grids = build_vdb(path, {"density": bricks(a), "bone": bricks(labels)}, spacing=(0.5, 1, 2), origin=(1, 2, 3),
+                      half=False)
+    assert not path.exists() and not grids.written
+    grids.write(str(path))
+    assert grids.written
+    with pytest.raises(volrig.VolrigError, match="written already"):
+        grids.write(str(path))
+    volrig.write_vdb(str(tmp_path / "dense.vdb"), {"density": a, "bone": labels}, spacing=(0.5, 1, 2),
+                     origin=(1, 2, 3), half=False)
+    for g in ("density", "bone"):
+        got, want = volrig.load(str(path), grid=g), volrig.load(str(tmp_path / "dense.vdb"), grid=g)
+        assert np.array_equal(got.array, want.array) and np.allclose(got.origin, want.origin), g
+    # checked when built: names, and bricks need the brick shape (a 6-D array of other blocks is no volume)
+    with pytest.raises(volrig.VolrigError, match="used twice"):
+        build_vdb(path, [("d", a), ("d", a)])
+    with pytest.raises(volrig.VolrigError, match="3-D"):
+        build_vdb(path, {"density": a.reshape(3, 8, 2, 8, 4, 8)[..., :4]})
