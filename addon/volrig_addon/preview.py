@@ -99,7 +99,8 @@ class Preview:
         matrices = self.state.bone_matrices(depsgraph)
         if s.explode:  # taken apart as the bake does it
             matrices = volrig.explode_matrices(self.state.rig, s.explode, matrices)
-        frame = self.deformer.frame(matrices, mode=s.deform_mode, sampling=s.sampling, keep_volume=s.keep_volume)
+        frame = self.deformer.frame(matrices, mode=s.deform_mode, sampling=s.sampling, keep_volume=s.keep_volume,
+                                    bricks=True)  # written straight from its bricks (no cropped copy)
         frame.save(path, tissues=tissue_looks.tissues_of(volume_obj))
 
 
