@@ -9,25 +9,25 @@ namespace volrig::py {
 
 namespace {
 
-/// The views of write_vdb's / build_vdb's arguments, with the C-contiguous arrays they view (kept alive).
-std::vector<std::pair<std::string, VolumeView>> vdb_views(const std::string& path,
-                                                          const std::vector<std::pair<std::string, py::array>>& grids,
-                                                          const std::array<double, 3>& spacing,
-                                                          const std::array<double, 3>& origin,
-                                                          const std::vector<std::array<double, 3>>& origins,
-                                                          std::vector<py::array>& keep) {
+using Grids = std::vector<std::pair<std::string, py::array>>;
+
+/// build_vdb over write_vdb's / build_vdb's Python arguments (C-contiguous copies where needed; the GIL released
+/// while the grids are built).
+VdbGrids built_grids(const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
+                     const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins) {
     if (!origins.empty() && origins.size() != grids.size())
         throw Error(path + ": " + std::to_string(origins.size()) + " origins for " + std::to_string(grids.size()) +
                     " grids");
+    std::vector<py::array> keep;  // the arrays the views look at, alive while building
     std::vector<std::pair<std::string, VolumeView>> views;
-    keep.reserve(grids.size());
     for (std::size_t i = 0; i < grids.size(); ++i) {
         const auto& [name, array] = grids[i];
         keep.push_back(py::array::ensure(array, py::array::c_style));
         if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
         views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i], path.c_str(), true));
     }
-    return views;
+    py::gil_scoped_release release;
+    return build_vdb(path, views, half);
 }
 
 }  // namespace
@@ -77,13 +77,11 @@ void bind_vdb(py::module_& m) {
 
     m.def(
         "write_vdb",
-        [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
-           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half,
-           const std::vector<std::array<double, 3>>& origins) {
-            std::vector<py::array> keep;
-            const auto views = vdb_views(path, grids, spacing, origin, origins, keep);
+        [](const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
+           const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins) {
+            VdbGrids built = built_grids(path, grids, spacing, origin, half, origins);
             py::gil_scoped_release release;
-            write_vdb(path, views, half);
+            built.write(path);
         },
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
         py::arg("origins") = std::vector<std::array<double, 3>>{},
@@ -105,14 +103,7 @@ void bind_vdb(py::module_& m) {
         .def_property_readonly("written", &VdbGrids::written);
     m.def(
         "build_vdb",
-        [](const std::string& path, const std::vector<std::pair<std::string, py::array>>& grids,
-           const std::array<double, 3>& spacing, const std::array<double, 3>& origin, bool half,
-           const std::vector<std::array<double, 3>>& origins) {
-            std::vector<py::array> keep;
-            const auto views = vdb_views(path, grids, spacing, origin, origins, keep);
-            py::gil_scoped_release release;
-            return build_vdb(path, views, half);
-        },
+        &built_grids,
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
         py::arg("origins") = std::vector<std::array<double, 3>>{},
         "build_vdb(path, grids, spacing, origin, half=False, origins=[]) -> VdbGrids\n\n"
