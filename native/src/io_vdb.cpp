@@ -28,10 +28,6 @@
 #include <openvdb/tools/Dense.h>
 
 #include <tbb/blocked_range2d.h>
-
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -578,9 +574,6 @@ void VdbGrids::write(const std::string& path) {
     }
     impl_->written = true;
     impl_->grids.clear();
-#if defined(__GLIBC__)
-    malloc_trim(0);  // the leaves were small blocks of this thread's heap: give the pages back
-#endif
 }
 
 void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
