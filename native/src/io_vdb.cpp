@@ -557,9 +557,10 @@ VdbGrids::VdbGrids() : impl_(std::make_unique<Impl>()) {}
 VdbGrids::~VdbGrids() = default;
 VdbGrids::VdbGrids(VdbGrids&&) noexcept = default;
 VdbGrids& VdbGrids::operator=(VdbGrids&&) noexcept = default;
-bool VdbGrids::written() const { return impl_->written; }
+bool VdbGrids::written() const { return !impl_ || impl_->written; }
 
 void VdbGrids::write(const std::string& path) {
+    if (!impl_) throw Error(path + ": these grids were moved elsewhere");
     if (impl_->written) throw Error(path + ": these grids were written already");
     try {
         write_atomically(path, [&](const std::string& tmp) {

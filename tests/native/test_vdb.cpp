@@ -16,6 +16,7 @@
 
 #include <unistd.h>
 
+#include "volrig/deform.hpp"
 #include "volrig/io.hpp"
 
 namespace fs = std::filesystem;
@@ -465,4 +466,33 @@ TEST_CASE("read_vdb reads double, int64 and bool grids, instances and files with
     openvdb::io::File(vpath).write(openvdb::GridPtrVec{vec});
     CHECK_THAT(message_of([&] { read_vdb(vpath, "velocity"); }), Catch::Contains("vec3s"));
     CHECK_THAT(message_of([&] { read_vdb(vpath); }), Catch::Contains("no scalar grid"));
+}
+
+TEST_CASE("build_vdb builds now and writes once; a view in 8³ bricks gives the C-order volume's grid", "[vdb]") {
+    TempDir tmp;
+    const Volume v = pattern_volume({24, 16, 8});
+    std::vector<float> bricks(static_cast<std::size_t>(v.grid.voxel_count()));  // the same samples brick by brick
+    for (std::int64_t z = 0; z < 8; ++z)
+        for (std::int64_t y = 0; y < 16; ++y)
+            for (std::int64_t x = 0; x < 24; ++x)
+                bricks[brick_index(x, y, z, v.grid.dims)] = values<float>(v)[v.grid.index(x, y, z)];
+    const VolumeView bricked{v.grid, DType::Float32, bricks.data(), true};
+    const std::string path = tmp / "bricks.vdb";
+    VdbGrids built = build_vdb(path, {{"density", bricked}});
+    REQUIRE_FALSE(fs::exists(path));
+    REQUIRE_FALSE(built.written());
+    built.write(path);
+    REQUIRE(built.written());
+    REQUIRE_THROWS_WITH(built.write(path), Catch::Contains("written already"));
+    const Volume r = read_vdb(path);
+    require_same_geometry(r.grid, v.grid);
+    REQUIRE(r.data == v.data);
+    // bricks need whole bricks; a moved-from VdbGrids writes nothing
+    Volume odd = pattern_volume();
+    VolumeView odd_view = odd.view();
+    odd_view.bricked = true;
+    REQUIRE_THROWS_WITH(build_vdb(path, {{"density", odd_view}}), Catch::Contains("multiples of 8"));
+    VdbGrids moved = std::move(built);
+    REQUIRE_THROWS_WITH(built.write(tmp / "moved.vdb"), Catch::Contains("moved"));
+    REQUIRE_FALSE(fs::exists(tmp / "moved.vdb"));
 }

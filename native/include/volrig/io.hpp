@@ -141,9 +141,10 @@ public:
     ~VdbGrids();
     VdbGrids(VdbGrids&&) noexcept;
     VdbGrids& operator=(VdbGrids&&) noexcept;
-    /// Writes the grids to `path` atomically and frees them (once: a second call throws).
+    /// Writes the grids to `path` atomically and frees them (once: a second call, or one on a moved-from
+    /// VdbGrids, throws).
     void write(const std::string& path);
-    bool written() const;
+    bool written() const;  ///< true once written (or moved from)
 
 private:
     friend VdbGrids build_vdb(const std::string&, const std::vector<std::pair<std::string, VolumeView>>&, bool);
