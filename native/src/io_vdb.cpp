@@ -352,7 +352,7 @@ typename GridT::Ptr build_grid(const In* src, const Grid& g, bool bricked, Overf
                     const std::int64_t ex = std::min<std::int64_t>(D, nx - x0), ey = std::min<std::int64_t>(D, ny - y0),
                                        ez = std::min<std::int64_t>(D, nz - z0);
                     const openvdb::Coord origin(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(z0));
-                    if (bricked && all_zero_bytes(src + ((kz * by + ky) * bx + kx) * D * D * D, D * D * D))
+                    if (bricked && all_zero_bytes(src + brick_index(x0, y0, z0, g.dims), D * D * D))
                         continue;  // (most bricks of a frame's box: never written, shared zero pages)
                     if (!leaf) leaf = std::make_unique<LeafT>(origin, zero, false);
                     else {
@@ -364,7 +364,7 @@ typename GridT::Ptr build_grid(const In* src, const Grid& g, bool bricked, Overf
                         for (std::int64_t y = 0; y < ey; ++y) {
                             const std::int64_t row = ((z0 + z) * ny + (y0 + y)) * nx + x0;
                             // a bricked view's leaf-sized blocks are its bricks (dims multiples of D)
-                            const In* p = src + (bricked ? ((kz * by + ky) * bx + kx) * D * D * D + (z * D + y) * D : row);
+                            const In* p = src + (bricked ? static_cast<std::int64_t>(brick_index(x0, y0 + y, z0 + z, g.dims)) : row);
                             for (std::int64_t x = 0; x < ex; ++x) {
                                 const In v = p[x];
                                 if (v == In(0)) continue;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "volrig/deform.hpp"
@@ -137,6 +138,20 @@ inline std::array<double, 16> motion(std::array<double, 3> axis, double deg, std
 
 inline std::array<double, 3> world(const Grid& g, const double* v) {
     return {g.origin[0] + g.spacing[0] * v[0], g.origin[1] + g.spacing[1] * v[1], g.origin[2] + g.spacing[2] * v[2]};
+}
+
+/// The limb's two bone matrices: each a random rotation of up to `degrees` about the joint plus a shift of up to
+/// `shift` voxels per axis.
+inline std::vector<double> random_pose(std::mt19937& rng, const Limb& L, double degrees, double shift) {
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    const auto joint = world(L.grid, L.joint);
+    std::vector<double> mats;
+    for (int b = 0; b < 2; ++b) {
+        const auto m = motion({U(rng), U(rng), U(rng)}, degrees * U(rng), joint,
+                              {shift * U(rng), shift * U(rng), shift * U(rng)});
+        mats.insert(mats.end(), m.begin(), m.end());
+    }
+    return mats;
 }
 
 }  // namespace

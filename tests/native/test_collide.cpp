@@ -12,19 +12,6 @@ using namespace volrig;
 
 namespace {
 
-/// Two bone matrices: each a random rotation about the joint plus a shift.
-std::vector<double> random_pose(std::mt19937& rng, const Limb& L, double degrees, double shift) {
-    std::uniform_real_distribution<double> U(-1.0, 1.0);
-    const auto joint = world(L.grid, L.joint);
-    std::vector<double> mats;
-    for (int b = 0; b < 2; ++b) {
-        const auto m = motion({U(rng), U(rng), U(rng)}, degrees * U(rng), joint,
-                              {shift * U(rng), shift * U(rng), shift * U(rng)});
-        mats.insert(mats.end(), m.begin(), m.end());
-    }
-    return mats;
-}
-
 void require_same(const Collision& fast, const Collision& ref) {
     REQUIRE(fast.hit == ref.hit);
     REQUIRE(fast.voxels == ref.voxels);

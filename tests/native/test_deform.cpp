@@ -74,19 +74,13 @@ void require_brute_force(const Limb& L, bool with_weights, const std::vector<dou
 
 TEST_CASE("the Deformer equals the brute-force scatter on random poses", "[deform]") {
     std::mt19937 rng(7);
-    std::uniform_real_distribution<double> U(-1.0, 1.0);
     std::int64_t contact = 0;  // voxels given up at contact planes (the weights blend along z on both sides of the
                                // joint: to the bend model the limb is straight there)
     for (auto spacing : {std::array<double, 3>{1.0, 1.0, 1.0}, std::array<double, 3>{0.9, 1.2, 1.5}}) {
         const Limb L = make_limb(spacing);
         Deformer d(L.view(), L.spheres(true));
-        const auto joint = world(L.grid, L.joint);
         for (int trial = 0; trial < 4; ++trial) {
-            std::vector<double> mats;
-            for (int b = 0; b < 2; ++b) {
-                const auto m = motion({U(rng), U(rng), U(rng)}, 50 * U(rng), joint, {3 * U(rng), 3 * U(rng), 3 * U(rng)});
-                mats.insert(mats.end(), m.begin(), m.end());
-            }
+            const std::vector<double> mats = random_pose(rng, L, 50, 3);
             for (DeformMode mode : {DeformMode::Rigid, DeformMode::Linear, DeformMode::DualQuaternion})
                 for (Proximity prox : {Proximity::Power, Proximity::Nearest}) {
                     DeformOptions o;
@@ -343,18 +337,12 @@ int piece_at(const Limb& L, const CorePieces& c, const std::vector<double>& mats
 
 TEST_CASE("the rigid layer draws each piece moved by its bone over the spheres' frame", "[deform]") {
     std::mt19937 rng(3);
-    std::uniform_real_distribution<double> U(-1.0, 1.0);
     const Limb L = make_limb({1.0, 1.0, 1.0});
     const CorePieces c = core_pieces(L);
     Deformer layered(L.view(), L.spheres(true));
     layered.set_rigid_layer(L.view(), c.pieces);
-    const auto joint = world(L.grid, L.joint);
     for (int trial = 0; trial < 6; ++trial) {  // frames in a row: the recycled output memory is re-zeroed right
-        std::vector<double> mats;
-        for (int b = 0; b < 2; ++b) {
-            const auto m = motion({U(rng), U(rng), U(rng)}, 60 * U(rng), joint, {2 * U(rng), 2 * U(rng), 2 * U(rng)});
-            mats.insert(mats.end(), m.begin(), m.end());
-        }
+        const std::vector<double> mats = random_pose(rng, L, 60, 2);
         DeformOptions o;
         o.mode = trial % 2 ? DeformMode::DualQuaternion : DeformMode::Linear;
         o.sampling = Sampling::Nearest;
@@ -434,18 +422,12 @@ void require_same_in_bricks(const DeformedVolume& dense, const DeformedVolume& b
 
 TEST_CASE("frames in 8³ bricks hold the cropped frames' voxels, the rigid layer's too, frame after frame", "[deform]") {
     std::mt19937 rng(11);
-    std::uniform_real_distribution<double> U(-1.0, 1.0);
     const Limb L = make_limb({0.9, 1.2, 1.5});
     const CorePieces c = core_pieces(L);
     Deformer plain(L.view(), L.spheres(true)), layered(L.view(), L.spheres(true));
     layered.set_rigid_layer(L.view(), c.pieces);
-    const auto joint = world(L.grid, L.joint);
     for (int trial = 0; trial < 6; ++trial) {  // in a row: the bricks' recycled memory is re-zeroed right
-        std::vector<double> mats;
-        for (int b = 0; b < 2; ++b) {
-            const auto m = motion({U(rng), U(rng), U(rng)}, 60 * U(rng), joint, {9 * U(rng), 9 * U(rng), 9 * U(rng)});
-            mats.insert(mats.end(), m.begin(), m.end());
-        }
+        const std::vector<double> mats = random_pose(rng, L, 60, 9);
         DeformOptions o;
         o.mode = trial % 3 == 0 ? DeformMode::Rigid : trial % 3 == 1 ? DeformMode::Linear : DeformMode::DualQuaternion;
         o.values = trial != 4;

@@ -101,8 +101,8 @@ struct DeformStats {
 /// recycles (ZeroedPool): whoever writes into their arrays must mark_written what they write.
 ///
 /// With DeformOptions::bricks the frame is not cropped: its box is the posed spheres' grown to multiples of 8 (offset
-/// and dims), and the arrays hold it brick by brick: voxel (x, y, z) at brick_index (bricks in C order [z, y, x],
-/// 512 voxels each, [z, y, x] inside), so that only the bricks a frame covers become resident. `extent` is the
+/// and dims), and the arrays hold it brick by brick: voxel (x, y, z) at brick_index (volume.hpp), so that only the
+/// bricks a frame covers become resident. `extent` is the
 /// covered voxels' box inside it {x, y, z, dims x, y, z} (all of it for a cropped frame; dims 0 when none is).
 struct DeformedVolume {
     Grid grid;
@@ -114,11 +114,6 @@ struct DeformedVolume {
     std::array<std::int64_t, 6> extent{0, 0, 0, 0, 0, 0};
 };
 
-/// The element of voxel (x, y, z) in an array of 8³ bricks over dims (multiples of 8; DeformedVolume::bricks).
-inline std::size_t brick_index(std::int64_t x, std::int64_t y, std::int64_t z, const std::array<std::int64_t, 3>& dims) {
-    const std::int64_t brick = ((z >> 3) * (dims[1] >> 3) + (y >> 3)) * (dims[0] >> 3) + (x >> 3);
-    return static_cast<std::size_t>(brick * 512 + ((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
-}
 
 /// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
 using BoneMatrices = const double*;

@@ -48,10 +48,17 @@ struct VolumeView {
     Grid grid;
     DType dtype = DType::UInt8;
     const void* data = nullptr;
-    /// The samples in 8³ bricks (volrig/deform.hpp, brick_index; dims multiples of 8), not in C order. Only the
-    /// OpenVDB writer takes such views.
+    /// The samples in 8³ bricks (brick_index; dims multiples of 8), not in C order. Only the OpenVDB writer takes
+    /// such views.
     bool bricked = false;
 };
+
+/// The element of voxel (x, y, z) in an array of 8³ bricks over dims (multiples of 8): bricks in C order [z, y, x],
+/// 512 voxels each, [z, y, x] inside (VolumeView::bricked, DeformedVolume::bricks).
+inline std::size_t brick_index(std::int64_t x, std::int64_t y, std::int64_t z, const std::array<std::int64_t, 3>& dims) {
+    const std::int64_t brick = ((z >> 3) * (dims[1] >> 3) + (y >> 3)) * (dims[0] >> 3) + (x >> 3);
+    return static_cast<std::size_t>(brick * 512 + ((z & 7) * 8 + (y & 7)) * 8 + (x & 7));
+}
 
 /// An owning volume. `data` holds voxel_count() * dtype_size(dtype) bytes in native byte order.
 struct Volume {

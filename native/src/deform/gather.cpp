@@ -879,8 +879,8 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
             const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
-            const auto row = o_.bricks ? static_cast<std::size_t>((((b.k[2] * nb_[1] + b.k[1]) * nb_[0] + b.k[0]) * 8 + dz) * 64 + dy * 8)
-                                       : static_cast<std::size_t>(((b.k[2] * kBlock + dz) * ny + b.k[1] * kBlock + dy) * nx + b.k[0] * kBlock);
+            const std::int64_t bx0 = b.k[0] * kBlock, y = b.k[1] * kBlock + dy, z = b.k[2] * kBlock + dz;
+            const auto row = o_.bricks ? brick_index(bx0, y, z, out_.grid.dims) : static_cast<std::size_t>((z * ny + y) * nx + bx0);
             std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
             std::int64_t pf[3] = {0, 0, 0};
             std::uint64_t xs = 0;
