@@ -14,6 +14,7 @@
 #include "deform/frame_box.hpp"
 #include "deform/gather.hpp"
 #include "deform/motion.hpp"
+#include "deform/posed_balls.hpp"
 #include "deform/queries.hpp"
 #include "deform/sampler.hpp"
 #include "deform/spheres.hpp"
@@ -542,6 +543,91 @@ TEST_CASE("a blend group's candidate blocks: every voxel its posed balls hold, u
         spare += (bits[k] & 1u) != 0 && !needed[k];
     }
     CHECK(spare * 4 < marked);  // a few blocks the balls only graze (the margin), not the corners of their boxes
+}
+
+TEST_CASE("posed blend spheres: each region's and block's kept spheres give the least power over all groups", "[deform][stages]") {
+    // Three blend groups of one random set, each moved by its own blend of two rotations: the gather takes them as
+    // one candidate, pruned per 32³ region then per 8³ block in output space (every blend is rigid). At every
+    // output voxel the least (power, global index) over the kept spheres, each through its own group's fixed-point
+    // map, must be the least over all spheres of all groups wherever that covers, within the kept range. Far
+    // translations make the fixed-point maps' error (the margins) large.
+    for (const std::array<double, 3> shift : {std::array<double, 3>{2.5, -1.5, 0.7}, std::array<double, 3>{3000.5, -2200.25, 1700.0}}) {
+        RandomSpheres rs(91, 60, {0.9, 1.2, 1.05});
+        for (double& r : rs.radii) r *= 2;
+        const auto s2 = rs.s2();
+        std::vector<BoneField> fields;
+        for (std::uint32_t g = 0; g < 3; ++g) {
+            std::vector<std::uint32_t> members;
+            for (std::uint32_t i = g; i < rs.members.size(); i += 3) members.push_back(i);
+            fields.push_back(build_ball_field(rs.grid, rs.spheres(), members, rs.radii, rs.T(), 1.0));
+        }
+        const auto A = rotation_z(10, shift), B = rotation_z(75, {shift[0] + 1.5, shift[1] - 0.5, shift[2] + 0.3});
+        std::vector<double> mats(A.begin(), A.end());
+        mats.insert(mats.end(), B.begin(), B.end());
+        const auto bones = bone_motions(mats.data(), 2, rs.grid);
+        std::vector<Motion> motions;
+        for (const Weights& w : {Weights{{0, 12}, {1, 4}}, Weights{{0, 8}, {1, 8}}, Weights{{0, 5}, {1, 11}}})
+            motions.push_back(blended_motion(bones, w, 0, DeformMode::Linear, rs.grid, Eigen::Vector3d(12, 10, 14)));
+        const Box bx = posed_box(fields, motions, rs.grid);
+        const FieldSet set{fields, motions, rs.grid.spacing.data(), {s2[0], s2[1], s2[2]}, rs.T(), 0.01, false};
+        const PosedBalls posed = pose_balls(set, bx);
+        REQUIRE(posed.ball.size() == rs.members.size());
+        INFO("shift " << shift[0]);
+        auto least = [&](const std::int64_t* q, const std::uint32_t* in, std::size_t n) {  // over posed balls `in`
+            Best b;
+            for (std::size_t j = 0; j < n; ++j) {
+                const PosedBall& pb = posed.ball[in[j]];
+                double p[3];
+                motions[static_cast<std::size_t>(pb.field)].pull.apply(q, p);
+                const BoneField& f = fields[static_cast<std::size_t>(pb.field)];
+                const double v = power_of(f, pb.local, p, s2.data());
+                if (b.better(v, f.global[pb.local])) b = {v, pb.local, f.global[pb.local]};
+            }
+            return b;
+        };
+        std::vector<std::uint32_t> all(posed.ball.size());
+        for (std::uint32_t j = 0; j < all.size(); ++j) all[j] = j;
+        const std::int64_t ob[3] = {(bx[3] + 7) / 8, (bx[4] + 7) / 8, (bx[5] + 7) / 8};
+        std::vector<double> scratch;
+        std::int64_t covered = 0, kept_total = 0, blocks = 0;
+        std::int64_t k[3];
+        for (k[2] = 0; k[2] < ob[2]; ++k[2])
+            for (k[1] = 0; k[1] < ob[1]; ++k[1])
+                for (k[0] = 0; k[0] < ob[0]; ++k[0]) {
+                    const std::vector<std::uint32_t>& region = posed.kept[posed.region(k)];
+                    double box[6];
+                    std::int64_t e[3], base[3];
+                    for (int a = 0; a < 3; ++a) {
+                        e[a] = std::min<std::int64_t>(8, bx[3 + a] - k[a] * 8);
+                        base[a] = bx[a] + k[a] * 8;
+                        box[a] = static_cast<double>(base[a]);
+                        box[3 + a] = box[a] + static_cast<double>(e[a] - 1);
+                    }
+                    std::vector<std::uint32_t> kept;
+                    const CellBounds rg = prune_balls(posed.ball.data(), posed.rel, s2.data(), set.bound_step, box,
+                                                      region.data(), region.size(), kept, scratch);
+                    blocks += !kept.empty();
+                    kept_total += static_cast<std::int64_t>(kept.size());
+                    REQUIRE(std::is_sorted(kept.begin(), kept.end()));
+                    for (std::int64_t z = 0; z < e[2]; ++z)
+                        for (std::int64_t y = 0; y < e[1]; ++y)
+                            for (std::int64_t x = 0; x < e[0]; ++x) {
+                                const std::int64_t q[3] = {base[0] + x, base[1] + y, base[2] + z};
+                                const Best truth = least(q, all.data(), all.size());
+                                if (!(truth.key < 0)) continue;
+                                ++covered;
+                                const Best r = least(q, region.data(), region.size()), b = least(q, kept.data(), kept.size());
+                                REQUIRE(r.global == truth.global);
+                                REQUIRE(b.global == truth.global);
+                                REQUIRE(b.key == truth.key);
+                                REQUIRE(rg.lo * set.bound_step <= truth.key);
+                                REQUIRE(truth.key <= rg.hi * set.bound_step);
+                            }
+                }
+        INFO("covered " << covered << " kept " << kept_total << " in " << blocks << " blocks");
+        CHECK(covered > 2000);
+        CHECK(kept_total * 4 < blocks * 60);  // the pruning keeps a few per block, not the 60
+    }
 }
 
 TEST_CASE("rebind rebuilds only the fields whose spheres changed, and frames stay equal to a fresh Deformer's", "[deform][stages]") {

@@ -13,21 +13,12 @@
 #endif
 
 #include "deform/closed_cubes.hpp"
+#include "deform/posed_balls.hpp"
 #include "deform/sampler.hpp"
 
 namespace volrig::deform_detail {
 
 namespace {
-
-/// The output blocks [a, e] (of the box bx, ob blocks per axis) along axis k that the lattice span [lo, hi] meets;
-/// false when none does.
-bool block_range(double lo, double hi, const Box& bx, const std::int64_t* ob, int k, std::int64_t& a, std::int64_t& e) {
-    a = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(lo)) - bx[k]) / kBlock);
-    const std::int64_t top = static_cast<std::int64_t>(std::ceil(hi)) - bx[k];
-    if (top < 0) return false;
-    e = std::min<std::int64_t>(ob[k] - 1, top / kBlock);
-    return e >= a;
-}
 
 /// Sets bit b of output block (x, y, z) (`words` words a block).
 void set_bit(std::vector<std::uint64_t>& bits, const std::int64_t* ob, std::size_t words, std::size_t b, std::int64_t x,
@@ -48,37 +39,16 @@ void mark_blocks(std::vector<std::uint64_t>& bits, const double* box, const Box&
 }
 
 /// Sets bit b in the output blocks within two voxels of the ball of squared world radius lim around y (output
-/// index space): a blend's map does not stretch (a blend of rotations shrinks or keeps lengths), so a posed ball
-/// lies in the ball of its radius around its posed centre, and the margin covers the preimage boxes' widening by a
-/// voxel.
+/// index space): a blend's map is rigid, so a posed ball is the ball of its radius around its posed centre, and the
+/// margin covers the preimage boxes' widening by a voxel.
 void mark_ball_blocks(std::vector<std::uint64_t>& bits, const double* y, double lim, const double* s2, const Box& bx,
                       const std::int64_t* ob, std::size_t words, std::size_t b) {
-    const double reach = lim * (1 + 1e-9) + 1e-9;
-    std::int64_t a[3], e[3];
-    for (int k = 0; k < 3; ++k) {
-        const double r = std::sqrt(reach / s2[k]) + 2;
-        if (!block_range(y[k] - r, y[k] + r, bx, ob, k, a[k], e[k])) return;
-    }
-    auto gap2 = [&](int k, std::int64_t blk) {  // the squared world gap along axis k to the block grown by 2 voxels
-        const double lo = static_cast<double>(bx[k] + blk * kBlock - 2), hi = lo + kBlock - 1 + 4;
-        const double g = std::max({lo - y[k], 0.0, y[k] - hi});
-        return s2[k] * g * g;
-    };
-    for (std::int64_t z = a[2]; z <= e[2]; ++z) {
-        const double gz = gap2(2, z);
-        if (gz > reach) continue;
-        for (std::int64_t yy = a[1]; yy <= e[1]; ++yy) {
-            const double gy = gz + gap2(1, yy);
-            if (gy > reach) continue;
-            for (std::int64_t x = a[0]; x <= e[0]; ++x)
-                if (gy + gap2(0, x) <= reach) set_bit(bits, ob, words, b, x, yy, z);
-        }
-    }
+    for_ball_blocks(y, lim, 2.0, s2, bx, ob, [&](std::int64_t x, std::int64_t yy, std::int64_t z) { set_bit(bits, ob, words, b, x, yy, z); });
 }
 
 }  // namespace
 
-std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
+std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx, bool balls) {
     const std::int64_t ob[3] = {(bx[3] + kBlock - 1) / kBlock, (bx[4] + kBlock - 1) / kBlock,
                                 (bx[5] + kBlock - 1) / kBlock};
     const std::size_t words = (set.fields.size() + 63) / 64;
@@ -87,7 +57,7 @@ std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx) {
         const Affine& fw = set.motions[b].forward;
         const BoneField& f = set.fields[b];
         for (const auto& sp : f.sph) {  // a field without lattice tables: the blocks each posed ball meets
-            if (f.lattice || !(sp.lim > 0)) continue;
+            if (f.lattice || !balls || !(sp.lim > 0)) continue;
             double y[3];
             fw.apply(sp.c, y);
             mark_ball_blocks(bits, y, sp.lim, set.s2, bx, ob, words, b);
@@ -144,6 +114,7 @@ struct Local {
     // over the sub-block's (a span of sub_balls), and per voxel of its live sub-blocks the sphere giving `exact`
     std::vector<std::uint8_t> ball;
     std::vector<std::uint32_t> block_balls, sub_balls, exact_local;
+    std::vector<std::int32_t> exact_field;  // the blend candidate's: per voxel the field (group) giving `exact`
     std::vector<std::array<std::uint32_t, 2>> block_span, sub_span;
     NearSpheres near;
     std::vector<double> near_power;
@@ -158,6 +129,10 @@ struct Local {
     std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
 };
 
+/// loc.fields' entry for the blend candidate (loc.ball 2): all blended spheres at once (posed_balls.hpp), whose
+/// field is known per voxel only (loc.exact_field).
+constexpr std::int32_t kBlend = -3;
+
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
 std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
 
@@ -165,7 +140,8 @@ class Gather {
 public:
     Gather(const FieldSet& set, const std::vector<std::int32_t>& owner, const Box& bx, const DeformOptions& o,
            DeformedVolume& out)
-        : s_(set), decide_(set), owner_(owner), bx_(bx), o_(o), out_(out), bits_(candidate_bits(set, bx)) {
+        : s_(set), decide_(set), owner_(owner), bx_(bx), o_(o), out_(out), merge_(!set.nearest),
+          posed_(merge_ ? pose_balls(set, bx) : PosedBalls{}), bits_(candidate_bits(set, bx, !merge_)) {
         for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
         words_ = (set.fields.size() + 63) / 64;
         mark_contact_zones();
@@ -193,9 +169,15 @@ private:
     CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
                               std::uint32_t* single = nullptr) const;
     CellBounds sub_range(std::size_t k, const std::int64_t* q0, int sb, Local& loc) const;
-    CellBounds ball_range(const BoneField& f, const double* box, const std::uint32_t* in, std::size_t n,
+    template <class S>
+    CellBounds ball_range(const S* sph, double rel, const double* box, const std::uint32_t* in, std::size_t n,
                           std::vector<std::uint32_t>& out, Local& loc) const;
     bool ball_candidate(const Block& b, std::int32_t f, Local& loc) const;
+    void blend_candidate(const Block& b, Local& loc) const;
+    void contact_fields(const Block& b, Local& loc) const;
+    std::int32_t field_at(const Local& loc, std::size_t k, std::size_t li) const {
+        return loc.ball[k] == 2 ? loc.exact_field[k * 512 + li] : loc.fields[k];
+    }
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void mark_contact_zones();
@@ -206,6 +188,8 @@ private:
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;
     void exact_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
     void ball_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
+    void blend_powers(const Block& b, Local& loc, std::size_t k, int sb) const;
+    void keep_exact(Local& loc, std::size_t k, const std::uint16_t* at, int nv, const double* best) const;
     void lanes(Local& loc) const;
     void undecided(const Block& b, Local& loc) const;
     double cube_lower(const Local& loc, std::size_t k, std::size_t li) const;
@@ -221,6 +205,8 @@ private:
     const Box bx_;
     const DeformOptions& o_;
     DeformedVolume& out_;
+    const bool merge_;          // the blend groups as one candidate (power proximity)
+    const PosedBalls posed_;    // then their spheres posed
     const std::vector<std::uint64_t> bits_;
     std::vector<std::uint8_t> zone_;  // per output block: whether a contact zone meets it (empty: no contacts)
     std::int64_t nb_[3];
@@ -266,62 +252,11 @@ CellBounds Gather::preimage_range(std::int32_t f, const std::int64_t* q0, std::i
     return CellBounds{std::max(r.lo, e.lo), std::min(r.hi, e.hi)};
 }
 
-/// A ball candidate's power range over a preimage box (rest index space) from the spheres `in` (local indices, a
-/// superset of those whose balls meet the box), and into `out` the spheres that may give its power there: those
-/// whose ball meets the box and that no other sphere beats all over it. Two spheres' powers differ by an affine
-/// function, so sphere i is beaten everywhere by the one least at the box's centre (k) when their difference there
-/// exceeds its largest change over the box, 2 Σ s²·h·|c_i − c_k| (h: the box's half extents). Lower bound: the least
-/// of the kept spheres' least powers over the box; upper bound: the least of their largest. Margins far above
-/// rounding, on the safe side.
-CellBounds Gather::ball_range(const BoneField& f, const double* box, const std::uint32_t* in, std::size_t n,
+/// A ball candidate's power range over a box and the spheres that may give its power there (prune_balls).
+template <class S>
+CellBounds Gather::ball_range(const S* sph, double rel, const double* box, const std::uint32_t* in, std::size_t n,
                               std::vector<std::uint32_t>& out, Local& loc) const {
-    loc.near_power.resize(2 * n);
-    double* const near_power = loc.near_power.data();
-    double* const centre_power = near_power + n;  // at the box's centre, less a margin
-    const double* s2 = s_.s2;
-    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
-    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
-    double least_far = kInf, least_mid = kInf, margin_k = 0;
-    std::uint32_t k = kNone;
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto& sp = f.sph[in[i]];
-        double near[3];
-        for (int a = 0; a < 3; ++a) {
-            const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
-            near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
-        }
-        const double near2 = length2(near[0], near[1], near[2], s2);
-        // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
-        near_power[i] = near2 - sp.lim - 1e-9 * (near2 + 2 * sp.lim + 1);
-        if (!(near_power[i] < 0)) continue;
-        double far[3];
-        for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
-        const double far2 = length2(far[0], far[1], far[2], s2), m = 1e-9 * (far2 + sp.lim + 1);
-        near_power[i] = near2 - sp.lim - m;
-        least_far = std::min(least_far, far2 - sp.lim + m);
-        const double pm = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
-        if (pm < least_mid) {
-            least_mid = pm;
-            k = in[i];
-            margin_k = m;
-        }
-        centre_power[i] = pm - m;  // less its margin
-    }
-    double least_near = kInf;
-    for (std::size_t i = 0; k != kNone && i < n; ++i) {
-        const double v = near_power[i];
-        if (!(v < 0) || v > least_far) continue;
-        const double* c = f.sph[in[i]].c;
-        const double* ck = f.sph[k].c;
-        const double change = 2 * (s2[0] * h[0] * std::abs(c[0] - ck[0]) + s2[1] * h[1] * std::abs(c[1] - ck[1]) +
-                                   s2[2] * h[2] * std::abs(c[2] - ck[2]));
-        if (centre_power[i] - least_mid - margin_k > change * (1 + 1e-9)) continue;  // beaten by k all over the box
-        out.push_back(in[i]);
-        least_near = std::min(least_near, v);
-    }
-    if (!(least_near < 0)) return CellBounds{};
-    const double inv = 1.0 / s_.bound_step;
-    return CellBounds{exact_bounds(least_near, inv).lo, exact_bounds(least_far, inv).hi};
+    return prune_balls(sph, rel, s_.s2, s_.bound_step, box, in, n, out, loc.near_power);
 }
 
 /// Field f (without lattice tables) as a candidate of the block: its range over the block's preimage and the
@@ -340,7 +275,7 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
         n = loc.near.id.size();
     }
     const auto begin = static_cast<std::uint32_t>(loc.block_balls.size());
-    const CellBounds rg = ball_range(field, box, in, n, loc.block_balls, loc);
+    const CellBounds rg = ball_range(field.sph.data(), 1e-9, box, in, n, loc.block_balls, loc);
     if (rg.lo >= 0) {
         loc.block_balls.resize(begin);
         return false;
@@ -353,6 +288,46 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
     loc.ball.push_back(1);
     loc.block_span.push_back({begin, static_cast<std::uint32_t>(loc.block_balls.size())});
     return true;
+}
+
+/// The blend candidate of the block (kBlend): its range over the block's voxels from the posed spheres meeting the
+/// block, and those that may give its power there (indices into posed_.ball, increasing); none when none covers.
+void Gather::blend_candidate(const Block& b, Local& loc) const {
+    const std::vector<std::uint32_t>& in = posed_.kept[posed_.region(b.k)];
+    if (in.empty()) return;
+    double box[6];
+    for (int a = 0; a < 3; ++a) {
+        box[a] = static_cast<double>(b.base[a]);
+        box[3 + a] = static_cast<double>(b.base[a] + b.e[a] - 1);
+    }
+    const auto begin = static_cast<std::uint32_t>(loc.block_balls.size());
+    const CellBounds rg = ball_range(posed_.ball.data(), posed_.rel, box, in.data(), in.size(), loc.block_balls, loc);
+    if (rg.lo >= 0) {
+        loc.block_balls.resize(begin);
+        return;
+    }
+    loc.fields.push_back(kBlend);
+    loc.range.push_back(rg);
+    loc.ball.push_back(2);
+    loc.block_span.push_back({begin, static_cast<std::uint32_t>(loc.block_balls.size())});
+}
+
+/// Sliding contact's candidates of a block (loc.all_fields): the block's, with the blend candidate's groups one by
+/// one (every group a posed sphere meeting the block belongs to: a field that yields hands its voxels to the
+/// others, so none may be left out for being beaten).
+void Gather::contact_fields(const Block& b, Local& loc) const {
+    loc.all_fields.clear();
+    bool blend = false;
+    for (const std::int32_t f : loc.fields) {
+        if (f == kBlend) blend = true;
+        else loc.all_fields.push_back(f);
+    }
+    if (!blend) return;
+    const auto first = static_cast<std::ptrdiff_t>(loc.all_fields.size());
+    const std::size_t r = posed_.region(b.k);
+    for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) loc.all_fields.push_back(posed_.ball[posed_.meets[j]].field);
+    std::sort(loc.all_fields.begin() + first, loc.all_fields.end());
+    loc.all_fields.erase(std::unique(loc.all_fields.begin() + first, loc.all_fields.end()), loc.all_fields.end());
 }
 
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.
@@ -398,6 +373,7 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
             loc.block_span.push_back({0, 0});
         }
     }
+    if (!posed_.empty()) blend_candidate(b, loc);
 }
 
 /// Candidate k's range over the preimage of the 4³ sub-block sb (first voxel q0): from the lattice tables (and
@@ -406,13 +382,23 @@ CellBounds Gather::sub_range(std::size_t k, const std::int64_t* q0, int sb, Loca
     const std::int32_t f = loc.fields[k];
     const std::size_t ks = k * 8 + static_cast<std::size_t>(sb);
     if (!loc.ball[k]) return preimage_range(f, q0, 4, &loc.single[ks]);
-    std::int64_t ra[3], rb[3];
     double box[6];
-    preimage_box(f, q0, 4, ra, rb, box);
     const auto span = loc.block_span[k];
     const auto begin = static_cast<std::uint32_t>(loc.sub_balls.size());
-    const CellBounds r = ball_range(s_.field(f), box, loc.block_balls.data() + span[0], span[1] - span[0],
-                                    loc.sub_balls, loc);
+    CellBounds r;
+    if (loc.ball[k] == 2) {  // the blend candidate: over the sub-block's voxels (a superset at the box's edge)
+        for (int a = 0; a < 3; ++a) {
+            box[a] = static_cast<double>(q0[a]);
+            box[3 + a] = static_cast<double>(q0[a] + 3);
+        }
+        r = ball_range(posed_.ball.data(), posed_.rel, box, loc.block_balls.data() + span[0], span[1] - span[0],
+                       loc.sub_balls, loc);
+    } else {
+        std::int64_t ra[3], rb[3];
+        preimage_box(f, q0, 4, ra, rb, box);
+        r = ball_range(s_.field(f).sph.data(), 1e-9, box, loc.block_balls.data() + span[0], span[1] - span[0],
+                       loc.sub_balls, loc);
+    }
     loc.sub_span[ks] = {begin, static_cast<std::uint32_t>(loc.sub_balls.size())};
     return r;
 }
@@ -423,7 +409,8 @@ void Gather::decide_block(const Block& b, Local& loc) const {
     std::int32_t* const win = loc.win;
     loc.live.resize(loc.fields.size());
     const std::int32_t whole = decide_.settle(loc.range.data(), loc.fields.size(), loc.live.data(), 1);
-    if (whole < 0) return decide_sub_blocks(b, loc);
+    // (the blend candidate's field is known per voxel only: its sub-blocks)
+    if (whole < 0 || loc.ball[static_cast<std::size_t>(whole)] == 2) return decide_sub_blocks(b, loc);
     std::fill(win, win + 512, kEmpty);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
@@ -459,7 +446,10 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
-        if (w >= 0) {
+        if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == 2) {  // its voxels' fields from its exact powers
+            sub_win[sb] = kOpen;
+            any_open = true;
+        } else if (w >= 0) {
             sub_win[sb] = cand[static_cast<std::size_t>(w)];
             lv[static_cast<std::size_t>(w) * 8] = 0;
         } else {
@@ -498,6 +488,7 @@ void Gather::lookups(const Block& b, Local& loc) const {
     loc.cube_cell.resize(K * 512);
     loc.exact.resize(K * 512);
     loc.exact_local.resize(K * 512);
+    loc.exact_field.resize(K * 512);
     if (loc.running.size() < K) {
         loc.running.resize(K);
         loc.cands.resize(K);
@@ -506,8 +497,11 @@ void Gather::lookups(const Block& b, Local& loc) const {
         if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
             std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
             std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
-            for (int sb = 0; sb < 8; ++sb)
-                if (loc.live[k * 8 + static_cast<std::size_t>(sb)]) ball_powers(b, loc, k, sb);
+            for (int sb = 0; sb < 8; ++sb) {
+                if (!loc.live[k * 8 + static_cast<std::size_t>(sb)]) continue;
+                if (loc.ball[k] == 2) blend_powers(b, loc, k, sb);
+                else ball_powers(b, loc, k, sb);
+            }
             continue;
         }
         std::uint32_t* at = loc.cube_cell.data() + k * 512;
@@ -577,33 +571,34 @@ void Gather::exact_powers(const Block& b, Local& loc, std::size_t k, int sb) con
     ++loc.exact_pairs;
 }
 
-/// Lowers best[v] (with arg[v]) to sphere j's power at (px, py, pz)[v] where that is less, for v < nv (rounded up to
-/// even: the arrays hold one more). The very operations of power_of, two voxels at a time where SSE2 is at hand (the
-/// compiler does not vectorise the selects).
-inline void least_powers(const BoneField& f, std::uint32_t j, const double* px, const double* py, const double* pz,
+/// Lowers best[v] (with arg[v]) to the power at (px, py, pz)[v] of the sphere (centre c, limit lim) numbered id
+/// where that is less (with kTies, or equal and id less than arg[v]), for v < nv (rounded up to even: the arrays
+/// hold one more). The very operations of power_of, two voxels at a time where SSE2 is at hand (the compiler does
+/// not vectorise the selects).
+template <bool kTies>
+inline void least_powers(const double* c, double lim, double id, const double* px, const double* py, const double* pz,
                          int nv, const double* s2, double* best, double* arg) {
-    const auto& sp = f.sph[j];
-    const double dj = j;
 #if defined(__SSE2__)
-    const __m128d c0 = _mm_set1_pd(sp.c[0]), c1 = _mm_set1_pd(sp.c[1]), c2 = _mm_set1_pd(sp.c[2]);
+    const __m128d c0 = _mm_set1_pd(c[0]), c1 = _mm_set1_pd(c[1]), c2 = _mm_set1_pd(c[2]);
     const __m128d w0 = _mm_set1_pd(s2[0]), w1 = _mm_set1_pd(s2[1]), w2 = _mm_set1_pd(s2[2]);
-    const __m128d lim = _mm_set1_pd(sp.lim), id = _mm_set1_pd(dj);
+    const __m128d limv = _mm_set1_pd(lim), idv = _mm_set1_pd(id);
     for (int v = 0; v < nv; v += 2) {
         const __m128d dx = _mm_sub_pd(_mm_load_pd(px + v), c0), dy = _mm_sub_pd(_mm_load_pd(py + v), c1),
                       dz = _mm_sub_pd(_mm_load_pd(pz + v), c2);
         const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_mul_pd(w0, dx), dx), _mm_mul_pd(_mm_mul_pd(w1, dy), dy)),
                                       _mm_mul_pd(_mm_mul_pd(w2, dz), dz));
-        const __m128d pw = _mm_sub_pd(d2, lim), old = _mm_load_pd(best + v);
-        const __m128d lt = _mm_cmplt_pd(pw, old);
+        const __m128d pw = _mm_sub_pd(d2, limv), old = _mm_load_pd(best + v), old_arg = _mm_load_pd(arg + v);
+        __m128d lt = _mm_cmplt_pd(pw, old);
+        if (kTies) lt = _mm_or_pd(lt, _mm_and_pd(_mm_cmpeq_pd(pw, old), _mm_cmplt_pd(idv, old_arg)));
         _mm_store_pd(best + v, _mm_or_pd(_mm_and_pd(lt, pw), _mm_andnot_pd(lt, old)));
-        _mm_store_pd(arg + v, _mm_or_pd(_mm_and_pd(lt, id), _mm_andnot_pd(lt, _mm_load_pd(arg + v))));
+        _mm_store_pd(arg + v, _mm_or_pd(_mm_and_pd(lt, idv), _mm_andnot_pd(lt, old_arg)));
     }
 #else
     for (int v = 0; v < nv; ++v) {
-        const double pw = length2(px[v] - sp.c[0], py[v] - sp.c[1], pz[v] - sp.c[2], s2) - sp.lim;
-        if (pw < best[v]) {
+        const double pw = length2(px[v] - c[0], py[v] - c[1], pz[v] - c[2], s2) - lim;
+        if (pw < best[v] || (kTies && pw == best[v] && id < arg[v])) {
             best[v] = pw;
-            arg[v] = dj;
+            arg[v] = id;
         }
     }
 #endif
@@ -633,16 +628,71 @@ void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) cons
     pz[nv] = pz[0];
     best[nv] = kInf;
     arg[nv] = 0;
-    for (std::uint32_t i = span[0]; i < span[1]; ++i) least_powers(f, loc.sub_balls[i], px, py, pz, nv, s_.s2, best, arg);
-    double* pw = loc.exact.data() + k * 512;
+    for (std::uint32_t i = span[0]; i < span[1]; ++i) {
+        const auto& sp = f.sph[loc.sub_balls[i]];
+        least_powers<false>(sp.c, sp.lim, loc.sub_balls[i], px, py, pz, nv, s_.s2, best, arg);
+    }
     std::uint32_t* who = loc.exact_local.data() + k * 512;
+    for (int v = 0; v < nv; ++v) who[at[v]] = static_cast<std::uint32_t>(arg[v]);
+    keep_exact(loc, k, at, nv, best);
+}
+
+/// The blend candidate k's exact power over sub-block sb: the least power at each voxel over the posed spheres
+/// that may give it there, each through its own group's map (the preimages once per group present), ties to the
+/// lower global index (the spheres come group by group, so the comparison carries the index); per voxel the field
+/// and the sphere giving it.
+void Gather::blend_powers(const Block& b, Local& loc, std::size_t k, int sb) const {
+    const auto span = loc.sub_span[k * 8 + static_cast<std::size_t>(sb)];
+    const std::uint32_t* list = loc.sub_balls.data();
+    alignas(16) double px[65], py[65], pz[65];  // the preimages under the group at hand (and one more: pairs)
+    alignas(16) double best[65], arg[65];       // the least power and its posed sphere (index into posed_.ball)
+    std::uint16_t at[64];
+    std::fill(best, best + 65, kInf);
+    std::fill(arg, arg + 65, 0.0);
+    int nv = 0;
+    for (std::uint32_t i = span[0]; i < span[1]; ++i) {
+        const std::int32_t f = posed_.ball[list[i]].field;
+        bool seen = false;
+        for (std::uint32_t j = span[0]; j < i && !seen; ++j) seen = posed_.ball[list[j]].field == f;
+        if (seen) continue;
+        nv = 0;
+        for_sub_block(s_.pull(f), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
+            px[nv] = Pull::to_double(pf[0]);
+            py[nv] = Pull::to_double(pf[1]);
+            pz[nv] = Pull::to_double(pf[2]);
+            at[nv++] = static_cast<std::uint16_t>(li);
+        });
+        px[nv] = px[0];
+        py[nv] = py[0];
+        pz[nv] = pz[0];
+        const BoneField& field = s_.field(f);
+        for (std::uint32_t j = i; j < span[1]; ++j) {
+            const PosedBall& pb = posed_.ball[list[j]];
+            if (pb.field != f) continue;
+            const auto& sp = field.sph[pb.local];
+            least_powers<true>(sp.c, sp.lim, list[j], px, py, pz, nv, s_.s2, best, arg);
+        }
+    }
+    std::uint32_t* who = loc.exact_local.data() + k * 512;
+    std::int32_t* whose = loc.exact_field.data() + k * 512;
+    for (int v = 0; v < nv; ++v) {
+        const PosedBall& pb = posed_.ball[static_cast<std::size_t>(arg[v])];
+        who[at[v]] = pb.local;
+        whose[at[v]] = pb.field;
+    }
+    keep_exact(loc, k, at, nv, best);
+}
+
+/// Candidate k's exact powers best[v] at voxels at[v] of a sub-block, and their quantised ranges for the lanes
+/// (none where it does not cover: its power is not negative there).
+void Gather::keep_exact(Local& loc, std::size_t k, const std::uint16_t* at, int nv, const double* best) const {
+    double* pw = loc.exact.data() + k * 512;
     std::int16_t* klo = loc.cube_lo.data() + k * 512;
     std::int16_t* khi = loc.cube_hi.data() + k * 512;
     const double inv_step = 1.0 / s_.bound_step;
     for (int v = 0; v < nv; ++v) {
         const std::size_t li = at[v];
         pw[li] = best[v];
-        who[li] = static_cast<std::uint32_t>(arg[v]);
         // where it covers, a range of a few quanta around it, without exact_bounds' floors (it runs per voxel);
         // branch-free: covered or not is as good as random here
         const bool covers = best[v] < 0;
@@ -710,7 +760,7 @@ void Gather::lanes(Local& loc) const {
     std::int64_t sure_count = 0;
     for (std::size_t li = 0; li < 512; ++li) {
         const bool sure = certain(u[li], mo[li], nearest);
-        loc.win[li] = ml[li] >= 0 ? kEmpty : (sure ? loc.fields[static_cast<std::size_t>(arg[li])] : kOpen);
+        loc.win[li] = ml[li] >= 0 ? kEmpty : (sure ? field_at(loc, static_cast<std::size_t>(arg[li]), li) : kOpen);
         sure_count += sure && ml[li] < 0;
     }
     loc.by[1] += sure_count;
@@ -727,7 +777,7 @@ double Gather::cube_lower(const Local& loc, std::size_t k, std::size_t li) const
 bool Gather::load_first_label(Local& loc, std::size_t r, std::size_t li, const std::int64_t* m3) const {
     const auto k = static_cast<std::size_t>(loc.running[r]);
     Candidate& c = loc.cands[r];
-    c.field = loc.fields[k];
+    c.field = field_at(loc, k, li);
     if (loc.ball[k]) {  // computed already (ball_powers)
         c.U = c.L = loc.exact[k * 512 + li];
         c.local = loc.exact_local[k * 512 + li];
@@ -860,7 +910,7 @@ void Gather::undecided(const Block& b, Local& loc) const {
                 continue;
             }
         }
-        for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = loc.fields[static_cast<std::size_t>(loc.running[r])];
+        for (std::size_t r = 0; r < n_run; ++r) loc.running[r] = field_at(loc, static_cast<std::size_t>(loc.running[r]), li);
         win[li] = decide_.resolve(loc.running.data(), n_run, m3, loc.cands.data(), loc.queries);
         loc.by[3] += win[li] >= 0;
     }
@@ -954,7 +1004,7 @@ void Gather::run(const S& sampler, const Progress& progress) {
             if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
             std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
             const bool contact = !zone_.empty() && zone_[static_cast<std::size_t>(k)];
-            if (contact) loc.all_fields = loc.fields;  // decide_block drops the candidates that cannot win
+            if (contact) contact_fields(b, loc);  // decide_block drops those that cannot win
             decide_block(b, loc);
             if (contact) slide(b, loc);
             const std::int64_t ncov = write_block(b, loc, sampler);

@@ -28,7 +28,9 @@ GatherResult gather(const FieldSet& set, const std::vector<std::int32_t>& field_
                     const Box& bx, const DeformOptions& o, DeformedVolume& out, const Progress& progress);
 
 /// The output blocks each field's rest blocks (dilated by one cell: cube corners) may reach under its motion: per
-/// output block of the box, a bit set over the fields (words of 64), for gather's block candidates.
-std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx);
+/// output block of the box, a bit set over the fields (words of 64), for gather's block candidates. The fields without
+/// lattice tables (blend groups) are marked where their posed balls reach when `balls` is set (else the gather takes
+/// them from pose_balls as one candidate).
+std::vector<std::uint64_t> candidate_bits(const FieldSet& set, const Box& bx, bool balls = true);
 
 }  // namespace volrig::deform_detail

@@ -1,0 +1,78 @@
+#include "deform/posed_balls.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+namespace volrig::deform_detail {
+
+PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
+    PosedBalls out;
+    std::vector<std::array<std::uint32_t, 3>> order;  // (global, field, local)
+    double reach = 1;  // the largest coordinate the maps meet (output box, rest centres)
+    for (int a = 0; a < 3; ++a) reach = std::max({reach, std::abs(static_cast<double>(bx[a])), std::abs(static_cast<double>(bx[a] + bx[3 + a]))});
+    for (std::size_t f = 0; f < set.fields.size(); ++f) {
+        const BoneField& field = set.fields[f];
+        if (field.lattice) continue;
+        for (std::size_t i = 0; i < field.sph.size(); ++i) {
+            if (!(field.sph[i].lim > 0)) continue;
+            order.push_back({field.global[i], static_cast<std::uint32_t>(f), static_cast<std::uint32_t>(i)});
+            for (int a = 0; a < 3; ++a) reach = std::max(reach, std::abs(field.sph[i].c[a]));
+        }
+    }
+    if (order.empty()) return out;
+    std::sort(order.begin(), order.end());
+    out.ball.resize(order.size());
+    for (std::size_t j = 0; j < order.size(); ++j) {
+        const auto [g, f, i] = order[j];
+        const BoneField::Sphere& sp = set.fields[f].sph[i];
+        PosedBall& b = out.ball[j];
+        set.motions[f].forward.apply(sp.c, b.c);
+        b.lim = sp.lim;
+        b.field = static_cast<std::int32_t>(f);
+        b.local = i;
+        (void)g;
+    }
+    // The fixed-point maps' error, 1e-9 voxel per voxel of reach along each axis, as a world length eps: a power
+    // computed through them is off by at most 2 eps d + eps² at world distance d from the centre, and
+    // 2 d <= d² + 1, so eps (d² + lim + 1) + eps² bounds it; 1e-9 more covers the doubles' rounding.
+    const double eps = 1e-9 * (reach + 1) * std::sqrt(set.s2[0] + set.s2[1] + set.s2[2]);
+    out.rel = 1e-9 + eps + eps * eps;
+    const std::int64_t side = PosedBalls::kRegion;
+    for (int a = 0; a < 3; ++a) out.nr[a] = (bx[3 + a] + side - 1) / side;
+    const auto nreg = static_cast<std::size_t>(out.nr[0] * out.nr[1] * out.nr[2]);
+    out.begin.assign(nreg + 1, 0);
+    auto index = [&](std::int64_t x, std::int64_t y, std::int64_t z) { return static_cast<std::size_t>((z * out.nr[1] + y) * out.nr[0] + x); };
+    for (const PosedBall& b : out.ball)
+        for_ball_blocks(b.c, b.lim, 1.0, set.s2, bx, out.nr, [&](std::int64_t x, std::int64_t y, std::int64_t z) { ++out.begin[index(x, y, z) + 1]; }, side);
+    for (std::size_t k = 0; k < nreg; ++k) out.begin[k + 1] += out.begin[k];
+    out.meets.resize(out.begin[nreg]);
+    std::vector<std::uint32_t> next(out.begin.begin(), out.begin.end() - 1);
+    for (std::size_t j = 0; j < out.ball.size(); ++j)
+        for_ball_blocks(out.ball[j].c, out.ball[j].lim, 1.0, set.s2, bx, out.nr,
+                        [&](std::int64_t x, std::int64_t y, std::int64_t z) { out.meets[next[index(x, y, z)]++] = static_cast<std::uint32_t>(j); }, side);
+    out.kept.resize(nreg);
+    tbb::enumerable_thread_specific<std::vector<double>> scratch;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nreg), [&](const tbb::blocked_range<std::size_t>& rg) {
+        for (std::size_t r = rg.begin(); r != rg.end(); ++r) {
+            const std::uint32_t n = out.begin[r + 1] - out.begin[r];
+            if (!n) continue;
+            const std::int64_t k[3] = {static_cast<std::int64_t>(r) % out.nr[0], (static_cast<std::int64_t>(r) / out.nr[0]) % out.nr[1],
+                                       static_cast<std::int64_t>(r) / (out.nr[0] * out.nr[1])};
+            double box[6];  // the region's voxels
+            for (int a = 0; a < 3; ++a) {
+                box[a] = static_cast<double>(bx[a] + k[a] * side);
+                box[3 + a] = static_cast<double>(bx[a] + std::min(bx[3 + a], (k[a] + 1) * side) - 1);
+            }
+            prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, out.meets.data() + out.begin[r], n,
+                        out.kept[r], scratch.local());
+        }
+    });
+    return out;
+}
+
+}  // namespace volrig::deform_detail

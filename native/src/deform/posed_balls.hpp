@@ -1,0 +1,153 @@
+// deform/posed_balls.hpp: one frame's blended spheres (the smooth blend groups', fields without lattice tables)
+// posed into the output lattice and listed per 8³ output block, so that the gather takes all of them as one
+// candidate (gather.cpp, the blend candidate) instead of one per group.
+//
+// Every blend is rigid (blended_motion), so a sphere's power at an output point q is |q − y|² − r² with y its posed
+// centre (world metric), and two spheres' powers differ by an affine function of q whatever their groups: the
+// pruning that ball_range does within a group in rest space holds across groups in output space. The computed
+// powers go through each group's fixed-point map (Pull), whose error against the exact rigid map is below 1e-9
+// voxel per voxel of distance from the lattice origin; `rel` turns that into a margin on every bound.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "deform/common.hpp"
+#include "deform/bone_field.hpp"
+#include "deform/decide.hpp"
+
+namespace volrig::deform_detail {
+
+/// A ball candidate's power range over a box (a group's: a preimage box in rest index space, its spheres; the blend
+/// candidate's: output voxels, the posed spheres) from the spheres `in` (indices into sph, a superset of those
+/// whose balls meet the box), and into `out` the spheres that may give its power there: those whose ball meets the
+/// box and that no other sphere beats all over it. Two spheres' powers differ by an affine function, so sphere i is
+/// beaten everywhere by the one least at the box's centre (k) when their difference there exceeds its largest
+/// change over the box, 2 Σ s²·h·|c_i − c_k| (h: the box's half extents). Lower bound: the least of the kept
+/// spheres' least powers over the box; upper bound: the least of their largest. Margins, rel per unit of squared
+/// distance and limit, on the safe side (rounding; for posed spheres the fixed-point maps' error too).
+/// (`scratch`: 2 n doubles.)
+template <class S>
+CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_step, const double* box,
+                       const std::uint32_t* in, std::size_t n, std::vector<std::uint32_t>& out,
+                       std::vector<double>& scratch) {
+    scratch.resize(2 * n);
+    double* const near_power = scratch.data();
+    double* const centre_power = near_power + n;  // at the box's centre, less a margin
+    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
+    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
+    double least_far = kInf, least_mid = kInf, margin_k = 0;
+    std::uint32_t k = kNone;
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& sp = sph[in[i]];
+        double near[3];
+        for (int a = 0; a < 3; ++a) {
+            const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
+            near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
+        }
+        const double near2 = length2(near[0], near[1], near[2], s2);
+        // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
+        near_power[i] = near2 - sp.lim - rel * (near2 + 2 * sp.lim + 1);
+        if (!(near_power[i] < 0)) continue;
+        double far[3];
+        for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
+        const double far2 = length2(far[0], far[1], far[2], s2), m = rel * (far2 + sp.lim + 1);
+        near_power[i] = near2 - sp.lim - m;
+        least_far = std::min(least_far, far2 - sp.lim + m);
+        const double pm = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
+        if (pm < least_mid) {
+            least_mid = pm;
+            k = in[i];
+            margin_k = m;
+        }
+        centre_power[i] = pm - m;  // less its margin
+    }
+    double least_near = kInf;
+    for (std::size_t i = 0; k != kNone && i < n; ++i) {
+        const double v = near_power[i];
+        if (!(v < 0) || v > least_far) continue;
+        const double* c = sph[in[i]].c;
+        const double* ck = sph[k].c;
+        const double change = 2 * (s2[0] * h[0] * std::abs(c[0] - ck[0]) + s2[1] * h[1] * std::abs(c[1] - ck[1]) +
+                                   s2[2] * h[2] * std::abs(c[2] - ck[2]));
+        if (centre_power[i] - least_mid - margin_k > change * (1 + 1e-9)) continue;  // beaten by k all over the box
+        out.push_back(in[i]);
+        least_near = std::min(least_near, v);
+    }
+    if (!(least_near < 0)) return CellBounds{};
+    const double inv = 1.0 / bound_step;
+    return CellBounds{exact_bounds(least_near, inv).lo, exact_bounds(least_far, inv).hi};
+}
+
+/// A blended sphere posed: its centre in the output lattice (index space), its open-ball limit, and where it lives.
+struct PosedBall {
+    double c[3];
+    double lim;
+    std::int32_t field;   // its blend group's field
+    std::uint32_t local;  // its index in that field
+};
+
+/// The posed spheres, and per region of 4³ output blocks (32³ voxels) those meeting it and, of these, the ones that
+/// may give the blend's power over it (prune_balls: the blocks' lists start from these).
+struct PosedBalls {
+    static constexpr std::int64_t kRegion = 4 * kBlock;
+    std::vector<PosedBall> ball;        // in increasing global sphere index (ties go to the lower)
+    std::int64_t nr[3] = {0, 0, 0};     // regions per axis
+    std::vector<std::uint32_t> begin;   // per region (x fastest), then one more: its span of `meets`
+    std::vector<std::uint32_t> meets;   // the balls meeting each region (with a voxel's margin), increasing
+    std::vector<std::vector<std::uint32_t>> kept;  // per region: those that may give the blend's power there
+    double rel = 0;                     // margin per unit of (squared distance + limit + 1) on any power bound
+
+    bool empty() const { return ball.empty(); }
+    /// The region of output block (kx, ky, kz).
+    std::size_t region(const std::int64_t* k) const {
+        return static_cast<std::size_t>(((k[2] / 4) * nr[1] + k[1] / 4) * nr[0] + k[0] / 4);
+    }
+};
+
+/// The fields without lattice tables posed by their motions, over the output box bx (empty when there are none),
+/// their regions' lists made in parallel.
+PosedBalls pose_balls(const FieldSet& set, const Box& bx);
+
+/// The blocks [a, e] of `side` voxels (of the box bx, ob blocks per axis) along axis k that the lattice span
+/// [lo, hi] meets; false when none does.
+inline bool block_range(double lo, double hi, const Box& bx, const std::int64_t* ob, int k, std::int64_t& a,
+                        std::int64_t& e, std::int64_t side = kBlock) {
+    a = std::max<std::int64_t>(0, (static_cast<std::int64_t>(std::floor(lo)) - bx[k]) / side);
+    const std::int64_t top = static_cast<std::int64_t>(std::ceil(hi)) - bx[k];
+    if (top < 0) return false;
+    e = std::min<std::int64_t>(ob[k] - 1, top / side);
+    return e >= a;
+}
+
+/// Calls f(x, y, z) for each block of `side` voxels of the box bx (ob blocks per axis) within `grow` voxels of the
+/// ball of squared world radius lim around y (output index space).
+template <class F>
+void for_ball_blocks(const double* y, double lim, double grow, const double* s2, const Box& bx, const std::int64_t* ob,
+                     F&& f, std::int64_t side = kBlock) {
+    const double reach = lim * (1 + 1e-9) + 1e-9;
+    std::int64_t a[3], e[3];
+    for (int k = 0; k < 3; ++k) {
+        const double r = std::sqrt(reach / s2[k]) + grow;
+        if (!block_range(y[k] - r, y[k] + r, bx, ob, k, a[k], e[k], side)) return;
+    }
+    auto gap2 = [&](int k, std::int64_t blk) {  // the squared world gap along axis k to the block grown by `grow`
+        const double lo = static_cast<double>(bx[k] + blk * side) - grow, hi = lo + static_cast<double>(side - 1) + 2 * grow;
+        const double g = std::max({lo - y[k], 0.0, y[k] - hi});
+        return s2[k] * g * g;
+    };
+    for (std::int64_t z = a[2]; z <= e[2]; ++z) {
+        const double gz = gap2(2, z);
+        if (gz > reach) continue;
+        for (std::int64_t yy = a[1]; yy <= e[1]; ++yy) {
+            const double gy = gz + gap2(1, yy);
+            if (gy > reach) continue;
+            for (std::int64_t x = a[0]; x <= e[0]; ++x)
+                if (gy + gap2(0, x) <= reach) f(x, yy, z);
+        }
+    }
+}
+
+}  // namespace volrig::deform_detail
