@@ -22,7 +22,11 @@
 // value and the argmins of the cube's corners give an upper bound; both are equal wherever the corners agree.
 // These bounds decide coverage and the winning bone almost everywhere; the rest is settled exactly by a k-d tree
 // over the bone's spheres. Per frame the work is close to one gather per output voxel. In smooth modes the spheres
-// whose rounded weights agree form one more "bone" with the blended transform, so the same machinery applies.
+// whose rounded weights agree form a blend group with the blended transform (no lattice tables: groups are small
+// and overlap). Every blend is rigid, so all blended spheres' powers at q are |q − yᵢ|² − rᵢ² with yᵢ their posed
+// centres, and any two differ by an affine function of q: per frame they are pruned together in output space (per
+// region, block and sub-block, the spheres no other one beats all over it) and gathered as one candidate whose exact
+// per-voxel power comes from each sphere through its own group's map.
 #pragma once
 
 #include <array>

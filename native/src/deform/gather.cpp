@@ -164,6 +164,13 @@ private:
         }
         return b;
     }
+    /// The block's voxels as a box {lo x, y, z, hi x, y, z} (output lattice).
+    static void block_box(const Block& b, double* box) {
+        for (int a = 0; a < 3; ++a) {
+            box[a] = static_cast<double>(b.base[a]);
+            box[3 + a] = static_cast<double>(b.base[a] + b.e[a] - 1);
+        }
+    }
     void preimage_box(std::int32_t f, const std::int64_t* q0, std::int64_t side, std::int64_t* ra, std::int64_t* rb,
                       double* box) const;
     CellBounds preimage_range(std::int32_t f, const std::int64_t* q0, std::int64_t side,
@@ -296,10 +303,7 @@ void Gather::blend_candidate(const Block& b, Local& loc) const {
     const std::vector<std::uint32_t>& in = posed_.kept[posed_.region(b.k)];
     if (in.empty()) return;
     double box[6];
-    for (int a = 0; a < 3; ++a) {
-        box[a] = static_cast<double>(b.base[a]);
-        box[3 + a] = static_cast<double>(b.base[a] + b.e[a] - 1);
-    }
+    block_box(b, box);
     const auto begin = static_cast<std::uint32_t>(loc.block_balls.size());
     const CellBounds rg = ball_range(posed_.ball.data(), posed_.rel, box, in.data(), in.size(), loc.block_balls, loc);
     if (rg.lo >= 0) {
@@ -324,8 +328,14 @@ void Gather::contact_fields(const Block& b, Local& loc) const {
     }
     if (!blend) return;
     const auto first = static_cast<std::ptrdiff_t>(loc.all_fields.size());
+    double box[6];
+    block_box(b, box);
     const std::size_t r = posed_.region(b.k);
-    for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) loc.all_fields.push_back(posed_.ball[posed_.meets[j]].field);
+    for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) {  // those whose balls meet the block
+        const PosedBall& pb = posed_.ball[posed_.meets[j]];
+        double near2;
+        if (least_power_over(pb, box, s_.s2, posed_.rel, near2) < 0) loc.all_fields.push_back(pb.field);
+    }
     std::sort(loc.all_fields.begin() + first, loc.all_fields.end());
     loc.all_fields.erase(std::unique(loc.all_fields.begin() + first, loc.all_fields.end()), loc.all_fields.end());
 }

@@ -20,6 +20,19 @@
 
 namespace volrig::deform_detail {
 
+/// A lower bound of sphere sp's power over the box {lo x, y, z, hi x, y, z} (its centre's squared distance to the
+/// box, near2, less its limit, less the margin rel (near2 + 2 lim + 1)): negative when its ball may meet the box.
+template <class S>
+double least_power_over(const S& sp, const double* box, const double* s2, double rel, double& near2) {
+    double near[3];
+    for (int a = 0; a < 3; ++a) {
+        const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
+        near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
+    }
+    near2 = length2(near[0], near[1], near[2], s2);
+    return near2 - sp.lim - rel * (near2 + 2 * sp.lim + 1);
+}
+
 /// A ball candidate's power range over a box (a group's: a preimage box in rest index space, its spheres; the blend
 /// candidate's: output voxels, the posed spheres) from the spheres `in` (indices into sph, a superset of those
 /// whose balls meet the box), and into `out` the spheres that may give its power there: those whose ball meets the
@@ -42,14 +55,9 @@ CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_
     std::uint32_t k = kNone;
     for (std::size_t i = 0; i < n; ++i) {
         const auto& sp = sph[in[i]];
-        double near[3];
-        for (int a = 0; a < 3; ++a) {
-            const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
-            near[a] = d0 > 0 ? d0 : (d1 < 0 ? d1 : 0.0);
-        }
-        const double near2 = length2(near[0], near[1], near[2], s2);
+        double near2;
         // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
-        near_power[i] = near2 - sp.lim - rel * (near2 + 2 * sp.lim + 1);
+        near_power[i] = least_power_over(sp, box, s2, rel, near2);
         if (!(near_power[i] < 0)) continue;
         double far[3];
         for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
