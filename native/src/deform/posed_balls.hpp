@@ -23,7 +23,7 @@ namespace volrig::deform_detail {
 /// A lower bound of sphere sp's power over the box {lo x, y, z, hi x, y, z} (its centre's squared distance to the
 /// box, near2, less its limit, less the margin rel (near2 + 2 lim + 1)): negative when its ball may meet the box.
 template <class S>
-double least_power_over(const S& sp, const double* box, const double* s2, double rel, double& near2) {
+inline double least_power_over(const S& sp, const double* box, const double* s2, double rel, double& near2) {
     double near[3];
     for (int a = 0; a < 3; ++a) {
         const double d0 = box[a] - sp.c[a], d1 = box[3 + a] - sp.c[a];
@@ -35,55 +35,62 @@ double least_power_over(const S& sp, const double* box, const double* s2, double
 
 /// A ball candidate's power range over a box (a group's: a preimage box in rest index space, its spheres; the blend
 /// candidate's: output voxels, the posed spheres) from the spheres `in` (indices into sph, a superset of those
-/// whose balls meet the box), and into `out` the spheres that may give its power there: those whose ball meets the
-/// box and that no other sphere beats all over it. Two spheres' powers differ by an affine function, so sphere i is
-/// beaten everywhere by the one least at the box's centre (k) when their difference there exceeds its largest
-/// change over the box, 2 Σ s²·h·|c_i − c_k| (h: the box's half extents). Lower bound: the least of the kept
-/// spheres' least powers over the box; upper bound: the least of their largest. Margins, rel per unit of squared
-/// distance and limit, on the safe side (rounding; for posed spheres the fixed-point maps' error too).
-/// (`scratch`: 2 n doubles.)
+/// whose balls meet the box), and into `out` (in the order of `in`) the spheres that may give its power there. Two
+/// spheres' powers differ by an affine function, so sphere i is beaten everywhere by the one least at the box's
+/// centre (k) when their difference there exceeds its largest change over the box, 2 Σ s²·h·|c_i − c_k| (h: the
+/// box's half extents); of the others, those whose balls meet the box and whose least power there is at most the
+/// least of their largest powers are kept. Lower bound: the least of the kept spheres' least powers over the box;
+/// upper bound: the least of their largest. Margins, rel per unit of squared distance and limit, on the safe side
+/// (rounding; for posed spheres the fixed-point maps' error too); at the centre, the squared distance to the
+/// box's farthest point is at most 2 (the centre's + the half-diagonal's). `scratch` holds 2 n doubles.
 template <class S>
 CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_step, const double* box,
                        const std::uint32_t* in, std::size_t n, std::vector<std::uint32_t>& out,
                        std::vector<double>& scratch) {
+    if (n == 0) return CellBounds{};
     scratch.resize(2 * n);
-    double* const near_power = scratch.data();
-    double* const centre_power = near_power + n;  // at the box's centre, less a margin
+    double* const centre = scratch.data();      // each one's power at the box's centre
+    double* const least = scratch.data() + n;   // the kept ones' least powers over the box
     const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
     const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
-    double least_far = kInf, least_mid = kInf, margin_k = 0;
-    std::uint32_t k = kNone;
+    const double half2 = length2(h[0], h[1], h[2], s2);
+    std::size_t k = 0;
     for (std::size_t i = 0; i < n; ++i) {
         const auto& sp = sph[in[i]];
+        centre[i] = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
+        if (centre[i] < centre[k]) k = i;
+    }
+    auto margin = [&](std::size_t i) {  // at least rel (far² + lim + 1)
+        const double lim = sph[in[i]].lim;
+        return rel * (2 * (centre[i] + lim + half2) + lim + 1);
+    };
+    const double* ck = sph[in[k]].c;
+    const double beat = centre[k] + margin(k);  // k's power at the centre, plus its margin
+    const auto first = out.size();
+    double least_far = kInf;
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& sp = sph[in[i]];
+        const double change = 2 * (s2[0] * h[0] * std::abs(sp.c[0] - ck[0]) + s2[1] * h[1] * std::abs(sp.c[1] - ck[1]) +
+                                   s2[2] * h[2] * std::abs(sp.c[2] - ck[2]));
+        if (centre[i] - margin(i) - beat > change * (1 + 1e-9)) continue;  // beaten by k all over the box
         double near2;
-        // most of the spheres scanned lie far from the box: out without the rest (their power there is positive)
-        near_power[i] = least_power_over(sp, box, s2, rel, near2);
-        if (!(near_power[i] < 0)) continue;
+        if (!(least_power_over(sp, box, s2, rel, near2) < 0)) continue;  // its ball misses the box
         double far[3];
         for (int a = 0; a < 3; ++a) far[a] = std::max(std::abs(box[a] - sp.c[a]), std::abs(box[3 + a] - sp.c[a]));
         const double far2 = length2(far[0], far[1], far[2], s2), m = rel * (far2 + sp.lim + 1);
-        near_power[i] = near2 - sp.lim - m;
+        least[out.size() - first] = near2 - sp.lim - m;
         least_far = std::min(least_far, far2 - sp.lim + m);
-        const double pm = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
-        if (pm < least_mid) {
-            least_mid = pm;
-            k = in[i];
-            margin_k = m;
-        }
-        centre_power[i] = pm - m;  // less its margin
+        out.push_back(in[i]);
     }
     double least_near = kInf;
-    for (std::size_t i = 0; k != kNone && i < n; ++i) {
-        const double v = near_power[i];
-        if (!(v < 0) || v > least_far) continue;
-        const double* c = sph[in[i]].c;
-        const double* ck = sph[k].c;
-        const double change = 2 * (s2[0] * h[0] * std::abs(c[0] - ck[0]) + s2[1] * h[1] * std::abs(c[1] - ck[1]) +
-                                   s2[2] * h[2] * std::abs(c[2] - ck[2]));
-        if (centre_power[i] - least_mid - margin_k > change * (1 + 1e-9)) continue;  // beaten by k all over the box
-        out.push_back(in[i]);
+    std::size_t kept = first;
+    for (std::size_t j = first; j < out.size(); ++j) {
+        const double v = least[j - first];
+        if (v > least_far) continue;  // beaten all over the box by the one whose largest power is least_far
+        out[kept++] = out[j];
         least_near = std::min(least_near, v);
     }
+    out.resize(kept);
     if (!(least_near < 0)) return CellBounds{};
     const double inv = 1.0 / bound_step;
     return CellBounds{exact_bounds(least_near, inv).lo, exact_bounds(least_far, inv).hi};
