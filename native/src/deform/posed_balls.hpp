@@ -86,7 +86,9 @@ CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_
     std::size_t kept = first;
     for (std::size_t j = first; j < out.size(); ++j) {
         const double v = least[j - first];
-        if (v > least_far) continue;  // beaten all over the box by the one whose largest power is least_far
+        // not covering anywhere in the box (the far margin), or beaten all over it by the one whose largest power
+        // is least_far
+        if (!(v < 0) || v > least_far) continue;
         out[kept++] = out[j];
         least_near = std::min(least_near, v);
     }
