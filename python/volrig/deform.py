@@ -238,6 +238,7 @@ class Deformer:
         self.binding = binding
         self.proximity = proximity
         self._layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
+        self._layer_proximity = None  # the proximity its pieces were labelled with
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
         self.bone_count = nb
         self._native = _volrig.Deformer(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb,
@@ -286,19 +287,21 @@ class Deformer:
         ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
         written to OpenVDB without a dense copy; what bakes use)."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
-        if self._layer is not None and self._layer.pieces is None:
-            self._label_layer(mode, proximity or self.proximity, scale)
+        if self._layer is not None and (self._layer.pieces is None or self._layer_proximity != (proximity or self.proximity)):
+            self._label_layer(mode, proximity or self.proximity)
         d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress,
                                keep_volume=bool(keep_volume), bricks=bool(bricks))
         return _frame(d, self.source)
 
-    def _label_layer(self, mode: str, proximity: str, scale) -> None:
-        """The rigid layer from this binding's rest frame (in the mode family asked for, so that its per-rig data
-        serves the frames after it): the spheres then sample the soft source and the pieces are drawn."""
+    def _label_layer(self, mode: str, proximity: str) -> None:
+        """The rigid layer from this binding's rest frame (its own radii, the proximity asked for; in the mode
+        family asked for, so that its per-rig data serves the frames after it): the spheres then sample the soft
+        source and the pieces are drawn. A frame with another proximity labels it again."""
         src = _source_array(self.source)
         self._native.set_rigid_layer(src, self.source.spacing, self.source.origin, [])
-        rest = self._native.frame(_matrices(rest_pose(self.bone_count)), mode, proximity, "nearest", scale, False,
+        rest = self._native.frame(_matrices(rest_pose(self.bone_count)), mode, proximity, "nearest", None, False,
                                   None)
+        self._layer_proximity = proximity
         self._layer.build(np.asarray(rest["bone"]), rest["offset"])
         del rest
         self._native.set_source(self._layer.soft, self.source.spacing, self.source.origin)
@@ -368,17 +371,17 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     scale = _radius_scale(radius_scale, len(points))
     layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
 
-    def scatter(src, matrices, sampling_, values_, box_):
+    def scatter(src, matrices, sampling_, scale_, values_, box_):
         return _volrig.deform_reference(_source_array(src), source.spacing, source.origin, ijk, radii, bone, nb, off,
-                                        wb, w, _matrices(matrices), mode, proximity, sampling_, scale, values_, box_,
+                                        wb, w, _matrices(matrices), mode, proximity, sampling_, scale_, values_, box_,
                                         keep_volume=bool(keep_volume))
-    if layer is not None:  # the rigid layer from the rest pose, as the Deformer builds it
-        rest = scatter(source, rest_pose(nb), "nearest", False, None)
+    if layer is not None:  # the rigid layer from the rest pose (the binding's own radii), as the Deformer builds it
+        rest = scatter(source, rest_pose(nb), "nearest", None, False, None)
         layer.build(np.asarray(rest["bone"]), rest["offset"])
         source_ = source.like(layer.soft)
     else:
         source_ = source
-    d = scatter(source_, bone_matrices, sampling, bool(values), box)
+    d = scatter(source_, bone_matrices, sampling, scale, bool(values), box)
     if layer is not None:
         d = layer.paint(d, _matrices(bone_matrices), sampling, fixed=box is not None)
     return _frame(d, source)

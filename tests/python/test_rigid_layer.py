@@ -129,6 +129,25 @@ def test_the_layered_frame_equals_the_brute_force_reference(limb, mode, sampling
     assert np.array_equal(on_box.bone.array, fast.bone.array)
 
 
+def test_one_deformer_switching_proximity_and_radius_scale_equals_the_reference(limb):
+    """The pieces come from the binding's rest frame with its own radii and the frame's proximity: a Deformer that
+    changes proximity between frames labels them again, a radius scale does not change them, and every frame
+    still equals the brute-force scatter."""
+    source, mask, pts, rig, _, _ = limb
+    # all tissue rigid, so that the pieces meet at the joint, where the two proximities label differently
+    binding = volrig.bind(pts, rig, mask, mode="smooth", rigid=volrig.rigid_tissue(source, labels=BONE + (SOFT,)))
+    M = bent(rig, 100)
+    d = volrig.Deformer(source, pts, binding)
+    scale = np.where(np.arange(len(pts)) % 3 == 0, 1.2, 0.9)
+    for proximity, radius_scale in (("power", None), ("nearest", None), ("nearest", scale), ("power", scale)):
+        fast = d.frame(M, mode="linear", sampling="nearest", proximity=proximity, radius_scale=radius_scale)
+        ref = volrig.deform_reference(source, pts, binding, M, mode="linear", sampling="nearest", proximity=proximity,
+                                      radius_scale=radius_scale, like=fast)
+        assert np.array_equal(fast.bone.array, ref.bone.array), (proximity, radius_scale is None)
+        assert np.array_equal(fast.values.array, ref.values.array), (proximity, radius_scale is None)
+        assert fast.stats["rigid_layer"] > 0
+
+
 def test_rebind_and_binary_frames_keep_the_layer(limb):
     source, mask, pts, rig, rigid, binding = limb
     d = volrig.Deformer(source, pts, binding)
