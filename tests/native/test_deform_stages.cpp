@@ -594,7 +594,7 @@ TEST_CASE("posed blend spheres: each region's and block's kept spheres give the 
         for (k[2] = 0; k[2] < ob[2]; ++k[2])
             for (k[1] = 0; k[1] < ob[1]; ++k[1])
                 for (k[0] = 0; k[0] < ob[0]; ++k[0]) {
-                    const std::vector<std::uint32_t>& region = posed.kept[posed.region(k)];
+                    const std::vector<std::uint32_t>& region = posed.kept[posed.tile(k)];
                     double box[6];
                     std::int64_t e[3], base[3];
                     for (int a = 0; a < 3; ++a) {

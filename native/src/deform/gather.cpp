@@ -300,7 +300,7 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
 /// The blend candidate of the block (kBlend): its range over the block's voxels from the posed spheres meeting the
 /// block, and those that may give its power there (indices into posed_.ball, increasing); none when none covers.
 void Gather::blend_candidate(const Block& b, Local& loc) const {
-    const std::vector<std::uint32_t>& in = posed_.kept[posed_.region(b.k)];
+    const std::vector<std::uint32_t>& in = posed_.kept[posed_.tile(b.k)];
     if (in.empty()) return;
     double box[6];
     block_box(b, box);

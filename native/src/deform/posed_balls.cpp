@@ -55,21 +55,41 @@ PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
     for (std::size_t j = 0; j < out.ball.size(); ++j)
         for_ball_blocks(out.ball[j].c, out.ball[j].lim, 1.0, set.s2, bx, out.nr,
                         [&](std::int64_t x, std::int64_t y, std::int64_t z) { out.meets[next[index(x, y, z)]++] = static_cast<std::uint32_t>(j); }, side);
-    out.kept.resize(nreg);
-    tbb::enumerable_thread_specific<std::vector<double>> scratch;
+    for (int a = 0; a < 3; ++a) out.nt[a] = (bx[3 + a] + PosedBalls::kTile - 1) / PosedBalls::kTile;
+    out.kept.resize(static_cast<std::size_t>(out.nt[0] * out.nt[1] * out.nt[2]));
+    auto box_of = [&](const std::int64_t* k, std::int64_t s, double* box) {  // the voxels of block k of side s
+        for (int a = 0; a < 3; ++a) {
+            box[a] = static_cast<double>(bx[a] + k[a] * s);
+            box[3 + a] = static_cast<double>(bx[a] + std::min(bx[3 + a], (k[a] + 1) * s) - 1);
+        }
+    };
+    struct Scratch {
+        std::vector<double> powers;
+        std::vector<std::uint32_t> region;
+    };
+    tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nreg), [&](const tbb::blocked_range<std::size_t>& rg) {
+        Scratch& sc = scratch.local();
         for (std::size_t r = rg.begin(); r != rg.end(); ++r) {
             const std::uint32_t n = out.begin[r + 1] - out.begin[r];
             if (!n) continue;
             const std::int64_t k[3] = {static_cast<std::int64_t>(r) % out.nr[0], (static_cast<std::int64_t>(r) / out.nr[0]) % out.nr[1],
                                        static_cast<std::int64_t>(r) / (out.nr[0] * out.nr[1])};
-            double box[6];  // the region's voxels
-            for (int a = 0; a < 3; ++a) {
-                box[a] = static_cast<double>(bx[a] + k[a] * side);
-                box[3 + a] = static_cast<double>(bx[a] + std::min(bx[3 + a], (k[a] + 1) * side) - 1);
-            }
+            double box[6];
+            box_of(k, side, box);
+            sc.region.clear();
             prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, out.meets.data() + out.begin[r], n,
-                        out.kept[r], scratch.local());
+                        sc.region, sc.powers);
+            if (sc.region.empty()) continue;
+            std::int64_t t[3];  // its 2³ tiles
+            for (t[2] = 2 * k[2]; t[2] < std::min(2 * k[2] + 2, out.nt[2]); ++t[2])
+                for (t[1] = 2 * k[1]; t[1] < std::min(2 * k[1] + 2, out.nt[1]); ++t[1])
+                    for (t[0] = 2 * k[0]; t[0] < std::min(2 * k[0] + 2, out.nt[0]); ++t[0]) {
+                        box_of(t, PosedBalls::kTile, box);
+                        prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, sc.region.data(),
+                                    sc.region.size(), out.kept[static_cast<std::size_t>((t[2] * out.nt[1] + t[1]) * out.nt[0] + t[0])],
+                                    sc.powers);
+                    }
         }
     });
     return out;

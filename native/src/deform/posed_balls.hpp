@@ -106,15 +106,17 @@ struct PosedBall {
     std::uint32_t local;  // its index in that field
 };
 
-/// The posed spheres, and per region of 4³ output blocks (32³ voxels) those meeting it and, of these, the ones that
-/// may give the blend's power over it (prune_balls: the blocks' lists start from these).
+/// The posed spheres: per region of 4³ output blocks (32³ voxels) those meeting it, and per tile of 2³ blocks (16³
+/// voxels) the ones that may give the blend's power over it (prune_balls over the region's, then over the tile's:
+/// the blocks' lists start from these).
 struct PosedBalls {
-    static constexpr std::int64_t kRegion = 4 * kBlock;
+    static constexpr std::int64_t kRegion = 4 * kBlock, kTile = 2 * kBlock;
     std::vector<PosedBall> ball;        // in increasing global sphere index (ties go to the lower)
     std::int64_t nr[3] = {0, 0, 0};     // regions per axis
+    std::int64_t nt[3] = {0, 0, 0};     // tiles per axis
     std::vector<std::uint32_t> begin;   // per region (x fastest), then one more: its span of `meets`
     std::vector<std::uint32_t> meets;   // the balls meeting each region (with a voxel's margin), increasing
-    std::vector<std::vector<std::uint32_t>> kept;  // per region: those that may give the blend's power there
+    std::vector<std::vector<std::uint32_t>> kept;  // per tile: those that may give the blend's power there
     double rel = 0;                     // margin per unit of (squared distance + limit + 1) on any power bound
 
     bool empty() const { return ball.empty(); }
@@ -122,10 +124,14 @@ struct PosedBalls {
     std::size_t region(const std::int64_t* k) const {
         return static_cast<std::size_t>(((k[2] / 4) * nr[1] + k[1] / 4) * nr[0] + k[0] / 4);
     }
+    /// The tile of output block (kx, ky, kz).
+    std::size_t tile(const std::int64_t* k) const {
+        return static_cast<std::size_t>(((k[2] / 2) * nt[1] + k[1] / 2) * nt[0] + k[0] / 2);
+    }
 };
 
 /// The fields without lattice tables posed by their motions, over the output box bx (empty when there are none),
-/// their regions' lists made in parallel.
+/// their regions' and tiles' lists made in parallel.
 PosedBalls pose_balls(const FieldSet& set, const Box& bx);
 
 /// The blocks [a, e] of `side` voxels (of the box bx, ob blocks per axis) along axis k that the lattice span
