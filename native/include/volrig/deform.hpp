@@ -25,8 +25,8 @@
 // whose rounded weights agree form a blend group with the blended transform (no lattice tables: groups are small
 // and overlap). Every blend is rigid, so all blended spheres' powers at q are |q − yᵢ|² − rᵢ² with yᵢ their posed
 // centres, and any two differ by an affine function of q: per frame they are pruned together in output space (per
-// region, tile, block and sub-block, the spheres no other one beats all over it) and gathered as one candidate whose exact
-// per-voxel power comes from each sphere through its own group's map.
+// region, tile, block and sub-block, the spheres no other one beats all over it) and gathered as one candidate
+// whose exact per-voxel power comes from each sphere through its own group's map.
 #pragma once
 
 #include <array>
