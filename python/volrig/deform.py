@@ -287,9 +287,10 @@ class Deformer:
         ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
         written to OpenVDB without a dense copy; what bakes use)."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
-        if self._layer is not None and (self._layer.pieces is None or self._layer_proximity != (proximity or self.proximity)):
-            self._label_layer(mode, proximity or self.proximity)
-        d = self._native.frame(m, mode, proximity or self.proximity, sampling, scale, bool(values), progress,
+        proximity = proximity or self.proximity
+        if self._layer is not None and (self._layer.pieces is None or self._layer_proximity != proximity):
+            self._label_layer(mode, proximity)
+        d = self._native.frame(m, mode, proximity, sampling, scale, bool(values), progress,
                                keep_volume=bool(keep_volume), bricks=bool(bricks))
         return _frame(d, self.source)
 

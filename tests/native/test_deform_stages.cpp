@@ -545,9 +545,9 @@ TEST_CASE("a blend group's candidate blocks: every voxel its posed balls hold, u
     CHECK(spare * 4 < marked);  // a few blocks the balls only graze (the margin), not the corners of their boxes
 }
 
-TEST_CASE("posed blend spheres: each region's and block's kept spheres give the least power over all groups", "[deform][stages]") {
+TEST_CASE("posed blend spheres: each tile's and block's kept spheres give the least power over all groups", "[deform][stages]") {
     // Three blend groups of one random set, each moved by its own blend of two rotations: the gather takes them as
-    // one candidate, pruned per 32³ region then per 8³ block in output space (every blend is rigid). At every
+    // one candidate, pruned per 32³ region, 16³ tile and 8³ block in output space (every blend is rigid). At every
     // output voxel the least (power, global index) over the kept spheres, each through its own group's fixed-point
     // map, must be the least over all spheres of all groups wherever that covers, within the kept range. Far
     // translations make the fixed-point maps' error (the margins) large.
@@ -594,7 +594,7 @@ TEST_CASE("posed blend spheres: each region's and block's kept spheres give the 
         for (k[2] = 0; k[2] < ob[2]; ++k[2])
             for (k[1] = 0; k[1] < ob[1]; ++k[1])
                 for (k[0] = 0; k[0] < ob[0]; ++k[0]) {
-                    const std::vector<std::uint32_t>& region = posed.kept[posed.tile(k)];
+                    const std::vector<std::uint32_t>& tile = posed.kept[posed.tile_of(k)];
                     double box[6];
                     std::int64_t e[3], base[3];
                     for (int a = 0; a < 3; ++a) {
@@ -605,7 +605,7 @@ TEST_CASE("posed blend spheres: each region's and block's kept spheres give the 
                     }
                     std::vector<std::uint32_t> kept;
                     const CellBounds rg = prune_balls(posed.ball.data(), posed.rel, s2.data(), set.bound_step, box,
-                                                      region.data(), region.size(), kept, scratch);
+                                                      tile.data(), tile.size(), kept, scratch);
                     blocks += !kept.empty();
                     kept_total += static_cast<std::int64_t>(kept.size());
                     REQUIRE(std::is_sorted(kept.begin(), kept.end()));
@@ -616,7 +616,7 @@ TEST_CASE("posed blend spheres: each region's and block's kept spheres give the 
                                 const Best truth = least(q, all.data(), all.size());
                                 if (!(truth.key < 0)) continue;
                                 ++covered;
-                                const Best r = least(q, region.data(), region.size()), b = least(q, kept.data(), kept.size());
+                                const Best r = least(q, tile.data(), tile.size()), b = least(q, kept.data(), kept.size());
                                 REQUIRE(r.global == truth.global);
                                 REQUIRE(b.global == truth.global);
                                 REQUIRE(b.key == truth.key);

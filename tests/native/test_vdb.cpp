@@ -16,7 +16,6 @@
 
 #include <unistd.h>
 
-#include "volrig/deform.hpp"
 #include "volrig/io.hpp"
 
 namespace fs = std::filesystem;

@@ -118,7 +118,6 @@ struct DeformedVolume {
     std::array<std::int64_t, 6> extent{0, 0, 0, 0, 0, 0};
 };
 
-
 /// Rest-to-pose matrices: bone_count 4x4 matrices, row-major, 16 doubles each.
 using BoneMatrices = const double*;
 

@@ -109,9 +109,9 @@ struct Local {
     // preimage (kNone when there is none), and then per voxel of such sub-blocks that power, exact
     std::vector<std::uint32_t> single;
     std::vector<double> exact;
-    // Ball candidates (fields without lattice tables, blend groups): per candidate whether it is one and the spheres
-    // that may give its power over the block's preimage (a span of block_balls), per (candidate, sub-block) those
-    // over the sub-block's (a span of sub_balls), and per voxel of its live sub-blocks the sphere giving `exact`
+    // Ball candidates (a blend group's field, or the blend candidate): per candidate its Kind, the spheres that may
+    // give its power over the block (a span of block_balls), per (candidate, sub-block) those over the sub-block (a
+    // span of sub_balls), and per voxel of its live sub-blocks the sphere giving `exact`
     std::vector<std::uint8_t> ball;
     std::vector<std::uint32_t> block_balls, sub_balls, exact_local;
     std::vector<std::int32_t> exact_field;  // the blend candidate's: per voxel the field (group) giving `exact`
@@ -129,8 +129,10 @@ struct Local {
     std::uint64_t layer[8];                 // covered voxels, one bit per (dy, dx) per dz
 };
 
-/// loc.fields' entry for the blend candidate (loc.ball 2): all blended spheres at once (posed_balls.hpp), whose
-/// field is known per voxel only (loc.exact_field).
+/// What a candidate is (Local::ball): a field with lattice tables (a bone), a blend group's field taken from its
+/// spheres (nearest-centre proximity), or the blend candidate: all blended spheres at once (posed_balls.hpp), whose
+/// field is known per voxel only (loc.exact_field) and whose loc.fields entry is kBlend.
+enum Kind : std::uint8_t { kLattice = 0, kGroup = 1, kBlendBalls = 2 };
 constexpr std::int32_t kBlend = -3;
 
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
@@ -183,7 +185,7 @@ private:
     void blend_candidate(const Block& b, Local& loc) const;
     void contact_fields(const Block& b, Local& loc) const;
     std::int32_t field_at(const Local& loc, std::size_t k, std::size_t li) const {
-        return loc.ball[k] == 2 ? loc.exact_field[k * 512 + li] : loc.fields[k];
+        return loc.ball[k] == kBlendBalls ? loc.exact_field[k * 512 + li] : loc.fields[k];
     }
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
@@ -292,7 +294,7 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
               [&](std::uint32_t a, std::uint32_t c) { return field.global[a] < field.global[c]; });
     loc.fields.push_back(f);
     loc.range.push_back(rg);
-    loc.ball.push_back(1);
+    loc.ball.push_back(kGroup);
     loc.block_span.push_back({begin, static_cast<std::uint32_t>(loc.block_balls.size())});
     return true;
 }
@@ -300,7 +302,7 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
 /// The blend candidate of the block (kBlend): its range over the block's voxels from the posed spheres meeting the
 /// block, and those that may give its power there (indices into posed_.ball, increasing); none when none covers.
 void Gather::blend_candidate(const Block& b, Local& loc) const {
-    const std::vector<std::uint32_t>& in = posed_.kept[posed_.tile(b.k)];
+    const std::vector<std::uint32_t>& in = posed_.kept[posed_.tile_of(b.k)];
     if (in.empty()) return;
     double box[6];
     block_box(b, box);
@@ -312,7 +314,7 @@ void Gather::blend_candidate(const Block& b, Local& loc) const {
     }
     loc.fields.push_back(kBlend);
     loc.range.push_back(rg);
-    loc.ball.push_back(2);
+    loc.ball.push_back(kBlendBalls);
     loc.block_span.push_back({begin, static_cast<std::uint32_t>(loc.block_balls.size())});
 }
 
@@ -322,9 +324,9 @@ void Gather::blend_candidate(const Block& b, Local& loc) const {
 void Gather::contact_fields(const Block& b, Local& loc) const {
     loc.all_fields.clear();
     bool blend = false;
-    for (const std::int32_t f : loc.fields) {
-        if (f == kBlend) blend = true;
-        else loc.all_fields.push_back(f);
+    for (std::size_t k = 0; k < loc.fields.size(); ++k) {
+        if (loc.ball[k] == kBlendBalls) blend = true;
+        else loc.all_fields.push_back(loc.fields[k]);
     }
     if (!blend) return;
     const auto first = static_cast<std::ptrdiff_t>(loc.all_fields.size());
@@ -379,7 +381,7 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
             if (rg.lo >= 0) continue;
             loc.fields.push_back(f);
             loc.range.push_back(rg);
-            loc.ball.push_back(0);
+            loc.ball.push_back(kLattice);
             loc.block_span.push_back({0, 0});
         }
     }
@@ -391,12 +393,12 @@ void Gather::block_candidates(const Block& b, Local& loc) const {
 CellBounds Gather::sub_range(std::size_t k, const std::int64_t* q0, int sb, Local& loc) const {
     const std::int32_t f = loc.fields[k];
     const std::size_t ks = k * 8 + static_cast<std::size_t>(sb);
-    if (!loc.ball[k]) return preimage_range(f, q0, 4, &loc.single[ks]);
+    if (loc.ball[k] == kLattice) return preimage_range(f, q0, 4, &loc.single[ks]);
     double box[6];
     const auto span = loc.block_span[k];
     const auto begin = static_cast<std::uint32_t>(loc.sub_balls.size());
     CellBounds r;
-    if (loc.ball[k] == 2) {  // the blend candidate: over the sub-block's voxels (a superset at the box's edge)
+    if (loc.ball[k] == kBlendBalls) {  // the blend candidate: over the sub-block's voxels (a superset at the box's edge)
         for (int a = 0; a < 3; ++a) {
             box[a] = static_cast<double>(q0[a]);
             box[3 + a] = static_cast<double>(q0[a] + 3);
@@ -420,7 +422,7 @@ void Gather::decide_block(const Block& b, Local& loc) const {
     loc.live.resize(loc.fields.size());
     const std::int32_t whole = decide_.settle(loc.range.data(), loc.fields.size(), loc.live.data(), 1);
     // (the blend candidate's field is known per voxel only: its sub-blocks)
-    if (whole < 0 || loc.ball[static_cast<std::size_t>(whole)] == 2) return decide_sub_blocks(b, loc);
+    if (whole < 0 || loc.ball[static_cast<std::size_t>(whole)] == kBlendBalls) return decide_sub_blocks(b, loc);
     std::fill(win, win + 512, kEmpty);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
@@ -456,7 +458,7 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
-        if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == 2) {  // its voxels' fields from its exact powers
+        if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls) {  // its voxels' fields from its exact powers
             sub_win[sb] = kOpen;
             any_open = true;
         } else if (w >= 0) {
@@ -504,12 +506,12 @@ void Gather::lookups(const Block& b, Local& loc) const {
         loc.cands.resize(K);
     }
     for (std::size_t k = 0; k < K; ++k) {
-        if (loc.ball[k]) {  // (no cells: load_first_label takes its exact powers)
+        if (loc.ball[k] != kLattice) {  // (no cells: load_first_label takes its exact powers)
             std::fill(loc.cube_lo.data() + k * 512, loc.cube_lo.data() + (k + 1) * 512, kBoundMax);
             std::fill(loc.cube_hi.data() + k * 512, loc.cube_hi.data() + (k + 1) * 512, kBoundMax);
             for (int sb = 0; sb < 8; ++sb) {
                 if (!loc.live[k * 8 + static_cast<std::size_t>(sb)]) continue;
-                if (loc.ball[k] == 2) blend_powers(b, loc, k, sb);
+                if (loc.ball[k] == kBlendBalls) blend_powers(b, loc, k, sb);
                 else ball_powers(b, loc, k, sb);
             }
             continue;
@@ -552,6 +554,23 @@ void for_sub_block(const Pull& pl, const std::int64_t* base, const std::int64_t*
                 f(first + static_cast<std::size_t>((dz * 8 + dy) * 8 + dx), px);
         }
     }
+}
+
+/// The preimages under pull pl of the voxels of sub-block sb (as doubles, exact) and their places in the block; returns
+/// their count nv and repeats the first at nv (least_powers takes two voxels at a time; that result is not read).
+int sub_block_preimages(const Pull& pl, const std::int64_t* base, const std::int64_t* e_block, int sb, double* px,
+                        double* py, double* pz, std::uint16_t* at) {
+    int nv = 0;
+    for_sub_block(pl, base, e_block, sb, [&](std::size_t li, const std::int64_t* pf) {
+        px[nv] = Pull::to_double(pf[0]);
+        py[nv] = Pull::to_double(pf[1]);
+        pz[nv] = Pull::to_double(pf[2]);
+        at[nv++] = static_cast<std::uint16_t>(li);
+    });
+    px[nv] = px[0];
+    py[nv] = py[0];
+    pz[nv] = pz[0];
+    return nv;
 }
 
 /// Candidate k's cells of the cubes holding its sub-block sb's preimages.
@@ -624,20 +643,9 @@ void Gather::ball_powers(const Block& b, Local& loc, std::size_t k, int sb) cons
     alignas(16) double px[65], py[65], pz[65];  // the preimages (and one more: least_powers takes two at a time)
     alignas(16) double best[65], arg[65];       // the least power and its sphere (a double, exact: best's lanes)
     std::uint16_t at[64];                       // the voxels' places in the block
-    int nv = 0;
-    for_sub_block(s_.pull(loc.fields[k]), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
-        px[nv] = Pull::to_double(pf[0]);
-        py[nv] = Pull::to_double(pf[1]);
-        pz[nv] = Pull::to_double(pf[2]);
-        best[nv] = kInf;
-        arg[nv] = 0;
-        at[nv++] = static_cast<std::uint16_t>(li);
-    });
-    px[nv] = px[0];  // the pair's second half when nv is odd (its result is not read)
-    py[nv] = py[0];
-    pz[nv] = pz[0];
-    best[nv] = kInf;
-    arg[nv] = 0;
+    std::fill(best, best + 65, kInf);
+    std::fill(arg, arg + 65, 0.0);
+    const int nv = sub_block_preimages(s_.pull(loc.fields[k]), b.base, b.e, sb, px, py, pz, at);
     for (std::uint32_t i = span[0]; i < span[1]; ++i) {
         const auto& sp = f.sph[loc.sub_balls[i]];
         least_powers<false>(sp.c, sp.lim, loc.sub_balls[i], px, py, pz, nv, s_.s2, best, arg);
@@ -665,16 +673,7 @@ void Gather::blend_powers(const Block& b, Local& loc, std::size_t k, int sb) con
         bool seen = false;
         for (std::uint32_t j = span[0]; j < i && !seen; ++j) seen = posed_.ball[list[j]].field == f;
         if (seen) continue;
-        nv = 0;
-        for_sub_block(s_.pull(f), b.base, b.e, sb, [&](std::size_t li, const std::int64_t* pf) {
-            px[nv] = Pull::to_double(pf[0]);
-            py[nv] = Pull::to_double(pf[1]);
-            pz[nv] = Pull::to_double(pf[2]);
-            at[nv++] = static_cast<std::uint16_t>(li);
-        });
-        px[nv] = px[0];
-        py[nv] = py[0];
-        pz[nv] = pz[0];
+        nv = sub_block_preimages(s_.pull(f), b.base, b.e, sb, px, py, pz, at);  // the same voxels for every group
         const BoneField& field = s_.field(f);
         for (std::uint32_t j = i; j < span[1]; ++j) {
             const PosedBall& pb = posed_.ball[list[j]];
@@ -788,7 +787,7 @@ bool Gather::load_first_label(Local& loc, std::size_t r, std::size_t li, const s
     const auto k = static_cast<std::size_t>(loc.running[r]);
     Candidate& c = loc.cands[r];
     c.field = field_at(loc, k, li);
-    if (loc.ball[k]) {  // computed already (ball_powers)
+    if (loc.ball[k] != kLattice) {  // computed already (ball_powers, blend_powers)
         c.U = c.L = loc.exact[k * 512 + li];
         c.local = loc.exact_local[k * 512 + li];
         c.exact = c.sharp_L = true;

@@ -28,14 +28,13 @@ PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
     std::sort(order.begin(), order.end());
     out.ball.resize(order.size());
     for (std::size_t j = 0; j < order.size(); ++j) {
-        const auto [g, f, i] = order[j];
+        const std::uint32_t f = order[j][1], i = order[j][2];
         const BoneField::Sphere& sp = set.fields[f].sph[i];
         PosedBall& b = out.ball[j];
         set.motions[f].forward.apply(sp.c, b.c);
         b.lim = sp.lim;
         b.field = static_cast<std::int32_t>(f);
         b.local = i;
-        (void)g;
     }
     // The fixed-point maps' error, 1e-9 voxel per voxel of reach along each axis, as a world length eps: a power
     // computed through them is off by at most 2 eps d + eps² at world distance d from the centre, and
@@ -87,7 +86,7 @@ PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
                     for (t[0] = 2 * k[0]; t[0] < std::min(2 * k[0] + 2, out.nt[0]); ++t[0]) {
                         box_of(t, PosedBalls::kTile, box);
                         prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, sc.region.data(),
-                                    sc.region.size(), out.kept[static_cast<std::size_t>((t[2] * out.nt[1] + t[1]) * out.nt[0] + t[0])],
+                                    sc.region.size(), out.kept[out.tile(t)],
                                     sc.powers);
                     }
         }

@@ -1,6 +1,6 @@
 // deform/posed_balls.hpp: one frame's blended spheres (the smooth blend groups', fields without lattice tables)
-// posed into the output lattice and listed per 8³ output block, so that the gather takes all of them as one
-// candidate (gather.cpp, the blend candidate) instead of one per group.
+// posed into the output lattice, listed per 32³ region and pruned per 16³ tile of the output box, so that the gather
+// takes all of them as one candidate (gather.cpp, the blend candidate) instead of one per group.
 //
 // Every blend is rigid (blended_motion), so a sphere's power at an output point q is |q − y|² − r² with y its posed
 // centre (world metric), and two spheres' powers differ by an affine function of q whatever their groups: the
@@ -124,9 +124,11 @@ struct PosedBalls {
     std::size_t region(const std::int64_t* k) const {
         return static_cast<std::size_t>(((k[2] / 4) * nr[1] + k[1] / 4) * nr[0] + k[0] / 4);
     }
-    /// The tile of output block (kx, ky, kz).
-    std::size_t tile(const std::int64_t* k) const {
-        return static_cast<std::size_t>(((k[2] / 2) * nt[1] + k[1] / 2) * nt[0] + k[0] / 2);
+    /// Tile (tx, ty, tz); tile_of: the tile of output block (kx, ky, kz).
+    std::size_t tile(const std::int64_t* t) const { return static_cast<std::size_t>((t[2] * nt[1] + t[1]) * nt[0] + t[0]); }
+    std::size_t tile_of(const std::int64_t* k) const {
+        const std::int64_t t[3] = {k[0] / 2, k[1] / 2, k[2] / 2};
+        return tile(t);
     }
 };
 
