@@ -61,10 +61,12 @@ void build_kd(BoneField& f, std::vector<std::uint32_t>& order, std::uint32_t beg
     f.nodes[static_cast<std::size_t>(self)].right = right;
 }
 
-/// One 1-D lower envelope of parabolas w·(q − p)² + f(p) over the finite samples of a line, carrying labels.
+/// One 1-D lower envelope of parabolas w·(q − p)² + f(p) over the finite samples of a line, carrying labels. In
+/// units of w each parabola is x² − 2px + g(p) with g(p) = f(p) / w + p², so two of them cross where the lines
+/// −2px + g(p) do: the test whether a new parabola hides the last one kept needs no division.
 struct LabelEnvelope {
     std::vector<std::int64_t> v;
-    std::vector<double> z, fv;
+    std::vector<double> z, fv, gv;
     std::vector<std::uint32_t> lv;
     std::vector<double> column_f;  // the z pass's columns, copied out of the field's lattice
     std::vector<std::uint32_t> column_lab;
@@ -73,24 +75,27 @@ struct LabelEnvelope {
         v.resize(static_cast<std::size_t>(n));
         z.resize(static_cast<std::size_t>(n) + 1);
         fv.resize(static_cast<std::size_t>(n));
+        gv.resize(static_cast<std::size_t>(n));
         lv.resize(static_cast<std::size_t>(n));
+        const double inv_w = 1.0 / w;
         std::int64_t k = -1;
         for (std::int64_t q = 0; q < n; ++q) {
             const double fq = f[q * stride];
             if (!(fq < kInf)) continue;
-            double s = -kInf;
-            while (k >= 0) {
-                const std::int64_t p = v[static_cast<std::size_t>(k)];
-                s = ((fq - fv[static_cast<std::size_t>(k)]) / w + static_cast<double>(q * q - p * p)) /
-                    (2.0 * static_cast<double>(q - p));
-                if (s <= z[static_cast<std::size_t>(k)]) --k;
-                else break;
-            }
+            const double gq = fq * inv_w + static_cast<double>(q * q);
+            // pop the parabolas the new one hides from where they start: the crossing (gq − gp) / 2(q − p) <= z
+            while (k >= 0 && gq - gv[static_cast<std::size_t>(k)] <=
+                                 2.0 * static_cast<double>(q - v[static_cast<std::size_t>(k)]) * z[static_cast<std::size_t>(k)])
+                --k;
+            const double s = k < 0 ? -kInf
+                                   : (gq - gv[static_cast<std::size_t>(k)]) /
+                                         (2.0 * static_cast<double>(q - v[static_cast<std::size_t>(k)]));
             ++k;
             v[static_cast<std::size_t>(k)] = q;
             fv[static_cast<std::size_t>(k)] = fq;
+            gv[static_cast<std::size_t>(k)] = gq;
             lv[static_cast<std::size_t>(k)] = lab[q * stride];
-            z[static_cast<std::size_t>(k)] = k == 0 ? -kInf : s;
+            z[static_cast<std::size_t>(k)] = s;
         }
         if (k < 0) return;
         std::int64_t j = 0;
@@ -148,11 +153,14 @@ void place_spheres(BoneField& f, const Grid& g, const BoundSpheres& s, const std
 
 /// The power diagram on the field's lattice: F = min over the spheres of |v − c|² − lim and its argmin (local
 /// index, kNone where F is infinite), by separable lower envelopes of parabolas seeded at the centres.
-void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F, std::vector<std::uint32_t>& lab) {
+void power_diagram(const BoneField& f, const double* s2, double* F, std::uint32_t* lab) {
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
-    const auto count = static_cast<std::size_t>(nx * ny * nz);
-    F.assign(count, kInf);
-    lab.assign(count, kNone);
+    const auto slice = static_cast<std::size_t>(nx * ny);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        const auto a = static_cast<std::size_t>(rg.begin()) * slice, b = static_cast<std::size_t>(rg.end()) * slice;
+        std::fill(F + a, F + b, kInf);
+        std::fill(lab + a, lab + b, kNone);
+    });
     for (std::size_t k = 0; k < f.sph.size(); ++k) {
         const auto& sp = f.sph[k];
         if (!(sp.lim > 0)) continue;
@@ -171,11 +179,11 @@ void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F,
         for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
             for (std::int64_t y = 0; y < ny; ++y) {
                 const auto base = static_cast<std::size_t>((z * ny + y) * nx);
-                e.run(F.data() + base, lab.data() + base, nx, 1, s2[0]);
+                e.run(F + base, lab + base, nx, 1, s2[0]);
             }
             for (std::int64_t x = 0; x < nx; ++x) {
                 const auto base = static_cast<std::size_t>(z * ny * nx + x);
-                e.run(F.data() + base, lab.data() + base, ny, nx, s2[1]);
+                e.run(F + base, lab + base, ny, nx, s2[1]);
             }
         }
     });
@@ -204,7 +212,7 @@ void power_diagram(const BoneField& f, const double* s2, std::vector<double>& F,
 /// Keeps the blocks where the power dips below T at a cell or at the cells one step above (the far corners of the
 /// block's cubes): elsewhere no point can be covered, and a cube whose first corner lies in a block that is not
 /// kept has no corner below T. Allocates the kept blocks' cells.
-void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
+void keep_blocks(BoneField& f, const double* F, double T) {
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
     const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
     f.block_index.assign(static_cast<std::size_t>(bx * by * bz), -1);
@@ -216,7 +224,7 @@ void keep_blocks(BoneField& f, const std::vector<double>& F, double T) {
                     bool any = false;
                     for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock + 1) && !any; ++z)
                         for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock + 1) && !any; ++y) {
-                            const double* row = F.data() + static_cast<std::size_t>((z * ny + y) * nx);
+                            const double* row = F + static_cast<std::size_t>((z * ny + y) * nx);
                             for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock + 1); ++x)
                                 if (row[x] < T) {
                                     any = true;
@@ -249,8 +257,8 @@ struct Pending {
 
 /// The inputs of the per-cell pass: the power diagram on the field's lattice and the constants of its bounds.
 struct CellPass {
-    const std::vector<double>& F;
-    const std::vector<std::uint32_t>& lab;
+    const double* F;
+    const std::uint32_t* lab;
     const double* s2;
     double T, step;
     double quarter;  // the concave term's largest value over a cube, Σ s²/4
@@ -266,8 +274,7 @@ struct Tile {
     double F[729];
     std::uint32_t lab[729];
 
-    void load(const BoneField& f, std::size_t slot, const std::vector<double>& F_all,
-              const std::vector<std::uint32_t>& lab_all, double T) {
+    void load(const BoneField& f, std::size_t slot, const double* F_all, const std::uint32_t* lab_all, double T) {
         const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
         const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
         const std::int64_t ex = std::min<std::int64_t>(9, nx - x0);
@@ -505,15 +512,18 @@ void scale_ball_field(BoneField& f, const std::vector<double>& r, double factor,
 }
 
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
-                           const std::vector<double>& r, double T, double step) {
+                           const std::vector<double>& r, double T, double step, DiagramScratch* diagram_scratch) {
     BoneField f;
     if (members.size() >= kClosedBit) throw Error("deform: too many spheres bound to one bone");
     place_spheres(f, g, s, members, r, T);
     if (members.empty()) return f;
     const double s2[3] = {g.spacing[0] * g.spacing[0], g.spacing[1] * g.spacing[1], g.spacing[2] * g.spacing[2]};
-    std::vector<double> F;
-    std::vector<std::uint32_t> lab;
-    power_diagram(f, s2, F, lab);
+    DiagramScratch own;
+    DiagramScratch& diagram = diagram_scratch ? *diagram_scratch : own;
+    diagram.reserve(static_cast<std::size_t>(f.dims[0] * f.dims[1] * f.dims[2]));
+    const double* F = diagram.F.get();
+    const std::uint32_t* lab = diagram.lab.get();
+    power_diagram(f, s2, diagram.F.get(), diagram.lab.get());
     keep_blocks(f, F, T);
     f.step = step;
     f.floor_T = T;

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "deform/common.hpp"
@@ -274,11 +275,28 @@ inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const do
                       exact_bounds(length2(far[0], far[1], far[2], s2) - sp.lim, inv).hi};
 }
 
+/// The power diagram over a field's lattice box (its values and labels, 12 bytes a cell), kept across the fields of
+/// one build so that each field does not fault in fresh pages for its own: grows to the largest box asked for.
+struct DiagramScratch {
+    std::unique_ptr<double[]> F;
+    std::unique_ptr<std::uint32_t[]> lab;
+    std::size_t capacity = 0;
+    void reserve(std::size_t n) {  // uninitialised: power_diagram fills what it uses, in parallel
+        if (n <= capacity) return;
+        F.reset();
+        lab.reset();
+        F.reset(new double[n]);
+        lab.reset(new std::uint32_t[n]);
+        capacity = n;
+    }
+};
+
 /// Builds one bone's field from its spheres (global indices) with radii r: T is the power above which nothing is
 /// covered (a quarter of the lattice cell's squared diagonal, with a margin), step the quantum of the power ranges
-/// (shared by every field, so that fields compare as integers).
+/// (shared by every field, so that fields compare as integers). `scratch` (optional) lends the power diagram's
+/// lattice, for a build of many fields.
 BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,
-                           const std::vector<double>& r, double T, double step);
+                           const std::vector<double>& r, double T, double step, DiagramScratch* scratch = nullptr);
 
 /// A field without lattice tables (a blend group's): its spheres in k-d order and their k-d tree only.
 BoneField build_ball_field(const Grid& g, const BoundSpheres& s, const std::vector<std::uint32_t>& members,

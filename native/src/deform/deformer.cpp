@@ -134,6 +134,7 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     bound_step = (maxlim + 4 * T) / 30000.0;
     fields.reserve(field_members.size());
     reused = 0;
+    DiagramScratch diagram;
     try {
         for (std::size_t f = 0; f < field_members.size(); ++f) {
             const auto it = old_index.find(field_keys[f]);
@@ -141,7 +142,7 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
                 fields.push_back(std::move(old[it->second]));
                 ++reused;
             } else {
-                fields.push_back(f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step)
+                fields.push_back(f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram)
                                                 : build_ball_field(grid, view(), field_members[f], radii, T, bound_step));
             }
             report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
