@@ -4,6 +4,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <limits>
 #include <numeric>
 
@@ -70,6 +71,7 @@ struct LabelEnvelope {
     std::vector<std::uint32_t> lv;
     std::vector<double> column_f;  // the z pass's columns, copied out of the field's lattice
     std::vector<std::uint32_t> column_lab;
+    std::vector<std::uint8_t> z_blocks;  // per block along z: whether a column's power dips below T at its 9 points
 
     void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
         v.resize(static_cast<std::size_t>(n));
@@ -151,9 +153,22 @@ void place_spheres(BoneField& f, const Grid& g, const BoundSpheres& s, const std
     }
 }
 
+/// Marks the blocks holding lattice point (x, y, z) among their 9³ points (their cells and the next one along each
+/// axis): the point's block, and the one before along each axis where the point starts its block.
+void mark_blocks(const BoneField& f, std::int64_t x, std::int64_t y, const std::vector<std::uint8_t>& z_blocks,
+                 std::atomic<std::uint8_t>* keep) {
+    const std::int64_t bx = f.bdims[0], by = f.bdims[1];
+    for (std::int64_t kx = x >> 3; kx >= 0 && kx >= (x - 1) >> 3; --kx)
+        for (std::int64_t ky = y >> 3; ky >= 0 && ky >= (y - 1) >> 3; --ky)
+            for (std::size_t kz = 0; kz < z_blocks.size(); ++kz)
+                if (z_blocks[kz]) keep[(static_cast<std::int64_t>(kz) * by + ky) * bx + kx].store(1, std::memory_order_relaxed);
+}
+
 /// The power diagram on the field's lattice: F = min over the spheres of |v − c|² − lim and its argmin (local
-/// index, kNone where F is infinite), by separable lower envelopes of parabolas seeded at the centres.
-void power_diagram(const BoneField& f, const double* s2, double* F, std::uint32_t* lab) {
+/// index, kNone where F is infinite), by separable lower envelopes of parabolas seeded at the centres. Sets `keep`
+/// (per block of the field, zeroed) where the power dips below T at one of the block's 9³ points.
+void power_diagram(const BoneField& f, const double* s2, double T, double* F, std::uint32_t* lab,
+                   std::atomic<std::uint8_t>* keep) {
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
     const auto slice = static_cast<std::size_t>(nx * ny);
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
@@ -192,6 +207,7 @@ void power_diagram(const BoneField& f, const double* s2, double* F, std::uint32_
         LabelEnvelope& e = envs.local();
         e.column_f.resize(static_cast<std::size_t>(8 * nz));
         e.column_lab.resize(static_cast<std::size_t>(8 * nz));
+        e.z_blocks.resize(static_cast<std::size_t>(f.bdims[2]));
         for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
             for (std::int64_t x0 = 0; x0 < nx; x0 += 8) {
                 const std::int64_t w = std::min<std::int64_t>(8, nx - x0);
@@ -202,40 +218,32 @@ void power_diagram(const BoneField& f, const double* s2, double* F, std::uint32_
                             move(static_cast<std::size_t>(i * nz + z), static_cast<std::size_t>((z * ny + y) * nx + x0 + i));
                 };
                 each([&](std::size_t c, std::size_t l) { e.column_f[c] = F[l], e.column_lab[c] = lab[l]; });
-                for (std::int64_t i = 0; i < w; ++i)
+                for (std::int64_t i = 0; i < w; ++i) {
+                    const double* column = e.column_f.data() + i * nz;
                     e.run(e.column_f.data() + i * nz, e.column_lab.data() + i * nz, nz, 1, s2[2]);
+                    std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});
+                    bool any = false;
+                    for (std::int64_t z = 0; z < nz; ++z)
+                        if (column[z] < T) {
+                            any = true;
+                            e.z_blocks[static_cast<std::size_t>(z >> 3)] = 1;
+                            if (z > 0) e.z_blocks[static_cast<std::size_t>((z - 1) >> 3)] = 1;
+                        }
+                    if (any) mark_blocks(f, x0 + i, y, e.z_blocks, keep);
+                }
                 each([&](std::size_t c, std::size_t l) { F[l] = e.column_f[c], lab[l] = e.column_lab[c]; });
             }
     });
 }
 
-/// Keeps the blocks where the power dips below T at a cell or at the cells one step above (the far corners of the
-/// block's cubes): elsewhere no point can be covered, and a cube whose first corner lies in a block that is not
-/// kept has no corner below T. Allocates the kept blocks' cells.
-void keep_blocks(BoneField& f, const double* F, double T) {
-    const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
+/// Keeps the blocks marked by power_diagram, where the power dips below T at a cell or at the cells one step above
+/// (the far corners of the block's cubes): elsewhere no point can be covered, and a cube whose first corner lies in
+/// a block that is not kept has no corner below T. Allocates the kept blocks' cells.
+void keep_blocks(BoneField& f, const std::atomic<std::uint8_t>* keep) {
     const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
     f.block_index.assign(static_cast<std::size_t>(bx * by * bz), -1);
-    std::vector<std::uint8_t> keep(static_cast<std::size_t>(bx * by * bz), 0);
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, bz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-        for (std::int64_t kz = rg.begin(); kz != rg.end(); ++kz)
-            for (std::int64_t ky = 0; ky < by; ++ky)
-                for (std::int64_t kx = 0; kx < bx; ++kx) {
-                    bool any = false;
-                    for (std::int64_t z = kz * kBlock; z < std::min(nz, (kz + 1) * kBlock + 1) && !any; ++z)
-                        for (std::int64_t y = ky * kBlock; y < std::min(ny, (ky + 1) * kBlock + 1) && !any; ++y) {
-                            const double* row = F + static_cast<std::size_t>((z * ny + y) * nx);
-                            for (std::int64_t x = kx * kBlock; x < std::min(nx, (kx + 1) * kBlock + 1); ++x)
-                                if (row[x] < T) {
-                                    any = true;
-                                    break;
-                                }
-                        }
-                    keep[static_cast<std::size_t>((kz * by + ky) * bx + kx)] = any;
-                }
-    });
     for (std::int64_t k = 0; k < bx * by * bz; ++k) {
-        if (!keep[static_cast<std::size_t>(k)]) continue;
+        if (!keep[k].load(std::memory_order_relaxed)) continue;
         const std::int64_t kx = k % bx, ky = (k / bx) % by, kz = k / (bx * by);
         f.block_index[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(f.blocks.size());
         f.blocks.push_back({f.lo[0] + kx * kBlock, f.lo[1] + ky * kBlock, f.lo[2] + kz * kBlock});
@@ -243,8 +251,10 @@ void keep_blocks(BoneField& f, const double* F, double T) {
     if (f.blocks.size() * 512 + 1 > std::numeric_limits<std::uint32_t>::max())
         throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
     f.bounds.assign(f.blocks.size() * 512 + 1, CellBounds{});
-    f.words.assign(f.blocks.size() * 512 + 1, kNone);
-    f.corner.assign(f.blocks.size() * 512 + 1, kBoundMax);
+    f.words.resize(f.blocks.size() * 512 + 1);  // unwritten: fill_block_cells writes every block's cells
+    f.corner.resize(f.blocks.size() * 512 + 1);
+    f.words[0] = kNone;
+    f.corner[0] = kBoundMax;
     f.sub.assign(f.blocks.size() * 8, CellBounds{});
     f.pair_sphere.assign(f.blocks.size() * 64, kNone);
 }
@@ -350,6 +360,10 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
     for (int a = 0; a < 3; ++a) {
         first[a] = f.blocks[slot][static_cast<std::size_t>(a)] - f.lo[static_cast<std::size_t>(a)];
         e[a] = std::min<std::int64_t>(kBlock, f.dims[static_cast<std::size_t>(a)] - first[a]);
+    }
+    if (e[0] < kBlock || e[1] < kBlock || e[2] < kBlock) {  // cells past the field's edge: no label, no cover
+        std::fill(out_word, out_word + 512, kNone);
+        std::fill(out_corner, out_corner + 512, kBoundMax);
     }
     for (std::int64_t z = 0; z < e[2]; ++z)
         for (std::int64_t y = 0; y < e[1]; ++y)
@@ -523,8 +537,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     diagram.reserve(static_cast<std::size_t>(f.dims[0] * f.dims[1] * f.dims[2]));
     const double* F = diagram.F.get();
     const std::uint32_t* lab = diagram.lab.get();
-    power_diagram(f, s2, diagram.F.get(), diagram.lab.get());
-    keep_blocks(f, F, T);
+    const std::unique_ptr<std::atomic<std::uint8_t>[]> keep(new std::atomic<std::uint8_t>[static_cast<std::size_t>(
+        f.bdims[0] * f.bdims[1] * f.bdims[2])]());
+    power_diagram(f, s2, T, diagram.F.get(), diagram.lab.get(), keep.get());
+    keep_blocks(f, keep.get());
     f.step = step;
     f.floor_T = T;
     double maxlim = 0;
