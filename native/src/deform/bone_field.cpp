@@ -176,6 +176,7 @@ void power_diagram(const BoneField& f, const double* s2, double T, double* F, st
         std::fill(F + a, F + b, kInf);
         std::fill(lab + a, lab + b, kNone);
     });
+    std::vector<std::uint8_t> seeded(static_cast<std::size_t>(ny * nz), 0);  // per x row: holds a centre
     for (std::size_t k = 0; k < f.sph.size(); ++k) {
         const auto& sp = f.sph[k];
         if (!(sp.lim > 0)) continue;
@@ -186,13 +187,18 @@ void power_diagram(const BoneField& f, const double* s2, double T, double* F, st
             F[idx] = -sp.lim;
             lab[idx] = static_cast<std::uint32_t>(k);
         }
+        seeded[idx / static_cast<std::size_t>(nx)] = 1;
     }
     tbb::enumerable_thread_specific<LabelEnvelope> envs;
-    // x rows, then y columns, then z columns; each pass parallel over the other two axes.
+    // x rows, then y columns, then z columns; each pass parallel over the other two axes. Rows and slices without
+    // a centre stay infinite until the z pass.
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
         for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
+            const std::uint8_t* row_seeded = seeded.data() + z * ny;
+            if (std::find(row_seeded, row_seeded + ny, std::uint8_t{1}) == row_seeded + ny) continue;
             for (std::int64_t y = 0; y < ny; ++y) {
+                if (!row_seeded[y]) continue;
                 const auto base = static_cast<std::size_t>((z * ny + y) * nx);
                 e.run(F + base, lab + base, nx, 1, s2[0]);
             }
