@@ -153,8 +153,9 @@ void place_spheres(BoneField& f, const Grid& g, const BoundSpheres& s, const std
     }
 }
 
-/// Marks the blocks holding lattice point (x, y, z) among their 9³ points (their cells and the next one along each
-/// axis): the point's block, and the one before along each axis where the point starts its block.
+/// Marks the blocks that hold a point of column (x, y) among their 9³ points (their cells and the next one along
+/// each axis), in the blocks along z flagged in `z_blocks`: the column's blocks, and the ones before along x and y
+/// where the column starts its block.
 void mark_blocks(const BoneField& f, std::int64_t x, std::int64_t y, const std::vector<std::uint8_t>& z_blocks,
                  std::atomic<std::uint8_t>* keep) {
     const std::int64_t bx = f.bdims[0], by = f.bdims[1];
@@ -225,9 +226,9 @@ void power_diagram(const BoneField& f, const double* s2, double T, double* F, st
                 };
                 each([&](std::size_t c, std::size_t l) { e.column_f[c] = F[l], e.column_lab[c] = lab[l]; });
                 for (std::int64_t i = 0; i < w; ++i) {
-                    const double* column = e.column_f.data() + i * nz;
-                    e.run(e.column_f.data() + i * nz, e.column_lab.data() + i * nz, nz, 1, s2[2]);
-                    std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});
+                    double* column = e.column_f.data() + i * nz;
+                    e.run(column, e.column_lab.data() + i * nz, nz, 1, s2[2]);
+                    std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});  // as for x and y in mark_blocks
                     bool any = false;
                     for (std::int64_t z = 0; z < nz; ++z)
                         if (column[z] < T) {
