@@ -60,10 +60,10 @@ struct RandomSpheres {
     std::array<double, 3> s2() const {
         return {grid.spacing[0] * grid.spacing[0], grid.spacing[1] * grid.spacing[1], grid.spacing[2] * grid.spacing[2]};
     }
-    BoneField field() const {
+    BoneField field(DiagramScratch* diagram = nullptr) const {
         double maxlim = 0;
         for (double r : radii) maxlim = std::max(maxlim, open_ball_limit_sq(r));
-        return build_bone_field(grid, spheres(), members, radii, T(), (maxlim + 4 * T()) / 30000.0);
+        return build_bone_field(grid, spheres(), members, radii, T(), (maxlim + 4 * T()) / 30000.0, diagram);
     }
     BoneField ball_field() const { return build_ball_field(grid, spheres(), members, radii, T(), 1.0); }
 };
@@ -295,6 +295,37 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers aga
                 CHECK(r.hi >= f.bounds[c].hi);
             }
     CHECK(f.any_block(a, b) == allocated);
+}
+
+TEST_CASE("a field built on a lent power-diagram lattice equals one built alone; every kept block dips below T",
+          "[deform][stages]") {
+    DiagramScratch diagram;  // lent to every build below: the first box is the largest, so later ones reuse stale memory
+    for (const auto& [seed, n] : {std::pair<std::uint32_t, std::size_t>{21, 60}, {5, 12}, {8, 30}}) {
+        const RandomSpheres rs(seed, n);
+        const BoneField alone = rs.field(), lent = rs.field(&diagram);
+        REQUIRE(diagram.F.size() >= static_cast<std::size_t>(lent.dims[0] * lent.dims[1] * lent.dims[2]));
+        CHECK(lent.blocks == alone.blocks);
+        CHECK(lent.block_index == alone.block_index);
+        CHECK(std::equal(lent.words.begin(), lent.words.end(), alone.words.begin(), alone.words.end()));
+        CHECK(std::equal(lent.corner.begin(), lent.corner.end(), alone.corner.begin(), alone.corner.end()));
+        CHECK(std::equal(lent.bounds.begin(), lent.bounds.end(), alone.bounds.begin(), alone.bounds.end(),
+                         [](CellBounds a, CellBounds b) { return a.lo == b.lo && a.hi == b.hi; }));
+        CHECK(lent.pair_sphere == alone.pair_sphere);
+        // The blocks are kept exactly where the power dips below T at one of their 9³ lattice points (the brute force).
+        const auto s2 = rs.s2();
+        for (const auto& first : lent.blocks) {
+            bool dips = false;
+            for (std::int64_t z = 0; z <= kBlock && !dips; ++z)
+                for (std::int64_t y = 0; y <= kBlock && !dips; ++y)
+                    for (std::int64_t x = 0; x <= kBlock && !dips; ++x) {
+                        const double p[3] = {double(first[0] + x), double(first[1] + y), double(first[2] + z)};
+                        const bool inside = p[0] < double(lent.lo[0] + lent.dims[0]) && p[1] < double(lent.lo[1] + lent.dims[1]) &&
+                                            p[2] < double(lent.lo[2] + lent.dims[2]);
+                        dips = inside && brute_power(lent, p, s2.data()).key < rs.T();
+                    }
+            CHECK(dips);
+        }
+    }
 }
 
 TEST_CASE("one sphere's cells: its power is the field's on all their cubes", "[deform][stages]") {

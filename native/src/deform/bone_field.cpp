@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <limits>
+#include <memory>
 #include <numeric>
 
 #include "deform/bend.hpp"
@@ -542,18 +543,16 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     DiagramScratch own;
     DiagramScratch& diagram = diagram_scratch ? *diagram_scratch : own;
     diagram.reserve(static_cast<std::size_t>(f.dims[0] * f.dims[1] * f.dims[2]));
-    const double* F = diagram.F.get();
-    const std::uint32_t* lab = diagram.lab.get();
     const std::unique_ptr<std::atomic<std::uint8_t>[]> keep(new std::atomic<std::uint8_t>[static_cast<std::size_t>(
         f.bdims[0] * f.bdims[1] * f.bdims[2])]());
-    power_diagram(f, s2, T, diagram.F.get(), diagram.lab.get(), keep.get());
+    power_diagram(f, s2, T, diagram.F.data(), diagram.lab.data(), keep.get());
     keep_blocks(f, keep.get());
     f.step = step;
     f.floor_T = T;
     double maxlim = 0;
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
     const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
-    const CellPass pass{F, lab, s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter), 1.0 / step};
+    const CellPass pass{diagram.F.data(), diagram.lab.data(), s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter), 1.0 / step};
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);
         NearSpheres near, sub;

@@ -7,13 +7,13 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <memory>
 #include <vector>
 
 #include "deform/common.hpp"
 #include "deform/huge_pages.hpp"
 #include "deform/motion.hpp"
 #include "volrig/deform.hpp"
+#include "volrig/memory.hpp"
 
 namespace volrig::deform_detail {
 
@@ -278,16 +278,14 @@ inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const do
 /// The power diagram over a field's lattice box (its values and labels, 12 bytes a cell), kept across the fields of
 /// one build so that each field does not fault in fresh pages for its own: grows to the largest box asked for.
 struct DiagramScratch {
-    std::unique_ptr<double[]> F;
-    std::unique_ptr<std::uint32_t[]> lab;
-    std::size_t capacity = 0;
+    Buffer<double> F;
+    Buffer<std::uint32_t> lab;
     void reserve(std::size_t n) {  // uninitialised: power_diagram fills what it uses, in parallel
-        if (n <= capacity) return;
-        F.reset();
-        lab.reset();
-        F.reset(new double[n]);
-        lab.reset(new std::uint32_t[n]);
-        capacity = n;
+        if (n <= F.size()) return;
+        Buffer<double>().swap(F);  // the old lattice goes before the larger one comes
+        Buffer<std::uint32_t>().swap(lab);
+        F.resize(n);
+        lab.resize(n);
     }
 };
 

@@ -4,9 +4,9 @@
 #include <cstddef>
 #include <cstdlib>
 #include <new>
-#include <type_traits>
-#include <utility>
 #include <vector>
+
+#include "volrig/memory.hpp"
 
 namespace volrig::deform_detail {
 
@@ -15,9 +15,15 @@ namespace volrig::deform_detail {
 /// madvise(MADV_HUGEPAGE) over [p, p + bytes); failure is ignored (advice only).
 void advise_huge(void* p, std::size_t bytes);
 
+/// Its construct() default-initialises (UninitializedAllocator's): resize() leaves a table of plain numbers
+/// unwritten, so that its builder's threads fault its pages in as they fill it, in parallel.
 template <class T>
-struct HugePageAllocator {
+struct HugePageAllocator : UninitializedAllocator<T> {
     using value_type = T;
+    template <class U>
+    struct rebind {
+        using other = HugePageAllocator<U>;
+    };
     HugePageAllocator() = default;
     template <class U>
     HugePageAllocator(const HugePageAllocator<U>&) {}
@@ -33,16 +39,6 @@ struct HugePageAllocator {
     void deallocate(T* p, std::size_t n) {
         if (n * sizeof(T) < 2 * (std::size_t{2} << 20)) ::operator delete(p);
         else std::free(p);
-    }
-    /// Default-initialises (not value-initialises): resize() leaves a table of plain numbers unwritten, so that its
-    /// builder's threads fault its pages in as they fill it, in parallel.
-    template <class U>
-    void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
-        ::new (static_cast<void*>(p)) U;
-    }
-    template <class U, class... A>
-    void construct(U* p, A&&... a) {
-        ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
     }
     template <class U>
     bool operator==(const HugePageAllocator<U>&) const { return true; }
