@@ -36,6 +36,29 @@ void rezero_written(ZeroedPool::Slab& s) {
                       });
 }
 
+/// Gives back to the kernel every page of `s` holding a granule marked written, and clears the marks: the slab reads
+/// zero again without being written, and holds nothing resident (a use under another layout).
+void release_written(ZeroedPool::Slab& s) {
+    constexpr std::size_t per_page = kPage / kZeroGranule;
+    char* base = static_cast<char*>(s.p);
+    std::atomic<std::uint8_t>* written = s.written.get();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s.bytes / kPage, 4096), [&](const tbb::blocked_range<std::size_t>& rg) {
+        std::size_t run = rg.end();  // the first page of a run of written pages
+        auto flush = [&](std::size_t end) {
+            if (run < end) madvise(base + run * kPage, (end - run) * kPage, MADV_DONTNEED);
+            run = rg.end();
+        };
+        for (std::size_t page = rg.begin(); page != rg.end(); ++page) {
+            bool any = false;
+            for (std::size_t k = page * per_page; k < (page + 1) * per_page; ++k)
+                any = written[k].exchange(0, std::memory_order_relaxed) || any;
+            if (!any) flush(page);
+            else if (run == rg.end()) run = page;
+        }
+        flush(rg.end());
+    });
+}
+
 /// Gives the pages that were zeroed for the slab's last use (rezero_written) and that it did not write back to the
 /// kernel, and clears those marks: a slab kept for reuse then holds resident only what its last frame wrote, not
 /// the union of what all its frames wrote (frames' boxes move, and their covered bricks with them).
@@ -78,7 +101,7 @@ std::shared_ptr<ZeroedPool> ZeroedPool::create(std::size_t keep) {
 
 ZeroedPool::~ZeroedPool() = default;
 
-ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
+ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes, std::uint64_t layout) {
     std::unique_ptr<Slab> s;
     {  // the smallest free slab that is large enough
         std::lock_guard<std::mutex> lock(mutex_);
@@ -91,7 +114,9 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
         }
     }
     if (s) {
-        rezero_written(*s);
+        if (layout != 0 && layout != s->layout) release_written(*s);
+        else rezero_written(*s);
+        s->layout = layout;
         return s.release();
     }
     // Fresh memory, with headroom: the frames of a sequence differ in size, and pages never written cost nothing.
@@ -103,6 +128,7 @@ ZeroedPool::Slab* ZeroedPool::acquire(std::size_t bytes) {
     s->bytes = cap;
     s->written.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
     s->zeroed.reset(new std::atomic<std::uint8_t>[cap / kZeroGranule]());
+    s->layout = layout;
     return s.release();
 }
 

@@ -91,3 +91,38 @@ TEST_CASE("a ZeroedPool keeps resident what the last use wrote, not what every u
     REQUIRE(c.data() == at);
     for (std::size_t i = 0; i < n; ++i) REQUIRE(c[i] == 0.0f);
 }
+
+TEST_CASE("a ZeroedPool gives back what a use under another layout wrote, instead of re-zeroing it", "[memory]") {
+    auto pool = ZeroedPool::create(1);
+    constexpr std::size_t n = 1 << 20;  // 4 MiB of floats: 1024 pages
+    const float* at = nullptr;
+    {
+        ZeroedArray<float> a = pool->take<float>(n, 7);
+        for (std::size_t i = 0; i < n / 2; ++i) a[i] = 1.0f;  // 512 pages
+        a.mark_written(0, n / 2);
+        at = a.data();
+    }
+    {
+        ZeroedArray<float> same = pool->take<float>(n, 7);  // the same layout: re-zeroed in place, still resident
+        REQUIRE(same.data() == at);
+        REQUIRE(resident_pages(at, n * 4) >= 512);
+        for (std::size_t i = 0; i < n / 2; ++i) REQUIRE(same[i] == 0.0f);
+        for (std::size_t i = 0; i < n / 2; ++i) same[i] = 1.0f;
+        same.mark_written(0, n / 2);
+    }
+    {
+        ZeroedArray<float> other = pool->take<float>(n, 8);  // another layout: nothing of the old use stays resident
+        REQUIRE(other.data() == at);
+        REQUIRE(resident_pages(at, n * 4) <= 2);
+        for (std::size_t i = n / 2; i < n / 2 + 1024 * 100; ++i) other[i] = 2.0f;  // 100 other pages
+        other.mark_written(n / 2, n / 2 + 1024 * 100);
+        REQUIRE(resident_pages(at, n * 4) >= 100);
+        REQUIRE(resident_pages(at, n * 4) <= 110);
+        for (std::size_t i = 0; i < n / 2; ++i) REQUIRE(other[i] == 0.0f);  // (reading maps the zero page: last)
+    }
+    // the same key with another element size is another layout too
+    ZeroedArray<std::int16_t> bone = pool->take<std::int16_t>(n, 8);
+    REQUIRE(static_cast<const void*>(bone.data()) == static_cast<const void*>(at));
+    REQUIRE(resident_pages(at, n * 4) <= 2);
+    for (std::size_t i = 0; i < n; ++i) REQUIRE(bone[i] == 0);
+}

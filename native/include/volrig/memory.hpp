@@ -107,7 +107,10 @@ private:
 /// Recycles the large zero-filled outputs of a sequence of frames: an array given back (when its last owner goes)
 /// keeps the pages it wrote, and the next take() re-zeroes only the granules marked written, instead of the kernel
 /// faulting in and zeroing fresh pages one by one; pages zeroed for a use that did not write them go back to the
-/// kernel when it ends. Keeps at most `keep` free blocks of memory; thread-safe.
+/// kernel when it ends. A use may name its layout (what each element stands for, such as a frame's box): memory last
+/// used under another layout is given back to the kernel where it was written instead of re-zeroed, since the new
+/// use would write other places and the old pages would stay resident beside the new ones until it ends. Keeps at
+/// most `keep` free blocks of memory; thread-safe.
 class ZeroedPool : public std::enable_shared_from_this<ZeroedPool> {
 public:
     static std::shared_ptr<ZeroedPool> create(std::size_t keep = 2);
@@ -115,12 +118,13 @@ public:
     ZeroedPool(const ZeroedPool&) = delete;
     ZeroedPool& operator=(const ZeroedPool&) = delete;
 
-    /// n zeroed elements; writers must mark_written what they write.
+    /// n zeroed elements; writers must mark_written what they write. `layout` (0: none) names what the elements
+    /// stand for; memory last used under another one is given back where written, not re-zeroed.
     template <class T>
-    ZeroedArray<T> take(std::size_t n) {
+    ZeroedArray<T> take(std::size_t n, std::uint64_t layout = 0) {
         if (n == 0) return {};
         if (n > static_cast<std::size_t>(-1) / 2 / sizeof(T)) throw std::bad_alloc();
-        Slab* s = acquire(n * sizeof(T));
+        Slab* s = acquire(n * sizeof(T), layout == 0 ? 0 : layout * 31 + sizeof(T));
         std::weak_ptr<ZeroedPool> pool = weak_from_this();
         std::shared_ptr<void> owner(s->p, [pool, s](void*) { give_back(pool, s); });
         return ZeroedArray<T>(static_cast<T*>(s->p), n, std::move(owner), s->written.get(), s->p);
@@ -135,12 +139,13 @@ public:
         std::size_t bytes = 0;
         std::unique_ptr<std::atomic<std::uint8_t>[]> written;  // a flag per kZeroGranule bytes
         std::unique_ptr<std::atomic<std::uint8_t>[]> zeroed;   // likewise: zeroed when last handed out
+        std::uint64_t layout = 0;                              // of the last use (with the element size)
         ~Slab();
     };
 
 private:
     explicit ZeroedPool(std::size_t keep) : keep_(keep) {}
-    Slab* acquire(std::size_t bytes);
+    Slab* acquire(std::size_t bytes, std::uint64_t layout);
     static void give_back(const std::weak_ptr<ZeroedPool>& pool, Slab* s);
     mutable std::mutex mutex_;
     std::vector<std::unique_ptr<Slab>> free_;

@@ -35,6 +35,13 @@ E from_name(const std::string& name, const std::array<const char*, N>& names, co
     throw Error("unknown " + std::string(what) + " '" + name + "' (use " + list + ")");
 }
 
+/// A key for a frame's box (never 0, which names no layout): the output pool's layout of a frame in bricks.
+std::uint64_t box_key(const Box& bx) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (const std::int64_t v : bx) h = (h ^ static_cast<std::uint64_t>(v)) * 1099511628211ull;
+    return h | 1;
+}
+
 }  // namespace
 
 DeformMode deform_mode_from_name(const std::string& name) {
@@ -201,9 +208,12 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
     const auto total = static_cast<std::size_t>(bx[3] * bx[4] * bx[5]);
-    // Recycled output memory: only what earlier frames wrote is zeroed again (marked as it is written).
-    if (o.values) out.values = pool->take<float>(total);
-    out.bone = pool->take<std::int16_t>(total);
+    // Recycled output memory: only what earlier frames wrote is zeroed again (marked as it is written). A frame in
+    // bricks names its box as the layout: a voxel's place in the bricks moves with the box, so memory a frame on
+    // another box wrote goes back to the kernel rather than staying resident beside this frame's.
+    const std::uint64_t layout = o.bricks ? box_key(bx) : 0;
+    if (o.values) out.values = pool->take<float>(total, layout);
+    out.bone = pool->take<std::int16_t>(total, layout);
     report(progress, 0.55);
     const auto& sp = grid.spacing;
     const FieldSet set{fields, motions, sp.data(), {sp[0] * sp[0], sp[1] * sp[1], sp[2] * sp[2]}, threshold(),
