@@ -258,12 +258,13 @@ void keep_blocks(BoneField& f, const std::atomic<std::uint8_t>* keep) {
     }
     if (f.blocks.size() * 512 + 1 > std::numeric_limits<std::uint32_t>::max())
         throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
-    f.bounds.assign(f.blocks.size() * 512 + 1, CellBounds{});
-    f.words.resize(f.blocks.size() * 512 + 1);  // unwritten: fill_block_cells writes every block's cells
+    f.bounds.resize(f.blocks.size() * 512 + 1);  // unwritten: fill_block_cells writes every block's cells, in parallel
+    f.words.resize(f.blocks.size() * 512 + 1);
     f.corner.resize(f.blocks.size() * 512 + 1);
+    f.bounds[0] = kNoCover;
     f.words[0] = kNone;
     f.corner[0] = kBoundMax;
-    f.sub.assign(f.blocks.size() * 8, CellBounds{});
+    f.sub.resize(f.blocks.size() * 8);  // sub_block_ranges writes them
     f.pair_sphere.assign(f.blocks.size() * 64, kNone);
 }
 
@@ -370,6 +371,7 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
         e[a] = std::min<std::int64_t>(kBlock, f.dims[static_cast<std::size_t>(a)] - first[a]);
     }
     if (e[0] < kBlock || e[1] < kBlock || e[2] < kBlock) {  // cells past the field's edge: no label, no cover
+        std::fill(out, out + 512, kNoCover);
         std::fill(out_word, out_word + 512, kNone);
         std::fill(out_corner, out_corner + 512, kBoundMax);
     }

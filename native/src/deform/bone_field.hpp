@@ -27,11 +27,12 @@ struct KdNode {
 
 /// The power of a bone over one lattice cube (first corner at a cell), quantised outwards to int16 steps:
 /// lo <= power <= hi everywhere in the cube. kBoundMin as lo means -inf, kBoundMax as hi means +inf (and as lo,
-/// "not covered anywhere in the cube").
+/// "not covered anywhere in the cube"). Trivial, so that tables of them are allocated unwritten.
 struct CellBounds {
-    std::int16_t lo = 32767, hi = 32767;
+    std::int16_t lo, hi;
 };
 constexpr std::int16_t kBoundMin = -32768, kBoundMax = 32767;
+constexpr CellBounds kNoCover{kBoundMax, kBoundMax};  // no point of the cube can be covered
 
 /// q (a power in steps) rounded down / up to an int16 bound, clamped as above. No libm call: it runs per cell.
 inline std::int16_t quantized_down(double q) {
@@ -122,7 +123,7 @@ struct BoneField {
             if (a0 < 0 || b0 >= dims[i]) h = kBoundMax;
             s0[i] = std::max<std::int64_t>(a0, 0);
             s1[i] = std::min<std::int64_t>(b0, dims[i] - 1);
-            if (s1[i] < s0[i]) return CellBounds{};
+            if (s1[i] < s0[i]) return kNoCover;
             s0[i] >>= 2;
             s1[i] >>= 2;
         }

@@ -47,7 +47,7 @@ template <class S>
 CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_step, const double* box,
                        const std::uint32_t* in, std::size_t n, std::vector<std::uint32_t>& out,
                        std::vector<double>& scratch) {
-    if (n == 0) return CellBounds{};
+    if (n == 0) return kNoCover;
     scratch.resize(2 * n);
     double* const centre = scratch.data();      // each one's power at the box's centre
     double* const least = scratch.data() + n;   // the kept ones' least powers over the box
@@ -93,7 +93,7 @@ CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_
         least_near = std::min(least_near, v);
     }
     out.resize(kept);
-    if (!(least_near < 0)) return CellBounds{};
+    if (!(least_near < 0)) return kNoCover;
     const double inv = 1.0 / bound_step;
     return CellBounds{exact_bounds(least_near, inv).lo, exact_bounds(least_far, inv).hi};
 }
