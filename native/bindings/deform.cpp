@@ -37,7 +37,10 @@ DeformOptions options_of(const std::string& mode, const std::string& proximity, 
 
 py::dict frame_dict(DeformedVolume&& f) {
     py::dict d;
-    d["values"] = f.values.empty() ? py::object(py::none()) : py::object(to_numpy(std::move(f.values), f.grid, f.bricks));
+    if (!f.half_values.empty())  // IEEE half floats: numpy's float16
+        d["values"] = to_numpy(std::move(f.half_values), f.grid, f.bricks).attr("view")("float16");
+    else
+        d["values"] = f.values.empty() ? py::object(py::none()) : py::object(to_numpy(std::move(f.values), f.grid, f.bricks));
     d["bone"] = to_numpy(std::move(f.bone), f.grid, f.bricks);
     d["bricks"] = f.bricks;
     d["extent"] = py::make_tuple(f.extent[0], f.extent[1], f.extent[2], f.extent[3], f.extent[4], f.extent[5]);
@@ -107,9 +110,10 @@ void bind_deform(py::module_& m) {
             "frame",
             [](PyDeformer& d, const DoubleArray& matrices, const std::string& mode, const std::string& proximity,
                const std::string& sampling, const py::object& radius_scale, bool values, const py::object& progress,
-               const Box& box, bool keep_volume, bool bricks) {
+               const Box& box, bool keep_volume, bool bricks, bool half) {
                 DeformOptions o = options_of(mode, proximity, sampling, radius_scale, values, keep_volume);
                 o.bricks = bricks;
+                o.half = half;
                 const double* mat = matrices_of(matrices, d.deformer->bone_count());
                 Progress p = progress_of(progress);
                 DeformedVolume f;
@@ -122,7 +126,7 @@ void bind_deform(py::module_& m) {
             py::arg("matrices"), py::arg("mode") = "rigid", py::arg("proximity") = "power",
             py::arg("sampling") = "trilinear", py::arg("radius_scale") = py::none(), py::arg("values") = true,
             py::arg("progress") = py::none(), py::arg("box") = py::none(), py::arg("keep_volume") = true,
-            py::arg("bricks") = false)
+            py::arg("bricks") = false, py::arg("half") = false)
         .def_property_readonly("memory_bytes", [](const PyDeformer& d) { return d.deformer->memory_bytes(); })
         .def_property_readonly("kept_frame_bytes", [](const PyDeformer& d) { return d.deformer->kept_frame_bytes(); })
         .def("release_frame_memory", [](PyDeformer& d) { d.deformer->release_frame_memory(); })

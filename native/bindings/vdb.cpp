@@ -11,8 +11,8 @@ namespace {
 
 using Grids = std::vector<std::pair<std::string, py::array>>;
 
-/// build_vdb over write_vdb's / build_vdb's Python arguments (C-contiguous copies where needed; the GIL released
-/// while the grids are built).
+/// build_vdb over write_vdb's / build_vdb's Python arguments (C-contiguous copies where needed; float16 arrays as
+/// views of half floats; the GIL released while the grids are built).
 VdbGrids built_grids(const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
                      const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins) {
     if (!origins.empty() && origins.size() != grids.size())
@@ -22,9 +22,11 @@ VdbGrids built_grids(const std::string& path, const Grids& grids, const std::arr
     std::vector<std::pair<std::string, VolumeView>> views;
     for (std::size_t i = 0; i < grids.size(); ++i) {
         const auto& [name, array] = grids[i];
-        keep.push_back(py::array::ensure(array, py::array::c_style));
+        const bool halves = py::str(array.dtype()).cast<std::string>() == "float16";
+        keep.push_back(py::array::ensure(halves ? py::array(array.attr("view")("uint16")) : array, py::array::c_style));
         if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
         views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i], path.c_str(), true));
+        views.back().second.half = halves;
     }
     py::gil_scoped_release release;
     return build_vdb(path, views, half);

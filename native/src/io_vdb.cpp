@@ -1,7 +1,8 @@
 // OpenVDB reading and writing: the "OpenVDB" section of volrig/io.hpp.
 //
 // Grid types written (write_vdb):
-//   float32, float64       -> FloatGrid, class FOG_VOLUME, stored as half floats when `half`.
+//   float32, float64       -> FloatGrid, class FOG_VOLUME, stored as half floats when `half`; so are views of half
+//                             floats (VolumeView::half).
 //   uint8                  -> FloatGrid too, class FOG_VOLUME (values unchanged: a mask becomes 0/1, an 8-bit scan
 //                             keeps 0..255). uint8 is what masks and 8-bit scans are; as float grids they render
 //                             directly as density in Blender/Cycles and in Blender's viewport.
@@ -595,6 +596,7 @@ VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::str
         for (int a = 0; a < 3; ++a)
             if (view.grid.dims[a] > std::numeric_limits<std::int32_t>::max())
                 throw Error(subject + ": dimensions exceed OpenVDB's 32-bit index range");
+        if (view.half && view.dtype != DType::UInt16) throw Error(subject + ": half floats are 16-bit samples");
         if (view.bricked && (view.grid.dims[0] % 8 || view.grid.dims[1] % 8 || view.grid.dims[2] % 8))
             throw Error(subject + ": a grid in 8³ bricks needs dimensions that are multiples of 8");
         if (!on_lattice_of(view.grid, g0))
@@ -607,9 +609,11 @@ VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::str
         Overflow overflow;
         openvdb::GridBase::Ptr grid;
         const bool as_float =
-            view.dtype == DType::Float32 || view.dtype == DType::Float64 || view.dtype == DType::UInt8;
+            view.half || view.dtype == DType::Float32 || view.dtype == DType::Float64 || view.dtype == DType::UInt8;
         if (as_float) {
-            auto fg = build_from_view<openvdb::FloatGrid>(view, overflow);
+            auto fg = view.half ? build_grid<openvdb::FloatGrid>(static_cast<const openvdb::math::half*>(view.data),
+                                                                 view.grid, view.bricked, overflow)
+                                : build_from_view<openvdb::FloatGrid>(view, overflow);
             fg->setGridClass(openvdb::GRID_FOG_VOLUME);
             fg->setSaveFloatAsHalf(half);
             grid = fg;

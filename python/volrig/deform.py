@@ -117,7 +117,8 @@ class BrickedFrame:
     that it stands in for one; ``stats`` and ``extent`` (the covered box in the brick box, {x, y, z, dims}) are at
     hand without it.
 
-    brick_values / brick_bone: arrays [brick z, y, x, z, y, x] (read-only, the Deformer's recycled memory);
+    brick_values / brick_bone: arrays [brick z, y, x, z, y, x] (read-only, the Deformer's recycled memory;
+    brick_values float16 with ``frame(..., half=True)``);
     box_offset: the source-lattice index of the brick box's first voxel."""
 
     def __init__(self, d: dict, source: Volume):
@@ -139,6 +140,8 @@ class BrickedFrame:
                 if a is None:
                     return None
                 part = a[b0[2]:b1[2], b0[1]:b1[1], b0[0]:b1[0]]
+                if part.dtype == np.float16:  # half values (frame(..., half=True)): a Frame's are float32
+                    part = part.astype(np.float32)
                 nb = part.shape[:3]
                 whole = part.transpose(0, 3, 1, 4, 2, 5).reshape(nb[0] * 8, nb[1] * 8, nb[2] * 8)
                 r = lo - b0 * 8
@@ -280,18 +283,19 @@ class Deformer:
 
     def frame(self, bone_matrices, mode: str = "rigid", sampling: str = "trilinear", radius_scale=None,
               values: bool = True, progress: ProgressFn = None, proximity: Optional[str] = None,
-              keep_volume: bool = True, bricks: bool = False):
+              keep_volume: bool = True, bricks: bool = False, half: bool = False):
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates.
         ``keep_volume`` (smooth modes; the default): the blended spheres' radii follow the pose so that a bent limb
         keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it. Returns a
         ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
-        written to OpenVDB without a dense copy; what bakes use)."""
+        written to OpenVDB without a dense copy; what bakes use). ``half`` (with ``bricks``): its values as float16,
+        rounded as OpenVDB stores half floats (half the memory; the same file when saved with ``half=True``)."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
         proximity = proximity or self.proximity
         if self._layer is not None and (self._layer.pieces is None or self._layer_proximity != proximity):
             self._label_layer(mode, proximity)
         d = self._native.frame(m, mode, proximity, sampling, scale, bool(values), progress,
-                               keep_volume=bool(keep_volume), bricks=bool(bricks))
+                               keep_volume=bool(keep_volume), bricks=bool(bricks), half=bool(half))
         return _frame(d, self.source)
 
     def _label_layer(self, mode: str, proximity: str) -> None:

@@ -461,7 +461,9 @@ class FolderBake:
 
     A frame's file is written on a thread of its own while the next frame computes (the Deformer and the VDB
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
-    calls at its end (it waits for the last write and frees the frames' memory)."""
+    calls at its end (it waits for the last write and frees the frames' memory). Frames hold their values as the
+    half floats the files store (``Deformer.frame(..., half=True)``), except with tissue looks, which read the label
+    map's codes exactly."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
@@ -530,7 +532,8 @@ class FolderBake:
         os.makedirs(self.folder, exist_ok=True)
         deformer, radius_scale = self._deformer_for(thickness)
         frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
-                               keep_volume=self.keep_volume, progress=progress, bricks=True)
+                               keep_volume=self.keep_volume, progress=progress, bricks=True,
+                               half=not self.tissues)  # (tissue looks read the label map's exact codes)
         self._wait()  # the previous frame's grids are written and freed before this one's are built
         subs = substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling) if self.substitutes else {}
         grids = frame.vdb(self.path(number), half=True, parts=self.parts, tissues=self.tissues, substitutes=subs)

@@ -261,8 +261,8 @@ def dicom_series(path: str) -> list:
 def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) -> None:
     """Write several named grids on one geometry to an OpenVDB file.
 
-    grids:   mapping name -> Volume or array [z, y, x], e.g. {"density": v, "bone": labels}. Floating and
-             uint8/bool arrays become float grids, other integer arrays (e.g. int16/int32 labels) int32 grids;
+    grids:   mapping name -> Volume or array [z, y, x], e.g. {"density": v, "bone": labels}. Floating (float16
+             too) and uint8/bool arrays become float grids, other integer arrays (e.g. int16/int32 labels) int32 grids;
              only non-zero voxels are active. A Volume lies at its own origin (a grid cropped to its voxels), a
              whole number of voxels from the others (one voxel lattice); an array at ``origin``.
     spacing, origin: (x, y, z) world geometry; taken from the first Volume when omitted.

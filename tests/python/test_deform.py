@@ -451,7 +451,8 @@ def test_binary_reconstruction_and_vdb_output(tmp_path):
 @pytest.mark.parametrize("mode", ["rigid", "linear", "dual_quaternion"])
 def test_frames_in_bricks_are_the_same_frames_and_files(tmp_path, mode):
     """A frame in 8³ bricks (what a bake writes) is the cropped frame: the same arrays once made dense, the same
-    grids once saved (read back), values or binary; a pose covering nothing too."""
+    grids once saved (read back), values or binary; a pose covering nothing too. With half-float values (a bake's)
+    the values are the cropped frame's rounded to float16, and the file is the same."""
     volume, rig = capsule_chain(6)
     mask, pts, binding = rigged(volume, rig, 300, bind="smooth")
     d = volrig.Deformer(volume, pts, binding)
@@ -475,6 +476,21 @@ def test_frames_in_bricks_are_the_same_frames_and_files(tmp_path, mode):
             for grid in ("density", "bone"):
                 ga, gb = volrig.load(str(a), grid=grid), volrig.load(str(b), grid=grid)
                 assert np.allclose(ga.origin, gb.origin) and np.array_equal(ga.array, gb.array), grid
+            if not values:
+                continue
+            halves = d.frame(M, mode=mode, bricks=True, half=True)
+            assert halves.brick_values.dtype == np.float16 and halves.stats == bricks.stats
+            assert np.array_equal(halves.bone.array, full.bone.array)
+            assert halves.values.array.dtype == np.float32
+            assert np.array_equal(halves.values.array, full.values.array.astype(np.float16).astype(np.float32))
+            assert np.abs(halves.values.array - full.values.array).max() > 0  # (rounded: the test sees halves)
+            h = tmp_path / f"halves{k}.vdb"
+            halves.save(h)
+            for grid in ("density", "bone"):
+                gb, gh = volrig.load(str(b), grid=grid), volrig.load(str(h), grid=grid)
+                assert np.allclose(gb.origin, gh.origin) and np.array_equal(gb.array, gh.array), grid
+    with pytest.raises(ValueError, match="half-float values are for frames in bricks"):
+        d.frame(volrig.rest_pose(3), mode=mode, half=True)
     empty = d.frame(volrig.rest_pose(3), mode=mode, radius_scale=0.0, bricks=True)
     assert empty.stats["covered"] == 0 and empty.extent[3:] == (0, 0, 0)
     assert empty.bone.dims == (1, 1, 1) and not empty.bone.array.any()

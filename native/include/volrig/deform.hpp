@@ -79,6 +79,9 @@ struct DeformOptions {
     /// The output in 8³ bricks (DeformedVolume::bricks) instead of cropped C-order arrays: a frame then costs
     /// memory only in the bricks it covers (a bake's frames; issue 17). Not with an imposed box.
     bool bricks = false;
+    /// With bricks: the values as IEEE half floats (DeformedVolume::half_values), rounded as OpenVDB rounds the
+    /// floats it stores as half: half the memory of a bake's frame, and the same file.
+    bool half = false;
 };
 
 struct DeformStats {
@@ -112,6 +115,7 @@ struct DeformedVolume {
     Grid grid;
     std::array<std::int64_t, 3> offset{0, 0, 0};
     ZeroedArray<float> values;       ///< source samples (0 where empty); empty when options.values is false
+    ZeroedArray<std::uint16_t> half_values;  ///< the same as IEEE half floats' bits, instead (options.half)
     ZeroedArray<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
     DeformStats stats;
     bool bricks = false;

@@ -51,6 +51,9 @@ struct VolumeView {
     /// The samples in 8³ bricks (brick_index; dims multiples of 8), not in C order. Only the OpenVDB writer takes
     /// such views.
     bool bricked = false;
+    /// The samples are IEEE half floats (dtype UInt16 holding their bits), as a bake's frames hold their values
+    /// (DeformOptions::half). Only the OpenVDB writer takes such views (into a float grid).
+    bool half = false;
 };
 
 /// The element of voxel (x, y, z) in an array of 8³ bricks over dims (multiples of 8): bricks in C order [z, y, x],

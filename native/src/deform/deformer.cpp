@@ -204,6 +204,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const FieldContacts planes = contact ? contacts(bend, groups, motions, o.mode, bone_count, grid) : FieldContacts{};
     add_group_motions(motions, o.mode);
     if (o.bricks && fixed_box) throw Error("deform: bricks and an imposed box do not go together");
+    if (o.half && !o.bricks) throw Error("deform: half-float values are for frames in bricks");
     const Box bx = o.bricks ? brick_aligned(frame_reach(motions)) : fixed_box ? *fixed_box : frame_reach(motions);
     check_box_reach(bx);
     DeformedVolume out = frame_on(grid, bx);
@@ -212,7 +213,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     // bricks names its box as the layout: a voxel's place in the bricks moves with the box, so memory a frame on
     // another box wrote goes back to the kernel rather than staying resident beside this frame's.
     const std::uint64_t layout = o.bricks ? box_key(bx) : 0;
-    if (o.values) out.values = pool->take<float>(total, layout);
+    if (o.values && o.half) out.half_values = pool->take<std::uint16_t>(total, layout);
+    else if (o.values) out.values = pool->take<float>(total, layout);
     out.bone = pool->take<std::int16_t>(total, layout);
     report(progress, 0.55);
     const auto& sp = grid.spacing;

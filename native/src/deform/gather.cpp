@@ -15,6 +15,7 @@
 #include "deform/closed_cubes.hpp"
 #include "deform/posed_balls.hpp"
 #include "deform/sampler.hpp"
+#include "deform/value_out.hpp"
 
 namespace volrig::deform_detail {
 
@@ -934,7 +935,7 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
     const std::int64_t nx = bx_[3], ny = bx_[4];
     std::int64_t ncov = 0;
     std::int16_t* const bone_out = out_.bone.data();
-    float* const value_out = o_.values ? out_.values.data() : nullptr;
+    const ValueOut value_out = ValueOut::of(out_);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
             const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
@@ -960,14 +961,14 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
                     pl.fixed(m3, pf);
                     run = w;
                 }
-                value_out[row + static_cast<std::size_t>(dx)] = sampler.sample(pf, o_.sampling);
+                value_out.put(row + static_cast<std::size_t>(dx), sampler.sample(pf, o_.sampling));
             }
             if (!xs) continue;
             ncov += __builtin_popcountll(xs);
             loc.layer[dz] |= xs << (8 * dy);
             const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
             out_.bone.mark_written(row + x0, row + x1);
-            if (value_out) out_.values.mark_written(row + x0, row + x1);
+            mark_values(out_, row + x0, row + x1);
         }
     return ncov;
 }

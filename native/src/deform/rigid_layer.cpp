@@ -13,6 +13,7 @@
 
 #include "deform/rigid_layer.hpp"
 #include "deform/sampler.hpp"
+#include "deform/value_out.hpp"
 #include "volrig/deform.hpp"
 
 namespace volrig::deform_detail {
@@ -62,7 +63,7 @@ void merge(Drawn& into, const Drawn& d) {
 /// One piece over the box: rows of its posed box, each voxel whose rest position rounds into the piece.
 template <class S, class Mark>
 Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampling sampling, const Box& bx,
-                  float* values, std::int16_t* bone, Mark& mark, bool bricks) {
+                  ValueOut values, std::int16_t* bone, Mark& mark, bool bricks) {
     const std::array<std::int64_t, 3> dims{bx[3], bx[4], bx[5]};
     const auto b = posed_bounds(p, m);
     std::int64_t lo[3], hi[3];
@@ -92,7 +93,7 @@ Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampli
                     const std::size_t at = bricks ? brick_index(x - bx[0], y - bx[1], z - bx[2], dims)
                                                   : static_cast<std::size_t>(row + x);
                     bone[at] = label;
-                    if (values) values[at] = sampler.sample(r, sampling);
+                    if (values) values.put(at, sampler.sample(r, sampling));
                     if (bricks) mark(at, at + 1);
                     if (first < 0) first = x;
                     last = x;
@@ -127,7 +128,7 @@ Box pieces_reach(const std::vector<RigidPiece>& pieces, const std::vector<Motion
 
 template <class Mark>
 Drawn paint_layer(const VolumeView& source, const std::vector<RigidPiece>& pieces, const std::vector<Motion>& motions,
-                  Sampling sampling, const Box& bx, float* values, std::int16_t* bone, Mark&& mark, bool bricks = false) {
+                  Sampling sampling, const Box& bx, ValueOut values, std::int16_t* bone, Mark&& mark, bool bricks = false) {
     Drawn all = Drawn{};
     with_sampler(source, [&](const auto& sampler) {
         for (const RigidPiece& p : pieces)
@@ -141,12 +142,11 @@ Drawn paint_layer(const VolumeView& source, const std::vector<RigidPiece>& piece
 Drawn paint_layer_pooled(const VolumeView& source, const std::vector<RigidPiece>& pieces,
                          const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out,
                          bool bricks) {
-    float* values = out.values.empty() ? nullptr : out.values.data();
     return paint_layer(
-        source, pieces, motions, sampling, bx, values, out.bone.data(),
+        source, pieces, motions, sampling, bx, ValueOut::of(out), out.bone.data(),
         [&](std::size_t i0, std::size_t i1) {
             out.bone.mark_written(i0, i1);
-            if (values) out.values.mark_written(i0, i1);
+            mark_values(out, i0, i1);
         },
         bricks);
 }
@@ -170,7 +170,8 @@ std::int64_t paint_rigid_pieces(const VolumeView& source, const std::vector<Rigi
     check_pieces(source.grid, pieces, bone_count);
     check_box_reach(box);
     const std::vector<Motion> motions = bone_motions(matrices, bone_count, source.grid);
-    return paint_layer(source, pieces, motions, sampling, box, values, bone, [](std::size_t, std::size_t) {}).count;
+    return paint_layer(source, pieces, motions, sampling, box, ValueOut{values, nullptr}, bone,
+                       [](std::size_t, std::size_t) {}).count;
 }
 
 }  // namespace volrig
