@@ -36,26 +36,34 @@ void rezero_written(ZeroedPool::Slab& s) {
                       });
 }
 
-/// Gives back to the kernel every page of `s` holding a granule marked written, and clears the marks: the slab reads
-/// zero again without being written, and holds nothing resident (a use under another layout).
-void release_written(ZeroedPool::Slab& s) {
+/// Gives back to the kernel, a run at a time, the pages of `s` for which `release(first granule, last + 1)` holds
+/// (it may clear the marks it reads).
+template <class Release>
+void release_pages(ZeroedPool::Slab& s, Release&& release) {
     constexpr std::size_t per_page = kPage / kZeroGranule;
     char* base = static_cast<char*>(s.p);
-    std::atomic<std::uint8_t>* written = s.written.get();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s.bytes / kPage, 4096), [&](const tbb::blocked_range<std::size_t>& rg) {
-        std::size_t run = rg.end();  // the first page of a run of written pages
+        std::size_t run = rg.end();  // the first page of a run to give back
         auto flush = [&](std::size_t end) {
             if (run < end) madvise(base + run * kPage, (end - run) * kPage, MADV_DONTNEED);
             run = rg.end();
         };
         for (std::size_t page = rg.begin(); page != rg.end(); ++page) {
-            bool any = false;
-            for (std::size_t k = page * per_page; k < (page + 1) * per_page; ++k)
-                any = written[k].exchange(0, std::memory_order_relaxed) || any;
-            if (!any) flush(page);
+            if (!release(page * per_page, (page + 1) * per_page)) flush(page);
             else if (run == rg.end()) run = page;
         }
         flush(rg.end());
+    });
+}
+
+/// Gives back to the kernel every page of `s` holding a granule marked written, and clears the marks: the slab reads
+/// zero again without being written, and holds nothing resident (a use under another layout).
+void release_written(ZeroedPool::Slab& s) {
+    std::atomic<std::uint8_t>* written = s.written.get();
+    release_pages(s, [&](std::size_t k0, std::size_t k1) {
+        bool any = false;
+        for (std::size_t k = k0; k < k1; ++k) any = written[k].exchange(0, std::memory_order_relaxed) || any;
+        return any;
     });
 }
 
@@ -63,29 +71,15 @@ void release_written(ZeroedPool::Slab& s) {
 /// kernel, and clears those marks: a slab kept for reuse then holds resident only what its last frame wrote, not
 /// the union of what all its frames wrote (frames' boxes move, and their covered bricks with them).
 void release_stale(ZeroedPool::Slab& s) {
-    constexpr std::size_t per_page = kPage / kZeroGranule;
-    char* base = static_cast<char*>(s.p);
     std::atomic<std::uint8_t>* written = s.written.get();
     std::atomic<std::uint8_t>* zeroed = s.zeroed.get();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, s.bytes / kPage, 4096), [&](const tbb::blocked_range<std::size_t>& rg) {
-        std::size_t run = rg.end();  // the first page of a run of stale pages
-        auto flush = [&](std::size_t end) {
-            if (run < end) madvise(base + run * kPage, (end - run) * kPage, MADV_DONTNEED);
-            run = rg.end();
-        };
-        for (std::size_t page = rg.begin(); page != rg.end(); ++page) {
-            bool was = false, now = false;
-            for (std::size_t k = page * per_page; k < (page + 1) * per_page; ++k) {
-                was = was || zeroed[k].exchange(0, std::memory_order_relaxed);
-                now = now || written[k].load(std::memory_order_relaxed);
-            }
-            if (was && !now) {
-                if (run == rg.end()) run = page;
-            } else {
-                flush(page);
-            }
+    release_pages(s, [&](std::size_t k0, std::size_t k1) {
+        bool was = false, now = false;
+        for (std::size_t k = k0; k < k1; ++k) {
+            was = zeroed[k].exchange(0, std::memory_order_relaxed) || was;
+            now = now || written[k].load(std::memory_order_relaxed);
         }
-        flush(rg.end());
+        return was && !now;
     });
 }
 

@@ -118,11 +118,10 @@ TEST_CASE("a ZeroedPool gives back what a use under another layout wrote, instea
         other.mark_written(n / 2, n / 2 + 1024 * 100);
         REQUIRE(resident_pages(at, n * 4) >= 100);
         REQUIRE(resident_pages(at, n * 4) <= 110);
-        for (std::size_t i = 0; i < n / 2; ++i) REQUIRE(other[i] == 0.0f);  // (reading maps the zero page: last)
     }
     // the same key with another element size is another layout too
     ZeroedArray<std::int16_t> bone = pool->take<std::int16_t>(n, 8);
     REQUIRE(static_cast<const void*>(bone.data()) == static_cast<const void*>(at));
     REQUIRE(resident_pages(at, n * 4) <= 2);
-    for (std::size_t i = 0; i < n; ++i) REQUIRE(bone[i] == 0);
+    for (std::size_t i = 0; i < n; ++i) REQUIRE(bone[i] == 0);  // (reading maps the zero page, which mincore counts)
 }
