@@ -146,6 +146,24 @@ def test_folder_bake_writes_each_tissues_grid_of_the_posed_labels(tmp_path, labe
         np.testing.assert_array_equal(_place(g, frame.values) > 0.5, np.isin(codes, t.codes))
 
 
+def test_folder_bake_keeps_codes_past_half_float_range(tmp_path, labelled_rig):
+    """A bake holds its frames' values as half floats, except with tissue looks: a 16-bit label map's code 4097
+    (4096 in half floats) keeps its voxels in its tissue's grid."""
+    vol, pts, rig, binding, *_ = labelled_rig
+    lab = np.asarray(vol.array).astype(np.uint16)
+    lab[lab == 84] = 4097
+    wide = volrig.Volume(lab, vol.spacing)
+    tissues = volrig.tissue_classes({4097: "BoneCortical", 180: "Muscle", 204: "SkinDry"})
+    bake = volrig.pipeline.FolderBake(wide, pts, binding, str(tmp_path), "wide", sampling="nearest", tissues=tissues)
+    m = rig.pose({"b": ([0, 0, 1], 40.0)})
+    bake.bake(1, m)
+    bake.finish()
+    frame = volrig.Deformer(wide, pts, binding).frame(m, mode="linear", sampling="nearest")
+    bone = _place(volrig.load(bake.path(1), grid="tissue_bone"), frame.values) > 0.5
+    assert bone.any()
+    np.testing.assert_array_equal(bone, np.asarray(frame.values.array) == 4097)
+
+
 def test_cli_bake_mocap_with_tissues(tmp_path, labelled_rig):
     _, _, _, _, src, rig_file, table = labelled_rig
     clip = SHARED_DATA / "bvh" / "131_01.bvh"
