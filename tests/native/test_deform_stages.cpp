@@ -306,7 +306,7 @@ TEST_CASE("a field built on a lent power-diagram lattice equals one built alone;
         REQUIRE(diagram.F.size() >= static_cast<std::size_t>(lent.dims[0] * lent.dims[1] * lent.dims[2]));
         CHECK(lent.blocks == alone.blocks);
         CHECK(lent.block_index == alone.block_index);
-        CHECK(std::equal(lent.words.begin(), lent.words.end(), alone.words.begin(), alone.words.end()));
+        CHECK(lent.words == alone.words);
         CHECK(std::equal(lent.corner.begin(), lent.corner.end(), alone.corner.begin(), alone.corner.end()));
         CHECK(std::equal(lent.bounds.begin(), lent.bounds.end(), alone.bounds.begin(), alone.bounds.end(),
                          [](CellBounds a, CellBounds b) { return a.lo == b.lo && a.hi == b.hi; }));

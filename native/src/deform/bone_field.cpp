@@ -259,10 +259,11 @@ void keep_blocks(BoneField& f, const std::atomic<std::uint8_t>* keep) {
     if (f.blocks.size() * 512 + 1 > std::numeric_limits<std::uint32_t>::max())
         throw Error("deform: a bone's field is too large (more than 2^32 lattice cells near its spheres)");
     f.bounds.resize(f.blocks.size() * 512 + 1);  // unwritten: fill_block_cells writes every block's cells, in parallel
-    f.words.resize(f.blocks.size() * 512 + 1);
+    f.words.code.resize(f.blocks.size() * 512 + 1);  // encode_block writes them (the words go by in build_bone_field)
+    f.words.at.resize(f.blocks.size());
     f.corner.resize(f.blocks.size() * 512 + 1);
     f.bounds[0] = kNoCover;
-    f.words[0] = kNone;
+    f.words.code[0] = 0;
     f.corner[0] = kBoundMax;
     f.sub.resize(f.blocks.size() * 8);  // sub_block_ranges writes them
     f.pair_sphere.assign(f.blocks.size() * 64, kNone);
@@ -283,6 +284,7 @@ struct CellPass {
     double quarter;  // the concave term's largest value over a cube, Σ s²/4
     double slack;    // rounding margin of the quantised bounds (far above the rounding of a product by inv_step)
     double inv_step;
+    std::uint32_t* words;  // the cells' words as they are made, 512 a block (encoded into BoneField::words after)
 };
 
 /// The power diagram at the 9³ lattice points of one block's cubes (its 8³ cells and the next one along each
@@ -363,7 +365,7 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
     t.load(f, slot, c.F, c.lab, c.T);
     int n_pending = 0;
     CellBounds* out = f.bounds.data() + 1 + slot * 512;
-    std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
+    std::uint32_t* out_word = c.words + slot * 512;
     std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
     std::int64_t first[3], e[3];  // the block's first cell (relative to lo) and its extent inside the field
     for (int a = 0; a < 3; ++a) {
@@ -408,9 +410,8 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
 /// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes, and
 /// those narrowed per 4³ sub-block to the ones meeting its cubes' box (a ball meeting a cube meets that box, and
 /// the test's margin only grows with the distance), so that each cube scans a few.
-void close_cubes(BoneField& f, std::size_t slot, const Pending* pending, int n_pending, const Grid& g,
-                 const double* s2, NearSpheres& near, NearSpheres& sub) {
-    std::uint32_t* out_word = f.words.data() + 1 + slot * 512;
+void close_cubes(const BoneField& f, std::size_t slot, std::uint32_t* out_word, const Pending* pending, int n_pending,
+                 const Grid& g, const double* s2, NearSpheres& near, NearSpheres& sub) {
     const double blo[3] = {static_cast<double>(f.blocks[slot][0]), static_cast<double>(f.blocks[slot][1]),
                            static_cast<double>(f.blocks[slot][2])};
     const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
@@ -448,8 +449,7 @@ void sub_block_ranges(BoneField& f, std::size_t slot) {
 
 /// The sphere whose power is the bone's on all the cubes of each 2³ cells of a block: every cell's cube one label's
 /// at all corners, the same label (else kNone).
-void pair_spheres(BoneField& f, std::size_t slot) {
-    const std::uint32_t* words = f.words.data() + 1 + slot * 512;
+void pair_spheres(BoneField& f, std::size_t slot, const std::uint32_t* words) {
     std::uint32_t* one = f.pair_sphere.data() + slot * 64;
     for (int m = 0; m < 64; ++m) {
         const int first = (((m >> 4) * 2 * 8) + ((m >> 2) & 3) * 2) * 8 + (m & 3) * 2;  // cell (2x, 2y, 2z)
@@ -460,6 +460,44 @@ void pair_spheres(BoneField& f, std::size_t slot) {
             alone = same_of(w) && label_of(w) == lab;
         }
         one[m] = alone ? lab : kNone;
+    }
+}
+
+/// A block's 512 words encoded (CellWords): its cells' codes written, its distinct words moved to the front of
+/// `words`; returns their count, or 512 when there are more than 256 (the words stay as they are, the codes 0).
+int encode_block(std::uint32_t* words, std::uint8_t* code) {
+    std::uint32_t palette[256];
+    int n = 0, k = 0;
+    for (int li = 0; li < 512; ++li) {
+        const std::uint32_t w = words[li];
+        if (n == 0 || palette[k] != w) {  // (mostly the previous cell's word)
+            for (k = 0; k < n && palette[k] != w; ++k) {
+            }
+            if (k == n) {
+                if (n == 256) {
+                    std::fill(code, code + 512, std::uint8_t{0});
+                    return 512;
+                }
+                palette[n++] = w;
+            }
+        }
+        code[li] = static_cast<std::uint8_t>(k);
+    }
+    std::copy(palette, palette + n, words);
+    return n;
+}
+
+/// The blocks' palettes gathered into f.words from the encoded words (encode_block's counts per block).
+void gather_palettes(BoneField& f, const std::uint32_t* words, const std::vector<std::int32_t>& count) {
+    std::int64_t total = 0;
+    for (std::size_t slot = 0; slot < count.size(); ++slot) {
+        f.words.at[slot] = count[slot] == 512 ? ~total : total;
+        total += count[slot];
+    }
+    f.words.palette.resize(static_cast<std::size_t>(total));
+    for (std::size_t slot = 0; slot < count.size(); ++slot) {
+        const std::int64_t a = f.words.at[slot];
+        std::copy(words + slot * 512, words + slot * 512 + count[slot], f.words.palette.begin() + (a >= 0 ? a : ~a));
     }
 }
 
@@ -554,7 +592,10 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     double maxlim = 0;
     for (const auto& sp : f.sph) maxlim = std::max(maxlim, sp.lim);
     const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
-    const CellPass pass{diagram.F.data(), diagram.lab.data(), s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter), 1.0 / step};
+    Buffer<std::uint32_t> words(f.blocks.size() * 512);
+    std::vector<std::int32_t> count(f.blocks.size());
+    const CellPass pass{diagram.F.data(), diagram.lab.data(), s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter),
+                        1.0 / step, words.data()};
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);
         NearSpheres near, sub;
@@ -564,12 +605,15 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         Scratch& sc = scratch.local();
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
+            std::uint32_t* block_words = words.data() + slot * 512;
             const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.pending.data());
-            if (n_pending) close_cubes(f, slot, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);
+            if (n_pending) close_cubes(f, slot, block_words, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);
             sub_block_ranges(f, slot);
-            pair_spheres(f, slot);
+            pair_spheres(f, slot, block_words);
+            count[slot] = encode_block(block_words, f.words.code.data() + 1 + slot * 512);
         }
     });
+    gather_palettes(f, words.data(), count);
     block_sums(f);
     return f;
 }

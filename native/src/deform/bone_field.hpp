@@ -58,6 +58,24 @@ inline std::uint32_t label_of(std::uint32_t w) { return w == kNone ? kNone : (w 
 inline bool same_of(std::uint32_t w) { return w != kNone && (w & kSameBit); }
 inline bool closed_of(std::uint32_t w) { return w != kNone && (w & kClosedBit); }
 
+/// The cells' words, a byte a cell: an allocated block holds few distinct words (a power cell spans many lattice
+/// cells), so each block keeps its distinct words in a palette and each cell the index of its own there; a block
+/// with more than 256 distinct words keeps all 512 in its palette, in cell order. Cell 0 ("no cell") reads kNone.
+struct CellWords {
+    HugeVector<std::uint8_t> code;       // per cell: its word's index in its block's palette
+    std::vector<std::uint32_t> palette;  // the blocks' palettes, one after the other
+    std::vector<std::int64_t> at;        // per block: its palette's first entry, or ~that when it holds all 512
+
+    std::uint32_t operator[](std::uint32_t cell) const {
+        if (cell == kNoCell) return kNone;
+        const std::int64_t a = at[(cell - 1) >> 9];
+        return palette[static_cast<std::size_t>(a >= 0 ? a + code[cell] : ~a + ((cell - 1) & 511))];
+    }
+    std::size_t size() const { return code.size(); }  // cells, "no cell" included
+    std::size_t bytes() const { return code.size() + palette.size() * 4 + at.size() * 8; }
+    bool operator==(const CellWords& o) const { return code == o.code && palette == o.palette && at == o.at; }
+};
+
 
 /// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
 /// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
@@ -103,7 +121,7 @@ struct BoneField {
     std::vector<std::int32_t> block_index;        // per block: index into the pool, -1 = F >= T everywhere
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
     HugeVector<CellBounds> bounds;                // cell 0: none (no cover), then 512 per allocated block
-    HugeVector<std::uint32_t> words;              // likewise
+    CellWords words;                              // likewise (encoded per block)
     HugeVector<std::int16_t> corner;              // likewise: the power at the cell itself, quantised down
     double step = 1, floor_T = 0;                 // the quantum; the least power outside allocated blocks (T)
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
@@ -244,7 +262,7 @@ struct BoneField {
 
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.size() * 4 + corner.size() * 2 +
+               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.bytes() + corner.size() * 2 +
                block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_sphere.size() * 4;
     }
 };
