@@ -245,6 +245,40 @@ TEST_CASE("concave_lower bounds the power function from its corner values", "[de
     CHECK(concave_lower(v, zero, s2.data()) == -kInf);
 }
 
+TEST_CASE("a bone field's words: blocks of few words in palettes, blocks of many kept whole", "[deform][stages]") {
+    // A sphere on every lattice point of a 12³ region, each holding its own point: blocks there have more than 256
+    // distinct labels (kept whole); the blocks at the region's rim have fewer (in palettes). Every cell's label is a
+    // least-power sphere at the cell, as the brute force finds.
+    RandomSpheres rs(1, 0);
+    for (int z = 6; z < 18; ++z)
+        for (int y = 6; y < 18; ++y)
+            for (int x = 6; x < 18; ++x) {
+                rs.ijk.insert(rs.ijk.end(), {z, y, x});
+                rs.radius.push_back(0.7f);
+                rs.radii.push_back(0.7);
+                rs.bone.push_back(0);
+                rs.members.push_back(static_cast<std::uint32_t>(rs.members.size()));
+            }
+    const auto s2 = rs.s2();
+    const BoneField f = rs.field();
+    const auto whole = std::count_if(f.words.at.begin(), f.words.at.end(), [](std::int64_t a) { return a < 0; });
+    CHECK(whole > 0);
+    CHECK(whole < static_cast<std::ptrdiff_t>(f.words.at.size()));
+    std::int64_t labelled = 0;
+    for (std::int64_t z = 0; z < f.dims[2]; ++z)
+        for (std::int64_t y = 0; y < f.dims[1]; ++y)
+            for (std::int64_t x = 0; x < f.dims[0]; ++x) {
+                const std::uint32_t cell = f.cell_at(x, y, z);
+                const std::uint32_t lab = label_of(f.words[cell]);
+                if (cell == kNoCell || lab == kNone) continue;
+                const double base[3] = {double(x + f.lo[0]), double(y + f.lo[1]), double(z + f.lo[2])};
+                REQUIRE(power_of(f, lab, base, s2.data()) == Approx(brute_power(f, base, s2.data()).key).margin(1e-9));
+                ++labelled;
+            }
+    CHECK(labelled >= 12 * 12 * 12);
+    CHECK(f.words[kNoCell] == kNone);
+}
+
 TEST_CASE("a bone field: power-diagram labels, cube ranges and corner powers against a brute force", "[deform][stages]") {
     FieldCase fc(21, 40, 9);
     auto& [rs, s2, f, rng, u] = fc;
