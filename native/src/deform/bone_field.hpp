@@ -76,7 +76,6 @@ struct CellWords {
     bool operator==(const CellWords& o) const { return code == o.code && palette == o.palette && at == o.at; }
 };
 
-
 /// A lower bound at p of a function that is |x|² (world metric) plus a concave one, from its values v at the corners
 /// of p's lattice cube (corner k: bits x, y, z) and p's offsets u in the cube. The concave part at p is at least any
 /// convex combination of its corner values that represents p (the trilinear weights, or the barycentric weights of
