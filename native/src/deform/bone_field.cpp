@@ -261,10 +261,8 @@ void keep_blocks(BoneField& f, const std::atomic<std::uint8_t>* keep) {
     f.bounds.resize(f.blocks.size() * 512 + 1);  // unwritten: fill_block_cells writes every block's cells, in parallel
     f.words.code.resize(f.blocks.size() * 512 + 1);  // encode_block writes them (the words go by in build_bone_field)
     f.words.at.resize(f.blocks.size());
-    f.corner.resize(f.blocks.size() * 512 + 1);
     f.bounds[0] = kNoCover;
     f.words.code[0] = 0;
-    f.corner[0] = kBoundMax;
     f.sub.resize(f.blocks.size() * 8);  // sub_block_ranges writes them
     f.pair_sphere.assign(f.blocks.size() * 64, kNone);
 }
@@ -318,27 +316,49 @@ struct Tile {
     }
 };
 
-/// The eight corners of the cube whose first corner is tile point ti: their least power, their distinct labels
-/// (in corner order) and whether all eight lie inside the field and are labelled.
+/// Per cube of a block (first corner at cell li): the least of its eight corners' powers and whether the eight
+/// carry one label, made axis by axis over the tile (each pair of neighbours compared once, not once per cube).
+struct CubeSummaries {
+    double fmin[512];
+    bool one[512];
+
+    void make(const Tile& t) {
+        double mx[648], my[576];  // the least over the corners so far: along x (9·9·8), then y (9·8·8)
+        bool ex[648], ey[576];    // likewise whether their labels agree
+        for (int r = 0; r < 81; ++r)
+            for (int x = 0; x < 8; ++x) {
+                const int i = r * 9 + x;
+                mx[r * 8 + x] = std::min(t.F[i], t.F[i + 1]);
+                ex[r * 8 + x] = t.lab[i] == t.lab[i + 1];
+            }
+        for (int z = 0; z < 9; ++z)
+            for (int y = 0; y < 8; ++y)
+                for (int x = 0; x < 8; ++x) {
+                    const int a = (z * 9 + y) * 8 + x, o = (z * 8 + y) * 8 + x, i = (z * 9 + y) * 9 + x;
+                    my[o] = std::min(mx[a], mx[a + 8]);
+                    ey[o] = ex[a] && ex[a + 8] && t.lab[i] == t.lab[i + 9];
+                }
+        for (int li = 0; li < 512; ++li) {
+            const int i = ((li >> 6) * 9 + ((li >> 3) & 7)) * 9 + (li & 7);
+            fmin[li] = std::min(my[li], my[li + 64]);
+            one[li] = ey[li] && ey[li + 64] && t.lab[i] == t.lab[i + 81];
+        }
+    }
+};
+
+/// The eight corners of the cube whose first corner is tile point ti (cell li): their distinct labels (in corner
+/// order) and whether all eight lie inside the field and are labelled.
 struct Corners {
-    double fmin = kInf;
     std::uint32_t ks[8];
     int nk = 0;
-    bool complete = false;
+    bool complete = true;
 
-    Corners(const Tile& t, int ti) {
+    Corners(const Tile& t, int ti, bool one) {
         constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
-        std::uint32_t l[8];
-        bool one = true;  // all eight corners one label (most cells)
-        for (int k = 0; k < 8; ++k) {
-            l[k] = t.lab[ti + kCorner[k]];
-            fmin = std::min(fmin, t.F[ti + kCorner[k]]);
-            one = one && l[k] == l[0];
-        }
-        complete = true;
         for (int k = 0; k < (one ? 1 : 8); ++k) {
-            complete = complete && l[k] < Tile::kOutside;
-            if (l[k] < Tile::kOutside && std::find(ks, ks + nk, l[k]) == ks + nk) ks[nk++] = l[k];
+            const std::uint32_t l = t.lab[ti + kCorner[k]];
+            complete = complete && l < Tile::kOutside;
+            if (l < Tile::kOutside && std::find(ks, ks + nk, l) == ks + nk) ks[nk++] = l;
         }
     }
 };
@@ -357,16 +377,16 @@ double cube_upper(const BoneField& f, const double* rest, const std::uint32_t* k
     return upper;
 }
 
-/// One allocated block's cells: the corner power (quantised down), the label word (with the same bit), and the
-/// power's range over each cube with its first corner at the cell: at least the least corner value minus Σ s²/4
-/// (corners outside the field hold at least T); at most cube_upper over the spheres labelling a corner. The cubes
-/// whose ranges leave coverage open go to `pending`; returns their count.
-int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, Pending* pending) {
+/// One allocated block's cells: the label word (with the same bit) and the power's range over each cube with its
+/// first corner at the cell: at least the least corner value minus Σ s²/4 (corners outside the field hold at least
+/// T); at most cube_upper over the spheres labelling a corner. The cubes whose ranges leave coverage open go to
+/// `pending`; returns their count.
+int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, CubeSummaries& cubes, Pending* pending) {
     t.load(f, slot, c.F, c.lab, c.T);
+    cubes.make(t);
     int n_pending = 0;
     CellBounds* out = f.bounds.data() + 1 + slot * 512;
     std::uint32_t* out_word = c.words + slot * 512;
-    std::int16_t* out_corner = f.corner.data() + 1 + slot * 512;
     std::int64_t first[3], e[3];  // the block's first cell (relative to lo) and its extent inside the field
     for (int a = 0; a < 3; ++a) {
         first[a] = f.blocks[slot][static_cast<std::size_t>(a)] - f.lo[static_cast<std::size_t>(a)];
@@ -375,18 +395,16 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
     if (e[0] < kBlock || e[1] < kBlock || e[2] < kBlock) {  // cells past the field's edge: no label, no cover
         std::fill(out, out + 512, kNoCover);
         std::fill(out_word, out_word + 512, kNone);
-        std::fill(out_corner, out_corner + 512, kBoundMax);
     }
     for (std::int64_t z = 0; z < e[2]; ++z)
         for (std::int64_t y = 0; y < e[1]; ++y)
             for (std::int64_t x = 0; x < e[0]; ++x) {
                 const int li = static_cast<int>((z * 8 + y) * 8 + x);
                 const int ti = static_cast<int>((z * 9 + y) * 9 + x);
-                const Corners k(t, ti);
+                const Corners k(t, ti, cubes.one[li]);
                 const std::uint32_t word = t.lab[ti] | (k.complete && k.nk == 1 ? kSameBit : 0u);
                 out_word[li] = word;
-                out_corner[li] = quantized_down((t.F[ti] - c.slack) * c.inv_step);
-                const double lower = k.fmin - c.quarter;
+                const double lower = cubes.fmin[li] - c.quarter;
                 if (!(lower < 0)) {
                     out[li] = CellBounds{kBoundMax, kBoundMax};
                     continue;
@@ -600,13 +618,14 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         std::vector<Pending> pending = std::vector<Pending>(512);
         NearSpheres near, sub;
         Tile tile;
+        CubeSummaries cubes;
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         Scratch& sc = scratch.local();
         for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
             std::uint32_t* block_words = words.data() + slot * 512;
-            const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.pending.data());
+            const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.cubes, sc.pending.data());
             if (n_pending) close_cubes(f, slot, block_words, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);
             sub_block_ranges(f, slot);
             pair_spheres(f, slot, block_words);

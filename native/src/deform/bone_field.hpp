@@ -1,6 +1,5 @@
 // deform/bone_field.hpp: one bone's rest data, built once per rig: its spheres in k-d order with a k-d tree, and on
-// the lattice near them the power diagram's labels, each cube's quantised power range and its corner power, in
-// allocated 8³ blocks (docs/ALGORITHMS.md §7).
+// the lattice near them the power diagram's labels and each cube's quantised power range, in allocated 8³ blocks (docs/ALGORITHMS.md §7).
 #pragma once
 
 #include <algorithm>
@@ -102,7 +101,7 @@ inline double concave_lower(const double* v, const double* u, const double* s2) 
 }
 
 /// A field: one bone's spheres, or one smooth blend group's. A bone's field keeps lattice tables (power-diagram
-/// labels, cube ranges, corner powers) near its spheres; a blend group's (`lattice` false) keeps only its spheres and
+/// labels, cube ranges) near its spheres; a blend group's (`lattice` false) keeps only its spheres and
 /// their k-d tree: groups are small and their balls overlap their neighbours' many times over, so the gather takes
 /// their powers from the few spheres meeting each preimage instead (gather.cpp, ball candidates).
 struct BoneField {
@@ -121,7 +120,6 @@ struct BoneField {
     std::vector<std::array<std::int64_t, 3>> blocks;  // allocated blocks' first cells (absolute lattice)
     HugeVector<CellBounds> bounds;                // cell 0: none (no cover), then 512 per allocated block
     CellWords words;                              // likewise (encoded per block)
-    HugeVector<std::int16_t> corner;              // likewise: the power at the cell itself, quantised down
     double step = 1, floor_T = 0;                 // the quantum; the least power outside allocated blocks (T)
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
@@ -219,20 +217,10 @@ struct BoneField {
         for (int k = 0; k < 8; ++k) c[k] = cell_at(x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1));
     }
 
-    /// A lower bound of the power at p (fixed point, as Pull gives it) from the quantised powers at the eight
-    /// corners of its lattice cube (concave_lower: the power is |p|² plus a concave function). Corners outside the
-    /// allocated blocks hold at least T.
-    double corner_lower(const std::int64_t* p, const double* s2) const {
-        std::uint32_t c[8];
-        corner_cells((p[0] >> Pull::kBits) - lo[0], (p[1] >> Pull::kBits) - lo[1], (p[2] >> Pull::kBits) - lo[2], c);
-        double v[8];
-        for (int k = 0; k < 8; ++k) {
-            const std::int16_t q = corner[c[k]];
-            v[k] = c[k] == kNoCell ? floor_T : (q == kBoundMin ? -kInf : q * step);
-        }
-        const double u[3] = {Pull::fraction(p[0]), Pull::fraction(p[1]), Pull::fraction(p[2])};
-        return concave_lower(v, u, s2);
-    }
+    /// A lower bound of the power at p (fixed point, as Pull gives it) from the powers at the eight corners of its
+    /// lattice cube, each its label's (concave_lower: the power is |p|² plus a concave function). Corners outside
+    /// the allocated blocks hold at least T. (Defined after power_of.)
+    double corner_lower(const std::int64_t* p, const double* s2) const;
 
     /// The index of the cell at (x, y, z) (relative to lo) in allocated block blk.
     static std::uint32_t cell_of(std::int32_t blk, std::int64_t x, std::int64_t y, std::int64_t z) {
@@ -261,7 +249,7 @@ struct BoneField {
 
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
-               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.bytes() + corner.size() * 2 +
+               blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.bytes() +
                block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_sphere.size() * 4;
     }
 };
@@ -269,6 +257,21 @@ struct BoneField {
 inline double power_of(const BoneField& f, std::uint32_t k, const double* x, const double* s2) {
     const auto& sp = f.sph[k];
     return length2(x[0] - sp.c[0], x[1] - sp.c[1], x[2] - sp.c[2], s2) - sp.lim;
+}
+
+inline double BoneField::corner_lower(const std::int64_t* p, const double* s2) const {
+    const std::int64_t x = p[0] >> Pull::kBits, y = p[1] >> Pull::kBits, z = p[2] >> Pull::kBits;
+    std::uint32_t c[8];
+    corner_cells(x - lo[0], y - lo[1], z - lo[2], c);
+    double v[8];
+    for (int k = 0; k < 8; ++k) {
+        const std::uint32_t lab = label_of(words[c[k]]);  // (kNone for kNoCell)
+        const double at[3] = {static_cast<double>(x + (k & 1)), static_cast<double>(y + ((k >> 1) & 1)),
+                              static_cast<double>(z + (k >> 2))};
+        v[k] = lab == kNone ? floor_T : power_of(*this, lab, at, s2);
+    }
+    const double u[3] = {Pull::fraction(p[0]), Pull::fraction(p[1]), Pull::fraction(p[2])};
+    return concave_lower(v, u, s2);
 }
 
 /// An exact power v as a quantised range in steps of 1 / inv_step (lo <= v <= hi, with a rounding margin; lo
