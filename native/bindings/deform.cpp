@@ -41,7 +41,10 @@ py::dict frame_dict(DeformedVolume&& f) {
         d["values"] = to_numpy(std::move(f.half_values), f.grid, f.bricks).attr("view")("float16");
     else
         d["values"] = f.values.empty() ? py::object(py::none()) : py::object(to_numpy(std::move(f.values), f.grid, f.bricks));
-    d["bone"] = to_numpy(std::move(f.bone), f.grid, f.bricks);
+    if (!f.bone8.empty())  // byte labels (DeformOptions::half, fewer than 255 bones)
+        d["bone"] = to_numpy(std::move(f.bone8), f.grid, f.bricks);
+    else
+        d["bone"] = to_numpy(std::move(f.bone), f.grid, f.bricks);
     d["bricks"] = f.bricks;
     d["extent"] = py::make_tuple(f.extent[0], f.extent[1], f.extent[2], f.extent[3], f.extent[4], f.extent[5]);
     d["offset"] = py::make_tuple(f.offset[0], f.offset[1], f.offset[2]);

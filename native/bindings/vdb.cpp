@@ -1,4 +1,6 @@
 // Bindings for OpenVDB reading and writing (volrig/io.hpp, "OpenVDB"). Conversions only.
+#include <algorithm>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -14,7 +16,8 @@ using Grids = std::vector<std::pair<std::string, py::array>>;
 /// build_vdb over write_vdb's / build_vdb's Python arguments (C-contiguous copies where needed; float16 arrays as
 /// views of half floats; the GIL released while the grids are built).
 VdbGrids built_grids(const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
-                     const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins) {
+                     const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins,
+                     const std::vector<std::string>& labels) {
     if (!origins.empty() && origins.size() != grids.size())
         throw Error(path + ": " + std::to_string(origins.size()) + " origins for " + std::to_string(grids.size()) +
                     " grids");
@@ -27,6 +30,7 @@ VdbGrids built_grids(const std::string& path, const Grids& grids, const std::arr
         if (!keep.back()) throw Error(path + ": grid '" + name + "' is not a numeric array");
         views.emplace_back(name, view_of(keep.back(), spacing, origins.empty() ? origin : origins[i], path.c_str(), true));
         views.back().second.half = halves;
+        views.back().second.labels = std::find(labels.begin(), labels.end(), name) != labels.end();
     }
     py::gil_scoped_release release;
     return build_vdb(path, views, half);
@@ -80,19 +84,21 @@ void bind_vdb(py::module_& m) {
     m.def(
         "write_vdb",
         [](const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
-           const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins) {
-            VdbGrids built = built_grids(path, grids, spacing, origin, half, origins);
+           const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins,
+           const std::vector<std::string>& labels) {
+            VdbGrids built = built_grids(path, grids, spacing, origin, half, origins, labels);
             py::gil_scoped_release release;
             built.write(path);
         },
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
-        py::arg("origins") = std::vector<std::array<double, 3>>{},
-        "write_vdb(path, grids, spacing, origin, half=False, origins=[])\n\n"
+        py::arg("origins") = std::vector<std::array<double, 3>>{}, py::arg("labels") = std::vector<std::string>{},
+        "write_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[])\n\n"
         "grids: list of (name, numpy array [z, y, x], or [brick z, y, x, z, y, x] in 8³ bricks as a Deformer's\n"
         "frame in bricks); spacing and origin (x, y, z), or one origin per grid\n"
         "(origins), each a whole number of voxels from the first grid's (one voxel lattice).\n"
         "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
-        "int32 grids. Only non-zero voxels are active. Written to a temporary file and renamed.");
+        "int32 grids, and so do the integer grids named in labels (uint8 too). Only non-zero voxels are active.\n"
+        "Written to a temporary file and renamed.");
 
     py::class_<VdbGrids>(m, "VdbGrids", "Grids built by build_vdb, for one write (then freed).")
         .def(
@@ -107,8 +113,8 @@ void bind_vdb(py::module_& m) {
         "build_vdb",
         &built_grids,
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
-        py::arg("origins") = std::vector<std::array<double, 3>>{},
-        "build_vdb(path, grids, spacing, origin, half=False, origins=[]) -> VdbGrids\n\n"
+        py::arg("origins") = std::vector<std::array<double, 3>>{}, py::arg("labels") = std::vector<std::string>{},
+        "build_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[]) -> VdbGrids\n\n"
         "write_vdb's first half: the grids built (and checked) now, written by VdbGrids.write(path) later; the\n"
         "arrays may go in between. path names the file in errors.");
 }

@@ -7,7 +7,8 @@
 //                             keeps 0..255). uint8 is what masks and 8-bit scans are; as float grids they render
 //                             directly as density in Blender/Cycles and in Blender's viewport.
 //   int8, int16, int32, uint16, uint32, int64, uint64
-//                          -> Int32Grid (labels such as the `bone` grid); a value outside int32 is refused.
+//                          -> Int32Grid (labels such as the `bone` grid); a value outside int32 is refused. So is
+//                             any integer view marked as labels (VolumeView::labels), uint8 too.
 // Reading back therefore gives float32 for uint8 volumes written here (same values).
 //
 // Transform: a linear transform whose index (i, j, k) maps to origin + spacing * (i, j, k) (createLinearTransform
@@ -597,6 +598,8 @@ VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::str
             if (view.grid.dims[a] > std::numeric_limits<std::int32_t>::max())
                 throw Error(subject + ": dimensions exceed OpenVDB's 32-bit index range");
         if (view.half && view.dtype != DType::UInt16) throw Error(subject + ": half floats are 16-bit samples");
+        if (view.labels && (view.half || view.dtype == DType::Float32 || view.dtype == DType::Float64))
+            throw Error(subject + ": labels are integers");
         if (view.bricked && (view.grid.dims[0] % 8 || view.grid.dims[1] % 8 || view.grid.dims[2] % 8))
             throw Error(subject + ": a grid in 8³ bricks needs dimensions that are multiples of 8");
         if (!on_lattice_of(view.grid, g0))
@@ -608,8 +611,8 @@ VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::str
     for (const auto& [name, view] : grids) {
         Overflow overflow;
         openvdb::GridBase::Ptr grid;
-        const bool as_float =
-            view.half || view.dtype == DType::Float32 || view.dtype == DType::Float64 || view.dtype == DType::UInt8;
+        const bool as_float = view.half || view.dtype == DType::Float32 || view.dtype == DType::Float64 ||
+                              (view.dtype == DType::UInt8 && !view.labels);
         if (as_float) {
             auto fg = view.half ? build_grid<openvdb::FloatGrid>(static_cast<const openvdb::math::half*>(view.data),
                                                                  view.grid, view.bricked, overflow)

@@ -118,7 +118,8 @@ class BrickedFrame:
     hand without it.
 
     brick_values / brick_bone: arrays [brick z, y, x, z, y, x] (read-only, the Deformer's recycled memory;
-    brick_values float16 with ``frame(..., half=True)``);
+    brick_values float16 and brick_bone uint8 (when the rig has fewer than 255 bones) with
+    ``frame(..., half=True)``; brick_bone int16 otherwise);
     box_offset: the source-lattice index of the brick box's first voxel."""
 
     def __init__(self, d: dict, source: Volume):
@@ -142,6 +143,8 @@ class BrickedFrame:
                 part = a[b0[2]:b1[2], b0[1]:b1[1], b0[0]:b1[0]]
                 if part.dtype == np.float16:  # half values (frame(..., half=True)): a Frame's are float32
                     part = part.astype(np.float32)
+                if part.dtype == np.uint8:  # byte bone labels (likewise): a Frame's are int16
+                    part = part.astype(np.int16)
                 nb = part.shape[:3]
                 whole = part.transpose(0, 3, 1, 4, 2, 5).reshape(nb[0] * 8, nb[1] * 8, nb[2] * 8)
                 r = lo - b0 * 8
@@ -173,7 +176,7 @@ class BrickedFrame:
             return self.dense().vdb(path, half, parts, tissues, substitutes)
         density = self.brick_values if self.brick_values is not None else (self.brick_bone > 0).view(np.uint8)
         return build_vdb(os.fspath(path), {"density": density, "bone": self.brick_bone}, self.spacing,
-                         self._origin, half=half)
+                         self._origin, half=half, labels=("bone",))
 
 
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):
@@ -289,7 +292,8 @@ class Deformer:
         keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it. Returns a
         ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
         written to OpenVDB without a dense copy; what bakes use). ``half`` (with ``bricks``): its values as float16,
-        rounded as OpenVDB stores half floats (half the memory; the same file when saved with ``half=True``)."""
+        rounded as OpenVDB stores half floats, and its bone labels as uint8 when the rig has fewer than 255 bones
+        (half the memory; the same file when saved with ``half=True``)."""
         m, scale = _matrices(bone_matrices), _radius_scale(radius_scale, len(self.points))
         proximity = proximity or self.proximity
         if self._layer is not None and (self._layer.pieces is None or self._layer_proximity != proximity):

@@ -258,7 +258,7 @@ def dicom_series(path: str) -> list:
     return _volrig.dicom_series(os.fspath(path))
 
 
-def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) -> None:
+def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()) -> None:
     """Write several named grids on one geometry to an OpenVDB file.
 
     grids:   mapping name -> Volume or array [z, y, x], e.g. {"density": v, "bone": labels}. Floating (float16
@@ -267,19 +267,21 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True) ->
              whole number of voxels from the others (one voxel lattice); an array at ``origin``.
     spacing, origin: (x, y, z) world geometry; taken from the first Volume when omitted.
     half:    store float grids as 16-bit half floats (smaller files, ~3 significant digits).
+    labels:  names of integer grids that are labels: int32 grids whatever their dtype, uint8 too (a bake's frame
+             holds its bone labels as bytes).
     The file is written to a temporary name and renamed.
     """
-    _volrig.write_vdb(*_vdb_arguments(path, grids, spacing, origin, half))
+    _volrig.write_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels))
 
 
-def build_vdb(path: str, grids, spacing=None, origin=None, half: bool = True):
+def build_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()):
     """``write_vdb`` in two steps: the grids built now (checked as ``write_vdb`` checks them; ``path`` names the
     file in errors), written by ``.write(path)`` later, say on another thread once the arrays are gone (a bake's
     frame goes back to its Deformer as soon as its grids are built). The grids are freed once written."""
-    return _volrig.build_vdb(*_vdb_arguments(path, grids, spacing, origin, half))
+    return _volrig.build_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels))
 
 
-def _vdb_arguments(path, grids, spacing, origin, half):
+def _vdb_arguments(path, grids, spacing, origin, half, labels):
     items = list(grids.items()) if hasattr(grids, "items") else list(grids)
     if not items:
         raise VolrigError(f"{path}: no grids to write")
@@ -293,4 +295,4 @@ def _vdb_arguments(path, grids, spacing, origin, half):
             a = a.view(np.uint8)
         arrays.append((str(name), a))
         origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
-    return os.fspath(path), arrays, spacing, origin, bool(half), origins
+    return os.fspath(path), arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]

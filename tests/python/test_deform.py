@@ -480,6 +480,7 @@ def test_frames_in_bricks_are_the_same_frames_and_files(tmp_path, mode):
                 continue
             halves = d.frame(M, mode=mode, bricks=True, half=True)
             assert halves.brick_values.dtype == np.float16 and halves.stats == bricks.stats
+            assert halves.brick_bone.dtype == np.uint8 and halves.bone.array.dtype == np.int16  # bytes: 3 bones
             assert np.array_equal(halves.bone.array, full.bone.array)
             assert halves.values.array.dtype == np.float32
             assert np.array_equal(halves.values.array, full.values.array.astype(np.float16).astype(np.float32))
@@ -489,11 +490,32 @@ def test_frames_in_bricks_are_the_same_frames_and_files(tmp_path, mode):
             for grid in ("density", "bone"):
                 gb, gh = volrig.load(str(b), grid=grid), volrig.load(str(h), grid=grid)
                 assert np.allclose(gb.origin, gh.origin) and np.array_equal(gb.array, gh.array), grid
+            assert {g["name"]: g["type"] for g in volrig._volrig.vdb_grids(str(h))}["bone"] == "int32"  # labels, not density
     with pytest.raises(ValueError, match="half-float values are for frames in bricks"):
         d.frame(volrig.rest_pose(3), mode=mode, half=True)
     empty = d.frame(volrig.rest_pose(3), mode=mode, radius_scale=0.0, bricks=True)
     assert empty.stats["covered"] == 0 and empty.extent[3:] == (0, 0, 0)
     assert empty.bone.dims == (1, 1, 1) and not empty.bone.array.any()
+
+
+def test_half_frames_keep_int16_bones_for_255_bones_or_more(tmp_path):
+    """A rig of 255 bones or more has labels past a byte: a half frame keeps them int16, its file the same."""
+    volume, rig = capsule_chain(6)
+    mask, pts, binding = rigged(volume, rig, 300)
+    count = 300  # bone 299 owns the first chain bone's points: its label 300 does not fit in a byte
+    w = binding.weights.tocsr()
+    cols = np.where(w.indices == 0, count - 1, w.indices)
+    many = volrig.Binding(np.where(binding.bone == 0, count - 1, binding.bone),
+                          type(w)((w.data, cols, w.indptr), shape=(w.shape[0], count)), binding.mode,
+                          binding.unreachable, list(binding.bone_names) + [f"b{k}" for k in range(3, count)])
+    M = volrig.rest_pose(count)
+    M[[count - 1, 1, 2]] = random_pose(rig, np.random.default_rng(3), shift=6.0)
+    d = volrig.Deformer(volume, pts, many)
+    halves, full = d.frame(M, bricks=True, half=True), d.frame(M)
+    assert halves.brick_bone.dtype == np.int16 and halves.bone.array.max() == count
+    assert np.array_equal(halves.bone.array, full.bone.array)
+    halves.save(tmp_path / "many.vdb")
+    assert np.array_equal(volrig.load(str(tmp_path / "many.vdb"), grid="bone").array.max(), count)
 
 
 def test_bad_input_gets_clear_errors():

@@ -117,6 +117,14 @@ def test_integer_types(tmp_path):
     u = np.full((2, 2, 2), 7, np.uint16)
     volrig.write_vdb(path, {"labels": u}, spacing=1, origin=0)
     np.testing.assert_array_equal(volrig.load(path, grid="labels").array, u.astype(np.int32))
+    # bytes named as labels (a bake's bone labels) are an int32 grid too, not a float one; floats cannot be labels
+    b = np.arange(8, dtype=np.uint8).reshape(2, 2, 2) * 36 + 3  # up to 255
+    volrig.write_vdb(path, {"bone": b, "mask": b}, spacing=1, origin=0, labels=("bone",))
+    assert {g["name"]: g["type"] for g in _volrig.vdb_grids(str(path))} == {"bone": "int32", "mask": "float"}
+    np.testing.assert_array_equal(volrig.load(path, grid="bone").array, b.astype(np.int32))
+    with pytest.raises(volrig.VolrigError, match="'density': labels are integers"):
+        volrig.write_vdb(tmp_path / "f.vdb", {"density": b.astype(np.float32)}, spacing=1, origin=0, labels=("density",))
+    assert not (tmp_path / "f.vdb").exists()
 
 
 def test_grid_selection_and_missing_grid(tmp_path):

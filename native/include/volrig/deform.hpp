@@ -80,7 +80,8 @@ struct DeformOptions {
     /// memory only in the bricks it covers (a bake's frames; issue 17). Not with an imposed box.
     bool bricks = false;
     /// With bricks: the values as IEEE half floats (DeformedVolume::half_values), rounded as OpenVDB rounds the
-    /// floats it stores as half: half the memory of a bake's frame, and the same file.
+    /// floats it stores as half, and the bone labels as bytes when the rig has fewer than 255 bones
+    /// (DeformedVolume::bone8): half the memory of a bake's frame, and the same file.
     bool half = false;
 };
 
@@ -117,6 +118,7 @@ struct DeformedVolume {
     ZeroedArray<float> values;       ///< source samples (0 where empty); empty when options.values is false
     ZeroedArray<std::uint16_t> half_values;  ///< the same as IEEE half floats' bits, instead (options.half)
     ZeroedArray<std::int16_t> bone;  ///< owning bone + 1 of the winning sphere, 0 = empty
+    ZeroedArray<std::uint8_t> bone8;  ///< the same as bytes, instead (options.half with fewer than 255 bones)
     DeformStats stats;
     bool bricks = false;
     std::array<std::int64_t, 6> extent{0, 0, 0, 0, 0, 0};

@@ -128,7 +128,8 @@ Volume read_vdb(const std::string& path, const std::string& grid = "", const Rea
 
 /// Writes named grids on one voxel lattice (one spacing, origins a whole number of voxels apart; each grid's
 /// spacing and origin go into its transform). Floating and uint8 volumes (masks, 8-bit scans) become FloatGrids
-/// (stored as half floats when `half`); other integer volumes (e.g. int16/int32 bone labels) become Int32Grids. Only non-zero voxels are active; the background is 0.
+/// (stored as half floats when `half`); other integer volumes (e.g. int16/int32 bone labels), and uint8 ones marked
+/// as labels (VolumeView::labels), become Int32Grids. Only non-zero voxels are active; the background is 0.
 void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
 
 /// write_vdb in two steps: the grids built while the samples are at hand (build_vdb, checked as write_vdb checks

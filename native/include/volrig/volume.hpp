@@ -54,6 +54,9 @@ struct VolumeView {
     /// The samples are IEEE half floats (dtype UInt16 holding their bits), as a bake's frames hold their values
     /// (DeformOptions::half). Only the OpenVDB writer takes such views (into a float grid).
     bool half = false;
+    /// The samples are integer labels (a frame's bone labels): the OpenVDB writer makes an Int32Grid of them
+    /// whatever their type, bytes too (which it would otherwise take for a mask or an 8-bit scan).
+    bool labels = false;
 };
 
 /// The element of voxel (x, y, z) in an array of 8³ bricks over dims (multiples of 8): bricks in C order [z, y, x],

@@ -215,7 +215,8 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     const std::uint64_t layout = o.bricks ? box_key(bx) : 0;
     if (o.values && o.half) out.half_values = pool->take<std::uint16_t>(total, layout);
     else if (o.values) out.values = pool->take<float>(total, layout);
-    out.bone = pool->take<std::int16_t>(total, layout);
+    if (o.half && bone_count < 255) out.bone8 = pool->take<std::uint8_t>(total, layout);
+    else out.bone = pool->take<std::int16_t>(total, layout);
     report(progress, 0.55);
     const auto& sp = grid.spacing;
     const FieldSet set{fields, motions, sp.data(), {sp[0] * sp[0], sp[1] * sp[1], sp[2] * sp[2]}, threshold(),

@@ -934,7 +934,7 @@ template <class S>
 std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) const {
     const std::int64_t nx = bx_[3], ny = bx_[4];
     std::int64_t ncov = 0;
-    std::int16_t* const bone_out = out_.bone.data();
+    const BoneOut bone_out = BoneOut::of(out_);
     const ValueOut value_out = ValueOut::of(out_);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
@@ -951,7 +951,7 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
                     continue;
                 }
                 xs |= std::uint64_t{1} << dx;
-                bone_out[row + static_cast<std::size_t>(dx)] = static_cast<std::int16_t>(owner_[static_cast<std::size_t>(w)] + 1);
+                bone_out.put(row + static_cast<std::size_t>(dx), owner_[static_cast<std::size_t>(w)] + 1);
                 if (!value_out) continue;
                 const Pull& pl = s_.pull(w);
                 if (w == run) {
@@ -967,7 +967,7 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
             ncov += __builtin_popcountll(xs);
             loc.layer[dz] |= xs << (8 * dy);
             const auto x0 = static_cast<std::size_t>(__builtin_ctzll(xs)), x1 = static_cast<std::size_t>(64 - __builtin_clzll(xs));
-            out_.bone.mark_written(row + x0, row + x1);
+            mark_bones(out_, row + x0, row + x1);
             mark_values(out_, row + x0, row + x1);
         }
     return ncov;

@@ -63,7 +63,7 @@ void merge(Drawn& into, const Drawn& d) {
 /// One piece over the box: rows of its posed box, each voxel whose rest position rounds into the piece.
 template <class S, class Mark>
 Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampling sampling, const Box& bx,
-                  ValueOut values, std::int16_t* bone, Mark& mark, bool bricks) {
+                  ValueOut values, BoneOut bone, Mark& mark, bool bricks) {
     const std::array<std::int64_t, 3> dims{bx[3], bx[4], bx[5]};
     const auto b = posed_bounds(p, m);
     std::int64_t lo[3], hi[3];
@@ -73,7 +73,7 @@ Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampli
         if (hi[a] <= lo[a]) return Drawn{};
     }
     const std::int64_t px = p.box[3], py = p.box[4], pz = p.box[5];
-    const auto label = static_cast<std::int16_t>(p.bone + 1);
+    const std::int32_t label = p.bone + 1;
     Drawn all = Drawn{};
     std::mutex merging;
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(lo[2], hi[2]), [&](const tbb::blocked_range<std::int64_t>& rg) {
@@ -92,7 +92,7 @@ Drawn paint_piece(const S& sampler, const RigidPiece& p, const Motion& m, Sampli
                         continue;
                     const std::size_t at = bricks ? brick_index(x - bx[0], y - bx[1], z - bx[2], dims)
                                                   : static_cast<std::size_t>(row + x);
-                    bone[at] = label;
+                    bone.put(at, label);
                     if (values) values.put(at, sampler.sample(r, sampling));
                     if (bricks) mark(at, at + 1);
                     if (first < 0) first = x;
@@ -128,7 +128,7 @@ Box pieces_reach(const std::vector<RigidPiece>& pieces, const std::vector<Motion
 
 template <class Mark>
 Drawn paint_layer(const VolumeView& source, const std::vector<RigidPiece>& pieces, const std::vector<Motion>& motions,
-                  Sampling sampling, const Box& bx, ValueOut values, std::int16_t* bone, Mark&& mark, bool bricks = false) {
+                  Sampling sampling, const Box& bx, ValueOut values, BoneOut bone, Mark&& mark, bool bricks = false) {
     Drawn all = Drawn{};
     with_sampler(source, [&](const auto& sampler) {
         for (const RigidPiece& p : pieces)
@@ -143,9 +143,9 @@ Drawn paint_layer_pooled(const VolumeView& source, const std::vector<RigidPiece>
                          const std::vector<Motion>& motions, Sampling sampling, const Box& bx, DeformedVolume& out,
                          bool bricks) {
     return paint_layer(
-        source, pieces, motions, sampling, bx, ValueOut::of(out), out.bone.data(),
+        source, pieces, motions, sampling, bx, ValueOut::of(out), BoneOut::of(out),
         [&](std::size_t i0, std::size_t i1) {
-            out.bone.mark_written(i0, i1);
+            mark_bones(out, i0, i1);
             mark_values(out, i0, i1);
         },
         bricks);
@@ -170,7 +170,7 @@ std::int64_t paint_rigid_pieces(const VolumeView& source, const std::vector<Rigi
     check_pieces(source.grid, pieces, bone_count);
     check_box_reach(box);
     const std::vector<Motion> motions = bone_motions(matrices, bone_count, source.grid);
-    return paint_layer(source, pieces, motions, sampling, box, ValueOut{values, nullptr}, bone,
+    return paint_layer(source, pieces, motions, sampling, box, ValueOut{values, nullptr}, BoneOut{bone, nullptr},
                        [](std::size_t, std::size_t) {}).count;
 }
 
