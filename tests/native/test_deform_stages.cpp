@@ -345,7 +345,7 @@ TEST_CASE("a field built on a lent power-diagram lattice equals one built alone;
         CHECK(lent.words == alone.words);
         CHECK(std::equal(lent.bounds.begin(), lent.bounds.end(), alone.bounds.begin(), alone.bounds.end(),
                          [](CellBounds a, CellBounds b) { return a.lo == b.lo && a.hi == b.hi; }));
-        CHECK(lent.pair_sphere == alone.pair_sphere);
+        CHECK(lent.pair_alone == alone.pair_alone);
         // The blocks are kept exactly where the power dips below T at one of their 9³ lattice points (the brute force).
         const auto s2 = rs.s2();
         for (const auto& first : lent.blocks) {
@@ -366,11 +366,11 @@ TEST_CASE("a field built on a lent power-diagram lattice equals one built alone;
 TEST_CASE("one sphere's cells: its power is the field's on all their cubes", "[deform][stages]") {
     FieldCase fc(5, 12, 3);
     auto& [rs, s2, f, rng, u] = fc;
-    REQUIRE(f.pair_sphere.size() == f.blocks.size() * 64);
+    REQUIRE(f.pair_alone.size() == f.blocks.size());
     std::int64_t singles = 0, probed = 0, in_range = 0;
     for (std::size_t slot = 0; slot < f.blocks.size(); ++slot)
         for (int m = 0; m < 64; ++m) {
-            const std::uint32_t one = f.pair_sphere[slot * 64 + static_cast<std::size_t>(m)];
+            const std::uint32_t one = f.pair_sphere(static_cast<std::int32_t>(slot), m);
             if (one == kNone) continue;
             ++singles;
             const std::int64_t a[3] = {f.blocks[slot][0] + (m & 3) * 2, f.blocks[slot][1] + ((m >> 2) & 3) * 2,

@@ -264,7 +264,7 @@ void keep_blocks(BoneField& f, const std::atomic<std::uint8_t>* keep) {
     f.bounds[0] = kNoCover;
     f.words.code[0] = 0;
     f.sub.resize(f.blocks.size() * 8);  // sub_block_ranges writes them
-    f.pair_sphere.assign(f.blocks.size() * 64, kNone);
+    f.pair_alone.resize(f.blocks.size());  // pair_spheres writes them
 }
 
 /// A cube to close: its cell in the block and its corners' labels.
@@ -465,10 +465,10 @@ void sub_block_ranges(BoneField& f, std::size_t slot) {
     }
 }
 
-/// The sphere whose power is the bone's on all the cubes of each 2³ cells of a block: every cell's cube one label's
-/// at all corners, the same label (else kNone).
+/// Which 2³ cells of a block have one sphere's power as the bone's on all their cubes: every cell's cube one label's
+/// at all corners, the same label.
 void pair_spheres(BoneField& f, std::size_t slot, const std::uint32_t* words) {
-    std::uint32_t* one = f.pair_sphere.data() + slot * 64;
+    std::uint64_t alone_bits = 0;
     for (int m = 0; m < 64; ++m) {
         const int first = (((m >> 4) * 2 * 8) + ((m >> 2) & 3) * 2) * 8 + (m & 3) * 2;  // cell (2x, 2y, 2z)
         const std::uint32_t lab = label_of(words[first]);
@@ -477,8 +477,9 @@ void pair_spheres(BoneField& f, std::size_t slot, const std::uint32_t* words) {
             const std::uint32_t w = words[first + ((c >> 2) * 8 + ((c >> 1) & 1)) * 8 + (c & 1)];
             alone = same_of(w) && label_of(w) == lab;
         }
-        one[m] = alone ? lab : kNone;
+        alone_bits |= std::uint64_t{alone} << m;
     }
+    f.pair_alone[slot] = alone_bits;
 }
 
 /// A block's 512 words encoded (CellWords): its cells' codes written, its distinct words moved to the front of

@@ -124,9 +124,16 @@ struct BoneField {
     std::vector<std::int32_t> block_sat;          // summed-area table of allocated blocks, (bdims + 1)³
     std::vector<CellBounds> sub;                  // 8 per allocated block: the bounds' range over each 4³ sub-block
                                                   // (quantised in steps common to all fields, so that they compare)
-    std::vector<std::uint32_t> pair_sphere;       // 64 per allocated block: the sphere (local) whose power is the
-                                                  // bone's on every cube of the 2³ cells (all their cubes have that
-                                                  // one label at all corners), else kNone
+    std::vector<std::uint64_t> pair_alone;        // per allocated block, bit m for its 2³ cells m: one sphere's
+                                                  // power is the bone's on all their cubes (they have that one label
+                                                  // at all corners): their first cell's (pair_sphere)
+
+    /// The sphere (local) whose power is the bone's on all the cubes of the 2³ cells m of allocated block blk (m:
+    /// bits x, y, z of two each), else kNone.
+    std::uint32_t pair_sphere(std::int32_t blk, int m) const {
+        if (!((pair_alone[static_cast<std::size_t>(blk)] >> m) & 1)) return kNone;
+        return label_of(words[cell_of(blk, (m & 3) * 2, ((m >> 2) & 3) * 2, (m >> 4) * 2)]);
+    }
 
     /// The quantised range of the bone's power over the cubes whose first corners lie in cells [a, b] (absolute
     /// lattice, inclusive): lo >= 0 when none of them can be covered, hi = kBoundMax when one may not be.
@@ -175,7 +182,7 @@ struct BoneField {
                 for (std::int64_t x = s0[0]; x <= s1[0]; ++x) {
                     const std::int32_t blk = block_index[static_cast<std::size_t>(((z >> 2) * bdims[1] + (y >> 2)) * bdims[0] + (x >> 2))];
                     if (blk < 0) return kNone;
-                    const std::uint32_t k = pair_sphere[static_cast<std::size_t>(blk) * 64 + static_cast<std::size_t>(((z & 3) * 4 + (y & 3)) * 4 + (x & 3))];
+                    const std::uint32_t k = pair_sphere(blk, static_cast<int>(((z & 3) * 4 + (y & 3)) * 4 + (x & 3)));
                     if (k == kNone || (one != kNone && k != one)) return kNone;
                     one = k;
                 }
@@ -250,7 +257,7 @@ struct BoneField {
     std::size_t bytes() const {
         return global.size() * 4 + sph.size() * sizeof(Sphere) + nodes.size() * sizeof(KdNode) + block_index.size() * 4 +
                blocks.size() * 24 + bounds.size() * sizeof(CellBounds) + words.bytes() +
-               block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_sphere.size() * 4;
+               block_sat.size() * 4 + sub.size() * sizeof(CellBounds) + pair_alone.size() * 8;
     }
 };
 
