@@ -7,8 +7,9 @@
 //                             keeps 0..255). uint8 is what masks and 8-bit scans are; as float grids they render
 //                             directly as density in Blender/Cycles and in Blender's viewport.
 //   int8, int16, int32, uint16, uint32, int64, uint64
-//                          -> Int32Grid (labels such as the `bone` grid); a value outside int32 is refused. So is
-//                             any integer view marked as labels (VolumeView::labels), uint8 too.
+//                          -> Int32Grid (labels such as the `bone` grid); a value outside int32 is refused.
+//   any integer type marked as labels (VolumeView::labels), uint8 included
+//                          -> Int32Grid as well (a bake's frames hold their bone labels as bytes).
 // Reading back therefore gives float32 for uint8 volumes written here (same values).
 //
 // Transform: a linear transform whose index (i, j, k) maps to origin + spacing * (i, j, k) (createLinearTransform

@@ -123,7 +123,8 @@ def test_integer_types(tmp_path):
     assert {g["name"]: g["type"] for g in _volrig.vdb_grids(str(path))} == {"bone": "int32", "mask": "float"}
     np.testing.assert_array_equal(volrig.load(path, grid="bone").array, b.astype(np.int32))
     with pytest.raises(volrig.VolrigError, match="'density': labels are integers"):
-        volrig.write_vdb(tmp_path / "f.vdb", {"density": b.astype(np.float32)}, spacing=1, origin=0, labels=("density",))
+        volrig.write_vdb(tmp_path / "f.vdb", {"density": b.astype(np.float32)}, spacing=1, origin=0,
+                         labels=("density",))
     assert not (tmp_path / "f.vdb").exists()
 
 

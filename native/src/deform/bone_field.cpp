@@ -381,7 +381,8 @@ double cube_upper(const BoneField& f, const double* rest, const std::uint32_t* k
 /// first corner at the cell: at least the least corner value minus Σ s²/4 (corners outside the field hold at least
 /// T); at most cube_upper over the spheres labelling a corner. The cubes whose ranges leave coverage open go to
 /// `pending`; returns their count.
-int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, CubeSummaries& cubes, Pending* pending) {
+int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, CubeSummaries& cubes,
+                     Pending* pending) {
     t.load(f, slot, c.F, c.lab, c.T);
     cubes.make(t);
     int n_pending = 0;

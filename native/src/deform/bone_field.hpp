@@ -1,5 +1,6 @@
 // deform/bone_field.hpp: one bone's rest data, built once per rig: its spheres in k-d order with a k-d tree, and on
-// the lattice near them the power diagram's labels and each cube's quantised power range, in allocated 8³ blocks (docs/ALGORITHMS.md §7).
+// the lattice near them the power diagram's labels and each cube's quantised power range, in allocated 8³ blocks
+// (docs/ALGORITHMS.md §7).
 #pragma once
 
 #include <algorithm>
