@@ -284,7 +284,7 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner lower boun
     auto& [rs, s2, f, rng, u] = fc;
     REQUIRE(!f.blocks.empty());
     REQUIRE(f.global.size() == 40);
-    std::int64_t labelled = 0, empty_checked = 0;
+    std::int64_t labelled = 0, empty_checked = 0, one_sphere = 0;
     for (std::int64_t z = 0; z + 1 < f.dims[2]; ++z)
         for (std::int64_t y = 0; y + 1 < f.dims[1]; ++y)
             for (std::int64_t x = 0; x + 1 < f.dims[0]; ++x) {
@@ -304,12 +304,20 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner lower boun
                 }
                 const CellBounds b = f.bounds[cell];
                 for (int t = 0; t < 3; ++t) {
-                    const double p[3] = {base[0] + u(rng), base[1] + u(rng), base[2] + u(rng)};
+                    std::int64_t pf[3];  // a point of the cube in fixed point, as Pull gives preimages
+                    for (int a = 0; a < 3; ++a)
+                        pf[a] = static_cast<std::int64_t>(std::floor((base[a] + u(rng)) * Pull::kUnit));
+                    const double p[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
                     const double v = brute_power(f, p, s2.data()).key;
-                    std::int64_t pf[3];  // p in fixed point, as Pull gives preimages
-                    for (int a = 0; a < 3; ++a) pf[a] = static_cast<std::int64_t>(std::floor(p[a] * Pull::kUnit));
-                    const double at[3] = {Pull::to_double(pf[0]), Pull::to_double(pf[1]), Pull::to_double(pf[2])};
-                    REQUIRE(f.corner_lower(pf, s2.data()) <= brute_power(f, at, s2.data()).key);
+                    const double lower = f.corner_lower(pf, s2.data());
+                    REQUIRE(lower <= v);
+                    std::uint32_t corners[8];
+                    f.corner_cells(x, y, z, corners);
+                    const bool all_allocated = std::find(corners, corners + 8, kNoCell) == corners + 8;
+                    if (same_of(f.words[cell]) && all_allocated) {  // one sphere's cube: |p|² plus an affine part
+                        REQUIRE(lower == Approx(v).margin(1e-6));
+                        ++one_sphere;
+                    }
                     if (b.lo == kBoundMax) REQUIRE(!(v < 0));  // "covered nowhere in the cube"
                     else if (b.lo != kBoundMin) REQUIRE(b.lo * f.step <= v);
                     if (b.hi != kBoundMax) REQUIRE(v <= b.hi * f.step);
@@ -317,6 +325,7 @@ TEST_CASE("a bone field: power-diagram labels, cube ranges and corner lower boun
             }
     CHECK(labelled > 1000);
     CHECK(empty_checked > 100);
+    CHECK(one_sphere > 1000);
     // range_bounds over a region is the hull of the cubes' ranges; any_block agrees with the allocation.
     const std::int64_t a[3] = {f.lo[0] + 4, f.lo[1] + 4, f.lo[2] + 4}, b[3] = {a[0] + 5, a[1] + 6, a[2] + 3};
     const CellBounds r = f.range_bounds(a, b);
