@@ -348,7 +348,7 @@ TEST_CASE("a field built on a lent power-diagram lattice equals one built alone;
     for (const auto& [seed, n] : {std::pair<std::uint32_t, std::size_t>{21, 60}, {5, 12}, {8, 30}}) {
         const RandomSpheres rs(seed, n);
         const BoneField alone = rs.field(), lent = rs.field(&diagram);
-        REQUIRE(diagram.F.size() >= static_cast<std::size_t>(lent.dims[0] * lent.dims[1] * lent.dims[2]));
+        REQUIRE(diagram.lab.size() >= static_cast<std::size_t>(lent.dims[0] * lent.dims[1] * lent.dims[2]));
         CHECK(lent.blocks == alone.blocks);
         CHECK(lent.block_index == alone.block_index);
         CHECK(lent.words == alone.words);

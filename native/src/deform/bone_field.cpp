@@ -70,10 +70,12 @@ struct LabelEnvelope {
     std::vector<std::int64_t> v;
     std::vector<double> z, fv, gv;
     std::vector<std::uint32_t> lv;
-    std::vector<double> column_f;  // the z pass's columns, copied out of the field's lattice
-    std::vector<std::uint32_t> column_lab;
-    std::vector<std::uint8_t> z_blocks;  // per block along z: whether a column's power dips below T at its 9 points
+    std::vector<double> line;              // the values along the line being run, from its labels
+    std::vector<std::uint32_t> column_lab;  // the z pass's columns, copied out of the field's lattice
+    std::vector<std::uint8_t> z_blocks;     // per block along z: whether a column's power dips below T at its 9 points
 
+    /// The envelope of the n samples f[q] (contiguous; +inf: none) labelled lab[q * stride]: each sample's value
+    /// and label become the envelope's.
     void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
         v.resize(static_cast<std::size_t>(n));
         z.resize(static_cast<std::size_t>(n) + 1);
@@ -83,7 +85,7 @@ struct LabelEnvelope {
         const double inv_w = 1.0 / w;
         std::int64_t k = -1;
         for (std::int64_t q = 0; q < n; ++q) {
-            const double fq = f[q * stride];
+            const double fq = f[q];
             if (!(fq < kInf)) continue;
             const double gq = fq * inv_w + static_cast<double>(q * q);
             // pop the parabolas the new one hides from where they start: the crossing (gq − gp) / 2(q − p) <= z
@@ -105,11 +107,21 @@ struct LabelEnvelope {
         for (std::int64_t q = 0; q < n; ++q) {
             while (j < k && z[static_cast<std::size_t>(j + 1)] <= static_cast<double>(q)) ++j;
             const double d = static_cast<double>(q - v[static_cast<std::size_t>(j)]);
-            f[q * stride] = fv[static_cast<std::size_t>(j)] + w * d * d;
+            f[q] = fv[static_cast<std::size_t>(j)] + w * d * d;
             lab[q * stride] = lv[static_cast<std::size_t>(j)];
         }
     }
 };
+
+/// The power at the field's lattice point (x, y, z) (relative to lo) of its sphere `label`, +inf for kNone: the
+/// power diagram's value there, recomputed from its label (the diagram keeps labels only).
+inline double label_power(const BoneField& f, std::uint32_t label, std::int64_t x, std::int64_t y, std::int64_t z,
+                          const double* s2) {
+    if (label == kNone) return kInf;
+    const auto& sp = f.sph[label];
+    return length2(static_cast<double>(f.lo[0] + x) - sp.c[0], static_cast<double>(f.lo[1] + y) - sp.c[1],
+                   static_cast<double>(f.lo[2] + z) - sp.c[2], s2) - sp.lim;
+}
 
 /// The field's spheres in k-d order (with the tree) and its lattice extent: beyond a margin of sqrt(r² + T) around
 /// each sphere its power exceeds T, so cells outside need no labels.
@@ -166,17 +178,15 @@ void mark_blocks(const BoneField& f, std::int64_t x, std::int64_t y, const std::
                 if (z_blocks[kz]) keep[(static_cast<std::int64_t>(kz) * by + ky) * bx + kx].store(1, std::memory_order_relaxed);
 }
 
-/// The power diagram on the field's lattice: F = min over the spheres of |v − c|² − lim and its argmin (local
-/// index, kNone where F is infinite), by separable lower envelopes of parabolas seeded at the centres. Sets `keep`
-/// (per block of the field, zeroed) where the power dips below T at one of the block's 9³ points.
-void power_diagram(const BoneField& f, const double* s2, double T, double* F, std::uint32_t* lab,
-                   std::atomic<std::uint8_t>* keep) {
+/// The power diagram on the field's lattice: the argmin over the spheres of |v − c|² − lim (local index, kNone
+/// where none reaches), by separable lower envelopes of parabolas seeded at the centres, each pass taking its
+/// samples' values from their labels. Sets `keep` (per block of the field, zeroed) where the power dips below T at
+/// one of the block's 9³ points.
+void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t* lab, std::atomic<std::uint8_t>* keep) {
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
     const auto slice = static_cast<std::size_t>(nx * ny);
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-        const auto a = static_cast<std::size_t>(rg.begin()) * slice, b = static_cast<std::size_t>(rg.end()) * slice;
-        std::fill(F + a, F + b, kInf);
-        std::fill(lab + a, lab + b, kNone);
+        std::fill(lab + static_cast<std::size_t>(rg.begin()) * slice, lab + static_cast<std::size_t>(rg.end()) * slice, kNone);
     });
     std::vector<std::uint8_t> seeded(static_cast<std::size_t>(ny * nz), 0);  // per x row: holds a centre
     for (std::size_t k = 0; k < f.sph.size(); ++k) {
@@ -185,15 +195,19 @@ void power_diagram(const BoneField& f, const double* s2, double T, double* F, st
         const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - f.lo[2]) * ny +
                                                    (static_cast<std::int64_t>(sp.c[1]) - f.lo[1])) * nx +
                                                   (static_cast<std::int64_t>(sp.c[0]) - f.lo[0]));
-        if (-sp.lim < F[idx]) {
-            F[idx] = -sp.lim;
-            lab[idx] = static_cast<std::uint32_t>(k);
-        }
+        if (lab[idx] == kNone || sp.lim > f.sph[lab[idx]].lim) lab[idx] = static_cast<std::uint32_t>(k);
         seeded[idx / static_cast<std::size_t>(nx)] = 1;
     }
     tbb::enumerable_thread_specific<LabelEnvelope> envs;
+    // The values along a line of n samples from (x, y, z) along `axis` (labels l[q * stride]), from their labels.
+    auto values = [&](LabelEnvelope& e, const std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
+                      std::int64_t y, std::int64_t z, int axis) {
+        e.line.resize(static_cast<std::size_t>(n));
+        std::int64_t p[3] = {x, y, z};
+        for (std::int64_t q = 0; q < n; ++q, ++p[axis]) e.line[static_cast<std::size_t>(q)] = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
+    };
     // x rows, then y columns, then z columns; each pass parallel over the other two axes. Rows and slices without
-    // a centre stay infinite until the z pass.
+    // a centre stay unlabelled until the z pass.
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
         for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
@@ -201,45 +215,49 @@ void power_diagram(const BoneField& f, const double* s2, double T, double* F, st
             if (std::find(row_seeded, row_seeded + ny, std::uint8_t{1}) == row_seeded + ny) continue;
             for (std::int64_t y = 0; y < ny; ++y) {
                 if (!row_seeded[y]) continue;
-                const auto base = static_cast<std::size_t>((z * ny + y) * nx);
-                e.run(F + base, lab + base, nx, 1, s2[0]);
+                std::uint32_t* row = lab + (z * ny + y) * nx;
+                values(e, row, nx, 1, 0, y, z, 0);
+                e.run(e.line.data(), row, nx, 1, s2[0]);
             }
             for (std::int64_t x = 0; x < nx; ++x) {
-                const auto base = static_cast<std::size_t>(z * ny * nx + x);
-                e.run(F + base, lab + base, ny, nx, s2[1]);
+                std::uint32_t* column = lab + z * ny * nx + x;
+                values(e, column, ny, nx, x, 0, z, 1);
+                e.run(e.line.data(), column, ny, nx, s2[1]);
             }
         }
     });
-    // z columns eight at a time, copied out and back: one pass down the slices per eight columns, not eight
+    // z columns sixteen at a time (a cache line of labels per slice), copied out and back: one pass down the slices
+    // per sixteen columns, not sixteen
+    constexpr std::int64_t kWide = 16;
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
-        e.column_f.resize(static_cast<std::size_t>(8 * nz));
-        e.column_lab.resize(static_cast<std::size_t>(8 * nz));
+        e.column_lab.resize(static_cast<std::size_t>(kWide * nz));
         e.z_blocks.resize(static_cast<std::size_t>(f.bdims[2]));
         for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
-            for (std::int64_t x0 = 0; x0 < nx; x0 += 8) {
-                const std::int64_t w = std::min<std::int64_t>(8, nx - x0);
-                // column i's z-th value <-> the lattice's at (x0 + i, y, z)
+            for (std::int64_t x0 = 0; x0 < nx; x0 += kWide) {
+                const std::int64_t w = std::min<std::int64_t>(kWide, nx - x0);
+                // column i's z-th label <-> the lattice's at (x0 + i, y, z)
                 auto each = [&](auto&& move) {
                     for (std::int64_t z = 0; z < nz; ++z)
                         for (std::int64_t i = 0; i < w; ++i)
-                            move(static_cast<std::size_t>(i * nz + z), static_cast<std::size_t>((z * ny + y) * nx + x0 + i));
+                            move(e.column_lab[static_cast<std::size_t>(i * nz + z)], lab[static_cast<std::size_t>((z * ny + y) * nx + x0 + i)]);
                 };
-                each([&](std::size_t c, std::size_t l) { e.column_f[c] = F[l], e.column_lab[c] = lab[l]; });
+                each([](std::uint32_t& c, std::uint32_t& l) { c = l; });
                 for (std::int64_t i = 0; i < w; ++i) {
-                    double* column = e.column_f.data() + i * nz;
-                    e.run(column, e.column_lab.data() + i * nz, nz, 1, s2[2]);
+                    std::uint32_t* column = e.column_lab.data() + i * nz;
+                    values(e, column, nz, 1, x0 + i, y, 0, 2);
+                    e.run(e.line.data(), column, nz, 1, s2[2]);
                     std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});  // as for x and y in mark_blocks
                     bool any = false;
                     for (std::int64_t z = 0; z < nz; ++z)
-                        if (column[z] < T) {
+                        if (e.line[static_cast<std::size_t>(z)] < T) {
                             any = true;
                             e.z_blocks[static_cast<std::size_t>(z >> 3)] = 1;
                             if (z > 0) e.z_blocks[static_cast<std::size_t>((z - 1) >> 3)] = 1;
                         }
                     if (any) mark_blocks(f, x0 + i, y, e.z_blocks, keep);
                 }
-                each([&](std::size_t c, std::size_t l) { F[l] = e.column_f[c], lab[l] = e.column_lab[c]; });
+                each([](std::uint32_t& c, std::uint32_t& l) { l = c; });
             }
     });
 }
@@ -273,9 +291,9 @@ struct Pending {
     std::uint32_t ks[8];
 };
 
-/// The inputs of the per-cell pass: the power diagram on the field's lattice and the constants of its bounds.
+/// The inputs of the per-cell pass: the power diagram's labels on the field's lattice and the constants of its
+/// bounds.
 struct CellPass {
-    const double* F;
     const std::uint32_t* lab;
     const double* s2;
     double T, step;
@@ -286,14 +304,14 @@ struct CellPass {
 };
 
 /// The power diagram at the 9³ lattice points of one block's cubes (its 8³ cells and the next one along each
-/// axis), copied row by row so that each cell's eight corners are read from a small local tile. Points outside
-/// the field hold the label kOutside (no sphere) and the power T (at least that there).
+/// axis): the labels copied row by row, so that each cell's eight corners are read from a small local tile, and
+/// their powers. Points outside the field hold the label kOutside (no sphere) and the power T (at least that there).
 struct Tile {
     static constexpr std::uint32_t kOutside = kNone - 1;
     double F[729];
     std::uint32_t lab[729];
 
-    void load(const BoneField& f, std::size_t slot, const double* F_all, const std::uint32_t* lab_all, double T) {
+    void load(const BoneField& f, std::size_t slot, const std::uint32_t* lab_all, double T, const double* s2) {
         const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
         const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
         const std::int64_t ex = std::min<std::int64_t>(9, nx - x0);
@@ -303,11 +321,11 @@ struct Tile {
                 std::uint32_t* tl = lab + (z * 9 + y) * 9;
                 std::int64_t n = 0;
                 if (z0 + z < nz && y0 + y < ny) {
-                    const auto row = static_cast<std::size_t>(((z0 + z) * ny + y0 + y) * nx + x0);
+                    const std::uint32_t* row = lab_all + ((z0 + z) * ny + y0 + y) * nx + x0;
                     n = ex;
                     for (std::int64_t i = 0; i < n; ++i) {
-                        tf[i] = F_all[row + static_cast<std::size_t>(i)];
-                        tl[i] = lab_all[row + static_cast<std::size_t>(i)];
+                        tl[i] = row[i];
+                        tf[i] = label_power(f, row[i], x0 + i, y0 + y, z0 + z, s2);
                     }
                 }
                 std::fill(tf + n, tf + 9, T);
@@ -346,18 +364,16 @@ struct CubeSummaries {
     }
 };
 
-/// The eight corners of the cube whose first corner is tile point ti (cell li): their distinct labels (in corner
-/// order) and whether all eight lie inside the field and are labelled.
+/// The distinct labels (in corner order) of the eight corners of the cube whose first corner is tile point ti,
+/// outside the field and unlabelled ones left out; `one`: the eight carry one label.
 struct Corners {
     std::uint32_t ks[8];
     int nk = 0;
-    bool complete = true;
 
     Corners(const Tile& t, int ti, bool one) {
         constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
         for (int k = 0; k < (one ? 1 : 8); ++k) {
             const std::uint32_t l = t.lab[ti + kCorner[k]];
-            complete = complete && l < Tile::kOutside;
             if (l < Tile::kOutside && std::find(ks, ks + nk, l) == ks + nk) ks[nk++] = l;
         }
     }
@@ -383,7 +399,7 @@ double cube_upper(const BoneField& f, const double* rest, const std::uint32_t* k
 /// `pending`; returns their count.
 int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t, CubeSummaries& cubes,
                      Pending* pending) {
-    t.load(f, slot, c.F, c.lab, c.T);
+    t.load(f, slot, c.lab, c.T, c.s2);
     cubes.make(t);
     int n_pending = 0;
     CellBounds* out = f.bounds.data() + 1 + slot * 512;
@@ -402,14 +418,16 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
             for (std::int64_t x = 0; x < e[0]; ++x) {
                 const int li = static_cast<int>((z * 8 + y) * 8 + x);
                 const int ti = static_cast<int>((z * 9 + y) * 9 + x);
-                const Corners k(t, ti, cubes.one[li]);
-                const std::uint32_t word = t.lab[ti] | (k.complete && k.nk == 1 ? kSameBit : 0u);
+                // One label at all eight corners, a sphere's (the cell lies inside the field: not kOutside there)
+                const bool same = cubes.one[li] && t.lab[ti] != kNone;
+                const std::uint32_t word = t.lab[ti] | (same ? kSameBit : 0u);
                 out_word[li] = word;
                 const double lower = cubes.fmin[li] - c.quarter;
                 if (!(lower < 0)) {
                     out[li] = CellBounds{kBoundMax, kBoundMax};
                     continue;
                 }
+                const Corners k(t, ti, cubes.one[li]);
                 const double rest[3] = {static_cast<double>(first[0] + x + f.lo[0]),
                                         static_cast<double>(first[1] + y + f.lo[1]),
                                         static_cast<double>(first[2] + z + f.lo[2])};
@@ -605,7 +623,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     diagram.reserve(static_cast<std::size_t>(f.dims[0] * f.dims[1] * f.dims[2]));
     const std::unique_ptr<std::atomic<std::uint8_t>[]> keep(new std::atomic<std::uint8_t>[static_cast<std::size_t>(
         f.bdims[0] * f.bdims[1] * f.bdims[2])]());
-    power_diagram(f, s2, T, diagram.F.data(), diagram.lab.data(), keep.get());
+    power_diagram(f, s2, T, diagram.lab.data(), keep.get());
     keep_blocks(f, keep.get());
     f.step = step;
     f.floor_T = T;
@@ -614,7 +632,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
     const double quarter = 0.25 * (s2[0] + s2[1] + s2[2]);
     Buffer<std::uint32_t> words(f.blocks.size() * 512);
     std::vector<std::int32_t> count(f.blocks.size());
-    const CellPass pass{diagram.F.data(), diagram.lab.data(), s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter),
+    const CellPass pass{diagram.lab.data(), s2, T, step, quarter, 1e-9 * (maxlim + 4 * quarter),
                         1.0 / step, words.data()};
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);

@@ -304,16 +304,14 @@ inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const do
                       exact_bounds(length2(far[0], far[1], far[2], s2) - sp.lim, inv).hi};
 }
 
-/// The power diagram over a field's lattice box (its values and labels, 12 bytes a cell), kept across the fields of
-/// one build so that each field does not fault in fresh pages for its own: grows to the largest box asked for.
+/// The power diagram over a field's lattice box (its labels, 4 bytes a cell: the values are the labels' powers,
+/// recomputed where they are read), kept across the fields of one build so that each field does not fault in fresh
+/// pages for its own: grows to the largest box asked for.
 struct DiagramScratch {
-    Buffer<double> F;
     Buffer<std::uint32_t> lab;
     void reserve(std::size_t n) {  // uninitialised: power_diagram fills what it uses, in parallel
-        if (n <= F.size()) return;
-        Buffer<double>().swap(F);  // the old lattice goes before the larger one comes
-        Buffer<std::uint32_t>().swap(lab);
-        F.resize(n);
+        if (n <= lab.size()) return;
+        Buffer<std::uint32_t>().swap(lab);  // the old lattice goes before the larger one comes
         lab.resize(n);
     }
 };

@@ -62,11 +62,12 @@ bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S,
         const double* cz = near.c[2].data();
         const double* lim = near.lim.data();
         double* gap = near.gap.data();
-        const double b0 = base[0], b1 = base[1], b2 = base[2], w0 = s2[0], w1 = s2[1], w2 = s2[2];
+        // The distance from a centre to the cube along an axis, |c − (b + ½)| − ½ where positive: exact (the
+        // centres and corners are integers), and branch-free, so that the loop vectorises.
+        const double m0 = base[0] + 0.5, m1 = base[1] + 0.5, m2 = base[2] + 0.5, w0 = s2[0], w1 = s2[1], w2 = s2[2];
         for (std::size_t k = 0; k < n; ++k) {
-            const double ex = std::max(0.0, std::max(b0 - cx[k], cx[k] - b0 - 1));
-            const double ey = std::max(0.0, std::max(b1 - cy[k], cy[k] - b1 - 1));
-            const double ez = std::max(0.0, std::max(b2 - cz[k], cz[k] - b2 - 1));
+            const double dx = std::abs(cx[k] - m0) - 0.5, dy = std::abs(cy[k] - m1) - 0.5, dz = std::abs(cz[k] - m2) - 0.5;
+            const double ex = dx > 0 ? dx : 0.0, ey = dy > 0 ? dy : 0.0, ez = dz > 0 ? dz : 0.0;
             const double d2 = w0 * ex * ex + w1 * ey * ey + w2 * ez * ez;
             gap[k] = d2 - (lim[k] + 1e-9 * (1.0 + d2 + lim[k]));
         }
