@@ -70,9 +70,8 @@ struct LabelEnvelope {
     std::vector<std::int64_t> v;
     std::vector<double> z, fv, gv;
     std::vector<std::uint32_t> lv;
-    std::vector<double> line;              // the values along the line being run, from its labels
-    std::vector<std::uint32_t> column_lab;  // the z pass's columns, copied out of the field's lattice
-    std::vector<std::uint8_t> z_blocks;     // per block along z: whether a column's power dips below T at its 9 points
+    std::vector<double> line;           // the values along the line being run, from its labels
+    std::vector<std::uint8_t> z_blocks;  // per block along z: whether a column's power dips below T at its 9 points
 
     /// The envelope of the n samples f[q] (contiguous; +inf: none) labelled lab[q * stride]: each sample's value
     /// and label become the envelope's.
@@ -180,84 +179,68 @@ void mark_blocks(const BoneField& f, std::int64_t x, std::int64_t y, const std::
 
 /// The power diagram on the field's lattice: the argmin over the spheres of |v − c|² − lim (local index, kNone
 /// where none reaches), by separable lower envelopes of parabolas seeded at the centres, each pass taking its
-/// samples' values from their labels. Sets `keep` (per block of the field, zeroed) where the power dips below T at
-/// one of the block's 9³ points.
+/// samples' values from their labels. The lattice runs z fastest (point (x, y, z) at (x·ny + y)·nz + z): the x
+/// pass, over the few rows that hold a centre, strides through it; the y pass strides within one x slab (a few
+/// hundred KB); the z pass, over every column, reads it in order. Sets `keep` (per block of the field, zeroed)
+/// where the power dips below T at one of the block's 9³ points.
 void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t* lab, std::atomic<std::uint8_t>* keep) {
     const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
-    const auto slice = static_cast<std::size_t>(nx * ny);
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
-        std::fill(lab + static_cast<std::size_t>(rg.begin()) * slice, lab + static_cast<std::size_t>(rg.end()) * slice, kNone);
+    const auto slab = static_cast<std::size_t>(ny * nz);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nx), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        std::fill(lab + static_cast<std::size_t>(rg.begin()) * slab, lab + static_cast<std::size_t>(rg.end()) * slab, kNone);
     });
-    std::vector<std::uint8_t> seeded(static_cast<std::size_t>(ny * nz), 0);  // per x row: holds a centre
+    std::vector<std::uint8_t> seeded(slab, 0), seeded_z(static_cast<std::size_t>(nz), 0);  // per x row (y, z); per z
     for (std::size_t k = 0; k < f.sph.size(); ++k) {
         const auto& sp = f.sph[k];
         if (!(sp.lim > 0)) continue;
-        const auto idx = static_cast<std::size_t>(((static_cast<std::int64_t>(sp.c[2]) - f.lo[2]) * ny +
-                                                   (static_cast<std::int64_t>(sp.c[1]) - f.lo[1])) * nx +
-                                                  (static_cast<std::int64_t>(sp.c[0]) - f.lo[0]));
-        if (lab[idx] == kNone || sp.lim > f.sph[lab[idx]].lim) lab[idx] = static_cast<std::uint32_t>(k);
-        seeded[idx / static_cast<std::size_t>(nx)] = 1;
+        const std::int64_t x = static_cast<std::int64_t>(sp.c[0]) - f.lo[0], y = static_cast<std::int64_t>(sp.c[1]) - f.lo[1],
+                           z = static_cast<std::int64_t>(sp.c[2]) - f.lo[2];
+        std::uint32_t& l = lab[static_cast<std::size_t>((x * ny + y) * nz + z)];
+        if (l == kNone || sp.lim > f.sph[l].lim) l = static_cast<std::uint32_t>(k);
+        seeded[static_cast<std::size_t>(y * nz + z)] = 1;
+        seeded_z[static_cast<std::size_t>(z)] = 1;
     }
+    std::vector<std::int64_t> rows;  // the x rows holding a centre, as y·nz + z
+    for (std::size_t r = 0; r < slab; ++r)
+        if (seeded[r]) rows.push_back(static_cast<std::int64_t>(r));
     tbb::enumerable_thread_specific<LabelEnvelope> envs;
-    // The values along a line of n samples from (x, y, z) along `axis` (labels l[q * stride]), from their labels.
-    auto values = [&](LabelEnvelope& e, const std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
-                      std::int64_t y, std::int64_t z, int axis) {
+    // The envelope along the line of n samples from (x, y, z) along `axis`, labels l[q * stride], valued from them.
+    auto run = [&](LabelEnvelope& e, std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
+                   std::int64_t y, std::int64_t z, int axis) {
         e.line.resize(static_cast<std::size_t>(n));
         std::int64_t p[3] = {x, y, z};
         for (std::int64_t q = 0; q < n; ++q, ++p[axis]) e.line[static_cast<std::size_t>(q)] = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
+        e.run(e.line.data(), l, n, stride, s2[axis]);
     };
-    // x rows, then y columns, then z columns; each pass parallel over the other two axes. Rows and slices without
-    // a centre stay unlabelled until the z pass.
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& rg) {
+    // x rows holding a centre, then y columns in the z planes holding one, then every z column; each pass parallel.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         LabelEnvelope& e = envs.local();
-        for (std::int64_t z = rg.begin(); z != rg.end(); ++z) {
-            const std::uint8_t* row_seeded = seeded.data() + z * ny;
-            if (std::find(row_seeded, row_seeded + ny, std::uint8_t{1}) == row_seeded + ny) continue;
-            for (std::int64_t y = 0; y < ny; ++y) {
-                if (!row_seeded[y]) continue;
-                std::uint32_t* row = lab + (z * ny + y) * nx;
-                values(e, row, nx, 1, 0, y, z, 0);
-                e.run(e.line.data(), row, nx, 1, s2[0]);
-            }
-            for (std::int64_t x = 0; x < nx; ++x) {
-                std::uint32_t* column = lab + z * ny * nx + x;
-                values(e, column, ny, nx, x, 0, z, 1);
-                e.run(e.line.data(), column, ny, nx, s2[1]);
-            }
+        for (std::size_t r = rg.begin(); r != rg.end(); ++r) {
+            const std::int64_t y = rows[r] / nz, z = rows[r] % nz;
+            run(e, lab + rows[r], nx, ny * nz, 0, y, z, 0);
         }
     });
-    // z columns sixteen at a time (a cache line of labels per slice), copied out and back: one pass down the slices
-    // per sixteen columns, not sixteen
-    constexpr std::int64_t kWide = 16;
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, ny), [&](const tbb::blocked_range<std::int64_t>& rg) {
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nx), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
-        e.column_lab.resize(static_cast<std::size_t>(kWide * nz));
+        for (std::int64_t x = rg.begin(); x != rg.end(); ++x)
+            for (std::int64_t z = 0; z < nz; ++z)
+                if (seeded_z[static_cast<std::size_t>(z)]) run(e, lab + x * ny * nz + z, ny, nz, x, 0, z, 1);
+    });
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nx), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
         e.z_blocks.resize(static_cast<std::size_t>(f.bdims[2]));
-        for (std::int64_t y = rg.begin(); y != rg.end(); ++y)
-            for (std::int64_t x0 = 0; x0 < nx; x0 += kWide) {
-                const std::int64_t w = std::min<std::int64_t>(kWide, nx - x0);
-                // column i's z-th label <-> the lattice's at (x0 + i, y, z)
-                auto each = [&](auto&& move) {
-                    for (std::int64_t z = 0; z < nz; ++z)
-                        for (std::int64_t i = 0; i < w; ++i)
-                            move(e.column_lab[static_cast<std::size_t>(i * nz + z)], lab[static_cast<std::size_t>((z * ny + y) * nx + x0 + i)]);
-                };
-                each([](std::uint32_t& c, std::uint32_t& l) { c = l; });
-                for (std::int64_t i = 0; i < w; ++i) {
-                    std::uint32_t* column = e.column_lab.data() + i * nz;
-                    values(e, column, nz, 1, x0 + i, y, 0, 2);
-                    e.run(e.line.data(), column, nz, 1, s2[2]);
-                    std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});  // as for x and y in mark_blocks
-                    bool any = false;
-                    for (std::int64_t z = 0; z < nz; ++z)
-                        if (e.line[static_cast<std::size_t>(z)] < T) {
-                            any = true;
-                            e.z_blocks[static_cast<std::size_t>(z >> 3)] = 1;
-                            if (z > 0) e.z_blocks[static_cast<std::size_t>((z - 1) >> 3)] = 1;
-                        }
-                    if (any) mark_blocks(f, x0 + i, y, e.z_blocks, keep);
-                }
-                each([](std::uint32_t& c, std::uint32_t& l) { l = c; });
+        for (std::int64_t x = rg.begin(); x != rg.end(); ++x)
+            for (std::int64_t y = 0; y < ny; ++y) {
+                run(e, lab + (x * ny + y) * nz, nz, 1, x, y, 0, 2);
+                std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});  // as for x and y in mark_blocks
+                bool any = false;
+                for (std::int64_t z = 0; z < nz; ++z)
+                    if (e.line[static_cast<std::size_t>(z)] < T) {
+                        any = true;
+                        e.z_blocks[static_cast<std::size_t>(z >> 3)] = 1;
+                        if (z > 0) e.z_blocks[static_cast<std::size_t>((z - 1) >> 3)] = 1;
+                    }
+                if (any) mark_blocks(f, x, y, e.z_blocks, keep);
             }
     });
 }
@@ -304,7 +287,7 @@ struct CellPass {
 };
 
 /// The power diagram at the 9³ lattice points of one block's cubes (its 8³ cells and the next one along each
-/// axis): the labels copied row by row, so that each cell's eight corners are read from a small local tile, and
+/// axis): the labels copied column by column, so that each cell's eight corners are read from a small local tile, and
 /// their powers. Points outside the field hold the label kOutside (no sphere) and the power T (at least that there).
 struct Tile {
     static constexpr std::uint32_t kOutside = kNone - 1;
@@ -314,22 +297,20 @@ struct Tile {
     void load(const BoneField& f, std::size_t slot, const std::uint32_t* lab_all, double T, const double* s2) {
         const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
         const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
-        const std::int64_t ex = std::min<std::int64_t>(9, nx - x0);
-        for (std::int64_t z = 0; z < 9; ++z)
-            for (std::int64_t y = 0; y < 9; ++y) {
-                double* tf = F + (z * 9 + y) * 9;
-                std::uint32_t* tl = lab + (z * 9 + y) * 9;
-                std::int64_t n = 0;
-                if (z0 + z < nz && y0 + y < ny) {
-                    const std::uint32_t* row = lab_all + ((z0 + z) * ny + y0 + y) * nx + x0;
-                    n = ex;
-                    for (std::int64_t i = 0; i < n; ++i) {
-                        tl[i] = row[i];
-                        tf[i] = label_power(f, row[i], x0 + i, y0 + y, z0 + z, s2);
-                    }
+        const std::int64_t ex = std::min<std::int64_t>(9, nx - x0), ey = std::min<std::int64_t>(9, ny - y0),
+                           ez = std::min<std::int64_t>(9, nz - z0);
+        if (ex < 9 || ey < 9 || ez < 9) {
+            std::fill(F, F + 729, T);
+            std::fill(lab, lab + 729, kOutside);
+        }
+        for (std::int64_t x = 0; x < ex; ++x)
+            for (std::int64_t y = 0; y < ey; ++y) {
+                const std::uint32_t* run = lab_all + ((x0 + x) * ny + y0 + y) * nz + z0;  // (the lattice runs z fastest)
+                for (std::int64_t z = 0; z < ez; ++z) {
+                    const auto i = static_cast<std::size_t>((z * 9 + y) * 9 + x);
+                    lab[i] = run[z];
+                    F[i] = label_power(f, run[z], x0 + x, y0 + y, z0 + z, s2);
                 }
-                std::fill(tf + n, tf + 9, T);
-                std::fill(tl + n, tl + 9, kOutside);
             }
     }
 };
@@ -641,9 +622,18 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
         CubeSummaries cubes;
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.blocks.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+    // The blocks in the lattice's order (x slowest, z fastest), so that the tiles of consecutive blocks share its pages
+    std::vector<std::size_t> order;
+    order.reserve(f.blocks.size());
+    for (std::int64_t kx = 0; kx < f.bdims[0]; ++kx)
+        for (std::int64_t ky = 0; ky < f.bdims[1]; ++ky)
+            for (std::int64_t kz = 0; kz < f.bdims[2]; ++kz)
+                if (const std::int32_t b = f.block_index[static_cast<std::size_t>((kz * f.bdims[1] + ky) * f.bdims[0] + kx)]; b >= 0)
+                    order.push_back(static_cast<std::size_t>(b));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, order.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         Scratch& sc = scratch.local();
-        for (std::size_t slot = rg.begin(); slot != rg.end(); ++slot) {
+        for (std::size_t i = rg.begin(); i != rg.end(); ++i) {
+            const std::size_t slot = order[i];
             std::uint32_t* block_words = words.data() + slot * 512;
             const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.cubes, sc.pending.data());
             if (n_pending) close_cubes(f, slot, block_words, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);

@@ -306,12 +306,13 @@ inline CellBounds sphere_box_range(const BoneField& f, std::uint32_t k, const do
 
 /// The power diagram over a field's lattice box (its labels, 4 bytes a cell: the values are the labels' powers,
 /// recomputed where they are read), kept across the fields of one build so that each field does not fault in fresh
-/// pages for its own: grows to the largest box asked for.
+/// pages for its own: grows to the largest box asked for. On huge pages: the z pass and the blocks' tiles step
+/// through it by whole slices.
 struct DiagramScratch {
-    Buffer<std::uint32_t> lab;
+    HugeVector<std::uint32_t> lab;
     void reserve(std::size_t n) {  // uninitialised: power_diagram fills what it uses, in parallel
         if (n <= lab.size()) return;
-        Buffer<std::uint32_t>().swap(lab);  // the old lattice goes before the larger one comes
+        HugeVector<std::uint32_t>().swap(lab);  // the old lattice goes before the larger one comes
         lab.resize(n);
     }
 };
