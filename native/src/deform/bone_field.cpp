@@ -73,9 +73,9 @@ struct LabelEnvelope {
     std::vector<double> line;           // the values along the line being run, from its labels
     std::vector<std::uint8_t> z_blocks;  // per block along z: whether a column's power dips below T at its 9 points
 
-    /// The envelope of the n samples f[q] (contiguous; +inf: none) labelled lab[q * stride]: each sample's value
-    /// and label become the envelope's.
-    void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w) {
+    /// The envelope of the n samples f[q] (contiguous; +inf: none) labelled lab[q * stride]: each sample's label
+    /// becomes the envelope's, and its value too with `values`.
+    void run(double* f, std::uint32_t* lab, std::int64_t n, std::int64_t stride, double w, bool values) {
         v.resize(static_cast<std::size_t>(n));
         z.resize(static_cast<std::size_t>(n) + 1);
         fv.resize(static_cast<std::size_t>(n));
@@ -105,9 +105,11 @@ struct LabelEnvelope {
         std::int64_t j = 0;
         for (std::int64_t q = 0; q < n; ++q) {
             while (j < k && z[static_cast<std::size_t>(j + 1)] <= static_cast<double>(q)) ++j;
-            const double d = static_cast<double>(q - v[static_cast<std::size_t>(j)]);
-            f[q] = fv[static_cast<std::size_t>(j)] + w * d * d;
             lab[q * stride] = lv[static_cast<std::size_t>(j)];
+            if (values) {
+                const double d = static_cast<double>(q - v[static_cast<std::size_t>(j)]);
+                f[q] = fv[static_cast<std::size_t>(j)] + w * d * d;
+            }
         }
     }
 };
@@ -204,13 +206,14 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
     for (std::size_t r = 0; r < slab; ++r)
         if (seeded[r]) rows.push_back(static_cast<std::int64_t>(r));
     tbb::enumerable_thread_specific<LabelEnvelope> envs;
-    // The envelope along the line of n samples from (x, y, z) along `axis`, labels l[q * stride], valued from them.
+    // The envelope along the line of n samples from (x, y, z) along `axis`, labels l[q * stride], valued from them
+    // (the last pass keeps the envelope's values in e.line).
     auto run = [&](LabelEnvelope& e, std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
                    std::int64_t y, std::int64_t z, int axis) {
         e.line.resize(static_cast<std::size_t>(n));
         std::int64_t p[3] = {x, y, z};
         for (std::int64_t q = 0; q < n; ++q, ++p[axis]) e.line[static_cast<std::size_t>(q)] = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
-        e.run(e.line.data(), l, n, stride, s2[axis]);
+        e.run(e.line.data(), l, n, stride, s2[axis], axis == 2);
     };
     // x rows holding a centre, then y columns in the z planes holding one, then every z column; each pass parallel.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
