@@ -428,30 +428,43 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
     return n_pending;
 }
 
-/// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes, and
-/// those narrowed per 4³ sub-block to the ones meeting its cubes' box (a ball meeting a cube meets that box, and
-/// the test's margin only grows with the distance), so that each cube scans a few.
+/// Marks the pending cubes of a block that are closed, from the spheres whose balls meet the block's cubes, those
+/// narrowed per 4³ sub-block and again per 2³ cells to the ones meeting their cubes' box (a ball meeting a cube
+/// meets that box, and the test's margin only grows with the distance), so that each cube scans a few.
 void close_cubes(const BoneField& f, std::size_t slot, std::uint32_t* out_word, const Pending* pending, int n_pending,
-                 const Grid& g, const double* s2, NearSpheres& near, NearSpheres& sub) {
+                 const Grid& g, const double* s2, NearSpheres& near, NearSpheres& sub, NearSpheres& pair) {
     const double blo[3] = {static_cast<double>(f.blocks[slot][0]), static_cast<double>(f.blocks[slot][1]),
                            static_cast<double>(f.blocks[slot][2])};
     const double bhi[3] = {blo[0] + kBlock, blo[1] + kBlock, blo[2] + kBlock};
     spheres_meeting(f, blo, bhi, g.spacing.data(), s2, near);
+    // The pending cubes by their 2³ cells m (x, y, z of two bits each), in order.
+    auto pair_of = [](int li) { return (((li >> 7) & 3) * 4 + ((li >> 4) & 3)) * 4 + ((li >> 1) & 3); };
+    int start[65] = {}, order[512];
+    for (int k = 0; k < n_pending; ++k) ++start[pair_of(pending[k].li) + 1];
+    for (int m = 0; m < 64; ++m) start[m + 1] += start[m];
+    {
+        int at[64];
+        std::copy(start, start + 64, at);
+        for (int k = 0; k < n_pending; ++k) order[at[pair_of(pending[k].li)]++] = k;
+    }
     for (int sb = 0; sb < 8; ++sb) {
         bool filtered = false;
-        for (int k = 0; k < n_pending; ++k) {
-            const Pending& pc = pending[k];
-            if (sub_of(static_cast<std::size_t>(pc.li)) != static_cast<std::size_t>(sb)) continue;
+        for (int p = 0; p < 8; ++p) {
+            const int px = (sb & 1) * 2 + (p & 1), py = ((sb >> 1) & 1) * 2 + ((p >> 1) & 1), pz = (sb >> 2) * 2 + (p >> 2);
+            const int m = (pz * 4 + py) * 4 + px;
+            if (start[m] == start[m + 1]) continue;
             if (!filtered) {
                 filtered = true;
                 const double lo[3] = {blo[0] + (sb & 1) * 4, blo[1] + ((sb >> 1) & 1) * 4, blo[2] + (sb >> 2) * 4};
-                const double hi[3] = {lo[0] + 4, lo[1] + 4, lo[2] + 4};
-                sub.clear();
-                for (std::size_t j = 0; j < near.id.size(); ++j)
-                    if (ball_meets_box(f.sph[near.id[j]], lo, hi, s2)) sub.add(f, near.id[j]);
+                sub.keep_meeting(near, lo, 4, s2);
             }
-            const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
-            if (closed_cube(f, base, pc.ks, pc.nk, sub, s2)) out_word[pc.li] |= kClosedBit;
+            const double lo[3] = {blo[0] + px * 2, blo[1] + py * 2, blo[2] + pz * 2};
+            pair.keep_meeting(sub, lo, 2, s2);
+            for (int k = start[m]; k < start[m + 1]; ++k) {
+                const Pending& pc = pending[order[k]];
+                const double base[3] = {blo[0] + (pc.li & 7), blo[1] + ((pc.li >> 3) & 7), blo[2] + (pc.li >> 6)};
+                if (closed_cube(f, base, pc.ks, pc.nk, pair, s2)) out_word[pc.li] |= kClosedBit;
+            }
         }
     }
 }
@@ -620,7 +633,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
                         1.0 / step, words.data()};
     struct Scratch {
         std::vector<Pending> pending = std::vector<Pending>(512);
-        NearSpheres near, sub;
+        NearSpheres near, sub, pair;
         Tile tile;
         CubeSummaries cubes;
     };
@@ -639,7 +652,7 @@ BoneField build_bone_field(const Grid& g, const BoundSpheres& s, const std::vect
             const std::size_t slot = order[i];
             std::uint32_t* block_words = words.data() + slot * 512;
             const int n_pending = fill_block_cells(f, slot, pass, sc.tile, sc.cubes, sc.pending.data());
-            if (n_pending) close_cubes(f, slot, block_words, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub);
+            if (n_pending) close_cubes(f, slot, block_words, sc.pending.data(), n_pending, g, s2, sc.near, sc.sub, sc.pair);
             sub_block_ranges(f, slot);
             pair_spheres(f, slot, block_words);
             count[slot] = encode_block(block_words, f.words.code.data() + 1 + slot * 512);

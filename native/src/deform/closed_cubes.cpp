@@ -38,6 +38,30 @@ void spheres_meeting(const BoneField& f, const double* lo, const double* hi, con
     }
 }
 
+void NearSpheres::keep_meeting(const NearSpheres& from, const double* lo, double size, const double* s2) {
+    const std::size_t n = from.id.size();
+    id.resize(n);
+    for (auto& v : c) v.resize(n);
+    lim.resize(n);
+    const double h = 0.5 * size, m0 = lo[0] + h, m1 = lo[1] + h, m2 = lo[2] + h;
+    std::size_t m = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+        const double dx = std::abs(from.c[0][k] - m0) - h, dy = std::abs(from.c[1][k] - m1) - h,
+                     dz = std::abs(from.c[2][k] - m2) - h;
+        const double ex = dx > 0 ? dx : 0.0, ey = dy > 0 ? dy : 0.0, ez = dz > 0 ? dz : 0.0;
+        const double d2 = s2[0] * ex * ex + s2[1] * ey * ey + s2[2] * ez * ez, l = from.lim[k];
+        id[m] = from.id[k];
+        c[0][m] = from.c[0][k];
+        c[1][m] = from.c[1][k];
+        c[2][m] = from.c[2][k];
+        lim[m] = l;
+        m += d2 < l + 1e-9 * (1.0 + d2 + l);
+    }
+    id.resize(m);
+    for (auto& v : c) v.resize(m);
+    lim.resize(m);
+}
+
 bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S, int ns, NearSpheres& near,
                  const double* s2) {
     if (ns == 0) return false;

@@ -35,6 +35,9 @@ struct NearSpheres {
         for (int a = 0; a < 3; ++a) c[a].push_back(f.sph[j].c[a]);
         lim.push_back(f.sph[j].lim);
     }
+    /// The spheres of `from` whose balls meet the cube [lo, lo + size]³ (index space; integer corners, and the
+    /// centres integers as well: the distances are exact), in their order: ball_meets_box's test, branch-free.
+    void keep_meeting(const NearSpheres& from, const double* lo, double size, const double* s2);
 };
 
 /// The spheres whose balls meet the box [lo, hi] (index space), into `out`.
