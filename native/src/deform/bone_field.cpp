@@ -290,8 +290,9 @@ struct CellPass {
 };
 
 /// The power diagram at the 9³ lattice points of one block's cubes (its 8³ cells and the next one along each
-/// axis): the labels copied column by column, so that each cell's eight corners are read from a small local tile, and
-/// their powers. Points outside the field hold the label kOutside (no sphere) and the power T (at least that there).
+/// axis): the labels copied column by column, so that each cell's eight corners are read from a small local tile,
+/// and their powers. Points outside the field hold the label kOutside (no sphere) and the power T (at least that
+/// there).
 struct Tile {
     static constexpr std::uint32_t kOutside = kNone - 1;
     double F[729];
