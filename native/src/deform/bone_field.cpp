@@ -215,6 +215,17 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
         for (std::int64_t q = 0; q < n; ++q, ++p[axis]) e.line[static_cast<std::size_t>(q)] = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
         e.run(e.line.data(), l, n, stride, s2[axis], axis == 2);
     };
+    // The values of z column (x, y) into e.line, from its labels, and their least.
+    auto column_least = [&](LabelEnvelope& e, const std::uint32_t* l, std::int64_t n, std::int64_t x, std::int64_t y) {
+        e.line.resize(static_cast<std::size_t>(n));
+        double least = kInf;
+        for (std::int64_t z = 0; z < n; ++z) {
+            const double v = label_power(f, l[z], x, y, z, s2);
+            e.line[static_cast<std::size_t>(z)] = v;
+            least = std::min(least, v);
+        }
+        return least;
+    };
     // x rows holding a centre, then y columns in the z planes holding one, then every z column; each pass parallel.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
         LabelEnvelope& e = envs.local();
@@ -229,12 +240,20 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
             for (std::int64_t z = 0; z < nz; ++z)
                 if (seeded_z[static_cast<std::size_t>(z)]) run(e, lab + x * ny * nz + z, ny, nz, x, 0, z, 1);
     });
+    // The z pass. A column whose values are all at least T stays so (the pass only adds to them): it marks no block,
+    // and its labels are wanted only where a kept block's tile reads them (the second loop below).
+    std::vector<std::uint8_t> deferred(static_cast<std::size_t>(nx * ny), 0);  // per z column (x, y)
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nx), [&](const tbb::blocked_range<std::int64_t>& rg) {
         LabelEnvelope& e = envs.local();
         e.z_blocks.resize(static_cast<std::size_t>(f.bdims[2]));
         for (std::int64_t x = rg.begin(); x != rg.end(); ++x)
             for (std::int64_t y = 0; y < ny; ++y) {
-                run(e, lab + (x * ny + y) * nz, nz, 1, x, y, 0, 2);
+                std::uint32_t* column = lab + (x * ny + y) * nz;
+                if (!(column_least(e, column, nz, x, y) < T)) {
+                    deferred[static_cast<std::size_t>(x * ny + y)] = 1;
+                    continue;
+                }
+                e.run(e.line.data(), column, nz, 1, s2[2], true);
                 std::fill(e.z_blocks.begin(), e.z_blocks.end(), std::uint8_t{0});  // as for x and y in mark_blocks
                 bool any = false;
                 for (std::int64_t z = 0; z < nz; ++z)
@@ -245,6 +264,23 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
                     }
                 if (any) mark_blocks(f, x, y, e.z_blocks, keep);
             }
+    });
+    // The deferred columns that a kept block's 9³ tile reads (those of its 8 × 8 columns, and the next along x and y)
+    const std::int64_t bx = f.bdims[0], by = f.bdims[1], bz = f.bdims[2];
+    std::vector<std::uint8_t> kept_column(static_cast<std::size_t>(bx * by), 0);  // per (bx, by): a kept block
+    for (std::int64_t k = 0; k < bx * by * bz; ++k)
+        if (keep[k].load(std::memory_order_relaxed)) kept_column[static_cast<std::size_t>(k % (bx * by))] = 1;
+    auto read = [&](std::int64_t x, std::int64_t y) {
+        for (std::int64_t kx = x >> 3; kx >= 0 && kx >= (x - 1) >> 3; --kx)
+            for (std::int64_t ky = y >> 3; ky >= 0 && ky >= (y - 1) >> 3; --ky)
+                if (kx < bx && ky < by && kept_column[static_cast<std::size_t>(ky * bx + kx)]) return true;
+        return false;
+    };
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nx), [&](const tbb::blocked_range<std::int64_t>& rg) {
+        LabelEnvelope& e = envs.local();
+        for (std::int64_t x = rg.begin(); x != rg.end(); ++x)
+            for (std::int64_t y = 0; y < ny; ++y)
+                if (deferred[static_cast<std::size_t>(x * ny + y)] && read(x, y)) run(e, lab + (x * ny + y) * nz, nz, 1, x, y, 0, 2);
     });
 }
 
