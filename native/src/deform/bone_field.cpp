@@ -206,25 +206,25 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
     for (std::size_t r = 0; r < slab; ++r)
         if (seeded[r]) rows.push_back(static_cast<std::int64_t>(r));
     tbb::enumerable_thread_specific<LabelEnvelope> envs;
-    // The envelope along the line of n samples from (x, y, z) along `axis`, labels l[q * stride], valued from them
-    // (the last pass keeps the envelope's values in e.line).
-    auto run = [&](LabelEnvelope& e, std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
-                   std::int64_t y, std::int64_t z, int axis) {
+    // The values of the line of n samples from (x, y, z) along `axis` (labels l[q * stride]) into e.line, from their
+    // labels, and the least of them.
+    auto values = [&](LabelEnvelope& e, const std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
+                      std::int64_t y, std::int64_t z, int axis) {
         e.line.resize(static_cast<std::size_t>(n));
         std::int64_t p[3] = {x, y, z};
-        for (std::int64_t q = 0; q < n; ++q, ++p[axis]) e.line[static_cast<std::size_t>(q)] = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
-        e.run(e.line.data(), l, n, stride, s2[axis], axis == 2);
-    };
-    // The values of z column (x, y) into e.line, from its labels, and their least.
-    auto column_least = [&](LabelEnvelope& e, const std::uint32_t* l, std::int64_t n, std::int64_t x, std::int64_t y) {
-        e.line.resize(static_cast<std::size_t>(n));
         double least = kInf;
-        for (std::int64_t z = 0; z < n; ++z) {
-            const double v = label_power(f, l[z], x, y, z, s2);
-            e.line[static_cast<std::size_t>(z)] = v;
+        for (std::int64_t q = 0; q < n; ++q, ++p[axis]) {
+            const double v = label_power(f, l[q * stride], p[0], p[1], p[2], s2);
+            e.line[static_cast<std::size_t>(q)] = v;
             least = std::min(least, v);
         }
         return least;
+    };
+    // The envelope along that line (the z pass keeps its values in e.line).
+    auto run = [&](LabelEnvelope& e, std::uint32_t* l, std::int64_t n, std::int64_t stride, std::int64_t x,
+                   std::int64_t y, std::int64_t z, int axis) {
+        values(e, l, n, stride, x, y, z, axis);
+        e.run(e.line.data(), l, n, stride, s2[axis], axis == 2);
     };
     // x rows holding a centre, then y columns in the z planes holding one, then every z column; each pass parallel.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
@@ -249,7 +249,7 @@ void power_diagram(const BoneField& f, const double* s2, double T, std::uint32_t
         for (std::int64_t x = rg.begin(); x != rg.end(); ++x)
             for (std::int64_t y = 0; y < ny; ++y) {
                 std::uint32_t* column = lab + (x * ny + y) * nz;
-                if (!(column_least(e, column, nz, x, y) < T)) {
+                if (!(values(e, column, nz, 1, x, y, 0, 2) < T)) {
                     deferred[static_cast<std::size_t>(x * ny + y)] = 1;
                     continue;
                 }
