@@ -464,6 +464,33 @@ TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform]
     CHECK(closed_with(1.0, 0.2, 16.0));  // its power exceeds sphere 0's all over the cube
 }
 
+TEST_CASE("narrowing a sphere list to a box keeps exactly the balls meeting it, in order", "[deform][stages]") {
+    FieldCase fc(8, 60, 4);
+    auto& [rs, s2, f, rng, u] = fc;
+    NearSpheres all, kept;
+    for (std::uint32_t j = 0; j < f.sph.size(); ++j) all.add(f, j);
+    std::uniform_int_distribution<std::int64_t> corner(2, 24);  // around the spheres (centres 4-25)
+    std::int64_t met = 0, missed = 0;
+    for (int t = 0; t < 400; ++t) {
+        const double size = t % 2 ? 2.0 : 4.0;
+        const double lo[3] = {double(corner(rng)), double(corner(rng)), double(corner(rng))};
+        const double hi[3] = {lo[0] + size, lo[1] + size, lo[2] + size};
+        kept.keep_meeting(all, lo, size, s2.data());
+        std::vector<std::uint32_t> expected;
+        for (std::uint32_t j = 0; j < f.sph.size(); ++j)
+            if (ball_meets_box(f.sph[j], lo, hi, s2.data())) expected.push_back(j);
+        REQUIRE(kept.id == expected);
+        for (std::size_t k = 0; k < kept.id.size(); ++k) {
+            REQUIRE(kept.lim[k] == f.sph[kept.id[k]].lim);
+            for (int a = 0; a < 3; ++a) REQUIRE(kept.c[a][k] == f.sph[kept.id[k]].c[a]);
+        }
+        met += static_cast<std::int64_t>(expected.size());
+        missed += static_cast<std::int64_t>(f.sph.size() - expected.size());
+    }
+    CHECK(met > 300);  // both outcomes occur often
+    CHECK(missed > 400);
+}
+
 TEST_CASE("exact queries and cube bounds against a brute force", "[deform][stages]") {
     FieldCase fc(41, 80, 17, {0.9, 1.1, 1.3});
     auto& [rs, s2, f, rng, u] = fc;
