@@ -43,19 +43,16 @@ void NearSpheres::keep_meeting(const NearSpheres& from, const double* lo, double
     id.resize(n);
     for (auto& v : c) v.resize(n);
     lim.resize(n);
-    const double h = 0.5 * size, m0 = lo[0] + h, m1 = lo[1] + h, m2 = lo[2] + h;
+    const double h = 0.5 * size, mid[3] = {lo[0] + h, lo[1] + h, lo[2] + h};
     std::size_t m = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-        const double dx = std::abs(from.c[0][k] - m0) - h, dy = std::abs(from.c[1][k] - m1) - h,
-                     dz = std::abs(from.c[2][k] - m2) - h;
-        const double ex = dx > 0 ? dx : 0.0, ey = dy > 0 ? dy : 0.0, ez = dz > 0 ? dz : 0.0;
-        const double d2 = s2[0] * ex * ex + s2[1] * ey * ey + s2[2] * ez * ez, l = from.lim[k];
+    for (std::size_t k = 0; k < n; ++k) {  // every sphere copied to the next free place, which moves on when it meets
+        const double l = from.lim[k];
         id[m] = from.id[k];
         c[0][m] = from.c[0][k];
         c[1][m] = from.c[1][k];
         c[2][m] = from.c[2][k];
         lim[m] = l;
-        m += d2 < l + 1e-9 * (1.0 + d2 + l);
+        m += ball_reaches(cube_distance2(from.c[0][k], from.c[1][k], from.c[2][k], mid, h, s2), l);
     }
     id.resize(m);
     for (auto& v : c) v.resize(m);
@@ -77,24 +74,14 @@ bool closed_cube(const BoneField& f, const double* base, const std::uint32_t* S,
     };
     double p0s[8], sts[8][3], mags[8];
     for (int i = 0; i < ns; ++i) affine(S[i], p0s[i], sts[i], mags[i]);
-    // Which balls meet the cube (as ball_meets_box: a gap that is not >= 0), over all of them at once.
+    // Which balls meet the cube (ball_meets_box's test: a negative gap), over all of them at once.
     const std::size_t n = near.id.size();
     near.gap.resize(n);
+    const double mid[3] = {base[0] + 0.5, base[1] + 0.5, base[2] + 0.5};
     {
-        const double* cx = near.c[0].data();
-        const double* cy = near.c[1].data();
-        const double* cz = near.c[2].data();
-        const double* lim = near.lim.data();
+        const double *cx = near.c[0].data(), *cy = near.c[1].data(), *cz = near.c[2].data(), *lim = near.lim.data();
         double* gap = near.gap.data();
-        // The distance from a centre to the cube along an axis, |c − (b + ½)| − ½ where positive: exact (the
-        // centres and corners are integers), and branch-free, so that the loop vectorises.
-        const double m0 = base[0] + 0.5, m1 = base[1] + 0.5, m2 = base[2] + 0.5, w0 = s2[0], w1 = s2[1], w2 = s2[2];
-        for (std::size_t k = 0; k < n; ++k) {
-            const double dx = std::abs(cx[k] - m0) - 0.5, dy = std::abs(cy[k] - m1) - 0.5, dz = std::abs(cz[k] - m2) - 0.5;
-            const double ex = dx > 0 ? dx : 0.0, ey = dy > 0 ? dy : 0.0, ez = dz > 0 ? dz : 0.0;
-            const double d2 = w0 * ex * ex + w1 * ey * ey + w2 * ez * ez;
-            gap[k] = d2 - (lim[k] + 1e-9 * (1.0 + d2 + lim[k]));
-        }
+        for (std::size_t k = 0; k < n; ++k) gap[k] = ball_gap(cube_distance2(cx[k], cy[k], cz[k], mid, 0.5, s2), lim[k]);
     }
     int last = 0;
     for (std::size_t k = 0; k < n; ++k) {
