@@ -6,6 +6,7 @@ from scipy import ndimage
 
 import volrig
 from conftest import shared
+from random_rigs import random_pose
 
 
 # ---- small random rigs -------------------------------------------------------------------------------------
@@ -32,14 +33,6 @@ def capsule_chain(seed, spacing=(1.0, 1.25, 0.8), origin=(-3.0, 2.0, 5.0)):
     volume = volrig.Volume(vol, spacing, origin)
     rig = volrig.Rig(joints=np.array(pts), bones=[[0, 1], [1, 2], [2, 3]], names=["a", "b", "c"])
     return volume, rig
-
-
-def random_pose(rig, rng, degrees=35.0, shift=2.0):
-    M = volrig.rest_pose(len(rig))
-    for b in range(len(rig)):
-        M[b] = volrig.rotation_about(rng.normal(size=3), rng.uniform(-degrees, degrees), rig.heads()[b])
-        M[b][:3, 3] += rng.normal(size=3) * shift
-    return M
 
 
 def rigged(volume, rig, count, bind="rigid"):

@@ -333,10 +333,19 @@ struct Tile {
     static constexpr std::uint32_t kOutside = kNone - 1;
     double F[729];
     std::uint32_t lab[729];
+    std::uint8_t seen;  // bit d (x, y, z): the points at 8 along those axes lie in an allocated block (d = 0: its own)
+
+    /// Whether a query reads the label at tile point (x, y, z): its cell is allocated (the points at 8 along an axis
+    /// belong to the next block, which may not be kept).
+    bool visible(int x, int y, int z) const { return (seen >> ((x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2))) & 1; }
 
     void load(const BoneField& f, std::size_t slot, const std::uint32_t* lab_all, double T, const double* s2) {
         const std::int64_t nx = f.dims[0], ny = f.dims[1], nz = f.dims[2];
         const std::int64_t x0 = f.blocks[slot][0] - f.lo[0], y0 = f.blocks[slot][1] - f.lo[1], z0 = f.blocks[slot][2] - f.lo[2];
+        seen = 0;
+        for (int d = 0; d < 8; ++d)  // (a block past the field's edge: its points are kOutside, no label either way)
+            seen |= static_cast<std::uint8_t>(f.cell_at(x0 + (d & 1) * kBlock, y0 + ((d >> 1) & 1) * kBlock,
+                                                        z0 + (d >> 2) * kBlock) != kNoCell) << d;
         const std::int64_t ex = std::min<std::int64_t>(9, nx - x0), ey = std::min<std::int64_t>(9, ny - y0),
                            ez = std::min<std::int64_t>(9, nz - z0);
         if (ex < 9 || ey < 9 || ez < 9) {
@@ -385,17 +394,18 @@ struct CubeSummaries {
     }
 };
 
-/// The distinct labels (in corner order) of the eight corners of the cube whose first corner is tile point ti,
-/// outside the field and unlabelled ones left out; `one`: the eight carry one label.
+/// The distinct labels (in corner order) of the eight corners of the cube whose first corner is tile point (x, y,
+/// z), outside the field and unlabelled ones left out; `one`: the eight carry one label. With `seen`, only the
+/// labels a query reads (Tile::visible): what the closure test may rely on.
 struct Corners {
     std::uint32_t ks[8];
     int nk = 0;
 
-    Corners(const Tile& t, int ti, bool one) {
-        constexpr int kCorner[8] = {0, 1, 9, 10, 81, 82, 90, 91};
+    Corners(const Tile& t, int x, int y, int z, bool one, bool seen = false) {
         for (int k = 0; k < (one ? 1 : 8); ++k) {
-            const std::uint32_t l = t.lab[ti + kCorner[k]];
-            if (l < Tile::kOutside && std::find(ks, ks + nk, l) == ks + nk) ks[nk++] = l;
+            const int cx = x + (k & 1), cy = y + ((k >> 1) & 1), cz = z + (k >> 2);
+            const std::uint32_t l = t.lab[(cz * 9 + cy) * 9 + cx];
+            if (l < Tile::kOutside && (!seen || t.visible(cx, cy, cz)) && std::find(ks, ks + nk, l) == ks + nk) ks[nk++] = l;
         }
     }
 };
@@ -448,18 +458,20 @@ int fill_block_cells(BoneField& f, std::size_t slot, const CellPass& c, Tile& t,
                     out[li] = CellBounds{kBoundMax, kBoundMax};
                     continue;
                 }
-                const Corners k(t, ti, cubes.one[li]);
+                const Corners k(t, static_cast<int>(x), static_cast<int>(y), static_cast<int>(z), cubes.one[li]);
                 const double rest[3] = {static_cast<double>(first[0] + x + f.lo[0]),
                                         static_cast<double>(first[1] + y + f.lo[1]),
                                         static_cast<double>(first[2] + z + f.lo[2])};
                 const double upper = cube_upper(f, rest, k.ks, k.nk, c.s2);
                 out[li] = CellBounds{quantized_down((lower - c.slack) * c.inv_step), quantized_up((upper + c.slack) * c.inv_step)};
                 // A cube the ranges leave undecided (it may or may not be covered) is worth closing.
+                // Closed, the least power over the labels a query reads at the corners is exact: the test takes those.
                 if (word != kNone && !(word & kSameBit) && out[li].hi >= 0) {
+                    const Corners read = t.seen == 0xff ? k : Corners(t, static_cast<int>(x), static_cast<int>(y), static_cast<int>(z), false, true);
                     Pending& pc = pending[n_pending++];
                     pc.li = li;
-                    pc.nk = k.nk;
-                    std::copy(k.ks, k.ks + k.nk, pc.ks);
+                    pc.nk = read.nk;
+                    std::copy(read.ks, read.ks + read.nk, pc.ks);
                 }
             }
     return n_pending;

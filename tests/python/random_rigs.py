@@ -1,0 +1,87 @@
+"""Random small rigs for exactness soaks: a bent tube of two to five capsules on an anisotropic grid, skeletonized,
+bound rigidly or smoothly, and random poses in every mode, proximity and sampling. `mismatch(seed)` compares the
+Deformer's frames with the thesis' brute-force scatter (volrig.deform_reference) voxel for voxel; it is what
+tests/python/test_deform_soak.py runs for a few seeds and scripts/soak_deform.py for thousands."""
+from typing import Optional
+
+import numpy as np
+
+import volrig
+
+
+def tube(rng):
+    """A random bent tube (capsules with a brighter core) and a chain rig along it; None when a bone has no length."""
+    shape = tuple(int(v) for v in rng.integers(24, 48, 3))  # z, y, x
+    spacing = tuple(float(v) for v in rng.uniform(0.6, 1.5, 3))
+    origin = tuple(float(v) for v in rng.uniform(-5, 5, 3))
+    sp, org = np.asarray(spacing), np.asarray(origin)
+    ext = np.array(shape[::-1]) * sp
+    bones = int(rng.integers(2, 5))
+    joints = [org + ext * (0.2 + 0.6 * rng.random(3))]
+    for _ in range(bones):
+        step = rng.normal(size=3)
+        joints.append(np.clip(joints[-1] + rng.uniform(5, 12) * step / np.linalg.norm(step), org + 0.15 * ext,
+                              org + 0.85 * ext))
+    z, y, x = np.indices(shape)
+    world = np.stack([x, y, z], -1) * sp + org
+    vol = np.zeros(shape, np.uint8)
+    r_out, r_in = rng.uniform(2.5, 6), rng.uniform(1, 2.4)
+    for a, b in zip(joints[:-1], joints[1:]):
+        ab = b - a
+        t = np.clip(((world - a) @ ab) / max(ab @ ab, 1e-9), 0, 1)
+        d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
+        vol[(d < r_out) & (vol == 0)] = rng.integers(40, 120)
+        vol[d < r_in] = rng.integers(150, 255)
+    if any(np.allclose(a, b) for a, b in zip(joints[:-1], joints[1:])):
+        return None
+    rig = volrig.Rig(joints=np.array(joints), bones=[[i, i + 1] for i in range(bones)],
+                     names=[f"b{i}" for i in range(bones)])
+    return volrig.Volume(vol, spacing, origin), rig
+
+
+def random_pose(rig, rng, degrees=35.0, shift=2.0):
+    """Each bone turned about its head by up to `degrees` and shifted by about `shift` (bones come apart and
+    overlap)."""
+    M = volrig.rest_pose(len(rig))
+    for b in range(len(rig)):
+        M[b] = volrig.rotation_about(rng.normal(size=3), rng.uniform(-degrees, degrees), rig.heads()[b])
+        M[b][:3, 3] += rng.normal(size=3) * shift
+    return M
+
+
+def mismatch(seed: int, frames: int = 3, extended: bool = False) -> Optional[str]:
+    """None when `frames` random frames of rig `seed` equal the brute-force scatter voxel for voxel (or the seed
+    makes no rig), else what differed. `extended` also draws, from a second stream (the first stays the seed's):
+    the bright core as rigid tissue (the rigid layer), per-point radius scales, and frames in 8³ bricks."""
+    rng = np.random.default_rng(seed)
+    extra = np.random.default_rng([seed, 7]) if extended else None
+    made = tube(rng)
+    if made is None:
+        return None
+    volume, rig = made
+    mask = volrig.segment(volume, lo=1)
+    count, bind = int(rng.integers(30, 1500)), str(rng.choice(["rigid", "smooth"]))
+    points = volrig.skeletonize(mask).top(count)
+    rigid = volume.array >= 150 if extra is not None and extra.random() < 0.3 else None
+    binding = volrig.bind(points, rig, mask, mode=bind, rigid=rigid)
+    proximity = str(rng.choice(["power", "nearest"]))
+    d = volrig.Deformer(volume, points, binding, proximity=proximity)
+    scale = extra.uniform(0.5, 1.5, len(points)) if extra is not None and extra.random() < 0.3 else None
+    for k in range(frames):
+        mode = str(rng.choice(["rigid", "linear", "dual_quaternion"]))
+        sampling = str(rng.choice(["trilinear", "nearest"]))
+        keep = bool(rng.integers(0, 2))
+        M = random_pose(rig, rng, degrees=float(rng.uniform(5, 90)), shift=float(rng.uniform(0, 4)))
+        bricks = extra is not None and extra.random() < 0.3
+        fast = d.frame(M, mode=mode, sampling=sampling, keep_volume=keep, radius_scale=scale, bricks=bricks)
+        fast = fast.dense() if bricks else fast
+        ref = volrig.deform_reference(volume, points, binding, M, mode=mode, proximity=proximity, sampling=sampling,
+                                      like=fast, keep_volume=keep, radius_scale=scale)
+        bone = int((fast.bone.array != ref.bone.array).sum())
+        values = int((fast.values.array != ref.values.array).sum())
+        if bone or values:
+            extras = (f", rigid tissue {rigid is not None}, radius scales {scale is not None}, bricks {bricks}"
+                      if extended else "")
+            return (f"seed {seed} frame {k}: {bind} binding of {len(points)} points, {proximity} proximity, {mode}, "
+                    f"{sampling} sampling, keep_volume {keep}{extras}: {bone} bone labels and {values} values differ")
+    return None
