@@ -505,10 +505,10 @@ TEST_CASE("closed cubes at a block's far faces: exact from the corner labels a q
             std::uint32_t corners[8];
             f.corner_cells(c[0] - f.lo[0], c[1] - f.lo[1], c[2] - f.lo[2], corners);
             hidden += std::count(corners, corners + 8, kNoCell) > 0;
+            // a random fixed-point point of the cube along an axis (a braced list evaluates left to right)
+            auto in_cube = [&](std::int64_t v) { return v * (std::int64_t{1} << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit); };
             for (int t = 0; t < 64; ++t) {
-                const std::int64_t pf[3] = {(c[0] << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit),
-                                            (c[1] << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit),
-                                            (c[2] << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit)};
+                const std::int64_t pf[3] = {in_cube(c[0]), in_cube(c[1]), in_cube(c[2])};
                 double p[3];
                 Pull::to_double(pf, p);
                 const Best e = brute_power(f, p, s2.data());

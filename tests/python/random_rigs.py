@@ -9,11 +9,15 @@ import numpy as np
 import volrig
 
 
-def tube(rng):
-    """A random bent tube (capsules with a brighter core) and a chain rig along it; None when a bone has no length."""
-    shape = tuple(int(v) for v in rng.integers(24, 48, 3))  # z, y, x
-    spacing = tuple(float(v) for v in rng.uniform(0.6, 1.5, 3))
-    origin = tuple(float(v) for v in rng.uniform(-5, 5, 3))
+def tube(rng, grid=None):
+    """A random bent tube (capsules with a brighter core) and a chain rig along it; None when a bone has no length.
+    `grid`: (shape, spacing, origin) to make it on, else a random one."""
+    if grid is None:
+        shape = tuple(int(v) for v in rng.integers(24, 48, 3))  # z, y, x
+        spacing = tuple(float(v) for v in rng.uniform(0.6, 1.5, 3))
+        origin = tuple(float(v) for v in rng.uniform(-5, 5, 3))
+    else:
+        shape, spacing, origin = grid
     sp, org = np.asarray(spacing), np.asarray(origin)
     ext = np.array(shape[::-1]) * sp
     bones = int(rng.integers(2, 5))
@@ -84,4 +88,48 @@ def mismatch(seed: int, frames: int = 3, extended: bool = False) -> Optional[str
                       if extended else "")
             return (f"seed {seed} frame {k}: {bind} binding of {len(points)} points, {proximity} proximity, {mode}, "
                     f"{sampling} sampling, keep_volume {keep}{extras}: {bone} bone labels and {values} values differ")
+    return None
+
+
+def collide_mismatch(seed: int) -> Optional[str]:
+    """None when `volrig.collide` of two random tubes on one grid, in random poses and modes, counts exactly the
+    lattice points covered by both of their brute-force frames (and agrees with its own brute force), else what
+    differed."""
+    rng = np.random.default_rng([seed, 11])
+    made_a = tube(rng)
+    if made_a is None:
+        return None
+    vol_a, rig_a = made_a
+    made_b = tube(rng, (vol_a.array.shape, vol_a.spacing, vol_a.origin))
+    if made_b is None:
+        return None
+    vol_b, rig_b = made_b
+    bodies = []
+    for vol, rig in ((vol_a, rig_a), (vol_b, rig_b)):
+        mask = volrig.segment(vol, lo=1)
+        points = volrig.skeletonize(mask).top(int(rng.integers(30, 1000)))
+        binding = volrig.bind(points, rig, mask, mode=str(rng.choice(["rigid", "smooth"])))
+        pose = random_pose(rig, rng, degrees=float(rng.uniform(5, 60)), shift=float(rng.uniform(0, 6)))
+        mode = str(rng.choice(["rigid", "linear", "dual_quaternion"]))
+        bodies.append((vol, rig, points, binding, pose, mode))
+    keep = bool(rng.integers(0, 2))
+    (va, ra, pa, ba, ma, mode_a), (vb, rb, pb, bb, mb, mode_b) = bodies
+    shape = va.array.shape
+    a, b = volrig.Collider(pa, ba, ra, shape=shape), volrig.Collider(pb, bb, rb, shape=shape)
+    fast = volrig.collide(a, ma, b, mb, mode=mode_a, mode_b=mode_b, keep_volume=keep)
+    brute = volrig.collide(a, ma, b, mb, mode=mode_a, mode_b=mode_b, keep_volume=keep, reference=True)
+    fa = volrig.deform_reference(va, pa, ba, ma, mode=mode_a, keep_volume=keep)
+    fb = volrig.deform_reference(vb, pb, bb, mb, mode=mode_b, keep_volume=keep)
+    lo = np.maximum(fa.offset, fb.offset)  # (x, y, z) on the shared lattice
+    hi = np.minimum(np.add(fa.offset, fa.bone.dims), np.add(fb.offset, fb.bone.dims))
+    both = 0
+    if (hi > lo).all():
+        def part(f):
+            o = lo - np.asarray(f.offset)
+            e = o + (hi - lo)
+            return f.bone.array[o[2]:e[2], o[1]:e[1], o[0]:e[0]] > 0
+        both = int((part(fa) & part(fb)).sum())
+    if fast.voxels != both or brute.voxels != both:
+        return (f"collide seed {seed}: {mode_a} / {mode_b}, keep_volume {keep}, {len(pa)} / {len(pb)} points: "
+                f"collide {fast.voxels}, its brute force {brute.voxels}, the frames intersected {both}")
     return None
