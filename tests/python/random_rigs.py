@@ -1,6 +1,7 @@
 """Random small rigs for exactness soaks: a bent tube of two to five capsules on an anisotropic grid, skeletonized,
 bound rigidly or smoothly, and random poses in every mode, proximity and sampling. `mismatch(seed)` compares the
-Deformer's frames with the thesis' brute-force scatter (volrig.deform_reference) voxel for voxel; it is what
+Deformer's frames with the thesis' brute-force scatter (volrig.deform_reference) voxel for voxel,
+`collide_mismatch(seed)` volrig.collide of two such tubes with their brute-force frames intersected; it is what
 tests/python/test_deform_soak.py runs for a few seeds and scripts/soak_deform.py for thousands."""
 from typing import Optional
 
@@ -26,6 +27,8 @@ def tube(rng, grid=None):
         step = rng.normal(size=3)
         joints.append(np.clip(joints[-1] + rng.uniform(5, 12) * step / np.linalg.norm(step), org + 0.15 * ext,
                               org + 0.85 * ext))
+    if any(np.allclose(a, b) for a, b in zip(joints[:-1], joints[1:])):
+        return None
     z, y, x = np.indices(shape)
     world = np.stack([x, y, z], -1) * sp + org
     vol = np.zeros(shape, np.uint8)
@@ -36,8 +39,6 @@ def tube(rng, grid=None):
         d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
         vol[(d < r_out) & (vol == 0)] = rng.integers(40, 120)
         vol[d < r_in] = rng.integers(150, 255)
-    if any(np.allclose(a, b) for a, b in zip(joints[:-1], joints[1:])):
-        return None
     rig = volrig.Rig(joints=np.array(joints), bones=[[i, i + 1] for i in range(bones)],
                      names=[f"b{i}" for i in range(bones)])
     return volrig.Volume(vol, spacing, origin), rig
