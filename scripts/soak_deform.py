@@ -3,7 +3,7 @@
 anisotropic grids, rigid or smooth bindings of 30 to 1500 points, three random poses each in every mode, proximity
 and sampling), each frame compared voxel for voxel with the brute-force scatter. Prints every mismatch; exits 1 when
 there was one. With --collide, pairs of random tubes on one grid instead: `volrig.collide` against the brute-force
-frames of both intersected.
+frames of both intersected, and `volrig.self_collide` of one against its brute force.
 
 Run:  PYTHONPATH=python /usr/bin/python3 scripts/soak_deform.py [--seeds 0-6000] [--jobs 2] [--extended | --collide]
 (6000 rigs take about 2.5 minutes on 2 cores.)
@@ -27,8 +27,8 @@ def main() -> int:
     ap.add_argument("--extended", action="store_true",
                     help="also rigid tissue, per-point radius scales and frames in bricks (random_rigs.mismatch)")
     ap.add_argument("--collide", action="store_true",
-                    help="volrig.collide of two random tubes against their frames intersected instead "
-                         "(random_rigs.collide_mismatch)")
+                    help="volrig.collide of two random tubes against their frames intersected, and self_collide, "
+                         "instead (random_rigs.collide_mismatch)")
     args = ap.parse_args()
     first, last = (int(v) for v in args.seeds.split("-"))
     check = collide_mismatch if args.collide else partial(mismatch, extended=args.extended)

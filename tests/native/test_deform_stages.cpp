@@ -89,6 +89,27 @@ Best brute_power(const BoneField& f, const double* p, const double* s2) {
     return b;
 }
 
+/// Probes n random points (fixed point, as Pull gives them) of the closed cube with first corner c (absolute
+/// lattice): wherever the brute-force least power is negative, the least over the corner labels a query reads must be
+/// it, and its sphere. Returns how many points were checked.
+std::int64_t probe_closed_cube(const BoneField& f, const std::int64_t* c, const double* s2, std::mt19937& rng, int n) {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    auto in_cube = [&](std::int64_t v) { return v * (std::int64_t{1} << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit); };
+    std::int64_t checked = 0;
+    for (int t = 0; t < n; ++t) {
+        const std::int64_t pf[3] = {in_cube(c[0]), in_cube(c[1]), in_cube(c[2])};  // (a braced list: left to right)
+        double p[3];
+        Pull::to_double(pf, p);
+        const Best e = brute_power(f, p, s2);
+        if (!(e.key < 0)) continue;
+        std::uint32_t local;
+        REQUIRE(least_over_corners(f, pf, s2, local) == e.key);
+        REQUIRE(local == e.local);
+        ++checked;
+    }
+    return checked;
+}
+
 std::array<double, 16> rotation_z(double deg, std::array<double, 3> shift) {
     const double t = deg * M_PI / 180.0, c = std::cos(t), s = std::sin(t);
     return {c, -s, 0, shift[0], s, c, 0, shift[1], 0, 0, 1, shift[2], 0, 0, 0, 1};
@@ -427,22 +448,9 @@ TEST_CASE("closed cubes give the exact power wherever it is negative", "[deform]
         if (!closed_of(f.words[cell])) continue;
         ++closed;
         const std::uint32_t slot = (cell - 1) / 512, li = (cell - 1) % 512;
-        const double base[3] = {double(f.blocks[slot][0] + (li & 7)), double(f.blocks[slot][1] + ((li >> 3) & 7)),
-                                double(f.blocks[slot][2] + (li >> 6))};
-        for (int t = 0; t < 8; ++t) {
-            const double p[3] = {base[0] + u(rng), base[1] + u(rng), base[2] + u(rng)};
-            const Best e = brute_power(f, p, s2.data());
-            if (!(e.key < 0)) continue;
-            std::int64_t pf[3];
-            for (int k = 0; k < 3; ++k) pf[k] = std::llround(p[k] * Pull::kUnit);
-            double pd[3];
-            Pull::to_double(pf, pd);
-            const Best ed = brute_power(f, pd, s2.data());
-            std::uint32_t local;
-            REQUIRE(least_over_corners(f, pf, s2.data(), local) == ed.key);
-            REQUIRE(local == ed.local);
-            ++checked;
-        }
+        const std::int64_t c[3] = {f.blocks[slot][0] + (li & 7), f.blocks[slot][1] + ((li >> 3) & 7),
+                                   f.blocks[slot][2] + (li >> 6)};
+        checked += probe_closed_cube(f, c, s2.data(), rng, 8);
     }
     CHECK(closed > 50);
     CHECK(checked > 50);
@@ -505,19 +513,7 @@ TEST_CASE("closed cubes at a block's far faces: exact from the corner labels a q
             std::uint32_t corners[8];
             f.corner_cells(c[0] - f.lo[0], c[1] - f.lo[1], c[2] - f.lo[2], corners);
             hidden += std::count(corners, corners + 8, kNoCell) > 0;
-            // a random fixed-point point of the cube along an axis (a braced list evaluates left to right)
-            auto in_cube = [&](std::int64_t v) { return v * (std::int64_t{1} << Pull::kBits) + static_cast<std::int64_t>(u(rng) * Pull::kUnit); };
-            for (int t = 0; t < 64; ++t) {
-                const std::int64_t pf[3] = {in_cube(c[0]), in_cube(c[1]), in_cube(c[2])};
-                double p[3];
-                Pull::to_double(pf, p);
-                const Best e = brute_power(f, p, s2.data());
-                if (!(e.key < 0)) continue;
-                std::uint32_t local;
-                REQUIRE(least_over_corners(f, pf, s2.data(), local) == e.key);
-                REQUIRE(local == e.local);
-                ++checked;
-            }
+            checked += probe_closed_cube(f, c, s2.data(), rng, 64);
         }
     }
     CHECK(hidden > 100);

@@ -1,7 +1,8 @@
 """Random small rigs for exactness soaks: a bent tube of two to five capsules on an anisotropic grid, skeletonized,
 bound rigidly or smoothly, and random poses in every mode, proximity and sampling. `mismatch(seed)` compares the
 Deformer's frames with the thesis' brute-force scatter (volrig.deform_reference) voxel for voxel,
-`collide_mismatch(seed)` volrig.collide of two such tubes with their brute-force frames intersected; it is what
+`collide_mismatch(seed)` volrig.collide of two such tubes with their brute-force frames intersected (and
+volrig.self_collide of one with its brute force); it is what
 tests/python/test_deform_soak.py runs for a few seeds and scripts/soak_deform.py for thousands."""
 from typing import Optional
 
@@ -133,4 +134,11 @@ def collide_mismatch(seed: int) -> Optional[str]:
     if fast.voxels != both or brute.voxels != both:
         return (f"collide seed {seed}: {mode_a} / {mode_b}, keep_volume {keep}, {len(pa)} / {len(pb)} points: "
                 f"collide {fast.voxels}, its brute force {brute.voxels}, the frames intersected {both}")
+    # A against itself: bones at least 1 or 2 apart, balls joined at rest ignored or not, against its brute force
+    apart, rest = int(rng.integers(1, 3)), bool(rng.integers(0, 2))
+    own = [volrig.self_collide(a, ma, min_bone_distance=apart, ignore_rest_contact=rest, mode=mode_a,
+                               keep_volume=keep, reference=ref) for ref in (False, True)]
+    if own[0].voxels != own[1].voxels or sorted(own[0].bone_pairs) != sorted(own[1].bone_pairs):
+        return (f"self_collide seed {seed}: {mode_a}, bones {apart} apart, rest contact ignored {rest}: "
+                f"{own[0].voxels} voxels {own[0].bone_pairs}, its brute force {own[1].voxels} {own[1].bone_pairs}")
     return None
