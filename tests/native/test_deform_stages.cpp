@@ -68,6 +68,33 @@ struct RandomSpheres {
     BoneField ball_field() const { return build_ball_field(grid, spheres(), members, radii, T(), 1.0); }
 };
 
+/// A skeleton's spheres: on random voxels inside a straight tube, each as large as its distance to the tube's
+/// surface, so that small balls near the surface lie inside big ones and poke out of them between lattice points.
+RandomSpheres tube_spheres(std::mt19937& rng, std::array<double, 3> spacing) {
+    RandomSpheres rs(0, 0, spacing);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const double a[3] = {6, 6, 6}, b[3] = {14 + 6 * u(rng), 12 + 6 * u(rng), 16 + 8 * u(rng)}, R = 4.5 + 2 * u(rng);
+    double ab2 = 0;
+    for (int k = 0; k < 3; ++k) ab2 += (b[k] - a[k]) * (b[k] - a[k]);
+    for (std::int32_t z = 0; z < rs.grid.dims[2]; ++z)
+        for (std::int32_t y = 0; y < rs.grid.dims[1]; ++y)
+            for (std::int32_t x = 0; x < rs.grid.dims[0]; ++x) {
+                const double w[3] = {x * spacing[0], y * spacing[1], z * spacing[2]};
+                double t = 0, d2 = 0;
+                for (int k = 0; k < 3; ++k) t += (w[k] - a[k]) * (b[k] - a[k]);
+                t = std::clamp(t / ab2, 0.0, 1.0);
+                for (int k = 0; k < 3; ++k) d2 += std::pow(w[k] - a[k] - t * (b[k] - a[k]), 2);
+                const double r = R - std::sqrt(d2);
+                if (r < 0.5 || u(rng) > 0.35) continue;
+                rs.ijk.insert(rs.ijk.end(), {z, y, x});
+                rs.radius.push_back(static_cast<float>(r));
+                rs.radii.push_back(rs.radius.back());
+                rs.bone.push_back(0);
+                rs.members.push_back(static_cast<std::uint32_t>(rs.members.size()));
+            }
+    return rs;
+}
+
 /// One bone's field over random spheres, with a random source for the points a test probes.
 struct FieldCase {
     RandomSpheres rs;
@@ -478,31 +505,8 @@ TEST_CASE("closed cubes at a block's far faces: exact from the corner labels a q
     // small ball poking out of a big one between the lattice points is what then goes missing (seeds that did).
     std::int64_t checked = 0, hidden = 0;
     for (std::uint32_t seed = 1; seed <= 12; ++seed) {
-        // A skeleton's spheres: on random voxels inside a bent tube, each as large as its distance to the surface,
-        // so that small balls near the surface lie inside big ones and poke out of them between lattice points.
-        RandomSpheres rs(seed, 0, {1.07, 0.98, 1.23});
         std::mt19937 rng(seed + 100);
-        std::uniform_real_distribution<double> u(0.0, 1.0);
-        const double a[3] = {6, 6, 6}, b[3] = {14 + 6 * u(rng), 12 + 6 * u(rng), 16 + 8 * u(rng)}, R = 4.5 + 2 * u(rng);
-        for (std::int32_t z = 0; z < rs.grid.dims[2]; ++z)
-            for (std::int32_t y = 0; y < rs.grid.dims[1]; ++y)
-                for (std::int32_t x = 0; x < rs.grid.dims[0]; ++x) {
-                    const double w[3] = {x * rs.grid.spacing[0], y * rs.grid.spacing[1], z * rs.grid.spacing[2]};
-                    double ab2 = 0, t = 0, d2 = 0;
-                    for (int k = 0; k < 3; ++k) {
-                        ab2 += (b[k] - a[k]) * (b[k] - a[k]);
-                        t += (w[k] - a[k]) * (b[k] - a[k]);
-                    }
-                    t = std::clamp(t / ab2, 0.0, 1.0);
-                    for (int k = 0; k < 3; ++k) d2 += std::pow(w[k] - a[k] - t * (b[k] - a[k]), 2);
-                    const double r = R - std::sqrt(d2);
-                    if (r < 0.5 || u(rng) > 0.35) continue;
-                    rs.ijk.insert(rs.ijk.end(), {z, y, x});
-                    rs.radius.push_back(static_cast<float>(r));
-                    rs.radii.push_back(rs.radius.back());
-                    rs.bone.push_back(0);
-                    rs.members.push_back(static_cast<std::uint32_t>(rs.members.size()));
-                }
+        const RandomSpheres rs = tube_spheres(rng, {1.07, 0.98, 1.23});
         const std::array<double, 3> s2 = rs.s2();
         const BoneField f = rs.field();
         for (std::uint32_t cell = 1; cell < f.words.size(); ++cell) {

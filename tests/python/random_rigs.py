@@ -11,6 +11,21 @@ import numpy as np
 import volrig
 
 
+def capsules(shape, spacing, origin, joints, r_out, r_in, values):
+    """A uint8 volume (z, y, x) of capsules between consecutive joints (world): each one's flesh (within r_out of its
+    axis, where no earlier capsule is) and core (within r_in) take its pair of `values`."""
+    z, y, x = np.indices(shape)
+    world = np.stack([x, y, z], -1) * np.asarray(spacing) + np.asarray(origin)
+    vol = np.zeros(shape, np.uint8)
+    for a, b, (flesh, core) in zip(joints[:-1], joints[1:], values):
+        ab = b - a
+        t = np.clip(((world - a) @ ab) / max(ab @ ab, 1e-9), 0, 1)
+        d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
+        vol[(d < r_out) & (vol == 0)] = flesh
+        vol[d < r_in] = core
+    return vol
+
+
 def tube(rng, grid=None):
     """A random bent tube (capsules with a brighter core) and a chain rig along it; None when a bone has no length.
     `grid`: (shape, spacing, origin) to make it on, else a random one."""
@@ -30,16 +45,9 @@ def tube(rng, grid=None):
                               org + 0.85 * ext))
     if any(np.allclose(a, b) for a, b in zip(joints[:-1], joints[1:])):
         return None
-    z, y, x = np.indices(shape)
-    world = np.stack([x, y, z], -1) * sp + org
-    vol = np.zeros(shape, np.uint8)
     r_out, r_in = rng.uniform(2.5, 6), rng.uniform(1, 2.4)
-    for a, b in zip(joints[:-1], joints[1:]):
-        ab = b - a
-        t = np.clip(((world - a) @ ab) / max(ab @ ab, 1e-9), 0, 1)
-        d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
-        vol[(d < r_out) & (vol == 0)] = rng.integers(40, 120)
-        vol[d < r_in] = rng.integers(150, 255)
+    values = [(rng.integers(40, 120), rng.integers(150, 255)) for _ in range(bones)]  # (flesh, core) per capsule
+    vol = capsules(shape, sp, org, joints, r_out, r_in, values)
     rig = volrig.Rig(joints=np.array(joints), bones=[[i, i + 1] for i in range(bones)],
                      names=[f"b{i}" for i in range(bones)])
     return volrig.Volume(vol, spacing, origin), rig

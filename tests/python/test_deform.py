@@ -6,7 +6,7 @@ from scipy import ndimage
 
 import volrig
 from conftest import shared
-from random_rigs import random_pose
+from random_rigs import capsules, random_pose
 
 
 # ---- small random rigs -------------------------------------------------------------------------------------
@@ -21,15 +21,7 @@ def capsule_chain(seed, spacing=(1.0, 1.25, 0.8), origin=(-3.0, 2.0, 5.0)):
     for _ in range(3):
         step = rng.normal(size=3)
         pts.append(np.clip(pts[-1] + 9.0 * step / np.linalg.norm(step), org + 0.2 * ext, org + 0.8 * ext))
-    z, y, x = np.indices(shape)
-    world = np.stack([x, y, z], -1) * sp + org
-    vol = np.zeros(shape, np.uint8)
-    for a, b in zip(pts[:-1], pts[1:]):
-        ab = b - a
-        t = np.clip(((world - a) @ ab) / (ab @ ab), 0, 1)
-        d = np.linalg.norm(world - (a + t[..., None] * ab), axis=-1)
-        vol[(d < 4.5) & (vol == 0)] = 90
-        vol[d < 2.0] = 210
+    vol = capsules(shape, sp, org, pts, 4.5, 2.0, [(90, 210)] * 3)
     volume = volrig.Volume(vol, spacing, origin)
     rig = volrig.Rig(joints=np.array(pts), bones=[[0, 1], [1, 2], [2, 3]], names=["a", "b", "c"])
     return volume, rig
