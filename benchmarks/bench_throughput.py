@@ -3,18 +3,22 @@
 
 On the humanoid phantom at --scale with its automatic rig (smooth binding, `pipeline.rig_skeleton`, as
 bench_bake), prints:
-  * smooth frames: the dual-quaternion and linear frames of the walking stride (bench_deform.walking_pose) against
-    the rigid frame of the same pose (best of --repeat each, run alternately), and whether each smooth frame
-    equals the brute-force scatter (volrig.deform_reference) voxel for voxel (skipped with --no-reference);
-  * rig changes: the per-rig tables' build (the best of --repeat fresh Deformers' first frames less the best
-    frame), rigid and smooth, and after a
-    local repaint (every other point of one bone bound to it alone, `Binding.reassign`, then `Deformer.rebind`:
-    only the fields whose spheres changed are rebuilt);
+  * frames: the rigid frame of the walking stride (bench_deform.walking_pose) with the bones' lattice tables
+    built (the reference), the dual-quaternion and linear frames with them, and the rigid, dual-quaternion and
+    linear frames without them (the bones' powers from the balls meeting each preimage: what a Deformer draws for
+    its first Deformer.LATTICE_AFTER frames after a rig change), best of --repeat each, run alternately; whether
+    each smooth frame equals the brute-force scatter (volrig.deform_reference) voxel for voxel (skipped with
+    --no-reference);
+  * rig changes: what the first frame after one builds (the best of --repeat fresh Deformers' first frames less
+    the best frame): the k-d trees (lattice_after=-1) and the lattice tables (lattice_after=0), rigid and smooth;
+    and after a local repaint (every other point of one bone bound to it alone, `Binding.reassign`, then
+    `Deformer.rebind`: only the fields whose spheres changed are rebuilt, with their tables);
   * a whole bake: --bake-frames frames of CMU 131_01 through pipeline.FolderBake (each VDB written on its own
     thread while the next frame computes) in --bake-mode, against the sum of its own deformation times, and the
     frames per second;
-  * memory: the peak resident size of a child process baking --memory-frames frames, less that of the same child
-    stopping before the bake (source, rig and matrices loaded), per source voxel.
+  * memory: the peak resident size of a child process baking --memory-frames frames (by default past
+    Deformer.LATTICE_AFTER, so the tables are in), less that of the same child stopping before the bake (source,
+    rig and matrices loaded), per source voxel; and the same bake with lattice_after=-1 (no tables).
 
 Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/bench_throughput.py [--scale 1] [--repeat 3] [--bake-frames 240]
 Targets (issue 17, scale 1, 2 cores): smooth frames within 1.5x of rigid and equal to the brute force; tables
@@ -56,7 +60,8 @@ rigged = volrig.load_rig(sys.argv[4])
 matrices = np.load(sys.argv[5])
 if sys.argv[7] == "bake":
     with tempfile.TemporaryDirectory() as folder:
-        bake = pipeline.FolderBake(source, rigged.points, rigged.binding, folder, "m", mode=sys.argv[6])
+        bake = pipeline.FolderBake(source, rigged.points, rigged.binding, folder, "m", mode=sys.argv[6],
+                                   lattice_after=json.loads(sys.argv[8]))
         for k, m in enumerate(matrices, start=1):
             bake.bake(k, m)
         bake.finish()
@@ -67,50 +72,60 @@ print(json.dumps({"peak_bytes": hwm * 1024}))
 """
 
 
+# The two ways a Deformer's bones take their powers: from lattice tables built once per rig (what frames reach after
+# Deformer.lattice_after frames without a rig change; 0: at once) or from the balls meeting each preimage (-1: never).
+TABLES = {"tables": 0, "balls": -1}
+
+
 def frames(vol, rigged, repeat: int, reference: bool) -> dict:
-    """Smooth frames against the rigid frame of the same pose, the per-rig builds, the brute-force check."""
+    """Frames with and without lattice tables, smooth against rigid; the per-rig builds; the brute-force check."""
     M = walking_pose(rigged.rig)
     out = {}
     deformers, first = {}, {}
-    for name, mode in (("rigid", "rigid"), ("smooth", "linear")):
-        first[name] = float("inf")
-        for _ in range(repeat):  # fresh Deformers: the best first frame (the build moves with the machine's drift)
-            deformers[name] = None  # the previous one's tables go first
-            deformers[name] = volrig.Deformer(vol, rigged.points, rigged.binding)
-            t = time.perf_counter()
-            deformers[name].frame(M, mode=mode)
-            first[name] = min(first[name], time.perf_counter() - t)
-    best = {m: float("inf") for m in ("rigid",) + SMOOTH}
+    for tables, after in TABLES.items():
+        for name, mode in (("rigid", "rigid"), ("smooth", "linear")):
+            key = (tables, name)
+            first[key] = float("inf")
+            for _ in range(repeat):  # fresh Deformers: the best first frame (the build moves with the machine's drift)
+                deformers[key] = None  # the previous one's tables go first
+                deformers[key] = volrig.Deformer(vol, rigged.points, rigged.binding, lattice_after=after)
+                t = time.perf_counter()
+                deformers[key].frame(M, mode=mode)
+                first[key] = min(first[key], time.perf_counter() - t)
+    best = {(t, m): float("inf") for t in TABLES for m in ("rigid",) + SMOOTH}
     kept = {}
     for k in range(repeat):  # alternately, so that the machine's drift hits every mode alike
-        for mode in best:
-            d = deformers["rigid" if mode == "rigid" else "smooth"]
+        for tables, mode in best:
+            d = deformers[(tables, "rigid" if mode == "rigid" else "smooth")]
             t = time.perf_counter()
             f = d.frame(M, mode=mode)
-            best[mode] = min(best[mode], time.perf_counter() - t)
-            if k == repeat - 1:  # (only then: a frame kept alive holds its memory, and the next frame of its
-                kept[mode] = f   # Deformer would fault in fresh pages instead of reusing them)
+            best[(tables, mode)] = min(best[(tables, mode)], time.perf_counter() - t)
+            if k == repeat - 1 and mode != "rigid":  # (only then: a frame kept alive holds its memory, and the next
+                kept[(tables, mode)] = f             # frame of its Deformer would fault in fresh pages)
             del f
-    for mode, v in best.items():
-        out[f"{mode}_frame_s"] = v
-    for mode in SMOOTH:
-        out[f"{mode}_ratio"] = best[mode] / best["rigid"]
-        out[f"{mode}_exact_sub_blocks"] = kept[mode].stats["exact_sub_blocks"]
-    out["rigid_build_s"] = first["rigid"] - best["rigid"]
-    out["smooth_build_s"] = first["smooth"] - best["linear"]
-    out["rigid_tables_mb"] = deformers["rigid"].memory_bytes / 1e6
-    out["smooth_tables_mb"] = deformers["smooth"].memory_bytes / 1e6
+    reference_frame = best[("tables", "rigid")]
+    for (tables, mode), v in best.items():
+        prefix = "" if tables == "tables" else "balls_"
+        out[f"{prefix}{mode}_frame_s"] = v
+        out[f"{prefix}{mode}_ratio"] = v / reference_frame
+    for tables in TABLES:
+        prefix = "" if tables == "tables" else "balls_"
+        for name, mode in (("rigid", "rigid"), ("smooth", "linear")):
+            out[f"{prefix}{name}_build_s"] = first[(tables, name)] - best[(tables, mode)]
+            out[f"{prefix}{name}_tables_mb"] = deformers[(tables, name)].memory_bytes / 1e6
     if reference:
-        for mode in SMOOTH:
-            f = kept.pop(mode)
+        for (tables, mode), f in list(kept.items()):
             t = time.perf_counter()
             ref = volrig.deform_reference(vol, rigged.points, rigged.binding, M, mode=mode, like=f)
-            out[f"{mode}_brute_force_s"] = time.perf_counter() - t
-            out[f"{mode}_equals_brute_force"] = bool(np.array_equal(ref.bone.array, f.bone.array)
-                                                     and np.array_equal(ref.values.array, f.values.array))
+            prefix = "" if tables == "tables" else "balls_"
+            out[f"{prefix}{mode}_brute_force_s"] = time.perf_counter() - t
+            out[f"{prefix}{mode}_equals_brute_force"] = bool(np.array_equal(ref.bone.array, f.bone.array)
+                                                              and np.array_equal(ref.values.array, f.values.array))
             del f, ref
-    kept.clear()  # their memory back to the Deformer before the repaint's frame
-    out.update(repaint(deformers["smooth"], rigged.binding, M, best["linear"]))
+    kept.clear()  # their memory back to the Deformers before the repaint's frame
+    for key in [k for k in deformers if k[0] == "balls"]:
+        deformers.pop(key)
+    out.update(repaint(deformers[("tables", "smooth")], rigged.binding, M, best[("tables", "linear")]))
     return out
 
 
@@ -151,15 +166,19 @@ def memory(vol, rigged, matrices, mode: str) -> dict:
         volrig.save_rig(paths[1], rigged.points, rigged.tree, rigged.rig, rigged.binding)
         np.save(paths[2], np.asarray(matrices))
         peak = {}
-        for what in ("load", "bake"):
+        for what, after in (("load", None), ("bake", None), ("balls", -1)):
             r = subprocess.run([sys.executable, "-c", MEMORY_CHILD, os.path.abspath(PYTHON_DIR), paths[0],
-                                json.dumps(list(vol.spacing)), paths[1], paths[2], mode, what],
+                                json.dumps(list(vol.spacing)), paths[1], paths[2], mode,
+                                "load" if what == "load" else "bake", json.dumps(after)],
                                check=True, capture_output=True, text=True)
             peak[what] = json.loads(r.stdout.strip().splitlines()[-1])["peak_bytes"]
     voxels = vol.array.size
-    return {"memory_frames": len(matrices), "source_bytes_per_voxel": vol.array.itemsize,
-            "peak_loaded_mb": peak["load"] / 1e6, "peak_bake_mb": peak["bake"] / 1e6,
-            "bake_bytes_per_source_voxel": (peak["bake"] - peak["load"]) / voxels}
+    out = {"memory_frames": len(matrices), "source_bytes_per_voxel": vol.array.itemsize,
+           "peak_loaded_mb": peak["load"] / 1e6}
+    for what, prefix in (("bake", ""), ("balls", "balls_")):
+        out[f"{prefix}peak_bake_mb"] = peak[what] / 1e6
+        out[f"{prefix}bake_bytes_per_source_voxel"] = (peak[what] - peak["load"]) / voxels
+    return out
 
 
 def main() -> int:
@@ -170,7 +189,8 @@ def main() -> int:
     ap.add_argument("--no-reference", action="store_true", help="skip the (slow) brute-force scatters")
     ap.add_argument("--bake-frames", type=int, default=240, help="BVH frames 1..N of CMU 131_01 (0: no bake)")
     ap.add_argument("--bake-mode", default="linear", choices=MODES)
-    ap.add_argument("--memory-frames", type=int, default=4, help="frames the memory child bakes (0: skip)")
+    ap.add_argument("--memory-frames", type=int, default=12,
+                    help="frames the memory child bakes (0: skip; the default passes Deformer.LATTICE_AFTER)")
     ap.add_argument("--json", help="also write the figures to this JSON file")
     args = ap.parse_args()
 
@@ -193,16 +213,20 @@ def main() -> int:
     elif n_clip:
         print(f"bake and memory skipped: {CLIP} is absent")
 
-    rows = [("rigid frame, walking stride (reference)", f"{fig['rigid_frame_s']:.3f} s", "")]
-    for mode in SMOOTH:
-        rows.append((f"{mode.replace('_', '-')} frame", f"{fig[mode + '_frame_s']:.3f} s",
-                     f"{fig[mode + '_ratio']:.2f}x rigid (<= 1.5x)"))
-        if mode + "_equals_brute_force" in fig:
-            rows.append((f"  equal to the brute-force scatter ({fig[mode + '_brute_force_s']:.0f} s)",
-                         str(fig[mode + "_equals_brute_force"]), "(must be True)"))
-    rows += [("per-rig tables, rigid", f"{fig['rigid_build_s']:.2f} s", f"{fig['rigid_tables_mb']:.0f} MB (<= 0.5 s)"),
-             ("per-rig tables, smooth", f"{fig['smooth_build_s']:.2f} s", f"{fig['smooth_tables_mb']:.0f} MB (<= 0.5 s)"),
-             (f"  after repainting {fig['repaint_points']} points of {fig['repaint_bone']}",
+    rows = [("rigid frame with lattice tables, walking stride (reference)", f"{fig['rigid_frame_s']:.3f} s", "")]
+    for prefix, what in (("", "with lattice tables"), ("balls_", "without (balls)")):
+        for mode in (("rigid",) if prefix else ()) + SMOOTH:
+            rows.append((f"{mode.replace('_', '-')} frame {what}", f"{fig[prefix + mode + '_frame_s']:.3f} s",
+                         f"{fig[prefix + mode + '_ratio']:.2f}x the reference" + (" (<= 1.5x)" if mode != "rigid" else "")))
+            if prefix + mode + "_equals_brute_force" in fig:
+                rows.append((f"  equal to the brute-force scatter ({fig[prefix + mode + '_brute_force_s']:.0f} s)",
+                             str(fig[prefix + mode + "_equals_brute_force"]), "(must be True)"))
+    for name in ("rigid", "smooth"):
+        rows += [(f"rig change, {name}: k-d trees (frames without tables)", f"{fig['balls_' + name + '_build_s']:.2f} s",
+                  f"{fig['balls_' + name + '_tables_mb']:.0f} MB (<= 0.5 s)"),
+                 (f"  lattice tables, {name} (after {volrig.Deformer.LATTICE_AFTER} frames without a change)",
+                  f"{fig[name + '_build_s']:.2f} s", f"{fig[name + '_tables_mb']:.0f} MB")]
+    rows += [(f"  tables after repainting {fig['repaint_points']} points of {fig['repaint_bone']}",
               f"{fig['repaint_build_s']:.2f} s", f"{fig['repaint_kept_fields']} fields kept")]
     if "bake_wall_s" in fig:
         rows += [(f"sum of deformation times, {fig['bake_frames']} frames {args.bake_mode} (reference)",
@@ -213,7 +237,9 @@ def main() -> int:
         rows += [(f"peak memory of a child baking {fig['memory_frames']} frames", f"{fig['peak_bake_mb']:.0f} MB",
                   f"the same child loaded only (reference): {fig['peak_loaded_mb']:.0f} MB"),
                  ("  per source voxel above the source", f"{fig['bake_bytes_per_source_voxel']:.1f} B",
-                  f"source {fig['source_bytes_per_voxel']} B/voxel (<= 3 B above it)")]
+                  f"source {fig['source_bytes_per_voxel']} B/voxel (<= 3 B above it)"),
+                 ("  the same bake without lattice tables (lattice_after=-1)",
+                  f"{fig['balls_bake_bytes_per_source_voxel']:.1f} B", f"{fig['balls_peak_bake_mb']:.0f} MB")]
     for name, value, note in rows:
         print(f"  {name:<62} {value:>10}   {note}")
     if args.json:

@@ -92,6 +92,7 @@ std::vector<RigidPiece> pieces_of(const py::list& pieces, std::vector<MaskArray>
 }  // namespace
 
 void bind_deform(py::module_& m) {
+    m.attr("LATTICE_AFTER") = volrig::Deformer::kLatticeAfter;
     py::class_<PyDeformer>(m, "Deformer")
         .def(py::init([](const py::array& source, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk,
                          const FloatArray& radius, const Int32Array& bone, std::size_t bone_count,
@@ -144,6 +145,10 @@ void bind_deform(py::module_& m) {
             py::arg("ijk"), py::arg("radius"), py::arg("bone"), py::arg("bone_count"),
             py::arg("weight_offsets") = py::none(), py::arg("weight_bones") = py::none(), py::arg("weights") = py::none())
         .def_property_readonly("reused_fields", [](const PyDeformer& d) { return d.deformer->reused_fields(); })
+        .def_property(
+            "lattice_after", [](const PyDeformer& d) { return d.deformer->lattice_after(); },
+            [](PyDeformer& d, int frames) { d.deformer->set_lattice_after(frames); })
+        .def_property_readonly("lattice_tables", [](const PyDeformer& d) { return d.deformer->lattice_tables(); })
         .def(
             "set_source",
             [](PyDeformer& d, const py::array& source, const Vec3& spacing, const Vec3& origin) {

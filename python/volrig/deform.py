@@ -224,15 +224,23 @@ def _frame(d: dict, source: Volume):
 class Deformer:
     """Reusable per-rig state: build once, then call ``frame`` for every pose.
 
-    The first frame (and any change of mode family or radius_scale) builds each bone's rest-space power diagram
-    and k-d tree; later frames cost about one gather per output voxel.
+    The first frame (and any change of mode family, radius_scale or binding) builds the spheres' k-d trees, one per
+    bone and blend group: a rig change costs little. Once ``lattice_after`` frames (default 8) have been drawn
+    without a change, the next one also builds each bone's lattice tables (its rest-space power diagram and per-cube
+    power ranges: about four rigid frames' time), after which a frame costs about one gather per output voxel; until
+    then bones take their powers from the balls meeting each preimage, as blend groups always do (the same frame,
+    up to 2x slower rigid, 1.05-1.15x smooth: README, Performance). ``lattice_after=0`` builds the tables at the
+    first frame (many frames to come), ``-1`` never (one frame, or a rig about to change again).
 
     A binding with rigid tissue (``bind(..., rigid=)``) deforms in two layers (``volrig.rigid_layer``): the spheres
     sample a source whose rigid voxels hold the nearest soft tissue, and each bone's piece of rigid tissue, moved by
     that bone alone, is drawn over them.
     """
 
-    def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, proximity: str = DEFAULT_PROXIMITY):
+    LATTICE_AFTER = _volrig.LATTICE_AFTER  # the default lattice_after
+
+    def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, proximity: str = DEFAULT_PROXIMITY,
+                 lattice_after: Optional[int] = None):
         # the core sees the points' voxel indices only, not the grid they were taken on: checked here
         if tuple(points.spacing) != tuple(source.spacing):
             raise VolrigError(f"the skeleton points were taken on a grid of spacing {points.spacing} but the source "
@@ -250,6 +258,22 @@ class Deformer:
         self.bone_count = nb
         self._native = _volrig.Deformer(_source_array(source), source.spacing, source.origin, ijk, radii, bone, nb,
                                         off, wb, w)
+        if lattice_after is not None:
+            self.lattice_after = lattice_after
+
+    @property
+    def lattice_after(self) -> int:
+        """Frames drawn without a rig change before the bones' lattice tables are built (0: at once, -1: never)."""
+        return int(self._native.lattice_after)
+
+    @lattice_after.setter
+    def lattice_after(self, frames: int) -> None:
+        self._native.lattice_after = int(frames)
+
+    @property
+    def lattice_tables(self) -> bool:
+        """Whether every bone's lattice tables are built (False before the first frame)."""
+        return bool(self._native.lattice_tables)
 
     @property
     def memory_bytes(self) -> int:
@@ -271,7 +295,8 @@ class Deformer:
         data of the bones and blend groups whose spheres changed (``reused_fields`` says how many it kept)."""
         old, new = self.binding.rigid, binding.rigid
         if old is not new and ((old is None) != (new is None) or not np.array_equal(old, new)):
-            self.__init__(self.source, self.points, binding, self.proximity)  # other rigid tissue: another source
+            self.__init__(self.source, self.points, binding, self.proximity,  # other rigid tissue: another source
+                          self.lattice_after)
             return
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(self.points, binding)
         self._native.rebind(ijk, radii, bone, nb, off, wb, w)

@@ -463,19 +463,22 @@ class FolderBake:
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
     calls at its end (it waits for the last write and frees the frames' memory). Frames hold their values as the
     half floats the files store (``Deformer.frame(..., half=True)``), except with tissue looks, which read the label
-    map's codes exactly."""
+    map's codes exactly. ``lattice_after``: as ``Deformer``'s (None: its default; -1 bakes without the lattice
+    tables: less memory, slower rigid frames)."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
-                 parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None, keep_volume: bool = True):
+                 parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None, keep_volume: bool = True,
+                 lattice_after: Optional[int] = None):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
+        self.lattice_after = lattice_after
         self.keep_volume = bool(keep_volume)
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.parts, self.tissues = list(parts), list(tissues)
         self.substitutes = check_substitutes(source, self.parts, substitutes)
         if self.tissues and sampling != "nearest":
             raise VolrigError("tissue looks need the label map's own codes: bake with nearest sampling")
-        self.deformer = Deformer(source, points, binding)
+        self.deformer = Deformer(source, points, binding, lattice_after=lattice_after)
         self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
         w = binding.weights.tocsr()
@@ -522,7 +525,8 @@ class FolderBake:
             thick, radius_scale = thicken_volume(self.source, self.points, self.binding, self.rig, scales,
                                                  sampling=self.sampling)
             self._thick = None  # free the previous one first
-            self._thick = (factors, Deformer(thick, self.points, self.binding), radius_scale)
+            self._thick = (factors, Deformer(thick, self.points, self.binding, lattice_after=self.lattice_after),
+                           radius_scale)
         return self._thick[1], self._thick[2]
 
     def bake(self, number: int, matrices, progress=None, thickness=None) -> dict:

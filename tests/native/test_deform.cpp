@@ -113,6 +113,7 @@ TEST_CASE("every decision tier of the Deformer is used, and it still equals the 
     // joint, cubes the power ranges cannot settle, and voxels only the full search settles.
     const Limb L = make_limb({1.0, 1.0, 1.0}, 3);
     Deformer d(L.view(), L.spheres(false));
+    d.set_lattice_after(0);  // the tiers of the bones' lattice tables from the first frame
     const auto joint = world(L.grid, L.joint);
     std::int64_t tiers[4] = {0, 0, 0, 0};
     for (double deg : {0.0, 35.0, 80.0}) {
@@ -134,6 +135,46 @@ TEST_CASE("every decision tier of the Deformer is used, and it still equals the 
     }
     INFO("block " << tiers[0] << " cube " << tiers[1] << " sphere " << tiers[2] << " search " << tiers[3]);
     for (std::int64_t t : tiers) REQUIRE(t > 0);
+}
+
+TEST_CASE("the bones' lattice tables come after lattice_after frames, and frames are the same with or without them",
+          "[deform]") {
+    std::mt19937 rng(11);
+    const Limb L = make_limb({0.9, 1.2, 1.5});
+    Deformer tables(L.view(), L.spheres(true)), balls(L.view(), L.spheres(true)), later(L.view(), L.spheres(true));
+    REQUIRE(later.lattice_after() == Deformer::kLatticeAfter);
+    tables.set_lattice_after(0);
+    balls.set_lattice_after(-1);
+    later.set_lattice_after(2);
+    REQUIRE_THROWS_AS(later.set_lattice_after(-2), Error);
+    REQUIRE(!tables.lattice_tables());  // (nothing built before the first frame)
+    for (int trial = 0; trial < 5; ++trial) {
+        const std::vector<double> mats = random_pose(rng, L, 60, 3);
+        DeformOptions o;
+        o.mode = trial % 2 ? DeformMode::Linear : DeformMode::Rigid;
+        INFO("trial " << trial);
+        const DeformedVolume a = tables.frame(mats.data(), o), b = balls.frame(mats.data(), o),
+                             c = later.frame(mats.data(), o);
+        require_brute_force(L, true, mats, o, a);
+        REQUIRE(b.offset == a.offset);
+        REQUIRE(b.bone == a.bone);
+        REQUIRE(b.values == a.values);
+        REQUIRE(c.bone == a.bone);
+        REQUIRE(c.values == a.values);
+        REQUIRE(tables.lattice_tables());
+        REQUIRE(!balls.lattice_tables());
+        // a change of mode family rebuilds the fields: two frames without tables, then the tables, each time
+        REQUIRE(later.lattice_tables() == false);
+        REQUIRE(balls.memory_bytes() < tables.memory_bytes());
+    }
+    DeformOptions o;
+    const std::vector<double> mats = random_pose(rng, L, 60, 3);
+    std::vector<bool> built;
+    for (int k = 0; k < 4; ++k) {
+        later.frame(mats.data(), o);
+        built.push_back(later.lattice_tables());
+    }
+    REQUIRE(built == std::vector<bool>{false, true, true, true});  // (the last trial drew the first rigid frame)
 }
 
 TEST_CASE("sub-blocks whose powers come from one sphere (smooth blend groups) still equal the brute-force scatter",

@@ -65,8 +65,10 @@ def random_pose(rig, rng, degrees=35.0, shift=2.0):
 
 def mismatch(seed: int, frames: int = 3, extended: bool = False) -> Optional[str]:
     """None when `frames` random frames of rig `seed` equal the brute-force scatter voxel for voxel (or the seed
-    makes no rig), else what differed. `extended` also draws, from a second stream (the first stays the seed's):
-    the bright core as rigid tissue (the rigid layer), per-point radius scales, and frames in 8³ bricks."""
+    makes no rig), else what differed; each frame is drawn twice, with the bones' lattice tables
+    (`Deformer(lattice_after=0)`) and without them (-1). `extended` also draws, from a second stream (the first stays
+    the seed's): the bright core as rigid tissue (the rigid layer), per-point radius scales, and frames in 8³
+    bricks."""
     rng = np.random.default_rng(seed)
     extra = np.random.default_rng([seed, 7]) if extended else None
     made = tube(rng)
@@ -79,7 +81,8 @@ def mismatch(seed: int, frames: int = 3, extended: bool = False) -> Optional[str
     rigid = volume.array >= 150 if extra is not None and extra.random() < 0.3 else None
     binding = volrig.bind(points, rig, mask, mode=bind, rigid=rigid)
     proximity = str(rng.choice(["power", "nearest"]))
-    d = volrig.Deformer(volume, points, binding, proximity=proximity)
+    d = volrig.Deformer(volume, points, binding, proximity=proximity, lattice_after=0)
+    balls = volrig.Deformer(volume, points, binding, proximity=proximity, lattice_after=-1)
     scale = extra.uniform(0.5, 1.5, len(points)) if extra is not None and extra.random() < 0.3 else None
     for k in range(frames):
         mode = str(rng.choice(["rigid", "linear", "dual_quaternion"]))
@@ -87,17 +90,23 @@ def mismatch(seed: int, frames: int = 3, extended: bool = False) -> Optional[str
         keep = bool(rng.integers(0, 2))
         M = random_pose(rig, rng, degrees=float(rng.uniform(5, 90)), shift=float(rng.uniform(0, 4)))
         bricks = extra is not None and extra.random() < 0.3
-        fast = d.frame(M, mode=mode, sampling=sampling, keep_volume=keep, radius_scale=scale, bricks=bricks)
-        fast = fast.dense() if bricks else fast
-        ref = volrig.deform_reference(volume, points, binding, M, mode=mode, proximity=proximity, sampling=sampling,
-                                      like=fast, keep_volume=keep, radius_scale=scale)
-        bone = int((fast.bone.array != ref.bone.array).sum())
-        values = int((fast.values.array != ref.values.array).sum())
-        if bone or values:
-            extras = (f", rigid tissue {rigid is not None}, radius scales {scale is not None}, bricks {bricks}"
-                      if extended else "")
-            return (f"seed {seed} frame {k}: {bind} binding of {len(points)} points, {proximity} proximity, {mode}, "
-                    f"{sampling} sampling, keep_volume {keep}{extras}: {bone} bone labels and {values} values differ")
+        ref = None
+        for tables, deformer in (("lattice tables", d), ("balls", balls)):
+            fast = deformer.frame(M, mode=mode, sampling=sampling, keep_volume=keep, radius_scale=scale, bricks=bricks)
+            fast = fast.dense() if bricks else fast
+            if ref is None:
+                ref = volrig.deform_reference(volume, points, binding, M, mode=mode, proximity=proximity,
+                                              sampling=sampling, like=fast, keep_volume=keep, radius_scale=scale)
+            if tuple(fast.offset) != tuple(ref.offset) or fast.bone.dims != ref.bone.dims:
+                return f"seed {seed} frame {k}, {tables}: the frame's box differs from the lattice tables' frame"
+            bone = int((fast.bone.array != ref.bone.array).sum())
+            values = int((fast.values.array != ref.values.array).sum())
+            if bone or values:
+                extras = (f", rigid tissue {rigid is not None}, radius scales {scale is not None}, bricks {bricks}"
+                          if extended else "")
+                return (f"seed {seed} frame {k}, {tables}: {bind} binding of {len(points)} points, {proximity} "
+                        f"proximity, {mode}, {sampling} sampling, keep_volume {keep}{extras}: {bone} bone labels and "
+                        f"{values} values differ")
     return None
 
 

@@ -35,10 +35,11 @@ def rigged(volume, rig, count, bind="rigid"):
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 @pytest.mark.parametrize("proximity", ["power", "nearest"])
-def test_rigid_mode_equals_the_brute_force_scatter_voxel_for_voxel(seed, proximity):
+@pytest.mark.parametrize("lattice_after", [0, -1])
+def test_rigid_mode_equals_the_brute_force_scatter_voxel_for_voxel(seed, proximity, lattice_after):
     volume, rig = capsule_chain(seed)
     mask, pts, binding = rigged(volume, rig, 300)
-    d = volrig.Deformer(volume, pts, binding, proximity=proximity)
+    d = volrig.Deformer(volume, pts, binding, proximity=proximity, lattice_after=lattice_after)
     rng = np.random.default_rng(100 + seed)
     for sampling in ("trilinear", "nearest"):
         M = random_pose(rig, rng)
@@ -54,10 +55,11 @@ def test_rigid_mode_equals_the_brute_force_scatter_voxel_for_voxel(seed, proximi
 
 @pytest.mark.parametrize("mode", ["linear", "dual_quaternion"])
 @pytest.mark.parametrize("proximity", ["power", "nearest"])
-def test_smooth_modes_equal_the_brute_force_scatter(mode, proximity):
+@pytest.mark.parametrize("lattice_after", [0, -1])
+def test_smooth_modes_equal_the_brute_force_scatter(mode, proximity, lattice_after):
     volume, rig = capsule_chain(7)
     mask, pts, binding = rigged(volume, rig, 300, bind="smooth")
-    d = volrig.Deformer(volume, pts, binding, proximity=proximity)
+    d = volrig.Deformer(volume, pts, binding, proximity=proximity, lattice_after=lattice_after)
     rng = np.random.default_rng(5)
     for degrees in (25, 70):  # the blend groups' radii follow the pose (keep_volume): stronger at 70 degrees
         M = random_pose(rig, rng, degrees=degrees)
@@ -135,7 +137,7 @@ def test_rebind_after_repainting_rebuilds_only_what_changed(phantom_half, phanto
     """Weight painting moves some spheres from one bone to another: after Deformer.rebind, only the fields of the
     bones whose spheres changed are rebuilt, and every frame equals a fresh Deformer's, rigid and smooth."""
     mask, pts, rig, binding = phantom_rigged
-    d = volrig.Deformer(phantom_half.volume, pts, binding)
+    d = volrig.Deformer(phantom_half.volume, pts, binding, lattice_after=0)  # (the tables rebuilt where they change)
     pose = rig.pose({"forearm.L": ([1, 0, 0], 40), "thigh.R": ([1, 0, 0], -25)})
     hand = rig.names.index("hand.L") + 1
     before = int((d.frame(pose).bone.array == hand).sum())
@@ -149,6 +151,42 @@ def test_rebind_after_repainting_rebuilds_only_what_changed(phantom_half, phanto
     assert np.array_equal(again.bone.array, fresh.bone.array)
     assert np.array_equal(again.values.array, fresh.values.array)
     assert (again.bone.array == hand).sum() > before  # the repainted spheres now follow the hand
+    assert d.lattice_tables
+
+
+def test_lattice_tables_come_after_frames_without_a_rig_change(phantom_half, phantom_rigged):
+    """A Deformer draws its first lattice_after frames with the bones' powers from their balls (k-d trees only:
+    a rig change costs little) and builds the lattice tables at the next; every frame is the same either way. A
+    rebind drops the tables of the fields it changes until lattice_after more frames are drawn."""
+    mask, pts, rig, binding = phantom_rigged
+    pose = rig.pose({"forearm.L": ([1, 0, 0], 40), "thigh.R": ([1, 0, 0], -25)})
+    d = volrig.Deformer(phantom_half.volume, pts, binding)
+    assert d.lattice_after == volrig.Deformer.LATTICE_AFTER == 8
+    d.lattice_after = 2
+    frames, tables, memory = [], [], []
+    for _ in range(4):
+        frames.append(d.frame(pose, mode="linear"))
+        tables.append(d.lattice_tables)
+        memory.append(d.memory_bytes)
+    assert tables == [False, False, True, True]  # built at the third frame, after two without a change
+    assert memory[2] > 4 * memory[1]
+    for f in frames[1:]:
+        assert np.array_equal(f.bone.array, frames[0].bone.array)
+        assert np.array_equal(f.values.array, frames[0].values.array)
+    forearm = np.flatnonzero(binding.bone == rig.names.index("forearm.L"))
+    d.rebind(binding.reassign(forearm[: len(forearm) // 3], "hand.L"))
+    after = [(d.frame(pose, mode="linear"), d.lattice_tables) for _ in range(3)]
+    assert [t for _, t in after] == [False, False, True]
+    assert memory[1] < d.memory_bytes
+    for f, _ in after[1:]:
+        assert np.array_equal(f.bone.array, after[0][0].bone.array)
+        assert np.array_equal(f.values.array, after[0][0].values.array)
+    never = volrig.Deformer(phantom_half.volume, pts, binding, lattice_after=-1)
+    for _ in range(3):
+        never.frame(pose)
+    assert not never.lattice_tables
+    with pytest.raises(volrig.VolrigError, match="lattice_after"):
+        never.lattice_after = -2
 
 
 def rigged_volume(volume, count, **autorig):

@@ -161,6 +161,19 @@ public:
     /// How many fields the last build took over from the build before (the rest were built anew).
     std::size_t reused_fields() const;
 
+    /// When the bones' fields get their lattice tables (per-cube power ranges and power-diagram labels: what lets a
+    /// frame settle most voxels from a table; about 4 rigid frames' time to build): at the first frame drawn after
+    /// `frames` frames without a change of the per-rig data (a new Deformer, rebind, another mode family or
+    /// radius_scale). Until then a bone's field takes its powers from the balls meeting each preimage, as the blend
+    /// groups always do: a rig change then costs the spheres' k-d trees only and a frame somewhat more (README,
+    /// Performance). 0: at the first frame; -1: never. A rebind rebuilds the fields it changes without tables; those
+    /// it keeps keep theirs.
+    static constexpr int kLatticeAfter = 8;
+    void set_lattice_after(int frames);
+    int lattice_after() const;
+    /// Whether every bone's field has its lattice tables (false before the first frame).
+    bool lattice_tables() const;
+
     /// The rigid layer (issue 18): from the next frame on, each piece moved by its bone alone is drawn over the
     /// spheres' reconstruction (as paint_rigid_pieces draws it), sampled from `source` (the scan itself, while the
     /// spheres may sample a copy whose rigid voxels hold soft tissue); the output box grows to hold the pieces.

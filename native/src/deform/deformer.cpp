@@ -73,6 +73,8 @@ struct Deformer::Impl : SphereStore {
     std::vector<RigidPiece> pieces;
     BendModel bend;                         // the blend groups' bend model (volume kept at bends)
     double bound_step = 1;                  // the quantum of the fields' power bounds
+    int lattice_after = Deformer::kLatticeAfter;  // Deformer::set_lattice_after
+    std::int64_t frames_since_change = 0;   // frames drawn since the fields last changed
 
     /// A quarter of the lattice cell's squared diagonal (with a margin): no sphere covers where its power is above.
     double threshold() const {
@@ -81,6 +83,8 @@ struct Deformer::Impl : SphereStore {
     }
     std::vector<std::vector<std::uint32_t>> partition(bool smooth);
     void build(bool smooth, const DeformOptions& o, const Progress& progress);
+    bool lattice_due() const { return lattice_after >= 0 && frames_since_change >= lattice_after; }
+    void add_lattice_tables(const Progress& progress);
     std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
     void add_group_motions(std::vector<Motion>& m, DeformMode mode) const;
     Box frame_reach(const std::vector<Motion>& motions) const;
@@ -122,8 +126,12 @@ std::vector<BoneField> Deformer::Impl::take_reusable(const std::vector<double>& 
 }
 
 void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& progress) {
-    if (built && built_smooth == smooth && built_scale == o.radius_scale) return;
+    if (built && built_smooth == smooth && built_scale == o.radius_scale) {
+        if (lattice_due()) add_lattice_tables(progress);
+        return;
+    }
     built = false;
+    frames_since_change = 0;
     std::vector<double> new_radii = scaled_radii(view(), o);
     std::map<FieldKey, std::size_t> old_index;
     std::vector<BoneField> old = take_reusable(new_radii, old_index);
@@ -146,11 +154,12 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
         for (std::size_t f = 0; f < field_members.size(); ++f) {
             const auto it = old_index.find(field_keys[f]);
             if (it != old_index.end() && old_members[it->second] == field_members[f]) {
-                fields.push_back(std::move(old[it->second]));
+                fields.push_back(std::move(old[it->second]));  // (with or without its lattice tables)
                 ++reused;
             } else {
-                fields.push_back(f < bone_count ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram)
-                                                : build_ball_field(grid, view(), field_members[f], radii, T, bound_step));
+                fields.push_back(f < bone_count && lattice_due()
+                                     ? build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram)
+                                     : build_ball_field(grid, view(), field_members[f], radii, T, bound_step));
             }
             report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(field_members.size()));
         }
@@ -164,6 +173,18 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     built = true;
     built_smooth = smooth;
     built_scale = o.radius_scale;
+    if (lattice_due()) add_lattice_tables(progress);  // (fields taken over without them)
+}
+
+/// Builds the lattice tables of the bones' fields that have none yet (the blend groups' never have them), in place:
+/// each field is whole with or without them, so a cancelled pass leaves the fields it did not reach as they were.
+void Deformer::Impl::add_lattice_tables(const Progress& progress) {
+    const double T = threshold();
+    DiagramScratch diagram;
+    for (std::size_t f = 0; f < bone_count; ++f) {
+        if (!fields[f].lattice) fields[f] = build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram);
+        report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(bone_count));
+    }
 }
 
 /// The output box: the moved spheres', grown to hold the rigid layer's pieces.
@@ -232,6 +253,7 @@ DeformedVolume Deformer::Impl::frame(BoneMatrices matrices, const DeformOptions&
     report(progress, 1.0);
     out.stats = {r.covered, r.queries, blended_spheres, r.by_block, r.by_cube, r.by_sphere, r.by_search,
                  r.exact_sub_blocks, layer.count, r.contact};
+    ++frames_since_change;
     return out;
 }
 
@@ -260,6 +282,21 @@ void Deformer::rebind(const BoundSpheres& spheres) {
 }
 
 std::size_t Deformer::reused_fields() const { return impl_->reused; }
+
+void Deformer::set_lattice_after(int frames) {
+    if (frames < -1) throw Error("set_lattice_after: give a number of frames, 0 (at once) or -1 (never)");
+    impl_->lattice_after = frames;
+}
+
+int Deformer::lattice_after() const { return impl_->lattice_after; }
+
+bool Deformer::lattice_tables() const {
+    const Impl& m = *impl_;
+    if (!m.built) return false;
+    for (std::size_t f = 0; f < m.bone_count; ++f)
+        if (!m.fields[f].lattice) return false;
+    return true;
+}
 
 void Deformer::set_source(const VolumeView& source) {
     if (source.grid.dims != impl_->grid.dims) throw Error("set_source: the samples do not have the Deformer's grid");
