@@ -223,7 +223,8 @@ def cmd_bake_mocap(args) -> int:
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
     tissues = _tissues(args.tissues, source) if args.tissues else ()
     bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling,
-                      tissues=tissues, keep_volume=not args.plain_blend)
+                      tissues=tissues, keep_volume=not args.plain_blend,
+                      lattice_after=-1 if args.no_lattice_tables else None)
     todo = [(f, m) for f, m in zip(frames, matrices)
             if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
     rate = BakeRate(len(todo))
@@ -660,6 +661,9 @@ def main(argv=None) -> int:
                                      "holds a tissue_<class> grid per tissue class (skin, muscle, bone, ...) for "
                                      "per-tissue looks; needs --sampling nearest")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
+    p.add_argument("--no-lattice-tables", action="store_true",
+                   help="never build the bones' lattice tables (built by default after 8 frames): less memory, "
+                        "slower rigid frames (README, Performance)")
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)
 

@@ -300,6 +300,14 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     plain.bake(1, bent)
     plain.finish()
     assert os.listdir(tmp_path / "plain") == ["bar_0001.vdb"] and not plain.up_to_date(1, bent)
+    # with the bones' lattice tables from the first frame (lattice_after=0): the same file
+    tables = pipeline.FolderBake(source, pts, binding, str(tmp_path / "tables"), "bar", mode="linear", lattice_after=0)
+    tables.bake(1, bent)
+    tables.finish()
+    assert tables.deformer.lattice_tables and not plain.deformer.lattice_tables
+    for grid in ("bone", "density"):
+        np.testing.assert_array_equal(volrig.load(tables.path(1), grid=grid).array,
+                                      volrig.load(plain.path(1), grid=grid).array)
     # a file that cannot be written (a folder stands in its place) fails the bake at the next frame or at finish
     os.makedirs(plain.path(5))
     plain.bake(5, bent)
