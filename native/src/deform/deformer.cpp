@@ -179,11 +179,15 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
 /// Builds the lattice tables of the bones' fields that have none yet (the blend groups' never have them), in place:
 /// each field is whole with or without them, so a cancelled pass leaves the fields it did not reach as they were.
 void Deformer::Impl::add_lattice_tables(const Progress& progress) {
+    std::vector<std::size_t> todo;
+    for (std::size_t f = 0; f < bone_count; ++f)
+        if (!fields[f].lattice) todo.push_back(f);
     const double T = threshold();
     DiagramScratch diagram;
-    for (std::size_t f = 0; f < bone_count; ++f) {
-        if (!fields[f].lattice) fields[f] = build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram);
-        report(progress, 0.5 * static_cast<double>(f + 1) / static_cast<double>(bone_count));
+    for (std::size_t k = 0; k < todo.size(); ++k) {
+        const std::size_t f = todo[k];
+        fields[f] = build_bone_field(grid, view(), field_members[f], radii, T, bound_step, &diagram);
+        report(progress, 0.5 * static_cast<double>(k + 1) / static_cast<double>(todo.size()));
     }
 }
 
