@@ -108,7 +108,8 @@ def main():
     t_anatomy = time.perf_counter() - t0
     print(f"binding: plain {t_plain:.3f} s, with rigid tissue {t_anatomy:.3f} s ({t_anatomy / t_plain:.2f}x)")
     # Frame cost: CPU seconds (both threads), interleaved, best of 3, so that other jobs' load counts less.
-    deformers = {"plain": volrig.Deformer(labels, pts, plain), "rigid layer": volrig.Deformer(labels, pts, anatomy)}
+    deformers = {"plain": volrig.Deformer(labels, pts, plain, lattice_after=0),  # (frames with the lattice tables)
+                 "rigid layer": volrig.Deformer(labels, pts, anatomy, lattice_after=0)}
     # (the rigid layer's frame also with the plain blend: what keep_volume, the bend model and the sliding contact,
     # cost)
     runs = {"plain": ("plain", True), "rigid layer": ("rigid layer", True), "layer, plain blend": ("rigid layer", False)}

@@ -74,7 +74,7 @@ def main() -> int:
     for f in range(args.frames):
         t, c = best_of(args.repeat, lambda: volrig.collide(a, clip[f], b, still))
         (contact if c.hit else apart).append((t, c.voxels))
-    da, db = volrig.Deformer(vol, pts, rigid), volrig.Deformer(bv, bpts, bbind)
+    da, db = volrig.Deformer(vol, pts, rigid, lattice_after=0), volrig.Deformer(bv, bpts, bbind)  # (da: tables)
     fb = db.frame(still, values=False)
     ref = []
     for f in range(args.frames):

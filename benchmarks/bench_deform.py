@@ -62,7 +62,7 @@ def main() -> int:
 
     fig = {}
     t0 = time.perf_counter()
-    d = volrig.Deformer(vol, pts, rigid)
+    d = volrig.Deformer(vol, pts, rigid, lattice_after=0)  # (frames with the bones' lattice tables: a bake's)
     d.frame(M)
     fig["build_and_first_frame_s"] = time.perf_counter() - t0
     fig["per_rig_memory_mb"] = d.memory_bytes / 1e6
@@ -83,7 +83,7 @@ def main() -> int:
         fig["vdb_mb"] = os.path.getsize(path) / 1e6
     fig["nearest_proximity_frame_s"], _ = best_of(1, lambda: d.frame(M, proximity="nearest"))
     smooth = volrig.bind(pts, rig, mask, mode="smooth")
-    ds = volrig.Deformer(vol, pts, smooth)
+    ds = volrig.Deformer(vol, pts, smooth, lattice_after=0)
     ds.frame(M, mode="dual_quaternion")
     fig["dual_quaternion_frame_s"], f_dq = best_of(1, lambda: ds.frame(M, mode="dual_quaternion"))
     fig["linear_frame_s"], _ = best_of(1, lambda: ds.frame(M, mode="linear"))

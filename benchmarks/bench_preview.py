@@ -3,7 +3,8 @@
 
 The humanoid phantom at --scale with its automatic rig (smooth binding, ``pipeline.rig_skeleton``), posed with the
 left elbow bent 90 degrees; ``volrig.deform.coarse_level`` at factors 2 and 4 (every 2nd / 4th voxel per axis).
-For each level: the time to build the coarse level and its Deformer's first frame (per-rig tables), then best and
+For each level: the time to build the coarse level and its Deformer's first frame (k-d trees: the preview's
+Deformer never builds the bones' lattice tables, as in the add-on), then best and
 median of --repeat frames of new poses (the preview's cost while scrubbing), their ratio to the full-resolution
 frame measured in the same run, and how well the coarse frame's object matches the full frame's (Dice of the
 masks, the full frame sampled on the coarse voxels).
@@ -55,7 +56,7 @@ def main():
     print(f"phantom scale {args.scale}: grid {vol.dims} ({vol.array.size:,} voxels), {len(r.points):,} points, "
           f"{len(r.rig.bones)} bones")
     M = next(poses(r.rig, 1))
-    full = volrig.Deformer(vol, r.points, r.binding)
+    full = volrig.Deformer(vol, r.points, r.binding, lattice_after=0)  # (a bake's frames: with the lattice tables)
     full.frame(M, mode="linear")
     it = iter(poses(r.rig, 10 ** 6))
     fbest, fmed, fframe = timed(args.repeat, lambda: full.frame(next(it), mode="linear"))
@@ -63,7 +64,7 @@ def main():
     print(f"{'full':>10s} {'':8s} {1000 * fbest:8.1f} {1000 * fmed:10.1f} {1.0:7.3f}")
     for f in (2, 4):
         t = time.perf_counter()
-        d = volrig.Deformer(*coarse_level(vol, r.points, r.binding, f))
+        d = volrig.Deformer(*coarse_level(vol, r.points, r.binding, f), lattice_after=-1)  # (as the add-on's preview)
         d.frame(M, mode="linear")
         build = time.perf_counter() - t
         it = iter(poses(r.rig, 10 ** 6))

@@ -43,8 +43,8 @@ def main() -> int:
     M = walking_pose(rigged.rig)
     # one Deformer per mode family: rigid frames and smooth ones use different per-rig tables (a Deformer switching
     # between the two rebuilds them)
-    deformers = {"rigid": volrig.Deformer(source, rigged.points, rigged.binding),
-                 "smooth": volrig.Deformer(source, rigged.points, rigged.binding)}
+    deformers = {"rigid": volrig.Deformer(source, rigged.points, rigged.binding, lattice_after=0),  # (with tables)
+                 "smooth": volrig.Deformer(source, rigged.points, rigged.binding, lattice_after=0)}
     print(f"Visible Human {a.mm} mm: grid {tuple(source.array.shape[::-1])}, {len(rigged.points):,} points, "
           f"{len(rigged.rig.names)} bones, smooth binding")
     best, kept = {m: float("inf") for m in MODES}, {}

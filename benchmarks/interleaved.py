@@ -33,6 +33,8 @@ ph = phantom.humanoid(scale)
 r = volrig.load_rig(rig_file)
 M = walking_pose(r.rig)
 d = volrig.Deformer(ph.volume, r.points, r.binding)
+if hasattr(d, "lattice_after"):  # (packages from before 2026-11-29 build the bones' lattice tables at the first frame)
+    d.lattice_after = 0
 t = time.perf_counter(); f = d.frame(M, mode=modes[0]); out = {"build+first": time.perf_counter() - t}; del f
 for mode in modes:
     ts = []
