@@ -229,7 +229,8 @@ class Deformer:
     without a change, the next one also builds each bone's lattice tables (its rest-space power diagram and per-cube
     power ranges: about four rigid frames' time), after which a frame costs about one gather per output voxel; until
     then bones take their powers from the balls meeting each preimage, as blend groups always do (the same frame,
-    up to 2x slower rigid, 1.05-1.15x smooth: README, Performance). ``lattice_after=0`` builds the tables at the
+    1.2-1.3x slower rigid and 1.0-1.1x smooth on the phantom at scale 1, up to 2x / 1.4x at scale 2: README,
+    Performance). ``lattice_after=0`` builds the tables at the
     first frame (many frames to come), ``-1`` never (one frame, or a rig about to change again).
 
     A binding with rigid tissue (``bind(..., rigid=)``) deforms in two layers (``volrig.rigid_layer``): the spheres
