@@ -181,6 +181,8 @@ def test_lattice_tables_come_after_frames_without_a_rig_change(phantom_half, pha
     for f, _ in after[1:]:
         assert np.array_equal(f.bone.array, after[0][0].bone.array)
         assert np.array_equal(f.values.array, after[0][0].values.array)
+    d.frame(pose, mode="linear", radius_scale=1.1)  # other radii: every field anew, without tables
+    assert not d.lattice_tables and d.reused_fields == 0
     never = volrig.Deformer(phantom_half.volume, pts, binding, lattice_after=-1)
     for _ in range(3):
         never.frame(pose)
