@@ -20,10 +20,10 @@ from volrig import phantom, pipeline  # noqa: E402
 from volrig.deform import MODES  # noqa: E402
 
 
-def timed_folder_bake(vol, rigged, folder: str, mode: str, first):
-    """A FolderBake whose deformer's frames are timed: (bake, times). Its per-rig build (the first frame, `first`,
-    baked as frame 0) is left out of `times`."""
-    bake = pipeline.FolderBake(vol, rigged.points, rigged.binding, folder, "phantom", mode=mode)
+def timed_folder_bake(vol, rigged, folder: str, mode: str, first, frames=None):
+    """A FolderBake of `frames` frames (when known, as `volrig bake-mocap` tells it) whose deformer's frames are
+    timed: (bake, times). Its per-rig build (the first frame, `first`, baked as frame 0) is left out of `times`."""
+    bake = pipeline.FolderBake(vol, rigged.points, rigged.binding, folder, "phantom", mode=mode, frames=frames)
     times = []
     frame = bake.deformer.frame
 
@@ -58,7 +58,7 @@ def main() -> int:
     frames = pipeline.clip_frames(clip.frame_count, f"1-{args.frames}", 1)
     _, matrices = pipeline.mocap_poses(rigged.rig, clip, frames)
     with tempfile.TemporaryDirectory() as folder:
-        bake, deform_times = timed_folder_bake(ph.volume, rigged, folder, args.mode, matrices[0])
+        bake, deform_times = timed_folder_bake(ph.volume, rigged, folder, args.mode, matrices[0], len(matrices))
         start = time.perf_counter()
         for k, m in enumerate(matrices, start=1):
             bake.bake(k, m)

@@ -96,9 +96,9 @@ class RigState:
 
 class Baker(RigState):
     """Everything one bake of a volrig Volume object needs, prepared once (``volrig.pipeline.FolderBake``: the
-    Deformer and the record of baked poses)."""
+    Deformer and the record of baked poses). ``frames``: how many frames the bake will draw, when known."""
 
-    def __init__(self, volume_obj, mode: str = "linear"):
+    def __init__(self, volume_obj, mode: str = "linear", frames=None):
         super().__init__(volume_obj)
         self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
@@ -107,7 +107,8 @@ class Baker(RigState):
                                           rig=objects.armature_rig(self.rig_obj),
                                           tissues=tissue_looks.tissues_of(volume_obj),
                                           substitutes=looks.substitutes_of(volume_obj),
-                                          keep_volume=volume_obj.volrig.keep_volume)
+                                          keep_volume=volume_obj.volrig.keep_volume,
+                                          frames=frames)  # (how many: whether the lattice tables pay)
         self._thickness = {}  # frame -> the thickness factors pose() read for it
 
     def bake_frame(self, scene, frame: int, progress=None, force: bool = False) -> bool:
@@ -160,7 +161,7 @@ class Baker(RigState):
 
 def bake(volume_obj, scene, frames, mode: str = "linear", force: bool = False, report=print) -> int:
     """Bake ``frames`` of ``volume_obj`` (blocking; the headless path); returns the number of frames written."""
-    baker = Baker(volume_obj, mode)
+    baker = Baker(volume_obj, mode, frames=len(frames))
     current = scene.frame_current
     written = 0
     rate = pipeline.BakeRate(len(frames))

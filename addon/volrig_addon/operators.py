@@ -400,7 +400,7 @@ class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
     def invoke(self, context, event):
         vol = self.volume(context)
         self._frames = baking.parse_frames(vol.volrig.bake_frames, context.scene)
-        self._baker = baking.Baker(vol, vol.volrig.deform_mode)
+        self._baker = baking.Baker(vol, vol.volrig.deform_mode, frames=len(self._frames))
         self._next = 0
         self._written = 0
         self._rate = pipeline.BakeRate(len(self._frames))

@@ -214,7 +214,7 @@ def _tissues(path: str, source):
 
 
 def cmd_bake_mocap(args) -> int:
-    from .pipeline import BakeRate, FolderBake, sequence_number
+    from .pipeline import BakeRate, FolderBake, frame_file, sequence_number
     t = time.perf_counter()
     if args.tissues and args.sampling != "nearest":
         raise VolrigError("--tissues needs the label map's own codes: add --sampling nearest")
@@ -222,11 +222,11 @@ def cmd_bake_mocap(args) -> int:
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args, args.step, binding=True)
     stem = args.name or os.path.basename(args.file).split(".")[0] or "volume"
     tissues = _tissues(args.tissues, source) if args.tissues else ()
+    todo = [(f, m) for f, m in zip(frames, matrices)
+            if not (args.skip_existing and os.path.exists(frame_file(args.output, stem, sequence_number(f, args.step))))]
     bake = FolderBake(source, saved.points, saved.binding, args.output, stem, mode=args.mode, sampling=args.sampling,
                       tissues=tissues, keep_volume=not args.plain_blend,
-                      lattice_after=-1 if args.no_lattice_tables else None)
-    todo = [(f, m) for f, m in zip(frames, matrices)
-            if not (args.skip_existing and os.path.exists(bake.path(sequence_number(f, args.step))))]
+                      lattice_after=-1 if args.no_lattice_tables else None, frames=len(todo))
     rate = BakeRate(len(todo))
     tqdm = _tqdm() if _show_progress(args) else None
     bar = tqdm(total=len(todo), desc="bake-mocap", unit="frame", file=sys.stderr) if tqdm else None
@@ -662,8 +662,8 @@ def main(argv=None) -> int:
                                      "per-tissue looks; needs --sampling nearest")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
     p.add_argument("--no-lattice-tables", action="store_true",
-                   help="never build the bones' lattice tables (built by default after 8 frames): less memory, "
-                        "slower rigid frames (README, Performance)")
+                   help="never build the bones' lattice tables (by default built at the first frame of a bake of "
+                        "16 frames or more): less memory, slower rigid frames (README, Performance)")
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)
 

@@ -447,6 +447,18 @@ def _no_thickness(thickness) -> bool:
     return thickness is None or bool(np.all(np.asarray(thickness, np.float64) == 1.0))
 
 
+# A bake that knows it will draw at least this many frames builds the bones' lattice tables at its first frame; a
+# shorter one never does (they pay back their build after 12-18 frames on the phantom: README, Performance).
+TABLES_PAY_AFTER = 16
+
+
+def lattice_after_for(frames: Optional[int]) -> Optional[int]:
+    """``Deformer.lattice_after`` for a bake of ``frames`` frames (None: not known, the Deformer's own default)."""
+    if frames is None:
+        return None
+    return 0 if frames >= TABLES_PAY_AFTER else -1
+
+
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
     and ``bone``, each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``, and each of
@@ -463,22 +475,24 @@ class FolderBake:
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
     calls at its end (it waits for the last write and frees the frames' memory). Frames hold their values as the
     half floats the files store (``Deformer.frame(..., half=True)``), except with tissue looks, which read the label
-    map's codes exactly. ``lattice_after``: as ``Deformer``'s (None: its default; -1 bakes without the lattice
-    tables: less memory, slower rigid frames)."""
+    map's codes exactly. ``frames``: how many frames this bake will draw, when known (a bake of TABLES_PAY_AFTER or
+    more builds the bones' lattice tables at its first frame, a shorter one never: ``lattice_after_for``);
+    ``lattice_after`` (wins over ``frames``): as ``Deformer``'s (-1 bakes without the tables: less memory, slower
+    rigid frames; None with no ``frames``: the Deformer's default)."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
                  parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None, keep_volume: bool = True,
-                 lattice_after: Optional[int] = None):
+                 lattice_after: Optional[int] = None, frames: Optional[int] = None):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
-        self.lattice_after = lattice_after
+        self.lattice_after = lattice_after_for(frames) if lattice_after is None else lattice_after
         self.keep_volume = bool(keep_volume)
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.parts, self.tissues = list(parts), list(tissues)
         self.substitutes = check_substitutes(source, self.parts, substitutes)
         if self.tissues and sampling != "nearest":
             raise VolrigError("tissue looks need the label map's own codes: bake with nearest sampling")
-        self.deformer = Deformer(source, points, binding, lattice_after=lattice_after)
+        self.deformer = Deformer(source, points, binding, lattice_after=self.lattice_after)
         self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
         w = binding.weights.tocsr()
