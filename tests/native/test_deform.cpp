@@ -163,7 +163,7 @@ TEST_CASE("the bones' lattice tables come after lattice_after frames, and frames
         REQUIRE(c.values == a.values);
         REQUIRE(tables.lattice_tables());
         REQUIRE(!balls.lattice_tables());
-        // a change of mode family rebuilds the fields: two frames without tables, then the tables, each time
+        // every trial changes the mode family, which rebuilds the fields: `later` never reaches its two frames
         REQUIRE(later.lattice_tables() == false);
         REQUIRE(balls.memory_bytes() < tables.memory_bytes());
     }

@@ -83,6 +83,7 @@ struct Deformer::Impl : SphereStore {
     }
     std::vector<std::vector<std::uint32_t>> partition(bool smooth);
     void build(bool smooth, const DeformOptions& o, const Progress& progress);
+    void rebuild(bool smooth, const DeformOptions& o, const Progress& progress);
     bool lattice_due() const { return lattice_after >= 0 && frames_since_change >= lattice_after; }
     void add_lattice_tables(const Progress& progress);
     std::vector<BoneField> take_reusable(const std::vector<double>& new_radii, std::map<FieldKey, std::size_t>& index);
@@ -125,11 +126,16 @@ std::vector<BoneField> Deformer::Impl::take_reusable(const std::vector<double>& 
     return old;
 }
 
+/// The fields for this mode family and radius_scale (kept when they are the last build's), then the bones' lattice
+/// tables when they are due.
 void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& progress) {
-    if (built && built_smooth == smooth && built_scale == o.radius_scale) {
-        if (lattice_due()) add_lattice_tables(progress);
-        return;
-    }
+    if (!(built && built_smooth == smooth && built_scale == o.radius_scale)) rebuild(smooth, o, progress);
+    if (lattice_due()) add_lattice_tables(progress);
+}
+
+/// Every field anew, but those whose key and spheres are the last build's (taken over with or without their
+/// tables); a bone's new field gets its tables only when they are due at once (lattice_after 0).
+void Deformer::Impl::rebuild(bool smooth, const DeformOptions& o, const Progress& progress) {
     built = false;
     frames_since_change = 0;
     std::vector<double> new_radii = scaled_radii(view(), o);
@@ -173,7 +179,6 @@ void Deformer::Impl::build(bool smooth, const DeformOptions& o, const Progress& 
     built = true;
     built_smooth = smooth;
     built_scale = o.radius_scale;
-    if (lattice_due()) add_lattice_tables(progress);  // (fields taken over without them)
 }
 
 /// Builds the lattice tables of the bones' fields that have none yet (the blend groups' never have them), in place:
