@@ -16,9 +16,14 @@ bench_bake), prints:
   * a whole bake: --bake-frames frames of CMU 131_01 through pipeline.FolderBake (each VDB written on its own
     thread while the next frame computes) in --bake-mode, against the sum of its own deformation times, and the
     frames per second;
-  * memory: the peak resident size of a child process baking --memory-frames frames with the bones' lattice
-    tables from the first frame (lattice_after=0: a long bake), less that of the same child stopping before the
-    bake (source, rig and matrices loaded), per source voxel; and the same bake with lattice_after=-1 (no tables).
+  * whether a bake's lattice tables pay: --pay-frames frames of CMU 131_01 as a bake draws them (8³ bricks, half
+    floats) by a Deformer with the tables (lattice_after=0) and one without (-1), frame by frame alternately, in
+    each of the three modes: the mean frame time with the tables over that without, and the tables' memory per
+    source voxel (a bake builds none unless asked, `FolderBake(..., lattice_tables=True)`);
+  * memory: the peak resident size of a child process baking --memory-frames frames as a bake does by default
+    (without the bones' lattice tables), less that of the same child stopping before the bake (source, rig and
+    matrices loaded), per source voxel; and the same bake with the tables from its first frame (lattice_after=0:
+    a long bake asked for them, `FolderBake(..., lattice_tables=True)`).
 
 Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/bench_throughput.py [--scale 1] [--repeat 3] [--bake-frames 240]
 Targets (issue 17, scale 1, 2 cores): smooth frames within 1.5x of rigid and equal to the brute force; a rig
@@ -159,6 +164,29 @@ def bake(vol, rigged, matrices, mode: str) -> dict:
             "bake_ratio": wall / total, "bake_frames_per_s": len(matrices) / wall}
 
 
+def tables_pay(vol, rigged, matrices) -> dict:
+    """Bake-like frames (bricks, half floats) with and without the bones' lattice tables, alternately: the mean
+    frame with them over that without, per mode; their memory per source voxel."""
+    out = {"pay_frames": len(matrices)}
+    for mode in MODES:
+        ds = {t: volrig.Deformer(vol, rigged.points, rigged.binding, lattice_after=a) for t, a in TABLES.items()}
+        for d in ds.values():  # the per-rig builds (and the tables) out of the way
+            d.frame(matrices[0], mode=mode, bricks=True, half=True)
+        total = dict.fromkeys(ds, 0.0)
+        for m in matrices:
+            for t, d in ds.items():
+                start = time.perf_counter()
+                f = d.frame(m, mode=mode, bricks=True, half=True)
+                total[t] += time.perf_counter() - start
+                del f
+        out[f"pay_{mode}_tables_s"] = total["tables"] / len(matrices)
+        out[f"pay_{mode}_balls_s"] = total["balls"] / len(matrices)
+        out[f"pay_{mode}_ratio"] = total["tables"] / total["balls"]
+        out[f"pay_{mode}_tables_bytes_per_voxel"] = ds["tables"].memory_bytes / vol.array.size
+        del ds
+    return out
+
+
 def memory(vol, rigged, matrices, mode: str) -> dict:
     """Peak resident size of a baking child above the same child without the bake, per source voxel."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -167,7 +195,7 @@ def memory(vol, rigged, matrices, mode: str) -> dict:
         volrig.save_rig(paths[1], rigged.points, rigged.tree, rigged.rig, rigged.binding)
         np.save(paths[2], np.asarray(matrices))
         peak = {}
-        for what, after in (("load", None), ("bake", 0), ("balls", -1)):
+        for what, after in (("load", None), ("bake", -1), ("tables", 0)):
             r = subprocess.run([sys.executable, "-c", MEMORY_CHILD, os.path.abspath(PYTHON_DIR), paths[0],
                                 json.dumps(list(vol.spacing)), paths[1], paths[2], mode,
                                 "load" if what == "load" else "bake", json.dumps(after)],
@@ -176,9 +204,9 @@ def memory(vol, rigged, matrices, mode: str) -> dict:
     voxels = vol.array.size
     out = {"memory_frames": len(matrices), "source_bytes_per_voxel": vol.array.itemsize,
            "peak_loaded_mb": peak["load"] / 1e6}
-    for what, tables in (("bake", "tables"), ("balls", "balls")):
-        out[f"{PREFIX[tables]}peak_bake_mb"] = peak[what] / 1e6
-        out[f"{PREFIX[tables]}bake_bytes_per_source_voxel"] = (peak[what] - peak["load"]) / voxels
+    for what, prefix in (("bake", ""), ("tables", "tables_")):
+        out[f"{prefix}peak_bake_mb"] = peak[what] / 1e6
+        out[f"{prefix}bake_bytes_per_source_voxel"] = (peak[what] - peak["load"]) / voxels
     return out
 
 
@@ -190,6 +218,8 @@ def main() -> int:
     ap.add_argument("--no-reference", action="store_true", help="skip the (slow) brute-force scatters")
     ap.add_argument("--bake-frames", type=int, default=240, help="BVH frames 1..N of CMU 131_01 (0: no bake)")
     ap.add_argument("--bake-mode", default="linear", choices=MODES)
+    ap.add_argument("--pay-frames", type=int, default=24,
+                    help="bake-like frames each mode draws with and without the lattice tables (0: skip)")
     ap.add_argument("--memory-frames", type=int, default=12, help="frames the memory child bakes (0: skip)")
     ap.add_argument("--json", help="also write the figures to this JSON file")
     args = ap.parse_args()
@@ -201,13 +231,15 @@ def main() -> int:
     print(f"phantom scale {args.scale}: grid {vol.dims} ({vol.array.size:,} voxels), {len(rigged.points):,} "
           f"spheres, {len(rigged.rig)} bones, smooth binding")
     fig = frames(vol, rigged, args.repeat, not args.no_reference)
-    n_clip = max(args.bake_frames, args.memory_frames)
+    n_clip = max(args.bake_frames, args.memory_frames, args.pay_frames)
     if n_clip and os.path.exists(CLIP):
         clip = volrig.read_bvh(CLIP)
         picked = pipeline.clip_frames(clip.frame_count, f"1-{min(n_clip, clip.frame_count)}", 1)
         _, matrices = pipeline.mocap_poses(rigged.rig, clip, picked)
         if args.bake_frames:
             fig.update(bake(vol, rigged, matrices[:args.bake_frames], args.bake_mode))
+        if args.pay_frames:
+            fig.update(tables_pay(vol, rigged, matrices[:args.pay_frames]))
         if args.memory_frames:
             fig.update(memory(vol, rigged, matrices[:args.memory_frames], args.bake_mode))
     elif n_clip:
@@ -234,13 +266,19 @@ def main() -> int:
                   f"{fig['bake_deform_sum_s']:.1f} s", ""),
                  ("whole bake, VDBs written", f"{fig['bake_wall_s']:.1f} s",
                   f"{fig['bake_ratio']:.2f}x (<= 1.3x), {fig['bake_frames_per_s']:.2f} frames/s")]
+    if "pay_frames" in fig:
+        for mode in MODES:
+            rows.append((f"{fig['pay_frames']} bake frames {mode.replace('_', '-')}, with tables / without",
+                         f"{fig[f'pay_{mode}_ratio']:.2f}x",
+                         f"{fig[f'pay_{mode}_tables_s']:.3f} s / {fig[f'pay_{mode}_balls_s']:.3f} s; tables "
+                         f"{fig[f'pay_{mode}_tables_bytes_per_voxel']:.1f} B/source voxel"))
     if "bake_bytes_per_source_voxel" in fig:
         rows += [(f"peak memory of a child baking {fig['memory_frames']} frames", f"{fig['peak_bake_mb']:.0f} MB",
                   f"the same child loaded only (reference): {fig['peak_loaded_mb']:.0f} MB"),
                  ("  per source voxel above the source", f"{fig['bake_bytes_per_source_voxel']:.1f} B",
                   f"source {fig['source_bytes_per_voxel']} B/voxel (<= 3 B above it)"),
-                 ("  the same bake without lattice tables (lattice_after=-1)",
-                  f"{fig['balls_bake_bytes_per_source_voxel']:.1f} B", f"{fig['balls_peak_bake_mb']:.0f} MB")]
+                 ("  the same bake with lattice tables (lattice_tables=True)",
+                  f"{fig['tables_bake_bytes_per_source_voxel']:.1f} B", f"{fig['tables_peak_bake_mb']:.0f} MB")]
     for name, value, note in rows:
         print(f"  {name:<62} {value:>10}   {note}")
     if args.json:

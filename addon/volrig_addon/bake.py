@@ -108,6 +108,7 @@ class Baker(RigState):
                                           tissues=tissue_looks.tissues_of(volume_obj),
                                           substitutes=looks.substitutes_of(volume_obj),
                                           keep_volume=volume_obj.volrig.keep_volume,
+                                          lattice_tables=volume_obj.volrig.lattice_tables,
                                           frames=frames)  # (how many: whether the lattice tables pay)
         self._thickness = {}  # frame -> the thickness factors pose() read for it
 

@@ -234,6 +234,7 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
         row.active = s.deform_mode != "rigid"
         row.prop(s, "keep_volume")
         _labelled(layout, s, "sampling", "bake_frames")
+        layout.prop(s, "lattice_tables")
         row = layout.row(align=True)
         row.operator("volrig.bake", icon="RENDER_ANIMATION")
         row.operator("volrig.show_rest", icon="VOLUME_DATA")

@@ -282,6 +282,10 @@ class VolrigObject(bpy.types.PropertyGroup):
                               description="Smooth modes: bent limbs keep their volume and meet at the bend's "
                                           "bisector plane (off: the plain blend)")
     sampling: EnumProperty(name="Sampling", items=_menu(SAMPLING_INFO), default="trilinear")
+    lattice_tables: BoolProperty(name="Lattice Tables", default=False,
+                                 description="Bake with the bones' lattice tables (built at the first frame of a "
+                                             "bake of 16 frames or more): frames 5-15% faster for 1-3 bytes per "
+                                             "source voxel more memory")
     bake_frames: StringProperty(name="Frames", default="",
                                 description="Frames to bake, e.g. '1-48' or '1-10,20'; empty = the scene range")
     baked_start: IntProperty(name="Baked from", default=0)

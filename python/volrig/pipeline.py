@@ -447,13 +447,17 @@ def _no_thickness(thickness) -> bool:
     return thickness is None or bool(np.all(np.asarray(thickness, np.float64) == 1.0))
 
 
-# A bake that knows it will draw at least this many frames builds the bones' lattice tables at its first frame; a
-# shorter one never does (they pay back their build after 12-18 frames on the phantom: README, Performance).
+# A bake asked for the bones' lattice tables that knows it will draw at least this many frames builds them at its
+# first frame; a shorter one never does (they pay back their build after 12-18 frames on the phantom: README,
+# Performance).
 TABLES_PAY_AFTER = 16
 
 
-def lattice_after_for(frames: Optional[int]) -> Optional[int]:
-    """``Deformer.lattice_after`` for a bake of ``frames`` frames (None: not known, the Deformer's own default)."""
+def lattice_after_for(frames: Optional[int], tables: bool = True) -> Optional[int]:
+    """``Deformer.lattice_after`` for a bake of ``frames`` frames: -1 (never) without ``tables``; with them 0 (at the
+    first frame) from TABLES_PAY_AFTER frames on, -1 below, None (the Deformer's own default) when not known."""
+    if not tables:
+        return -1
     if frames is None:
         return None
     return 0 if frames >= TABLES_PAY_AFTER else -1
@@ -475,17 +479,20 @@ class FolderBake:
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
     calls at its end (it waits for the last write and frees the frames' memory). Frames hold their values as the
     half floats the files store (``Deformer.frame(..., half=True)``), except with tissue looks, which read the label
-    map's codes exactly. ``frames``: how many frames this bake will draw, when known (a bake of TABLES_PAY_AFTER or
-    more builds the bones' lattice tables at its first frame, a shorter one never: ``lattice_after_for``);
-    ``lattice_after`` (wins over ``frames``): as ``Deformer``'s (-1 bakes without the tables: less memory, slower
-    rigid frames; None with no ``frames``: the Deformer's default)."""
+    map's codes exactly.
+
+    A bake draws its frames without the bones' lattice tables (``Deformer.lattice_after`` -1): they would hold
+    1-3 bytes per source voxel more for frames 5-15% faster (README, Performance, "Bakes and the lattice tables").
+    ``lattice_tables=True`` builds them when they pay: at the first frame of a bake of ``frames`` (how many it will
+    draw, when known) TABLES_PAY_AFTER or more, never in a shorter one, after the Deformer's default 8 frames when
+    ``frames`` is not known (``lattice_after_for``). ``lattice_after`` (wins over both): as ``Deformer``'s."""
 
     def __init__(self, source: Volume, points: SkeletonPoints, binding: Binding, folder: str, stem: str,
                  mode: str = "linear", sampling: str = "trilinear", track: bool = False, setup: str = "",
                  parts=(), rig: Optional[Rig] = None, tissues=(), substitutes=None, keep_volume: bool = True,
-                 lattice_after: Optional[int] = None, frames: Optional[int] = None):
+                 lattice_after: Optional[int] = None, frames: Optional[int] = None, lattice_tables: bool = False):
         self.folder, self.stem, self.mode, self.sampling = folder, stem, mode, sampling
-        self.lattice_after = lattice_after_for(frames) if lattice_after is None else lattice_after
+        self.lattice_after = lattice_after_for(frames, lattice_tables) if lattice_after is None else lattice_after
         self.keep_volume = bool(keep_volume)
         self.source, self.points, self.binding, self.rig = source, points, binding, rig
         self.parts, self.tissues = list(parts), list(tissues)

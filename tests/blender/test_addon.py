@@ -333,6 +333,7 @@ def test_panels_draw_every_stage(rigged):
         cls.draw(stub, bpy.context)
     for expected in ("volrig.import_volume", "low", "thinness", "volrig.rig", "volrig.rebind", "volrig.walk_cycle",
                      "volrig.drive_with_bvh", "preset", "highlight_bone", "volrig.bake", "deform_mode", "keep_volume",
+                     "lattice_tables",
                      "fly_ends", "frames_per_mm", "look_ahead", "volrig.fly_through", "volrig.straighten",
                      "straighten_bones", "volrig.straightening_rig"):
         assert expected in drawn

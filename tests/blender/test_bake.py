@@ -85,6 +85,14 @@ def test_bake_writes_one_vdb_per_frame_and_plays_them(posed):
     baker = bake.Baker(vol, "linear")
     assert [baker.bake_frame(scene, f) for f in (1, 2, 3)] == [False, False, True]
     baker.finish()
+    # the volume's Lattice Tables setting: a bake builds none unless asked, then at once when it is long enough
+    assert baker.folder.deformer.lattice_after == -1
+    vol.volrig.lattice_tables = True
+    try:
+        assert bake.Baker(vol, "linear", frames=100).folder.deformer.lattice_after == 0
+        assert bake.Baker(vol, "linear", frames=3).folder.deformer.lattice_after == -1
+    finally:
+        vol.volrig.lattice_tables = False
 
 
 def test_a_frame_stops_inside_its_computation(posed):

@@ -305,11 +305,19 @@ def test_folder_bake_writes_the_deformers_frames_and_tracks_poses(tmp_path):
     tables.bake(1, bent)
     tables.finish()
     assert tables.deformer.lattice_tables and not plain.deformer.lattice_tables
-    # a bake that knows its length: the tables at once when they pay back (TABLES_PAY_AFTER frames), else never
+    # a bake builds no tables (memory first) whatever its length; asked for them (lattice_tables=True), at once when
+    # it knows it will draw enough frames for them to pay back (TABLES_PAY_AFTER), never in a shorter one, after the
+    # Deformer's default when it does not know; lattice_after wins over both
+    for frames in (None, pipeline.TABLES_PAY_AFTER, 1000):
+        assert pipeline.FolderBake(source, pts, binding, folder, "bar", frames=frames).deformer.lattice_after == -1
     for frames, after in ((None, volrig.Deformer.LATTICE_AFTER), (pipeline.TABLES_PAY_AFTER, 0),
                           (pipeline.TABLES_PAY_AFTER - 1, -1)):
-        assert pipeline.FolderBake(source, pts, binding, folder, "bar", frames=frames).deformer.lattice_after == after
-    assert pipeline.FolderBake(source, pts, binding, folder, "bar", frames=100, lattice_after=-1).deformer.lattice_after == -1
+        bake = pipeline.FolderBake(source, pts, binding, folder, "bar", frames=frames, lattice_tables=True)
+        assert bake.deformer.lattice_after == after
+    for asked in (False, True):
+        bake = pipeline.FolderBake(source, pts, binding, folder, "bar", frames=100, lattice_after=2, lattice_tables=asked)
+        assert bake.deformer.lattice_after == 2
+    assert not plain.deformer.lattice_tables and plain.deformer.lattice_after == -1
     for grid in ("bone", "density"):
         np.testing.assert_array_equal(volrig.load(tables.path(1), grid=grid).array,
                                       volrig.load(plain.path(1), grid=grid).array)
