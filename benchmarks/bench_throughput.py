@@ -5,8 +5,8 @@ On the humanoid phantom at --scale with its automatic rig (smooth binding, `pipe
 bench_bake), prints:
   * frames: the rigid frame of the walking stride (bench_deform.walking_pose) with the bones' lattice tables
     built (the reference), the dual-quaternion and linear frames with them, and the rigid, dual-quaternion and
-    linear frames without them (the bones' powers from the balls meeting each preimage: what a Deformer draws for
-    its first Deformer.LATTICE_AFTER frames after a rig change), best of --repeat each, run alternately; whether
+    linear frames without them (the bones' powers from the balls meeting each preimage: what a bake draws, and a
+    Deformer for its first Deformer.LATTICE_AFTER frames after a rig change), best of --repeat each, run alternately; whether
     each smooth frame equals the brute-force scatter (volrig.deform_reference) voxel for voxel (skipped with
     --no-reference);
   * rig changes: what the first frame after one builds (the best of --repeat fresh Deformers' first frames less

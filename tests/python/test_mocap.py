@@ -618,7 +618,7 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
     # a farm splits the range: another machine baking BVH frame 31 alone writes the same file 2
     part = tmp_path / "part"
     r = run("bake-mocap", src, rig_file, walk.source, "-o", part, "--frames", "20-40", "--step", 30, "--name",
-            "phantom", "--mode", "linear", "--lattice-tables")  # (the same file either way)
+            "phantom", "--mode", "linear", "--lattice-tables")  # (accepted; one frame builds none: too short to pay)
     assert r.returncode == 0, r.stderr
     assert os.listdir(part) == ["phantom_0002.vdb"]
     np.testing.assert_array_equal(volrig.load(str(part / "phantom_0002.vdb"), grid="bone").array, bones[1].array)
