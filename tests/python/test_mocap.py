@@ -575,7 +575,7 @@ def _vdb_active(path, grid):
     return next(g["active_voxels"] for g in volrig._volrig.vdb_grids(str(path)) if g["name"] == grid)
 
 
-def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
+def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk, monkeypatch):
     ph = volrig.phantom.humanoid(0.3)
     src = tmp_path / "phantom.nrrd"
     ph.volume.save(src)
@@ -625,6 +625,21 @@ def test_cli_bake_mocap_writes_a_vdb_sequence_without_blender(tmp_path, walk):
     r = run("bake-mocap", src, rig_file, walk.source, "-o", part, "--frames", "31", "--step", 30, "--name",
             "phantom", "--skip-existing")
     assert r.returncode == 0 and "exists, skipped" in r.stderr and "0 of 1 frames" in r.stdout
+    # the bake's lattice tables (in process, the FolderBake watched): none by default, whatever the length; with
+    # --lattice-tables at the first frame of a bake of 16 frames, none in one of a single frame
+    from volrig import cli, pipeline
+    made = []
+
+    class Watched(pipeline.FolderBake):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            made.append(self.deformer.lattice_after)
+
+    monkeypatch.setattr(pipeline, "FolderBake", Watched)
+    for k, (frames, flag) in enumerate((("1-16", []), ("1-16", ["--lattice-tables"]), ("31", ["--lattice-tables"]))):
+        assert cli.main(["bake-mocap", str(src), str(rig_file), walk.source, "-o", str(tmp_path / f"watched{k}"),
+                         "--frames", frames, "--name", "phantom"] + flag) == 0
+    assert made == [-1, 0, -1]
     # --plain-blend: the smooth blend without the bend model and the contact planes
     plain = tmp_path / "plain"
     r = run("bake-mocap", src, rig_file, walk.source, "-o", plain, "--frames", "31", "--step", 30, "--name",
