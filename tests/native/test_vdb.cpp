@@ -495,3 +495,105 @@ TEST_CASE("build_vdb builds now and writes once; a view in 8³ bricks gives the 
     REQUIRE_THROWS_WITH(built.write(tmp / "moved.vdb"), Catch::Contains("moved"));
     REQUIRE_FALSE(fs::exists(tmp / "moved.vdb"));
 }
+
+namespace {
+
+std::string file_bytes(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+
+/// The file's bytes without the header's random UUID (36 characters after magic, versions and the offsets flag).
+std::string without_uuid(std::string bytes) {
+    REQUIRE(bytes.size() > 57);
+    bytes.replace(21, 36, 36, '-');
+    return bytes;
+}
+
+}  // namespace
+
+TEST_CASE("a bake's grids are written as OpenVDB writes them, bricked or not, and read with delayed loading",
+          "[vdb]") {
+    TempDir tmp;
+    // 480 leaf-sized blocks (more than one parallel run of leaves): constant full blocks (tiles), half-empty
+    // blocks, varied values, empty blocks; bone labels on another pattern (int16, and bytes marked as labels)
+    const std::array<std::int64_t, 3> dims{96, 64, 40};
+    Volume v = make_volume<float>(dims, {0.5, 0.5, 0.75}, {-3.0, 4.0, 10.5}, DType::Float32);
+    Volume labels = make_volume<std::int16_t>(dims, {0.5, 0.5, 0.75}, {-3.0, 4.0, 10.5}, DType::Int16);
+    Volume bytes = make_volume<std::uint8_t>(dims, {0.5, 0.5, 0.75}, {-3.0, 4.0, 10.5}, DType::UInt8);
+    const Grid& g = v.grid;
+    for (std::int64_t z = 0; z < dims[2]; ++z)
+        for (std::int64_t y = 0; y < dims[1]; ++y)
+            for (std::int64_t x = 0; x < dims[0]; ++x) {
+                const std::int64_t block = (x / 8 + y / 8 + z / 8) % 4, i = g.index(x, y, z);
+                values<float>(v)[i] = block == 0 ? 0.0f : block == 1 ? 2.5f : block == 2 ? (x + y > 60 ? 0.0f : 1.0f)
+                                                                                  : 0.01f * static_cast<float>(x * y - z);
+                const auto label = static_cast<std::int16_t>(x < 40 ? 0 : 1 + (x + 2 * y) / 30);
+                values<std::int16_t>(labels)[i] = label;
+                values<std::uint8_t>(bytes)[i] = static_cast<std::uint8_t>(label);
+            }
+    const auto to_bricks = [&](const Volume& src, std::size_t size) {
+        std::vector<unsigned char> out(src.data.size());
+        for (std::int64_t z = 0; z < dims[2]; ++z)
+            for (std::int64_t y = 0; y < dims[1]; ++y)
+                for (std::int64_t x = 0; x < dims[0]; ++x)
+                    std::memcpy(out.data() + brick_index(x, y, z, dims) * size,
+                                src.data.data() + static_cast<std::size_t>(g.index(x, y, z)) * size, size);
+        return out;
+    };
+    auto vb = to_bricks(v, 4), lb = to_bricks(labels, 2), bb = to_bricks(bytes, 1);
+    VolumeView bytes_view = bytes.view();
+    bytes_view.labels = true;
+    VolumeView bytes_bricked{g, DType::UInt8, bb.data(), true};
+    bytes_bricked.labels = true;
+    const std::string dense = tmp / "dense.vdb", bricked = tmp / "bricked.vdb", ref = tmp / "openvdb.vdb";
+    for (const bool as_half : {true, false}) {
+        write_vdb(dense, {{"density", v.view()}, {"bone", labels.view()}, {"bytes", bytes_view}}, as_half);
+        write_vdb(bricked, {{"density", VolumeView{g, DType::Float32, vb.data(), true}},
+                            {"bone", VolumeView{g, DType::Int16, lb.data(), true}}, {"bytes", bytes_bricked}}, as_half);
+        REQUIRE(without_uuid(file_bytes(dense)) == without_uuid(file_bytes(bricked)));
+        // OpenVDB reads the grids whole and writes them again: the same bytes
+        openvdb::GridPtrVec grids;
+        {
+            openvdb::io::File in(bricked);
+            in.open(false);
+            for (const char* name : {"density", "bone", "bytes"}) grids.push_back(in.readGrid(name));
+            in.close();
+        }
+        REQUIRE(grids[1]->type() == "Tree_int32_5_4_3");
+        REQUIRE(grids[0]->saveFloatAsHalf() == as_half);
+        openvdb::io::File out(ref);
+        out.write(grids);
+        out.close();
+        REQUIRE(without_uuid(file_bytes(ref)) == without_uuid(file_bytes(bricked)));
+        // delayed loading (as Blender reads: memory-mapped, leaves loaded when touched) seeks by the leaves'
+        // compressed sizes and mask bytes written here: every value as the whole read gives it
+        openvdb::io::File lazy(bricked);
+        lazy.setCopyMaxBytes(0);
+        lazy.open(true);
+        for (std::size_t k = 0; k < grids.size(); ++k) {
+            const auto got = lazy.readGrid(grids[k]->getName());
+            std::int64_t checked = 0;
+            if (k == 0) {
+                const auto& a = static_cast<const openvdb::FloatGrid&>(*got);
+                const auto& b = static_cast<const openvdb::FloatGrid&>(*grids[k]);
+                REQUIRE(a.tree().leafCount() == b.tree().leafCount());
+                REQUIRE(a.activeVoxelCount() == b.activeVoxelCount());
+                for (auto it = b.cbeginValueOn(); it; ++it, ++checked)
+                    REQUIRE(a.tree().getValue(it.getCoord()) == *it);
+            } else {
+                const auto& a = static_cast<const openvdb::Int32Grid&>(*got);
+                const auto& b = static_cast<const openvdb::Int32Grid&>(*grids[k]);
+                REQUIRE(a.activeVoxelCount() == b.activeVoxelCount());
+                for (auto it = b.cbeginValueOn(); it; ++it, ++checked)
+                    REQUIRE(a.tree().getValue(it.getCoord()) == *it);
+            }
+            REQUIRE(checked > 0);
+        }
+        lazy.close();
+    }
+    // and the values are the volume's
+    const Volume r = read_vdb(bricked);
+    REQUIRE(r.grid.dims == std::array<std::int64_t, 3>{96, 64, 40});
+    REQUIRE(r.data == v.data);
+}
