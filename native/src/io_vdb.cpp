@@ -332,9 +332,9 @@ bool all_zero_bytes(const In* p, std::int64_t n) {
 /// A built grid with its leaf buffers compressed as OpenVDB writes them (LeafNode::writeBuffers: the value mask,
 /// then io::writeCompressedValues), in Tree::writeBuffers order, in runs of leaves compressed in parallel; with the
 /// delayed-load metadata OpenVDB's reader seeks by (each leaf's mask-compression byte and compressed size) and the
-/// whole grid's memory (file_mem_bytes). A bricked grid's leaves hold their active masks only (OpenVDB's
-/// PartialCreate leaves, about 100 bytes against 2 KB with values): write_archive writes it as OpenVDB would write
-/// the whole grid, at a fraction of the memory (a bake's next frame computes while the file is written).
+/// whole grid's memory (file_mem_bytes). Its leaves hold their active masks only (OpenVDB's PartialCreate leaves,
+/// about 100 bytes against 2 KB with values): write_archive writes it as OpenVDB would write the whole grid, at a
+/// fraction of the memory (a bake's next frame computes while the file is written).
 struct BuiltGrid {
     openvdb::GridBase::Ptr grid;
     std::uint32_t compression = 0;  ///< the stream flags the runs were compressed with (Archive::setGridCompression's)
@@ -343,11 +343,12 @@ struct BuiltGrid {
     std::int64_t mem_bytes = 0;
 };
 
-/// The file-level compression VdbGrids writes with, and what io::File applies to a grid of class `cls`
-/// (Archive::setGridCompression: no ZIP on fog volumes and level sets).
-constexpr std::uint32_t kFileCompression = openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK;
+/// The file-level compression VdbGrids writes with (io::File's default: Blosc and active values), and what
+/// io::File applies to a grid of class `cls` (Archive::setGridCompression: no ZIP on fog volumes and level sets).
+std::uint32_t file_compression() { return openvdb::io::Archive::DEFAULT_COMPRESSION_FLAGS; }
+bool records_sizes() { return file_compression() & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP); }
 std::uint32_t compression_for(openvdb::GridClass cls) {
-    std::uint32_t c = kFileCompression;
+    std::uint32_t c = file_compression();
     if (cls == openvdb::GRID_FOG_VOLUME || cls == openvdb::GRID_LEVEL_SET) c &= ~std::uint32_t(openvdb::io::COMPRESS_ZIP);
     return c;
 }
@@ -377,11 +378,10 @@ std::size_t compressed_header_bytes(std::int8_t metadata) {
     return n;
 }
 
-/// Compresses the buffers of `grid`'s leaves: `values_of(leaf, scratch)` gives each leaf's 512 values in leaf order
-/// ((x << 6) + (y << 3) + z; inactive ones the background), from the leaf itself or, when its leaves hold their
-/// masks only (`mask_only`), from elsewhere.
+/// Compresses the buffers of `grid`'s leaves, which hold their masks only: `values_of(leaf, scratch)` fills the
+/// scratch's active values, in leaf order ((x << 6) + (y << 3) + z), the others staying the background.
 template <class GridT, class ValuesOf>
-BuiltGrid compress_buffers(typename GridT::Ptr grid, bool mask_only, ValuesOf&& values_of) {
+BuiltGrid compress_buffers(typename GridT::Ptr grid, ValuesOf&& values_of) {
     using ValueT = typename GridT::ValueType;
     using LeafT = typename GridT::TreeType::LeafNodeType;
     using MaskT = typename LeafT::NodeMaskType;
@@ -392,8 +392,7 @@ BuiltGrid compress_buffers(typename GridT::Ptr grid, bool mask_only, ValuesOf&& 
     out.runs.assign((leaves.size() + kRun - 1) / kRun, std::string());
     if (!leaves.empty()) {
         out.delayed.resizeMask(leaves.size());
-        if (kFileCompression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP))
-            out.delayed.resizeCompressedSize(leaves.size());
+        if (records_sizes()) out.delayed.resizeCompressedSize(leaves.size());
     }
     const ValueT background = grid->background();
     const bool half = grid->saveFloatAsHalf();
@@ -405,34 +404,33 @@ BuiltGrid compress_buffers(typename GridT::Ptr grid, bool mask_only, ValuesOf&& 
             openvdb::io::setGridBackgroundValuePtr(s, &background);
             for (std::size_t i = k * kRun; i < std::min(leaves.size(), (k + 1) * kRun); ++i) {
                 const LeafT& leaf = *leaves[i];
-                const ValueT* values = values_of(leaf, scratch.data());
-                const openvdb::io::MaskCompress<ValueT, MaskT> mc(leaf.getValueMask(), MaskT(), values, background);
+                std::fill(scratch.begin(), scratch.end(), background);
+                values_of(leaf, scratch.data());
+                const openvdb::io::MaskCompress<ValueT, MaskT> mc(leaf.getValueMask(), MaskT(), scratch.data(),
+                                                                  background);
                 out.delayed.setMask(i, mc.metadata);
                 leaf.getValueMask().save(s);
                 const auto data = static_cast<std::int64_t>(s.tellp()) +
                                   static_cast<std::int64_t>(compressed_header_bytes<ValueT, MaskT>(mc.metadata));
-                openvdb::io::writeCompressedValues(s, const_cast<ValueT*>(values), LeafT::SIZE, leaf.getValueMask(),
-                                                   MaskT(), half);
-                if (kFileCompression & (openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ZIP))
-                    out.delayed.setCompressedSize(i, static_cast<std::int64_t>(s.tellp()) - data);
+                openvdb::io::writeCompressedValues(s, scratch.data(), LeafT::SIZE, leaf.getValueMask(), MaskT(), half);
+                if (records_sizes()) out.delayed.setCompressedSize(i, static_cast<std::int64_t>(s.tellp()) - data);
             }
             out.runs[k] = s.str();
         }
     });
-    out.mem_bytes = static_cast<std::int64_t>(grid->memUsage());  // what the whole grid holds, values and all
-    if (mask_only) out.mem_bytes += static_cast<std::int64_t>(leaves.size() * LeafT::SIZE * sizeof(ValueT));
+    // what the whole grid would hold, its leaves' values too (file_mem_bytes, as OpenVDB writes it)
+    out.mem_bytes = static_cast<std::int64_t>(grid->memUsage() + leaves.size() * LeafT::SIZE * sizeof(ValueT));
     out.grid = std::move(grid);
     return out;
 }
 
 /// Builds a grid holding the non-zero voxels of `src` (C-order [z, y, x], dims of `g`; or 8³ bricks when
-/// `bricked`) at index coordinates (x, y, z). Leaf-sized blocks are scanned in parallel, one task per (z, y) row of
-/// blocks, then inserted serially; then the buffers are compressed (BuiltGrid; `half`: floats stored as half).
-/// Bricked sources give a grid whose leaves hold their masks only (the values compressed from the bricks); dense
-/// ones a whole grid.
+/// `bricked`) at index coordinates (x, y, z), its leaves holding their active masks only: leaf-sized blocks are
+/// scanned in parallel, one task per (z, y) row of blocks, and inserted serially; then the leaves' buffers are
+/// compressed from `src` (BuiltGrid; `half`: floats stored as half floats).
 template <class GridT, class In>
 BuiltGrid build_grid(const In* src, const Grid& g, bool bricked, bool half, openvdb::GridClass cls,
-                               Overflow& overflow) {
+                     Overflow& overflow) {
     using ValueT = typename GridT::ValueType;
     using TreeT = typename GridT::TreeType;
     using LeafT = typename TreeT::LeafNodeType;
@@ -441,9 +439,8 @@ BuiltGrid build_grid(const In* src, const Grid& g, bool bricked, bool half, open
     const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
     const std::int64_t bx = (nx + D - 1) / D, by = (ny + D - 1) / D, bz = (nz + D - 1) / D;
     const ValueT zero = openvdb::zeroVal<ValueT>();
-    const auto new_leaf = [&](const openvdb::Coord& origin) {
-        return bricked ? std::make_unique<LeafT>(openvdb::PartialCreate(), origin, zero, false)
-                       : std::make_unique<LeafT>(origin, zero, false);
+    const auto sample = [&](std::int64_t x, std::int64_t y, std::int64_t z) {  // the element of voxel (x, y, z)
+        return bricked ? static_cast<std::int64_t>(brick_index(x, y, z, g.dims)) : (z * ny + y) * nx + x;
     };
 
     struct Block {
@@ -454,56 +451,47 @@ BuiltGrid build_grid(const In* src, const Grid& g, bool bricked, bool half, open
     std::vector<Block> blocks(static_cast<std::size_t>(bx * by * bz));
 
     tbb::parallel_for(tbb::blocked_range2d<std::int64_t>(0, bz, 1, 0, by, 4), [&](const auto& r) {
-        std::unique_ptr<LeafT> leaf;
         for (std::int64_t kz = r.rows().begin(); kz != r.rows().end(); ++kz) {
             for (std::int64_t ky = r.cols().begin(); ky != r.cols().end(); ++ky) {
                 for (std::int64_t kx = 0; kx < bx; ++kx) {
                     const std::int64_t x0 = kx * D, y0 = ky * D, z0 = kz * D;
                     const std::int64_t ex = std::min<std::int64_t>(D, nx - x0), ey = std::min<std::int64_t>(D, ny - y0),
                                        ez = std::min<std::int64_t>(D, nz - z0);
-                    const openvdb::Coord origin(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(z0));
                     if (bricked && all_zero_bytes(src + brick_index(x0, y0, z0, g.dims), D * D * D))
                         continue;  // (most bricks of a frame's box: never written, shared zero pages)
-                    if (!leaf) leaf = new_leaf(origin);
-                    else {
-                        leaf->setOrigin(origin);
-                        leaf->setValueMask(typename LeafT::NodeMaskType());
-                        if (!bricked) leaf->fill(zero, false);
-                    }
-                    bool any = false, same = true;
+                    typename LeafT::NodeMaskType mask;
+                    bool same = true;
                     ValueT first{};
                     for (std::int64_t z = 0; z < ez; ++z) {
                         for (std::int64_t y = 0; y < ey; ++y) {
-                            const std::int64_t row = ((z0 + z) * ny + (y0 + y)) * nx + x0;
                             // a bricked view's leaf-sized blocks are its bricks (dims multiples of D)
-                            const In* p = src + (bricked ? static_cast<std::int64_t>(brick_index(x0, y0 + y, z0 + z, g.dims)) : row);
+                            const In* p = src + sample(x0, y0 + y, z0 + z);
                             for (std::int64_t x = 0; x < ex; ++x) {
                                 const In v = p[x];
                                 if (v == In(0)) continue;
                                 if (!fits<ValueT>(v)) {
                                     std::ostringstream s;
                                     s << +v;
-                                    overflow.note(row + x, s.str());
+                                    overflow.note(((z0 + z) * ny + (y0 + y)) * nx + x0 + x, s.str());
                                     continue;
                                 }
-                                const auto n = static_cast<openvdb::Index>((x << (2 * LeafT::LOG2DIM)) +
-                                                                           (y << LeafT::LOG2DIM) + z);
                                 const auto value = static_cast<ValueT>(v);
-                                if (bricked) leaf->setActiveState(n, true);
-                                else leaf->setValueOn(n, value);
-                                if (!any) first = value;
+                                if (mask.isOff()) first = value;
                                 same = same && value == first;
-                                any = true;
+                                mask.setOn(static_cast<openvdb::Index>((x << (2 * LeafT::LOG2DIM)) +
+                                                                       (y << LeafT::LOG2DIM) + z));
                             }
                         }
                     }
-                    if (!any) continue;
+                    if (mask.isOff()) continue;
                     Block& b = blocks[static_cast<std::size_t>((kz * by + ky) * bx + kx)];
-                    if (same && leaf->getValueMask().isOn()) {
+                    if (same && mask.isOn()) {
                         b.tile = true;
                         b.value = first;
                     } else {
-                        b.leaf = leaf.release();
+                        const openvdb::Coord origin(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(z0));
+                        b.leaf = new LeafT(openvdb::PartialCreate(), origin, zero, false);
+                        b.leaf->setValueMask(mask);
                     }
                 }
             }
@@ -526,14 +514,14 @@ BuiltGrid build_grid(const In* src, const Grid& g, bool bricked, bool half, open
         }
     }
     if (overflow.seen) return {};
-    if (!bricked)
-        return compress_buffers<GridT>(grid, false, [](const LeafT& leaf, ValueT*) { return leaf.buffer().data(); });
-    return compress_buffers<GridT>(grid, true, [&](const LeafT& leaf, ValueT* out) {
+    return compress_buffers<GridT>(grid, [&](const LeafT& leaf, ValueT* out) {
         const openvdb::Coord o = leaf.origin();
-        const In* brick = src + brick_index(o.x(), o.y(), o.z(), g.dims);  // [z, y, x] inside
-        for (openvdb::Index n = 0; n < LeafT::SIZE; ++n)
-            out[n] = leaf.isValueOn(n) ? static_cast<ValueT>(brick[((n & 7) * 8 + ((n >> 3) & 7)) * 8 + (n >> 6)]) : zero;
-        return static_cast<const ValueT*>(out);
+        const In* p = src + sample(o.x(), o.y(), o.z());
+        const std::int64_t sy = bricked ? D : nx, sz = bricked ? D * D : nx * ny;  // (x steps by 1 in both)
+        for (auto it = leaf.getValueMask().beginOn(); it; ++it) {  // leaf order: (x << 6) + (y << 3) + z
+            const openvdb::Index n = it.pos();
+            out[n] = static_cast<ValueT>(p[(n & 7) * sz + ((n >> 3) & 7) * sy + (n >> 6)]);
+        }
     });
 }
 
@@ -736,7 +724,7 @@ void write_grid(std::ostream& os, const BuiltGrid& b) {
 /// buffers are precompressed. The bytes equal OpenVDB's for the same whole grids but the header's random UUID (the
 /// Catch2 case "a bake's grids are written as OpenVDB writes them" compares them).
 void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids) {
-    openvdb::io::setDataCompression(os, kFileCompression);
+    openvdb::io::setDataCompression(os, file_compression());
     openvdb::io::setWriteGridStatsMetadata(os, true);
     put<std::int64_t>(os, openvdb::OPENVDB_MAGIC);
     put<std::uint32_t>(os, openvdb::OPENVDB_FILE_VERSION);
@@ -748,7 +736,7 @@ void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids) {
     put(os, static_cast<std::int32_t>(grids.size()));
     for (const BuiltGrid& b : grids) {
         write_grid(os, b);
-        openvdb::io::setDataCompression(os, kFileCompression);
+        openvdb::io::setDataCompression(os, file_compression());
     }
 }
 
