@@ -18,6 +18,17 @@
 // Background 0; exactly the non-zero voxels are active; a leaf-sized 8^3 block whose 512 voxels are all non-zero and
 // equal is stored as an active tile (as openvdb::tools::copyFromDense does).
 //
+// Built grids (build_vdb) hold their leaves' active masks only, with the leaf buffers already compressed (in parallel,
+// straight from the samples, by OpenVDB's own io::writeCompressedValues), and the file is written by write_archive
+// here rather than io::File: io::File needs every leaf's values in memory (4 bytes per voxel of each non-constant
+// 8^3 block, per grid), which while a bake's next frame computed beside them was what held a bake above 3 bytes per
+// source voxel. write_archive follows io::Archive::write of OpenVDB 10 step by step, through OpenVDB's classes for
+// everything but the buffers (GridDescriptor, metadata, transform, topology) and with the delayed-load metadata
+// OpenVDB's reader seeks by; the bytes equal what io::File writes for the same whole grids but the random UUID
+// (Catch2: "a bake's grids are written as OpenVDB writes them ..." compares them and reads the file back with
+// delayed loading, as Blender does). It is the hand-written part of the writer, tied to OpenVDB 10's file format
+// (OPENVDB_FILE_VERSION 224), which that test checks against the installed library.
+//
 // Reading (read_vdb): the grid is copied densely over its active voxel bounding box. Only linear transforms with
 // an axis-aligned positive scale are accepted (rotated, sheared, mirrored and frustum transforms are refused);
 // spacing = the scale, origin = the world position of the bounding box minimum. Files are read through OpenVDB's

@@ -134,8 +134,10 @@ void write_vdb(const std::string& path, const std::vector<std::pair<std::string,
 
 /// write_vdb in two steps: the grids built while the samples are at hand (build_vdb, checked as write_vdb checks
 /// them; `path` names the file in errors), written later, say on another thread once the samples are gone (a
-/// bake's frame goes back to its Deformer as soon as its grids are built). Built grids cost about 4 bytes per voxel
-/// of every 8³ block holding an active one, per grid.
+/// bake's frame goes back to its Deformer as soon as its grids are built). Built grids hold their topology (about
+/// 100 bytes per 8³ block holding an active voxel, per grid) and their leaf values compressed as the file stores them
+/// (a bake's frame of the phantom at scale 1: 11 MB for its 10 M covered voxels, density and bone grids together),
+/// not OpenVDB's in-memory values.
 class VdbGrids {
 public:
     VdbGrids();
