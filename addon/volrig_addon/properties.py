@@ -6,6 +6,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from volrig.deform import MODE_INFO, SAMPLING_INFO
+from volrig.pipeline import DEFAULT_THINNESS_VOXELS
 
 UNIT_SCALES = [
     ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
@@ -162,8 +163,8 @@ class VolrigObject(bpy.types.PropertyGroup):
                            description="Plane-like threshold of Medial Surface, in voxels: plates whose sides lie "
                                        "more than t apart around their rim get a medial surface (larger: only the "
                                        "larger plates; at least 5 against noise)")
-    thinness: FloatProperty(name="Thinness", default=0.5, min=0.0, max=4.1, soft_max=1.42, precision=3, step=1,
-                            update=_thinness_changed,
+    thinness: FloatProperty(name="Thinness", default=DEFAULT_THINNESS_VOXELS, min=0.0, max=4.1, soft_max=1.42,
+                            precision=3, step=1, update=_thinness_changed,
                             description="Keep voxels whose thinness score exceeds this, in voxels (Euclidean: "
                                         "0 .. 1.416; chamfer <3,4,5>: 0 .. 4.077); larger = fewer spheres")
     point_count: IntProperty(name="Points", default=-1)

@@ -11,6 +11,7 @@ import numpy as np
 
 from ._volrig import VolrigError
 from .deform import MODES, SAMPLINGS
+from .pipeline import DEFAULT_THINNESS_VOXELS
 from .rig import KINDS
 
 
@@ -118,14 +119,17 @@ def cmd_skeletonize(args) -> int:
 
 def _mask_and_skeleton(args):
     """The mask (segmented volume, or voxelized mesh) and its skeleton points, as the options say."""
-    from .pipeline import Segmentation, load_mask, skeleton_of, skeleton_points
+    from .pipeline import Segmentation, load_mask, skeleton_of, skeleton_points, thinness_from_voxels
     seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
     mask = load_mask(args.file, seg, voxel_size=args.voxel_size, **_hints(args))
     bars = StepBars() if _show_progress(args) else None
     sk = skeleton_of(mask, args.metric, progress=bars)
     if bars is not None:
         bars.close()
-    return mask, sk, skeleton_points(sk, thinness=args.thinness, count=args.count)
+    thinness = args.thinness
+    if thinness is None and args.count is None:  # the add-on's and rig_mesh's default: half a voxel
+        thinness = thinness_from_voxels(DEFAULT_THINNESS_VOXELS, sk.metric, mask.spacing)
+    return mask, sk, skeleton_points(sk, thinness=thinness, count=args.count)
 
 
 def _rigid(args):
@@ -271,8 +275,11 @@ def _add_segmentation_options(p: argparse.ArgumentParser) -> None:
 
 
 def _add_skeleton_options(p: argparse.ArgumentParser, what: str) -> None:
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--thinness", "-t", type=float, help="thinness TP (DT units; Euclidean 0..1.416, chamfer 0..4.077)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--thinness", "-t", type=float,
+                   help="thinness TP in distance-transform units: world units for euclidean (0 to 1.416 voxels' "
+                        "size), grid steps for chamfer345 (0 to 4.077); default: half a voxel (the add-on's "
+                        f"default, {DEFAULT_THINNESS_VOXELS} x the smallest spacing for euclidean)")
     g.add_argument("--count", "-n", type=int, help="keep the N highest-scoring points instead")
     p.add_argument("--metric", choices=["euclidean", "chamfer345"], default="euclidean")
     _add_segmentation_options(p)

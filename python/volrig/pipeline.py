@@ -193,13 +193,16 @@ class Segmentation:
 
 
 def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float] = None, **hints) -> Volume:
-    """The object mask of a file: a mesh (``volrig.mesh.MESH_EXTENSIONS``) voxelized at ``voxel_size``, else the volume (``hints`` as
-    for ``load_source``) segmented."""
+    """The object mask of a file: a mesh (``volrig.mesh.MESH_EXTENSIONS``) voxelized at ``voxel_size`` (default
+    ``volrig.skin.mesh_voxel_size``: the bounding box's longest side / 160, as ``rig_mesh`` and the add-on), else
+    the volume (``hints`` as for ``load_source``) segmented."""
     if path.lower().endswith(MESH_EXTENSIONS):
         from .mesh import read_mesh, voxelize
-        if not voxel_size:
-            raise VolrigError(f"{path}: meshes need a voxel size (--voxel-size)")
-        return voxelize(*read_mesh(path), voxel_size)
+        from .skin import mesh_voxel_size
+        vertices, faces = read_mesh(path)
+        if voxel_size is None:
+            voxel_size = mesh_voxel_size(vertices)
+        return voxelize(vertices, faces, voxel_size)
     return segmentation.mask(load_source(path, **hints), name=path)
 
 
@@ -216,6 +219,9 @@ def skeleton_points(skeleton: Skeleton, thinness: Optional[float] = None, count:
     if (thinness is None) == (count is None):
         raise VolrigError("give a thinness or a point count (one of the two)")
     return skeleton.top(count) if count is not None else skeleton.at(thinness)
+
+
+DEFAULT_THINNESS_VOXELS = 0.5  # the thinness when none is given (the add-on's slider, rig_mesh, the CLI), in voxels
 
 
 def thinness_from_voxels(value: float, metric: str, spacing) -> float:

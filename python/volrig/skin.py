@@ -267,10 +267,11 @@ def mesh_voxel_size(vertices, voxels: int = MESH_VOXELS) -> float:
 
 
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
-             thinness: float = 0.5, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
+             thinness: Optional[float] = None, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
              skin_points=None, **autorig_options) -> MeshRig:
     """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
-    side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider), autorig
+    side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
+    ``pipeline.DEFAULT_THINNESS_VOXELS``, half a voxel), autorig
     (``autorig_options``: kind=, up=, bones=, roles=... as ``volrig.autorig`` takes them), bind the skeleton points
     (smooth) and compute the vertices' ``skin_weights`` (``influences``, ``blend``).
 
@@ -279,7 +280,8 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
     mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
     """
-    from .pipeline import rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels
+    from .pipeline import DEFAULT_THINNESS_VOXELS, rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels
+    thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v = _points(vertices)
     f = np.asarray(faces)
     size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)

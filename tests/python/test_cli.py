@@ -49,6 +49,15 @@ def test_skeletonize_writes_points(cube_file, tmp_path):
     assert [f for f in os.listdir(tmp_path) if ".tmp" in f] == []
     r = run("skeletonize", cube_file, "--count", 5, "--metric", "chamfer345", "-o", out)
     assert r.returncode == 0 and len(np.load(out)["ijk"]) == 5
+    # neither: half a voxel, as the add-on's slider (Euclidean scores are in world units: 0.5 x the spacing 0.5)
+    r = run("skeletonize", cube_file, "--lo", 100, "-o", out)
+    assert r.returncode == 0, r.stderr
+    d = np.load(out)
+    assert float(d["thinness"]) == 0.25 and "thinness 0.25" in r.stdout
+    np.testing.assert_array_equal(d["ijk"], volrig.skeletonize(mask).at(0.25).ijk)
+    assert not np.array_equal(d["ijk"], ref.ijk)
+    r = run("skeletonize", cube_file, "--lo", 100, "--count", 5, "-t", 0.3, "-o", out)
+    assert r.returncode == 2 and "not allowed with" in r.stderr
 
 
 def test_clear_errors(tmp_path, cube_file):
@@ -118,7 +127,26 @@ def test_rig_writes_a_rig_file(tmp_path):
     bad = run("rig", src, "--lo", 1, "--count", 4000, "-o", tmp_path / "x.npz")
     assert bad.returncode == 2 and ".vrig" in bad.stderr
     mesh = run("rig", tmp_path / "arm.obj", "--count", 100, "-o", out)
-    assert mesh.returncode == 2 and "voxel-size" in mesh.stderr
+    assert mesh.returncode == 2 and "arm.obj" in mesh.stderr and "Traceback" not in mesh.stderr
+
+
+def test_rig_of_a_mesh_has_defaults(tmp_path):
+    """A mesh needs neither --voxel-size (the longest side / 160, as rig_mesh and the add-on) nor a point choice
+    (half a voxel's thinness)."""
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 0.5) for z in (0, 4)], dtype=float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    obj = tmp_path / "bar.obj"
+    obj.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                   + "".join(f"f {a + 1} {b + 1} {c + 1} {d + 1}\n" for a, b, c, d in quads))
+    out = tmp_path / "bar.vrig"
+    r = run("rig", obj, "-o", out)
+    assert r.returncode == 0, r.stderr
+    loaded = volrig.load_rig(out)
+    size = 4 / 160
+    assert loaded.points.spacing == pytest.approx((size,) * 3)
+    mask = volrig.voxelize(*volrig.read_mesh(str(obj)), size)
+    np.testing.assert_array_equal(loaded.points.ijk, volrig.skeletonize(mask).at(0.5 * size).ijk)
+    assert len(loaded.rig) > 0
 
 
 def test_bake_finds_the_addon_as_a_package(tmp_path, monkeypatch):

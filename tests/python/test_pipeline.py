@@ -140,12 +140,20 @@ def test_segmentation_mask_and_live_count_agree():
         Segmentation(lo=5, hi=2)
 
 
-def test_load_mask_of_a_mesh_needs_a_voxel_size(tmp_path):
-    with pytest.raises(volrig.VolrigError, match="voxel size"):
+def test_load_mask_of_a_mesh(tmp_path):
+    with pytest.raises(FileNotFoundError, match="arm.obj"):
         pipeline.load_mask(str(tmp_path / "arm.obj"), Segmentation())
     arm = shared("meshes/arm.obj")
     mask = pipeline.load_mask(str(arm), Segmentation(), voxel_size=0.01)
-    np.testing.assert_array_equal(mask.array, volrig.voxelize(*volrig.read_mesh(str(arm)), 0.01).array)
+    v, f = volrig.read_mesh(str(arm))
+    np.testing.assert_array_equal(mask.array, volrig.voxelize(v, f, 0.01).array)
+    with pytest.raises(volrig.VolrigError, match="positive"):
+        pipeline.load_mask(str(arm), Segmentation(), voxel_size=0)
+    # no voxel size: the longest side / 160, as rig_mesh and the add-on
+    size = float((v.max(0) - v.min(0)).max()) / 160
+    mask = pipeline.load_mask(str(arm), Segmentation())
+    assert mask.spacing == pytest.approx((size,) * 3) and max(mask.array.shape) in range(160, 170)
+    np.testing.assert_array_equal(mask.array, volrig.voxelize(v, f, size).array)
 
 
 # ---- skeleton ---------------------------------------------------------------------------------------------------
