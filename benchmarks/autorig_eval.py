@@ -12,7 +12,9 @@ up=) and the row says how many gave the same kind and joints mapping back within
 Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/autorig_eval.py [--subjects phantom,vhm4,cow] [--scales 0.5,1]
       [--points 5000,40000] [--rotations] [--joints] [--pictures DIR] [--json out.json]
 --pictures also draws the Visible Human's bone with its bone-derived joints (to check them by eye).
-Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1 and phantom scale 2).
+Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1 and phantom scale 2) and the
+capsule humanoids (``--subjects capsules_wide,capsules_stride,...``, one per volrig.subjects.CAPSULE_POSES, at
+--scales; their wrists, capsules as thin as the forearm, have no anatomy to place them by).
 """
 import argparse
 import inspect
@@ -219,7 +221,7 @@ def detail(row):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--subjects", default=",".join(DEFAULT), help=f"comma list from {', '.join(S.SUBJECTS)}")
-    ap.add_argument("--scales", default="0.5,1", help="phantom scales")
+    ap.add_argument("--scales", default="0.5,1", help="phantom and capsule scales")
     ap.add_argument("--points", default="5000,15000,40000", help="comma list of skeleton point counts")
     ap.add_argument("--rotations", action="store_true", help="also rig the 24 axis-aligned rotations (slow)")
     ap.add_argument("--slow", action="store_true", help="add vhm1 and phantom scale 2")
@@ -241,7 +243,7 @@ def main() -> int:
           "reference joints (r = local radius)")
     rows = []
     for name in names:
-        loads = [dict(scale=s) for s in scales] if name == "phantom" else \
+        loads = [dict(scale=s) for s in scales] if name == "phantom" or name.startswith("capsules_") else \
             ([dict(voxels=args.voxels)] if name in S.MESHES else [{}])
         for kw in loads:
             try:

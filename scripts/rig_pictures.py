@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Pictures of automatic rigs: skeleton points, the level-set tree autorig works on, and the rig, over maximum
-intensity projections of the mask. Writes docs/images/rig_<name>.png for the phantom humanoid, the frog
+intensity projections of the mask. Writes docs/images/rig_<name>.png for the phantom humanoid, the capsule
+humanoid in four poses (rig_poses.png: its rig against its true joints), the frog
 (../shared/data/frogtissue), the Visible Human at 4 mm (../shared/data/visible-human) and every shared mesh
 (../shared/data/meshes: arm, hand, knight, cow, lion, horse, camel; voxelized with 160 voxels along the longest
 side), when present. The title gives the kind, the fit and the runner-up.
@@ -53,6 +54,17 @@ def rig_case(name: str, mask: volrig.Volume, count: int, reference=None, own_sca
                 reference=reference, seconds=seconds)
 
 
+def save(fig, path: str, dpi: int) -> None:
+    """The figure written atomically to ``path`` (PNG) and closed."""
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    tmp = path + ".tmp.png"
+    fig.savefig(tmp, dpi=dpi)
+    plt.close(fig)
+    os.replace(tmp, path)
+    print("wrote", path)
+
+
 def draw(case, path: str, views=((0, 2), (1, 2))):
     import matplotlib
     matplotlib.use("Agg")
@@ -94,18 +106,38 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
                  f"{rig.fit:.2f} (runner-up {rig.runner_up or 'none'} {rig.runner_up_fit:.2f})\n"
                  f"(points coloured by bone; blue: level-set tree; red: rig" +
                  ("; green +: reference joints)" if case["reference"] is not None else ")"), fontsize=9)
-    fig.tight_layout()
-    tmp = path + ".tmp.png"
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    os.replace(tmp, path)
-    print("wrote", path)
+    save(fig, path, dpi=90)
+
+
+def draw_poses(path: str, poses=("knees_apart", "wide", "stride", "tpose"), scale: float = 0.9):
+    """The capsule humanoid (volrig.subjects.capsule_subject) in ``poses``, front view: its rig and true joints."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from volrig import subjects as S
+    fig, axes = plt.subplots(1, len(poses), figsize=(3.4 * len(poses), 4.6))
+    for ax, pose in zip(axes, poses):
+        s = S.capsule_subject(pose, scale)
+        pts = volrig.skeletonize(s.mask).top(15000)
+        rig = autorig(pts, skeleton_tree(pts, s.mask), s.mask)
+        ax.imshow(s.mask.array.max(axis=1), origin="lower", cmap="Greys", alpha=0.35)
+        for head, tail in rig.bones[:, :2]:
+            ax.plot(*rig.joints[[head, tail]][:, [0, 2]].T, "-o", color="C0", ms=3, lw=1.5)
+        for name, p in s.joints.items():
+            if not name.startswith("wrist"):  # the capsules have no wrist to find
+                ax.plot(p[0], p[2], "x", color="C3", ms=8, mew=2)
+        ax.set_title(f"{pose}: {rig.kind}, fit {rig.fit:.2f}", fontsize=10)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle(f"autorig (blue) and the true limb joints (red x) of a capsule humanoid {scale:g} voxels per unit "
+                 f"({s.mask.array.shape[0]} voxels tall), front view", fontsize=10)
+    save(fig, path, dpi=80)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
-    ap.add_argument("--only", default=",".join(["phantom", "frog", "arm", *MESHES, "vhm4"]),
+    ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4"]),
                     help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
@@ -115,6 +147,8 @@ def main(argv=None):
         ref = np.array([v for k, v in ph.joints.items()])
         draw(rig_case("phantom humanoid (scale 0.5)", volrig.segment(ph.volume), 15000, ref),
              os.path.join(args.out, "rig_phantom.png"))
+    if "poses" in only:
+        draw_poses(os.path.join(args.out, "rig_poses.png"))
     frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
     if "frog" in only:
         if os.path.exists(frog):

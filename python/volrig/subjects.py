@@ -8,6 +8,8 @@ mask's world frame, and reference joints (world positions, named) where there ar
 - ``vhm4``, ``vhm2``, ``vhm1``: the Visible Human Male (AustinMan labels) at 4, 2 and 1 mm; the body is every
   labelled voxel (InternalAir, the airways, included so the body is solid); its shoulders, elbows,
   wrists, hips, knees and ankles derived from the bone labels by ``visible_human_joints``.
+- ``capsules_<pose>`` (scale): a humanoid of capsules generated here (``capsule_subject``) in a pose autorig was
+  not developed on (``CAPSULE_POSES``: knees apart, feet wide, a stride, a T-pose, arms up...); its true joints.
 - ``arm``, ``hand``: libigl's meshes with their TGF skeletons (``joints`` named "j0", "j1", ...; ``bones`` the
   TGF edges), voxelized; ``knight``, ``cow``, ``lion``, ``horse``, ``camel``: meshes without reference joints.
 
@@ -181,14 +183,84 @@ def visible_human_subject(mm: int = 4, joints: bool = True) -> Subject:
                    _unit((0, 0, 1)), ref, None, labels.path or "")
 
 
-SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES)
+# ---- a humanoid of capsules in poses -----------------------------------------------------------------------------
+
+#: pose -> (elbow, wrist) and (knee, ankle) of the left side (x > 0; the right mirrored), in units of a figure
+#: 180 tall (z up, facing -y); poses without an entry keep the arms down and the legs straight.
+CAPSULE_POSES = {
+    "down": ({}, {}),
+    "knees_apart": ({}, {"knee": (15, 0, 50), "ankle": (22, 0, 10)}),
+    "wide": ({}, {"knee": (22, 0, 50), "ankle": (35, 0, 10)}),
+    "stride": ({}, {"knee": (9, -16, 52), "ankle": (9, 4, 12)}),
+    "tpose": ({"elbow": (46, 0, 145), "wrist": (72, 0, 145)}, {}),
+    "armsup": ({"elbow": (26, 0, 172), "wrist": (32, 0, 198)}, {}),
+}
+#: the capsules' radii (figure units): limbs as thick as these, at scale 1
+CAPSULE_RADII = {"trunk": 15, "neck": 6, "collar": 8, "upper_arm": 5.5, "forearm": 4.5, "hand": 4, "pelvis": 10,
+                 "thigh": 7.5, "shin": 5.5, "foot": 4, "head": 12}
+
+
+def _capsule_joints(pose: str) -> Dict[str, np.ndarray]:
+    arms, legs = CAPSULE_POSES[pose]
+    j = {"pelvis": (0, 0, 95), "chest": (0, 0, 135), "neck": (0, 0, 152), "head": (0, 0, 168)}
+    left = {"shoulder": (19, 0, 145), "hip": (9, 0, 90), "elbow": (22, 2, 117), "wrist": (24, -2, 91),
+            "knee": (9, 0, 50), "ankle": (9, 0, 10), **arms, **legs}
+    for side, s in (("L", 1), ("R", -1)):
+        for name, (x, y, z) in left.items():
+            j[f"{name}.{side}"] = (s * x, s * y if name in ("knee", "ankle") else y, z)
+        j[f"toe.{side}"] = np.add(j[f"ankle.{side}"], (0, -14, -5))
+        j[f"hand.{side}"] = np.add(j[f"wrist.{side}"], 0.35 * np.subtract(j[f"wrist.{side}"], j[f"elbow.{side}"]))
+    return {k: np.asarray(v, dtype=np.float64) for k, v in j.items()}
+
+
+def capsule_subject(pose: str = "down", scale: float = 1.0) -> Subject:
+    """A humanoid of capsules (trunk, limbs, feet, hands) and a ball for the head, in ``pose`` (``CAPSULE_POSES``),
+    ``scale`` voxels per unit of a figure 180 units tall (z up, facing -y, its left at +x); reference joints: the
+    capsules' ends (shoulders, elbows, wrists, hips, knees, ankles). A stride puts the left knee forward."""
+    if pose not in CAPSULE_POSES:
+        raise KeyError(f"no capsule pose {pose!r} (known: {', '.join(CAPSULE_POSES)})")
+    if not scale > 0:
+        raise ValueError(f"scale must be positive, got {scale}")
+    j, r = _capsule_joints(pose), CAPSULE_RADII
+    caps = [("pelvis", "chest", r["trunk"]), ("chest", "neck", r["neck"])]
+    for side in "LR":
+        def limb(a, b):
+            return (a if a in j else f"{a}.{side}", f"{b}.{side}")
+        caps += [(*limb("chest", "shoulder"), r["collar"]), (*limb("shoulder", "elbow"), r["upper_arm"]),
+                 (*limb("elbow", "wrist"), r["forearm"]), (*limb("wrist", "hand"), r["hand"]),
+                 (*limb("pelvis", "hip"), r["pelvis"]), (*limb("hip", "knee"), r["thigh"]),
+                 (*limb("knee", "ankle"), r["shin"]), (*limb("ankle", "toe"), r["foot"])]
+    ends = np.array(list(j.values()))
+    pad = 2 * r["head"] - 2
+    shift = pad - ends.min(0)
+    shape = tuple(int(n) for n in np.ceil((ends.max(0) + shift + pad) * scale)[::-1])
+    z, y, x = (np.arange(n, dtype=np.float32) for n in shape)
+    z, y, x = z[:, None, None], y[None, :, None], x[None, None, :]
+    mask = np.zeros(shape, bool)
+    for a, b, rad in caps:
+        pa, pb = (j[a] + shift) * scale, (j[b] + shift) * scale
+        d = pb - pa
+        t = np.clip(((x - pa[0]) * d[0] + (y - pa[1]) * d[1] + (z - pa[2]) * d[2]) / float(d @ d), 0, 1)
+        mask |= (x - pa[0] - t * d[0]) ** 2 + (y - pa[1] - t * d[1]) ** 2 + (z - pa[2] - t * d[2]) ** 2 \
+            <= (rad * scale) ** 2
+    c = (j["head"] + shift) * scale
+    mask |= (x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2 <= (r["head"] * scale) ** 2
+    joints = {n: (j[n] + shift) * scale for n in LIMB_JOINTS}
+    return Subject(f"capsules_{pose}{scale:g}", Volume(mask), "humanoid", _unit((0, 0, 1)), _unit((0, 0, 1)),
+                   joints, None, f"volrig.subjects.capsule_subject({pose!r}, {scale:g})")
+
+
+SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES) + tuple(f"capsules_{p}" for p in CAPSULE_POSES)
 
 
 def load_subject(name: str, **kw) -> Subject:
-    """Any subject by name: "phantom" (scale=...), "vhm4"/"vhm2"/"vhm1", or a mesh name (voxels=...)."""
+    """Any subject by name: "phantom" (scale=...), "vhm4"/"vhm2"/"vhm1", "capsules_<pose>" (scale=...), or a mesh
+    name (voxels=...)."""
     if name.startswith("phantom"):
         scale = kw.get("scale", float(name[7:]) if len(name) > 7 else 0.5)
         return phantom_subject(scale)
+    if name.startswith("capsules_"):
+        return capsule_subject(name[len("capsules_"):], **kw)
     if name.startswith("vhm"):
         return visible_human_subject(int(name[3:]), **kw)
     return mesh_subject(name, **kw)

@@ -737,7 +737,10 @@ TEST_CASE("hip_on_thigh_line moves a hip below the legs' fork up the thigh's lin
 TEST_CASE("straight_knee: a straight leg narrowing between thigh and calf has its knee at the neck", "[autorig]") {
     Leg leg(0.0, 100.0);
     leg.f = Figure(Vec(0, 0, 100), 10.0);
-    leg.f.limb(leg.f.limb(leg.f.limb(0, Vec(0, 0, 45), 10, 7), Vec(0, 0, 30), 7, 8.5), Vec(0, 0, 0), 8.5, 6);
+    // The thigh narrowing to the knee (9 at z 60, 6.5 at 45) and the calf 8.5: a neck well beyond the distance
+    // transform's steps (kNeckNoise).
+    const std::uint32_t above = leg.f.limb(0, Vec(0, 0, 60), 10, 9);
+    leg.f.limb(leg.f.limb(leg.f.limb(above, Vec(0, 0, 45), 9, 6.5), Vec(0, 0, 30), 6.5, 8.5), Vec(0, 0, 0), 8.5, 6);
     leg.nodes.clear();
     for (std::uint32_t k = 0; k < leg.f.pos.size(); ++k) leg.nodes.push_back(k);
     Solid s(leg.f, {10, 10, 110});
@@ -881,8 +884,16 @@ TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and i
 TEST_CASE("deepest_dip finds a knee between thigh and calf, not the narrowing towards the ankle", "[autorig]") {
     Chain4 leg;
     for (double r : {10.0, 9.0, 8.0, 7.0, 7.5, 8.0, 7.0, 6.0, 5.0}) leg.emplace_back(0, 0, 0, r);
-    CHECK(deepest_dip(leg, 0, leg.size() - 1) == std::optional<std::size_t>(3));
-    CHECK_FALSE(deepest_dip(leg, 4, leg.size() - 1));  // from the calf down: a plain taper
+    CHECK(deepest_dip(leg, 0, leg.size() - 1, 1.0) == std::optional<std::size_t>(3));
+    CHECK_FALSE(deepest_dip(leg, 4, leg.size() - 1, 1.0));  // from the calf down: a plain taper
+    // A cylinder 6 voxels thick whose radii step by the distance transform's fractions of a voxel: no knee at 1
+    // voxel, though 5.7 dips 5.3% below 6.0 (the same profile 100 times thicker in voxels has one).
+    Chain4 tube;
+    for (double r : {7.0, 6.6, 6.0, 6.0, 5.7, 6.0, 6.0, 5.9, 5.8}) tube.emplace_back(0, 0, 0, r);
+    CHECK_FALSE(deepest_dip(tube, 2, tube.size() - 1, 1.0));
+    CHECK(deepest_dip(tube, 2, tube.size() - 1, 0.01) == std::optional<std::size_t>(4));
+    // The knee's dip (7.0 under 7.5 and 8.0) stands out of that noise.
+    CHECK(deepest_dip(leg, 0, leg.size() - 1, 1.0) == std::optional<std::size_t>(3));
 }
 
 TEST_CASE("trunk_fit cuts a wiggling spine at thirds of its chord", "[autorig]") {

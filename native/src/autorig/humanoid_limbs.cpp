@@ -9,16 +9,18 @@
 
 namespace volrig::rigging {
 
-std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi) {
+std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi, double voxel) {
     std::vector<double> after(hi - lo + 2, 0.0);  // after[k - lo]: the widest sample beyond k up to hi
     for (std::size_t k = hi; k > lo; --k) after[k - 1 - lo] = std::max(after[k - lo], chain[k][3]);
     std::optional<std::size_t> best;
-    double best_rise = 1 + kNeckRise, before = 0;
-    for (std::size_t k = lo; k <= hi; before = std::max(before, chain[k][3]), ++k)
-        if (const double rise = std::min(before, after[k - lo]) / chain[k][3]; rise >= best_rise) {
+    double best_rise = 0, before = 0;
+    for (std::size_t k = lo; k <= hi; before = std::max(before, chain[k][3]), ++k) {
+        const double wide = std::min(before, after[k - lo]), rise = wide / chain[k][3];
+        if (widens(wide, chain[k][3], voxel) && rise >= best_rise) {
             best_rise = rise;
             best = k;
         }
+    }
     return best;
 }
 
@@ -36,13 +38,13 @@ std::pair<Vec, Vec> line_through(const std::vector<Vec>& points) {
 
 /// The neck of a limb's chain within kNeckWindow of its radius (arc length) around sample `at` (deepest_dip there);
 /// else none.
-std::optional<std::size_t> narrowest_near(const Chain4& chain, std::size_t at) {
+std::optional<std::size_t> narrowest_near(const Chain4& chain, std::size_t at, double voxel) {
     const double window = kNeckWindow * chain[at][3];
     const std::vector<double> arc = arc_of(chain);
     std::size_t lo = at, hi = at;
     while (lo > 0 && arc[at] - arc[lo - 1] <= window) --lo;
     while (hi + 1 < chain.size() && arc[hi + 1] - arc[at] <= window) ++hi;
-    return deepest_dip(chain, lo, hi);
+    return deepest_dip(chain, lo, hi, voxel);
 }
 
 }  // namespace
@@ -200,7 +202,7 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     auto off = [&](std::size_t k) { return std::abs((chain[k].head<3>() - hip).dot(dir) - share * length); };
     for (std::size_t k = 1; k < chain.size(); ++k)
         if (off(k) < off(best)) best = k;
-    const std::optional<std::size_t> neck = narrowest_near(chain, best);
+    const std::optional<std::size_t> neck = narrowest_near(chain, best, finest_spacing(c.grid));
     const Vec knee = chain[neck ? *neck : best].head<3>();
     move_joint(rig, rig.bones[static_cast<std::size_t>(thigh)][1], knee);
     // A knee found at its neck is the anatomical one: the hip goes up the thigh's line to the thigh's proportion
@@ -232,7 +234,8 @@ void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>&
     std::size_t neck = heel;
     for (std::size_t k = from; k < heel; ++k)
         if (chain[k][3] < chain[neck][3]) neck = k;
-    if (neck == heel || chain[heel][3] < (1 + kNeckRise) * chain[neck][3]) return;  // no neck above a wider heel
+    if (neck == heel || !widens(chain[heel][3], chain[neck][3], finest_spacing(c.grid)))
+        return;  // no neck above a wider heel
     const double half = 0.5 * (arc[neck] + arc[heel]);
     std::size_t at = neck;
     while (at < heel && arc[at + 1] <= half) ++at;
@@ -249,8 +252,11 @@ void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     for (std::size_t k = 1; k < chain.size(); ++k)
         if ((chain[k].head<3>() - wrist).norm() < (chain[at].head<3>() - wrist).norm()) at = k;
     std::optional<std::size_t> best;
+    // No noise floor here (see kNeckNoise): a hand resting on the pelvis widens the mask beyond the wrist by
+    // less than that at the Visible Human's 2 mm, and the wrist must also be the narrowest node of its window.
+    const double voxel = 0.0;
     for (std::size_t k = 1; k + 1 < chain.size(); ++k) {
-        const double window = kNeckWindow * chain[k][3], rise = (1 + kNeckRise) * chain[k][3];
+        const double window = kNeckWindow * chain[k][3];
         double before = 0, after = 0;
         bool lowest = true;
         for (std::size_t j = 0; j < chain.size(); ++j) {
@@ -258,7 +264,7 @@ void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_
             lowest = lowest && chain[j][3] >= chain[k][3];
             (j < k ? before : after) = std::max(j < k ? before : after, chain[j][3]);
         }
-        if (lowest && before >= rise && after >= rise &&
+        if (lowest && widens(before, chain[k][3], voxel) && widens(after, chain[k][3], voxel) &&
             (!best || std::abs(arc[k] - arc[at]) < std::abs(arc[*best] - arc[at])))
             best = k;
     }

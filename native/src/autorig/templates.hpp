@@ -124,11 +124,23 @@ constexpr double kStraightLeg = 1.0;
 /// on both sides (thigh above, calf below: a human knee).
 constexpr double kNeckWindow = 2.0;
 constexpr double kNeckRise = 0.05;
+/// ... and by this many voxels (the finest spacing of the grid autorig works on) more: the axis's radii are
+/// distance-transform values, which step by fractions of a voxel, so a limb a few voxels thick (a character
+/// voxelized at 160 to 260 cells) shows 5% dips along a plain cylinder; a dip within that noise is no knee or
+/// ankle neck (the wrist's, the narrowest node of its window, keeps kNeckRise alone).
+constexpr double kNeckNoise = 0.35;
+/// Whether a limb `wide` thick widens from `narrow` enough to be a neck (kNeckRise, kNeckNoise of `voxel`).
+inline bool widens(double wide, double narrow, double voxel) {
+    return wide >= (1 + kNeckRise) * narrow + kNeckNoise * voxel;
+}
+/// The finest spacing of the grid autorig works on.
+inline double finest_spacing(const Grid& g) { return std::min({g.spacing[0], g.spacing[1], g.spacing[2]}); }
 /// Between samples lo and hi of a chain: the sample where the radius dips deepest, the least of the widest sample
-/// before it and the widest after it being the most above its own radius, by kNeckRise at least (a knee between
+/// before it and the widest after it being the most above its own radius, by kNeckRise (and kNeckNoise) at least (a knee between
 /// thigh and calf, a neck between trunk and head); else none. The deepest dip, not the narrowest sample: a leg
 /// narrows towards the ankle.
-std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi);
+/// `voxel`: the finest spacing (see widens).
+std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi, double voxel);
 /// A knee found at its neck lengthens the thigh to this share of the knee's height above the sole (measured down
 /// the shin's line to the farthest surface of the leg's axis samples): Drillis and Contini's thigh 0.245 H over
 /// knee height 0.285 H.
