@@ -10,6 +10,7 @@ mask's world frame, and reference joints (world positions, named) where there ar
   wrists, hips, knees and ankles derived from the bone labels by ``visible_human_joints``.
 - ``capsules_<pose>`` (scale): a humanoid of capsules generated here (``capsule_subject``) in a pose autorig was
   not developed on (``CAPSULE_POSES``: knees apart, feet wide, a stride, a T-pose, arms up...); its true joints.
+  ``capsule_quadruped_subject(tail, scale)``: a dog of capsules with a tail of any length (not in ``SUBJECTS``).
 - ``arm``, ``hand``: libigl's meshes with their TGF skeletons (``joints`` named "j0", "j1", ...; ``bones`` the
   TGF edges), voxelized; ``knight``, ``cow``, ``lion``, ``horse``, ``camel``: meshes without reference joints.
 
@@ -230,24 +231,59 @@ def capsule_subject(pose: str = "down", scale: float = 1.0) -> Subject:
                  (*limb("elbow", "wrist"), r["forearm"]), (*limb("wrist", "hand"), r["hand"]),
                  (*limb("pelvis", "hip"), r["pelvis"]), (*limb("hip", "knee"), r["thigh"]),
                  (*limb("knee", "ankle"), r["shin"]), (*limb("ankle", "toe"), r["foot"])]
-    ends = np.array(list(j.values()))
-    pad = 2 * r["head"] - 2
+    mask, shift = _capsule_mask([(j[a], j[b], rad) for a, b, rad in caps], [(j["head"], r["head"])], scale,
+                                pad=2 * r["head"] - 2)
+    joints = {n: (j[n] + shift) * scale for n in LIMB_JOINTS}
+    return Subject(f"capsules_{pose}{scale:g}", Volume(mask), "humanoid", _unit((0, 0, 1)), _unit((0, 0, 1)),
+                   joints, None, f"volrig.subjects.capsule_subject({pose!r}, {scale:g})")
+
+
+def _capsule_mask(capsules, balls, scale: float, pad: float):
+    """The union of capsules (a, b, radius) and balls (centre, radius), in figure units, drawn ``scale`` voxels per
+    unit with ``pad`` units around; returns the bool array [z, y, x] and the shift added to figure positions."""
+    ends = np.array([p for a, b, _ in capsules for p in (a, b)] + [c for c, _ in balls], dtype=np.float64)
     shift = pad - ends.min(0)
     shape = tuple(int(n) for n in np.ceil((ends.max(0) + shift + pad) * scale)[::-1])
     z, y, x = (np.arange(n, dtype=np.float32) for n in shape)
     z, y, x = z[:, None, None], y[None, :, None], x[None, None, :]
     mask = np.zeros(shape, bool)
-    for a, b, rad in caps:
-        pa, pb = (j[a] + shift) * scale, (j[b] + shift) * scale
+    for a, b, rad in capsules:
+        pa, pb = (np.asarray(a, np.float64) + shift) * scale, (np.asarray(b, np.float64) + shift) * scale
         d = pb - pa
         t = np.clip(((x - pa[0]) * d[0] + (y - pa[1]) * d[1] + (z - pa[2]) * d[2]) / float(d @ d), 0, 1)
         mask |= (x - pa[0] - t * d[0]) ** 2 + (y - pa[1] - t * d[1]) ** 2 + (z - pa[2] - t * d[2]) ** 2 \
             <= (rad * scale) ** 2
-    c = (j["head"] + shift) * scale
-    mask |= (x - c[0]) ** 2 + (y - c[1]) ** 2 + (z - c[2]) ** 2 <= (r["head"] * scale) ** 2
-    joints = {n: (j[n] + shift) * scale for n in LIMB_JOINTS}
-    return Subject(f"capsules_{pose}{scale:g}", Volume(mask), "humanoid", _unit((0, 0, 1)), _unit((0, 0, 1)),
-                   joints, None, f"volrig.subjects.capsule_subject({pose!r}, {scale:g})")
+    for c, rad in balls:
+        pc = (np.asarray(c, np.float64) + shift) * scale
+        mask |= (x - pc[0]) ** 2 + (y - pc[1]) ** 2 + (z - pc[2]) ** 2 <= (rad * scale) ** 2
+    return mask, shift
+
+
+def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0) -> Subject:
+    """A four-legged animal of capsules (a dog: trunk 58 units long, legs 40, a neck and a ball head at -y, z up)
+    with a tail ``tail`` units long from the rump (0 for none), ``scale`` voxels per unit; reference joints: the
+    legs' (shoulder/elbow/wrist in front, hip/knee/ankle behind)."""
+    if not scale > 0 or not tail >= 0:
+        raise ValueError(f"scale must be positive and tail not negative, got {scale}, {tail}")
+    j = {"hips": (0, 30, 45), "chest": (0, -28, 48), "head": (0, -55, 70)}
+    for side, s in (("L", 1), ("R", -1)):
+        j.update({f"shoulder.{side}": (s * 9, -28, 42), f"elbow.{side}": (s * 9, -30, 24),
+                  f"wrist.{side}": (s * 9, -28, 6), f"hip.{side}": (s * 9, 30, 40), f"knee.{side}": (s * 9, 36, 24),
+                  f"ankle.{side}": (s * 9, 30, 6)})
+    j = {k: np.asarray(v, dtype=np.float64) for k, v in j.items()}
+    caps = [(j["hips"], j["chest"], 13), (j["chest"], (0, -48, 62), 6)]
+    if tail > 0:
+        root = np.array([0, 38, 48.0])
+        caps.append((root, root + tail * np.array([0, 37, 14]) / np.hypot(37, 14), 3.5))
+    for side in "LR":
+        for a, b, r in (("shoulder", "elbow", 5), ("elbow", "wrist", 4), ("hip", "knee", 6), ("knee", "ankle", 4)):
+            caps.append((j[f"{a}.{side}"], j[f"{b}.{side}"], r))
+        for end in ("wrist", "ankle"):
+            caps.append((j[f"{end}.{side}"], j[f"{end}.{side}"] + (0, -7, -3), 3.5))
+    mask, shift = _capsule_mask(caps, [(j["head"], 10)], scale, pad=8)
+    joints = {n: (p + shift) * scale for n, p in j.items() if "." in n}
+    return Subject(f"quadruped_tail{tail:g}_{scale:g}", Volume(mask), "quadruped", _unit((0, 0, 1)),
+                   _unit((0, -1, 0)), joints, None, f"volrig.subjects.capsule_quadruped_subject({tail:g}, {scale:g})")
 
 
 SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES) + tuple(f"capsules_{p}" for p in CAPSULE_POSES)

@@ -44,3 +44,21 @@ def test_capsule_subject():
         S.capsule_subject("sitting")
     with pytest.raises(ValueError, match="positive"):
         S.capsule_subject("down", 0)
+
+
+@pytest.mark.parametrize("scale", [0.8, 1.2])
+@pytest.mark.parametrize("tail", [
+    0, 15, 25,
+    pytest.param(40, marks=pytest.mark.xfail(strict=True, reason="a tail two thirds of the trunk long or more is read "
+                                             "as the head (README, Known limits)")),
+    pytest.param(70, marks=pytest.mark.xfail(strict=True, reason="as 40")),
+])
+def test_capsule_quadruped_head_forward_and_tail_behind(tail, scale):
+    """A dog of capsules: quadruped, its head bone at its head and, with a tail, a tail chain behind. At 1.2 the
+    thickest node (the tree's root) lies in the rump behind the hips, which no template bone holds: the tail's chain
+    now goes on from there to the nearest held node (extras.cpp, path_to_held) instead of being dropped."""
+    s = S.capsule_quadruped_subject(tail, scale)
+    pts = volrig.skeletonize(s.mask).top(15000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, s.mask), s.mask)
+    bad = [b for b in S.quadruped_problems(s, rig) if tail or "tail bones" not in b]
+    assert not bad, f"tail {tail} at {scale}: " + "; ".join(bad)

@@ -42,6 +42,17 @@ double end_part_reach(const Rig& rig, const std::string& owner, const Vec& at) {
     return 0.0;
 }
 
+/// The tree path from `from` to the nearest node (fewest nodes between) a template bone holds; empty when none.
+std::vector<std::uint32_t> path_to_held(const NodeTree& t, const RigBuilder& b, std::uint32_t from) {
+    std::vector<std::uint32_t> best;
+    for (std::uint32_t v : t.order()) {
+        if (b.bone_of(v) < 0) continue;
+        std::vector<std::uint32_t> p = t.path(from, v);
+        if (best.empty() || p.size() < best.size()) best = std::move(p);
+    }
+    return best;
+}
+
 }  // namespace
 
 void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance) {
@@ -54,6 +65,13 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         std::vector<std::uint32_t> nodes{leaf};
         std::uint32_t at = leaf;
         while (t.parent(at) != kNone && b.bone_of(at) < 0) nodes.push_back(at = t.parent(at));
+        if (b.bone_of(at) < 0) {  // the root is no template's (a rump behind the hips): on to the nearest held node
+            const std::vector<std::uint32_t> on = path_to_held(t, b, at);
+            if (!on.empty()) {
+                nodes.insert(nodes.end(), on.begin() + 1, on.end());
+                at = on.back();
+            }
+        }
         const std::int32_t holder = b.bone_of(at);
         // A part sticks out of the body by a few of its own radii (bumps and stubs are no parts), however thick
         // the body is where it attaches (a tail hanging down along the rump).
