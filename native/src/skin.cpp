@@ -293,7 +293,7 @@ SkinWeights skin_weights(const Grid& grid, const std::uint8_t* mask, const Rig& 
     if (rig.bones.size() > 32767) throw Error("skin_weights: more than 32767 bones");
     Labels L(grid, mask, std::min<int>(options.influences, static_cast<int>(rig.bones.size())));
     nearest_bones(L, rig, progress);
-    const double floor_distance = 0.5 * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    const double floor_distance = 0.5 * grid.min_spacing();
     const std::vector<double> radius = bone_radii(L, rig.bones.size());
     std::vector<std::vector<std::pair<std::int32_t, double>>> rows(points.size());
     std::vector<std::uint8_t> outside(points.size(), 0);

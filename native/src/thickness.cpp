@@ -279,7 +279,7 @@ bool held_up_the_climb(const Grid& g, const float* dt, const std::uint8_t* up, s
         top = u;
     }
     // The row test can only succeed where the triangle bound is loose, by less than the lattice's step.
-    if (top < 0 || far - std::sqrt(lim) > std::min({g.spacing[0], g.spacing[1], g.spacing[2]})) return false;
+    if (top < 0 || far - std::sqrt(lim) > g.min_spacing()) return false;
     return balls.holds(dt[top], dt[v], {-o[0], -o[1], -o[2]});
 }
 

@@ -6,6 +6,7 @@
 // spacing and origin are given as (x, y, z).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -37,6 +38,8 @@ struct Grid {
     Matrix3 direction = kIdentity3;
 
     std::int64_t voxel_count() const { return dims[0] * dims[1] * dims[2]; }
+    /// The finest of the three spacings.
+    double min_spacing() const { return std::min({spacing[0], spacing[1], spacing[2]}); }
     /// Linear index of voxel (x, y, z) in the C-order [z, y, x] layout.
     std::int64_t index(std::int64_t x, std::int64_t y, std::int64_t z) const {
         return (z * dims[1] + y) * dims[0] + x;

@@ -50,7 +50,7 @@ double longest_cells(const Grid& g, const std::array<std::int64_t, 6>& box) {
 }
 
 std::array<std::int64_t, 3> coarse_factor(const Grid& g, const std::array<std::int64_t, 6>& box, double cells) {
-    const double finest = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    const double finest = g.min_spacing();
     const double size = finest * std::max(1.0, longest_cells(g, box) / cells);
     std::array<std::int64_t, 3> f;
     for (int a = 0; a < 3; ++a) f[a] = std::max<std::int64_t>(1, std::llround(size / g.spacing[a]));
@@ -106,8 +106,7 @@ CoarseShape coarse_shape(const Grid& g, const std::uint8_t* mask) {
     // length as at kCoarseCells.
     CoarseShape c = downsample(g, mask, box, factor);
     const Skeleton sk = skeletonize(c.grid, c.mask.data(), Metric::Euclidean);
-    const double coarse_cells = longest_cells(g, box) * std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) /
-                                std::min({c.grid.spacing[0], c.grid.spacing[1], c.grid.spacing[2]});
+    const double coarse_cells = longest_cells(g, box) * g.min_spacing() / c.grid.min_spacing();
     const double share = kCoarsePoints * std::max(1.0, kCoarseCells / coarse_cells);
     const std::size_t n = with_ties(sk, static_cast<std::size_t>(std::ceil(share * static_cast<double>(sk.object_count()))));
     c.ijk.resize(3 * n);

@@ -202,7 +202,7 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     auto off = [&](std::size_t k) { return std::abs((chain[k].head<3>() - hip).dot(dir) - share * length); };
     for (std::size_t k = 1; k < chain.size(); ++k)
         if (off(k) < off(best)) best = k;
-    const std::optional<std::size_t> neck = narrowest_near(chain, best, finest_spacing(c.grid));
+    const std::optional<std::size_t> neck = narrowest_near(chain, best, c.grid.min_spacing());
     const Vec knee = chain[neck ? *neck : best].head<3>();
     move_joint(rig, rig.bones[static_cast<std::size_t>(thigh)][1], knee);
     // A knee found at its neck is the anatomical one: the hip goes up the thigh's line to the thigh's proportion
@@ -234,7 +234,7 @@ void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>&
     std::size_t neck = heel;
     for (std::size_t k = from; k < heel; ++k)
         if (chain[k][3] < chain[neck][3]) neck = k;
-    if (neck == heel || !widens(chain[heel][3], chain[neck][3], finest_spacing(c.grid)))
+    if (neck == heel || !widens(chain[heel][3], chain[neck][3], c.grid.min_spacing()))
         return;  // no neck above a wider heel
     const double half = 0.5 * (arc[neck] + arc[heel]);
     std::size_t at = neck;

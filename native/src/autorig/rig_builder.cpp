@@ -17,7 +17,7 @@ Chain4 RigContext::samples(const std::vector<std::uint32_t>& nodes) const {
 }
 
 double RigContext::reach_inside(const Vec& from, const Vec& dir, double start, double limit) const {
-    const double step = 0.5 * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    const double step = 0.5 * grid.min_spacing();
     // Inside when every voxel nearest q is (a point halfway between voxels has two along that axis: the same
     // answer with the object turned or mirrored).
     auto inside = [&](const Vec& q) {

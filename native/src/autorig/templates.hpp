@@ -133,11 +133,9 @@ constexpr double kNeckNoise = 0.35;
 inline bool widens(double wide, double narrow, double voxel) {
     return wide >= (1 + kNeckRise) * narrow + kNeckNoise * voxel;
 }
-/// The finest spacing of the grid autorig works on.
-inline double finest_spacing(const Grid& g) { return std::min({g.spacing[0], g.spacing[1], g.spacing[2]}); }
 /// Between samples lo and hi of a chain: the sample where the radius dips deepest, the least of the widest sample
-/// before it and the widest after it being the most above its own radius, by kNeckRise (and kNeckNoise) at least (a knee between
-/// thigh and calf, a neck between trunk and head); else none. The deepest dip, not the narrowest sample: a leg
+/// before it and the widest after it being the most above its own radius, by kNeckRise (and kNeckNoise) at least
+/// (a knee between thigh and calf, a neck between trunk and head); else none. The deepest dip, not the narrowest sample: a leg
 /// narrows towards the ankle.
 /// `voxel`: the finest spacing (see widens).
 std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi, double voxel);

@@ -180,7 +180,7 @@ bool piece_centroid(Section& sec, std::int64_t reach, double& ma, double& mb) {
 }  // namespace
 
 Vec3d section_centroid(const Grid& grid, const std::uint8_t* mask, const Vec3d& c, const Vec3d& t, double radius) {
-    const double h = min_spacing(grid);
+    const double h = grid.min_spacing();
     const double rho = 1.5 * std::max(radius, h) + 2.0 * h;
     const double gs = std::max(0.5 * h, rho / 24.0);
     const auto m = static_cast<std::int64_t>(std::ceil(rho / gs));
@@ -220,7 +220,7 @@ void solve3(const double m[3][3], const double b[3], double x[3]) {
 /// Where to cut the last end of pts back to: 1.5 times the largest DT met walking in from the end (near a cap the DT
 /// is only the distance to the cap), at least 2 voxels, at most half the curve. `rmax` gets that largest DT.
 std::size_t cut_back(const VoxelGraph& g, const std::vector<Vec3d>& pts, double& rmax) {
-    const double h = min_spacing(g.grid);
+    const double h = g.grid.min_spacing();
     double from_end = 0.0;
     rmax = 0.0;
     std::size_t k = pts.size() - 1;
@@ -271,7 +271,7 @@ Quadratic fit_before(const std::vector<Vec3d>& pts, std::size_t k, double span) 
 /// object's surface, or with `given`, to the plane through that point across the curve.
 void extend_to_surface(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3d>& pts, const Vec3d* given) {
     if (pts.size() < 3) return;
-    const double h = min_spacing(g.grid);
+    const double h = g.grid.min_spacing();
     double rmax = 0.0;
     const std::size_t k = cut_back(g, pts, rmax);
     const Quadratic curve = fit_before(pts, k, 2.0 * std::max(rmax, 2.0 * h));
@@ -303,7 +303,7 @@ void extend_ends(const VoxelGraph& g, const std::uint8_t* mask, std::vector<Vec3
 Centerline curve_of_path(const VoxelGraph& g, const std::uint8_t* mask, const std::vector<std::int32_t>& path,
                          const CenterlineOptions& opt, EndMode start, EndMode end) {
     if (path.size() < 2) throw Error("centerline: start and end are the same voxel");
-    const double h = min_spacing(g.grid);
+    const double h = g.grid.min_spacing();
     const double step = opt.step > 0.0 ? opt.step : h;
     std::vector<Vec3d> pts;
     for (std::int32_t id : path) pts.push_back(world(g.grid, g.voxel[static_cast<std::size_t>(id)]));

@@ -19,7 +19,6 @@ Neighbours neighbours(const Grid& grid);
 
 std::array<std::int64_t, 3> coords(const Grid& grid, std::int64_t lin);  ///< (x, y, z) of a linear index
 Vec3d world(const Grid& grid, std::int64_t lin);                         ///< world position of a linear index
-double min_spacing(const Grid& grid);
 std::int32_t thickest(const VoxelGraph& g);  ///< id of the largest DT (first on ties)
 
 /// The cap centre of a tip: the voxel nearest the centroid of the voxels connected to `tip` whose `dist` is within

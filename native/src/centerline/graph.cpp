@@ -60,7 +60,6 @@ Vec3d world(const Grid& grid, std::int64_t lin) {
             grid.origin[2] + grid.spacing[2] * c[2]};
 }
 
-double min_spacing(const Grid& grid) { return std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]}); }
 
 std::int32_t thickest(const VoxelGraph& g) {
     return static_cast<std::int32_t>(std::max_element(g.dt.begin(), g.dt.end()) - g.dt.begin());
@@ -74,7 +73,7 @@ void voxel_distances(const VoxelGraph& g, const std::vector<std::int32_t>& sourc
                      std::vector<double>& dist, std::vector<std::int32_t>* pred, std::int32_t target) {
     const std::size_t n = g.size();
     const Neighbours nb = neighbours(g.grid);
-    const double h = min_spacing(g.grid);
+    const double h = g.grid.min_spacing();
     std::vector<double> f(n, 1.0);
     if (power >= 0.0)
         for (std::size_t i = 0; i < n; ++i) f[i] = std::pow(h / g.dt[i], power);

@@ -54,7 +54,7 @@ void cover_ball(const VoxelGraph& g, std::int32_t id, double rho, std::vector<st
 VoxelTree grow(const VoxelGraph& g, std::int32_t root, const TreeCenterlineOptions& opt, const Progress& progress,
                double lo, double hi) {
     const std::size_t n = g.size();
-    const double constant = opt.constant > 0.0 ? opt.constant : 2.0 * min_spacing(g.grid);
+    const double constant = opt.constant > 0.0 ? opt.constant : 2.0 * g.grid.min_spacing();
     std::vector<double> length, cost;
     VoxelTree t;
     t.root = root;
