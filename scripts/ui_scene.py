@@ -2,7 +2,8 @@
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
 its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
-UI_BAKE=1: every volrig panel closed but Bake."""
+UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid (volrig.subjects.capsule_subject,
+e.g. wide) instead of the phantom."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
@@ -74,15 +75,20 @@ def setup():
         return setup_mesh()
     if os.environ.get("UI_VHM"):
         return setup_vhm()
-    ph = volrig.phantom.humanoid(0.4)
-    path = os.path.join(WORK, "phantom.nrrd")
+    pose = os.environ.get("UI_CAPSULES")  # a capsule humanoid in this pose (volrig.subjects.CAPSULE_POSES)
+    name = "capsules" if pose else "phantom"
+    path = os.path.join(WORK, f"{name}.nrrd")
     if not os.path.exists(path):
-        ph.volume.save(path)
+        if pose:
+            from volrig.subjects import capsule_subject
+            volrig.Volume(capsule_subject(pose, 1.0).mask.array.astype("uint8") * 255).save(path)
+        else:
+            volrig.phantom.humanoid(0.4).volume.save(path)
     win, override = empty_view3d()
     with override:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))
-        bpy.ops.volrig.import_volume(filepath=path, unit="MM", name="phantom")
-        vol = bpy.data.objects["phantom"]
+        bpy.ops.volrig.import_volume(filepath=path, unit="MM", name=name)
+        vol = bpy.data.objects[name]
         bpy.context.view_layer.objects.active = vol
         vol.select_set(True)
         bpy.ops.volrig.skeletonize()
