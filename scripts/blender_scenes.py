@@ -4,7 +4,8 @@
     blender -b --factory-startup --python scripts/blender_scenes.py -- samples [--out blend_samples]
 
 demo:    the humanoid phantom (1.8 m tall) imported, skeletonized, auto-rigged, walking (keyframes), a few frames
-         baked and rendered with Cycles on the CPU into <out>/frame_NNNN.png plus <out>/contact_sheet.png; the scene
+         baked and rendered with Cycles on the CPU (EEVEE where this Cycles renders no VDB grids: engines.py) into
+         <out>/frame_NNNN.png plus <out>/contact_sheet.png; the scene
          is kept as <out>/walk.blend with its cache folder <out>/walk_volrig/.
 samples: <out>/phantom_walk.blend (the phantom walking, 24 frames baked) and, when ../shared/data/frogtissue is
          present, <out>/frog_posed.blend (the frog's label map rigged and posed with keyframes, 3 frames baked).
@@ -113,6 +114,13 @@ def quiet_stdout():
         os.close(saved)
 
 
+def engine_name(scene):
+    """The engine and its samples, as a log line says them."""
+    if scene.render.engine == "CYCLES":
+        return f"Cycles, {scene.cycles.samples} samples"
+    return f"EEVEE, {scene.eevee.taa_render_samples} samples"
+
+
 def render_frames(scene, frames, out_dir):
     paths = []
     for k, f in enumerate(frames):
@@ -123,7 +131,7 @@ def render_frames(scene, frames, out_dir):
             bpy.ops.render.render(write_still=True)
         paths.append(scene.render.filepath)
         log(f"rendered {k + 1}/{len(frames)}: frame {f}, {scene.render.resolution_x} x {scene.render.resolution_y}, "
-            f"{scene.cycles.samples} samples, {time.perf_counter() - started:.1f} s -> {scene.render.filepath}")
+            f"{engine_name(scene)}, {time.perf_counter() - started:.1f} s -> {scene.render.filepath}")
     return paths
 
 
@@ -171,7 +179,8 @@ def demo(out, scale, count):
     bpy.ops.wm.save_mainfile()
     paths = render_frames(scene, frames, os.path.abspath(out))
     sheet = os.path.join(os.path.abspath(out), "contact_sheet.png")
-    contact_sheet(paths, frames, sheet, f"volrig: the phantom walking, baked and rendered in Cycles "
+    contact_sheet(paths, frames, sheet, f"volrig: the phantom walking, baked and rendered in "
+                                        f"{engine_name(scene).split(',')[0]} (Blender {bpy.app.version_string}) "
                                         f"(left thigh glowing); {len(objects.members(vol)['SPHERES'].data.vertices):,}"
                                         f" spheres")
     log(f"wrote {sheet} and {blend}; demo took {time.time() - t0:.0f} s")

@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 import volrig  # noqa: E402
 from volrig import pipeline  # noqa: E402
 from blender_scenes import log, quiet_stdout, run_and_exit  # noqa: E402
-from volrig_addon import materials  # noqa: E402
+from volrig_addon import compat, engines, materials  # noqa: E402
 
 OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
 
@@ -127,16 +127,14 @@ def scene_for(labels, height, view):
     scan's box (world units: the scan's, shown at 1/1000: millimetres as metres)."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.use_denoising = False
+    engines.use(scene)  # Cycles on the CPU, or EEVEE where this Cycles renders no grids
     scene.render.film_transparent = False
     scene.render.resolution_y = height
     scene.render.resolution_x = int(height * 0.75)  # (room for a leg swung forward)
     scene.cycles.volume_step_rate = 2.0
     scene.cycles.volume_max_steps = 512
     world = bpy.data.worlds.new("showcase")
-    world.use_nodes = True
+    compat.use_nodes(world)
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.02, 0.025, 0.03, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
     scene.world = world
@@ -242,7 +240,7 @@ def main(argv):
         tissues, hidden, peeled, opacity = looks_of(args, found)  # (before the work: a typo fails at once)
         files, frames = rig_and_bake(args, work, labels, table, found)
         scene = scene_for(labels, args.height, args.view)
-        scene.cycles.samples = args.samples
+        engines.use(scene, args.samples)
         faint = ", ".join(sorted(opacity)) + " faint" if opacity else "as the preset"
         looks = [(faint + (f"; {', '.join(sorted(hidden))} hidden" if hidden else ""), tissues)]
         if peeled:

@@ -1,5 +1,5 @@
 """volrig for Blender: import a volume, skeletonize it, rig it automatically, animate the armature and bake the
-deformed volume into a VDB sequence that Cycles renders.
+deformed volume into a VDB sequence that Cycles renders (or EEVEE, where this Blender's Cycles renders no grids).
 
 The add-on is a thin layer over the ``volrig`` Python package: it finds the package bundled beside it (the add-on
 zip carries ``volrig/`` with its compiled module in ``lib/``) or, in a checkout, in ``../../python``.
@@ -11,7 +11,7 @@ bl_info = {
     "blender": (3, 4, 0),
     "location": "3D View > Sidebar > volrig",
     "description": "Skeletonize, rig, animate and render volumes (CT, MRI, label maps, VDB)",
-    "warning": "Tested with Blender 3.4 .. 4.x",
+    "warning": "Tested with Blender 3.4, 4.3 and 5.2",
     "doc_url": "",
     "category": "Animation",
 }
@@ -19,8 +19,8 @@ bl_info = {
 import os
 import sys
 
-#: Blender versions the add-on supports: 3.4 up to (not including) 5.0.
-SUPPORTED = ((3, 4, 0), (5, 0, 0))
+#: Blender versions the add-on supports: 3.4 up to (not including) 6.0.
+SUPPORTED = ((3, 4, 0), (6, 0, 0))
 
 
 def _find_volrig() -> None:
@@ -36,21 +36,22 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("properties", "scans", "objects", "materials", "bake", "staging", "mocap", "flythrough", "operators",
+    for _m in ("compat", "engines", "properties", "scans", "objects", "materials", "bake", "staging", "mocap",
+               "flythrough", "operators",
                "drawing", "preview", "mesh_rig", "panels", "looks", "tissue_looks", "looks_ui"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import (bake, flythrough, materials, mocap, objects, operators, panels, properties, scans,  # noqa: E402,F401
-               staging)
+from . import (bake, compat, engines, flythrough, materials, mocap, objects, operators,  # noqa: E402,F401
+               panels, properties, scans, staging)
 from . import drawing, looks, looks_ui, mesh_rig, preview, tissue_looks  # noqa: E402,F401
 
 
 def register():
     if not (SUPPORTED[0] <= tuple(bpy.app.version) < SUPPORTED[1]):
-        print(f"volrig: Blender {bpy.app.version_string} is outside the supported range 3.4 .. 4.x")
+        print(f"volrig: Blender {bpy.app.version_string} is outside the supported range 3.4 .. 5.x")
     properties.register()
     operators.register()
     drawing.register()
@@ -59,9 +60,19 @@ def register():
     preview.register()
     mesh_rig.register()  # after the panels: its Mesh panel follows the Volume panel
     bpy.app.handlers.load_post.append(scans.forget_all)
+    if not bpy.app.background:  # the Look panel's word on Cycles and grids, probed once the UI is up
+        bpy.app.timers.register(_probe_engines, first_interval=1.0)
+
+
+def _probe_engines():
+    if not engines.cycles_renders_grids():
+        engines.tell()
+    return None  # once
 
 
 def unregister():
+    if bpy.app.timers.is_registered(_probe_engines):
+        bpy.app.timers.unregister(_probe_engines)
     if scans.forget_all in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()

@@ -17,7 +17,7 @@ from mathutils import Matrix, Vector
 import volrig
 from volrig.centerlines import flight_frames, flight_path, lumen_wall, straightening_rig
 
-from . import materials, objects, scans
+from . import compat, engines, materials, objects, scans
 from .bake import exit_with
 
 #: The headlight's power for a lumen of radius 1 Blender unit (W); it scales with the radius squared, so the wall
@@ -73,17 +73,12 @@ def build_path(volume_obj, line: volrig.Centerline, spacing: float = 2.0):
 def _keys(id_data, path: str, frames, values, group: str = "") -> None:
     """Linear keyframes of an (F, C) array on property ``path`` of ``id_data`` at ``frames``, written in bulk."""
     values = np.asarray(values, dtype=np.float64).reshape(len(frames), -1)
-    if id_data.animation_data is None:
-        id_data.animation_data_create()
-    ad = id_data.animation_data
-    if ad.action is None:
-        ad.action = bpy.data.actions.new(getattr(id_data, "name", "volrig") + " action")
-    action = ad.action
+    curves = compat.fcurves(id_data)
     for c in range(values.shape[1]):
-        fc = action.fcurves.find(path, index=c)
+        fc = curves.find(path, index=c)
         if fc is not None:
-            action.fcurves.remove(fc)
-        fc = action.fcurves.new(path, index=c, action_group=group) if group else action.fcurves.new(path, index=c)
+            curves.remove(fc)
+        fc = compat.new_fcurve(curves, path, c, group)
         fc.keyframe_points.add(len(frames))
         co = np.stack([np.asarray(frames, dtype=np.float64), values[:, c]], axis=1).astype(np.float32)
         fc.keyframe_points.foreach_set("co", co.ravel())
@@ -183,13 +178,11 @@ def fly_through(context, volume_obj, progress=None) -> dict:
     scene.camera = cam
     scene.frame_start, scene.frame_end = int(frames[0]), int(frames[-1])
     scene.frame_set(int(frames[0]))
-    scene.render.engine = "CYCLES"
-    scene.cycles.volume_bounces = 0
-    scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise: rendering would fail
+    engines.use(scene)  # Cycles on the CPU, or EEVEE where this Cycles renders no grids
     scene.view_settings.view_transform = "Standard"  # Filmic greys the wall's pink out
     if scene.world is None:
         scene.world = bpy.data.worlds.new("volrig world")
-    scene.world.use_nodes = True
+    compat.use_nodes(scene.world)
     bg = scene.world.node_tree.nodes.get("Background")
     if bg is not None:
         bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
@@ -197,19 +190,16 @@ def fly_through(context, volume_obj, progress=None) -> dict:
 
 
 def render_frames(scene, folder: str, count: int, resolution=(320, 320), samples: int = 16):
-    """Renders ``count`` frames spread over the scene's range (first and last included) in Cycles on the CPU as
+    """Renders ``count`` frames spread over the scene's range (first and last included) in Cycles on the CPU (or
+    EEVEE where this Cycles renders no grids: engines.py) as
     PNGs ``frame_NNNN.png`` in ``folder``; returns their paths."""
     os.makedirs(folder, exist_ok=True)
     r = scene.render
-    r.engine = "CYCLES"
     r.resolution_x, r.resolution_y = (int(v) for v in resolution)
     r.resolution_percentage = 100
     r.image_settings.file_format = "PNG"
     r.film_transparent = False
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = int(samples)
-    scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise
-    scene.cycles.volume_bounces = 0
+    engines.use(scene, samples)
     frames = np.unique(np.round(np.linspace(scene.frame_start, scene.frame_end, max(int(count), 1))).astype(int))
     paths = []
     for f in frames:

@@ -6,6 +6,8 @@ import bpy
 
 import volrig
 
+from . import compat
+
 #: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
 #: (position, (r, g, b), opacity) over that window.
 PRESETS = {
@@ -155,7 +157,7 @@ def update_volume_material(volume_obj):
     mat = data.materials[0] if len(data.materials) and data.materials[0] is not None else None
     if mat is None:
         mat = bpy.data.materials.new(volume_obj.name + " volume")
-        mat.use_nodes = True
+        compat.use_nodes(mat)
         if len(data.materials):
             data.materials[0] = mat
         else:
@@ -184,7 +186,7 @@ def lumen_wall_material(name: str, density: float):
     a scattering and absorbing medium of albedo WALL_COLOR, ``density`` per Blender unit where the grid is 1, so the wall
     is opaque within a voxel or two and the headlight shades it like tissue."""
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     n = mat.node_tree.nodes
     n.clear()
     attr = n.new("ShaderNodeAttribute")
@@ -230,7 +232,7 @@ def thickness_material(name: str):
     """``<name> thickness``: a Principled Volume whose density follows the ``density`` grid (the mask) and whose
     colour and glow follow the ``thickness`` grid through a colour ramp (``set_thickness_range`` sets the span)."""
     mat = bpy.data.materials.new(f"{name} thickness")
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     n = mat.node_tree.nodes
     n.clear()
     ramp = _thickness_ramp(mat.node_tree, -200)
@@ -285,7 +287,7 @@ def medial_material(name: str):
     """``<name> medial``: a two-sided Principled BSDF whose base colour follows the mesh's ``thickness`` point
     attribute through the thickness ramp (``set_medial_range`` sets the span)."""
     mat = bpy.data.materials.new(f"{name} medial")
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     mat.use_backface_culling = False
     n = mat.node_tree.nodes
     n.clear()
@@ -382,7 +384,7 @@ def tissue_material(name: str, tissues, strength: float = 1.0):
     written by a bake with tissue looks: ``volrig.tissue_grids``), colour and density from ``tissue_sums``;
     ``volrig tissue strength`` scales the density (per world unit of the volume's grid)."""
     mat = bpy.data.materials.new(f"{name} tissues")
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     tree = mat.node_tree
     tree.nodes.clear()
     vol = tree.nodes.new("ShaderNodeVolumePrincipled")

@@ -7,6 +7,8 @@ from mathutils import Matrix
 
 import volrig
 
+from . import compat
+
 
 def stored_bone_map(volume_obj, motion: volrig.Motion):
     """The map the panel shows, when it was made for this clip's joints; else None."""
@@ -39,10 +41,7 @@ def key_pose(rig_obj, rig: volrig.Rig, matrices: np.ndarray, scene_frames) -> No
     for f in range(1, n):
         flip = np.einsum("bi,bi->b", quat[f], quat[f - 1]) < 0
         quat[f, flip] *= -1
-    ad = rig_obj.animation_data or rig_obj.animation_data_create()
-    if ad.action is None:
-        ad.action = bpy.data.actions.new(rig_obj.name + "Action")
-    fcurves = ad.action.fcurves
+    fcurves = compat.fcurves(rig_obj)
     for fc in [fc for fc in fcurves if fc.data_path.startswith("pose.bones[")]:
         fcurves.remove(fc)
     co = np.empty(2 * n)
@@ -54,7 +53,7 @@ def key_pose(rig_obj, rig: volrig.Rig, matrices: np.ndarray, scene_frames) -> No
         for prop, values in (("location", loc[:, b]), ("rotation_quaternion", quat[:, b])):
             path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].{prop}'
             for i in range(values.shape[1]):
-                fc = fcurves.new(path, index=i, action_group=name)
+                fc = compat.new_fcurve(fcurves, path, i, name)
                 fc.keyframe_points.add(n)
                 co[1::2] = values[:, i]
                 fc.keyframe_points.foreach_set("co", co)

@@ -20,7 +20,7 @@ from mathutils import Matrix
 
 import volrig
 
-from . import materials
+from . import compat, materials
 
 SPHERE_NODES = "volrig spheres"
 ROD_NODES = "volrig rods"
@@ -216,7 +216,7 @@ def _mask_material():
     mat = bpy.data.materials.get("volrig mask")
     if mat is None:
         mat = bpy.data.materials.new("volrig mask")
-        mat.use_nodes = True
+        compat.use_nodes(mat)
         nodes = mat.node_tree.nodes
         nodes.clear()
         vol = nodes.new("ShaderNodeVolumeScatter")
@@ -500,5 +500,7 @@ def point_volume_at(volume_obj, path: str, sequence=None) -> None:
         data.frame_duration = last - first + 1
         data.frame_offset = first - 1  # file number = scene frame
         data.sequence_mode = "EXTEND"
+    # Forget the grids read before, so the new file is read; the depsgraph loads it. (Loading here as well, on the
+    # original data-block, leaves Blender 5.x's evaluated volume with empty bounds at the current frame: EEVEE then
+    # culls it and renders nothing until the frame changes.)
     data.grids.unload()
-    data.grids.load()

@@ -2,7 +2,7 @@
 for the volrig set of the active object."""
 import bpy
 
-from . import objects
+from . import engines, objects
 
 
 def _settings(panel, context):
@@ -191,6 +191,11 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
         row = split.row(align=True)
         row.prop(s, "highlight_strength", text="")
         row.prop(s, "highlight_color", text="")
+        if engines.known() and not engines.cycles_renders_grids():
+            box = layout.box()
+            box.label(text="This Blender's Cycles renders no VDB volumes", icon="ERROR")
+            box.label(text="(built without NanoVDB): rendering with EEVEE;")
+            box.label(text="use a blender.org build for Cycles")
 
 
 class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):

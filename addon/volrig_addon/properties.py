@@ -67,6 +67,10 @@ def _volume_object(self, obj):
     return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
 
 
+#: File-path properties that hold "//" (blend-relative) paths say so (Blender 5.x warns otherwise).
+BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"}
+
+
 class VolrigBonePair(bpy.types.PropertyGroup):
     """One line of the motion capture bone map: a BVH joint and the rig bone it drives."""
     joint: StringProperty(name="BVH joint", description="A joint of the BVH clip")
@@ -89,7 +93,8 @@ class VolrigPart(bpy.types.PropertyGroup):
         ("VOLUME", "Volume's", "The volume's transfer function (with this part's colour and opacity)")]
         + [item for item in PRESET_ITEMS if item[0] != "LUMEN"],
         description="The part's own transfer function over its values (the volume's value range), or the volume's")
-    substitute: StringProperty(name="Substitute", subtype="FILE_PATH", update=_substitute_changed,
+    substitute: StringProperty(name="Substitute", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                               update=_substitute_changed,
                                description="Take this part's values from another volume file in the same world frame "
                                            "(any voxel size): the full-resolution scan under a downsampled one, or "
                                            "another co-registered scan (its values through the same transfer "
@@ -130,7 +135,7 @@ class VolrigObject(bpy.types.PropertyGroup):
 
     # --- the source (read-only in the UI) ---
     source: StringProperty(name="Source", description="The file the volume was imported from (never modified)")
-    cache_dir: StringProperty(name="Cache", subtype="DIR_PATH",
+    cache_dir: StringProperty(name="Cache", subtype="DIR_PATH", options=BLEND_RELATIVE,
                               description="Folder holding this volume's source copy, rig file and baked frames")
     dims: IntVectorProperty(name="Voxels", size=3, description="Grid size (x, y, z)")
     spacing: FloatVectorProperty(name="Spacing", size=3, precision=4, description="Voxel size (x, y, z)")
@@ -212,7 +217,8 @@ class VolrigObject(bpy.types.PropertyGroup):
     rig_file: StringProperty(name="Rig file", description="The .vrig file (points, tree, rig, binding) in the cache")
 
     # --- motion capture ---
-    bvh_file: StringProperty(name="BVH", subtype="FILE_PATH", description="The clip that last drove the rig")
+    bvh_file: StringProperty(name="BVH", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                             description="The clip that last drove the rig")
     bone_map: CollectionProperty(type=VolrigBonePair, name="Bone map",
                                  description="BVH joint -> rig bone; Drive with BVH uses it for the same clip")
     bone_map_index: IntProperty(name="Bone map line", default=0)
@@ -238,7 +244,8 @@ class VolrigObject(bpy.types.PropertyGroup):
                                           "tissue table, or each label without one) its own colour, opacity and "
                                           "visibility; the rest volume and every baked frame get one grid per "
                                           "class, baked with nearest sampling")
-    tissue_table: StringProperty(name="Tissue table", subtype="FILE_PATH", update=_tissues_toggled,
+    tissue_table: StringProperty(name="Tissue table", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                                 update=_tissues_toggled,
                                  description="A TSV or CSV file of tissue codes and names (code, name per line), "
                                              "matched against volrig's tissue classes; empty: one class per label")
     tissues: CollectionProperty(type=VolrigTissue, name="Tissues",

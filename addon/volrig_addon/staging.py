@@ -5,6 +5,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
+from . import compat, engines
+
 
 def volume_box(volume_obj):
     """World-space (min, max) corners of the imported grid."""
@@ -52,18 +54,14 @@ def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15, azi
     sun.rotation_euler = (0.7, 0.3, -0.5)
     if scene.world is None:
         scene.world = bpy.data.worlds.new("volrig world")
-    scene.world.use_nodes = True
+    compat.use_nodes(scene.world)
     bg = scene.world.node_tree.nodes.get("Background")
     if bg is not None:
         bg.inputs["Color"].default_value = (0.02, 0.02, 0.025, 1.0)
         bg.inputs["Strength"].default_value = 1.0
     r = scene.render
-    r.engine = "CYCLES"
     r.resolution_x, r.resolution_y = resolution
     r.resolution_percentage = 100
     r.image_settings.file_format = "PNG"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_denoising = False  # Debian's Blender is built without OpenImageDenoise
-    scene.cycles.volume_bounces = 0
+    engines.use(scene, samples)  # Cycles on the CPU, or EEVEE where this Cycles renders no grids
     return cam

@@ -32,6 +32,7 @@ from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, la
 from . import pipeline
 
 __version__ = "0.1.0"
+__license__ = "GPL-3.0-or-later"
 
 __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",

@@ -25,7 +25,8 @@ def test_self_contact_markers_name_the_bones(rigged):
     for frame, euler in [(1, (0, 0, 0)), (2, (1.0, 0, 0)), (3, (-1.0, 0, 0)), (4, (0, 0, 1.0)), (5, (0, 0, -1.0))]:
         pb.rotation_euler = Euler(euler)
         pb.keyframe_insert("rotation_euler", frame=frame)
-    fc = _rig_obj(rigged).animation_data.action.fcurves
+    from volrig_addon import compat
+    fc = compat.fcurves(_rig_obj(rigged), create=False)
     for curve in fc:
         for k in curve.keyframe_points:
             k.interpolation = "CONSTANT"

@@ -6,6 +6,7 @@ import pytest
 import bpy
 import volrig
 from conftest import run_op
+from silhouettes import PASS, compare
 from test_looks import _grids, _projected, _render, _stage
 
 PHANTOM_TABLE = "code\tname\n0\tExternalAir\n80\tMuscle\n100\tFat\n220\tBoneCortical\n"
@@ -78,6 +79,7 @@ def test_hidden_and_coloured_tissues_render_exactly(blocks, tmp_path):
     vol.volrig.density_scale = 3.0
     scene = _stage(vol, tmp_path)
     full = _render(scene, tmp_path / "full.png")
+    assert compare("tissues_full", tmp_path / "full.png", alpha=True) > PASS  # the blocks of 3.4's Cycles
     g, first = _grids(tissue_looks.rest_file(vol), ["tissue_bone", "tissue_muscle", "tissue_fat"])
     bone = _projected(scene, vol, g["tissue_bone"], first, grow=2)
     only_bone = _projected(scene, vol, g["tissue_bone"], first, grow=0, outer=False)

@@ -201,3 +201,37 @@ def test_wheel_runs_the_pipeline_in_a_bare_debian_12_root(wheel311):
                 "libpng16.so.16", "libtiff.so.6"):
         assert not os.path.exists(os.path.join(root, "usr/lib/x86_64-linux-gnu", lib)), f"the root has {lib}"
     check_pipeline(run_in(root, [os.path.join(REPO, "scripts", "bare_root"), "run"], unpacked, PIPELINE))
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="the bare Debian 12 root needs root (debootstrap, chroot)")
+def test_pip_install_of_the_wheel_gives_the_volrig_command(wheel311):
+    """`pip install volrig-*.whl` in a bare Debian 12 root (no PYTHONPATH, nothing but python3, numpy and pip)
+    installs the `volrig` command (console script volrig.cli:main); `volrig --help` and `volrig rig` work."""
+    whl, _ = wheel311
+    root = subprocess.run([os.path.join(REPO, "scripts", "bare_root")], capture_output=True, text=True,
+                          timeout=1200)
+    assert root.returncode == 0, root.stderr[-3000:]
+    root = root.stdout.strip().splitlines()[-1]
+    with zipfile.ZipFile(whl) as z:
+        assert z.read(f"volrig-{whl.name.split('-')[1]}.dist-info/entry_points.txt").decode() == \
+            "[console_scripts]\nvolrig = volrig.cli:main\n"
+        assert "License: GPL-3.0-or-later" in z.read(f"volrig-{whl.name.split('-')[1]}.dist-info/METADATA").decode()
+    inside = f"/tmp/volrig-pip-{os.getpid()}"
+    os.makedirs(root + inside, exist_ok=True)
+    shutil.copy(whl, root + inside)
+    pip = "python3 -m pip --disable-pip-version-check -q"
+    script = (f"set -e; cd {inside}; {pip} install --no-index --break-system-packages {whl.name}; "
+              "command -v volrig; volrig --help | head -3; "
+              "python3 -c \"import volrig; volrig.phantom.humanoid(scale=0.25).volume.save('p.nrrd')\"; "
+              "volrig rig p.nrrd --lo 1 -o p.vrig; ls -l p.vrig")
+    try:
+        run = subprocess.run([os.path.join(REPO, "scripts", "bare_root"), "run", "/bin/sh", "-c", script],
+                             capture_output=True, text=True, timeout=900)
+    finally:
+        subprocess.run([os.path.join(REPO, "scripts", "bare_root"), "run", "/bin/sh", "-c",
+                        f"{pip} uninstall -y --break-system-packages volrig"], capture_output=True, timeout=300)
+        shutil.rmtree(root + inside, ignore_errors=True)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "/usr/local/bin/volrig" in run.stdout, run.stdout
+    assert "usage: volrig" in run.stdout and "humanoid" in run.stdout, run.stdout[-3000:]
+    assert os.path.exists(root + inside) is False  # cleaned up
