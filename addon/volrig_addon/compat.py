@@ -4,11 +4,16 @@
   ``Action.fcurves`` is gone in 5.0), through ``Action.fcurves`` before: mocap, fly-throughs, straightening and the
   contact markers' tests use :func:`fcurves` and :func:`new_fcurve`.
 - Node trees: ``Material.use_nodes`` / ``World.use_nodes`` are needed before 5.0 and deprecated in 5.x (always on;
-  removed in 6.0): :func:`use_nodes`."""
+  removed in 6.0): :func:`use_nodes`.
+- File-path properties that hold blend-relative ("//") paths say so in 5.x (:data:`BLEND_RELATIVE`; 5.x warns when
+  such a path is set otherwise, and older versions refuse the option)."""
 import bpy
 
 #: Actions have slots and channelbags from Blender 4.4 on.
 SLOTTED = bpy.app.version >= (4, 4, 0)
+
+#: The ``options`` of a file-path property holding "//" paths (the default, animatable, before 5.0).
+BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} if bpy.app.version >= (5, 0, 0) else {"ANIMATABLE"}
 
 
 def fcurves(id_data, create: bool = True):

@@ -193,9 +193,10 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
         row.prop(s, "highlight_color", text="")
         if engines.known() and not engines.cycles_renders_grids():
             box = layout.box()
-            box.label(text="This Blender's Cycles renders no VDB volumes", icon="ERROR")
-            box.label(text="(built without NanoVDB): rendering with EEVEE;")
-            box.label(text="use a blender.org build for Cycles")
+            box.label(text="Cycles here renders no VDBs", icon="ERROR")  # (engines.NO_GRIDS, in lines the
+            box.label(text="(built without NanoVDB):")                  # sidebar's width holds)
+            box.label(text="rendering with EEVEE; use a")
+            box.label(text="blender.org build for Cycles")
 
 
 class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):

@@ -8,6 +8,8 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from volrig.deform import MODE_INFO, SAMPLING_INFO
 from volrig.pipeline import DEFAULT_THINNESS_VOXELS
 
+from . import compat
+
 UNIT_SCALES = [
     ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
     ("CM", "cm to m", "Volume units are centimetres; 1 cm = 0.01 Blender units", 1),
@@ -67,8 +69,7 @@ def _volume_object(self, obj):
     return obj.type == "VOLUME" and obj.volrig.role == "VOLUME"
 
 
-#: File-path properties that hold "//" (blend-relative) paths say so (Blender 5.x warns otherwise).
-BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"}
+BLEND_RELATIVE = compat.BLEND_RELATIVE
 
 
 class VolrigBonePair(bpy.types.PropertyGroup):

@@ -50,7 +50,7 @@ def test_without_grids_in_cycles_it_renders_with_eevee_and_says_why(rigged, monk
     assert engines.NO_GRIDS not in capsys.readouterr().out  # once a session
     drawn = []
     panels.VOLRIG_PT_look.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
-    assert "This Blender's Cycles renders no VDB volumes" in drawn and "use a blender.org build for Cycles" in drawn
+    assert "Cycles here renders no VDBs" in drawn and "blender.org build for Cycles" in drawn
     monkeypatch.setattr(engines, "_answer", True)
     staging.stage(scene, rigged, resolution=(32, 32), samples=3)
     assert scene.render.engine == "CYCLES" and scene.cycles.samples == 3
