@@ -590,7 +590,9 @@ def cmd_demo(args) -> int:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m volrig", description="volrig: rig and animate volumes")
+    # the wheel's console script is `volrig`; in a checkout it runs as `python -m volrig`
+    prog = "volrig" if os.path.basename(sys.argv[0]) == "volrig" else "python -m volrig"
+    parser = argparse.ArgumentParser(prog=prog, description="volrig: rig and animate volumes")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("info", help="print a volume file's grid, type and value range")
