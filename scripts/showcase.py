@@ -161,17 +161,18 @@ def scene_for(labels, height, view):
     return scene
 
 
-def show(scene, path, mat):
-    """A Volume object of one baked frame, at 1/1000 scale, with the tissue material (the previous one removed)."""
+def show(scene, path, mats):
+    """Volume objects of one baked frame, at 1/1000 scale, one per tissue material (several where EEVEE cannot
+    read every tissue's grid in one: materials.tissue_materials), the previous ones removed."""
     for ob in [o for o in scene.objects if o.type == "VOLUME"]:
         bpy.data.objects.remove(ob)
-    data = bpy.data.volumes.new(os.path.basename(path))
-    data.filepath = path
-    ob = bpy.data.objects.new(os.path.basename(path), data)
-    ob.scale = (0.001, 0.001, 0.001)
-    data.materials.append(mat)
-    scene.collection.objects.link(ob)
-    return ob
+    for k, mat in enumerate(mats):
+        data = bpy.data.volumes.new(f"{os.path.basename(path)} {k}")
+        data.filepath = path
+        ob = bpy.data.objects.new(data.name, data)
+        ob.scale = (0.001, 0.001, 0.001)
+        data.materials.append(mat)
+        scene.collection.objects.link(ob)
 
 
 def grid(rows, labels, out, title):
@@ -248,10 +249,12 @@ def main(argv):
                           [t._replace(visible=t.visible and t.name not in peeled) for t in tissues]))
         rows = []
         for caption, look in looks:
-            mat = materials.tissue_material("showcase", look, strength=args.strength)
+            eevee = scene.render.engine != "CYCLES"  # (EEVEE reads a limited number of grids per material)
+            mats = materials.tissue_materials("showcase", look, strength=args.strength,
+                                              max_grids=engines.eevee_grid_limit() if eevee else 0)
             row = []
             for k, path in enumerate(files):
-                show(scene, path, mat)
+                show(scene, path, mats)
                 scene.render.filepath = os.path.join(work, f"render_{len(rows)}_{k + 1:02d}.png")
                 started = time.perf_counter()
                 with quiet_stdout():
@@ -262,7 +265,7 @@ def main(argv):
         os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
         grid(rows, [caption for caption, _ in looks], args.out,
              f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}), rigged by volrig, baked "
-             f"and rendered in Cycles with per-tissue looks")
+             f"and rendered in {'Cycles' if scene.render.engine == 'CYCLES' else 'EEVEE'} with per-tissue looks")
         log(f"wrote {args.out} in {time.perf_counter() - t0:.0f} s")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -87,6 +87,44 @@ def tell() -> None:
             window.workspace.status_text_set(f"volrig: {NO_GRIDS}")
 
 
+def eevee_grid_limit() -> int:
+    """How many grids one volume material can read in EEVEE: this GPU's texture units for a fragment shader less
+    the two EEVEE's volume pass takes itself. Measured with Mesa's llvmpipe: 16 units, 14 grids; a material that
+    reads more renders nothing at all. 14 where no GPU context answers."""
+    try:
+        import gpu
+        return int(gpu.capabilities.max_textures_frag_get()) - 2
+    except Exception:
+        return 14
+
+
+def grids_read(mat) -> int:
+    """The distinct grids a material's Attribute nodes read (the ones whose output is used)."""
+    if mat is None or mat.node_tree is None:
+        return 0
+    return len({n.attribute_name for n in mat.node_tree.nodes
+                if n.bl_idname == "ShaderNodeAttribute" and any(o.is_linked for o in n.outputs)})
+
+
+def check_material(mat) -> str:
+    """The message when ``mat`` reads more grids than EEVEE can and volrig renders with EEVEE here (once the probe
+    has answered), printed once per material and count; "" otherwise."""
+    if not known() or cycles_renders_grids():
+        return ""
+    count, limit = grids_read(mat), eevee_grid_limit()
+    if count <= limit:
+        return ""
+    message = (f"{mat.name} reads {count} grids; EEVEE reads at most {limit} in one volume material and renders "
+               "nothing for it: hide some tissues or parts, or use a Blender whose Cycles renders VDB volumes")
+    if _warned.get(mat.name) != count:
+        print(f"volrig: {message}")
+        _warned[mat.name] = count
+    return message
+
+
+_warned = {}
+
+
 def _probe() -> bool:
     """Renders a tiny volume in Cycles in a scratch scene; True when it shows."""
     made = []

@@ -6,7 +6,7 @@ import bpy
 
 import volrig
 
-from . import compat
+from . import compat, engines
 
 #: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
 #: (position, (r, g, b), opacity) over that window.
@@ -178,6 +178,7 @@ def update_volume_material(volume_obj):
     from . import looks
     from . import tissue_looks
     looks.route(mat.node_tree, nd, s.parts if s.use_parts else [], tissue_looks.tissues_of(volume_obj), s)
+    engines.check_material(mat)  # (EEVEE reads a limited number of grids: says so when this look needs more)
     return mat
 
 
@@ -377,6 +378,18 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
     link(colour, mean.inputs[0])
     link(inverse.outputs[0], mean.inputs["Scale"])
     return density, mean.outputs[0]
+
+
+def tissue_materials(name: str, tissues, strength: float = 1.0, max_grids: int = 0):
+    """:func:`tissue_material` split into materials each reading at most ``max_grids`` grids (0: one material), for
+    EEVEE, which renders nothing for a volume material reading more grids than its GPU's texture units allow.
+    Shown on as many Volume objects of the same file, they add up to the one material's look exactly: the objects'
+    extinctions add, and so do their scatterings (each class's colour times its density)."""
+    visible = [t for t in tissues if t.visible]
+    if max_grids <= 0 or len(visible) <= max_grids:
+        return [tissue_material(name, tissues, strength)]
+    chunks = [visible[i:i + max_grids] for i in range(0, len(visible), max_grids)]
+    return [tissue_material(f"{name} {k + 1}", chunk, strength) for k, chunk in enumerate(chunks)]
 
 
 def tissue_material(name: str, tissues, strength: float = 1.0):

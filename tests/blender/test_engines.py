@@ -81,3 +81,24 @@ def test_eevee_engine_name_is_this_blenders():
     from volrig_addon import engines
     items = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
     assert engines.eevee() in items
+
+
+def test_a_look_reading_more_grids_than_eevee_can_says_so(empty_scene, monkeypatch, capsys):
+    """EEVEE renders nothing for a volume material reading more grids than the GPU's texture units allow (14 with
+    Mesa's llvmpipe): where volrig renders with EEVEE, such a look says so, once."""
+    import volrig
+    from volrig_addon import engines, materials
+    monkeypatch.setattr(engines, "_answer", False)
+    monkeypatch.setattr(engines, "eevee_grid_limit", lambda: 14)
+    tissues = [volrig.Tissue(name=f"t{k}", key=f"t{k}", codes=[k + 1], color=(1.0, 1.0, 1.0), opacity=0.5,
+                             visible=True) for k in range(16)]
+    few = materials.tissue_material("few", tissues[:3])
+    many = materials.tissue_material("many", tissues)
+    assert engines.grids_read(few) == 3 and engines.grids_read(many) == 16
+    assert engines.check_material(few) == ""
+    message = engines.check_material(many)
+    assert "reads 16 grids; EEVEE reads at most 14" in message
+    engines.check_material(many)
+    assert capsys.readouterr().out.count("reads 16 grids") == 1
+    monkeypatch.setattr(engines, "_answer", True)  # Cycles reads them all
+    assert engines.check_material(many) == ""
