@@ -1,5 +1,5 @@
-"""The README's fly-through picture: the airway of ../shared/data/airway flown through by the add-on's Fly Through
-(as ``volrig flythrough`` builds it) and frame 75 (the carina) rendered in Cycles at 200 x 200, 64 samples.
+"""docs/centerline.md's fly-through picture: the airway of ../shared/data/airway flown through by the add-on's Fly
+Through (as ``volrig flythrough`` builds it) and frame 75 (the carina) rendered in Cycles at 200 x 200, 64 samples.
 
     blender -b --factory-startup --python scripts/flythrough_picture.py
 

@@ -153,7 +153,7 @@ def main(argv=None):
     if "frog" in only:
         if os.path.exists(frog):
             # Organs and thin bones without flesh: its 40,000 points rigged (autorig's own skeleton misses the front
-            # legs); it still comes out as chains (README, Known limits).
+            # legs); it still comes out as chains (docs/rig.md, Known limits).
             draw(rig_case("frog (frogtissue, labels > 0, own_scale=False)", volrig.segment(volrig.load(frog)), 40000,
                           own_scale=False),
                  os.path.join(args.out, "rig_frog.png"), views=((0, 1), (0, 2)))

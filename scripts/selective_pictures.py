@@ -1,4 +1,4 @@
-"""The README's selective-rendering picture: the humanoid phantom rigged by the add-on and rendered in Cycles with
+"""docs/parts.md's selective-rendering picture: the humanoid phantom rigged by the add-on and rendered in Cycles with
 per-part looks (the Parts list) and an exploded view (the Explode factor, baked).
 
     blender -b --factory-startup --python scripts/selective_pictures.py [-- --scale 0.5 --samples 16]

@@ -74,7 +74,7 @@ class Preview:
         source = scans.source(volume_obj)
         self.factor = factor_for(source.dims)
         # no lattice tables, ever: on the coarse grid the balls are faster (the phantom at a quarter per axis: 9.6
-        # against 12.2 ms a frame, README, Performance) and scrubbing never stalls on their build
+        # against 12.2 ms a frame, benchmarks/RESULTS.md, Live preview) and scrubbing never stalls on their build
         self.deformer = volrig.Deformer(*coarse_level(source, self.state.points, self.state.binding, self.factor),
                                         lattice_after=-1)
 

@@ -672,8 +672,8 @@ def main(argv=None) -> int:
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
     p.add_argument("--lattice-tables", action="store_true",
                    help="build the bones' lattice tables at the first frame (a bake of 16 frames or more): frames "
-                        "about 5%% (smooth) to 20%% (rigid) faster for 1-3 bytes per source voxel more memory (README, "
-                        "Deformation)")
+                        "about 5%% (smooth) to 20%% (rigid) faster for 1-3 bytes per source voxel more memory "
+                        "(docs/deform.md, Bakes and the lattice tables)")
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)
 

@@ -43,7 +43,7 @@ SAMPLINGS = tuple(SAMPLING_INFO)
 DEFORM_REVISION = 3
 
 #: The default proximity: the power distance |q - c|² - r² (the sphere q lies deepest inside). It keeps the
-#: thesis' bend test unbroken further and reverses more exactly than the nearest centre; see the README.
+#: thesis' bend test unbroken further and reverses more exactly than the nearest centre; see docs/deform.md, Proximity.
 DEFAULT_PROXIMITY = "power"
 
 
@@ -229,8 +229,8 @@ class Deformer:
     without a change, the next one also builds each bone's lattice tables (its rest-space power diagram and per-cube
     power ranges: about four rigid frames' time), after which a frame costs about one gather per output voxel; until
     then bones take their powers from the balls meeting each preimage, as blend groups always do (the same frame,
-    1.2-1.3x slower rigid and 1.0-1.1x smooth on the phantom at scale 1, up to 2x / 1.4x at scale 2: README,
-    Performance). ``lattice_after=0`` builds the tables at the
+    1.2-1.3x slower rigid and 1.0-1.1x smooth on the phantom at scale 1, up to 2x / 1.4x at scale 2: docs/deform.md,
+    When the tables are built; benchmarks/RESULTS.md). ``lattice_after=0`` builds the tables at the
     first frame (many frames to come), ``-1`` never (one frame, or a rig about to change again).
 
     A binding with rigid tissue (``bind(..., rigid=)``) deforms in two layers (``volrig.rigid_layer``): the spheres
@@ -316,7 +316,7 @@ class Deformer:
               keep_volume: bool = True, bricks: bool = False, half: bool = False):
         """Reconstructs one pose. ``bone_matrices`` (B, 4, 4): rest-to-pose in the source's world coordinates.
         ``keep_volume`` (smooth modes; the default): the blended spheres' radii follow the pose so that a bent limb
-        keeps its volume (README, Deformation); False gives the plain blend. Rigid frames ignore it. Returns a
+        keeps its volume (docs/deform.md); False gives the plain blend. Rigid frames ignore it. Returns a
         ``Frame``, or with ``bricks`` a ``BrickedFrame`` (the same frame in 8³ bricks: memory only where it covers,
         written to OpenVDB without a dense copy; what bakes use). ``half`` (with ``bricks``): its values as float16,
         rounded as OpenVDB stores half floats, and its bone labels as uint8 when the rig has fewer than 255 bones

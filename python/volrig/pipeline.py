@@ -454,8 +454,8 @@ def _no_thickness(thickness) -> bool:
 
 
 # A bake asked for the bones' lattice tables that knows it will draw at least this many frames builds them at its
-# first frame; a shorter one never does (they pay back their build after 12-18 frames on the phantom: README,
-# Performance).
+# first frame; a shorter one never does (they pay back their build after 12-18 frames on the phantom: docs/deform.md,
+# Bakes and the lattice tables).
 TABLES_PAY_AFTER = 16
 
 
@@ -488,7 +488,7 @@ class FolderBake:
     map's codes exactly.
 
     A bake draws its frames without the bones' lattice tables (``Deformer.lattice_after`` -1): they would hold
-    1-3 bytes per source voxel more for frames about 5% (smooth modes) to 20% (rigid) faster (README, Deformation,
+    1-3 bytes per source voxel more for frames about 5% (smooth modes) to 20% (rigid) faster (docs/deform.md,
     "Bakes and the lattice tables").
     ``lattice_tables=True`` builds them when they pay: at the first frame of a bake of ``frames`` (how many it will
     draw, when known) TABLES_PAY_AFTER or more, never in a shorter one, after the Deformer's default 8 frames when

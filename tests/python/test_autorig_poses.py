@@ -50,7 +50,7 @@ def test_capsule_subject():
 @pytest.mark.parametrize("tail", [
     0, 15, 25,
     pytest.param(40, marks=pytest.mark.xfail(strict=True, reason="a tail two thirds of the trunk long or more is read "
-                                             "as the head (README, Known limits)")),
+                                             "as the head (docs/rig.md, Known limits)")),
     pytest.param(70, marks=pytest.mark.xfail(strict=True, reason="as 40")),
 ])
 def test_capsule_quadruped_head_forward_and_tail_behind(tail, scale):

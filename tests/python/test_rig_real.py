@@ -11,7 +11,7 @@ def frog_rig(**kw):
     mask = volrig.segment(vol)
     pts = volrig.skeletonize(mask).top(40000)
     # Organs and thin bones without flesh: the 40,000 points kept hold the thin leg bones (autorig's own skeleton,
-    # 1% of the voxels, loses them: see the README's known limits).
+    # 1% of the voxels, loses them: see docs/rig.md, Known limits).
     return volrig.autorig(pts, volrig.skeleton_tree(pts, mask), mask, own_scale=False, **kw)
 
 

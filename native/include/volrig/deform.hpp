@@ -165,9 +165,9 @@ public:
     /// frame settle most voxels from a table; about 4 rigid frames' time to build): at the first frame drawn after
     /// `frames` frames without a change of the per-rig data (a new Deformer, rebind, another mode family or
     /// radius_scale). Until then a bone's field takes its powers from the balls meeting each preimage, as the blend
-    /// groups always do: a rig change then costs the spheres' k-d trees only and a frame somewhat more (README,
-    /// Performance). 0: at the first frame; -1: never. A rebind rebuilds the fields it changes without tables; those
-    /// it keeps keep theirs.
+    /// groups always do: a rig change then costs the spheres' k-d trees only and a frame somewhat more
+    /// (benchmarks/RESULTS.md, Bake throughput). 0: at the first frame; -1: never. A rebind rebuilds the fields it
+    /// changes without tables; those it keeps keep theirs.
     static constexpr int kLatticeAfter = 8;
     void set_lattice_after(int frames);
     int lattice_after() const;

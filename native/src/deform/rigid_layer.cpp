@@ -1,7 +1,7 @@
-// The rigid layer (issue 18; docs/ARCHITECTURE.md, "The rigid layer"): each bone's piece of rigid tissue moved by
-// that bone alone, drawn over a frame. An output voxel is the piece's when its rest position, through the same
-// fixed-point posed-to-rest map the spheres' gather uses, rounds to one of the piece's voxels: no holes, whatever
-// the rotation, and at rest exactly the piece.
+// The rigid layer (issue 18; docs/ARCHITECTURE.md, "The deformation, stage by stage"): each bone's piece of rigid
+// tissue moved by that bone alone, drawn over a frame. An output voxel is the piece's when its rest position,
+// through the same fixed-point posed-to-rest map the spheres' gather uses, rounds to one of the piece's voxels: no
+// holes, whatever the rotation, and at rest exactly the piece.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
