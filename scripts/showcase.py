@@ -251,7 +251,7 @@ def main(argv):
         for caption, look in looks:
             eevee = scene.render.engine != "CYCLES"  # (EEVEE reads a limited number of grids per material)
             mats = materials.tissue_materials("showcase", look, strength=args.strength,
-                                              max_grids=engines.eevee_grid_limit() if eevee else 0)
+                                              max_grids=engines.EEVEE_GRIDS if eevee else 0)
             row = []
             for k, path in enumerate(files):
                 show(scene, path, mats)

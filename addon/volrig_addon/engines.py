@@ -92,10 +92,7 @@ def tell() -> None:
 #: units (so the bound is not the GPU's; not measured on other GPUs).
 EEVEE_GRIDS = 14
 
-
-def eevee_grid_limit() -> int:
-    """How many grids one volume material can read in EEVEE (:data:`EEVEE_GRIDS`)."""
-    return EEVEE_GRIDS
+_warned = {}  # material name -> the grid count it was warned about
 
 
 def grids_read(mat) -> int:
@@ -111,7 +108,7 @@ def check_material(mat) -> str:
     has answered), printed once per material and count; "" otherwise."""
     if not known() or cycles_renders_grids():
         return ""
-    count, limit = grids_read(mat), eevee_grid_limit()
+    count, limit = grids_read(mat), EEVEE_GRIDS
     if count <= limit:
         return ""
     message = (f"{mat.name} reads {count} grids; EEVEE reads at most {limit} in one volume material and renders "
@@ -120,9 +117,6 @@ def check_material(mat) -> str:
         print(f"volrig: {message}")
         _warned[mat.name] = count
     return message
-
-
-_warned = {}
 
 
 def _probe() -> bool:

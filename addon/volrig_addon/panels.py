@@ -199,7 +199,7 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
             box.label(text="blender.org build for Cycles")
             mat = vol.data.materials[0] if len(vol.data.materials) else None
             if engines.check_material(mat):
-                box.label(text=f"{engines.grids_read(mat)} grids: EEVEE reads {engines.eevee_grid_limit()}",
+                box.label(text=f"{engines.grids_read(mat)} grids: EEVEE reads {engines.EEVEE_GRIDS}",
                           icon="ERROR")
                 box.label(text="hide some tissues or parts")
 

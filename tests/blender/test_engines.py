@@ -89,7 +89,7 @@ def test_a_look_reading_more_grids_than_eevee_can_says_so(empty_scene, monkeypat
     import volrig
     from volrig_addon import engines, materials
     monkeypatch.setattr(engines, "_answer", False)
-    monkeypatch.setattr(engines, "eevee_grid_limit", lambda: 14)
+    assert engines.EEVEE_GRIDS == 14
     tissues = [volrig.Tissue(name=f"t{k}", key=f"t{k}", codes=[k + 1], color=(1.0, 1.0, 1.0), opacity=0.5,
                              visible=True) for k in range(16)]
     few = materials.tissue_material("few", tissues[:3])
