@@ -49,7 +49,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
 
 
 def __getattr__(name):
-    if name in ("phantom", "drawing", "sketches"):  # numpy/scipy-heavy modules, imported on first use
+    if name in ("phantom", "drawing"):  # numpy/scipy-heavy modules, imported on first use
         import importlib
         return importlib.import_module("." + name, __name__)
     if name in ("inflate", "drawing_colours"):  # scipy.ndimage, imported on first use
