@@ -25,7 +25,8 @@ from .centerlines import (Centerline, CenterlineTree, StraighteningRig, Straight
                           straighten, straightening_rig)
 from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
-from .skin import MeshRig, pose_vertices, rig_mesh, skin_weights
+from .skin import MeshRig, pose_vertices, skin_weights
+from .pipeline import rig_mesh
 from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
                       tissue_classes, tissue_grids)
