@@ -7,7 +7,6 @@ Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s
 -> ``animate(rig, motion)`` gives per-frame bone matrices. Drawings come in through ``inflate`` (a mask, too)
 and ``drawing_colours``.
 """
-from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
 from .mesh import read_mesh, read_tgf, subdivide, voxelize
 from .segment import label_components, segment
