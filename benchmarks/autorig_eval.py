@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Evaluate volrig.autorig on the shared subjects (issue 16): the measuring stick for the automatic rig.
 
-For every subject (volrig.subjects): segment -> skeletonize -> top N points -> skeleton_tree -> autorig -> bind,
+For every subject (volrig_support.subjects): segment -> skeletonize -> top N points -> skeleton_tree -> autorig -> bind,
 and one table row per (subject, point count): voxels, points, kind expected/got, fit (Rig.fit when autorig gives
 one), bones, the error of each reference joint (phantom: shoulders/elbows/wrists/hips/knees/ankles vs its true
 joints; VHM: vs its bone-derived joints; hand/arm: each TGF joint vs the nearest rig joint) in local radii and mm
@@ -13,7 +13,7 @@ Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/autorig_eval.py [--subjects 
       [--points 5000,40000] [--rotations] [--joints] [--pictures DIR] [--json out.json]
 --pictures also draws the Visible Human's bone with its bone-derived joints (to check them by eye).
 Default: every subject except vhm1 (phantom at scale 0.5 and 1; --slow adds vhm1 and phantom scale 2) and the
-capsule humanoids (``--subjects capsules_wide,capsules_stride,...``, one per volrig.subjects.CAPSULE_POSES, at
+capsule humanoids (``--subjects capsules_wide,capsules_stride,...``, one per volrig_support.subjects.CAPSULE_POSES, at
 --scales; their wrists, capsules as thin as the forearm, have no anatomy to place them by).
 """
 import argparse
@@ -27,9 +27,10 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
-from volrig import subjects as S  # noqa: E402
+from volrig_support import subjects as S  # noqa: E402
 
 DEFAULT = ["phantom", "vhm4", "vhm2", "arm", "hand", "knight", "cow", "lion", "horse", "camel"]
 LIMB_JOINTS = S.LIMB_JOINTS

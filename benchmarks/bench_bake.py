@@ -14,10 +14,12 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
 from volrig import phantom, pipeline  # noqa: E402
 from volrig.deform import MODES  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
 
 def timed_folder_bake(vol, rigged, folder: str, mode: str, first, frames=None):
@@ -47,7 +49,7 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=48, help="BVH frames 1..N of CMU 131_01")
     ap.add_argument("--mode", default="rigid", choices=MODES)
     args = ap.parse_args()
-    clip_path = os.path.join(HERE, "..", "..", "shared", "data", "bvh", "131_01.bvh")
+    clip_path = str(data_root() / "bvh" / "131_01.bvh")
     if not os.path.exists(clip_path):
         print(f"skipped: {clip_path} is absent")
         return 0

@@ -22,10 +22,12 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
-AIRWAY = os.path.join(HERE, "..", "..", "shared", "data", "airway", "Patient1_bronchialTree.nii.gz")
+AIRWAY = str(data_root() / "airway" / "Patient1_bronchialTree.nii.gz")
 
 
 def timed(repeat, f):

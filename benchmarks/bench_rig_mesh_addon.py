@@ -14,7 +14,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 
 import bmesh  # noqa: E402
 import bpy  # noqa: E402
@@ -23,10 +23,11 @@ import numpy as np  # noqa: E402
 import volrig  # noqa: E402
 import volrig_addon  # noqa: E402
 from volrig_addon import mesh_rig, objects  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
 
 def knight(cuts: int):
-    v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
+    v, f = volrig.read_mesh(str(data_root() / "meshes" / "decimated-knight.off"))
     v = np.asarray(v, float)
     obj = mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f)
     me = obj.data

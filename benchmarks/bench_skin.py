@@ -14,17 +14,17 @@ import argparse
 import os
 import sys
 
-import numpy as np
-
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
 from volrig.pipeline import rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels  # noqa: E402
 from volrig.skin import mesh_voxel_size, skin_weights  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 from bench_centerline import timed  # noqa: E402
 
-DATA = os.path.join(HERE, "..", "..", "shared", "data", "meshes", "cow.off")
+DATA = str(data_root() / "meshes" / "cow.off")
 
 
 def stages(v, f, repeat):

@@ -16,10 +16,12 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 sys.path.insert(0, HERE)
 
 import volrig  # noqa: E402
 from volrig import pipeline  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 from bench_deform import walking_pose  # noqa: E402
 
 MODES = ("rigid", "linear", "dual_quaternion")
@@ -32,7 +34,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-reference", action="store_true")
     a = ap.parse_args()
-    path = os.path.join(HERE, "..", "..", "shared", "data", "visible-human", f"austinman_{a.mm}mm_labels.nii.gz")
+    path = str(data_root() / "visible-human" / f"austinman_{a.mm}mm_labels.nii.gz")
     if not os.path.exists(path):
         print(f"skipped: {path} is absent")
         return 0

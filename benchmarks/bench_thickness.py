@@ -23,11 +23,13 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 from bench_centerline import timed  # noqa: E402  (best, median, last result of repeated calls)
 
-DATA = os.path.join(HERE, "..", "..", "shared", "data")
+DATA = str(data_root())
 
 
 def shells(n=256):

@@ -42,14 +42,16 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 PYTHON_DIR = os.path.join(HERE, "..", "python")
 sys.path.insert(0, PYTHON_DIR)
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root
 
 import volrig  # noqa: E402
 from volrig import phantom, pipeline  # noqa: E402
 from volrig.deform import MODES  # noqa: E402
 from bench_bake import timed_folder_bake  # noqa: E402  (this folder is on sys.path when run as a script)
 from bench_deform import walking_pose  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
-CLIP = os.path.join(HERE, "..", "..", "shared", "data", "bvh", "131_01.bvh")
+CLIP = str(data_root() / "bvh" / "131_01.bvh")
 SMOOTH = ("dual_quaternion", "linear")
 
 # A child process's peak resident size (VmHWM): the source and rig loaded, the matrices read, then (with "bake") a

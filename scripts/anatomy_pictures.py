@@ -15,13 +15,14 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: subjects
 
 import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import volrig  # noqa: E402
-from volrig import subjects as S  # noqa: E402
+from volrig_support import subjects as S  # noqa: E402
 from volrig.tissues import read_tissue_table, tissue_classes  # noqa: E402
 
 BONE = (84, 92)

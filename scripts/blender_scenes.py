@@ -19,7 +19,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -27,6 +27,7 @@ import numpy as np  # noqa: E402
 import volrig  # noqa: E402
 import volrig_addon  # noqa: E402
 from volrig_addon import bake, objects, staging  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
 
 def log(msg):
@@ -193,7 +194,7 @@ def samples(out):
     ok(bpy.ops.volrig.bake(), "bake")
     bpy.ops.wm.save_mainfile()
     log(f"wrote {bpy.data.filepath} ({vol.volrig.baked_start}..{vol.volrig.baked_end} baked)")
-    frog = os.path.join(REPO, "..", "shared", "data", "frogtissue", "frogtissue.mhd")
+    frog = str(data_root() / "frogtissue" / "frogtissue.mhd")
     if os.path.exists(frog):
         vol = frog_posed(os.path.join(out, "frog_posed.blend"), os.path.normpath(frog))
         ok(bpy.ops.volrig.bake(), "bake")

@@ -17,10 +17,13 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "python"))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
-AIRWAY = os.path.join(ROOT, "..", "shared", "data", "airway", "Patient1_bronchialTree.nii.gz")
+sys.path.insert(0, os.path.join(ROOT, "tests", "support"))  # volrig_support: data_root
 
 import volrig  # noqa: E402
 from volrig.files import atomic_output  # noqa: E402
+from volrig_support import data_root  # noqa: E402
+
+AIRWAY = str(data_root() / "airway" / "Patient1_bronchialTree.nii.gz")
 
 
 def save(fig, path):

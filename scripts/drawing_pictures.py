@@ -1,5 +1,5 @@
 """docs/images/drawing.png: a drawing becomes a character. A procedural front-view drawing
-(``volrig.sketches.character``) imported with the add-on's Import Drawing (inflated, coloured by its palette,
+(``volrig_support.sketches.character``) imported with the add-on's Import Drawing (inflated, coloured by its palette,
 rigged as a humanoid), posed with keyframes (arms raised and bent, a knee lifted, the head turned), baked and
 rendered with Cycles at rest and posed from a three-quarter view, beside the drawing.
 
@@ -11,13 +11,14 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), HERE]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), HERE, os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 from mathutils import Quaternion, Vector  # noqa: E402
 
 import volrig_addon  # noqa: E402
-from volrig import drawing, sketches  # noqa: E402
+from volrig import drawing  # noqa: E402
+from volrig_support import sketches  # noqa: E402
 from volrig_addon import objects, staging  # noqa: E402
 from blender_scenes import log, new_scene, ok, render_frames, sheet  # noqa: E402
 

@@ -10,15 +10,16 @@ import sys
 import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 import volrig_addon  # noqa: E402
 
 volrig_addon.register()
 from volrig_addon import flythrough  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
-AIRWAY = os.path.join(os.path.dirname(REPO), "shared", "data", "airway", "Patient1_bronchialTree.nii.gz")
+AIRWAY = str(data_root() / "airway" / "Patient1_bronchialTree.nii.gz")
 FRAME, SIZE, SAMPLES = 75, 200, 64
 work = tempfile.mkdtemp(prefix="volrig_fly_")
 try:

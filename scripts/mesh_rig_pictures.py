@@ -13,7 +13,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), HERE]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), HERE, os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -22,9 +22,10 @@ from mathutils import Vector  # noqa: E402
 import volrig  # noqa: E402
 import volrig_addon  # noqa: E402
 from volrig_addon import mesh_rig  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 from blender_scenes import log, ok, quiet_stdout, sheet  # noqa: E402
 
-KNIGHT = os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off")
+KNIGHT = str(data_root() / "meshes" / "decimated-knight.off")
 #: bone -> (rotation about the bone's own x axis, degrees): the knight faces -Y, so -x bends an elbow forwards
 POSE = {"forearm.L": -90.0, "shin.L": 60.0, "upper_arm.R": -30.0}
 THICKER = {"forearm.L": 1.8, "thigh.R": 1.6}

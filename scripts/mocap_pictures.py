@@ -14,6 +14,7 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))  # volrig_support: data_root
 
 import matplotlib  # noqa: E402
 matplotlib.use("Agg")
@@ -21,12 +22,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import volrig  # noqa: E402
 from volrig import phantom  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 from deform_pictures import side_view  # noqa: E402
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--clip", default=os.path.join(HERE, "..", "..", "shared", "data", "bvh", "131_01.bvh"))
+    ap.add_argument("--clip", default=str(data_root() / "bvh" / "131_01.bvh"))
     ap.add_argument("--first", type=int, default=120, help="first BVH frame (0-based)")
     ap.add_argument("--count", type=int, default=8)
     ap.add_argument("--step", type=int, default=16, help="BVH frames between pictures (120 fps)")

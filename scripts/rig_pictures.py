@@ -19,11 +19,14 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "python"))
-SHARED = os.path.join(ROOT, "..", "shared", "data")
+sys.path.insert(0, os.path.join(ROOT, "tests", "support"))  # volrig_support: data_root, subjects
 
 import volrig  # noqa: E402
 from volrig.rig import autorig, bind  # noqa: E402
 from volrig.tree import skeleton_tree  # noqa: E402
+from volrig_support import data_root  # noqa: E402
+
+SHARED = str(data_root())
 
 
 #: shared meshes: file, TGF with reference joints (or None), the two world axes to draw (horizontal, vertical)
@@ -110,11 +113,12 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
 
 
 def draw_poses(path: str, poses=("knees_apart", "wide", "stride", "tpose"), scale: float = 0.9):
-    """The capsule humanoid (volrig.subjects.capsule_subject) in ``poses``, front view: its rig and true joints."""
+    """The capsule humanoid (volrig_support.subjects.capsule_subject) in ``poses``, front view: its rig and true
+    joints."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from volrig import subjects as S
+    from volrig_support import subjects as S
     fig, axes = plt.subplots(1, len(poses), figsize=(3.4 * len(poses), 4.6))
     for ax, pose in zip(axes, poses):
         s = S.capsule_subject(pose, scale)

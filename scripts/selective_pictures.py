@@ -21,7 +21,8 @@ import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "scripts")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "scripts"),
+                os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 
@@ -31,9 +32,10 @@ from blender_scenes import contact_sheet, log, new_scene, quiet_stdout, rigged_v
 
 volrig_addon.register()
 from volrig_addon import looks, objects, staging  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
 OUT = os.path.join(REPO, "docs", "images", "selective_phantom.png")
-FROG = os.path.normpath(os.path.join(REPO, "..", "shared", "data", "frogtissue", "frogtissue.mhd"))
+FROG = str(data_root() / "frogtissue" / "frogtissue.mhd")
 FROG_TISSUES = ["blood", "brain", "duodenum", "eye retina", "eye white", "heart", "ileum", "kidney",
                 "large intestine", "liver", "lung", "nerve", "skeleton", "spleen", "stomach"]
 

@@ -30,8 +30,8 @@ import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "scripts")]
-DATA = os.path.normpath(os.path.join(REPO, "..", "shared", "data"))
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "scripts"),
+                os.path.join(REPO, "tests", "support")]
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -40,7 +40,9 @@ import volrig  # noqa: E402
 from volrig import pipeline  # noqa: E402
 from blender_scenes import log, quiet_stdout, run_and_exit  # noqa: E402
 from volrig_addon import compat, engines, materials  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
+DATA = str(data_root())
 OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
 
 

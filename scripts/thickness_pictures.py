@@ -16,10 +16,12 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "python"))
+sys.path.insert(0, os.path.join(ROOT, "tests", "support"))  # volrig_support: data_root
 
 import volrig  # noqa: E402
+from volrig_support import data_root  # noqa: E402
 
-DATA = os.path.join(ROOT, "..", "shared", "data")
+DATA = str(data_root())
 
 
 def first_hit(a: np.ndarray, axis: int, flip: bool):

@@ -2,15 +2,16 @@
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
 its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
-UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid (volrig.subjects.capsule_subject,
-e.g. wide) instead of the phantom."""
+UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid
+(volrig_support.subjects.capsule_subject, e.g. wide) instead of the phantom."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 import bpy
 import volrig, volrig_addon
 from volrig_addon import looks_ui, mesh_rig, panels
+from volrig_support import data_root
 import inspect
 _panels = [c for m in (panels, mesh_rig, looks_ui) for c in vars(m).values()
            if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
@@ -55,7 +56,7 @@ def knight_scene():
     the left forearm 1.6 times as thick, in pose mode with the forearm active."""
     import math
     import numpy as np
-    v, f = volrig.read_mesh(os.path.join(REPO, "..", "shared", "data", "meshes", "decimated-knight.off"))
+    v, f = volrig.read_mesh(str(data_root() / "meshes" / "decimated-knight.off"))
     v = np.asarray(v, float)
     mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
     print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
@@ -75,12 +76,12 @@ def setup():
         return setup_mesh()
     if os.environ.get("UI_VHM"):
         return setup_vhm()
-    pose = os.environ.get("UI_CAPSULES")  # a capsule humanoid in this pose (volrig.subjects.CAPSULE_POSES)
+    pose = os.environ.get("UI_CAPSULES")  # a capsule humanoid in this pose (volrig_support.subjects.CAPSULE_POSES)
     name = "capsules" if pose else "phantom"
     path = os.path.join(WORK, f"{name}.nrrd")
     if not os.path.exists(path):
         if pose:
-            from volrig.subjects import capsule_subject
+            from volrig_support.subjects import capsule_subject
             volrig.Volume(capsule_subject(pose, 1.0).mask.array.astype("uint8") * 255).save(path)
         else:
             volrig.phantom.humanoid(0.4).volume.save(path)
@@ -175,7 +176,7 @@ def show_volrig_sidebar(win, shading, three_quarter=False):
 def setup_vhm():
     """UI_VHM=1: the Visible Human's 4 mm labels imported (its tissue table found beside it: per-tissue looks on),
     rendered in the viewport from the front with fat and muscle hidden."""
-    path = os.path.join(REPO, "..", "shared", "data", "visible-human", "austinman_4mm_labels.nii.gz")
+    path = str(data_root() / "visible-human" / "austinman_4mm_labels.nii.gz")
     win, override = empty_view3d()
     with override:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "scene.blend"))

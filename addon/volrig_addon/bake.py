@@ -14,15 +14,14 @@ import re
 import sys
 
 import bpy
-import numpy as np
 
 import volrig
 from volrig import pipeline
 
-from . import looks, objects, scans, tissue_looks
+from . import objects, scans
+from .state import THICKNESS, RigState, parts_of, substitutes_of, tissues_of  # noqa: F401  (bake.THICKNESS, bake.RigState as before)
 
 
-THICKNESS = objects.THICKNESS
 #: > 0 while a bake sets frames (the live preview skips those frame changes)
 posing = 0
 
@@ -46,54 +45,6 @@ def parse_frames(text: str, scene=None):
     return pipeline.parse_frames(text, None if scene is None else (scene.frame_start, scene.frame_end))
 
 
-class RigState:
-    """A rigged volrig Volume object as the deformation sees it now: its armature and sphere mesh, the rig file's
-    points, the bone names in the armature's order and the binding from the sphere mesh's vertex groups (weight
-    painting counts)."""
-
-    def __init__(self, volume_obj):
-        self.volume_obj = volume_obj
-        parts = objects.members(volume_obj)
-        if "RIG" not in parts or "SPHERES" not in parts:
-            raise volrig.VolrigError(f"{volume_obj.name} is not rigged: press Rig first")
-        self.rig_obj, self.spheres_obj = parts["RIG"], parts["SPHERES"]
-        self.path = scans.rig_path(volume_obj)
-        saved = volrig.load_rig(self.path)
-        self.points = saved.points
-        self.names = [b.name for b in self.rig_obj.data.bones]
-        fallback = saved.binding if saved.binding is not None and saved.binding.bone_names == self.names else None
-        groups = objects.vertex_groups(self.spheres_obj)
-        if len(self.spheres_obj.data.vertices) != len(saved.points):
-            raise volrig.VolrigError(f"{self.spheres_obj.name} has {len(self.spheres_obj.data.vertices)} vertices "
-                                     f"but the rig file has {len(saved.points)} points: press Rig again")
-        self.binding = volrig.Binding.from_groups(groups, self.names, len(saved.points), fallback=fallback)
-        self.rig = objects.armature_rig(self.rig_obj)
-
-    @property
-    def parents(self):
-        """Each bone's parent index in the armature (-1 for roots)."""
-        index = {name: b for b, name in enumerate(self.names)}
-        return [index[b.parent.name] if b.parent else -1 for b in self.rig_obj.data.bones]
-
-    def thickness(self, depsgraph):
-        """(B,) each bone's thickness factor now (its pose bone's ``volrig_thickness``, keyframable; 1 when unset),
-        or None when every bone is at 1."""
-        arm = self.rig_obj.evaluated_get(depsgraph)
-        out = np.array([float(arm.pose.bones[name].get(THICKNESS, 1.0)) for name in self.names])
-        return None if np.all(out == 1.0) else out
-
-    def bone_matrices(self, depsgraph) -> np.ndarray:
-        """(B, 4, 4) rest-to-pose matrices of the evaluated armature, in the bone order of the binding."""
-        arm = self.rig_obj.evaluated_get(depsgraph)
-        out = np.empty((len(self.names), 4, 4))
-        for b, name in enumerate(self.names):
-            pb = arm.pose.bones[name]
-            out[b] = np.array(pb.matrix @ pb.bone.matrix_local.inverted())
-        # (bones at rest come out of Blender's single precision a hair off the identity: volrig.deform takes them as
-        # the identity itself)
-        return out
-
-
 class Baker(RigState):
     """Everything one bake of a volrig Volume object needs, prepared once (``volrig.pipeline.FolderBake``: the
     Deformer and the record of baked poses). ``frames``: how many frames the bake will draw, when known."""
@@ -103,10 +54,10 @@ class Baker(RigState):
         self.folder = pipeline.FolderBake(scans.source(volume_obj), self.points, self.binding,
                                           frames_dir(volume_obj), _stem(volume_obj), mode=mode,
                                           sampling=volume_obj.volrig.sampling, track=True,
-                                          setup=os.path.basename(self.path), parts=looks.parts_of(volume_obj),
+                                          setup=os.path.basename(self.path), parts=parts_of(volume_obj),
                                           rig=objects.armature_rig(self.rig_obj),
-                                          tissues=tissue_looks.tissues_of(volume_obj),
-                                          substitutes=looks.substitutes_of(volume_obj),
+                                          tissues=tissues_of(volume_obj),
+                                          substitutes=substitutes_of(volume_obj),
                                           keep_volume=volume_obj.volrig.keep_volume,
                                           lattice_tables=volume_obj.volrig.lattice_tables,
                                           frames=frames)  # (how many: whether the lattice tables pay)

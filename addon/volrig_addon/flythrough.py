@@ -17,7 +17,7 @@ from mathutils import Matrix, Vector
 import volrig
 from volrig.centerlines import flight_frames, flight_path, lumen_wall, straightening_rig
 
-from . import compat, engines, materials, objects, scans
+from . import compat, engines, materials, objects, scans, staging
 from .bake import exit_with
 
 #: The headlight's power for a lumen of radius 1 Blender unit (W); it scales with the radius squared, so the wall
@@ -239,8 +239,7 @@ def straighten(context, volume_obj, import_samples, progress=None):
 
 
 def _box(volume_obj):
-    from .staging import volume_box
-    lo, hi = volume_box(volume_obj)
+    lo, hi = staging.volume_box(volume_obj)
     return Vector(lo), Vector(hi)
 
 

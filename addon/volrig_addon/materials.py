@@ -7,6 +7,7 @@ import bpy
 import volrig
 
 from . import compat, engines
+from .state import members, tissues_of
 
 #: Transfer functions: the value window as fractions of the volume's value range, and ramp stops
 #: (position, (r, g, b), opacity) over that window.
@@ -140,7 +141,6 @@ def part_transfer(preset, settings):
 
 def bone_index(volume_obj, name: str) -> int:
     """1-based index of bone ``name`` in the rig (the ``bone`` grid's label), 0 when there is no such bone."""
-    from .objects import members
     rig = members(volume_obj).get("RIG")
     if rig is None or not name:
         return 0
@@ -175,9 +175,7 @@ def update_volume_material(volume_obj):
     nd["is_bone"].inputs[1].default_value = float(index) if index else -10.0
     nd["glow"].inputs[1].default_value = s.highlight_strength
     nd["emit"].inputs["Color"].default_value = (*s.highlight_color, 1.0)
-    from . import looks
-    from . import tissue_looks
-    looks.route(mat.node_tree, nd, s.parts if s.use_parts else [], tissue_looks.tissues_of(volume_obj), s)
+    route(mat.node_tree, nd, s.parts if s.use_parts else [], tissues_of(volume_obj), s)
     engines.check_material(mat)  # (EEVEE reads a limited number of grids: says so when this look needs more)
     return mat
 
@@ -321,7 +319,6 @@ def set_thickness_range(mat, top: float, density: float) -> None:
     n["volrig thickness volume"].inputs["Density"].default_value = float(density)
 
 
-
 #: Names of the nodes tissue_sums adds (looks.route removes them before building again).
 TISSUE_PREFIX = "volrig tissue look"
 
@@ -419,3 +416,127 @@ def tissue_material(name: str, tissues, strength: float = 1.0):
     tree.links.new(sums[1], vol.inputs["Color"])
     tree.links.new(scaled.outputs[0], vol.inputs["Density"])
     return mat
+
+
+# ---- the parts' and tissues' looks in the volume material (looks.py, tissue_looks.py) -----------------------------
+
+_PREFIX = "volrig part"
+
+
+def route(tree, nd, parts, tissues, settings) -> None:
+    """Links the material's value (into the transfer function's window), opacity and colour (into the shaders)
+    through the parts' grids, or straight when ``parts`` is empty; ``nd``: materials' nodes by role. With
+    ``tissues`` (a label map's classes: tissue_looks.py) the opacity and colour come from the tissues' grids
+    (``materials.tissue_sums``) instead of the transfer function, the density multiplier kept. ``settings``: the
+    volume's (value range and density multiplier, for parts with their own transfer function)."""
+    for node in [x for x in tree.nodes if x.name.startswith((_PREFIX, TISSUE_PREFIX))]:
+        tree.nodes.remove(node)
+    link = tree.links.new
+    strength = nd["opacity"].inputs[0]
+    for old in list(strength.links):
+        tree.links.remove(old)
+    value, opacity, colour = nd["density"].outputs["Fac"], nd["opacity"].outputs[0], nd["ramp"].outputs["Color"]
+    sums = tissue_sums(tree, tissues, x=-2300, y=900) if len(tissues) else None
+    if sums is not None:
+        link(sums[0], strength)
+        colour = sums[1]
+    elif len(tissues):  # every tissue hidden
+        strength.default_value = 0.0
+    else:
+        link(nd["ramp"].outputs["Alpha"], strength)
+    if len(parts):
+        value, opacity, colour = _part_nodes(tree, opacity, colour, parts, settings)
+    link(value, nd["window"].inputs["Value"])
+    for shader in (nd["scatter"], nd["absorb"]):
+        link(colour, shader.inputs["Color"])
+        link(opacity, shader.inputs["Density"])
+    link(opacity, nd["glow_density"].inputs[1])
+
+
+class _Builder:
+    """Adds named, placed nodes to a material's tree."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.count = 0
+
+    def node(self, kind, x, y, **props):
+        nd = self.tree.nodes.new(kind)
+        self.count += 1
+        nd.name = nd.label = f"{_PREFIX} {self.count}"
+        nd.location = (x, y)
+        for k, v in props.items():
+            setattr(nd, k, v)
+        return nd
+
+    def math(self, op, a, b, c=None, x=0, y=0):
+        """A Math node ``op`` of inputs a, b (and c): each a socket to link or a number."""
+        nd = self.node("ShaderNodeMath", x, y, operation=op)
+        for socket, v in zip(nd.inputs, (a, b, c)):
+            if isinstance(v, bpy.types.NodeSocket):
+                self.tree.links.new(v, socket)
+            elif v is not None:
+                socket.default_value = v
+        return nd.outputs[0]
+
+    def attribute(self, name, x, y):
+        return self.node("ShaderNodeAttribute", x, y, attribute_name=name).outputs["Fac"]
+
+    def mix(self, fac, a, b_color, x, y):
+        """Colour ``a`` (a socket) mixed towards ``b_color`` (a constant colour or a socket) by ``fac`` (a
+        socket)."""
+        nd = self.node("ShaderNodeMix", x, y, data_type="RGBA")
+        self.tree.links.new(fac, nd.inputs[0])
+        self.tree.links.new(a, nd.inputs[6])
+        if isinstance(b_color, bpy.types.NodeSocket):
+            self.tree.links.new(b_color, nd.inputs[7])
+        else:
+            nd.inputs[7].default_value = (*b_color, 1.0)
+        return nd.outputs[2]
+
+
+def _part_nodes(tree, opacity, colour, parts, settings):
+    """The parts' nodes (see the module's description); returns the (value, opacity, colour) sockets. A part with
+    its own transfer function (``preset``) takes its colour and opacity from its own ramp over ``density_<key>``
+    where its mask is, instead of the volume's."""
+    b = _Builder(tree)
+    value, hidden_weight, opacity_weight = b.attribute(volrig.parts.OUTSIDE, -1900, -700), 0.0, 1.0
+    own = None  # the opacity of the parts with their own transfer function
+    for k, p in enumerate(parts):
+        x, y = -1700 + 150 * k, -700 - 60 * k
+        m = b.attribute(f"mask_{p.key}", x, y - 500)
+        hide = 0.0 if p.visible else 1.0
+        preset = p.preset
+        if p.visible:
+            density = b.attribute(f"density_{p.key}", x, y - 300)
+            value = b.math("ADD", density, value, x=x, y=y)
+            if preset != "VOLUME":
+                ramp = _own_ramp(b, density, preset, settings, x, y - 900)
+                colour = b.mix(m, colour, ramp.outputs["Color"], x=x, y=y - 700)
+                alpha = b.math("MULTIPLY", ramp.outputs["Alpha"], p.opacity * settings.density_scale, x=x, y=y - 1100)
+                term = b.math("MULTIPLY", m, alpha, x=x, y=y - 1200)
+                own = term if own is None else b.math("ADD", own, term, x=x, y=y - 1300)
+        hidden_weight = b.math("MULTIPLY_ADD", m, hide, hidden_weight, x=x, y=y - 100)
+        kept = p.opacity * (1.0 - hide) if preset == "VOLUME" else 0.0  # (an own ramp replaces the volume's)
+        opacity_weight = b.math("MULTIPLY_ADD", m, kept - 1.0, opacity_weight, x=x, y=y - 200)
+        if p.colored and p.visible and preset == "VOLUME":
+            colour = b.mix(m, colour, p.color, x=x, y=y - 700)
+    weight = b.math("MAXIMUM", b.math("SUBTRACT", 1.0, hidden_weight, x=-300, y=-900), 1e-4, x=-150, y=-900)
+    share = b.math("DIVIDE", opacity_weight, weight, x=0, y=-900)
+    opacity = b.math("MULTIPLY", opacity, share, x=150, y=-900)
+    if own is not None:
+        opacity = b.math("ADD", opacity, own, x=300, y=-900)
+    return value, opacity, colour
+
+
+def _own_ramp(b, density, preset, settings, x, y):
+    """A part's own window and ramp (``preset`` over the volume's value range) on its ``density`` socket."""
+    lo, hi, interpolation, stops = part_transfer(preset, settings)
+    window = b.node("ShaderNodeMapRange", x, y, clamp=True)
+    window.inputs["From Min"].default_value = lo
+    window.inputs["From Max"].default_value = hi if hi > lo else lo + 1.0
+    b.tree.links.new(density, window.inputs["Value"])
+    ramp = b.node("ShaderNodeValToRGB", x, y - 100)
+    fill_ramp(ramp.color_ramp, interpolation, stops)
+    b.tree.links.new(window.outputs["Result"], ramp.inputs["Fac"])
+    return ramp

@@ -20,29 +20,11 @@ from mathutils import Matrix
 
 import volrig
 
-from . import compat, materials
+from . import compat, materials, scans
+from .state import THICKNESS, armature_rig, members, vertex_groups, volume_of  # noqa: F401  (objects.* as before)
 
 SPHERE_NODES = "volrig spheres"
 ROD_NODES = "volrig rods"
-
-
-def volume_of(obj):
-    """The volrig Volume object ``obj`` belongs to (itself for the Volume), or None."""
-    if obj is None:
-        return None
-    if obj.volrig.role == "VOLUME":
-        return obj
-    v = obj.volrig.volume
-    return v if v is not None and v.volrig.role == "VOLUME" else None
-
-
-def members(volume_obj):
-    """Objects of the set by role: {"RIG": obj, "SPHERES": obj, ...} (those that exist)."""
-    out = {}
-    for o in bpy.data.objects:
-        if o.volrig.role != "VOLUME" and o.volrig.volume == volume_obj:
-            out[o.volrig.role] = o
-    return out
 
 
 def _collection_of(volume_obj):
@@ -98,7 +80,6 @@ def _cached_preview(volume_obj, prefix: str, write) -> str:
     written by ``write(path)`` when missing; earlier ``<prefix>_*.vdb`` files are removed (a new name per
     segmentation, so Blender reloads it)."""
     import hashlib
-    from . import scans
     folder = scans.cache_dir(volume_obj)
     key = hashlib.sha1(repr(scans.segmentation_key(volume_obj)).encode()).hexdigest()[:10]
     path = os.path.join(folder, f"{prefix}_{key}.vdb")
@@ -134,7 +115,6 @@ def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
 def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
     """Shows the mask coloured by its local thickness as ``<name>_thickness`` (grids ``density``: the mask,
     ``thickness``: world units; cached as thickness_<key>.vdb). Returns (object, thickness values of the mask)."""
-    from . import scans
 
     computed = []
 
@@ -329,7 +309,6 @@ def _set_points(mesh, centers, radii, edges=None) -> None:
 def update_skeleton_preview(volume_obj) -> None:
     """Re-threshold the kept skeleton at the current thinness and show its points (instant: no recomputation).
     Does nothing until Skeletonize has computed the skeleton in this session."""
-    from . import scans
     s = volume_obj.volrig
     sk = scans.skeleton(volume_obj, compute=False)
     if sk is None:
@@ -405,11 +384,6 @@ def _add_bones(arm, rig: volrig.Rig) -> None:
             ebs[b].use_connect = bool(np.allclose(heads[b], tails[p]))
 
 
-#: the pose-bone property holding a bone's thickness factor (1 = as scanned or modelled, 0 .. 4); keyframable.
-#: Meshes read it through their thickness shape keys' drivers, volumes at bake time.
-THICKNESS = "volrig_thickness"
-
-
 def thickness_property(pose_bone) -> None:
     """Gives ``pose_bone`` its ``volrig_thickness`` (1) with its slider range, unless it has one."""
     if THICKNESS not in pose_bone:
@@ -417,18 +391,6 @@ def thickness_property(pose_bone) -> None:
     pose_bone.id_properties_ui(THICKNESS).update(
         min=0.0, max=4.0, soft_min=0.0, soft_max=4.0, default=1.0, step=1, precision=3,
         description="Thickness around this bone (1 = as scanned or modelled; keyframable)")
-
-
-def armature_rig(rig_obj) -> volrig.Rig:
-    """The rig the armature describes now (after the user's edits), bones in the armature's order."""
-    bones = list(rig_obj.data.bones)
-    if not bones:
-        raise volrig.VolrigError(f"{rig_obj.name} has no bones")
-    index = {b.name: i for i, b in enumerate(bones)}
-    heads = np.array([tuple(b.head_local) for b in bones])
-    tails = np.array([tuple(b.tail_local) for b in bones])
-    parents = [index[b.parent.name] if b.parent else -1 for b in bones]
-    return volrig.Rig.from_bones(heads, tails, [b.name for b in bones], parents)
 
 
 def build_spheres(volume_obj, rig_obj, points: volrig.SkeletonPoints, tree, binding: volrig.Binding):
@@ -463,19 +425,6 @@ def set_vertex_groups(spheres_obj, binding: volrig.Binding) -> None:
         values, inverse = np.unique(w, return_inverse=True)
         for k, value in enumerate(values):
             vg.add(idx[inverse == k].tolist(), float(value), "REPLACE")
-
-
-def vertex_groups(spheres_obj):
-    """The weights the vertex groups hold now: {group name: (vertex indices, weights)}."""
-    names = [vg.name for vg in spheres_obj.vertex_groups]
-    idx = [[] for _ in names]
-    w = [[] for _ in names]
-    for v in spheres_obj.data.vertices:
-        for g in v.groups:
-            if g.weight > 0:
-                idx[g.group].append(v.index)
-                w[g.group].append(g.weight)
-    return {n: (np.array(i, dtype=np.int64), np.array(x, dtype=np.float64)) for n, i, x in zip(names, idx, w)}
 
 
 def attach_volume(volume_obj, rig_obj) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 import volrig
 from volrig.deform import coarse_level
 
-from . import bake, objects, scans, tissue_looks
+from . import bake, looks, objects, scans, tissue_looks
 
 #: the coarse grid's size limit in voxels (a quarter per axis of the phantom at scale 1 is 0.72 M)
 BUDGET_VOXELS = 1_500_000
@@ -115,7 +115,6 @@ def showing_preview(volume_obj) -> bool:
 
 def restore(volume_obj) -> None:
     """The Volume object back to what it shows without a preview: its baked sequence, else the rest volume."""
-    from . import looks
     s = volume_obj.volrig
     if s.baked_end >= s.baked_start:
         first = bake.frame_path(volume_obj, s.baked_start)

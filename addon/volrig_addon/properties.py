@@ -8,7 +8,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from volrig.deform import MODE_INFO, SAMPLING_INFO
 from volrig.pipeline import DEFAULT_THINNESS_VOXELS
 
-from . import compat
+from . import compat, looks, materials, objects, scans, tissue_looks
 
 UNIT_SCALES = [
     ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
@@ -36,32 +36,26 @@ def _menu(info):
 
 
 def _segmentation_changed(self, context):
-    from . import scans
     scans.update_mask_count(self.id_data)
 
 
 def _thinness_changed(self, context):
-    from . import objects
     objects.update_skeleton_preview(self.id_data)
 
 
 def _look_changed(self, context):
-    from . import materials
     materials.update_volume_material(self.id_data)
 
 
 def _parts_toggled(self, context):
-    from . import looks
     looks.parts_toggled(self.id_data)
 
 
 def _substitute_changed(self, context):
-    from . import looks
     looks.substitute_changed(self.id_data)
 
 
 def _tissues_toggled(self, context):
-    from . import tissue_looks
     tissue_looks.toggled(self.id_data)
 
 

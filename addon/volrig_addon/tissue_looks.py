@@ -8,30 +8,16 @@ classes' opacity and colour over them (``materials.tissue_sums``), so an interpo
 neighbours and never a third tissue's colour, and a hidden class is not read at all. Label maps bake with nearest
 sampling (turning the looks on sets it; a bake with trilinear sampling and tissue looks is refused).
 """
-import os
 
 import bpy
 import numpy as np
 
 import volrig
-from volrig import pipeline
 
-from . import objects, scans
-
-
-def rest_file(volume_obj) -> str:
-    """The rest volume with the tissue grids when per-part looks are off."""
-    return os.path.join(scans.cache_dir(volume_obj), "tissues.vdb")
-
-
-def tissues_of(volume_obj):
-    """The object's tissue classes as ``volrig.Tissue`` with their looks from the list; none while per-tissue looks
-    are off."""
-    s = volume_obj.volrig
-    if not s.use_tissues:
-        return []
-    return [volrig.Tissue(t.name, t.key, [int(c) for c in t.codes.split(",") if c], tuple(t.color), t.opacity,
-                          t.visible) for t in s.tissues]
+from . import looks, materials, objects, scans
+from .state import tissues_of  # noqa: F401  (tissue_looks.tissues_of as before)
+from .state import tissues_rest_file as rest_file  # noqa: F401
+from .state import write_tissues_rest as write_rest  # noqa: F401
 
 
 def classes(volume_obj):
@@ -50,7 +36,6 @@ def classes(volume_obj):
 def toggled(volume_obj) -> None:
     """Per-tissue looks turned on (the classes found, the rest file written and shown, nearest sampling) or off
     (the rest volume without them shown again); the material follows."""
-    from . import looks, materials
     if volume_obj.volrig.use_tissues:
         volume_obj.volrig.sampling = "nearest"
         try:
@@ -68,7 +53,6 @@ def toggled(volume_obj) -> None:
 def refresh(volume_obj) -> int:
     """Finds the tissue classes (keeping the looks of classes already listed by name), writes the rest volume with
     their grids and shows it unless a bake is playing; returns the number of classes."""
-    from . import looks, materials
     s = volume_obj.volrig
     found = classes(volume_obj)
     kept = {t.name: (t.visible, tuple(t.color), t.opacity) for t in s.tissues}
@@ -83,8 +67,3 @@ def refresh(volume_obj) -> int:
         objects.point_volume_at(volume_obj, looks.shown_at_rest(volume_obj))
     materials.update_volume_material(volume_obj)
     return len(s.tissues)
-
-
-def write_rest(volume_obj) -> None:
-    """The rest volume with the tissue grids (no rig needed)."""
-    pipeline.write_rest_looks(rest_file(volume_obj), scans.source(volume_obj), tissues=tissues_of(volume_obj))

@@ -7,7 +7,6 @@ Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s
 -> ``animate(rig, motion)`` gives per-frame bone matrices. Drawings come in through ``inflate`` (a mask, too)
 and ``drawing_colours``.
 """
-from . import _volrig
 from ._volrig import Cancelled, FileFormatError, VolrigError
 from .mesh import read_mesh, read_tgf, subdivide, voxelize
 from .segment import label_components, segment
@@ -25,7 +24,8 @@ from .centerlines import (Centerline, CenterlineTree, StraighteningRig, Straight
                           straighten, straightening_rig)
 from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
-from .skin import MeshRig, pose_vertices, rig_mesh, skin_weights
+from .skin import MeshRig, pose_vertices, skin_weights
+from .pipeline import rig_mesh
 from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
                       tissue_classes, tissue_grids)
@@ -49,7 +49,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
 
 
 def __getattr__(name):
-    if name in ("phantom", "drawing", "sketches"):  # numpy/scipy-heavy modules, imported on first use
+    if name in ("phantom", "drawing"):  # numpy/scipy-heavy modules, imported on first use
         import importlib
         return importlib.import_module("." + name, __name__)
     if name in ("inflate", "drawing_colours"):  # scipy.ndimage, imported on first use

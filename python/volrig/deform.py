@@ -19,7 +19,7 @@ from .rigid_layer import RigidLayer
 from .tissues import tissue_grids
 from .rig import Binding, rest_pose
 from .skeleton import ProgressFn, SkeletonPoints
-from .volume import Volume, build_vdb
+from .volume import Volume, _source_array, build_vdb
 
 #: The deform modes (the core's names, ``_volrig.DEFORM_MODES``), each with a label and a description for menus:
 #: the one list the command line's choices and the add-on's menu come from. The add-on stores a choice by its
@@ -194,15 +194,6 @@ def _sphere_arrays(points: SkeletonPoints, binding: Binding):
 def _matrices(m) -> np.ndarray:
     """(B, 4, 4) float64, C order; shape, count, finiteness and rigidity are the bindings' and the core's checks."""
     return np.ascontiguousarray(m, dtype=np.float64)
-
-
-def _source_array(source: Volume) -> np.ndarray:
-    if not isinstance(source, Volume):
-        raise TypeError(f"source must be a volrig.Volume, got {type(source).__name__}")
-    a = source.array
-    if a.dtype == np.bool_:
-        a = a.view(np.uint8)
-    return np.ascontiguousarray(a)
 
 
 def _radius_scale(radius_scale, n: int):

@@ -1,4 +1,4 @@
-"""Plates and thickness: the plane-like skeleton and local thickness (``../shared/docs/ALGORITHMS.md`` §11, the Amira paper).
+"""Plates and thickness: the plane-like skeleton and local thickness (ALGORITHMS.md §11 of the shared docs, the Amira paper).
 
 ``local_thickness(mask)``: for every object voxel, the diameter of the largest ball inside the object that contains
 it (Hildebrand and Rüegsegger 1997; the balls are reconstruction's open balls |q - c| < DT(c), Euclidean, world

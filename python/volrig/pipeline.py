@@ -25,13 +25,14 @@ import numpy as np
 from ._volrig import VolrigError
 from .deform import DEFORM_REVISION, Deformer
 from .files import atomic_output
-from .mesh import MESH_EXTENSIONS
+from .mesh import MESH_EXTENSIONS, ProgressFn, voxelize
 from .parts import part_grids, substitute_grid
 from .tissues import tissue_grids
 from .rig import Binding, Rig, autorig, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
+from .skin import MESH_VOXELS, MeshRig, _points, _span, mesh_voxel_size, skin_weights
 from .tree import skeleton_tree
 from .volume import Volume, format_of, load, write_vdb
 
@@ -251,6 +252,37 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
                   own_scale=own_scale)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"), rigid=rigid)
     return RiggedSkeleton(points, tree, rig, binding, source)
+
+
+def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
+             thinness: Optional[float] = None, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
+             skin_points=None, **autorig_options) -> MeshRig:
+    """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
+    side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
+    ``DEFAULT_THINNESS_VOXELS``, half a voxel), autorig
+    (``autorig_options``: kind=, up=, bones=, roles=... as ``volrig.autorig`` takes them), bind the skeleton points
+    (smooth) and compute the vertices' ``skin_weights`` (``influences``, ``blend``).
+
+    progress: callable(fraction) -> bool|None; False cancels (``volrig.Cancelled``).
+    skin_points: (S, 3) points to skin instead of the vertices (same frame), e.g. a Blender mesh's own vertices when
+    the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
+    mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
+    """
+    thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
+    v = _points(vertices)
+    f = np.asarray(faces)
+    size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
+    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15))
+    step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
+    staged = None if progress is None else \
+        (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))
+    sk = skeleton_of(mask, progress=staged)
+    pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
+    r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
+    if skin_points is not None:
+        v, f = _points(skin_points), np.zeros((0, 3), dtype=np.int64)
+    weights = skin_weights(mask, r.rig, v, influences, blend, progress=_span(progress, 0.7, 1.0))
+    return MeshRig(v, f, r.rig, weights, mask, size, sk, pts, r.tree, r.binding)
 
 
 def parse_up(text: str) -> Tuple[float, float, float]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import _volrig
 from ._volrig import VolrigError
-from .volume import Volume
+from .volume import Volume, _source_array
 
 
 def soft_source(source: Volume, body: np.ndarray, rigid: np.ndarray) -> np.ndarray:
@@ -131,7 +131,6 @@ class RigidLayer:
         """A frame (the core's dict: values, bone, offset) with the pieces drawn over it: the brute-force
         reference's rigid layer (the Deformer draws its own). ``fixed``: keep the frame's box (pieces beyond it are
         clipped), else grow it to hold the pieces and crop to what is covered."""
-        from .deform import _source_array
         src, pieces = self.source, [p.native() for p in self.pieces]
         m = np.ascontiguousarray(matrices, dtype=np.float64)
         offset, bone = np.asarray(frame["offset"]), np.asarray(frame["bone"])

@@ -1,6 +1,7 @@
-"""Meshes rigged through their volume: ``rig_mesh`` voxelizes a mesh, skeletonizes, auto-rigs and skins it;
-``skin_weights`` gives any points' weights from a rig and a mask; ``MeshRig.pose`` and ``MeshRig.thicken`` move the
-vertices (linear blend skinning, as Blender's Armature modifier does; thickness editing along bones).
+"""Meshes rigged through their volume: ``rig_mesh`` (``volrig.pipeline.rig_mesh``, which chains the steps)
+voxelizes a mesh, skeletonizes, auto-rigs and skins it; ``skin_weights`` gives any points' weights from a rig and a
+mask; ``MeshRig.pose`` and ``MeshRig.thicken`` move the vertices (linear blend skinning, as Blender's Armature
+modifier does; thickness editing along bones).
 
 Skin weights come from geodesic distances through the voxelized solid (native/include/volrig/skin.hpp): a vertex is
 weighted by the bones that reach it along the inside, so a hand resting on a thigh does not pull the thigh's skin.
@@ -8,13 +9,13 @@ weighted by the bones that reach it along the inside, so a hand resting on a thi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, Mapping, Optional, Union
+from typing import Mapping, Union
 
 import numpy as np
 
 from . import _optional, _volrig
 from ._volrig import VolrigError
-from .mesh import ProgressFn, voxelize
+from .mesh import ProgressFn
 from .rig import Binding, Rig
 from .skeleton import Skeleton, SkeletonPoints
 from .tree import SkeletonTree
@@ -264,35 +265,3 @@ def mesh_voxel_size(vertices, voxels: int = MESH_VOXELS) -> float:
     if not side > 0:
         raise VolrigError("the mesh has no extent (all vertices at one point)")
     return side / int(voxels)
-
-
-def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
-             thinness: Optional[float] = None, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
-             skin_points=None, **autorig_options) -> MeshRig:
-    """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
-    side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
-    ``pipeline.DEFAULT_THINNESS_VOXELS``, half a voxel), autorig
-    (``autorig_options``: kind=, up=, bones=, roles=... as ``volrig.autorig`` takes them), bind the skeleton points
-    (smooth) and compute the vertices' ``skin_weights`` (``influences``, ``blend``).
-
-    progress: callable(fraction) -> bool|None; False cancels (``volrig.Cancelled``).
-    skin_points: (S, 3) points to skin instead of the vertices (same frame), e.g. a Blender mesh's own vertices when
-    the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
-    mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
-    """
-    from .pipeline import DEFAULT_THINNESS_VOXELS, rig_skeleton, skeleton_of, skeleton_points, thinness_from_voxels
-    thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
-    v = _points(vertices)
-    f = np.asarray(faces)
-    size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
-    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15))
-    step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
-    staged = None if progress is None else \
-        (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))
-    sk = skeleton_of(mask, progress=staged)
-    pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
-    r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
-    if skin_points is not None:
-        v, f = _points(skin_points), np.zeros((0, 3), dtype=np.int64)
-    weights = skin_weights(mask, r.rig, v, influences, blend, progress=_span(progress, 0.7, 1.0))
-    return MeshRig(v, f, r.rig, weights, mask, size, sk, pts, r.tree, r.binding)

@@ -206,6 +206,16 @@ class Volume:
                 + turned + (f", path={self.path!r})" if self.path else ")"))
 
 
+def _source_array(source: Volume) -> np.ndarray:
+    """The array the core reads from a source volume: C-contiguous, bool as uint8 (deform's and rigid_layer's)."""
+    if not isinstance(source, Volume):
+        raise TypeError(f"source must be a volrig.Volume, got {type(source).__name__}")
+    a = source.array
+    if a.dtype == np.bool_:
+        a = a.view(np.uint8)
+    return np.ascontiguousarray(a)
+
+
 def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=None,
          origin=(0.0, 0.0, 0.0), byte_order: str = "little", offset: int = 0, grid: str = "",
          max_bytes: Optional[int] = None, series: str = "") -> Volume:

@@ -13,7 +13,8 @@ RIGIFY = ["hips", "spine", "chest", "neck", "head"] + [f"{b}.{s}" for s in "LR" 
 
 @pytest.fixture
 def character_png(tmp_path):
-    from volrig import drawing, sketches
+    from volrig import drawing
+    from volrig_support import sketches
     path = tmp_path / "hero.png"
     drawing.write_png(str(path), sketches.character())
     return str(path)
@@ -56,7 +57,8 @@ def test_import_drawing_rigs_a_coloured_humanoid(empty_scene, character_png):
 
 
 def test_import_drawing_quadruped_forced(empty_scene, tmp_path):
-    from volrig import drawing, sketches
+    from volrig import drawing
+    from volrig_support import sketches
     from volrig_addon import objects
     path = tmp_path / "dog.png"
     drawing.write_png(str(path), sketches.quadruped())

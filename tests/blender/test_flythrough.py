@@ -8,9 +8,9 @@ import pytest
 import bpy
 import volrig
 from conftest import run_op
+from volrig_support import data_root
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-AIRWAY = os.path.join(os.path.dirname(REPO), "shared", "data", "airway", "Patient1_bronchialTree.nii.gz")
+AIRWAY = str(data_root() / "airway" / "Patient1_bronchialTree.nii.gz")
 BEND, RADIUS = 20.0, 4.0  # the tube: a 270-degree arc of radius BEND about the z axis, tube radius RADIUS (mm)
 
 

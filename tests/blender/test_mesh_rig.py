@@ -2,16 +2,16 @@
 volrig weights moves the vertices exactly as volrig's own skinning (linear blend; dual quaternions for Preserve
 Volume); thickness shape keys driven by the pose bones' volrig_thickness; bad meshes reported."""
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import run_op
+from volrig_support import data_root
 
 bpy = pytest.importorskip("bpy")
 
-SHARED_DATA = (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve()
+SHARED_DATA = data_root()
 KNIGHT = SHARED_DATA / "meshes" / "decimated-knight.off"
 RIGIFY = ["hips", "spine", "chest", "neck", "head"] + [f"{b}.{s}" for s in "LR" for b in (
     "shoulder", "upper_arm", "forearm", "hand", "pelvis", "thigh", "shin", "foot")]

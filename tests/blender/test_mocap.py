@@ -9,9 +9,9 @@ import pytest
 import bpy
 import volrig
 from conftest import run_op
+from volrig_support import data_root
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-WALK = os.path.normpath(os.path.join(REPO, "..", "shared", "data", "bvh", "131_01.bvh"))
+WALK = str(data_root() / "bvh" / "131_01.bvh")
 
 
 @pytest.fixture

@@ -1,10 +1,16 @@
 """Shared fixtures: where the real data lives, and skipping cleanly when it does not."""
+import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-SHARED_DATA = (REPO / ".." / "shared" / "data").resolve()
+if str(REPO / "tests" / "support") not in sys.path:
+    sys.path.insert(0, str(REPO / "tests" / "support"))  # volrig_support: the test subjects, sketches, data_root
+
+from volrig_support import data_root  # noqa: E402
+
+SHARED_DATA = data_root()
 
 
 def shared(relative: str) -> Path:

@@ -1,4 +1,4 @@
-"""Issue 16's acceptance criteria for volrig.autorig, on the shared subjects (volrig.subjects).
+"""Issue 16's acceptance criteria for volrig.autorig, on the shared subjects (volrig_support.subjects).
 
 Default run: phantom at scales 0.5 and 1, the meshes, the Visible Human at 4 and 2 mm, the 24 rotations of the
 phantom. VOLRIG_SLOW=1 adds the phantom at scale 2, the Visible Human at 1 mm and the 24 rotations of the meshes.
@@ -15,7 +15,7 @@ import pytest
 from conftest import SHARED_DATA
 
 import volrig
-from volrig import subjects as S
+from volrig_support import subjects as S
 
 SLOW = os.environ.get("VOLRIG_SLOW") == "1"
 slow = pytest.mark.skipif(not SLOW, reason="slow: set VOLRIG_SLOW=1")

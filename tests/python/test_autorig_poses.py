@@ -1,14 +1,14 @@
-"""autorig on a humanoid of capsules (volrig.subjects.capsule_subject) in poses it was not developed on (knees apart,
-feet wide, a stride, a T-pose, arms up), drawn 110 to 240 voxels tall: the limbs are 7 to 17 voxels across, where
-the medial axis' radii step by the distance transform's fractions of a voxel. Every limb joint must land within
-1.5 limb radii of the true one (the arm at 0.6 is 6.6 voxels across: its elbow comes within 1.4 radii). Before the
-knee's and the ankle's necks had to stand out of that noise (kNeckNoise), a 5% wobble of a plain cylinder passed
-for one: ankles came out two radii up the shin, knees and hips a thigh radius high."""
+"""autorig on a humanoid of capsules (volrig_support.subjects.capsule_subject) in poses it was not developed on
+(knees apart, feet wide, a stride, a T-pose, arms up), drawn 110 to 240 voxels tall: the limbs are 7 to 17 voxels
+across, where the medial axis' radii step by the distance transform's fractions of a voxel. Every limb joint must
+land within 1.5 limb radii of the true one (the arm at 0.6 is 6.6 voxels across: its elbow comes within 1.4 radii).
+Before the knee's and the ankle's necks had to stand out of that noise (kNeckNoise), a 5% wobble of a plain
+cylinder passed for one: ankles came out two radii up the shin, knees and hips a thigh radius high."""
 import numpy as np
 import pytest
 
 import volrig
-from volrig import subjects as S
+from volrig_support import subjects as S
 
 #: the limb radius (figure units) each reference joint is judged by
 LIMB = {"shoulder": "upper_arm", "elbow": "upper_arm", "hip": "thigh", "knee": "thigh", "ankle": "shin"}

@@ -620,7 +620,7 @@ def test_smooth_frames_of_the_visible_human_equal_the_brute_force_scatter():
     with a bent knee and elbow (contact planes engaged). Linear and dual-quaternion frames (and nearest-centre
     proximity, one candidate per group) equal the literal scatter voxel for voxel."""
     shared("visible-human/austinman_4mm_labels.nii.gz")
-    from volrig import subjects as S
+    from volrig_support import subjects as S
     labels = S.visible_human_labels(4)
     mask = labels.like(np.asarray(labels.array) > 0)
     pts = volrig.skeletonize(mask).top(15000)

@@ -10,7 +10,7 @@ import pytest
 
 import volrig
 from volrig import drawing as D
-from volrig import sketches as K
+from volrig_support import sketches as K
 
 RIGIFY = ["hips", "spine", "chest", "neck", "head"] + [f"{b}.{s}" for s in "LR" for b in (
     "shoulder", "upper_arm", "forearm", "hand", "pelvis", "thigh", "shin", "foot")]
@@ -116,7 +116,7 @@ def test_png_path_and_colours(tmp_path):
 
 
 def test_phantom_silhouette_rigs_as_a_humanoid():
-    from volrig import subjects
+    from volrig_support import subjects
     s = subjects.phantom_subject(0.5)
     silhouette = s.mask.array.any(axis=1)[::-1]  # front view: along y (anterior -y), rows from the top (+z)
     img = np.pad(np.where(silhouette[..., None], 0.55, 1.0), ((4, 4), (4, 4), (0, 0)), constant_values=1.0)

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 import volrig
+from volrig_support import data_root
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+DATA = data_root()
 requires_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA.resolve()}")
 
 

@@ -72,7 +72,7 @@ def write_obj(path, v, f, quads=False):
 
 
 def write_ply(path, v, f, encoding):
-    head = [f"ply", f"format {encoding} 1.0", f"element vertex {len(v)}", "property double x", "property double y",
+    head = ["ply", f"format {encoding} 1.0", f"element vertex {len(v)}", "property double x", "property double y",
             "property double z", "property uchar red", f"element face {len(f)}",
             "property list uchar int vertex_indices", "end_header"]
     body = b""

@@ -221,7 +221,7 @@ def test_the_visible_human_knee_and_elbow_keep_their_bones_rigid():
     quaternion; Dice of each bone's piece against that piece moved by its bone alone, the body's voxel count, and
     no background enclosed in the soft tissue that the rest frame does not enclose."""
     shared("visible-human/austinman_4mm_labels.nii.gz")
-    from volrig import subjects as S
+    from volrig_support import subjects as S
     labels = S.visible_human_labels(4)
     mask = labels.like(np.asarray(labels.array) > 0)
     pts = volrig.skeletonize(mask).top(15000)

@@ -9,9 +9,10 @@ import pytest
 from conftest import SHARED_DATA
 
 import volrig
-from volrig import subjects as S
+from volrig_support import subjects as S
 from volrig.mesh import subdivide
-from volrig.skin import (MeshRig, _closest_on_bones, mesh_voxel_size, pose_vertices, rig_mesh, skin_weights,
+from volrig.pipeline import rig_mesh
+from volrig.skin import (MeshRig, _closest_on_bones, mesh_voxel_size, pose_vertices, skin_weights,
                          thickness_offsets)
 
 TRUNK = ("hips", "spine", "chest", "neck", "head")

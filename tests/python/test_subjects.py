@@ -1,4 +1,4 @@
-"""volrig.subjects: the shared rigging subjects and the Visible Human's bone-derived reference joints."""
+"""volrig_support.subjects: the shared rigging subjects and the Visible Human's bone-derived reference joints."""
 import os
 
 import numpy as np
@@ -14,7 +14,7 @@ NAMES = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip",
 def vhm_joints():
     """Bone-derived joints at 4 and 2 mm (and 1 mm with VOLRIG_SLOW=1)."""
     shared("visible-human/austinman_4mm_labels.nii.gz")
-    from volrig import subjects
+    from volrig_support import subjects
     return {mm: subjects.visible_human_joints(subjects.visible_human_labels(mm))
             for mm in ((4, 2, 1) if SLOW else (4, 2))}
 
@@ -52,14 +52,15 @@ def test_vhm_joints_anatomy(vhm_joints):
 
 
 def test_vhm_joints_need_bone():
-    from volrig import Volume, subjects
+    from volrig import Volume
+    from volrig_support import subjects
     with pytest.raises(ValueError, match="no bone"):
         subjects.visible_human_joints(Volume(np.zeros((4, 4, 4), np.uint8), (1, 1, 1), (0, 0, 0)))
 
 
 def test_mesh_subjects_voxelize_to_size():
     shared("meshes/cow.off")
-    from volrig import subjects
+    from volrig_support import subjects
     for name in ("cow", "hand"):
         s = subjects.mesh_subject(name)
         assert 150 <= max(s.mask.array.shape) <= 175
@@ -70,7 +71,7 @@ def test_mesh_subjects_voxelize_to_size():
 
 
 def test_hole_capping_closes_an_open_off_mesh(tmp_path):
-    from volrig import subjects
+    from volrig_support import subjects
     p = tmp_path / "box.off"
     # a unit cube without its top face: five quads; the hole is capped by a fan
     v = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n1 0 1\n1 1 1\n0 1 1\n"
@@ -89,7 +90,7 @@ def test_hole_capping_closes_an_open_off_mesh(tmp_path):
 def test_hole_capping_welds_a_slit_first():
     """A mesh cut open along a seam (camel_b.obj: duplicated vertices along a slit) is closed by welding, not
     capped by a fan across the body."""
-    from volrig import subjects
+    from volrig_support import subjects
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
     quads = [[0, 3, 2, 1], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7], [4, 5, 6, 7]]
     # the top face on copies of its corners: a slit all round it
@@ -104,7 +105,8 @@ def test_hole_capping_welds_a_slit_first():
 
 
 def test_rig_joint_maps_reference_names():
-    from volrig import Rig, subjects
+    from volrig import Rig
+    from volrig_support import subjects
     rig = Rig(joints=[[0, 0, 0], [0, 0, -1], [0, 0, -2]], bones=[[0, 1], [1, 2]], names=["upper_arm.L",
                                                                                        "forearm.L"])
     np.testing.assert_allclose(subjects.rig_joint(rig, "elbow.L"), [0, 0, -1])
@@ -113,7 +115,8 @@ def test_rig_joint_maps_reference_names():
 
 
 def test_rotate_mask_maps_points_exactly():
-    from volrig import Volume, subjects
+    from volrig import Volume
+    from volrig_support import subjects
     mask = Volume(np.zeros((5, 4, 3), bool), (1.0, 2.0, 3.0), (10.0, 0.0, 0.0))
     mask.array[4, 3, 2] = True   # x=2, y=3, z=4
     p = np.array([10 + 2 * 1.0, 3 * 2.0, 4 * 3.0])
@@ -126,7 +129,8 @@ def test_rotate_mask_maps_points_exactly():
 
 
 def test_rig_difference_pairs_bones():
-    from volrig import Rig, subjects
+    from volrig import Rig
+    from volrig_support import subjects
     a = Rig(joints=[[0, 0, 0], [0, 0, 10], [0, 5, 15]], bones=[[0, 1], [1, 2]], names=["chain0", "chain0.001"],
             kind="chains")
     b = Rig(joints=[[0, 5, 15], [0, 0, 10], [0, 0, 0]], bones=[[1, 0], [2, 1]], names=["chain0", "chain0.001"],

@@ -20,19 +20,19 @@ FileNotFoundError naming it. Meshes are voxelized with about ``MESH_VOXELS`` vox
 from __future__ import annotations
 
 import itertools
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, Optional
 
 import numpy as np
 
-from ._optional import LazyModule
+from volrig._optional import LazyModule
+from volrig.mesh import read_mesh, read_tgf, voxelize
+from volrig.volume import Volume, load
 
-from .mesh import read_mesh, read_tgf, voxelize
-from .volume import Volume, load
+from . import data_root
 
-ndi = LazyModule("scipy.ndimage", "volrig.subjects (the real test subjects)")
+ndi = LazyModule("scipy.ndimage", "volrig_support.subjects (the real test subjects)")
 
 #: voxels along a mesh's longest bounding-box side
 MESH_VOXELS = 160
@@ -67,11 +67,8 @@ class Subject:
 
 
 def data_dir() -> Path:
-    """Where the shared data live: $VOLRIG_DATA, else ../shared/data beside the repository."""
-    env = os.environ.get("VOLRIG_DATA")
-    if env:
-        return Path(env)
-    return (Path(__file__).resolve().parents[2] / ".." / "shared" / "data").resolve()
+    """Where the shared data live: $VOLRIG_DATA, else ../shared/data beside the repository (``data_root``)."""
+    return data_root()
 
 
 def _data(relative: str) -> Path:
@@ -160,8 +157,8 @@ def mesh_subject(name: str, voxels: int = MESH_VOXELS) -> Subject:
 
 def phantom_subject(scale: float = 0.5) -> Subject:
     """The humanoid phantom at ``scale``; reference joints are its true joints."""
-    from . import phantom
-    from .segment import segment
+    from volrig import phantom
+    from volrig.segment import segment
     ph = phantom.humanoid(scale)
     return Subject(f"phantom{scale:g}", segment(ph.volume), "humanoid", _unit((0, 0, 1)), _unit((0, 0, 1)),
                    dict(ph.joints), None, f"volrig.phantom.humanoid({scale:g})")
@@ -235,7 +232,7 @@ def capsule_subject(pose: str = "down", scale: float = 1.0) -> Subject:
                                 pad=2 * r["head"] - 2)
     joints = {n: (j[n] + shift) * scale for n in LIMB_JOINTS}
     return Subject(f"capsules_{pose}{scale:g}", Volume(mask), "humanoid", _unit((0, 0, 1)), _unit((0, 0, 1)),
-                   joints, None, f"volrig.subjects.capsule_subject({pose!r}, {scale:g})")
+                   joints, None, f"volrig_support.subjects.capsule_subject({pose!r}, {scale:g})")
 
 
 def _capsule_mask(capsules, balls, scale: float, pad: float):
@@ -283,7 +280,8 @@ def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0) -> Subject
     mask, shift = _capsule_mask(caps, [(j["head"], 10)], scale, pad=8)
     joints = {n: (p + shift) * scale for n, p in j.items() if "." in n}
     return Subject(f"quadruped_tail{tail:g}_{scale:g}", Volume(mask), "quadruped", _unit((0, 0, 1)),
-                   _unit((0, -1, 0)), joints, None, f"volrig.subjects.capsule_quadruped_subject({tail:g}, {scale:g})")
+                   _unit((0, -1, 0)), joints, None,
+                   f"volrig_support.subjects.capsule_quadruped_subject({tail:g}, {scale:g})")
 
 
 SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES) + tuple(f"capsules_{p}" for p in CAPSULE_POSES)

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._optional import LazyModule
+from volrig._optional import LazyModule
 
-ndi = LazyModule("scipy.ndimage", "volrig.sketches (the procedural test drawings)")
+ndi = LazyModule("scipy.ndimage", "volrig_support.sketches (the procedural test drawings)")
 
 OUTLINE = (0.05, 0.05, 0.05)
 
