@@ -71,8 +71,9 @@ def _probe_engines():
 
 
 def unregister():
-    if bpy.app.timers.is_registered(_probe_engines):
-        bpy.app.timers.unregister(_probe_engines)
+    for timer in (_probe_engines, engines._clear_status):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     if scans.forget_all in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()

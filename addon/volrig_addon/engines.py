@@ -76,15 +76,28 @@ def use(scene, samples: int = 16) -> str:
 
 
 def tell() -> None:
-    """Prints :data:`NO_GRIDS` once per session and shows it in the status bar where there is one."""
+    """Prints :data:`NO_GRIDS` once per session and shows it in the status bar where there is one, for half a minute
+    (the status bar's own hints come back after; the Look panel keeps saying it)."""
     global _told
     if not _told:
         print(f"volrig: {NO_GRIDS}")
         _told = True
+    if _status(f"volrig: {NO_GRIDS}") and not bpy.app.timers.is_registered(_clear_status):
+        bpy.app.timers.register(_clear_status, first_interval=30.0)
+
+
+def _status(text) -> bool:
+    """Sets (or, with None, clears) every window's status-bar text; False when there is no window."""
     wm = bpy.context.window_manager
-    for window in (wm.windows if wm is not None else []):
-        if window.workspace is not None:
-            window.workspace.status_text_set(f"volrig: {NO_GRIDS}")
+    windows = [w for w in (wm.windows if wm is not None else []) if w.workspace is not None]
+    for window in windows:
+        window.workspace.status_text_set(text)
+    return bool(windows)
+
+
+def _clear_status():
+    _status(None)
+    return None  # once
 
 
 #: Grids one volume material can read in EEVEE: a material reading more renders nothing at all. Measured in Debian's
