@@ -589,22 +589,21 @@ def cmd_demo(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    # the wheel's console script is `volrig`; in a checkout it runs as `python -m volrig`
-    prog = "volrig" if os.path.basename(sys.argv[0]) == "volrig" else "python -m volrig"
-    parser = argparse.ArgumentParser(prog=prog, description="volrig: rig and animate volumes")
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _info_command(sub) -> None:
     p = sub.add_parser("info", help="print a volume file's grid, type and value range")
     _add_load_options(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(run=cmd_info)
 
+
+def _skeletonize_command(sub) -> None:
     p = sub.add_parser("skeletonize", help="skeleton points of a volume at a thinness")
     _add_load_options(p)
     _add_skeleton_options(p, "output .npz (ijk, centers, radii, dt, scores, ...)")
     p.set_defaults(run=cmd_skeletonize)
 
+
+def _rig_command(sub) -> None:
     p = sub.add_parser("rig", help="skeleton, skeleton-tree, automatic rig and binding, saved as one .vrig file")
     _add_load_options(p)
     _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
@@ -626,6 +625,8 @@ def main(argv=None) -> int:
                    help="tissue that must not bend: values in this range (a CT's bone, e.g. 300 3000)")
     p.set_defaults(run=cmd_rig)
 
+
+def _bake_command(sub) -> None:
     p = sub.add_parser("bake", help="bake a saved .blend's volrig volumes in headless Blender (then render with "
                                     "blender -b scene.blend -a)")
     p.add_argument("blend", help="the saved .blend file")
@@ -640,6 +641,8 @@ def main(argv=None) -> int:
                                    "volrig_addon Python finds, else the one installed in Blender)")
     p.set_defaults(run=cmd_bake)
 
+
+def _animate_command(sub) -> None:
     p = sub.add_parser("animate", help="per-frame bone matrices driving a rig with a BVH clip")
     p.add_argument("rig", help="rig file (.vrig, from `volrig rig`)")
     p.add_argument("clip", help="motion capture (.bvh)")
@@ -650,6 +653,8 @@ def main(argv=None) -> int:
     p.add_argument("--save-map", help="also write the bone map used as JSON (to edit and pass back with --map)")
     p.set_defaults(run=cmd_animate)
 
+
+def _bake_mocap_command(sub) -> None:
     p = sub.add_parser("bake-mocap", help="bake a VDB sequence of a volume driven by a BVH clip (no Blender)")
     _add_load_options(p)
     p.add_argument("rig", help="rig file (.vrig, from `volrig rig` on the same volume, with its binding)")
@@ -677,6 +682,8 @@ def main(argv=None) -> int:
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.set_defaults(run=cmd_bake_mocap)
 
+
+def _centerline_command(sub) -> None:
     p = sub.add_parser("centerline", help="centerline of a tubular object (--tree: every branch of a branching one) "
                                           "as CSV")
     _add_load_options(p)
@@ -692,6 +699,8 @@ def main(argv=None) -> int:
                    help="output .csv: branch,parent,generation,index,x,y,z,radius,arc_length (world units)")
     p.set_defaults(run=cmd_centerline)
 
+
+def _thickness_command(sub) -> None:
     p = sub.add_parser("thickness", help="local thickness of an object (each voxel: the diameter of the largest "
                                          "inscribed ball containing it) as a volume")
     _add_load_options(p)
@@ -700,6 +709,8 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", required=True, help="output .nrrd, .mha or .vdb (grid 'thickness'), world units")
     p.set_defaults(run=cmd_thickness)
 
+
+def _medial_command(sub) -> None:
     p = sub.add_parser("medial", help="medial surface of the object's plates (a mesh with per-vertex thickness) and "
                                       "its rods, as a PLY")
     _add_load_options(p)
@@ -711,6 +722,8 @@ def main(argv=None) -> int:
                    help="output .ply: vertices with a 'thickness' property, triangles, rods as edges (world units)")
     p.set_defaults(run=cmd_medial)
 
+
+def _contacts_command(sub) -> None:
     p = sub.add_parser("contacts", help="frames where two rigged volumes touch, or one passes through itself, over "
                                         "BVH clips")
     p.add_argument("files", nargs="+", metavar="FILE",
@@ -724,6 +737,8 @@ def main(argv=None) -> int:
                         "child)")
     p.set_defaults(run=cmd_contacts)
 
+
+def _flythrough_command(sub) -> None:
     p = sub.add_parser("flythrough", help="a fly-through along a tubular object's centerline, built in headless "
                                           "Blender and saved as a .blend (optionally a few frames rendered)")
     p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb), in mm")
@@ -738,17 +753,20 @@ def main(argv=None) -> int:
     p.add_argument("--frames-per-mm", type=float, default=1.0, help="the camera's speed (default 1)")
     p.add_argument("--look-ahead", type=float, help="mm of centerline the view direction averages (default 10)")
     p.add_argument("-o", "--output", required=True, help="output .blend (its cache folder goes beside it)")
-    p.add_argument("--render", metavar="DIR", help="also render frames in Cycles as DIR/frame_NNNN.png")
+    p.add_argument("--render", metavar="DIR", help="also render frames as DIR/frame_NNNN.png (Cycles, or EEVEE where "
+                                                   "this Blender's Cycles renders no VDB grids)")
     p.add_argument("--frames", type=_at_least_one, help="--render: how many frames, spread over the flight "
                                                          "(default 3)")
     p.add_argument("--resolution", type=int, nargs=2, default=(320, 320), metavar=("W", "H"),
                    help="--render: image size (default 320 320)")
-    p.add_argument("--samples", type=_at_least_one, default=16, help="--render: Cycles samples (default 16)")
+    p.add_argument("--samples", type=_at_least_one, default=16, help="--render: samples (default 16)")
     p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
     p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
                                    "volrig_addon Python finds, else the one installed in Blender)")
     p.set_defaults(run=cmd_flythrough)
 
+
+def _inflate_command(sub) -> None:
     p = sub.add_parser("inflate", help="a front-view drawing (PNG with alpha or on a light background) inflated to a "
                                        "rounded solid, with its colours, as a VDB (grids density, color_r/g/b)")
     p.add_argument("drawing", help="the drawing (.png)")
@@ -762,11 +780,33 @@ def main(argv=None) -> int:
                                                   "longer side first")
     p.set_defaults(run=cmd_inflate)
 
+
+def _demo_command(sub) -> None:
     p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--scale", type=float, default=0.5, help="phantom scale (1.0 = 290 x 169 x 940)")
     p.add_argument("--thinness", type=float, default=0.3, help="thinness for the pictured skeleton")
     p.set_defaults(run=cmd_demo)
+
+
+def main(argv=None) -> int:
+    # the wheel's console script is `volrig`; in a checkout it runs as `python -m volrig`
+    prog = "volrig" if os.path.basename(sys.argv[0]) == "volrig" else "python -m volrig"
+    parser = argparse.ArgumentParser(prog=prog, description="volrig: rig and animate volumes")
+    sub = parser.add_subparsers(dest="command", required=True)
+    _info_command(sub)
+    _skeletonize_command(sub)
+    _rig_command(sub)
+    _bake_command(sub)
+    _animate_command(sub)
+    _bake_mocap_command(sub)
+    _centerline_command(sub)
+    _thickness_command(sub)
+    _medial_command(sub)
+    _contacts_command(sub)
+    _flythrough_command(sub)
+    _inflate_command(sub)
+    _demo_command(sub)
 
     args = parser.parse_args(argv)
     try:

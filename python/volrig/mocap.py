@@ -459,6 +459,41 @@ def _legs(motion: Motion, rig: Rig, bone_map: Dict[str, str]) -> List[_Leg]:
     return legs
 
 
+def _leg_scale(legs, scale: Optional[float]) -> float:
+    """Rig units per BVH unit: ``scale`` as given, else the ratio of the mapped legs' lengths."""
+    if scale is None:
+        if not legs:
+            raise VolrigError("cannot scale by leg length: no leg (thigh and foot) is mapped on both skeletons; "
+                              "map the legs or pass scale=")
+        scale = float(np.mean([g.rig_length for g in legs]) / np.mean([g.bvh_length for g in legs]))
+    scale = float(scale)
+    if not np.isfinite(scale) or scale <= 0:
+        raise VolrigError(f"scale must be a positive number, got {scale}")
+    return scale
+
+
+def _rest_alignment(rig, motion, to_rig, b: int, ends, rest_pose, w, eps: float) -> np.ndarray:
+    """The rotation turning rig bone ``b``'s rest direction onto the rest direction (in rig world, through ``w``)
+    of the BVH segment it stands for: from its joint to where the mapped child continuing it (the straightest)
+    starts; identity when either direction is undefined."""
+    heads, tails = ends
+    rest, rest_ends = rest_pose
+    j = to_rig[b]
+    r0 = _unit(tails[b] - heads[b])
+    start = j
+    straightest = -2.0
+    for c in np.flatnonzero(rig.parents == b):
+        dc = _unit(tails[c] - heads[c])
+        if c in to_rig and rig.bones[c, 0] == rig.bones[b, 1] and dc is not None and r0 is not None \
+                and _is_below(motion, to_rig[c], j) and float(dc @ r0) > straightest:
+            straightest, start = float(dc @ r0), to_rig[c]
+    end = _segment_end(motion, rest, rest_ends, j, start, eps)
+    d0 = None if end is None else _unit(w @ (end - rest[j]))
+    if r0 is not None and d0 is not None:
+        return _swing(r0, d0)
+    return np.eye(3)
+
+
 def animate(rig, motion, frames=None, bone_map: Optional[Dict[str, str]] = None, root_motion: str = "in_place",
             up_axis: str = "y", scale: Optional[float] = None) -> np.ndarray:
     """Per-frame rest-to-pose bone matrices driving ``rig`` with a BVH clip.
@@ -484,14 +519,7 @@ def animate(rig, motion, frames=None, bone_map: Optional[Dict[str, str]] = None,
     idx = frame_indices(motion, frames)
 
     legs = _legs(motion, rig, bone_map)
-    if scale is None:
-        if not legs:
-            raise VolrigError("cannot scale by leg length: no leg (thigh and foot) is mapped on both skeletons; "
-                             "map the legs or pass scale=")
-        scale = float(np.mean([g.rig_length for g in legs]) / np.mean([g.bvh_length for g in legs]))
-    scale = float(scale)
-    if not np.isfinite(scale) or scale <= 0:
-        raise VolrigError(f"scale must be a positive number, got {scale}")
+    scale = _leg_scale(legs, scale)
 
     rest, rest_ends = motion.rest_positions()
     # Heading: turn about the up axis so the BVH's hip line (left thigh joint to right) runs along the rig's.
@@ -529,20 +557,7 @@ def animate(rig, motion, frames=None, bone_map: Optional[Dict[str, str]] = None,
         p = int(rig.parents[b])
         if b in to_rig:
             j = to_rig[b]
-            align = np.eye(3)
-            r0 = _unit(tails[b] - heads[b])
-            start = j
-            # The segment this bone stands for ends where the mapped child continuing it (the straightest) starts.
-            straightest = -2.0
-            for c in np.flatnonzero(rig.parents == b):
-                dc = _unit(tails[c] - heads[c])
-                if c in to_rig and rig.bones[c, 0] == rig.bones[b, 1] and dc is not None and r0 is not None \
-                        and _is_below(motion, to_rig[c], j) and float(dc @ r0) > straightest:
-                    straightest, start = float(dc @ r0), to_rig[c]
-            end = _segment_end(motion, rest, rest_ends, j, start, eps)
-            d0 = None if end is None else _unit(w @ (end - rest[j]))
-            if r0 is not None and d0 is not None:
-                align = _swing(r0, d0)
+            align = _rest_alignment(rig, motion, to_rig, b, (heads, tails), (rest, rest_ends), w, eps)
             delta[:, b] = np.einsum("ij,fjk,lk->fil", w, rot[:, j], w) @ align  # W G W^T, then the alignment
         elif p >= 0:
             delta[:, b] = delta[:, p]
