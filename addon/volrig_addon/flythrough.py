@@ -180,12 +180,7 @@ def fly_through(context, volume_obj, progress=None) -> dict:
     scene.frame_set(int(frames[0]))
     engines.use(scene)  # Cycles on the CPU, or EEVEE where this Cycles renders no grids
     scene.view_settings.view_transform = "Standard"  # Filmic greys the wall's pink out
-    if scene.world is None:
-        scene.world = bpy.data.worlds.new("volrig world")
-    compat.use_nodes(scene.world)
-    bg = scene.world.node_tree.nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    staging.world_background(scene, (0.0, 0.0, 0.0))
     return {"line": line, "flight": flight, "path": path, "camera": cam, "light": light, "lumen": lumen}
 
 

@@ -52,16 +52,21 @@ def stage(scene, volume_obj, resolution=(240, 320), samples=16, margin=1.15, azi
         scene.collection.objects.link(sun)
     sun.data.energy = 4.0
     sun.rotation_euler = (0.7, 0.3, -0.5)
-    if scene.world is None:
-        scene.world = bpy.data.worlds.new("volrig world")
-    compat.use_nodes(scene.world)
-    bg = scene.world.node_tree.nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.02, 0.02, 0.025, 1.0)
-        bg.inputs["Strength"].default_value = 1.0
+    world_background(scene, (0.02, 0.02, 0.025))
     r = scene.render
     r.resolution_x, r.resolution_y = resolution
     r.resolution_percentage = 100
     r.image_settings.file_format = "PNG"
     engines.use(scene, samples)  # Cycles on the CPU, or EEVEE where this Cycles renders no grids
     return cam
+
+
+def world_background(scene, color) -> None:
+    """The scene's world (made when missing) a plain background of ``color`` (r, g, b) at strength 1."""
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("volrig world")
+    compat.use_nodes(scene.world)
+    bg = scene.world.node_tree.nodes.get("Background")
+    if bg is not None:
+        bg.inputs["Color"].default_value = (*color, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
