@@ -939,7 +939,7 @@ TEST_CASE("NIfTI: origin from sform or qform, extensions, 4-D with one volume", 
     const Bytes data(24, 5);
     // no qform/sform code: NIfTI's "method 1", the qoffsets as given, no rotation
     CHECK(read_mem(read_nifti, n.header() + data, "0.nii").grid.origin == std::array<double, 3>{1, 2, 3});
-    // NIfTI's RAS becomes LPS: x and y negated (tests/native/test_orientation.cpp tests rotations)
+    // NIfTI's RAS becomes LPS: x and y negated (tests/native/test_io_orientation.cpp tests rotations)
     n.qform = 1;
     const Grid q = read_mem(read_nifti, n.header() + data, "q.nii").grid;
     CHECK(q.origin == std::array<double, 3>{-1, -2, 3});
