@@ -1,38 +1,18 @@
 // Bindings: distance transforms, the thinness skeleton, reconstruction, connected components.
-#include "convert.hpp"
+#include "per_voxel.hpp"
 #include "volrig/components.hpp"
 #include "volrig/distance.hpp"
-#include "volrig/medial.hpp"
-#include "volrig/medial_surface.hpp"
 #include "volrig/reconstruct.hpp"
 #include "volrig/skeleton.hpp"
-#include "volrig/thickness.hpp"
 
 namespace volrig::py {
 
 namespace {
 
-using Mask = MaskArray;
-
-Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
-
 /// A numpy view of memory owned by `owner` (kept alive by the array).
 template <class T, class A>
 py::array_t<T> view(const std::vector<T, A>& v, std::vector<py::ssize_t> shape, py::handle owner) {
     return py::array_t<T>(shape, v.data(), owner);
-}
-
-/// A per-voxel function of a mask (DT, plane measure, thickness) run without the GIL, as an array on its grid.
-template <class F>
-py::array_t<float> per_voxel(const Mask& mask, const Vec3& spacing, const py::object& progress, F f) {
-    const Grid g = mask_grid(mask, spacing);
-    Progress p = progress_of(progress);
-    std::vector<float> out;
-    {
-        py::gil_scoped_release nogil;
-        out = f(g, mask.data(), p);
-    }
-    return to_numpy(std::move(out), g);
 }
 
 }  // namespace
@@ -47,44 +27,6 @@ void bind_skeleton(py::module_& m) {
             });
         },
         py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
-    m.def(
-        "plane_measure",
-        [](const Mask& mask, const Vec3& spacing, double t, const py::object& progress) {
-            return per_voxel(mask, spacing, progress, [t](const Grid& g, const std::uint8_t* data, const Progress& p) {
-                return plane_measure(g, data, t, p);
-            });
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("t"), py::arg("progress") = py::none());
-    m.def(
-        "medial_surface",
-        [](const Mask& mask, const Vec3& spacing, const Vec3& origin, double t, const py::object& progress) {
-            const Grid g = grid_of(mask, spacing, origin, "mask");
-            Progress p = progress_of(progress);
-            MedialSurface s;
-            {
-                py::gil_scoped_release nogil;
-                s = medial_surface(g, mask.data(), t, p);
-            }
-            py::list rods, radii;
-            for (std::size_t k = 0; k < s.rods.size(); ++k) {
-                rods.append(rows(std::move(s.rods[k])));
-                radii.append(to_numpy_shaped(std::move(s.rod_radii[k]), {static_cast<py::ssize_t>(s.rod_radii[k].size())}));
-            }
-            const auto nv = static_cast<py::ssize_t>(s.thickness.size());
-            return py::make_tuple(rows(std::move(s.vertices)), rows(std::move(s.faces)),
-                                  to_numpy_shaped(std::move(s.thickness), {nv}), rods, radii,
-                                  to_numpy(std::move(s.skeleton), g));
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("t"), py::arg("progress") = py::none());
-    m.def(
-        "local_thickness",
-        [](const Mask& mask, const Vec3& spacing, const py::object& progress) {
-            return per_voxel(mask, spacing, progress, [](const Grid& g, const std::uint8_t* data, const Progress& p) {
-                return local_thickness(g, data, p);
-            });
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("progress") = py::none());
-
     py::class_<Skeleton>(m, "Skeleton")
         .def_property_readonly("metric", [](const Skeleton& s) { return std::string(metric_name(s.metric)); })
         .def_property_readonly("object_count", &Skeleton::object_count)
