@@ -74,14 +74,9 @@ void keep_rigid(const Grid& g, const std::uint8_t* rigid, const PointSet& pts, s
     }
 }
 
-}  // namespace
-
-Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
-             const Progress& progress, const std::uint8_t* rigid) {
-    if (!pts.radius) throw Error("bind: radii are required");
-    check_points(g, mask, pts, "bind");
-    check_rig(rig);
-    const std::size_t n = pts.n, nb = rig.bones.size();
+/// Each bone as a segment: head, unit direction, length.
+std::vector<Segment> bone_segments(const Rig& rig) {
+    const std::size_t nb = rig.bones.size();
     std::vector<Segment> seg(nb);
     for (std::size_t b = 0; b < nb; ++b) {
         const auto& h = rig.joints[static_cast<std::size_t>(rig.bones[b][0])];
@@ -91,18 +86,25 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
         seg[b].length = (tv - hv).norm();
         seg[b].dir = (tv - hv) / seg[b].length;
     }
+    return seg;
+}
+
+/// Each point's world position.
+std::vector<Vec> point_positions(const Grid& g, const PointSet& pts) {
+    const std::size_t n = pts.n;
     std::vector<Vec> pos(n);
     for (std::size_t i = 0; i < n; ++i) {
         const auto p = point_position(g, pts, i);
         pos[i] = Vec(p[0], p[1], p[2]);
     }
+    return pos;
+}
 
-    // 1. Direct: the nearest bone whose closest point is reached along a contained straight line.
-    const double inf = std::numeric_limits<double>::infinity();
-    std::vector<double> dist(n, inf);
-    Binding out;
-    out.bone.assign(n, -1);
-    out.unreachable.assign(n, 0);
+/// Step 1: each point takes the nearest bone it sees along a contained straight line
+/// (dist: how far; a point that sees none keeps bone -1 and distance infinity).
+void bind_direct(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const std::vector<Segment>& seg,
+                 const std::vector<Vec>& pos, std::vector<double>& dist, Binding& out) {
+    const std::size_t n = pts.n, nb = seg.size();
     constexpr std::size_t kTries = 8;
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
         std::vector<std::pair<double, std::int32_t>> near(nb);
@@ -120,8 +122,13 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
             }
         }
     });
-    report(progress, 0.4);
+}
 
+/// Steps 2 and 3: the points step 1 left unbound, through the contained neighbour graph, else flagged.
+void bind_unbound(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const std::vector<Segment>& seg,
+                  const std::vector<Vec>& pos, std::vector<double>& dist, Binding& out, const Progress& progress) {
+    const std::size_t n = pts.n, nb = seg.size();
+    const double inf = std::numeric_limits<double>::infinity();
     // 2. Geodesic: points with no contained line take the bone of the nearest bound point along the contained
     //    neighbour graph (multi-source Dijkstra).
     const bool any_unbound = std::find(out.bone.begin(), out.bone.end(), -1) != out.bone.end();
@@ -143,8 +150,12 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
             out.unreachable[i] = 1;
         }
     }
-    report(progress, 0.9);
+}
 
+/// The weights of each point's owner and, when smooth, of the bones across the owner's end joints.
+void bind_weights(const PointSet& pts, const Rig& rig, BindMode mode, const std::vector<Segment>& seg,
+                  const std::vector<Vec>& pos, Binding& out) {
+    const std::size_t n = pts.n, nb = seg.size();
     // Weights: rigid = the owner alone; smooth = a falloff across each end joint of the owner, within one radius
     // of the joint plane, towards the nearest other bone at that joint (up to half the weight at the plane).
     out.weight_bones.assign(n, {-1, -1, -1});
@@ -190,6 +201,32 @@ Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const
         }
         out.bone[i] = all[0].second;
     });
+}
+
+}  // namespace
+
+Binding bind(const Grid& g, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
+             const Progress& progress, const std::uint8_t* rigid) {
+    if (!pts.radius) throw Error("bind: radii are required");
+    check_points(g, mask, pts, "bind");
+    check_rig(rig);
+    const std::size_t n = pts.n, nb = rig.bones.size();
+    const std::vector<Segment> seg = bone_segments(rig);
+    const std::vector<Vec> pos = point_positions(g, pts);
+
+    // 1. Direct: the nearest bone whose closest point is reached along a contained straight line.
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> dist(n, inf);
+    Binding out;
+    out.bone.assign(n, -1);
+    out.unreachable.assign(n, 0);
+    bind_direct(g, mask, pts, seg, pos, dist, out);
+    report(progress, 0.4);
+
+    bind_unbound(g, mask, pts, seg, pos, dist, out, progress);
+    report(progress, 0.9);
+
+    bind_weights(pts, rig, mode, seg, pos, out);
     if (rigid) keep_rigid(g, rigid, pts, nb, out);
     report(progress, 1.0);
     return out;

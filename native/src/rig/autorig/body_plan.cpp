@@ -165,6 +165,36 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
     return best;
 }
 
+namespace {
+
+/// A humanoid's joints the medial axis does not show, on one side: the shoulder, elbow, wrist, hip, knee and heel.
+void place_hidden_joints(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& arm, const Fit& arm_fit,
+                         const std::optional<FusedArm>& fused, const std::string& arm_sfx,
+                         const std::vector<std::uint32_t>& leg, const Fit& leg_fit, const std::string& leg_sfx,
+                         const Vec& body_up, const Vec& front) {
+    if (fused) place_fused_shoulder(rig, "upper_arm" + arm_sfx, fused->shoulder);
+    const auto& a = arm_fit.cuts;
+    if (!fused) {
+        restore_proximal(c, rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
+                         kArmProportions[1] / kArmProportions[2]);
+        shoulder_on_top(c, rig, c.samples(arm), a[1], a[2], "upper_arm" + arm_sfx, body_up, front);
+    }
+    bend_corner(c, rig, std::vector<std::uint32_t>(arm.begin() + static_cast<std::ptrdiff_t>(a[1]),
+                                                   arm.begin() + static_cast<std::ptrdiff_t>(a[3]) + 1),
+                "upper_arm" + arm_sfx, "forearm" + arm_sfx);
+    wrist_at_neck(c, rig, std::vector<std::uint32_t>(arm.begin() + static_cast<std::ptrdiff_t>(a[2]), arm.end()),
+                  arm_sfx);
+    hip_on_thigh_line(rig, "thigh" + leg_sfx);
+    restore_proximal(c, rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
+    const auto& k = leg_fit.cuts;
+    straight_knee(c, rig, std::vector<std::uint32_t>(leg.begin() + static_cast<std::ptrdiff_t>(k[1]), leg.end()),
+                  leg_sfx);
+    heel_ankle(c, rig, std::vector<std::uint32_t>(leg.begin() + static_cast<std::ptrdiff_t>(k[2]), leg.end()),
+               leg_sfx);
+}
+
+}  // namespace
+
 Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
                      const std::optional<Vec>& up) {
     const NodeTree& t = c.tree;
@@ -239,29 +269,8 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     if (humanoid)
         for (int s = 0; s < 2; ++s) {  // joints the medial axis does not show
             const std::string arm_sfx = ((s == 0) == arm0_left) ? ".L" : ".R", leg_sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
-            if (fused[s])
-                place_fused_shoulder(out.rig, "upper_arm" + arm_sfx, fused[s]->shoulder);
-            const auto& a = arm_fit[s].cuts;
-            if (!fused[s]) {
-                restore_proximal(c, out.rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
-                                 kArmProportions[1] / kArmProportions[2]);
-                shoulder_on_top(c, out.rig, c.samples(arm[s]), a[1], a[2], "upper_arm" + arm_sfx, body_up, front);
-            }
-            bend_corner(c, out.rig, std::vector<std::uint32_t>(arm[s].begin() + static_cast<std::ptrdiff_t>(a[1]),
-                                                               arm[s].begin() + static_cast<std::ptrdiff_t>(a[3]) + 1),
-                        "upper_arm" + arm_sfx, "forearm" + arm_sfx);
-            wrist_at_neck(c, out.rig, std::vector<std::uint32_t>(arm[s].begin() + static_cast<std::ptrdiff_t>(a[2]),
-                                                                 arm[s].end()),
-                          arm_sfx);
-            hip_on_thigh_line(out.rig, "thigh" + leg_sfx);
-            restore_proximal(c, out.rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
-            const auto& k = leg_fit[s].cuts;
-            straight_knee(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[1]),
-                                                                 leg[s].end()),
-                          leg_sfx);
-            heel_ankle(c, out.rig, std::vector<std::uint32_t>(leg[s].begin() + static_cast<std::ptrdiff_t>(k[2]),
-                                                                  leg[s].end()),
-                           leg_sfx);
+            place_hidden_joints(c, out.rig, arm[s], arm_fit[s], fused[s], arm_sfx, leg[s], leg_fit[s], leg_sfx, body_up,
+                                front);
         }
     if (humanoid) {
         level_hips(out.rig, body_up);
