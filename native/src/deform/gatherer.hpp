@@ -10,6 +10,7 @@
 #include <limits>
 #include <vector>
 
+#include "deform/closed_cubes.hpp"
 #include "deform/gather.hpp"
 #include "deform/posed_balls.hpp"
 

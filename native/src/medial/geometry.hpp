@@ -1,4 +1,4 @@
-// Internal to the medial surface sources (src/medial_surface.cpp, src/medial_rods.cpp): grid-frame geometry of
+// Internal to the medial surface sources (medial/surface.cpp, medial/rods.cpp): grid-frame geometry of
 // voxels and feature voxels, and the rods' tracing.
 #pragma once
 

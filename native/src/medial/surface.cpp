@@ -1,4 +1,4 @@
-// The medial surface mesh of medial_surface.hpp (the rods: src/medial_rods.cpp), and medial_surface itself.
+// The medial surface mesh of medial_surface.hpp (the rods: medial/rods.cpp), and medial_surface itself.
 #include "volrig/medial_surface.hpp"
 
 #include <tbb/parallel_for.h>
