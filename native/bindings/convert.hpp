@@ -179,8 +179,10 @@ inline PointSet point_set(const IjkArray& ijk, const FloatArray* radius, const c
 void bind_io(py::module_& m);
 void bind_vdb(py::module_& m);
 void bind_skeleton(py::module_& m);
+void bind_medial(py::module_& m);
 void bind_tree(py::module_& m);
 void bind_rig(py::module_& m);
+void bind_skin(py::module_& m);
 void bind_mesh(py::module_& m);
 void bind_deform(py::module_& m);
 void bind_bvh(py::module_& m);

@@ -89,9 +89,8 @@ std::vector<RigidPiece> pieces_of(const py::list& pieces, std::vector<MaskArray>
     return out;
 }
 
-}  // namespace
-
-void bind_deform(py::module_& m) {
+/// LATTICE_AFTER and the Deformer class (a rig's deformation of one volume, frame after frame).
+void bind_deformer_class(py::module_& m) {
     m.attr("LATTICE_AFTER") = volrig::Deformer::kLatticeAfter;
     py::class_<PyDeformer>(m, "Deformer")
         .def(py::init([](const py::array& source, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk,
@@ -170,6 +169,12 @@ void bind_deform(py::module_& m) {
                 d.layer_pieces = std::move(keep);
             },
             py::arg("source"), py::arg("spacing"), py::arg("origin"), py::arg("pieces"));
+}
+
+}  // namespace
+
+void bind_deform(py::module_& m) {
+    bind_deformer_class(m);
     // The option names, spelled once in the core (volrig/deform.hpp), in enum order.
     m.attr("DEFORM_MODES") = names_tuple(kDeformModeNames);
     m.attr("PROXIMITIES") = names_tuple(kProximityNames);

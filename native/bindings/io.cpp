@@ -14,9 +14,8 @@ ReadOptions options_of(std::int64_t max_bytes) {
     return opt;
 }
 
-}  // namespace
-
-void bind_io(py::module_& m) {
+/// The readers: read_volume, dicom_series, read_raw.
+void bind_readers(py::module_& m) {
     m.def(
         "read_volume",
         [](const std::string& path, std::int64_t max_bytes, const std::string& series,
@@ -91,6 +90,10 @@ void bind_io(py::module_& m) {
         py::arg("big_endian") = false, py::arg("offset") = 0, py::arg("max_bytes") = -1,
         "Reads raw voxels: dims (x, y, z), numpy dtype name, spacing, origin, byte order, byte offset.");
 
+}
+
+/// The writers: write_nrrd, write_metaimage.
+void bind_writers(py::module_& m) {
     m.def(
         "write_nrrd",
         [](const std::string& path, const py::array& array, const std::array<double, 3>& spacing,
@@ -117,6 +120,13 @@ void bind_io(py::module_& m) {
         py::arg("path"), py::arg("array"), py::arg("spacing"), py::arg("origin"), py::arg("compress") = true,
         py::arg("direction") = kIdentity3,
         "Writes a C-contiguous [z, y, x] array as a single-file MetaImage (.mha, LOCAL data), atomically.");
+}
+
+}  // namespace
+
+void bind_io(py::module_& m) {
+    bind_readers(m);
+    bind_writers(m);
 }
 
 }  // namespace volrig::py

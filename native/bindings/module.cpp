@@ -24,8 +24,10 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_io(m);
     volrig::py::bind_vdb(m);
     volrig::py::bind_skeleton(m);
+    volrig::py::bind_medial(m);
     volrig::py::bind_tree(m);
     volrig::py::bind_rig(m);
+    volrig::py::bind_skin(m);
     volrig::py::bind_mesh(m);
     volrig::py::bind_deform(m);
     volrig::py::bind_bvh(m);

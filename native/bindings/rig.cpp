@@ -1,38 +1,19 @@
 // Bindings for volrig/rig.hpp: autorig, bind, rest matrices. Conversions only.
 #include "volrig/rig.hpp"
-#include "volrig/skin.hpp"
 
-#include "convert.hpp"
+#include "rig_arrays.hpp"
 
 namespace volrig::py {
 
 namespace {
 
 using EdgeArray = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
-using IntArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
 
 std::vector<std::array<std::uint32_t, 2>> edges_of(const EdgeArray& e) {
     if (e.ndim() != 2 || e.shape(1) != 2) throw Error("tree edges must have shape (M, 2)");
     std::vector<std::array<std::uint32_t, 2>> out(static_cast<std::size_t>(e.shape(0)));
     for (std::size_t k = 0; k < out.size(); ++k) out[k] = {e.data()[2 * k], e.data()[2 * k + 1]};
     return out;
-}
-
-Rig rig_of(const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,
-           const IntArray& parents) {
-    if (joints.ndim() != 2 || joints.shape(1) != 3) throw Error("rig: joints must have shape (K, 3)");
-    if (bones.ndim() != 2 || bones.shape(1) != 2) throw Error("rig: bones must have shape (B, 2)");
-    if (parents.ndim() != 1) throw Error("rig: parents must have shape (B,)");
-    Rig r;
-    r.joints.resize(static_cast<std::size_t>(joints.shape(0)));
-    for (std::size_t j = 0; j < r.joints.size(); ++j)
-        r.joints[j] = {joints.data()[3 * j], joints.data()[3 * j + 1], joints.data()[3 * j + 2]};
-    r.bones.resize(static_cast<std::size_t>(bones.shape(0)));
-    for (std::size_t b = 0; b < r.bones.size(); ++b) r.bones[b] = {bones.data()[2 * b], bones.data()[2 * b + 1]};
-    r.names = names;
-    r.parents.assign(parents.data(), parents.data() + parents.shape(0));
-    check_rig(r);
-    return r;
 }
 
 py::dict dict_of(Rig&& r) {
@@ -143,32 +124,6 @@ void bind_rig(py::module_& m) {
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("joints"),
         py::arg("bones"), py::arg("names"), py::arg("parents"), py::arg("mode"), py::arg("progress") = py::none(),
         py::arg("rigid") = py::none());
-
-    m.def(
-        "skin_weights",
-        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const DoubleArray& joints,
-           const IntArray& bones, const std::vector<std::string>& names, const IntArray& parents,
-           const DoubleArray& points, int influences, double blend, const py::object& progress) {
-            const Grid g = grid_of(mask, spacing, origin, "mask");
-            const Rig r = rig_of(joints, bones, names, parents);
-            if (points.ndim() != 2 || points.shape(1) != 3) throw Error("skin_weights: points must have shape (V, 3)");
-            std::vector<std::array<double, 3>> pts(static_cast<std::size_t>(points.shape(0)));
-            for (std::size_t i = 0; i < pts.size(); ++i)
-                pts[i] = {points.data()[3 * i], points.data()[3 * i + 1], points.data()[3 * i + 2]};
-            Progress p = progress_of(progress);
-            SkinWeights s;
-            {
-                py::gil_scoped_release nogil;
-                s = skin_weights(g, mask.data(), r, pts, SkinOptions{influences, blend}, p);
-            }
-            const auto n = static_cast<py::ssize_t>(s.bone.size()), v = static_cast<py::ssize_t>(pts.size());
-            return py::make_tuple(to_numpy_shaped(std::move(s.indptr), {v + 1}), to_numpy_shaped(std::move(s.bone), {n}),
-                                  to_numpy_shaped(std::move(s.weight), {n}),
-                                  to_numpy_shaped(std::move(s.outside), {v}).attr("view")("bool"));
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("joints"), py::arg("bones"), py::arg("names"),
-        py::arg("parents"), py::arg("points"), py::arg("influences") = 4, py::arg("blend") = 1.0,
-        py::arg("progress") = py::none());
 
     m.def(
         "check_rig",

@@ -1,20 +1,13 @@
 // Bindings: distance transforms, the thinness skeleton, reconstruction, connected components.
-#include "convert.hpp"
+#include "per_voxel.hpp"
 #include "volrig/components.hpp"
 #include "volrig/distance.hpp"
-#include "volrig/medial.hpp"
-#include "volrig/medial_surface.hpp"
 #include "volrig/reconstruct.hpp"
 #include "volrig/skeleton.hpp"
-#include "volrig/thickness.hpp"
 
 namespace volrig::py {
 
 namespace {
-
-using Mask = MaskArray;
-
-Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
 
 /// A numpy view of memory owned by `owner` (kept alive by the array).
 template <class T, class A>
@@ -22,69 +15,8 @@ py::array_t<T> view(const std::vector<T, A>& v, std::vector<py::ssize_t> shape, 
     return py::array_t<T>(shape, v.data(), owner);
 }
 
-/// A per-voxel function of a mask (DT, plane measure, thickness) run without the GIL, as an array on its grid.
-template <class F>
-py::array_t<float> per_voxel(const Mask& mask, const Vec3& spacing, const py::object& progress, F f) {
-    const Grid g = mask_grid(mask, spacing);
-    Progress p = progress_of(progress);
-    std::vector<float> out;
-    {
-        py::gil_scoped_release nogil;
-        out = f(g, mask.data(), p);
-    }
-    return to_numpy(std::move(out), g);
-}
-
-}  // namespace
-
-void bind_skeleton(py::module_& m) {
-    m.def(
-        "distance_transform",
-        [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
-            const Metric mt = metric_from_name(metric);
-            return per_voxel(mask, spacing, progress, [mt](const Grid& g, const std::uint8_t* data, const Progress& p) {
-                return distance_transform(g, data, mt, p);
-            });
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
-    m.def(
-        "plane_measure",
-        [](const Mask& mask, const Vec3& spacing, double t, const py::object& progress) {
-            return per_voxel(mask, spacing, progress, [t](const Grid& g, const std::uint8_t* data, const Progress& p) {
-                return plane_measure(g, data, t, p);
-            });
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("t"), py::arg("progress") = py::none());
-    m.def(
-        "medial_surface",
-        [](const Mask& mask, const Vec3& spacing, const Vec3& origin, double t, const py::object& progress) {
-            const Grid g = grid_of(mask, spacing, origin, "mask");
-            Progress p = progress_of(progress);
-            MedialSurface s;
-            {
-                py::gil_scoped_release nogil;
-                s = medial_surface(g, mask.data(), t, p);
-            }
-            py::list rods, radii;
-            for (std::size_t k = 0; k < s.rods.size(); ++k) {
-                rods.append(rows(std::move(s.rods[k])));
-                radii.append(to_numpy_shaped(std::move(s.rod_radii[k]), {static_cast<py::ssize_t>(s.rod_radii[k].size())}));
-            }
-            const auto nv = static_cast<py::ssize_t>(s.thickness.size());
-            return py::make_tuple(rows(std::move(s.vertices)), rows(std::move(s.faces)),
-                                  to_numpy_shaped(std::move(s.thickness), {nv}), rods, radii,
-                                  to_numpy(std::move(s.skeleton), g));
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("t"), py::arg("progress") = py::none());
-    m.def(
-        "local_thickness",
-        [](const Mask& mask, const Vec3& spacing, const py::object& progress) {
-            return per_voxel(mask, spacing, progress, [](const Grid& g, const std::uint8_t* data, const Progress& p) {
-                return local_thickness(g, data, p);
-            });
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("progress") = py::none());
-
+/// The Skeleton class: its scores, order and points.
+void bind_skeleton_class(py::module_& m) {
     py::class_<Skeleton>(m, "Skeleton")
         .def_property_readonly("metric", [](const Skeleton& s) { return std::string(metric_name(s.metric)); })
         .def_property_readonly("object_count", &Skeleton::object_count)
@@ -123,47 +55,10 @@ void bind_skeleton(py::module_& m) {
             }
             return py::make_tuple(ijk, centers, dt, sc);
         }, py::arg("n"));
+}
 
-    m.def(
-        "skeletonize",
-        [](const Mask& mask, const Vec3& spacing, const Vec3& origin, const std::string& metric,
-           const py::object& progress) {
-            const Grid g = grid_of(mask, spacing, origin, "mask");
-            const Metric mt = metric_from_name(metric);
-            Progress p = progress_of(progress);
-            Skeleton s;
-            {
-                py::gil_scoped_release nogil;
-                s = skeletonize(g, mask.data(), mt, p);
-            }
-            return s;
-        },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("metric"), py::arg("progress") = py::none());
-
-    m.def(
-        "reconstruct",
-        [](const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& ijk,
-           const py::array_t<float, py::array::c_style | py::array::forcecast>& radius,
-           const std::array<std::int64_t, 3>& shape_zyx, const Vec3& spacing, const std::string& metric,
-           const py::object& progress) {
-            if (ijk.ndim() != 2 || ijk.shape(1) != 3) throw Error("reconstruct: ijk must have shape (N, 3)");
-            if (radius.ndim() != 1 || radius.shape(0) != ijk.shape(0))
-                throw Error("reconstruct: radius must have shape (N,) matching ijk");
-            Grid g;
-            g.dims = {shape_zyx[2], shape_zyx[1], shape_zyx[0]};
-            g.spacing = spacing;
-            const Metric mt = metric_from_name(metric);
-            Progress p = progress_of(progress);
-            std::vector<std::uint8_t> out;
-            {
-                py::gil_scoped_release nogil;
-                out = reconstruct(g, mt, ijk.data(), radius.data(), static_cast<std::size_t>(ijk.shape(0)), p);
-            }
-            return to_numpy(std::move(out), g);
-        },
-        py::arg("ijk"), py::arg("radius"), py::arg("shape"), py::arg("spacing"), py::arg("metric"),
-        py::arg("progress") = py::none());
-
+/// Connected components: label_components, nearest_seed_fill, largest_component.
+void bind_components(py::module_& m) {
     m.def(
         "label_components",
         [](const Mask& mask, const py::object& progress) {
@@ -206,6 +101,62 @@ void bind_skeleton(py::module_& m) {
             return to_numpy(std::move(out), g);
         },
         py::arg("mask"), py::arg("progress") = py::none());
+}
+
+}  // namespace
+
+void bind_skeleton(py::module_& m) {
+    m.def(
+        "distance_transform",
+        [](const Mask& mask, const Vec3& spacing, const std::string& metric, const py::object& progress) {
+            const Metric mt = metric_from_name(metric);
+            return per_voxel(mask, spacing, progress, [mt](const Grid& g, const std::uint8_t* data, const Progress& p) {
+                return distance_transform(g, data, mt, p);
+            });
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("metric"), py::arg("progress") = py::none());
+    bind_skeleton_class(m);
+    m.def(
+        "skeletonize",
+        [](const Mask& mask, const Vec3& spacing, const Vec3& origin, const std::string& metric,
+           const py::object& progress) {
+            const Grid g = grid_of(mask, spacing, origin, "mask");
+            const Metric mt = metric_from_name(metric);
+            Progress p = progress_of(progress);
+            Skeleton s;
+            {
+                py::gil_scoped_release nogil;
+                s = skeletonize(g, mask.data(), mt, p);
+            }
+            return s;
+        },
+        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("metric"), py::arg("progress") = py::none());
+
+    m.def(
+        "reconstruct",
+        [](const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& ijk,
+           const py::array_t<float, py::array::c_style | py::array::forcecast>& radius,
+           const std::array<std::int64_t, 3>& shape_zyx, const Vec3& spacing, const std::string& metric,
+           const py::object& progress) {
+            if (ijk.ndim() != 2 || ijk.shape(1) != 3) throw Error("reconstruct: ijk must have shape (N, 3)");
+            if (radius.ndim() != 1 || radius.shape(0) != ijk.shape(0))
+                throw Error("reconstruct: radius must have shape (N,) matching ijk");
+            Grid g;
+            g.dims = {shape_zyx[2], shape_zyx[1], shape_zyx[0]};
+            g.spacing = spacing;
+            const Metric mt = metric_from_name(metric);
+            Progress p = progress_of(progress);
+            std::vector<std::uint8_t> out;
+            {
+                py::gil_scoped_release nogil;
+                out = reconstruct(g, mt, ijk.data(), radius.data(), static_cast<std::size_t>(ijk.shape(0)), p);
+            }
+            return to_numpy(std::move(out), g);
+        },
+        py::arg("ijk"), py::arg("radius"), py::arg("shape"), py::arg("spacing"), py::arg("metric"),
+        py::arg("progress") = py::none());
+
+    bind_components(m);
 }
 
 }  // namespace volrig::py

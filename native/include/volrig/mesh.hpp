@@ -109,7 +109,7 @@ struct VoxelizeOptions {
 /// origin + voxel_size * (x, y, z). The grid's cells cover the mesh's bounding box (its minimum corner lies on a
 /// cell boundary) plus `padding_voxels` whole cells on every side. A voxel is inside when its centre is.
 ///
-/// Method (closing_radius r > 0; details in voxelize.cpp): OpenVDB's meshToVolume gives the unsigned distance u to
+/// Method (closing_radius r > 0; details in mesh/voxelize.cpp): OpenVDB's meshToVolume gives the unsigned distance u to
 /// the surface in a narrow band (made exact near the threshold with a bounding-volume hierarchy); the exterior E is
 /// flood-filled from the grid border through voxels with u > r; a voxel is also outside when it lies strictly
 /// inside a ball B(c, u(c)) around an exterior point c (such balls touch the surface but never cross it).

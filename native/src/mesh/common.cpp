@@ -8,7 +8,7 @@
 
 namespace volrig {
 
-namespace detail {
+namespace mesh_detail {
 
 void fail_mesh_size(const std::string& name, const std::string& where, std::uint64_t vertices,
                     std::uint64_t triangles, std::uint64_t max_bytes) {
@@ -64,10 +64,10 @@ void TokenReader::expect(const char* keyword) {
     if (!iequals(tok, keyword)) fail(name_, here() + "expected '" + keyword + "', got " + quoted(tok));
 }
 
-}  // namespace detail
+}  // namespace mesh_detail
 
-using detail::kMaxVertices;
-using detail::with_commas;
+using mesh_detail::kMaxVertices;
+using mesh_detail::with_commas;
 
 // =================================================================================================================
 // Dispatch
@@ -94,7 +94,7 @@ std::vector<std::string> mesh_extensions() {
 }
 
 Mesh read_mesh(const std::string& path, const ReadOptions& opt) {
-    const std::string low = detail::lower(path);
+    const std::string low = mesh_detail::lower(path);
     if (ends_with(low, ".meshb"))
         throw FileFormatError(path + ": binary Medit meshes (.meshb) are not supported; save it as ASCII .mesh");
     for (const auto& [ending, reader] : kReaders)
@@ -144,7 +144,7 @@ Mesh make_mesh(const double* xyz, std::size_t vertex_count, const std::int64_t* 
             const double c = xyz[3 * i + a];
             if (!std::isfinite(c))
                 throw Error(what + ": vertex " + std::to_string(i) + " has a non-finite coordinate (" +
-                            std::string(1, "xyz"[a]) + " = " + detail::format_double(c) + ")");
+                            std::string(1, "xyz"[a]) + " = " + mesh_detail::format_double(c) + ")");
             m.vertices[i][a] = c;
         }
     m.triangles.resize(triangle_count);

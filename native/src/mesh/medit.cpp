@@ -13,9 +13,9 @@
 
 namespace volrig {
 
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
+using mesh_detail::fail;
+using mesh_detail::quoted;
+using mesh_detail::with_commas;
 
 namespace {
 
@@ -72,13 +72,13 @@ public:
     Mesh read() {
         std::string_view tok;
         if (!tokens_.next(tok)) fail(name_, "empty file: not a Medit .mesh file");
-        if (!detail::iequals(tok, "MeshVersionFormatted"))
+        if (!mesh_detail::iequals(tok, "MeshVersionFormatted"))
             fail(name_, tokens_.here() + "not a Medit .mesh file (it starts with " + quoted(tok) +
                             ", not MeshVersionFormatted)");
         if (const std::int64_t v = integer("the version"); v < 1 || v > 4)
             fail(name_, tokens_.here() + "MeshVersionFormatted " + std::to_string(v) + " (known: 1 to 4)");
         std::string keyword;
-        while (next_keyword(keyword) && !detail::iequals(keyword, "End")) section(keyword);
+        while (next_keyword(keyword) && !mesh_detail::iequals(keyword, "End")) section(keyword);
         return finish();
     }
 
@@ -100,7 +100,7 @@ private:
     std::int64_t integer(const std::string& what) {
         const std::string_view tok = tokens_.need(what);
         std::int64_t v = 0;
-        if (!detail::parse_int(tok, v)) fail(name_, tokens_.here() + what + " " + quoted(tok) + " is not an integer");
+        if (!mesh_detail::parse_int(tok, v)) fail(name_, tokens_.here() + what + " " + quoted(tok) + " is not an integer");
         return v;
     }
 
@@ -108,23 +108,23 @@ private:
     std::uint64_t count(const std::string& keyword, std::size_t numbers) {
         const std::int64_t n = integer("the number of " + keyword);
         if (n < 0) fail(name_, tokens_.here() + keyword + " count " + std::to_string(n) + " is negative");
-        detail::check_count_fits(name_, tokens_.here(), static_cast<std::uint64_t>(n), keyword.c_str(), 2 * numbers,
+        mesh_detail::check_count_fits(name_, tokens_.here(), static_cast<std::uint64_t>(n), keyword.c_str(), 2 * numbers,
                                  tokens_.remaining() + 1);
         return static_cast<std::uint64_t>(n);
     }
 
     void section(const std::string& keyword) {
-        if (detail::iequals(keyword, "Dimension")) {
+        if (mesh_detail::iequals(keyword, "Dimension")) {
             if (const std::int64_t d = integer("the dimension"); d != 3)
                 fail(name_, tokens_.here() + "Dimension " + std::to_string(d) + ": only 3-D meshes are read");
             have_dimension_ = true;
-        } else if (detail::iequals(keyword, "Vertices")) {
+        } else if (mesh_detail::iequals(keyword, "Vertices")) {
             read_vertices();
-        } else if (detail::iequals(keyword, kTriangles.keyword)) {
+        } else if (mesh_detail::iequals(keyword, kTriangles.keyword)) {
             read_cells(kTriangles, triangles_);
-        } else if (detail::iequals(keyword, kQuadrilaterals.keyword)) {
+        } else if (mesh_detail::iequals(keyword, kQuadrilaterals.keyword)) {
             read_cells(kQuadrilaterals, quads_);
-        } else if (detail::iequals(keyword, kTetrahedra.keyword)) {
+        } else if (mesh_detail::iequals(keyword, kTetrahedra.keyword)) {
             read_cells(kTetrahedra, tets_);
         } else {
             skip_section();
@@ -136,12 +136,12 @@ private:
         if (!m_.vertices.empty()) fail(name_, tokens_.here() + "a second Vertices section");
         const std::uint64_t n = count("Vertices", 4);
         if (n == 0) fail(name_, tokens_.here() + "no vertices (Vertices 0)");
-        detail::check_mesh_size(name_, [&] { return tokens_.here(); }, n, 0, opt_.max_bytes);
+        mesh_detail::check_mesh_size(name_, [&] { return tokens_.here(); }, n, 0, opt_.max_bytes);
         m_.vertices.resize(static_cast<std::size_t>(n));
         for (auto& p : m_.vertices) {
             for (std::size_t a = 0; a < 3; ++a) {
                 std::string why;
-                if (!detail::parse_coordinate(tokens_.need("a vertex coordinate"), a, p[a], why))
+                if (!mesh_detail::parse_coordinate(tokens_.need("a vertex coordinate"), a, p[a], why))
                     fail(name_, tokens_.here() + "vertex " + why);
             }
             integer("a vertex reference");
@@ -153,7 +153,7 @@ private:
         const std::string what = std::string("a vertex index of ") + kind.keyword;
         const std::uint64_t n = count(kind.keyword, kind.corners + 1);
         triangle_cost_ += n * kind.triangle_cost;
-        detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size(), triangle_cost_,
+        mesh_detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size(), triangle_cost_,
                                 opt_.max_bytes);
         cells.reserve(cells.size() + static_cast<std::size_t>(n * kind.corners));
         for (std::uint64_t i = 0; i < n; ++i) {
@@ -174,7 +174,7 @@ private:
         std::string_view tok;
         double ignored = 0;
         while (tokens_.next(tok))
-            if (!detail::parse_double(tok, ignored)) {
+            if (!mesh_detail::parse_double(tok, ignored)) {
                 if (!is_keyword(tok))
                     fail(name_, tokens_.here() + "expected a number or a keyword, got " + quoted(tok));
                 pending_ = std::string(tok);
@@ -202,8 +202,8 @@ private:
 
     const std::string& name_;
     const ReadOptions& opt_;
-    detail::LineReader lines_;
-    detail::TokenReader tokens_;
+    mesh_detail::LineReader lines_;
+    mesh_detail::TokenReader tokens_;
     std::string pending_;
     bool have_dimension_ = false;
     std::uint64_t triangle_cost_ = 0;

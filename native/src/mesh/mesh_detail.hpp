@@ -11,10 +11,13 @@
 #include <string_view>
 #include <vector>
 
-#include "io_detail.hpp"
+#include "io/io_detail.hpp"
 #include "volrig/mesh.hpp"
 
-namespace volrig::detail {
+namespace volrig::mesh_detail {
+
+// The mesh readers build on the I/O layer's byte and text helpers (io/io_detail.hpp).
+using namespace io_detail;
 
 constexpr std::uint64_t kMaxVertices = std::numeric_limits<std::uint32_t>::max();
 constexpr std::uint64_t kVertexBytes = sizeof(std::array<double, 3>);
@@ -95,4 +98,4 @@ private:
     std::uint64_t line_bytes_ = 0;
 };
 
-}  // namespace volrig::detail
+}  // namespace volrig::mesh_detail

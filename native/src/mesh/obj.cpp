@@ -8,23 +8,23 @@
 
 namespace volrig {
 
-using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
+using namespace mesh_detail;  // the reader helpers of io/io_detail.hpp and mesh_detail.hpp
 
 namespace {
 
 /// The vertex part of an OBJ face entry ("7", "7/2", "7//3", "7/2/3"); false when malformed.
 bool obj_vertex_index(std::string_view tok, std::int64_t& index) {
     const std::size_t s1 = tok.find('/');
-    if (!detail::parse_int(tok.substr(0, s1), index)) return false;
+    if (!mesh_detail::parse_int(tok.substr(0, s1), index)) return false;
     if (s1 == std::string_view::npos) return true;
     std::string_view rest = tok.substr(s1 + 1);
     const std::size_t s2 = rest.find('/');
     std::int64_t ignored = 0;
     const std::string_view t = rest.substr(0, s2);
-    if (!t.empty() && !detail::parse_int(t, ignored)) return false;
+    if (!t.empty() && !mesh_detail::parse_int(t, ignored)) return false;
     if (s2 == std::string_view::npos) return true;
     const std::string_view n = rest.substr(s2 + 1);
-    return !n.empty() && detail::parse_int(n, ignored);
+    return !n.empty() && mesh_detail::parse_int(n, ignored);
 }
 
 }  // namespace
@@ -41,11 +41,11 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
         const std::int64_t line_no = lines.line_number();
         refuse_binary(name, line_no, line, "OBJ");
         // A backslash at the end continues the statement on the next line.
-        if (!detail::trim(line).empty() && detail::trim(line).back() == '\\') {
+        if (!mesh_detail::trim(line).empty() && mesh_detail::trim(line).back() == '\\') {
             joined.clear();
             std::string_view part = line;
             for (;;) {
-                std::string_view t = detail::trim(part);
+                std::string_view t = mesh_detail::trim(part);
                 if (t.empty() || t.back() != '\\') {
                     joined.append(part);
                     break;
@@ -61,10 +61,10 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
         }
         const std::size_t hash = line.find('#');
         if (hash != std::string_view::npos) line = line.substr(0, hash);
-        const auto w = detail::split_words(line);
+        const auto w = mesh_detail::split_words(line);
         if (w.empty()) continue;
         if (w[0] == "v") {
-            if (w.size() < 4) fail(name, at_line(line_no) + "vertex needs x y z, got " + quoted(detail::trim(line)));
+            if (w.size() < 4) fail(name, at_line(line_no) + "vertex needs x y z, got " + quoted(mesh_detail::trim(line)));
             std::array<double, 3> p{};
             std::string why;
             if (!parse_xyz(w, 1, p, why)) fail(name, at_line(line_no) + "vertex " + why);
@@ -72,7 +72,7 @@ Mesh read_obj(const ByteSource& src, const ReadOptions& opt) {
                             opt.max_bytes);
             m.vertices.push_back(p);
         } else if (w[0] == "f") {
-            if (w.size() < 4) fail(name, at_line(line_no) + detail::too_few_corners(w.size() - 1));
+            if (w.size() < 4) fail(name, at_line(line_no) + mesh_detail::too_few_corners(w.size() - 1));
             poly.clear();
             const auto count = static_cast<std::int64_t>(m.vertices.size());
             for (std::size_t i = 1; i < w.size(); ++i) {

@@ -9,10 +9,10 @@
 
 namespace volrig {
 
-using detail::at_line;
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
+using mesh_detail::at_line;
+using mesh_detail::fail;
+using mesh_detail::quoted;
+using mesh_detail::with_commas;
 
 namespace {
 
@@ -21,7 +21,7 @@ constexpr std::uint64_t kMinFaceLine = 8;    // "3 0 1 2\n"
 
 /// True when `w` is an OFF header keyword, [ST][C][N][4][n]OFF; fails for the variants this reader refuses.
 bool off_keyword(const std::string& name, const std::string& where, std::string_view w) {
-    if (w.size() < 3 || !detail::iequals(w.substr(w.size() - 3), "OFF")) return false;
+    if (w.size() < 3 || !mesh_detail::iequals(w.substr(w.size() - 3), "OFF")) return false;
     std::string_view prefix = w.substr(0, w.size() - 3);
     for (const char* part : {"ST", "C", "N", "4", "n"}) {
         const std::string_view p(part);
@@ -44,13 +44,13 @@ public:
         std::size_t first = 0;  // the counts' first word in w
         if (off_keyword(name_, here(), w[0])) {
             first = 1;
-            if (w.size() > 1 && detail::iequals(w[1], "BINARY"))
+            if (w.size() > 1 && mesh_detail::iequals(w[1], "BINARY"))
                 fail(name_, here() + "binary OFF is not supported (save it as text OFF)");
             if (w.size() == 1) {
                 if (!content_line(w)) fail(name_, "the file ends before the counts line (vertices faces edges)");
                 first = 0;
             }
-        } else if (std::int64_t ignored = 0; !detail::parse_int(w[0], ignored)) {
+        } else if (std::int64_t ignored = 0; !mesh_detail::parse_int(w[0], ignored)) {
             fail(name_, at_line(lines_.line_number()) + "not an OFF file (it starts with " + quoted(w[0]) +
                             ", not OFF or the counts)");
         }
@@ -65,8 +65,8 @@ private:
     bool content_line(std::vector<std::string_view>& w) {
         std::string_view line;
         while (lines_.next(line)) {
-            detail::refuse_binary(name_, lines_.line_number(), line, "OFF");
-            w = detail::split_words(line.substr(0, line.find('#')));
+            mesh_detail::refuse_binary(name_, lines_.line_number(), line, "OFF");
+            w = mesh_detail::split_words(line.substr(0, line.find('#')));
             if (!w.empty()) return true;
         }
         return false;
@@ -87,17 +87,17 @@ private:
         const std::size_t n = w.size() - first;
         std::int64_t c[3] = {0, 0, 0};
         bool ok = n == 2 || n == 3;
-        for (std::size_t k = 0; ok && k < n; ++k) ok = detail::parse_int(w[first + k], c[k]) && c[k] >= 0;
+        for (std::size_t k = 0; ok && k < n; ++k) ok = mesh_detail::parse_int(w[first + k], c[k]) && c[k] >= 0;
         if (!ok) fail(name_, here() + "expected the counts 'vertices faces [edges]' (non-negative integers)");
         vertex_count_ = static_cast<std::uint64_t>(c[0]);
         face_count_ = static_cast<std::uint64_t>(c[1]);
         if (vertex_count_ == 0) fail(name_, here() + "no vertices (the counts line says 0)");
         if (face_count_ == 0) fail(name_, here() + "no faces (the counts line says 0): nothing to voxelize");
         const std::uint64_t have = lines_.remaining() + 1;  // the last line may lack its newline
-        detail::check_count_fits(name_, here(), vertex_count_, "vertices", kMinVertexLine, have);
-        detail::check_count_fits(name_, here(), face_count_, "faces", kMinFaceLine,
+        mesh_detail::check_count_fits(name_, here(), vertex_count_, "vertices", kMinVertexLine, have);
+        mesh_detail::check_count_fits(name_, here(), face_count_, "faces", kMinFaceLine,
                                  have - vertex_count_ * kMinVertexLine);
-        detail::check_mesh_size(name_, [&] { return here(); }, vertex_count_, face_count_, opt_.max_bytes);
+        mesh_detail::check_mesh_size(name_, [&] { return here(); }, vertex_count_, face_count_, opt_.max_bytes);
         m_.vertices.reserve(static_cast<std::size_t>(vertex_count_));
         m_.triangles.reserve(static_cast<std::size_t>(face_count_));
     }
@@ -107,37 +107,37 @@ private:
         if (w.size() < 3) fail(name_, here() + "vertex needs x y z, got " + std::to_string(w.size()) + " numbers");
         std::array<double, 3> p{};
         std::string why;
-        if (!detail::parse_xyz(w, 0, p, why)) fail(name_, here() + "vertex " + why);
+        if (!mesh_detail::parse_xyz(w, 0, p, why)) fail(name_, here() + "vertex " + why);
         m_.vertices.push_back(p);
     }
 
     void read_face(std::uint64_t i) {
         const auto w = record("faces", i, face_count_);
         std::int64_t n = 0;
-        if (!detail::parse_int(w[0], n) || n < 0)
+        if (!mesh_detail::parse_int(w[0], n) || n < 0)
             fail(name_, here() + "face vertex count " + quoted(w[0]) + " is not a non-negative integer");
-        if (n < 3) fail(name_, here() + detail::too_few_corners(static_cast<std::uint64_t>(n)));
+        if (n < 3) fail(name_, here() + mesh_detail::too_few_corners(static_cast<std::uint64_t>(n)));
         if (static_cast<std::uint64_t>(n) > w.size() - 1)
             fail(name_, here() + "face of " + std::to_string(n) + " vertices lists only " +
                             std::to_string(w.size() - 1) + " indices");
-        detail::check_mesh_size(name_, [&] { return here(); }, m_.vertices.size(),
+        mesh_detail::check_mesh_size(name_, [&] { return here(); }, m_.vertices.size(),
                                 m_.triangles.size() + static_cast<std::uint64_t>(n) - 2, opt_.max_bytes);
         poly_.clear();
         for (std::size_t k = 1; k <= static_cast<std::size_t>(n); ++k) {
             std::int64_t v = 0;
-            if (!detail::parse_int(w[k], v))
+            if (!mesh_detail::parse_int(w[k], v))
                 fail(name_, here() + "face index " + quoted(w[k]) + " is not an integer");
             if (v < 0 || static_cast<std::uint64_t>(v) >= vertex_count_)
                 fail(name_, here() + "face index " + std::to_string(v) + " out of range (" +
                                 with_commas(vertex_count_) + " vertices, numbered from 0)");
             poly_.push_back(static_cast<std::uint32_t>(v));
         }
-        detail::fan(poly_, m_.triangles);
+        mesh_detail::fan(poly_, m_.triangles);
     }
 
     const std::string& name_;
     const ReadOptions& opt_;
-    detail::LineReader lines_;
+    mesh_detail::LineReader lines_;
     std::uint64_t vertex_count_ = 0, face_count_ = 0;
     std::vector<std::uint32_t> poly_;
     Mesh m_;

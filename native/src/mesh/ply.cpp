@@ -11,7 +11,7 @@
 
 namespace volrig {
 
-using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
+using namespace mesh_detail;  // the reader helpers of io/io_detail.hpp and mesh_detail.hpp
 
 namespace {
 
@@ -91,11 +91,11 @@ PlyHeader read_ply_header(const ByteSource& src, LineReader& lines) {
         if (lines.offset() > kMaxPlyHeader)
             fail(name, "header is longer than " + with_commas(kMaxPlyHeader) + " bytes (no end_header)");
         if (line_no == 1) {
-            if (detail::trim(line) != "ply") fail(name, "not a PLY file (it does not start with 'ply')");
+            if (mesh_detail::trim(line) != "ply") fail(name, "not a PLY file (it does not start with 'ply')");
             continue;
         }
         refuse_binary(name, line_no, line, "PLY header");
-        const auto w = detail::split_words(line);
+        const auto w = mesh_detail::split_words(line);
         if (w.empty()) continue;
         const std::string here = at_line(line_no);
         if (w[0] == "comment" || w[0] == "obj_info") continue;
@@ -117,7 +117,7 @@ PlyHeader read_ply_header(const ByteSource& src, LineReader& lines) {
         } else if (w[0] == "element") {
             std::int64_t count = 0;
             if (w.size() != 3) fail(name, here + "expected 'element <name> <count>', got " + quoted(line));
-            if (!detail::parse_int(w[2], count) || count < 0)
+            if (!mesh_detail::parse_int(w[2], count) || count < 0)
                 fail(name, here + "element count " + quoted(w[2]) + " is not a non-negative integer");
             for (const auto& e : h.elements)
                 if (e.name == w[1]) fail(name, here + "element '" + std::string(w[1]) + "' declared twice");
@@ -246,7 +246,7 @@ public:
         std::uint8_t b[8];
         const std::size_t n = ply_size(t);
         if (!get(b, n)) return false;
-        if (swap_) detail::swap_bytes(b, 1, n);
+        if (swap_) mesh_detail::swap_bytes(b, 1, n);
         switch (t) {
             case PlyType::Int8: out = static_cast<std::int8_t>(b[0]); break;
             case PlyType::UInt8: out = b[0]; break;
@@ -285,7 +285,7 @@ private:
 bool ascii_number(std::string_view tok, PlyType t, double& out) {
     if (ply_integer(t)) {
         std::int64_t v = 0;
-        if (!detail::parse_int(tok, v)) return false;
+        if (!mesh_detail::parse_int(tok, v)) return false;
         std::int64_t lo = 0, hi = 0;
         switch (t) {
             case PlyType::Int8: lo = -128, hi = 127; break;
@@ -301,7 +301,7 @@ bool ascii_number(std::string_view tok, PlyType t, double& out) {
         out = static_cast<double>(v);
         return true;
     }
-    return detail::parse_double(tok, out);
+    return mesh_detail::parse_double(tok, out);
 }
 
 const char* ply_type_name(PlyType t) {
@@ -323,8 +323,8 @@ class PlyBody {
 public:
     PlyBody(const ByteSource& src, const PlyHeader& h, const PlyLayout& L, LineReader& lines, const ReadOptions& opt)
         : name_(src.name()), h_(h), L_(L), opt_(opt), tokens_(lines),
-          cursor_(src, lines.offset(), h.format == PlyFormat::BinaryBE ? !detail::host_is_big_endian()
-                                                                       : detail::host_is_big_endian()) {}
+          cursor_(src, lines.offset(), h.format == PlyFormat::BinaryBE ? !mesh_detail::host_is_big_endian()
+                                                                       : mesh_detail::host_is_big_endian()) {}
 
     Mesh read() {
         check_counts();
@@ -422,7 +422,7 @@ private:
     std::uint64_t list_count(const PlyProperty& p) {
         const double c = value(p.count_type, p, Role::Count);
         if (c < 0)
-            fail(name_, where() + "list '" + p.name + "' has a negative count (" + detail::format_double(c) + ")");
+            fail(name_, where() + "list '" + p.name + "' has a negative count (" + mesh_detail::format_double(c) + ")");
         const auto n = static_cast<std::uint64_t>(c);
         // Each item needs bytes of its own: refuse counts the rest of the file cannot hold before reading them.
         const std::uint64_t per = ascii() ? 2 : ply_size(p.type);
@@ -459,7 +459,7 @@ private:
                 continue;
             }
             const double v = value(p.type, p, Role::Scalar);
-            if (!std::isfinite(v)) fail(name_, where() + p.name + " is not finite (" + detail::format_double(v) + ")");
+            if (!std::isfinite(v)) fail(name_, where() + p.name + " is not finite (" + mesh_detail::format_double(v) + ")");
             xyz[static_cast<std::size_t>(axis)] = v;
         }
         m_.vertices.push_back(xyz);
@@ -476,7 +476,7 @@ private:
                 continue;
             }
             const std::uint64_t n = list_count(p);
-            if (n < 3) fail(name_, where() + detail::too_few_corners(n));
+            if (n < 3) fail(name_, where() + mesh_detail::too_few_corners(n));
             check_mesh_size(name_, [&] { return where(); }, vertices_known ? m_.vertices.size() : 0,
                             m_.triangles.size() + (n - 2), opt_.max_bytes);
             poly_.clear();
@@ -484,7 +484,7 @@ private:
                 const double v = value(p.type, p, Role::Index);
                 if (v < 0 || v >= static_cast<double>(kMaxVertices) ||
                     (vertices_known && v >= static_cast<double>(m_.vertices.size())))
-                    fail(name_, where() + "vertex index " + detail::format_double(v) + " out of range (" +
+                    fail(name_, where() + "vertex index " + mesh_detail::format_double(v) + " out of range (" +
                                     with_commas(vertices_known ? m_.vertices.size() : vertex_count) + " vertices)");
                 const auto idx = static_cast<std::uint32_t>(v);
                 if (!vertices_known && (max_index_where_.empty() || idx > max_index_)) {

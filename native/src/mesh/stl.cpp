@@ -15,9 +15,9 @@
 
 namespace volrig {
 
-using detail::fail;
-using detail::quoted;
-using detail::with_commas;
+using mesh_detail::fail;
+using mesh_detail::quoted;
+using mesh_detail::with_commas;
 
 namespace {
 
@@ -70,7 +70,7 @@ float read_f32_le(const std::uint8_t* b) {
 Mesh read_binary(const ByteSource& src, std::uint64_t count, const ReadOptions& opt) {
     const std::string& name = src.name();
     if (count == 0) fail(name, "binary STL with 0 triangles: nothing to voxelize");
-    detail::check_mesh_size(name, [] { return std::string("header: "); }, 0, count, opt.max_bytes);
+    mesh_detail::check_mesh_size(name, [] { return std::string("header: "); }, 0, count, opt.max_bytes);
     Mesh m;
     m.triangles.reserve(static_cast<std::size_t>(count));
     Welder weld(m);
@@ -84,7 +84,7 @@ Mesh read_binary(const ByteSource& src, std::uint64_t count, const ReadOptions& 
             auto where = [&] {
                 return "triangle " + with_commas(t) + " (byte " + with_commas(kHeaderBytes + t * kRecordBytes) + "): ";
             };
-            detail::check_mesh_size(name, where, m.vertices.size() + 3, count, opt.max_bytes);
+            mesh_detail::check_mesh_size(name, where, m.vertices.size() + 3, count, opt.max_bytes);
             std::array<std::uint32_t, 3> tri{};
             for (std::size_t c = 0; c < 3; ++c) {
                 Vec3 p{};
@@ -92,7 +92,7 @@ Mesh read_binary(const ByteSource& src, std::uint64_t count, const ReadOptions& 
                     p[a] = static_cast<double>(read_f32_le(buf.data() + j * kRecordBytes + 12 * (c + 1) + 4 * a));
                     if (!std::isfinite(p[a]))
                         fail(name, where() + "corner " + std::to_string(c) + " has " + std::string(1, "xyz"[a]) +
-                                       " = " + detail::format_double(p[a]) + " (not finite)");
+                                       " = " + mesh_detail::format_double(p[a]) + " (not finite)");
                 }
                 tri[c] = weld.add(p);
             }
@@ -111,7 +111,7 @@ public:
     Mesh read() {
         std::string_view tok;
         while (tokens_.next(tok)) {
-            if (!detail::iequals(tok, "solid"))
+            if (!mesh_detail::iequals(tok, "solid"))
                 fail(name_, tokens_.here() + "expected 'solid', got " + quoted(tok));
             tokens_.skip_line();  // the solid's name
             read_solid();
@@ -124,11 +124,11 @@ private:
     void read_solid() {
         for (;;) {
             const std::string_view tok = tokens_.need("'endsolid' (the solid is not closed)");
-            if (detail::iequals(tok, "endsolid")) {
+            if (mesh_detail::iequals(tok, "endsolid")) {
                 tokens_.skip_line();  // the solid's name again
                 return;
             }
-            if (!detail::iequals(tok, "facet"))
+            if (!mesh_detail::iequals(tok, "facet"))
                 fail(name_, tokens_.here() + "expected 'facet' or 'endsolid', got " + quoted(tok));
             read_facet();
         }
@@ -138,7 +138,7 @@ private:
         tokens_.expect("normal");
         for (int a = 0; a < 3; ++a) {  // the normal: numbers, but unused (writers put nan in degenerate facets)
             const std::string_view tok = tokens_.need("the facet normal");
-            if (double ignored = 0; !detail::parse_double(tok, ignored))
+            if (double ignored = 0; !mesh_detail::parse_double(tok, ignored))
                 fail(name_, tokens_.here() + "facet normal " + quoted(tok) + " is not a number");
         }
         tokens_.expect("outer");
@@ -146,17 +146,17 @@ private:
         poly_.clear();
         for (;;) {
             const std::string_view tok = tokens_.need("'endloop'");
-            if (detail::iequals(tok, "endloop")) break;
-            if (!detail::iequals(tok, "vertex"))
+            if (mesh_detail::iequals(tok, "endloop")) break;
+            if (!mesh_detail::iequals(tok, "vertex"))
                 fail(name_, tokens_.here() + "expected 'vertex' or 'endloop', got " + quoted(tok));
-            detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size() + 1,
+            mesh_detail::check_mesh_size(name_, [&] { return tokens_.here(); }, m_.vertices.size() + 1,
                                     m_.triangles.size() + std::max<std::size_t>(poly_.size(), 1) - 1, opt_.max_bytes);
             poly_.push_back(weld_.add(vertex()));
         }
         if (poly_.size() < 3) fail(name_, tokens_.here() + "facet has " + std::to_string(poly_.size()) +
                                               " vertices (a facet needs at least 3)");
         tokens_.expect("endfacet");
-        detail::fan(poly_, m_.triangles);
+        mesh_detail::fan(poly_, m_.triangles);
     }
 
     Vec3 vertex() {
@@ -164,15 +164,15 @@ private:
         for (std::size_t a = 0; a < 3; ++a) {
             const std::string_view tok = tokens_.need("the vertex's coordinates");
             std::string why;
-            if (!detail::parse_coordinate(tok, a, p[a], why)) fail(name_, tokens_.here() + "vertex " + why);
+            if (!mesh_detail::parse_coordinate(tok, a, p[a], why)) fail(name_, tokens_.here() + "vertex " + why);
         }
         return p;
     }
 
     const std::string& name_;
     const ReadOptions& opt_;
-    detail::LineReader lines_;
-    detail::TokenReader tokens_;
+    mesh_detail::LineReader lines_;
+    mesh_detail::TokenReader tokens_;
     Mesh m_;
     Welder weld_;
     std::vector<std::uint32_t> poly_;

@@ -7,7 +7,7 @@
 
 namespace volrig {
 
-using namespace detail;  // the reader helpers of io_detail.hpp and mesh_detail.hpp
+using namespace mesh_detail;  // the reader helpers of io/io_detail.hpp and mesh_detail.hpp
 
 TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
@@ -22,7 +22,7 @@ TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
     while (section < 2 && lines.next(line)) {
         const std::int64_t line_no = lines.line_number();
         refuse_binary(name, line_no, line, "TGF");
-        const auto w = detail::split_words(line);
+        const auto w = mesh_detail::split_words(line);
         if (w.empty()) continue;
         if (w[0][0] == '#') {
             ++section;
@@ -31,8 +31,8 @@ TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
         if (section == 0) {
             std::int64_t index = 0;
             if (w.size() < 4)
-                fail(name, at_line(line_no) + "joint needs 'index x y z', got " + quoted(detail::trim(line)));
-            if (!detail::parse_int(w[0], index))
+                fail(name, at_line(line_no) + "joint needs 'index x y z', got " + quoted(mesh_detail::trim(line)));
+            if (!mesh_detail::parse_int(w[0], index))
                 fail(name, at_line(line_no) + "joint index " + quoted(w[0]) + " is not an integer");
             std::array<double, 3> p{};
             std::string why;
@@ -42,9 +42,9 @@ TgfSkeleton read_tgf(const ByteSource& src, const ReadOptions& opt) {
         } else {
             std::int64_t a = 0, b = 0;
             if (w.size() < 2)
-                fail(name, at_line(line_no) + "edge needs two joint numbers, got " + quoted(detail::trim(line)));
-            if (!detail::parse_int(w[0], a) || !detail::parse_int(w[1], b))
-                fail(name, at_line(line_no) + "edge " + quoted(detail::trim(line)) +
+                fail(name, at_line(line_no) + "edge needs two joint numbers, got " + quoted(mesh_detail::trim(line)));
+            if (!mesh_detail::parse_int(w[0], a) || !mesh_detail::parse_int(w[1], b))
+                fail(name, at_line(line_no) + "edge " + quoted(mesh_detail::trim(line)) +
                                " does not start with two integers");
             check_mesh_size(name, [&] { return at_line(line_no); }, s.joints.size(), edges.size() + 1, opt.max_bytes);
             edges.push_back({a, b, line_no});

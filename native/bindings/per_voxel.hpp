@@ -1,0 +1,26 @@
+// Bindings helpers shared by the skeleton and medial bindings: a mask's grid, and a per-voxel function of a mask
+// run without the GIL.
+#pragma once
+
+#include "convert.hpp"
+
+namespace volrig::py {
+
+using Mask = MaskArray;
+
+inline Grid mask_grid(const Mask& m, const Vec3& spacing) { return grid_of(m, spacing, {0, 0, 0}, "mask"); }
+
+/// A per-voxel function of a mask (DT, plane measure, thickness) run without the GIL, as an array on its grid.
+template <class F>
+py::array_t<float> per_voxel(const Mask& mask, const Vec3& spacing, const py::object& progress, F f) {
+    const Grid g = mask_grid(mask, spacing);
+    Progress p = progress_of(progress);
+    std::vector<float> out;
+    {
+        py::gil_scoped_release nogil;
+        out = f(g, mask.data(), p);
+    }
+    return to_numpy(std::move(out), g);
+}
+
+}  // namespace volrig::py

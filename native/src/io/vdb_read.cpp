@@ -1,0 +1,357 @@
+// io/vdb_read.cpp: OpenVDB reading, the "OpenVDB" section of volrig/io.hpp (writing: io/vdb_write.cpp).
+//
+// Reading (read_vdb, vdb_grids): the grid is copied densely over its active voxel bounding box. Only linear transforms
+// with an axis-aligned positive scale are accepted (rotated, sheared, mirrored and frustum transforms are refused);
+// spacing = the scale, origin = the world position of the bounding box minimum. Files are read through OpenVDB's
+// archive code from a stream owned here (see VdbReader), so truncated files are refused with a FileFormatError.
+// Known limit: OpenVDB 10 itself can overrun a buffer on some deliberately corrupted leaf data (bloscFromStream
+// copies a length read from the file before checking it), so .vdb files are trusted more than the other formats.
+#include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
+#include <openvdb/io/GridDescriptor.h>
+#include <openvdb/io/io.h>
+#include <openvdb/tools/Dense.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/blocked_range2d.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <random>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "volrig/io.hpp"
+#include "io/vdb_detail.hpp"
+
+namespace volrig {
+
+using io_detail::initialize_openvdb;
+
+namespace {
+
+bool is_scalar_type(const std::string& t) {
+    return t == "float" || t == "double" || t == "int32" || t == "int64" || t == "bool";
+}
+
+/// Runs f() and turns OpenVDB's (and the standard library's) exceptions into a FileFormatError naming the file.
+template <class F>
+auto guarded_read(const std::string& path, const std::string& doing, F&& f) -> decltype(f()) {
+    try {
+        return f();
+    } catch (const Error&) {
+        throw;
+    } catch (const openvdb::Exception& e) {
+        throw FileFormatError(path + ": not a valid OpenVDB file: failed " + doing + " (" + e.what() + ")");
+    } catch (const std::bad_alloc&) {
+        throw FileFormatError(path + ": corrupt OpenVDB file: failed " + doing + " (out of memory)");
+    } catch (const std::exception& e) {
+        throw FileFormatError(path + ": corrupt OpenVDB file: failed " + doing + " (" + e.what() + ")");
+    }
+}
+
+/// Reads VDB files through OpenVDB's own archive code, as io::File does (header, file metadata, then one grid
+/// descriptor per grid with the grid's byte range), but from a stream it owns: io::File reads a truncated last
+/// grid without complaint (its stream state is not checked), whereas here every grid's byte range is checked
+/// against the file size when the file is opened and the stream state after each read.
+class VdbReader : public openvdb::io::Archive {
+public:
+    explicit VdbReader(const std::string& path) : path_(path) {
+        initialize_openvdb();
+        is_.open(path, std::ios::binary);
+        if (!is_) throw FileNotFound(path + ": no such file or it cannot be opened");
+        is_.seekg(0, std::ios::end);
+        size_ = static_cast<std::int64_t>(is_.tellg());
+        is_.seekg(0, std::ios::beg);
+        if (!is_ || size_ < 16)
+            throw FileFormatError(path + ": not an OpenVDB file (" + std::to_string(std::max<std::int64_t>(size_, 0)) +
+                                  " bytes is too short for a VDB header)");
+        guarded_read(path_, "reading the file header", [&] {
+            readHeader(is_);  // throws IoError when the magic number is wrong
+            check_stream("the file header");
+            const std::uint32_t oldest = openvdb::OPENVDB_FILE_VERSION_ROOTNODE_MAP,
+                                newest = openvdb::OPENVDB_FILE_VERSION;
+            if (fileVersion() < oldest || fileVersion() > newest)
+                throw FileFormatError(path_ + ": unsupported OpenVDB file format version " +
+                                      std::to_string(fileVersion()) + " (this build reads " + std::to_string(oldest) +
+                                      " to " + std::to_string(newest) + ")");
+            if (!inputHasGridOffsets())
+                throw FileFormatError(path_ + ": VDB stream without grid offsets (not a seekable .vdb file)");
+            meta_ = std::make_shared<openvdb::io::StreamMetadata>();
+            meta_->setSeekable(true);
+            openvdb::io::setStreamMetadataPtr(is_, meta_, /*transfer=*/false);
+            setFormatVersion(is_);
+            setLibraryVersion(is_);
+            setDataCompression(is_);
+            openvdb::MetaMap file_meta;
+            file_meta.readMeta(is_);
+            check_stream("the file metadata");
+            const std::int32_t count = readGridCount(is_);
+            check_stream("the grid count");
+            if (count < 0) throw FileFormatError(path_ + ": negative grid count " + std::to_string(count));
+            for (std::int32_t i = 0; i < count; ++i) {
+                openvdb::io::GridDescriptor gd;
+                gd.read(is_);
+                check_stream("grid descriptor " + std::to_string(i));
+                const std::int64_t here = static_cast<std::int64_t>(is_.tellg());
+                if (gd.getGridPos() < here || gd.getEndPos() < gd.getGridPos() || gd.getEndPos() > size_) {
+                    std::ostringstream s;
+                    s << path_ << ": truncated or corrupt OpenVDB file: grid '" << gd.gridName() << "' spans bytes "
+                      << gd.getGridPos() << " to " << gd.getEndPos() << " but the file holds " << size_ << " bytes";
+                    throw FileFormatError(s.str());
+                }
+                descriptors_.push_back(gd);
+                gd.seekToEnd(is_);
+            }
+            return 0;
+        });
+    }
+    VdbReader(const VdbReader&) = delete;
+    VdbReader& operator=(const VdbReader&) = delete;
+
+    const std::vector<openvdb::io::GridDescriptor>& descriptors() const { return descriptors_; }
+
+    /// The descriptor of the first grid named `name`, or nullptr.
+    const openvdb::io::GridDescriptor* find(const std::string& name) const {
+        for (const auto& gd : descriptors_)
+            if (gd.gridName() == name) return &gd;
+        return nullptr;
+    }
+
+    /// Value type name of a grid ("float", "int32", "vec3s", ...) without reading it.
+    static std::string value_type(const openvdb::io::GridDescriptor& gd) {
+        return openvdb::GridBase::createGrid(gd.gridType())->valueType();
+    }
+
+    /// A grid's metadata and transform (no tree).
+    openvdb::GridBase::Ptr read_metadata(const openvdb::io::GridDescriptor& gd) {
+        return guarded_read(path_, "reading the metadata of grid '" + gd.gridName() + "'", [&] {
+            auto grid = openvdb::GridBase::createGrid(gd.gridType());
+            grid->setSaveFloatAsHalf(gd.saveFloatAsHalf());
+            is_.clear();
+            gd.seekToGrid(is_);
+            readGridCompression(is_);
+            grid->readMeta(is_);
+            grid->readTransform(is_);
+            check_stream("grid '" + gd.gridName() + "' metadata");
+            if (grid->getName().empty()) grid->setName(gd.gridName());
+            return grid;
+        });
+    }
+
+    /// A whole grid (instances share their parent's tree).
+    openvdb::GridBase::Ptr read_grid(const openvdb::io::GridDescriptor& gd, int depth = 0) {
+        if (gd.isInstance()) {
+            const openvdb::io::GridDescriptor* parent = nullptr;
+            for (const auto& other : descriptors_)
+                if (other.uniqueName() == gd.instanceParentName()) parent = &other;
+            if (!parent || parent == &gd || depth > static_cast<int>(descriptors_.size()))
+                throw FileFormatError(path_ + ": grid '" + gd.gridName() + "' is an instance of a missing grid");
+            auto tree_owner = read_grid(*parent, depth + 1);
+            auto grid = read_metadata(gd);
+            guarded_read(path_, "sharing the tree of grid '" + gd.gridName() + "'", [&] {
+                grid->setTree(tree_owner->baseTreePtr());
+                return 0;
+            });
+            return grid;
+        }
+        return guarded_read(path_, "reading grid '" + gd.gridName() + "'", [&] {
+            auto grid = openvdb::GridBase::createGrid(gd.gridType());
+            grid->setSaveFloatAsHalf(gd.saveFloatAsHalf());
+            is_.clear();
+            gd.seekToGrid(is_);
+            openvdb::io::Archive::readGrid(grid, gd, is_);
+            check_stream("grid '" + gd.gridName() + "'");
+            if (static_cast<std::int64_t>(is_.tellg()) > gd.getEndPos())
+                throw FileFormatError(path_ + ": corrupt OpenVDB file: grid '" + gd.gridName() +
+                                      "' reads past its end");
+            if (grid->getName().empty()) grid->setName(gd.gridName());
+            return grid;
+        });
+    }
+
+    /// "'a' (float), 'b' (int32)" for error messages.
+    std::string grid_list() const {
+        std::string s;
+        for (const auto& gd : descriptors_) {
+            if (!s.empty()) s += ", ";
+            s += "'" + gd.gridName() + "' (" + value_type(gd) + ")";
+        }
+        return s.empty() ? std::string("none") : s;
+    }
+
+private:
+    void check_stream(const std::string& what) const {
+        if (!is_.good())
+            throw FileFormatError(path_ + ": truncated or corrupt OpenVDB file (reading " + what +
+                                  " ran past the end of the file)");
+    }
+
+    std::string path_;
+    std::ifstream is_;
+    std::int64_t size_ = 0;
+    openvdb::io::StreamMetadata::Ptr meta_;
+    std::vector<openvdb::io::GridDescriptor> descriptors_;
+};
+
+/// Index bounding box from the file's stats metadata, if it has them (written by OpenVDB's writer by default).
+bool stats_bbox(const openvdb::GridBase& g, openvdb::CoordBBox& bbox, std::int64_t& count) {
+    using openvdb::GridBase;
+    auto lo = g.getMetadata<openvdb::Vec3IMetadata>(GridBase::META_FILE_BBOX_MIN);
+    auto hi = g.getMetadata<openvdb::Vec3IMetadata>(GridBase::META_FILE_BBOX_MAX);
+    auto n = g.getMetadata<openvdb::Int64Metadata>(GridBase::META_FILE_VOXEL_COUNT);
+    if (!lo || !hi || !n) return false;
+    bbox = openvdb::CoordBBox(openvdb::Coord(lo->value()), openvdb::Coord(hi->value()));
+    count = n->value();
+    return true;
+}
+
+/// Grid geometry of `bbox` under `xf`, refusing transforms that are not an axis-aligned positive scale.
+Grid geometry_of(const openvdb::math::Transform& xf, const openvdb::CoordBBox& bbox, const std::string& path,
+                 const std::string& name) {
+    const std::string subject = path + ": grid '" + name + "'";
+    if (!xf.isLinear())
+        throw FileFormatError(subject + " has a nonlinear (" + xf.mapType() +
+                              ") transform; only axis-aligned linear transforms are supported");
+    const openvdb::Mat4d m = xf.baseMap()->getAffineMap()->getMat4();  // row vectors: world = index * m
+    double scale = 0;
+    for (int a = 0; a < 3; ++a) scale = std::max(scale, std::abs(m[a][a]));
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            if (r != c && !(std::abs(m[r][c]) <= 1e-9 * scale))
+                throw FileFormatError(subject + " has a rotated or sheared transform (" + xf.mapType() +
+                                      "); only axis-aligned linear transforms are supported");
+    for (int a = 0; a < 3; ++a)
+        if (!(m[a][a] > 0) || !std::isfinite(m[a][a]))
+            throw FileFormatError(subject + " has a mirrored or degenerate transform (scale " +
+                                  std::to_string(m[0][0]) + ", " + std::to_string(m[1][1]) + ", " +
+                                  std::to_string(m[2][2]) + "); only positive axis-aligned scales are supported");
+    Grid g;
+    for (int a = 0; a < 3; ++a) {
+        g.dims[a] = static_cast<std::int64_t>(bbox.max()[a]) - static_cast<std::int64_t>(bbox.min()[a]) + 1;
+        g.spacing[a] = m[a][a];
+    }
+    const openvdb::Vec3d o = xf.indexToWorld(bbox.min());
+    g.origin = {o[0], o[1], o[2]};
+    return g;
+}
+
+DType dtype_of_grid(const std::string& type) {
+    if (type == "float") return DType::Float32;
+    if (type == "double") return DType::Float64;
+    if (type == "int32") return DType::Int32;
+    if (type == "int64") return DType::Int64;
+    return DType::UInt8;  // bool
+}
+
+template <class T, class GridT>
+void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
+    openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(bbox, static_cast<T*>(out));
+    openvdb::tools::copyToDense(grid, dense);
+}
+
+}  // namespace
+
+// ---- public API ----------------------------------------------------------------------------------------------
+
+// ---- public API ----------------------------------------------------------------------------------------------
+
+std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+    VdbReader file(path);
+    std::vector<VdbGridInfo> out;
+    for (const auto& gd : file.descriptors()) {
+        auto grid = file.read_metadata(gd);
+        VdbGridInfo info;
+        info.name = gd.gridName();
+        info.type = grid->valueType();
+        openvdb::CoordBBox bbox;
+        std::int64_t count = 0;
+        if (!stats_bbox(*grid, bbox, count)) {
+            auto full = file.read_grid(gd);
+            bbox = full->evalActiveVoxelBoundingBox();
+            count = static_cast<std::int64_t>(full->activeVoxelCount());
+        }
+        if (count > 0 && !bbox.empty()) {
+            for (int a = 0; a < 3; ++a) {
+                info.bbox_min[a] = bbox.min()[a];
+                info.bbox_max[a] = bbox.max()[a];
+            }
+        }
+        info.active_voxels = count;
+        out.push_back(std::move(info));
+    }
+    return out;
+}
+
+Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+    VdbReader file(path);
+    const openvdb::io::GridDescriptor* gd = nullptr;
+    if (grid_name.empty()) {
+        gd = file.find("density");
+        for (const auto& d : file.descriptors())
+            if (!gd && is_scalar_type(VdbReader::value_type(d))) gd = &d;
+        if (!gd) throw FileFormatError(path + ": no scalar grid to read (grids present: " + file.grid_list() + ")");
+    } else {
+        gd = file.find(grid_name);
+        if (!gd)
+            throw FileFormatError(path + ": no grid named '" + grid_name + "' (grids present: " + file.grid_list() +
+                                  ")");
+    }
+    const std::string name = gd->gridName();
+    const std::string subject = path + ": grid '" + name + "'";
+    const std::string type = VdbReader::value_type(*gd);
+    if (!is_scalar_type(type))
+        throw FileFormatError(subject + " holds " + type +
+                              " values; only scalar grids (float, double, int32, int64, bool) can be read");
+    const std::size_t esize = dtype_size(dtype_of_grid(type));
+    auto checked = [&](const Grid& g) {
+        try {
+            check_grid(g, esize, opt.max_bytes, subject);
+        } catch (const FileFormatError&) {
+            throw;
+        } catch (const Error& e) {
+            throw FileFormatError(e.what());
+        }
+    };
+
+    // Check the size the stats metadata declare (when present) before reading the tree.
+    {
+        auto meta = file.read_metadata(*gd);
+        openvdb::CoordBBox bbox;
+        std::int64_t count = 0;
+        if (stats_bbox(*meta, bbox, count) && count > 0 && !bbox.empty())
+            checked(geometry_of(meta->transform(), bbox, path, name));
+    }
+
+    auto base = file.read_grid(*gd);
+    const openvdb::CoordBBox bbox = base->evalActiveVoxelBoundingBox();
+    if (bbox.empty() || base->activeVoxelCount() == 0) throw FileFormatError(subject + " has no active voxels");
+    Volume vol;
+    vol.grid = geometry_of(base->transform(), bbox, path, name);
+    vol.dtype = dtype_of_grid(type);
+    checked(vol.grid);
+    vol.data.resize(static_cast<std::size_t>(vol.grid.voxel_count()) * esize);
+    void* out = vol.data.data();
+    guarded_read(path, "copying grid '" + name + "'", [&] {
+        if (type == "float") copy_dense<float>(*openvdb::gridPtrCast<openvdb::FloatGrid>(base), bbox, out);
+        else if (type == "double") copy_dense<double>(*openvdb::gridPtrCast<openvdb::DoubleGrid>(base), bbox, out);
+        else if (type == "int32") copy_dense<std::int32_t>(*openvdb::gridPtrCast<openvdb::Int32Grid>(base), bbox, out);
+        else if (type == "int64") copy_dense<std::int64_t>(*openvdb::gridPtrCast<openvdb::Int64Grid>(base), bbox, out);
+        else copy_dense<std::uint8_t>(*openvdb::gridPtrCast<openvdb::BoolGrid>(base), bbox, out);
+        return 0;
+    });
+    return vol;
+}
+
+}  // namespace volrig

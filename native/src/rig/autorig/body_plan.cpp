@@ -1,0 +1,285 @@
+// rig/autorig/body_plan.cpp: the humanoid and quadruped templates: a scored discrete search over which extremities
+// are head, legs and arms, then the role-named rig of the best (see templates.hpp).
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "rig/autorig/templates.hpp"
+
+namespace volrig::rig_detail {
+
+namespace {
+
+/// How far two limb tips x, y (meeting at `base`) are from mirroring each other across the body's midplane: both
+/// tips at the same place along the spine's line (through `pelvis` along `axis`) and at the same distance from it,
+/// relative to the limbs' length. Straight-line measures: paths through a cluttered trunk wander.
+double mirror(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, std::uint32_t x, std::uint32_t y,
+              std::uint32_t base) {
+    const Vec px = t.at(x) - t.at(pelvis), py = t.at(y) - t.at(pelvis);
+    const double tx = px.dot(axis), ty = py.dot(axis);
+    const double rx = (px - tx * axis).norm(), ry = (py - ty * axis).norm();
+    return (std::abs(tx - ty) + std::abs(rx - ry)) / std::max((t.at(x) - t.at(base)).norm() + (t.at(y) - t.at(base)).norm(), 1e-12);
+}
+
+/// A humanoid's arms hang from its chest and are shorter than its torso and legs: its hands stay well above its
+/// feet along the spine (at mid-thigh when hanging, higher when raised). How far short of a quarter of the legs'
+/// length above the feet they stay: 0 for a humanoid, about 0.25 or more for a quadruped's four feet on the
+/// ground read as legs and arms.
+double hands_at_feet(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, const std::uint32_t (&legs)[2],
+                     const std::uint32_t (&arms)[2]) {
+    double feet = 0, hands = 0, leg_length = 0;
+    for (int s = 0; s < 2; ++s) {
+        feet += 0.5 * (t.at(legs[s]) - t.at(pelvis)).dot(axis);
+        hands += 0.5 * (t.at(arms[s]) - t.at(pelvis)).dot(axis);
+        leg_length += 0.5 * (t.at(legs[s]) - t.at(pelvis)).norm();
+    }
+    return std::max(0.0, kHandsAboveFeet - (hands - feet) / std::max(leg_length, 1e-12));
+}
+
+/// What a humanoid reading must also meet: its legs carry it (thicker than its arms; a quadruped's front and hind
+/// legs may go either way) and its hands stay above its feet (hands_at_feet).
+double humanoid_penalty(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, const Vec& axis,
+                        const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    const double rl = 0.5 * (t.mean_radius(t.path(pelvis, legs[0])) + t.mean_radius(t.path(pelvis, legs[1])));
+    const double ra = 0.5 * (t.mean_radius(t.path(chest, arms[0])) + t.mean_radius(t.path(chest, arms[1])));
+    return (rl < ra ? 0.25 : 0.0) + hands_at_feet(t, pelvis, axis, legs, arms);
+}
+
+/// What any reading must meet beyond mirrored pairs: both pairs mirror across one midplane (the directions
+/// between their tips, across the spine, agree), and the neck continues the spine beyond the chest (forward, up
+/// or between: kHeadAhead), so a limb hanging across the spine is no head.
+double body_penalty(const NodeTree& t, std::uint32_t chest, const Vec& axis, std::uint32_t head,
+                    const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    const Vec across_legs = perp(t.at(legs[0]) - t.at(legs[1]), axis).normalized();
+    const Vec across_arms = perp(t.at(arms[0]) - t.at(arms[1]), axis).normalized();
+    const double ahead = (t.at(head) - t.at(chest)).normalized().dot(axis);
+    return 1.0 - std::abs(across_legs.dot(across_arms)) + std::max(0.0, kHeadAhead - ahead);
+}
+
+/// Every assignment of five extremities to head, legs, arms, kept in `best` when better than its kind's.
+void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double leave_penalty,
+              double left_out_thickness, const std::optional<Vec>& up, PlanSearch& best) {
+    for (int h = 0; h < 5; ++h)
+        for (int a = 0; a < 5; ++a)
+            for (int b = a + 1; b < 5; ++b) {
+                if (a == h || b == h) continue;
+                int rest[2], r = 0;
+                for (int i = 0; i < 5; ++i)
+                    if (i != h && i != a && i != b) rest[r++] = i;
+                const std::uint32_t H = leaf[h], A = leaf[a], B = leaf[b], C = leaf[rest[0]], D = leaf[rest[1]];
+                // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where that
+                // branch joins the spine.
+                const std::uint32_t pelvis = t.median(A, B, H), chest = t.median(pelvis, t.median(C, D, H), H);
+                if (pelvis == chest || !limbs_carry(t, pelvis, chest, H, {A, B}, {C, D})) continue;
+                const Vec axis = (t.at(chest) - t.at(pelvis)).normalized();
+                double score = mirror(t, pelvis, axis, A, B, pelvis) + mirror(t, pelvis, axis, C, D, chest) + leave_penalty;
+                if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
+                score += body_penalty(t, chest, axis, H, {A, B}, {C, D});
+                const Vec legs = (0.5 * (t.at(A) + t.at(B)) - t.at(pelvis)).normalized();
+                const bool humanoid = legs.dot(axis) < -0.5;
+                if (humanoid) score += humanoid_penalty(t, pelvis, chest, axis, {A, B}, {C, D});
+                if (up) {
+                    const Vec limbs = (t.at(A) - t.at(pelvis)).normalized() + (t.at(B) - t.at(pelvis)).normalized() +
+                                      (t.at(C) - t.at(chest)).normalized() + (t.at(D) - t.at(chest)).normalized();
+                    if (humanoid ? axis.dot(*up) < 0.5 : 0.25 * limbs.dot(*up) > -0.3) continue;  // limbs hang down
+                }
+                Plan& slot = humanoid ? best.humanoid : best.quadruped;
+                if (score < slot.score) slot = Plan{H, {A, B}, {C, D}, score};
+            }
+}
+
+}  // namespace
+
+bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
+                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
+    double reach = 0;
+    for (int s = 0; s < 2; ++s)
+        reach += 0.25 * ((t.at(legs[s]) - t.at(pelvis)).norm() + (t.at(arms[s]) - t.at(chest)).norm());
+    return reach >= kLimbsToHead * (t.at(head) - t.at(chest)).norm();
+}
+
+Fit trunk_fit(const Chain4& spine) {
+    if (spine.size() < kSpineProportions.size() + 1) return fit_chain(spine, 3);
+    // Shares of the chord from the pelvis to the chest, not of the arc: the axis' wiggles differ between
+    // resolutions.
+    const Vec chord = (spine.back().head<3>() - spine.front().head<3>()).normalized();
+    std::vector<double> along;
+    for (const auto& q : spine) along.push_back((q.head<3>() - spine.front().head<3>()).dot(chord));
+    double sum = 0;
+    for (double r : kSpineProportions) sum += r;
+    Fit fit;
+    fit.cuts.push_back(0);
+    double share = 0;
+    for (std::size_t k = 0; k + 1 < kSpineProportions.size(); ++k) {
+        share += kSpineProportions[k] / sum;
+        std::size_t at = fit.cuts.back() + 1;  // the sample nearest that share of the chord, after the last cut
+        while (at + 1 < spine.size() - (kSpineProportions.size() - 1 - k) &&
+               std::abs(along[at + 1] - share * along.back()) < std::abs(along[at] - share * along.back()))
+            ++at;
+        fit.cuts.push_back(at);
+    }
+    fit.cuts.push_back(spine.size() - 1);
+    return fit;
+}
+
+void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
+                      double ratio) {
+    const std::int32_t p = bone_index(rig, proximal), d = bone_index(rig, distal);
+    if (p < 0 || d < 0) return;
+    const Vec mid = bone_end(rig, static_cast<std::size_t>(p), 1);
+    const double want = ratio * (bone_end(rig, static_cast<std::size_t>(d), 1) - mid).norm();
+    if ((bone_end(rig, static_cast<std::size_t>(p), 0) - mid).norm() < kHiddenEnd * want)
+        lengthen_proximal(c, rig, static_cast<std::size_t>(p), want);
+}
+
+bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves) {
+    return t.extent(leaves) >= 0.5 * t.extent(t.order());
+}
+
+PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
+    PlanSearch best;
+    const auto ext = t.extremities();
+    if (ext.size() < 5) return best;
+    // Five of the (up to) seven most significant leaves.
+    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
+    double total = 0;
+    for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+    for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
+        // A body plan includes the two most prominent extremities.
+        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
+        std::array<std::uint32_t, 5> leaf{};
+        double left_out = 0, left_out_thickness = 0;
+        for (int i = 0, k = 0; i < m; ++i) {
+            const auto& [significance, node] = ext[static_cast<std::size_t>(i)];
+            if (mask5 & (1 << i)) {
+                leaf[static_cast<std::size_t>(k++)] = node;
+            } else {
+                left_out += std::max(significance, 0.0);
+                left_out_thickness = std::max(left_out_thickness, t.end_radius(node));
+            }
+        }
+        // A body spans the object: five fingers at the end of an arm are no body plan.
+        if (!spans_object(t, std::vector<std::uint32_t>(leaf.begin(), leaf.end()))) continue;
+        consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, up, best);
+    }
+    return best;
+}
+
+namespace {
+
+/// A humanoid's joints the medial axis does not show, on one side: the shoulder, elbow, wrist, hip, knee and heel.
+void place_hidden_joints(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& arm, const Fit& arm_fit,
+                         const std::optional<FusedArm>& fused, const std::string& arm_sfx,
+                         const std::vector<std::uint32_t>& leg, const Fit& leg_fit, const std::string& leg_sfx,
+                         const Vec& body_up, const Vec& front) {
+    if (fused) place_fused_shoulder(rig, "upper_arm" + arm_sfx, fused->shoulder);
+    const auto& a = arm_fit.cuts;
+    if (!fused) {
+        restore_proximal(c, rig, "upper_arm" + arm_sfx, "forearm" + arm_sfx,
+                         kArmProportions[1] / kArmProportions[2]);
+        shoulder_on_top(c, rig, c.samples(arm), a[1], a[2], "upper_arm" + arm_sfx, body_up, front);
+    }
+    bend_corner(c, rig, std::vector<std::uint32_t>(arm.begin() + static_cast<std::ptrdiff_t>(a[1]),
+                                                   arm.begin() + static_cast<std::ptrdiff_t>(a[3]) + 1),
+                "upper_arm" + arm_sfx, "forearm" + arm_sfx);
+    wrist_at_neck(c, rig, std::vector<std::uint32_t>(arm.begin() + static_cast<std::ptrdiff_t>(a[2]), arm.end()),
+                  arm_sfx);
+    hip_on_thigh_line(rig, "thigh" + leg_sfx);
+    restore_proximal(c, rig, "thigh" + leg_sfx, "shin" + leg_sfx, kLegProportions[1] / kLegProportions[2]);
+    const auto& k = leg_fit.cuts;
+    straight_knee(c, rig, std::vector<std::uint32_t>(leg.begin() + static_cast<std::ptrdiff_t>(k[1]), leg.end()),
+                  leg_sfx);
+    heel_ankle(c, rig, std::vector<std::uint32_t>(leg.begin() + static_cast<std::ptrdiff_t>(k[2]), leg.end()),
+               leg_sfx);
+}
+
+}  // namespace
+
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+                     const std::optional<Vec>& up) {
+    const NodeTree& t = c.tree;
+    const std::uint32_t H = plan.head;
+    const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
+    const std::uint32_t chest = t.median(pelvis, t.median(plan.arms[0], plan.arms[1], H), H);
+    const std::vector<std::uint32_t> spine = t.path(pelvis, chest), head = t.path(chest, H);
+    std::vector<std::uint32_t> leg[2], arm[2];
+    Fit leg_fit[2], arm_fit[2];
+    const Fit spine_fit = trunk_fit(c.samples(spine)), head_fit = fit_chain(c.samples(head), 2);
+    bool ok = spine_fit.cuts.size() == 4 && head_fit.cuts.size() == 3;
+    const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
+    std::optional<FusedArm> fused[2];
+    for (int k = 0; k < 2; ++k) {
+        leg[k] = t.path(pelvis, plan.legs[k]);
+        leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
+        ok = ok && leg_fit[k].cuts.size() == 5;
+    }
+    if (!ok) return Candidate{};
+    // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
+    Candidate out;
+    Vec forward = Vec::Zero();
+    if (humanoid)
+        for (int s = 0; s < 2; ++s) {  // feet point forward: the last bone of each leg
+            const auto& k = leg_fit[s].cuts;
+            forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), spine_dir);
+        }
+    const Vec body_up = up ? *up : spine_dir;
+    const Vec front = perp(forward, body_up).norm() > 0 ? Vec(perp(forward, body_up).normalized()) : Vec::Zero();
+    for (int k = 0; k < 2; ++k) {
+        arm[k] = t.path(chest, plan.arms[k]);
+        if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), body_up, front);
+        arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
+                              : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
+        ok = ok && arm_fit[k].cuts.size() == 5;
+    }
+    if (!ok) return Candidate{};
+
+    if (humanoid) {
+        out.up = spine_dir;
+        const Vec legs = (0.5 * (t.at(plan.legs[0]) + t.at(plan.legs[1])) - t.at(pelvis)).normalized();
+        out.up_confidence = std::clamp(-2.0 * legs.dot(spine_dir) - 1.0, 0.0, 1.0);
+    } else {
+        forward = spine_dir;
+        Vec down = Vec::Zero();
+        for (int s = 0; s < 2; ++s) {
+            down += perp(t.at(plan.legs[s]) - t.at(pelvis), forward).normalized();
+            down += perp(t.at(plan.arms[s]) - t.at(chest), forward).normalized();
+        }
+        out.up = -down.normalized();
+        out.up_confidence = std::clamp(down.norm() / 4.0, 0.0, 1.0);
+    }
+    const Vec left = out.up.cross(forward.normalized());
+    auto first_is_left = [&](const std::uint32_t (&pair)[2], std::uint32_t base) {
+        return (t.at(pair[0]) - t.at(base)).dot(left) >= (t.at(pair[1]) - t.at(base)).dot(left);
+    };
+    const bool leg0_left = first_is_left(plan.legs, pelvis), arm0_left = first_is_left(plan.arms, chest);
+
+    RigBuilder b(c);
+    b.chain(spine, spine_fit.cuts, {"hips", "spine", "chest"});
+    b.chain(head, head_fit.cuts, {"neck", "head"});
+    for (int s = 0; s < 2; ++s) {
+        const std::string sfx = ((s == 0) == arm0_left) ? ".L" : ".R";
+        b.chain(arm[s], arm_fit[s].cuts, {"shoulder" + sfx, "upper_arm" + sfx, "forearm" + sfx, "hand" + sfx});
+    }
+    for (int s = 0; s < 2; ++s) {
+        const std::string sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
+        b.chain(leg[s], leg_fit[s].cuts, {"pelvis" + sfx, "thigh" + sfx, "shin" + sfx, "foot" + sfx});
+    }
+    add_extra_chains(c, b, !humanoid, tolerance);
+    out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
+    if (humanoid)
+        for (int s = 0; s < 2; ++s) {  // joints the medial axis does not show
+            const std::string arm_sfx = ((s == 0) == arm0_left) ? ".L" : ".R", leg_sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
+            place_hidden_joints(c, out.rig, arm[s], arm_fit[s], fused[s], arm_sfx, leg[s], leg_fit[s], leg_sfx, body_up,
+                                front);
+        }
+    if (humanoid) {
+        level_hips(out.rig, body_up);
+        centre_chest(out.rig, body_up);
+        recut_spine(out.rig, c.samples(spine));
+        place_head(c, out.rig, c.samples(head), body_up);
+    }
+    out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
+    return out;
+}
+
+}  // namespace volrig::rig_detail

@@ -1,0 +1,64 @@
+// rig/autorig/node_tree.hpp: the level-set tree's nodes as a rooted tree: spur pruning, extremities by significance,
+// paths between nodes (internal to the core; tested alone in tests/native/test_rig_autorig.cpp).
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include "rig/autorig/shape_tree.hpp"
+
+namespace volrig::rig_detail {
+
+class NodeTree {
+public:
+    /// Nodes at `pos` with radii `rad`, joined by the (tree) `edges`; every node kept, rooted at the largest.
+    NodeTree(std::vector<Vec> pos, std::vector<double> rad, const std::vector<std::array<std::uint32_t, 2>>& edges);
+
+    std::size_t size() const { return pos_.size(); }
+    const Vec& at(std::uint32_t v) const { return pos_[v]; }
+    double radius(std::uint32_t v) const { return rad_[v]; }
+    std::uint32_t root() const { return root_; }
+    std::uint32_t parent(std::uint32_t v) const { return parent_[v]; }
+    std::uint32_t depth(std::uint32_t v) const { return depth_[v]; }
+    const std::vector<std::uint32_t>& children(std::uint32_t v) const { return children_[v]; }
+    /// Kept nodes in BFS order from the root.
+    const std::vector<std::uint32_t>& order() const { return order_; }
+    const std::vector<std::uint8_t>& kept() const { return kept_; }
+
+    /// Roots the kept nodes at `root`: parent pointers, BFS order, depth.
+    void reroot(std::uint32_t root);
+    /// Kept leaves (the root excluded).
+    std::vector<std::uint32_t> leaves() const;
+    /// Spur pruning: a leaf branch (leaf up to its first junction) goes when the leaf's ball lies inside the ball,
+    /// scaled by `scale`, of the junction or of any node between it and the root; repeated until stable. Of the
+    /// branches of one junction, the one whose tip reaches farthest always stays.
+    void prune(double scale);
+    /// When the kept nodes form a path, reroots it at its thicker end (its bones then run outward from there).
+    void root_path_at_thicker_end();
+    /// Leaves by descending significance: each leaf's branch in the longest-path decomposition of the rooted tree
+    /// attaches at a node; the significance is how far the leaf lies outside the balls of that node and of every
+    /// node between it and the root (the body it sticks out of, however thin the node it hangs from).
+    std::vector<std::pair<double, std::uint32_t>> extremities() const;
+
+    std::uint32_t lca(std::uint32_t a, std::uint32_t b) const;
+    /// The node on all three paths between a, b and c.
+    std::uint32_t median(std::uint32_t a, std::uint32_t b, std::uint32_t c) const;
+    /// Nodes of the path from a to b, both included.
+    std::vector<std::uint32_t> path(std::uint32_t a, std::uint32_t b) const;
+    /// Diagonal of the bounding box of the given nodes' positions.
+    double extent(const std::vector<std::uint32_t>& nodes) const;
+    double mean_radius(const std::vector<std::uint32_t>& nodes) const;
+    /// Mean radius of the few nodes nearest an end of a path (its thickness there).
+    double end_radius(std::uint32_t end) const;
+
+private:
+    std::vector<Vec> pos_;
+    std::vector<double> rad_;
+    std::vector<std::vector<std::uint32_t>> adj_;
+    std::vector<std::uint8_t> kept_;
+    std::uint32_t root_ = 0;
+    std::vector<std::uint32_t> parent_, order_, depth_;
+    std::vector<std::vector<std::uint32_t>> children_;
+};
+
+}  // namespace volrig::rig_detail

@@ -1,0 +1,233 @@
+// rig/autorig/templates.hpp: body plans fitted to the node tree, each scored (internal to the core; tested alone in
+// tests/native/test_rig_autorig.cpp).
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "rig/autorig/rig_builder.hpp"
+
+namespace volrig::rig_detail {
+
+/// A template's embedding: the rig (no bones when it could not be built), how well it fits (0..1), the up
+/// direction it implies and how sure that is (0..1; 0 when it implies none).
+struct Candidate {
+    Rig rig;
+    double fit = 0;
+    Vec up = Vec::Zero();
+    double up_confidence = 0;
+};
+
+/// The five extremities of a body plan: head, two legs (meeting at the pelvis), two arms (meeting at the chest).
+struct Plan {
+    std::uint32_t head = kNone, legs[2] = {kNone, kNone}, arms[2] = {kNone, kNone};
+    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+};
+constexpr double kPlanLimit = 0.6;
+/// A humanoid's upper arm or thigh shorter than this share of its proportional length (from the forearm or shin)
+/// has its proximal end hidden in the trunk: it is moved out (build_plan).
+constexpr double kHiddenEnd = 0.8;
+/// A body plan's limbs reach on average at least this share of its head's reach (limbs_carry in body_plan.cpp).
+constexpr double kLimbsToHead = 0.25;
+/// A humanoid's hand tips lie at least this fraction of its legs' length above its foot tips along the spine (a
+/// shortfall is added to the score: four feet on the ground are no humanoid's hands and feet).
+constexpr double kHandsAboveFeet = 0.25;
+/// The head's tip lies ahead of the chest along the spine: the cosine between chest -> head tip and pelvis -> chest
+/// is at least this (a camel's neck rises at about 45 degrees; a limb hangs across the spine); a shortfall is added.
+constexpr double kHeadAhead = 0.25;
+
+struct PlanSearch {
+    Plan humanoid, quadruped;
+};
+
+/// Discrete search over the assignments of five of the seven most significant extremities (the two most
+/// significant always in) to head, legs and arms. Penalties: pairs not mirroring each other across the spine
+/// (tip height along the spine and distance from it), significant extremities left out, a head thinner than an
+/// extremity left out (a tail), a head not ahead of the chest (kHeadAhead), and for a humanoid, legs thinner than
+/// arms and hands as low as its feet (kHandsAboveFeet).
+/// A humanoid's legs point away from its head (and, with `up`, its spine points up); a quadruped's do not (and,
+/// with `up`, its limbs hang down). The best assignment of each kind.
+PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
+
+/// The trunk from the pelvis to the chest cut into hips, spine and chest at these shares of its chord (a trunk's
+/// medial axis wiggles: cuts at its bends, or shares of its arc, wander between resolutions), or by fit_chain when
+/// it has too few samples.
+inline const std::vector<double> kSpineProportions{1.0, 1.0, 1.0};
+Fit trunk_fit(const Chain4& spine);
+
+/// Whether the extremities' bounding box is at least half the object's (a body plan spans the object).
+bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
+
+/// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
+/// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
+/// bones when its chains are too short to cut.
+Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+                     const std::optional<Vec>& up = std::nullopt);
+
+/// Whether the four limbs carry a body: their mean reach (tip from the pelvis or chest) is at least kLimbsToHead
+/// times the head's (tip from the chest). A long object with a few short branches at one end (an arm with its
+/// fingers) is no body whose head is the rest of it; search_plans skips such readings.
+bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
+                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]);
+
+/// A limb whose proximal bone (upper arm, thigh) comes out shorter than kHiddenEnd times `ratio` times the next
+/// one (forearm, shin) had its proximal end hidden in the trunk: where an arm lies against the trunk, its medial
+/// axis leaves the trunk at the armpit, not at the humeral head. That end moves out along the bone's line (away
+/// from the distal joint) to the proportional length, as far as the object reaches; it is a free joint then
+/// (joint_points -1). Nothing changes when either bone is missing.
+void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal, const std::string& distal,
+                      double ratio);
+
+/// A limb chain's samples from the trunk out: a sample more than kTrunkJump times as thick as every sample beyond
+/// it is trunk (a limb lying against the trunk joins it through the trunk's medial sheet, not at its own radius).
+constexpr double kTrunkJump = 1.5;
+/// The index of the first sample after the last trunk sample (the root counts; only in the first half of the
+/// chain's length: a hand thickens from its finger tip too), or 0 when there is none.
+std::size_t own_start(const Chain4& chain);
+
+/// How much of an arm's visible top gives its line (arc length, in radii of its first own sample).
+constexpr double kFusedTopRadii = 2.0;
+/// A fused upper arm runs along the body: |cos| between its line and the body's up (the given up, else the spine)
+/// at least this.
+constexpr double kFusedAlongSpine = 0.7;
+/// An arm fused with the trunk (arms at the sides of a scan): the medial axis of its upper arm starts mid-arm
+/// (own), below the humeral head. The shoulder joint goes up the line of its visible top (kFusedTopRadii) to the
+/// shoulder's surface and one radius back in; `cuts` (into the chain: the chest, own, elbow, wrist, tip) come from
+/// proportional_fit of upper arm, forearm and hand over the shoulder joint and the own samples.
+struct FusedArm {
+    std::size_t own = 0;
+    Vec shoulder = Vec::Zero();
+    std::vector<std::size_t> cuts;
+};
+/// The fused reading of an arm chain (from the chest), or none: no trunk samples beyond its root, a top across the
+/// body (a shoulder girdle, a raised arm), too few samples.
+std::optional<FusedArm> fused_arm(const RigContext& c, const Chain4& chain, const Vec& body_up, const Vec& front);
+/// A free arm's shoulder joint the same way (the medial axis leaves the shoulder's corner, not the humeral head):
+/// from the line of the upper arm's axis (`arm`: the chain from the chest, `top` and `elbow` its upper arm's first
+/// and last samples) up to the shoulder's surface and its mean radius back in, centred front to back.
+void shoulder_on_top(const RigContext& c, Rig& rig, const Chain4& arm, std::size_t top, std::size_t elbow,
+                     const std::string& upper_arm, const Vec& body_up, const Vec& front);
+/// Moves the head of bone `upper_arm` to the fused arm's shoulder joint.
+void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& shoulder);
+
+/// The hip: the legs' medial axes fork below the hip joints (at the crotch, thighs pressed together lower still),
+/// so the thigh's head moves up its line to the level of the hips bone's head (the fork), when that is higher.
+void hip_on_thigh_line(Rig& rig, const std::string& thigh);
+
+/// A leg is straight when no node of its axis between hip and ankle (`leg`: those nodes) lies more than this
+/// times their mean radius off the hip-ankle line; its knee then goes to the node nearest the thigh's share of
+/// hip-ankle (Drillis and Contini), not to a wiggle of the axis or of the radius.
+constexpr double kStraightLeg = 1.0;
+/// ... and then to the narrowest node within kNeckWindow radii of it, when the leg widens from there by kNeckRise
+/// on both sides (thigh above, calf below: a human knee).
+constexpr double kNeckWindow = 2.0;
+constexpr double kNeckRise = 0.05;
+/// ... and by this many voxels (the finest spacing of the grid autorig works on) more: the axis's radii are
+/// distance-transform values, which step by fractions of a voxel, so a limb a few voxels thick (a character
+/// voxelized at 160 to 260 cells) shows 5% dips along a plain cylinder; a dip within that noise is no knee or
+/// ankle neck (the wrist's, the narrowest node of its window, keeps kNeckRise alone).
+constexpr double kNeckNoise = 0.35;
+/// Whether a limb `wide` thick widens from `narrow` enough to be a neck (kNeckRise, kNeckNoise of `voxel`).
+inline bool widens(double wide, double narrow, double voxel) {
+    return wide >= (1 + kNeckRise) * narrow + kNeckNoise * voxel;
+}
+/// Between samples lo and hi of a chain: the sample where the radius dips deepest, the least of the widest sample
+/// before it and the widest after it being the most above its own radius, by kNeckRise (and kNeckNoise) at least
+/// (a knee between thigh and calf, a neck between trunk and head); else none. The deepest dip, not the narrowest sample: a leg
+/// narrows towards the ankle.
+/// `voxel`: the finest spacing (see widens).
+std::optional<std::size_t> deepest_dip(const Chain4& chain, std::size_t lo, std::size_t hi, double voxel);
+/// A knee found at its neck lengthens the thigh to this share of the knee's height above the sole (measured down
+/// the shin's line to the farthest surface of the leg's axis samples): Drillis and Contini's thigh 0.245 H over
+/// knee height 0.285 H.
+constexpr double kThighToKneeHeight = 0.245 / 0.285;
+/// `leg`: the leg's nodes from the hip to the foot's tip.
+void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
+
+/// The wrist at its neck: a forearm narrows to the wrist, and a hand resting on something (the pelvis, a thigh)
+/// widens again in the mask, so where the arm's axis from the elbow (`arm`: its nodes from the elbow to the hand's
+/// tip) has a node narrower than every node within kNeckWindow of its radii and the arm widens by kNeckRise on both
+/// sides, the wrist goes to the one nearest the rig's wrist. A free hand, thinner than its wrist, keeps the wrist.
+void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& arm, const std::string& sfx);
+
+/// The ankle above a heel: where the lower leg narrows (its neck, above the malleoli) and then widens into a heel
+/// around the rig's ankle (the widest node within kNeckWindow radii of it, by kNeckRise at least), the medial axis
+/// turns towards the toes at the heel's centre, below the ankle joint; the ankle goes midway along the axis between
+/// the neck and the heel's widest node, where the malleoli are. A leg without that shape keeps its ankle.
+/// `leg`: the leg's nodes from the knee to the foot's tip.
+void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& leg, const std::string& sfx);
+
+/// A bent limb's joint (elbow, knee) at the corner of its bones' axes: the medial axis rounds a bend on its
+/// inside, by about a radius, so the joint between `proximal` and `distal` goes to the point where the lines
+/// through their axes (the axis samples of `limb` more than kBendRound radii of arc from the joint) come closest,
+/// when they meet at more than kBendAngle (radians), at most one radius away and half a radius inside the object.
+constexpr double kBendRound = 0.5;
+constexpr double kBendAngle = 0.35;
+void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>& limb, const std::string& proximal,
+                 const std::string& distal);
+
+/// A humanoid's hip joints lie level across its pelvis: each hip's estimate (its thigh's share of the knee
+/// height, or the legs' fork) is as good as the other's, so both go to the mean of their heights along `body_up`.
+void level_hips(Rig& rig, const Vec& body_up);
+
+/// The chest joint (where neck and shoulders meet) between the shoulder joints, and the hips' head between the
+/// hip joints: midway across the body and at their height along `body_up` (shoulder and pelvis bones run across,
+/// Rigify's), unchanged front to back. The level-set tree's chest and pelvis nodes lie where the limbs' and the
+/// neck's medial axes join the trunk's medial sheet: lower, off the middle, and by how much varies with the
+/// resolution.
+void centre_chest(Rig& rig, const Vec& body_up);
+/// The spine's inner joints cut again (trunk_fit) between the hips' head and the chest's tail where centre_chest
+/// put them (`spine`: the trunk's axis samples from the pelvis node to the chest node).
+void recut_spine(Rig& rig, Chain4 spine);
+
+/// A humanoid's head bone points up (Rigify's), from the head joint to the top of the head, whichever extremity
+/// (the face, the crown) the medial axis reaches: the head joint goes to the head chain's sample (`head`: from the
+/// chest out) at kHeadShare of the height from the neck's base to the top of the head below the top (Rigify's
+/// metarig: the head 0.6 of the way from the neck's base to the crown), the tail straight up to the surface.
+constexpr double kHeadShare = 0.6;
+void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& body_up);
+
+/// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
+/// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
+/// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
+/// cut at bends like neutral chains (at most 4 bones). Named tail, tail.001, ... when a quadruped's hang from its
+/// hips, spine or pelvis with the tip behind the hips, else chain.<parent bone>, chain.<parent bone>.001, ...
+constexpr int kMaxExtraChains = 6;
+constexpr double kExtraReach = 2.0;
+void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
+
+/// A hand: a wrist stub and five fingers (thumb first, then index, middle, ring, pinky across the palm) meeting
+/// on a palm at `palm` (where the first finger leaves the path from the wrist).
+struct HandPlan {
+    std::uint32_t wrist = kNone, palm = kNone;
+    std::array<std::uint32_t, 5> fingers{kNone, kNone, kNone, kNone, kNone};
+    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+};
+
+/// Discrete search over the assignments of six of the eight most significant extremities to a wrist and five
+/// fingers. The thumb is the finger whose base lies farthest from where the other four meet. Penalties for the
+/// other four: unequal lengths (from the palm centre) and thicknesses, bases away from the palm centre (relative
+/// to the finger length), tips pointing back towards the wrist; a wrist thinner than a finger, a wrist stub longer
+/// than twice a finger (an arm), a thumb joining beyond the palm centre, a palm centre more than kPalmThickness
+/// times as thick as the fingers, significant extremities left out.
+HandPlan search_hand(const NodeTree& t);
+/// A palm is a plate about as thick as its fingers (a human's palm radius is under twice their mean radius); the
+/// excess of the ratio over this is added to a hand's score: a body several times thicker than its legs is none.
+constexpr double kPalmThickness = 2.5;
+
+/// The hand's rig: "palm" from the wrist end to the palm centre, then per finger three bones parented to it,
+/// thumb.01..03 from where the thumb leaves the palm (cut at its bends), f_index / f_middle / f_ring / f_pinky
+/// .01..03 from the knuckle (the bend where the path from the palm centre turns into the finger) cut at its
+/// bends when clearly bent, else at the phalanges' proportions. Names get .L / .R from the thumb's side of the
+/// palm (the thumb lies on the palm's side), none when the thumb lies in the palm's plane. No bones when a chain
+/// is too short to cut.
+Candidate hand_rig(const RigContext& c, const HandPlan& plan);
+
+/// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
+/// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
+/// (relative to the radius), at least 0.
+Candidate chain_rig(const RigContext& c, int target, double tolerance);
+
+}  // namespace volrig::rig_detail
