@@ -10,10 +10,9 @@ WORK = os.environ.get("UI_WORK", "/tmp")
 sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 import bpy
 import volrig, volrig_addon
-from volrig_addon import looks_ui, mesh_rig, panels
 from volrig_support import data_root
 import inspect
-_panels = [c for m in (panels, mesh_rig, looks_ui) for c in vars(m).values()
+_panels = [c for m in volrig_addon.FEATURES for c in vars(m).values()
            if inspect.isclass(c) and issubclass(c, bpy.types.Panel) and getattr(c, "bl_category", "") == "volrig"]
 for c in _panels:
     c.bl_category = "Item"  # for the screenshot only: the sidebar opens on its first tab

@@ -36,29 +36,34 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("compat", "engines", "properties", "scans", "objects", "materials", "bake", "staging", "mocap",
-               "flythrough", "operators",
-               "drawing", "preview", "mesh_rig", "panels", "looks", "tissue_looks", "looks_ui"):
+    for _m in ("compat", "engines", "scans", "state", "materials", "objects", "looks", "tissue_looks", "properties",
+               "ops_base", "staging", "volume", "medial", "skeleton", "rig", "mocap", "looks_ui", "bake",
+               "flythrough", "collide", "drawing", "preview", "mesh_rig"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
 import bpy  # noqa: E402
 
-from . import (bake, compat, engines, flythrough, materials, mocap, objects, operators,  # noqa: E402,F401
-               panels, properties, scans, staging)
-from . import drawing, looks, looks_ui, mesh_rig, preview, tissue_looks  # noqa: E402,F401
+from . import compat, engines, materials, objects, properties, scans, staging  # noqa: E402,F401
+from . import looks, ops_base, state, tissue_looks  # noqa: E402,F401
+# One module per feature, each with its operators and panel; registered in this order, which is the sidebar's
+# order of their panels (Volume, Segment, Skeleton, Rig, Motion capture, Look, Centerline, Bake, then Mesh).
+from . import (bake, collide, drawing, flythrough, looks_ui, medial, mesh_rig, mocap, preview, rig,  # noqa: E402
+               skeleton, volume)
+
+FEATURES = (volume, medial, skeleton, rig, mocap, looks_ui, flythrough, bake, collide, drawing, preview, mesh_rig)
+
+#: The volrig tab's top panels in the sidebar's order (the Mesh panel, mesh_rig.py, polls on meshes and comes last).
+PANELS = (volume.VOLRIG_PT_volume, volume.VOLRIG_PT_segment, skeleton.VOLRIG_PT_skeleton, rig.VOLRIG_PT_rig,
+          mocap.VOLRIG_PT_mocap, looks_ui.VOLRIG_PT_look, flythrough.VOLRIG_PT_centerline, bake.VOLRIG_PT_bake)
 
 
 def register():
     if not (SUPPORTED[0] <= tuple(bpy.app.version) < SUPPORTED[1]):
         print(f"volrig: Blender {bpy.app.version_string} is outside the supported range 3.4 .. 5.x")
     properties.register()
-    operators.register()
-    drawing.register()
-    panels.register()
-    looks_ui.register()
-    preview.register()
-    mesh_rig.register()  # after the panels: its Mesh panel follows the Volume panel
+    for feature in FEATURES:
+        feature.register()
     bpy.app.handlers.load_post.append(scans.forget_all)
     if not bpy.app.background:  # the Look panel's word on Cycles and grids, probed once the UI is up
         bpy.app.timers.register(_probe_engines, first_interval=1.0)
@@ -77,10 +82,6 @@ def unregister():
     if scans.forget_all in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(scans.forget_all)
     scans.forget_all()
-    preview.unregister()
-    mesh_rig.unregister()
-    looks_ui.unregister()
-    panels.unregister()
-    drawing.unregister()
-    operators.unregister()
+    for feature in reversed(FEATURES):
+        feature.unregister()
     properties.unregister()

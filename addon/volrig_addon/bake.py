@@ -7,18 +7,23 @@ The weights come from the sphere mesh's vertex groups as they are now (weight pa
 source from the cache. Bone matrices are rest-to-pose in armature space (= volume units): pose_bone.matrix @
 bone.matrix_local^-1. A frame is re-baked only when its pose, weights or rig changed (``frames/poses.json``).
 Every frame is independent, so a range can be split across machines once the .blend is saved.
+
+The Bake operator (modal: each frame's volume computed on a worker thread, ``FrameWork``; Esc cancels), Show Source
+and the Bake panel (which also holds Find Contacts: collide.py) are here too.
 """
 import json
 import os
 import re
 import sys
+import threading
 
 import bpy
 
 import volrig
 from volrig import pipeline
 
-from . import objects, scans
+from . import looks, objects, scans
+from .ops_base import USER_ERRORS, _OnVolume, _reported, _labelled, _settings, _VolrigPanel
 from .state import THICKNESS, RigState, parts_of, substitutes_of, tissues_of  # noqa: F401  (bake.THICKNESS, bake.RigState as before)
 
 
@@ -172,3 +177,180 @@ def command_line() -> None:
         n = bake_saved_scene(args["frames"], args["objects"], args["mode"], args["force"], args["save"])
         return f"volrig: baked {n} frame(s) of {os.path.basename(bpy.data.filepath)}"
     exit_with(work)
+
+
+class FrameWork:
+    """One frame's volume computed on a worker thread (``Baker.compute``: no Blender data touched); ``stop()``
+    makes its progress callback return False, which stops the native computation at its next check (many per
+    frame) with volrig.Cancelled."""
+
+    def __init__(self, baker, frame: int, matrices):
+        self.fraction = 0.0
+        self._stop = threading.Event()
+        self._error = None
+        self._thread = threading.Thread(target=self._run, args=(baker, frame, matrices), name="volrig-frame",
+                                        daemon=True)
+        self._thread.start()
+
+    def _progress(self, f) -> bool:
+        self.fraction = float(f)
+        return not self._stop.is_set()
+
+    def _run(self, baker, frame, matrices):
+        try:
+            baker.compute(frame, matrices, progress=self._progress)
+        except BaseException as e:  # handed to the modal operator on Blender's thread
+            self._error = e
+
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def result(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+
+    def stop(self) -> bool:
+        """Stops the frame and waits for it; True when it was still computing."""
+        running = not self.done()
+        self._stop.set()
+        self._thread.join()
+        return running
+
+
+class VOLRIG_OT_bake(_OnVolume, bpy.types.Operator):
+    """Reconstruct each frame of the animated rig into a VDB sequence the Volume object plays (Esc cancels)"""
+    bl_idname = "volrig.bake"
+    bl_label = "Bake"
+    modes = ("OBJECT", "POSE")
+
+    force: bpy.props.BoolProperty(name="All frames", default=False,
+                                  description="Bake every frame, also those whose pose did not change")
+
+    _timer = None
+
+    def run(self, context, vol):
+        frames = parse_frames(vol.volrig.bake_frames, context.scene)
+        n = bake(vol, context.scene, frames, vol.volrig.deform_mode, self.force, report=lambda m: None)
+        self.report({"INFO"}, f"volrig: baked {n} of {len(frames)} frames (the others were up to date)")
+        return {"FINISHED"}
+
+    @_reported
+    def invoke(self, context, event):
+        vol = self.volume(context)
+        self._frames = parse_frames(vol.volrig.bake_frames, context.scene)
+        self._baker = Baker(vol, vol.volrig.deform_mode, frames=len(self._frames))
+        self._next = 0
+        self._written = 0
+        self._rate = pipeline.BakeRate(len(self._frames))
+        self._current = context.scene.frame_current
+        self._work = None
+        wm = context.window_manager
+        wm.progress_begin(0, len(self._frames))
+        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        """Each frame: its pose taken on Blender's thread, its volume computed on a worker (FrameWork), so Esc is
+        seen while a frame computes and stops it within a fraction of the frame."""
+        if event.type == "ESC":
+            inside = self._work is not None and self._work.stop()
+            self._finish(context)
+            self.report({"WARNING"}, f"volrig: bake cancelled after {self._next} of {len(self._frames)} frames"
+                                     + (" (the frame in progress dropped)" if inside else ""))
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            if self._work is not None:
+                if not self._work.done():
+                    context.window_manager.progress_update(self._next + self._work.fraction)
+                    return {"RUNNING_MODAL"}
+                self._work.result()  # raises what the frame raised
+                self._work = None
+                self._written += 1
+                return self._frame_done(context)
+            frame = self._frames[self._next]
+            matrices = self._baker.pose(context.scene, frame, force=self.force)
+            if matrices is None:  # up to date
+                return self._frame_done(context)
+            self._work = FrameWork(self._baker, frame, matrices)
+        except USER_ERRORS as e:
+            self._finish(context)
+            self.report({"ERROR"}, f"volrig: {e}")
+            return {"CANCELLED"}
+        return {"RUNNING_MODAL"}
+
+    def _frame_done(self, context):
+        self._next += 1
+        self._rate.tick()
+        context.window_manager.progress_update(self._next)
+        if context.workspace is not None:  # the bar with frames per second in the status bar
+            context.workspace.status_text_set(f"volrig bake: {self._rate.bar()}")
+        if self._next < len(self._frames):
+            return {"RUNNING_MODAL"}
+        self._finish(context)
+        self.report({"INFO"}, f"volrig: baked {self._written} of {len(self._frames)} frames, "
+                              f"{self._rate.per_second:.2f} frames/s")
+        return {"FINISHED"}
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        context.scene.frame_set(self._current)
+        try:
+            self._baker.finish()  # the last file written; the frames' memory freed
+        except USER_ERRORS as e:
+            self.report({"ERROR"}, f"volrig: {e}")
+        if self._next:
+            self._baker.play(context.scene)
+
+
+class VOLRIG_OT_show_rest(_OnVolume, bpy.types.Operator):
+    """Show the imported volume again (with its parts once rigged) instead of the baked sequence"""
+    bl_idname = "volrig.show_rest"
+    bl_label = "Show Source"
+    modes = None
+
+    def run(self, context, vol):
+        objects.point_volume_at(vol, looks.shown_at_rest(vol))
+        return {"FINISHED"}
+
+
+class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Bake"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        _labelled(layout, s, "deform_mode")
+        row = layout.row()
+        row.active = s.deform_mode != "rigid"
+        row.prop(s, "keep_volume")
+        _labelled(layout, s, "sampling", "bake_frames")
+        layout.prop(s, "lattice_tables")
+        row = layout.row(align=True)
+        row.operator("volrig.bake", icon="RENDER_ANIMATION")
+        row.operator("volrig.show_rest", icon="VOLUME_DATA")
+        layout.prop(context.scene, "volrig_live_preview")
+        layout.operator("volrig.find_contacts", icon="MOD_PHYSICS")
+        if s.baked_end >= s.baked_start:
+            layout.label(text=f"plays frames {s.baked_start} .. {s.baked_end}")
+
+
+CLASSES = (VOLRIG_OT_bake, VOLRIG_OT_show_rest, VOLRIG_PT_bake)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

@@ -1,7 +1,7 @@
 """Import Drawing: a front-view drawing (PNG) becomes a rigged, coloured volume (``volrig.drawing`` does the work).
 
 The drawing is inflated (``volrig.drawing.colour_labels``) into a label volume whose labels index the drawing's
-colours, imported like any volume (``operators.import_samples``), segmented by those labels, rendered through the
+colours, imported like any volume (``volume.import_samples``), segmented by those labels, rendered through the
 drawing's palette (the LABELS look with the object's ``volrig_palette``), skeletonized and rigged with the chosen body
 plan and the scene's +Z as up (the drawing's up). Labels are resampled nearest when the volume is baked in a pose, so
 the colours stay on their parts. Optionally a mesh follows the volume through Blender's Volume to Mesh modifier.
@@ -16,7 +16,9 @@ from bpy_extras.io_utils import ImportHelper
 import volrig
 from volrig import drawing as drawings
 
-from . import materials, operators
+from . import materials
+from .ops_base import _reported
+from .volume import import_samples
 
 #: The body plans offered (the volume settings' own list, read once they are registered).
 _PLANS = []
@@ -36,7 +38,7 @@ def drawing_volume(context, path: str, *, height: float, resolution: int, depth_
     labels, palette = drawings.colour_labels(path, resolution=resolution, depth_scale=depth_scale, gap=gap)
     tall = labels.array.any(axis=(1, 2)).sum() * labels.spacing[2]
     name = os.path.splitext(os.path.basename(path))[0] or "drawing"
-    obj = operators.import_samples(context, labels, name, height / tall, source=path)
+    obj = import_samples(context, labels, name, height / tall, source=path)
     s = obj.volrig
     s.segment_by, s.labels, s.preset, s.sampling = "LABELS", f"1-{len(palette)}", "LABELS", "nearest"
     s.body_plan, s.use_scene_up = body_plan, True
@@ -107,7 +109,7 @@ class VOLRIG_OT_import_drawing(bpy.types.Operator, ImportHelper):
     mesh: BoolProperty(name="Mesh", default=False,
                        description="Also add a mesh of the surface (Volume to Mesh modifier; follows the bake)")
 
-    @operators._reported
+    @_reported
     def execute(self, context):
         path = bpy.path.abspath(self.filepath)
         if not os.path.isfile(path):

@@ -7,6 +7,8 @@ rest to a straight line; Bake then straightens the organ). The numbers come from
 Objects of a volume's set made here (roles): ``<name>_path`` (PATH, curve, child of the volume),
 ``<name>_camera`` (CAMERA), ``<name>_light`` (LIGHT, child of the camera), ``<name>_lumen`` (LUMEN, the wall as a
 Volume object, child of the volume). Fly Through again replaces them.
+
+The Fly Through, Straighten and Animate Straightening operators and the Centerline panel are here too.
 """
 import os
 
@@ -19,6 +21,9 @@ from volrig.centerlines import flight_frames, flight_path, lumen_wall, straighte
 
 from . import compat, engines, materials, objects, scans, staging
 from .bake import exit_with
+from .ops_base import _OnVolume, _ProgressBar, _props, _settings, _VolrigPanel
+from .rig import _save_rig
+from .volume import import_samples
 
 #: The headlight's power for a lumen of radius 1 Blender unit (W); it scales with the radius squared, so the wall
 #: at the lumen's radius is lit alike in a trachea and in a bronchus a tenth as wide.
@@ -329,3 +334,98 @@ def command_line() -> None:
         return (f"volrig: fly-through of {made['line'].length:.1f} mm in frames {scene.frame_start}-"
                 f"{scene.frame_end} -> {bpy.data.filepath}" + "".join(f"\n  {p}" for p in made["renders"]))
     exit_with(work)
+
+
+def _centerline_progress(bar):
+    """The centerline's progress on the first 80 % of the bar."""
+    show = bar.steps({"centerline": (0, 80)})
+    return lambda f: show("centerline", f)
+
+
+class VOLRIG_OT_fly_through(_OnVolume, bpy.types.Operator):
+    """Fly a camera along the volume's centerline: a Bezier curve on it, a camera keyed along it looking down the
+    averaged tangent, a headlight riding with it, the lumen's wall shown from inside, and the scene's frame range"""
+    bl_idname = "volrig.fly_through"
+    bl_label = "Fly Through"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            made = fly_through(context, vol, progress=_centerline_progress(bar))
+        scene = context.scene
+        self.report({"INFO"}, f"volrig: fly-through of {made['line'].length:.1f} units in {len(made['flight'])} "
+                              f"frames ({scene.frame_start} .. {scene.frame_end}) by {made['camera'].name}")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_straighten(_OnVolume, bpy.types.Operator):
+    """Resample the volume on the planes normal to its centerline (curved planar reformation) and add the straight
+    volume as <name>_straight beside it"""
+    bl_idname = "volrig.straighten"
+    bl_label = "Straighten"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            obj, line = straighten(context, vol, import_samples, progress=_centerline_progress(bar))
+        x, y, z = obj.volrig.dims
+        self.report({"INFO"}, f"volrig: {obj.name}: {x} x {y} x {z} voxels along {line.length:.1f} units of "
+                              f"centerline")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_straightening_rig(_OnVolume, bpy.types.Operator):
+    """Rig the volume with a chain of bones along its centerline and key it from curved to straight (Bake then
+    straightens the organ); replaces the volume's rig"""
+    bl_idname = "volrig.straightening_rig"
+    bl_label = "Animate Straightening"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            sr, rig_obj = straightening_animation(context, vol, _save_rig, progress=_centerline_progress(bar))
+        scene = context.scene
+        self.report({"INFO"}, f"volrig: {rig_obj.name}: {len(sr.rig)} bones keyed straight over frames "
+                              f"{scene.frame_start} .. {scene.frame_end}; press Bake")
+        return {"FINISHED"}
+
+
+class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):
+    """Fly-through and straightening along the centerline of a tubular object (airways, colon, vessels)."""
+    bl_label = "Centerline"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        vol = s.id_data
+        layout.prop(s, "fly_ends", expand=True)
+        if s.fly_ends == "POINTS":
+            col = layout.column(align=True)
+            col.prop(s, "fly_start")
+            col.prop(s, "fly_end")
+        box = layout.box()
+        box.label(text="Fly-through", icon="CAMERA_DATA")
+        col = box.column(align=True)
+        _props(col, s, "frames_per_mm", "look_ahead", "fly_fov", "fly_light", "fly_frame_start")
+        box.operator("volrig.fly_through", icon="VIEW_CAMERA")
+        parts = objects.members(vol)
+        if "CAMERA" in parts:
+            box.label(text=f"{parts['CAMERA'].name}: frames {context.scene.frame_start} .. "
+                           f"{context.scene.frame_end}", icon="INFO")
+        box = layout.box()
+        box.label(text="Straighten", icon="IPO_LINEAR")
+        box.prop(s, "straighten_radius")
+        box.operator("volrig.straighten", icon="VOLUME_DATA")
+        row = box.row(align=True)
+        row.prop(s, "straighten_bones")
+        row.prop(s, "straighten_frames")
+        box.operator("volrig.straightening_rig", icon="ARMATURE_DATA")
+
+
+CLASSES = (VOLRIG_OT_fly_through, VOLRIG_OT_straighten, VOLRIG_OT_straightening_rig, VOLRIG_PT_centerline)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

@@ -1,11 +1,46 @@
-"""The Parts panel (under Look): the rig's parts in a list, each with visible, colour and opacity (looks.py), the
+"""Looks and tissues: the Look panel (transfer function, density, highlight; the word on Cycles and grids).
+The Parts panel (under Look): the rig's parts in a list, each with visible, colour and opacity (looks.py), the
 *Find Parts* button, and the *Explode* factor the bake applies. The Tissues panel (under Look): a label map's
 tissue classes in a list, each with visible, colour and opacity (tissue_looks.py), and the tissue table."""
 import bpy
 
-from . import looks, tissue_looks
-from .operators import _OnVolume
-from .panels import _settings, _VolrigPanel
+from . import engines, looks, objects, tissue_looks
+from .ops_base import _labelled, _OnVolume, _settings, _VolrigPanel
+
+
+class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Look"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        vol = s.id_data
+        col = layout.column()
+        col.active = not s.use_tissues  # (per-tissue looks colour the volume instead)
+        _labelled(col, s, "preset", text="Transfer")
+        layout.prop(s, "density_scale")
+        rig = objects.members(vol).get("RIG")
+        split = layout.split(factor=0.45)
+        split.label(text="Highlight")
+        if rig is not None:
+            split.prop_search(s, "highlight_bone", rig.data, "bones", text="")
+        else:
+            split.prop(s, "highlight_bone", text="")
+        split = layout.split(factor=0.45)
+        split.label(text="Glow")
+        row = split.row(align=True)
+        row.prop(s, "highlight_strength", text="")
+        row.prop(s, "highlight_color", text="")
+        if engines.known() and not engines.cycles_renders_grids():
+            box = layout.box()
+            box.label(text="Cycles here renders no VDBs", icon="ERROR")  # (engines.NO_GRIDS, in lines the
+            box.label(text="(built without NanoVDB):")                  # sidebar's width holds)
+            box.label(text="rendering with EEVEE; use a")
+            box.label(text="blender.org build for Cycles")
+            mat = vol.data.materials[0] if len(vol.data.materials) else None
+            if engines.check_material(mat):
+                box.label(text=f"{engines.grids_read(mat)} grids: EEVEE reads {engines.EEVEE_GRIDS}",
+                          icon="ERROR")
+                box.label(text="hide some tissues or parts")
 
 
 class VOLRIG_OT_find_parts(_OnVolume, bpy.types.Operator):
@@ -104,8 +139,8 @@ class VOLRIG_PT_tissues(_VolrigPanel, bpy.types.Panel):
                 layout.label(text="codes " + s.tissues[s.tissues_index].codes.replace(",", ", "))
 
 
-CLASSES = (VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts, VOLRIG_OT_find_tissues, VOLRIG_UL_tissues,
-           VOLRIG_PT_tissues)
+CLASSES = (VOLRIG_PT_look, VOLRIG_OT_find_parts, VOLRIG_UL_parts, VOLRIG_PT_parts, VOLRIG_OT_find_tissues,
+           VOLRIG_UL_tissues, VOLRIG_PT_tissues)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -31,7 +31,8 @@ import volrig
 from volrig import pipeline
 from volrig.skin import thickness_offsets
 
-from . import drawing, objects, operators
+from . import drawing, objects
+from .ops_base import _reported
 
 MODIFIER = "volrig"
 THICKNESS = objects.THICKNESS
@@ -344,7 +345,7 @@ class VOLRIG_OT_rig_mesh(bpy.types.Operator):
     def poll(cls, context):
         return _target(context) is not None
 
-    @operators._reported
+    @_reported
     def execute(self, context):
         obj = _target(context)
         keys = self.thickness_keys == "ON" or (self.thickness_keys == "AUTO"
@@ -379,7 +380,7 @@ class VOLRIG_OT_thickness_keys(bpy.types.Operator):
     def poll(cls, context):
         return rigged_mesh(context.active_object) is not None
 
-    @operators._reported
+    @_reported
     def execute(self, context):
         obj = rigged_mesh(context.active_object)
         arm = armature_of(obj)

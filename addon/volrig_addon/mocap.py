@@ -1,13 +1,20 @@
 """Motion capture on the volrig armature: the bone map kept on the Volume object (``volrig.bone_map``, one
 BVH joint -> rig bone pair per joint of the last clip; an empty bone leaves the joint unmapped), and the bake of
-``volrig.animate``'s matrices to keyframes on the pose bones (location and rotation_quaternion)."""
+``volrig.animate``'s matrices to keyframes on the pose bones (location and rotation_quaternion).
+The Drive with BVH and Map by Names operators, the bone map's list and the Motion capture panel."""
+import os
+
 import bpy
 import numpy as np
+from bpy.props import EnumProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
 from mathutils import Matrix
 
 import volrig
+from volrig import pipeline
 
-from . import compat
+from . import compat, objects
+from .ops_base import _OnVolume, _settings, _VolrigPanel
 
 
 def stored_bone_map(volume_obj, motion: volrig.Motion):
@@ -60,3 +67,115 @@ def key_pose(rig_obj, rig: volrig.Rig, matrices: np.ndarray, scene_frames) -> No
                 for k in fc.keyframe_points:
                     k.interpolation = "LINEAR"
                 fc.update()
+
+
+class VOLRIG_OT_drive_with_bvh(_OnVolume, bpy.types.Operator, ImportHelper):
+    """Drive the rig with a motion capture clip (.bvh): retarget it (volrig.animate) and key every pose bone, so
+    Bake and render follow. Uses the bone map in the panel when it was made for this clip's joints"""
+    bl_idname = "volrig.drive_with_bvh"
+    bl_label = "Drive with BVH"
+    modes, rigged = ("OBJECT", "POSE"), True
+
+    filename_ext = ".bvh"
+    filter_glob: StringProperty(default="*.bvh", options={"HIDDEN"})
+    root_motion: EnumProperty(name="Root motion", items=[
+        ("in_place", "In place", "The rig walks on the spot (feet still touch the floor)"),
+        ("travel", "Travel", "The rig follows the clip's path over the floor, scaled"),
+    ], default="in_place")
+    up_axis: EnumProperty(name="Clip up axis", items=[("y", "Y", "Y-up clips (most BVH files)"),
+                                                      ("z", "Z", "Z-up clips")], default="y")
+    first: bpy.props.IntProperty(name="First BVH frame", default=1, min=1)
+    last: bpy.props.IntProperty(name="Last BVH frame", default=0, min=0, description="0 = the clip's last frame")
+    step: bpy.props.IntProperty(name="Step", default=1, min=1,
+                                description="Key every STEP-th clip frame (e.g. 5 plays a 120 fps clip at 24 fps)")
+    frame_start: bpy.props.IntProperty(name="Start frame", default=1, description="Scene frame of the first key")
+
+    def run(self, context, vol):
+        rig_obj = objects.members(vol)["RIG"]
+        path = bpy.path.abspath(self.filepath)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"{path}: no such file")
+        motion = volrig.read_bvh(path)
+        frames = pipeline.clip_frames(motion.frame_count, f"{self.first}-{self.last or motion.frame_count}",
+                                      self.step, anchor=self.first, what=os.path.basename(path))
+        rig = objects.armature_rig(rig_obj)
+        bone_map = stored_bone_map(vol, motion)
+        if bone_map is None:
+            bone_map = volrig.default_bone_map(motion, rig)
+            store_bone_map(vol, motion, bone_map)  # shown (and editable) even if the retarget fails
+        _, matrices = pipeline.mocap_poses(rig, motion, frames, bone_map, root_motion=self.root_motion,
+                                           up_axis=self.up_axis)
+        key_pose(rig_obj, rig, matrices, self.frame_start + np.arange(len(frames)))
+        vol.volrig.bvh_file = path
+        scene = context.scene
+        scene.frame_start, scene.frame_end = self.frame_start, self.frame_start + len(frames) - 1
+        fps = motion.fps / self.step
+        scene.render.fps = max(1, round(fps))
+        scene.render.fps_base = scene.render.fps / fps
+        scene.frame_set(self.frame_start)
+        self.report({"INFO"}, f"volrig: {len(frames)} frames of {os.path.basename(path)} keyed on "
+                              f"{len(bone_map)} mapped bones of {len(rig)}, {fps:.4g} fps")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_reset_bone_map(_OnVolume, bpy.types.Operator):
+    """Fill the bone map again from the names of the last clip's joints and the rig's bones"""
+    bl_idname = "volrig.reset_bone_map"
+    bl_label = "Map by Names"
+    modes, rigged = None, True
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and bool(cls.volume(context).volrig.bvh_file)
+
+    def run(self, context, vol):
+        motion = volrig.read_bvh(bpy.path.abspath(vol.volrig.bvh_file))
+        bone_map = volrig.default_bone_map(motion, objects.armature_rig(objects.members(vol)["RIG"]))
+        store_bone_map(vol, motion, bone_map)
+        self.report({"INFO"}, f"volrig: {len(bone_map)} of {len(motion.names)} joints mapped by name")
+        return {"FINISHED"}
+
+
+class VOLRIG_UL_bone_map(bpy.types.UIList):
+    """One line per BVH joint: its name and the rig bone it drives (pick from the armature's bones)."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        rig = objects.members(data.id_data).get("RIG")
+        row = layout.row(align=True)
+        row.label(text=item.joint, icon="BONE_DATA" if item.bone else "BLANK1")
+        if rig is not None:
+            row.prop_search(item, "bone", rig.data, "bones", text="")
+        else:
+            row.prop(item, "bone", text="")
+
+
+class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Motion capture"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        row = layout.row(align=True)
+        row.operator("volrig.drive_with_bvh", icon="ARMATURE_DATA")
+        row.operator("volrig.reset_bone_map", icon="FILE_REFRESH")
+        if s.bvh_file:
+            layout.label(text=bpy.path.basename(s.bvh_file), icon="FILE")
+        if len(s.bone_map):
+            mapped = sum(1 for p in s.bone_map if p.bone)
+            layout.label(text=f"Bone map: {mapped} of {len(s.bone_map)} joints drive a bone")
+            layout.template_list("VOLRIG_UL_bone_map", "", s, "bone_map", s, "bone_map_index", rows=6)
+        else:
+            layout.label(text="Bone map: made from the names on the first drive")
+
+
+CLASSES = (VOLRIG_OT_drive_with_bvh, VOLRIG_OT_reset_bone_map, VOLRIG_UL_bone_map, VOLRIG_PT_mocap)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

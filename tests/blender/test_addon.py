@@ -325,9 +325,9 @@ class _Layout:
 
 
 def test_panels_draw_every_stage(rigged):
-    from volrig_addon import panels
+    import volrig_addon
     drawn = []
-    for cls in panels.CLASSES:
+    for cls in volrig_addon.PANELS:
         assert cls.poll(bpy.context)
         stub = type("PanelStub", (), {"layout": _Layout(drawn)})()
         cls.draw(stub, bpy.context)

@@ -100,7 +100,7 @@ def test_a_frame_stops_inside_its_computation(posed):
     # What Esc does to the interactive bake: the frame computes on a worker thread (FrameWork) and its progress
     # callback, called many times within the frame, returns False; the frame stops there and writes nothing.
     from volrig_addon import bake
-    from volrig_addon.operators import FrameWork
+    from volrig_addon.bake import FrameWork
     vol = posed
     scene = bpy.context.scene
     baker = bake.Baker(vol, "linear")

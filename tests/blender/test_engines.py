@@ -38,7 +38,7 @@ def test_the_probe_tells_what_cycles_renders(rigged, tmp_path):
 
 def test_without_grids_in_cycles_it_renders_with_eevee_and_says_why(rigged, monkeypatch, capsys):
     from test_addon import _Layout
-    from volrig_addon import engines, panels, staging
+    from volrig_addon import engines, looks_ui, staging
     monkeypatch.setattr(engines, "_answer", False)
     monkeypatch.setattr(engines, "_told", False)
     scene = bpy.context.scene
@@ -49,13 +49,13 @@ def test_without_grids_in_cycles_it_renders_with_eevee_and_says_why(rigged, monk
     staging.stage(scene, rigged, resolution=(32, 32), samples=3)
     assert engines.NO_GRIDS not in capsys.readouterr().out  # once a session
     drawn = []
-    panels.VOLRIG_PT_look.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
+    looks_ui.VOLRIG_PT_look.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
     assert "Cycles here renders no VDBs" in drawn and "blender.org build for Cycles" in drawn
     monkeypatch.setattr(engines, "_answer", True)
     staging.stage(scene, rigged, resolution=(32, 32), samples=3)
     assert scene.render.engine == "CYCLES" and scene.cycles.samples == 3
     drawn = []
-    panels.VOLRIG_PT_look.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
+    looks_ui.VOLRIG_PT_look.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
     assert not [t for t in drawn if "Cycles" in str(t)]
 
 

@@ -127,9 +127,9 @@ def test_fly_through_between_given_points_and_errors(tube):
     s_last = int(np.argmin(np.linalg.norm(c - last / s.unit_scale, axis=1)))
     assert 5000 <= s_first < 5000 + 1500 and 15000 - 1500 < s_last <= 15000
     from test_addon import _Layout
-    from volrig_addon import panels
+    from volrig_addon import flythrough
     drawn = []
-    panels.VOLRIG_PT_centerline.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
+    flythrough.VOLRIG_PT_centerline.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
     assert "fly_start" in drawn and "fly_end" in drawn and "volrig.fly_through" in drawn
     assert any(str(t).startswith("tube_camera: frames 1 .. ") for t in drawn)
     s.fly_start = (500.0, 0.0, 0.0)  # off the object: a report, not a traceback

@@ -53,12 +53,12 @@ def test_drive_with_bvh_matches_headless_animate_and_bakes(rigged, walk):
     assert vol.volrig.bvh_file == WALK
     # the panel lists the map, each line a joint and a bone search over the armature's bones
     from test_addon import _Layout
-    from volrig_addon import panels
+    from volrig_addon import mocap
     drawn = []
-    panels.VOLRIG_PT_mocap.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
+    mocap.VOLRIG_PT_mocap.draw(type("PanelStub", (), {"layout": _Layout(drawn)})(), bpy.context)
     assert "bone_map" in drawn and f"Bone map: {len(auto)} of {len(walk.names)} joints drive a bone" in drawn
     line = []
-    panels.VOLRIG_UL_bone_map.draw_item(None, bpy.context, _Layout(line), vol.volrig, vol.volrig.bone_map[0], 0,
+    mocap.VOLRIG_UL_bone_map.draw_item(None, bpy.context, _Layout(line), vol.volrig, vol.volrig.bone_map[0], 0,
                                         None, "")
     assert line == [walk.names[0], "bone"]
 

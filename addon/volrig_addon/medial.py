@@ -1,0 +1,64 @@
+"""Thickness and medial surface of the segmented object: Show Thickness (local thickness, ``volrig`` thickness)
+and Medial Surface (``volrig.medial_surface``); their buttons are on the Segment panel (volume.py)."""
+import bpy
+import numpy as np
+
+import volrig
+
+from . import objects, scans
+from .ops_base import _OnVolume, _ProgressBar
+
+
+class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
+    """Show the segmented object coloured by its local thickness (each voxel: the diameter of the largest ball
+    inside the object that contains it) as <name>_thickness"""
+    bl_idname = "volrig.show_thickness"
+    bl_label = "Show Thickness"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"thickness": (0, 100)})
+            obj, values = objects.update_thickness(vol, mask, progress=lambda f: show("thickness", f))
+        if values.size == 0:
+            self.report({"WARNING"}, "volrig: the mask is empty: no thickness to show")
+            return {"FINISHED"}
+        lo, med, hi = np.percentile(values, [5, 50, 95])
+        self.report({"INFO"}, f"volrig: {obj.name}: thickness 5/50/95% {lo:.3g} / {med:.3g} / {hi:.3g} "
+                              f"(volume units), blue thin to red thick")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_medial_surface(_OnVolume, bpy.types.Operator):
+    """Show the medial surface of the segmented object's plates as a mesh coloured by thickness (<name>_medial),
+    its rods as edges; Plate t sets which plates count"""
+    bl_idname = "volrig.medial_surface"
+    bl_label = "Medial Surface"
+
+    def run(self, context, vol):
+        t = vol.volrig.plane_t
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"medial": (0, 100)})
+            ms = volrig.medial_surface(mask, t=t, progress=lambda f: show("medial", f))
+        if len(ms.faces) == 0 and not ms.rods:
+            self.report({"WARNING"}, f"volrig: no plates or rods found at Plate t = {t:g} voxels (try a smaller t)")
+            return {"FINISHED"}
+        obj = objects.update_medial_surface(vol, ms)
+        med = float(np.median(ms.thickness)) if len(ms.thickness) else 0.0
+        self.report({"INFO"}, f"volrig: {obj.name}: {len(ms.faces):,} triangles, area {ms.area:.4g}, median "
+                              f"thickness {med:.3g}, {len(ms.rods)} rods (volume units), blue thin to red thick")
+        return {"FINISHED"}
+
+
+CLASSES = (VOLRIG_OT_show_thickness, VOLRIG_OT_medial_surface)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

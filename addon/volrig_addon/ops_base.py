@@ -1,0 +1,121 @@
+"""What the feature modules' operators and panels share: user errors reported in the UI (``USER_ERRORS``,
+``_reported``), the progress bar, the volume an operator works on (``_OnVolume``), and the sidebar panels' base
+(``_VolrigPanel``) and layout helpers. Operators: thin over the volrig package, whose pipeline
+(``volrig.pipeline``) does every step. Each reports user mistakes (volrig's own errors: bad files, empty
+segmentations, missing rigs; and OSError) in the UI instead of raising, lets anything else (a bug) raise, is
+undoable, and never writes to the user's source file."""
+import volrig
+
+from . import objects
+
+#: What a user mistake or a bad file raises (volrig.Cancelled and volrig.FileFormatError are VolrigErrors); reported
+#: in the UI, never as a traceback. Other exceptions are bugs and propagate.
+USER_ERRORS = (volrig.VolrigError, OSError)
+
+
+def _reported(method):
+    """Wraps an operator's execute(self, context) or invoke(self, context, event): user errors become a report."""
+    def run(self, context, *event):
+        try:
+            return method(self, context, *event)
+        except volrig.Cancelled:
+            self.report({"WARNING"}, "volrig: cancelled")
+            return {"CANCELLED"}
+        except USER_ERRORS as e:
+            self.report({"ERROR"}, f"volrig: {e}")
+            return {"CANCELLED"}
+
+    if method.__code__.co_argcount == 3:  # Blender checks the argument count
+        def invoke(self, context, event):
+            return run(self, context, event)
+        return invoke
+
+    def execute(self, context):
+        return run(self, context)
+    return execute
+
+
+def _active_volume(context):
+    return objects.volume_of(context.active_object)
+
+
+class _ProgressBar:
+    """The window manager's progress bar (0..100) for a with-block; ``steps(spans)`` reports a pipeline's steps
+    each on its part of the bar."""
+
+    def __init__(self, context):
+        self.wm = context.window_manager
+
+    def __enter__(self):
+        self.wm.progress_begin(0, 100)
+        return self
+
+    def __exit__(self, *exc):
+        self.wm.progress_end()
+
+    def steps(self, spans):
+        """A pipeline StepProgress: step name -> its (start, end) span of the bar."""
+        def show(step, f):
+            start, end = spans[step]
+            self.wm.progress_update(start + (end - start) * float(f))
+            return True
+        return show
+
+
+def _rigged_volume_of(obj):
+    """The volrig Volume object of obj (or a part of it) once it has a rig, else None."""
+    vol = objects.volume_of(obj)
+    return vol if vol is not None and "RIG" in objects.members(vol) else None
+
+
+def _rigged_volume(context):
+    return _rigged_volume_of(context.active_object)
+
+
+class _OnVolume:
+    """Undoable operators on the active object's volrig volume, offered in the context modes ``modes`` (None: any)
+    and, when ``rigged``, once the volume has a rig."""
+    bl_options = {"REGISTER", "UNDO"}
+    modes = ("OBJECT",)
+    rigged = False
+
+    @classmethod
+    def poll(cls, context):
+        return cls.volume(context) is not None and (cls.modes is None or context.mode in cls.modes)
+
+    @classmethod
+    def volume(cls, context):
+        return _rigged_volume(context) if cls.rigged else _active_volume(context)
+
+    @_reported
+    def execute(self, context):
+        return self.run(context, self.volume(context))
+
+
+def _settings(panel, context):
+    """(the volrig settings of the active object's volume, the panel's layout)."""
+    return objects.volume_of(context.active_object).volrig, panel.layout
+
+
+def _props(layout, settings, *names) -> None:
+    for name in names:
+        layout.prop(settings, name)
+
+
+def _labelled(layout, settings, *names, text: str = "") -> None:
+    """Drop-downs and text fields with their names on the left half (the sidebar's default cuts them to a few
+    letters: "Bindi...", "Rigid ..."); ``text`` replaces a single property's name."""
+    for name in names:
+        split = layout.split(factor=0.45)
+        split.label(text=text or settings.bl_rna.properties[name].name)
+        split.prop(settings, name, text="")
+
+
+class _VolrigPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "volrig"
+
+    @classmethod
+    def poll(cls, context):
+        return objects.volume_of(context.active_object) is not None

@@ -1,0 +1,178 @@
+"""The rig: Rig (skeleton-tree, automatic armature and binding: ``volrig.pipeline.rig_skeleton``), Rebind, Add Walk
+Cycle, Thickness per Bone, the rig files in the cache (``_save_rig``), and the Rig panel."""
+import os
+import uuid
+
+import bpy
+import numpy as np
+from bpy.props import FloatProperty
+
+import volrig
+from volrig import pipeline
+
+from . import looks, objects, scans
+from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _VolrigPanel
+
+
+#: The Rig button's progress bar: each pipeline step's share.
+_RIG_STEPS = {"skeletonize": (0, 30), "skeleton-tree": (30, 55), "autorig": (55, 85), "bind": (85, 100)}
+
+
+class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
+    """Build the skeleton-tree, the automatic armature and the binding from the skeleton at the current thinness:
+    creates <name>_rig and <name>_spheres"""
+    bl_idname = "volrig.rig"
+    bl_label = "Rig"
+
+    def run(self, context, vol):
+        s = vol.volrig
+        with _ProgressBar(context) as bar:
+            progress = bar.steps(_RIG_STEPS)
+            mask = scans.mask(vol)
+            pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
+            r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
+                                      progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
+                                      up=objects.scene_up(vol) if s.use_scene_up else None,
+                                      own_scale=not s.rig_kept_points, rigid=scans.rigid(vol))
+        _save_rig(vol, r.points, r.tree, r.rig, r.binding)
+        s.rig_found = pipeline.describe_rig(r.rig)
+        rig_obj = objects.build_armature(vol, r.rig)
+        objects.build_spheres(vol, rig_obj, r.points, r.tree, r.binding)
+        objects.attach_volume(vol, rig_obj)
+        preview = objects.members(vol).get("SKELETON")
+        if preview is not None:
+            preview.hide_set(True)
+        looks.refresh(vol)
+        self.report({"INFO"}, f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
+        return {"FINISHED"}
+
+
+def _save_rig(vol, pts, tree, rig, binding) -> None:
+    """Each rig gets a new file (so undo returns to a rig whose file still exists); the objects name it."""
+    name = f"rig-{uuid.uuid4().hex[:8]}.vrig"
+    volrig.save_rig(os.path.join(scans.cache_dir(vol), name), pts, tree, rig, binding, source="source.vdb")
+    vol.volrig.rig_file = name
+    vol.volrig.rigid_voxels = 0 if binding.rigid is None else int(np.count_nonzero(binding.rigid))
+
+
+class VOLRIG_OT_rebind(_OnVolume, bpy.types.Operator):
+    """Bind the spheres again to the armature as it is now (after moving, adding or deleting bones in edit mode);
+    replaces the vertex groups"""
+    bl_idname = "volrig.rebind"
+    bl_label = "Rebind"
+    modes, rigged = None, True
+
+    def run(self, context, vol):
+        parts = objects.members(vol)
+        if "SPHERES" not in parts:
+            raise volrig.VolrigError(f"{vol.name} has no sphere mesh: press Rig")
+        if context.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")  # edit bones reach the armature on leaving edit mode
+        saved = volrig.load_rig(scans.rig_path(vol))
+        rig = objects.armature_rig(parts["RIG"])
+        mask = scans.mask(vol)
+        binding = volrig.bind(saved.points, rig, mask, mode=vol.volrig.bind_mode, rigid=scans.rigid(vol))
+        objects.set_vertex_groups(parts["SPHERES"], binding)
+        _save_rig(vol, saved.points, saved.tree, rig, binding)
+        looks.refresh(vol)
+        self.report({"INFO"}, f"volrig: {len(saved.points):,} spheres bound to {len(rig)} bones")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_walk_cycle(_OnVolume, bpy.types.Operator):
+    """Keyframe a procedural walk on a humanoid rig (thighs, shins, feet, arms swing about its left-right axis)"""
+    bl_idname = "volrig.walk_cycle"
+    bl_label = "Add Walk Cycle"
+    modes, rigged = ("OBJECT", "POSE"), True
+
+    frame_start: bpy.props.IntProperty(name="Start", default=1)
+    frames: bpy.props.IntProperty(name="Frames", default=24, min=1, max=100000)
+    period: FloatProperty(name="Stride", default=24.0, min=1.0, description="Frames per stride")
+    amplitude: FloatProperty(name="Amplitude", default=1.0, min=0.0, soft_max=2.0, description="Angle scale")
+
+    def run(self, context, vol):
+        from mathutils import Quaternion, Vector
+        from volrig.walk import walk_cycle
+        rig_obj = objects.members(vol)["RIG"]
+        axis, angles = walk_cycle(objects.armature_rig(rig_obj), self.frames, self.period, self.amplitude)
+        for name, values in angles.items():
+            pb = rig_obj.pose.bones[name]
+            pb.rotation_mode = "QUATERNION"
+            local_axis = pb.bone.matrix_local.to_3x3().transposed() @ Vector(axis)
+            for i, angle in enumerate(values):
+                pb.rotation_quaternion = Quaternion(local_axis, float(angle))
+                pb.keyframe_insert("rotation_quaternion", frame=self.frame_start + i, group=name)
+        scene = context.scene
+        scene.frame_start, scene.frame_end = self.frame_start, self.frame_start + self.frames - 1
+        scene.frame_set(self.frame_start)
+        self.report({"INFO"}, f"volrig: walk on {len(angles)} bones over {self.frames} frames")
+        return {"FINISHED"}
+
+
+class VOLRIG_OT_thickness(_OnVolume, bpy.types.Operator):
+    """Give every bone of the rig a keyframable Thickness (1 = as scanned): the bake thickens the volume around a
+    bone by it"""
+    bl_idname = "volrig.thickness"
+    bl_label = "Thickness per Bone"
+    modes, rigged = None, True
+
+    def run(self, context, vol):
+        for pb in objects.members(vol)["RIG"].pose.bones:
+            objects.thickness_property(pb)
+        self.report({"INFO"}, "volrig: select a bone in pose mode to set (and key) its thickness; Bake applies it")
+        return {"FINISHED"}
+
+
+class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
+    bl_label = "Rig"
+
+    def draw(self, context):
+        s, layout = _settings(self, context)
+        vol = s.id_data
+        _props(layout.column(align=True), s, "alpha", "bones", "roles", "rig_kept_points")
+        row = layout.row(align=True)
+        row.prop(s, "body_plan", text="")
+        row.prop(s, "use_scene_up", toggle=True, icon="EMPTY_SINGLE_ARROW")
+        _labelled(layout, s, "bind_mode", "rigid_by")
+        if s.rigid_by == "LABELS":
+            layout.prop(s, "rigid_labels")
+        elif s.rigid_by == "RANGE":
+            row = layout.row(align=True)
+            row.prop(s, "rigid_low")
+            row.prop(s, "rigid_high")
+        row = layout.row(align=True)
+        row.operator("volrig.rig", icon="ARMATURE_DATA")
+        row.operator("volrig.rebind", icon="FILE_REFRESH")
+        parts = objects.members(vol)
+        if "RIG" in parts:
+            layout.operator("volrig.walk_cycle", icon="ANIM")
+            pb = context.active_pose_bone
+            if pb is not None and pb.id_data == parts["RIG"] and objects.THICKNESS in pb:
+                layout.prop(pb, f'["{objects.THICKNESS}"]', text=f"{pb.name} thickness", slider=True)
+            else:
+                layout.operator("volrig.thickness", icon="MOD_THICKNESS")
+            layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
+            if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61)": kind and fit, then the runner-up
+                found, _, runner_up = s.rig_found.partition(" (")
+                col = layout.column(align=True)
+                col.label(text=found, icon="INFO")
+                if runner_up:
+                    col.label(text=runner_up.rstrip(")"), icon="BLANK1")
+            if s.rigid_voxels:  # the rigid layer: bones move whole
+                layout.label(text=f"rigid layer: {s.rigid_voxels:,} voxels", icon="MOD_SOLIDIFY")
+        if "SPHERES" in parts:
+            layout.label(text=f"{parts['SPHERES'].name}: {len(parts['SPHERES'].data.vertices):,} spheres",
+                         icon="MESH_UVSPHERE")
+
+
+CLASSES = (VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_walk_cycle, VOLRIG_OT_thickness, VOLRIG_PT_rig)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
