@@ -57,6 +57,7 @@ def knight_scene():
     import numpy as np
     v, f = volrig.read_mesh(str(data_root() / "meshes" / "decimated-knight.off"))
     v = np.asarray(v, float)
+    from volrig_addon import mesh_rig
     mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
     print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
     arm = bpy.context.active_object
