@@ -346,11 +346,4 @@ class VOLRIG_PT_bake(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_bake, VOLRIG_OT_show_rest, VOLRIG_PT_bake)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -82,11 +82,4 @@ class VOLRIG_OT_find_contacts(_OnVolume, bpy.types.Operator):
 CLASSES = (VOLRIG_OT_find_contacts,)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

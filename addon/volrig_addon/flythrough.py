@@ -421,11 +421,4 @@ class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_fly_through, VOLRIG_OT_straighten, VOLRIG_OT_straightening_rig, VOLRIG_PT_centerline)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

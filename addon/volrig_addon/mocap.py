@@ -171,11 +171,4 @@ class VOLRIG_PT_mocap(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_drive_with_bvh, VOLRIG_OT_reset_bone_map, VOLRIG_UL_bone_map, VOLRIG_PT_mocap)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -168,11 +168,4 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_rig, VOLRIG_OT_rebind, VOLRIG_OT_walk_cycle, VOLRIG_OT_thickness, VOLRIG_PT_rig)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -39,11 +39,4 @@ class VOLRIG_PT_skeleton(_VolrigPanel, bpy.types.Panel):
 CLASSES = (VOLRIG_OT_skeletonize, VOLRIG_PT_skeleton)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
