@@ -241,15 +241,17 @@ def voxels_from_thinness(tp: float, metric: str, spacing) -> float:
 def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, max_edge: Optional[float] = None,
                  bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
                  progress: StepProgress = None, source: Optional[str] = None, kind: Optional[str] = None,
-                 up=None, own_scale: bool = True, rigid: Optional[Volume] = None) -> RiggedSkeleton:
+                 up=None, own_scale: bool = True, rigid: Optional[Volume] = None,
+                 markers: Optional[dict] = None, plan_weights=None, detail: Optional[list] = None) -> RiggedSkeleton:
     """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
     template (humanoid, quadruped, hand, chains), ``up`` gives the world's up direction in the volume's frame,
     ``own_scale=False`` rigs ``points`` themselves rather than autorig's own skeleton (see ``autorig``) and ``rigid``
-    is tissue that must not bend (``bind(..., rigid=)``). Fewer than two points are refused by autorig (lower the
+    is tissue that must not bend (``bind(..., rigid=)``); ``markers`` ({name: point}, see ``autorig``) guide the body
+    plan and place the marked joints; ``plan_weights`` and ``detail`` go to ``autorig``. Fewer than two points are refused by autorig (lower the
     thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
     rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up,
-                  own_scale=own_scale)
+                  own_scale=own_scale, markers=markers, plan_weights=plan_weights, detail=detail)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"), rigid=rigid)
     return RiggedSkeleton(points, tree, rig, binding, source)
 
