@@ -37,6 +37,7 @@ PLANS = ("humanoid", "quadruped", "hand")
 BIASES = {"bias_humanoid", "bias_quadruped", "bias_hand"}
 WEIGHTS_FILE = os.path.join(ROOT, "native", "src", "rig", "autorig", "plan_weights.inc")
 NO_UP_WEIGHT = 0.3
+L1 = 0.1
 FLOOR = 0.05
 CACHE = os.path.join(os.path.expanduser("~"), ".cache", "volrig", "plan_features")
 
@@ -91,9 +92,10 @@ def initial_weights():
     return np.array([float(x) for x in body.replace("\n", "").split(",") if x.strip()])
 
 
-def fit(problems, l1=0.01, rounds=4, keep=40, w0=None):
+def fit(problems, l1=None, rounds=4, keep=40, w0=None):
     """The LP (see the module docstring); w0 chooses the first latent readings."""
     from scipy.optimize import linprog
+    l1 = L1 if l1 is None else l1
     n = len(PLAN_TERMS) + 1
     w = initial_weights() if w0 is None else w0.copy()
     for _ in range(rounds):
@@ -174,7 +176,7 @@ def write_weights(w):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--write", action="store_true", help="store the weights fitted on all subjects")
-    ap.add_argument("--l1", type=float, default=0.01, help="weight of the penalty weights' sum in the objective")
+    ap.add_argument("--l1", type=float, default=L1, help="weight of the penalty weights' sum in the objective")
     ap.add_argument("--fresh", action="store_true", help="recompute the cached features")
     ap.add_argument("--json", help="write the figures here")
     a = ap.parse_args()

@@ -304,9 +304,10 @@ def parse_up(text: str) -> Tuple[float, float, float]:
 
 
 def describe_rig(rig: Rig) -> str:
-    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages."""
+    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages; its note after '; '."""
     text = f"{rig.kind}, fit {rig.fit:.2f}"
-    return text + (f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else "")
+    text += f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else ""
+    return text + (f"; {rig.note}" if rig.note else "")
 
 
 def load_rigged(path: str, binding: bool = False) -> RiggedSkeleton:

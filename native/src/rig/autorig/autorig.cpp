@@ -125,8 +125,23 @@ void finish_plan(Candidate& k, double score, const PlanInput& in) {
         rig_detail::apply_markers(k.rig, in.markers, in.up ? *in.up : k.up);
 }
 
-/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first; every reading scored
-/// goes to `detail` when given.
+/// Every reading scored, for fitting the weights (AutorigDetail): the body plans' and the hand's best.
+void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_detail::HandPlan& hand,
+                     AutorigDetail& detail) {
+    if (std::isfinite(hand.score)) {  // the hand's search ranks its readings by shape alone
+        rig_detail::PlanReading r{"hand", {}, {hand.wrist}};
+        r.features[rig_detail::kBiasHand] = 1;
+        r.features[rig_detail::kHandShape] = hand.score;
+        readings.push_back(r);
+    }
+    for (const auto& r : readings) {
+        detail.reading_kind.push_back(r.kind);
+        detail.reading_features.emplace_back(r.features.begin(), r.features.end());
+    }
+}
+
+/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first (fewest markers broken,
+/// then lowest score); every reading scored goes to `detail` when given.
 std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const AutorigOptions& opt,
                                        const PlanInput& in, AutorigDetail* detail) {
     std::vector<rig_detail::RoleMarker> roles;
@@ -134,33 +149,22 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     std::vector<rig_detail::PlanReading> readings;
     const rig_detail::PlanSearch s =
         rig_detail::search_plans(c.tree, {in.up, in.weights, roles}, detail ? &readings : nullptr);
-    std::vector<std::pair<double, Candidate>> scored;
+    std::vector<std::pair<std::pair<int, double>, Candidate>> ranked;
     for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
         if (admits(opt, in, kind, plan.score)) {
-            scored.emplace_back(plan.score, rig_detail::build_plan(c, plan, std::string(kind) == "humanoid",
-                                                                   opt.tolerance, in.up));
-            finish_plan(scored.back().second, plan.score, in);
+            ranked.push_back({{plan.broken, plan.score},
+                              rig_detail::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, in.up)});
+            finish_plan(ranked.back().second, plan.score, in);
         }
     const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree);
     if (const double hs = rig_detail::hand_plan_score(hand, in.weights); in.markers.empty() && admits(opt, in, "hand", hs)) {
-        scored.emplace_back(hs, rig_detail::hand_rig(c, hand));
-        scored.back().second.fit = rig_detail::plan_fit(hs, in.weights);
+        ranked.push_back({{0, hs}, rig_detail::hand_rig(c, hand)});
+        ranked.back().second.fit = rig_detail::plan_fit(hs, in.weights);
     }
-    if (detail) {
-        if (std::isfinite(hand.score)) {  // the hand's best reading (its search ranks by shape alone)
-            rig_detail::PlanReading r{"hand", {}, {hand.wrist}};
-            r.features[rig_detail::kBiasHand] = 1;
-            r.features[rig_detail::kHandShape] = hand.score;
-            readings.push_back(r);
-        }
-        for (const auto& r : readings) {
-            detail->reading_kind.push_back(r.kind);
-            detail->reading_features.emplace_back(r.features.begin(), r.features.end());
-        }
-    }
+    if (detail) export_readings(std::move(readings), hand, *detail);
+    std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     std::vector<Candidate> out;
-    std::stable_sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (auto& [score, k] : scored)
+    for (auto& [key, k] : ranked)
         if (!k.rig.bones.empty() && consistent(k.rig)) out.push_back(std::move(k));
     return out;
 }
@@ -174,8 +178,8 @@ std::vector<Candidate> candidates(const rig_detail::RigContext& c, const Autorig
     if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains")
         out = plan_candidates(c, opt, in, detail);
     if (!in.markers.empty() && out.empty())
-        throw Error("autorig: no body plan meets these markers (each marker must lie nearest the limb, head or "
-                    "pelvis its name gives)");
+        throw Error("autorig: the markers need a humanoid or quadruped body plan, and this shape has no five "
+                    "extremities for one");
     if (opt.kind.empty() || opt.kind == "chains") {
         Candidate chains = rig_detail::chain_rig(c, target, opt.tolerance);
         if (detail) detail->chains_fit = chains.rig.bones.empty() ? -1.0 : chains.fit;

@@ -105,17 +105,18 @@ void quadruped_features(const NodeTree& t, const Reading& r, const std::optional
     f[kQSpineTilt] = std::abs(axis.dot(u));
 }
 
-/// Every marker holds: the role it names (plan_score.hpp, RoleMarker) is the one whose extremity path from its
-/// base lies nearest to it (a groin nearer the pelvis than the chest).
-bool meets_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMarker>& markers) {
-    if (markers.empty()) return true;
+/// How many markers a reading breaks: a marker holds when the role it names (RoleMarker) is the one whose
+/// extremity path from its base lies nearest to it (a groin: the pelvis nearer than the chest).
+int broken_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMarker>& markers) {
+    if (markers.empty()) return 0;
     const std::uint32_t base[5] = {r.chest, r.pelvis, r.pelvis, r.chest, r.chest};
     const std::uint32_t tip[5] = {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]};
     std::vector<std::uint32_t> paths[5];
     for (int k = 0; k < 5; ++k) paths[k] = t.path(base[k], tip[k]);
+    int broken = 0;
     for (const RoleMarker& m : markers) {
         if (m.role == RoleMarker::Pelvis) {
-            if ((m.at - t.at(r.pelvis)).norm() > (m.at - t.at(r.chest)).norm()) return false;
+            broken += (m.at - t.at(r.pelvis)).norm() > (m.at - t.at(r.chest)).norm();
             continue;
         }
         double d[5];
@@ -127,9 +128,9 @@ bool meets_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMa
         const bool ok = m.role == RoleMarker::Head ? nearest == 0
                         : m.role == RoleMarker::Leg ? (nearest == 1 || nearest == 2)
                                                     : (nearest == 3 || nearest == 4);
-        if (!ok) return false;
+        broken += !ok;
     }
-    return true;
+    return broken;
 }
 
 /// Every assignment of five extremities to head, legs, arms, read as a humanoid and as a quadruped; the best of
@@ -149,7 +150,8 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 // branch joins the spine.
                 r.pelvis = t.median(r.legs[0], r.legs[1], r.head);
                 r.chest = t.median(r.pelvis, t.median(r.arms[0], r.arms[1], r.head), r.head);
-                if (r.pelvis == r.chest || !meets_markers(t, r, in.markers)) continue;
+                if (r.pelvis == r.chest) continue;
+                const int broken = broken_markers(t, r, in.markers);
                 const PlanFeatures shared = shared_features(t, r, left_out, left_out_thickness, object_extent);
                 for (const bool humanoid : {true, false}) {
                     PlanFeatures f = shared;
@@ -157,7 +159,9 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                     else quadruped_features(t, r, in.up, f);
                     const double score = plan_score(f, in.weights);
                     Plan& slot = humanoid ? best.humanoid : best.quadruped;
-                    if (score < slot.score) slot = Plan{r.head, {r.legs[0], r.legs[1]}, {r.arms[0], r.arms[1]}, score};
+                    // Markers first (fewest broken), then the score.
+                    if (broken < slot.broken || (broken == slot.broken && score < slot.score))
+                        slot = Plan{r.head, {r.legs[0], r.legs[1]}, {r.arms[0], r.arms[1]}, score, broken};
                     if (all) all->push_back({humanoid ? "humanoid" : "quadruped", f, {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}});
                 }
             }
@@ -207,8 +211,8 @@ PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<Pl
     PlanSearch best;
     const auto ext = t.extremities();
     if (ext.size() < 5) return best;
-    // Five of the (up to) seven most significant leaves.
-    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
+    // Five of the (up to) seven most significant leaves; ten with markers (they say which, even among fingers).
+    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), in.markers.empty() ? 7 : 10));
     double total = 0;
     // An extremity's weight: how far it sticks out times how thick it is at its end (a tail as long as the head
     // but thinner weighs less).

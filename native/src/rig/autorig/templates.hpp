@@ -25,6 +25,7 @@ struct Candidate {
 struct Plan {
     std::uint32_t head = kNone, legs[2] = {kNone, kNone}, arms[2] = {kNone, kNone};
     double score = std::numeric_limits<double>::infinity();  ///< plan_score; kept when below the chains' score
+    int broken = std::numeric_limits<int>::max();  ///< markers the reading breaks (the search minimises them first)
 };
 /// A reading under way: a Plan's extremities and where its legs and arms meet the spine.
 struct Reading {
@@ -63,8 +64,8 @@ struct PlanSearch {
 
 /// Discrete search over the assignments of five of the seven most significant extremities (the most significant
 /// always in) to head, legs and arms, each read as a humanoid and as a quadruped and scored by plan_score over its
-/// features (plan_score.hpp); readings that break a marker are skipped. The best reading of each kind; every
-/// reading appended to `all` when given (for fitting the weights).
+/// features (plan_score.hpp). The best reading of each kind: the fewest markers broken, then the lowest score;
+/// every reading appended to `all` when given (for fitting the weights).
 PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all = nullptr);
 /// The score below which a body plan beats neutral chains, with the fitted weights.
 inline double plan_limit() { return chains_score(fitted_plan_weights()); }
