@@ -3,12 +3,14 @@ skeletonized and rigged through the add-on's operators, the volrig panels on the
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
 its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
 UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid
-(volrig_support.subjects.capsule_subject, e.g. wide) instead of the phantom."""
+(volrig_support.subjects.capsule_subject, e.g. wide) instead of the phantom. UI_MARKERS=1: four markers placed
+before Rig (the Markers box lists the missing ones)."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
 sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "addon"), os.path.join(REPO, "tests", "support")]
 import bpy
+from mathutils import Vector
 import volrig, volrig_addon
 from volrig_support import data_root
 import inspect
@@ -40,6 +42,16 @@ def contacts(vol):
     key_bone(vol, "forearm.R", 2, ((1, 0.0), (20, -0.8), (40, 0.0)), 40)
     print("find_contacts:", bpy.ops.volrig.find_contacts(), flush=True)
     bpy.context.scene.frame_set(20)
+
+
+def markers(vol):
+    """UI_MARKERS=1: four of the asked-for markers placed (at the phantom's joints), groin and right knee missing."""
+    joints = volrig.phantom.humanoid(0.4).joints
+    mid = 0.5 * (joints["shoulder.L"] + joints["shoulder.R"]) + [0, 0, 20]
+    for name, p in (("chin", mid), ("wrist.L", joints["wrist.L"]), ("wrist.R", joints["wrist.R"]),
+                    ("knee.L", joints["knee.L"])):
+        vol.volrig.marker_name = name
+        bpy.ops.volrig.place_marker(location=tuple(vol.matrix_world @ Vector(tuple(map(float, p)))))
 
 
 def live_preview(vol):
@@ -94,6 +106,8 @@ def setup():
         vol.select_set(True)
         bpy.ops.volrig.skeletonize()
         vol.volrig.thinness = 0.25
+        if os.environ.get("UI_MARKERS") and not pose:  # chin, wrists and the left knee marked before Rig
+            markers(vol)
         bpy.ops.volrig.rig()
         bpy.context.view_layer.objects.active = vol
         vol.select_set(True)
@@ -168,6 +182,8 @@ def show_volrig_sidebar(win, shading, three_quarter=False):
                     bpy.ops.view3d.view_orbit(angle=0.7, type="ORBITLEFT")
                     bpy.ops.view3d.view_orbit(angle=0.25, type="ORBITUP")
                 bpy.ops.view3d.view_all()
+                if os.environ.get("UI_MARKERS"):  # the selected volume (and its markers) filling the view
+                    bpy.ops.view3d.view_selected()
     bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
     print("UI READY", flush=True)
     return None

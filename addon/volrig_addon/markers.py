@@ -45,8 +45,8 @@ def place(volume_obj, name: str, point) -> bpy.types.Object:
         obj.show_in_front = True
         obj.show_name = True
         obj.parent = volume_obj
-    s = volume_obj.volrig  # a sphere 1.5% of the volume's longest side across
-    obj.empty_display_size = 0.015 * max(d * h for d, h in zip(s.dims, s.spacing))
+    s = volume_obj.volrig  # a sphere 3% of the volume's longest side across
+    obj.empty_display_size = 0.03 * max(d * h for d, h in zip(s.dims, s.spacing))
     obj.matrix_parent_inverse.identity()
     obj.location = tuple(float(v) for v in point)
     return obj
