@@ -103,7 +103,7 @@ def rig_row(sub, weights, markers=None):
     try:
         rig = sub.rig(plan_weights=weights, markers=markers)
     except Exception as e:  # a failure is a row, not the end of the table
-        return {"name": sub.name, "category": sub.category, "error": str(e)[:120]}
+        return {"name": sub.name, "category": sub.category, "plan": sub.plan, "error": str(e)[:120]}
     row = {"name": sub.name, "category": sub.category, "plan": sub.plan, "kind": rig.kind,
            "right": plan_right(sub.plan, rig.kind), "seconds": time.perf_counter() - t}
     if sub.reference is not None:
@@ -113,16 +113,19 @@ def rig_row(sub, weights, markers=None):
 
 def table(rows, title):
     print(f"\n{title}")
-    print(f"{'category':10s} {'n':>3s} {'plans':>7s} {'J2J':>6s} {'J2B':>6s} {'B2B':>6s} {'(n)':>4s} {'s':>5s}")
-    cats = sorted({r["category"] for r in rows}) + ["all"]
-    for cat in cats:
-        rs = [r for r in rows if cat == "all" or r["category"] == cat]
+    print(f"{'category':10s} {'n':>3s} {'plans':>7s} {'J2J':>6s} {'J2B':>6s} {'B2B':>6s} {'(n)':>4s} {'s':>5s}"
+          "   (n): characters with a reference skeleton; s: seconds per character")
+    cats = sorted({r["category"] for r in rows}) + ["all", "bodies"]
+    for cat in cats:  # bodies: the humanoids and quadrupeds of every category
+        rs = [r for r in rows if cat == "all" or r["category"] == cat
+              or (cat == "bodies" and r.get("plan") in ("humanoid", "quadruped"))]
         ok = [r for r in rs if "error" not in r]
         d = np.array([r["d"] for r in ok if "d" in r]) if any("d" in r for r in ok) else np.full((0, 3), np.nan)
         m = d.mean(0) if len(d) else [np.nan] * 3
         s = np.mean([r["seconds"] for r in ok]) if ok else np.nan
+        dist = " ".join(f"{x:6.2f}" if len(d) else "     -" for x in m)
         print(f"{cat:10s} {len(rs):3d} {sum(r.get('right', False) for r in rs):3d}/{len(rs):<3d} "
-              f"{m[0]:6.2f} {m[1]:6.2f} {m[2]:6.2f} {len(d):4d} {s:5.1f}")
+              f"{dist} {len(d):4d} {s:5.1f}")
     for r in rows:
         if "error" in r:
             print(f"  {r['name']}: {r['error']}")

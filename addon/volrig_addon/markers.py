@@ -1,55 +1,88 @@
-"""Markers: the Rig panel's Markers step (as Mixamo and AccuRIG ask for the chin, wrists, knees and groin). The
-user picks a joint's name and clicks the volume in the viewport: the marker goes half-way through the part under
-the mouse (``volrig.ray_marker``), where the joint lies, and the next missing name is picked. Markers are Empties
-parented to the volume (saved with the .blend, moved with G like any object); Rig passes them to autorig as hard
-constraints of its body plan (``autorig(markers=)``)."""
+"""Markers: the Rig and Mesh panels' Markers step (as Mixamo and AccuRIG ask for the chin, wrists, knees and
+groin). The user picks a joint's name and clicks the volume or the mesh in the viewport: the marker goes half-way
+through the part under the mouse (a volume: ``volrig.ray_marker`` on its mask; a mesh: between where the ray
+enters and leaves its surface), where the joint lies, and the next missing name is picked. Markers are Empties
+parented to their object (saved with the .blend, moved with G like any object); Rig and Rig Mesh pass them to
+autorig, whose body plan they constrain (``autorig(markers=)``)."""
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatVectorProperty
+
+import numpy as np
 
 import volrig
 
 from . import objects, scans
-from .ops_base import _OnVolume, _reported
+from .ops_base import _reported
 
 #: The markers the panel asks for first, in this order: with them the plan and every limb come out right.
 ASKED = ("chin", "wrist.L", "wrist.R", "groin", "knee.L", "knee.R")
 
 
-def markers_of(volume_obj) -> dict:
-    """{marker name: Empty} of the volume's markers."""
-    return {o.volrig.marker: o for o in bpy.data.objects
-            if o.volrig.role == "MARKER" and o.volrig.volume == volume_obj}
+def target(context):
+    """The object markers go on: the active object's volrig volume, else the active mesh Rig Mesh rigs."""
+    from .mesh_rig import _target
+    vol = objects.volume_of(context.active_object)
+    return vol if vol is not None else _target(context)
 
 
-def marker_points(volume_obj) -> dict:
-    """{marker name: (x, y, z)} in the volume's own frame (volrig's world), for autorig's ``markers``."""
-    to_volume = volume_obj.matrix_world.inverted_safe()
-    return {name: tuple(to_volume @ o.matrix_world.translation) for name, o in markers_of(volume_obj).items()}
+def markers_of(obj) -> dict:
+    """{marker name: Empty} of the object's markers (its children with role MARKER)."""
+    return {o.volrig.marker: o for o in obj.children if o.volrig.role == "MARKER"}
 
 
-def missing(volume_obj) -> list:
+def marker_points(obj) -> dict:
+    """{marker name: (x, y, z)} in the object's own frame (a volume's: volrig's world; a mesh's: its vertices'),
+    for autorig's ``markers``."""
+    to_local = obj.matrix_world.inverted_safe()
+    return {name: tuple(to_local @ o.matrix_world.translation) for name, o in markers_of(obj).items()}
+
+
+def missing(obj) -> list:
     """The asked-for markers not placed yet, in ASKED order."""
-    have = markers_of(volume_obj)
+    have = markers_of(obj)
     return [n for n in ASKED if n not in have]
 
 
-def place(volume_obj, name: str, point) -> bpy.types.Object:
-    """Creates or moves the Empty of marker ``name`` to ``point`` (the volume's frame)."""
+def _size(obj) -> float:
+    """The object's longest side in its own frame."""
+    if obj.type == "VOLUME":
+        return max(d * h for d, h in zip(obj.volrig.dims, obj.volrig.spacing))
+    box = np.array([tuple(c) for c in obj.bound_box])
+    return float((box.max(0) - box.min(0)).max())
+
+
+def place(obj, name: str, point) -> bpy.types.Object:
+    """Creates or moves the Empty of marker ``name`` to ``point`` (the object's frame)."""
     if name not in volrig.MARKER_NAMES:
         raise volrig.VolrigError(f"unknown marker {name!r}")
-    obj = markers_of(volume_obj).get(name)
-    if obj is None:
-        obj = objects._new_object(volume_obj, f"{volume_obj.name}_marker_{name}", None, "MARKER")
-        obj.volrig.marker = name
-        obj.empty_display_type = "SPHERE"
-        obj.show_in_front = True
-        obj.show_name = True
-        obj.parent = volume_obj
-    s = volume_obj.volrig  # a sphere 3% of the volume's longest side across
-    obj.empty_display_size = 0.03 * max(d * h for d, h in zip(s.dims, s.spacing))
-    obj.matrix_parent_inverse.identity()
-    obj.location = tuple(float(v) for v in point)
-    return obj
+    marker = markers_of(obj).get(name)
+    if marker is None:
+        marker = bpy.data.objects.new(f"{obj.name}_marker_{name}", None)
+        for coll in obj.users_collection or (bpy.context.scene.collection,):
+            coll.objects.link(marker)
+        marker.volrig.role = "MARKER"
+        marker.volrig.marker = name
+        marker.empty_display_type = "SPHERE"
+        marker.show_in_front = True
+        marker.show_name = True
+        marker.parent = obj
+    marker.empty_display_size = 0.03 * _size(obj)  # a sphere 3% of the object's longest side across
+    marker.matrix_parent_inverse.identity()
+    marker.location = tuple(float(v) for v in point)
+    return marker
+
+
+def mesh_ray_marker(obj, origin, direction):
+    """A mesh's marker under a ray (the object's frame): half-way between where the ray first enters its surface
+    and where it leaves it again; None when it misses."""
+    from mathutils import Vector
+    o, d = Vector(origin), Vector(direction).normalized()
+    hit, enter, _, _ = obj.ray_cast(o, d)
+    if not hit:
+        return None
+    step = 1e-4 * _size(obj)
+    hit, leave, _, _ = obj.ray_cast(enter + step * d, d)
+    return tuple(enter if not hit else 0.5 * (enter + leave))
 
 
 def _advance(settings, volume_obj) -> bool:
@@ -60,9 +93,22 @@ def _advance(settings, volume_obj) -> bool:
     return bool(left)
 
 
-class VOLRIG_OT_place_marker(_OnVolume, bpy.types.Operator):
-    """Click on the volume to place the chosen marker inside the part under the mouse; the next missing marker is
-    picked after each click (right-click or Esc: done)"""
+class _OnTarget:
+    """Undoable operators on the markers' object (a volrig volume or a mesh), in object mode."""
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "OBJECT" and target(context) is not None
+
+    @_reported
+    def execute(self, context):
+        return self.run(context, target(context))
+
+
+class VOLRIG_OT_place_marker(_OnTarget, bpy.types.Operator):
+    """Click on the volume or mesh to place the chosen marker inside the part under the mouse; the next missing
+    marker is picked after each click (right-click or Esc: done)"""
     bl_idname = "volrig.place_marker"
     bl_label = "Place Markers"
 
@@ -79,13 +125,13 @@ class VOLRIG_OT_place_marker(_OnVolume, bpy.types.Operator):
 
     @_reported
     def invoke(self, context, event):
-        vol = self.volume(context)
+        vol = target(context)
         if self.use_location:
             return self.run(context, vol)
         if context.area is None or context.area.type != "VIEW_3D":
             raise volrig.VolrigError("place markers in a 3D viewport")
         self._vol = vol
-        self._mask = scans.mask(vol)
+        self._mask = scans.mask(vol) if vol.type == "VOLUME" else None
         context.window_manager.modal_handler_add(self)
         self._say(context)
         return {"RUNNING_MODAL"}
@@ -102,7 +148,7 @@ class VOLRIG_OT_place_marker(_OnVolume, bpy.types.Operator):
             return {"PASS_THROUGH"}
         point = self._ray(context, event)
         if point is None:
-            self.report({"WARNING"}, "volrig: the click missed the volume's object")
+            self.report({"WARNING"}, f"volrig: the click missed {self._vol.name}")
             return {"RUNNING_MODAL"}
         place(self._vol, self._vol.volrig.marker_name, point)
         if not _advance(self._vol.volrig, self._vol):
@@ -121,12 +167,14 @@ class VOLRIG_OT_place_marker(_OnVolume, bpy.types.Operator):
         to_volume = self._vol.matrix_world.inverted_safe()
         o = to_volume @ origin
         d = to_volume.to_3x3() @ direction
+        if self._mask is None:
+            return mesh_ray_marker(self._vol, o, d)
         p = volrig.ray_marker(self._mask, tuple(o), tuple(d))
         return None if p is None else tuple(float(v) for v in p)
 
 
-class VOLRIG_OT_clear_markers(_OnVolume, bpy.types.Operator):
-    """Remove the volume's markers (the rig then finds its body plan alone)"""
+class VOLRIG_OT_clear_markers(_OnTarget, bpy.types.Operator):
+    """Remove the markers (the rig then finds its body plan alone)"""
     bl_idname = "volrig.clear_markers"
     bl_label = "Clear Markers"
 
@@ -143,7 +191,7 @@ class VOLRIG_OT_clear_markers(_OnVolume, bpy.types.Operator):
 
 
 def draw(layout, vol) -> None:
-    """The Rig panel's Markers box: the name to place, Place and Clear, what is placed and what is missing."""
+    """The Rig and Mesh panels' Markers box: the name to place, Place and Clear, what is placed and what is missing."""
     box = layout.box()
     placed = markers_of(vol)
     row = box.row(align=True)

@@ -32,6 +32,7 @@ from volrig import pipeline
 from volrig.skin import thickness_offsets
 
 from . import drawing, objects
+from . import markers as marker_ui
 from .ops_base import _reported
 
 MODIFIER = "volrig"
@@ -260,7 +261,7 @@ def revalidate_drivers(obj) -> None:
 
 
 def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, preserve_volume=False,
-                    thickness_keys=True, progress=None):
+                    thickness_keys=True, progress=None, markers=None):
     """Rigs the mesh object ``obj`` (see the module's docstring); replaces an earlier Rig Mesh of it once the new
     rig is computed. Returns (armature object, volrig.MeshRig, seconds spent writing the vertex groups)."""
     if obj.type != "MESH":
@@ -278,7 +279,7 @@ def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, 
     scaled = (lambda f: progress(0.9 * f)) if progress is not None else None
     try:
         mr = volrig.rig_mesh(verts, tris, voxels=voxels, blend=blend, kind=kind, up=up, progress=scaled,
-                             skin_points=None if same else own)
+                             skin_points=None if same else own, markers=markers)
     except volrig.Cancelled:
         raise
     except volrig.VolrigError as e:  # e.g. "voxelize: the mesh encloses no voxel centre ... (an open surface ...)"
@@ -357,7 +358,7 @@ class VOLRIG_OT_rig_mesh(bpy.types.Operator):
                 context, obj, kind=None if self.body_plan == "AUTO" else self.body_plan,
                 up=objects.scene_up(obj) if self.use_scene_up else None, voxels=self.voxels, blend=self.blend,
                 preserve_volume=self.preserve_volume, thickness_keys=keys,
-                progress=lambda f: wm.progress_update(100 * f))
+                progress=lambda f: wm.progress_update(100 * f), markers=marker_ui.marker_points(obj) or None)
         finally:
             wm.progress_end()
         for o in context.view_layer.objects:
@@ -409,6 +410,7 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         obj = _target(context)
+        marker_ui.draw(layout, obj)
         layout.operator(VOLRIG_OT_rig_mesh.bl_idname, icon="ARMATURE_DATA")
         arm = armature_of(obj)
         if arm is None:

@@ -24,8 +24,9 @@ AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+
 RIGGED_PLANS = ("humanoid", "quadruped", "hand")
 #: The older subjects (volrig_support.subjects) used besides the shared characters: meshes, the phantom, the
 #: Visible Human, capsule humanoids in three poses and capsule dogs with tails of 0, 40 and 70 units (the last also
-#: with front legs 1.6 times as thick: a bull's).
-OLD_SUBJECTS = ("arm", "hand", "knight", "cow", "horse", "camel", "lion", "phantom", "vhm4", "capsules_down",
+#: with front legs 1.6 times as thick: a bull's). "name@240": the mesh voxelized at 240 voxels instead of 160.
+OLD_SUBJECTS = ("arm", "hand", "knight", "cow", "horse", "camel", "lion", "arm@240", "hand@240", "knight@240",
+                "cow@240", "horse@240", "camel@240", "lion@240", "phantom", "vhm4", "capsules_down",
                 "capsules_wide", "capsules_armsup", "quadruped_tail0", "quadruped_tail40", "quadruped_tail70",
                 "quadruped_tail70_front1.6")
 
@@ -110,6 +111,9 @@ def old_subjects(names: Sequence[str] = OLD_SUBJECTS) -> List[PlanSubject]:
         if name.startswith("quadruped_tail"):
             tail, _, front = name[len("quadruped_tail"):].partition("_front")
             s = capsule_quadruped_subject(float(tail), front=float(front or 1))
+        elif "@" in name:
+            mesh, voxels = name.split("@")
+            s = load_subject(mesh, voxels=int(voxels))
         else:
             s = load_subject(name)
         out.append(PlanSubject(name, s.kind, tuple(float(u) for u in s.up), "older", mask=s.mask))

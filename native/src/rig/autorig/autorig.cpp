@@ -253,6 +253,7 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
     const rig_detail::LevelSetTree lst = rig_detail::shape_tree(rg, rmask, rpts, redges, progress);
     report(progress, 0.5);
     rig_detail::NodeTree tree(lst.centroid, lst.radius, lst.edges);
+    tree.set_spread(lst.spread);
     tree.prune(opt.prune_scale);
     tree.root_path_at_thicker_end();
     report(progress, 0.7);

@@ -45,6 +45,20 @@ Vec unit(const Vec& a, const Vec& b) {
     return d.norm() > 0 ? Vec(d / d.norm()) : Vec::Zero();
 }
 
+/// How much a limb (base to tip) is a sheet: the median, over its nodes beyond its first third (out of the trunk),
+/// of their spread over their radius, divided by kSheetSpread and at most 1 (a round limb's pieces spread about as
+/// far as their band: 0 to 1 radius; a wing's span its width).
+constexpr double kSheetSpread = 4.0;
+double flatness(const NodeTree& t, std::uint32_t base, std::uint32_t tip) {
+    const std::vector<std::uint32_t> path = t.path(base, tip);
+    std::vector<double> ratio;
+    for (std::size_t k = path.size() / 3; k < path.size(); ++k)
+        ratio.push_back(t.spread(path[k]) / std::max(t.radius(path[k]), 1e-12));
+    if (ratio.empty()) return 0.0;
+    std::nth_element(ratio.begin(), ratio.begin() + static_cast<std::ptrdiff_t>(ratio.size() / 2), ratio.end());
+    return std::min(1.0, ratio[ratio.size() / 2] / kSheetSpread);
+}
+
 /// The features every reading of five extremities shares, whatever its kind (plan_score.hpp).
 PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_out, double left_out_thickness,
                              double object_extent) {
@@ -73,6 +87,8 @@ PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_ou
         arm += t.length(t.path(r.chest, r.arms[k]));
     }
     f[kLimbRatio] = std::abs(std::log(std::max(leg, 1e-12) / std::max(arm, 1e-12)));
+    f[kArmsFlat] = 0.5 * (flatness(t, r.chest, r.arms[0]) + flatness(t, r.chest, r.arms[1]));
+    f[kLegsFlat] = 0.5 * (flatness(t, r.pelvis, r.legs[0]) + flatness(t, r.pelvis, r.legs[1]));
     f[kNarrowSpan] =
         std::max(0.0, 1.0 - t.extent({r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}) / std::max(object_extent, 1e-12));
     return f;

@@ -17,6 +17,9 @@ public:
     std::size_t size() const { return pos_.size(); }
     const Vec& at(std::uint32_t v) const { return pos_[v]; }
     double radius(std::uint32_t v) const { return rad_[v]; }
+    /// How far node v's points spread from its centroid (LevelSetTree::spread; 0 when not given).
+    double spread(std::uint32_t v) const { return spread_.empty() ? 0.0 : spread_[v]; }
+    void set_spread(std::vector<double> spread) { spread_ = std::move(spread); }
     std::uint32_t root() const { return root_; }
     std::uint32_t parent(std::uint32_t v) const { return parent_[v]; }
     std::uint32_t depth(std::uint32_t v) const { return depth_[v]; }
@@ -58,6 +61,7 @@ public:
 private:
     std::vector<Vec> pos_;
     std::vector<double> rad_;
+    std::vector<double> spread_;
     std::vector<std::vector<std::uint32_t>> adj_;
     std::vector<std::uint8_t> kept_;
     std::uint32_t root_ = 0;

@@ -29,6 +29,8 @@ enum PlanTerm : int {
     kLimbsShort,      ///< the limbs reach less far than the head (1 - mean limb reach / head reach, at least 0)
     kNarrowSpan,      ///< the extremities span less of the object than it spans (1 - extent ratio)
     kLimbRatio,       ///< legs and arms of unequal length (|ln(leg / arm)|, path lengths from pelvis and chest)
+    kArmsFlat,        ///< the arms are sheets (wings, fins): their nodes' spread over radius, median, over 4, at most 1
+    kLegsFlat,        ///< the same for the legs
     kHLegsThin,       ///< humanoid: legs thinner than arms ((arm radius - leg radius) / arm radius, at least 0)
     kHHandsLow,       ///< humanoid: hands within a quarter of the legs' length above the feet along the spine
     kHLegsNotDown,    ///< humanoid: legs not pointing away from the head along the spine ((1 + cos) / 2)
@@ -43,7 +45,7 @@ enum PlanTerm : int {
 
 inline constexpr std::array<const char*, kPlanTerms> kPlanTermNames = {
     "bias_humanoid", "bias_quadruped", "bias_hand", "mirror_legs", "mirror_arms", "left_out", "head_thin",
-    "pairs_cross", "roots_cross", "head_behind", "limbs_short", "narrow_span", "limb_ratio", "h_legs_thin", "h_hands_low", "h_legs_not_down",
+    "pairs_cross", "roots_cross", "head_behind", "limbs_short", "narrow_span", "limb_ratio", "arms_flat", "legs_flat", "h_legs_thin", "h_hands_low", "h_legs_not_down",
     "h_spine_not_up", "q_legs_along", "q_limbs_not_down", "q_spine_tilt", "hand_shape"};
 
 using PlanFeatures = std::array<double, kPlanTerms>;
