@@ -36,6 +36,8 @@ class Rig:
     up:      (3,) the up direction autorig used (given) or inferred (unit; zeros when unknown).
     up_confidence: 1 when up was given, else how clearly the shape showed it (0..1).
     runner_up: the second-best template's kind ("" when there was none); runner_up_fit its fit.
+    bone_joints: None, or (``autorig(..., bone=)``, ``volrig.bones.rig_to_bones``) a ``volrig.bones.BoneJoint`` per
+             limb joint: where the bones put it, how, or why not.
     """
 
     joints: np.ndarray
@@ -49,6 +51,7 @@ class Rig:
     up_confidence: float = 0.0
     runner_up: str = ""
     runner_up_fit: float = 0.0
+    bone_joints: Optional[list] = None
 
     def __post_init__(self):
         self.joints = np.array(self.joints, dtype=np.float64, copy=True).reshape(-1, 3) if np.size(self.joints) \
@@ -223,7 +226,8 @@ KINDS = tuple(_volrig.AUTORIG_KINDS)
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
             prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
-            detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True) -> Rig:
+            detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True,
+            bone=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
     Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
@@ -264,8 +268,13 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"]))
-    return Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
-               np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]))
+    rig = Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
+              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]))
+    if bone is None:
+        return rig
+    from .bones import rig_to_bones  # the bones' module builds on Rig
+    _mask_for(points, bone)  # the same geometry as the skeleton's
+    return rig_to_bones(rig, bone, like_shape=arr.shape).rig
 
 
 @dataclass
