@@ -259,8 +259,10 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
         rig = fit.rig
         if rigid is not None:
             bone_arr, rigid_arr = _mask_for(points, bone) != 0, _mask_for(points, rigid) != 0
-            rigid = (rigid_arr & ~bone_arr) | (separated(fit.segments) & rigid_arr)
+            rigid = (rigid_arr & ~bone_arr) | (separated(fit.segments, bone_arr) & rigid_arr)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"), rigid=rigid)
+    if bone is not None and binding.rigid is not None:
+        binding.rigid_whole = True  # each segment moves whole with one bone
     return RiggedSkeleton(points, tree, rig, binding, source)
 
 

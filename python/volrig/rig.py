@@ -291,6 +291,9 @@ class Binding:
     bone_names:  the rig's bone names, for reference.
     rigid:       None, or the tissue that must not bend (bool, on the mask's grid, z, y, x) the binding was made
                  with (``bind(..., rigid=)``): deforming draws it as a rigid layer (``volrig.rigid_layer``).
+    rigid_whole: every 26-connected component of ``rigid`` moves whole, with the bone that carries most of it in the
+                 rest frame (a rig from the bones: its segments, parted, ``volrig.pipeline.rig_skeleton(bone=)``).
+                 False: each rigid voxel moves with the bone whose sphere covers it at rest.
     """
 
     bone: np.ndarray
@@ -299,6 +302,7 @@ class Binding:
     unreachable: np.ndarray
     bone_names: List[str] = field(default_factory=list)
     rigid: Optional[np.ndarray] = None
+    rigid_whole: bool = False
 
     def __len__(self) -> int:
         return len(self.bone)
@@ -332,7 +336,7 @@ class Binding:
         owner[idx] = b
         unreachable = self.unreachable.copy()
         unreachable[idx] = False
-        return Binding(owner, w, self.mode, unreachable, list(self.bone_names), self.rigid)
+        return Binding(owner, w, self.mode, unreachable, list(self.bone_names), self.rigid, self.rigid_whole)
 
     def groups(self):
         """The weights bone by bone, as vertex groups hold them: a list over bones of (point indices int64,
@@ -401,7 +405,8 @@ class Binding:
         order = np.lexsort((-data, row_of))
         owner = indices[order[indptr[:-1]]].astype(np.int32) if count else np.zeros(0, np.int32)
         mode = "rigid" if (per_row <= 1).all() else "smooth"
-        return cls(owner, w, mode, unreachable, names, None if fallback is None else fallback.rigid)
+        return cls(owner, w, mode, unreachable, names, None if fallback is None else fallback.rigid,
+                   fallback is not None and fallback.rigid_whole)
 
 
 def _canonical(weights):

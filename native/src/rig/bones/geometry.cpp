@@ -155,15 +155,16 @@ int deepest_valley(const std::vector<long>& count) {
     const int m = static_cast<int>(count.size());
     std::vector<long> sum(count.size(), 0);
     for (int b = 1; b + 1 < m; ++b) sum[b] = count[b - 1] + count[b] + count[b + 1];
-    int best = -1;
+    int best = -1, run = 0;  // the middle of the first run of equally deep bins
     long best_depth = 0;
     for (int b = 2; b + 2 < m; ++b) {
         const long left = *std::max_element(sum.begin() + 1, sum.begin() + b);
         const long right = *std::max_element(sum.begin() + b + 1, sum.end() - 1);
         const long depth = std::min(left, right) - sum[b];
-        if (depth > best_depth) best_depth = depth, best = b;
+        if (depth > best_depth) best_depth = depth, best = b, run = 1;
+        else if (depth == best_depth && best >= 0 && b == best + run) ++run;
     }
-    return best;
+    return best < 0 ? best : best + (run - 1) / 2;
 }
 
 }  // namespace
