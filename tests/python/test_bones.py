@@ -201,8 +201,9 @@ def frog():
 
 
 def test_the_frog_rigs_with_its_skeleton_given():
-    """The frog (label 13 its skeleton) comes out as chains (test_rig_real.py): its rig is kept as is, with an
-    empty report; forced to a quadruped, its limb joints are placed or kept, each with its reason."""
+    """The frog (label 13 its skeleton) rigs with its bones given: a chains rig would be kept as is, with an empty
+    report; as a quadruped (its limbs misplaced: test_rig_real.py), each limb joint is placed or kept with its
+    reason, and at least one moves to the bones."""
     vol, mask, pts, tree, bone = frog()
     plain = volrig.autorig(pts, tree, mask, own_scale=False)
     rig = volrig.autorig(pts, tree, mask, own_scale=False, bone=bone)
@@ -212,5 +213,6 @@ def test_the_frog_rigs_with_its_skeleton_given():
     quad = volrig.autorig(pts, tree, mask, own_scale=False, kind="quadruped", bone=bone)
     assert quad.kind == "quadruped" and len(quad.bone_joints) == 12
     for j in quad.bone_joints:
-        assert isinstance(j, BoneJoint) and (j.moved or j.why), j
-        assert np.isfinite(j.after).all() and j.shift <= 60.0 + 1e-9  # within the joint's window
+        assert isinstance(j, BoneJoint) and (j.moved != bool(j.why)), j
+        assert np.isfinite(j.after).all() and j.shift <= 60.0 * np.sqrt(3)  # within the joint's window
+    assert any(j.moved and j.shift > 0 for j in quad.bone_joints)

@@ -224,8 +224,10 @@ bool Fitter::place_ball(BoneJoint& j, int cb, double w) {
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
     j.parent_segment = socket_of(j.child_segment, at, w, own);
     if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
-        move(j, cb, thickest_point(g_, out_.segments.labels, j.child_segment, at, w), "thickest");
-        return true;
+        const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
+        if (c) move(j, cb, *c, "thickest");
+        else j.why = "no bone of segment " + std::to_string(j.child_segment) + " near the joint";
+        return c.has_value();
     }
     const Patch other = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
     const Contact k = contact_of(own, other, p_.reach, cell_);

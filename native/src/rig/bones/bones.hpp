@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "volrig/rig.hpp"
@@ -61,8 +62,9 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
 
 /// The centre of the thickest bone of segment `s` within `radius` of `centre`: the centroid of the voxels whose
 /// distance to the segment's surface lies within a voxel of the largest (a head's centre, where no gap shows it).
-P3 thickest_point(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s, const P3& centre,
-                  double radius);
+/// Nothing when the segment has no voxel there.
+std::optional<P3> thickest_point(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s,
+                                 const P3& centre, double radius);
 
 /// World position of a voxel index (origin + spacing * ijk, as bind and autorig place points).
 P3 voxel_position(const Grid& grid, std::int64_t index);

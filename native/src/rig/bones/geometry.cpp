@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <Eigen/Dense>
 #include <tbb/blocked_range.h>
@@ -186,8 +187,8 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
     return s;
 }
 
-P3 thickest_point(const Grid& g, const std::vector<std::int32_t>& labels, std::int32_t s, const P3& centre,
-                  double radius) {
+std::optional<P3> thickest_point(const Grid& g, const std::vector<std::int32_t>& labels, std::int32_t s,
+                                 const P3& centre, double radius) {
     Grid crop = g;
     std::array<std::int64_t, 3> lo{};
     for (int a = 0; a < 3; ++a) {
@@ -215,7 +216,8 @@ P3 thickest_point(const Grid& g, const std::vector<std::int32_t>& labels, std::i
         const P3 q = voxel_position(crop, static_cast<std::int64_t>(i));
         if (top > 0 && dt[i] >= top - g.min_spacing() && dist2(q, centre) <= radius * radius) best.push_back(q);
     }
-    return best.empty() ? centre : centroid(best);
+    if (best.empty()) return std::nullopt;
+    return centroid(best);
 }
 
 }  // namespace volrig::rig_detail
