@@ -96,6 +96,28 @@ def test_vhm_bones_improve_on_the_outer_shape(mm):
     assert err(v["rig"]) < 0.6 * err(v["plain"]), (err(v["rig"]), err(v["plain"]))
 
 
+def test_vhm_hips_below_the_knees_are_repaired():
+    """Issue 54's failure: an outer-shape rig with the hips below the knees (thighs touching) and the elbows 9 cm
+    too high. The bones put every limb joint back: a knee between the femur's and the tibia's facing ends, a hip at
+    the femur's end away from the knee, where the head's sphere is fitted."""
+    v = from_bones(2)
+    plain, ref = v["plain"], v["reference"]
+    joints = plain.joints.copy()
+    for side in "LR":
+        hip, knee = (int(plain.bones[plain.index(f"{b}.{side}")][0]) for b in ("thigh", "shin"))
+        elbow = int(plain.bones[plain.index(f"forearm.{side}")][0])
+        at = joints[knee].copy()
+        joints[hip], joints[knee] = at + [0, 0, -60], at + [0, 0, 150]
+        joints[elbow] += [0, 0, 90]
+    bad = volrig.Rig(joints, plain.bones, plain.names, plain.parents, plain.kind)
+    assert all(S.rig_joint(bad, f"hip.{s}")[2] < S.rig_joint(bad, f"knee.{s}")[2] for s in "LR")
+    rig = rig_to_bones(bad, v["bone"]).rig
+    errors = {n: round(float(np.linalg.norm(S.rig_joint(rig, n) - ref[n])), 1) for n in LIMB_JOINTS}
+    assert max(errors.values()) <= TOLERANCE[2], errors
+    for side in "LR":
+        assert S.rig_joint(rig, f"hip.{side}")[2] > S.rig_joint(rig, f"knee.{side}")[2] + 300
+
+
 def test_vhm_topology_and_other_joints_kept():
     v = from_bones(4)
     rig, plain = v["rig"], v["plain"]
@@ -214,5 +236,5 @@ def test_the_frog_rigs_with_its_skeleton_given():
     assert quad.kind == "quadruped" and len(quad.bone_joints) == 12
     for j in quad.bone_joints:
         assert isinstance(j, BoneJoint) and (j.moved != bool(j.why)), j
-        assert np.isfinite(j.after).all() and j.shift <= 60.0 * np.sqrt(3)  # within the joint's window
+        assert np.isfinite(j.after).all() and j.shift <= 120.0  # near the joint
     assert any(j.moved and j.shift > 0 for j in quad.bone_joints)

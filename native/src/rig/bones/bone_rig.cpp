@@ -12,16 +12,19 @@ namespace volrig::rig_detail {
 namespace {
 
 /// A limb joint: the head of bone `child`, whose parent long bone is `parent` ("" for hips and shoulders, where
-/// the socket's segment is whichever lies nearest); `ball`: a head in a socket.
+/// the socket's segment is whichever lies nearest but the `distal` bone's); `ball`: a head in a socket. Elbows
+/// and knees come first: a head lies at its long bone's end away from them.
 struct LimbJoint {
     const char* child;
     const char* parent;
     const char* name;
     bool ball;
+    const char* distal;
 };
 constexpr LimbJoint kLimbJoints[] = {
-    {"upper_arm", "", "shoulder", true}, {"forearm", "upper_arm", "elbow", false}, {"hand", "forearm", "wrist", false},
-    {"thigh", "", "hip", true},          {"shin", "thigh", "knee", false},         {"foot", "shin", "ankle", false},
+    {"forearm", "upper_arm", "elbow", false, ""}, {"upper_arm", "", "shoulder", true, "forearm"},
+    {"hand", "forearm", "wrist", false, ""},      {"shin", "thigh", "knee", false, ""},
+    {"thigh", "", "hip", true, "shin"},           {"foot", "shin", "ankle", false, ""},
 };
 
 P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
@@ -120,12 +123,13 @@ private:
         return seen;
     }
 
-    /// The segment other than s nearest to s around the point c (within radius w): the socket of a head.
-    std::int32_t socket_of(std::int32_t s, const P3& c, double w, const Patch& own) const {
+    /// The segment other than s (and `exclude`) nearest to s around the point c (within radius w): the socket of
+    /// a head.
+    std::int32_t socket_of(std::int32_t s, std::int32_t exclude, const P3& c, double w, const Patch& own) const {
         std::int32_t best = 0;
         double gap = p_.reach;
         for (const auto& [t, count] : segments_near(c, w)) {
-            if (t == s || count < 8) continue;
+            if (t == s || t == exclude || count < 8) continue;
             const Contact k = contact_of(own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
             if (k.found && k.gap < gap) gap = k.gap, best = t;
         }
@@ -137,7 +141,16 @@ private:
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
-    bool place_ball(BoneJoint& j, int cb, double w);
+    bool place_ball(BoneJoint& j, int cb, int db, double w);
+    bool reseed_hinge(BoneJoint& j, int pb, int cb, double w);
+    bool reseed_shared(BoneJoint& j, int pb, int cb, double w);
+    const BoneJoint* placed(const std::string& name) const {
+        for (const BoneJoint& k : out_.joints)
+            if (k.name == name && k.how != "kept") return &k;
+        return nullptr;
+    }
+    bool seed_ball(BoneJoint& j, int cb, int db);
+    bool fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w);
     void split(std::int32_t s, int cb, const P3& at, const P3& axis);
     void move(BoneJoint& j, int cb, const P3& to, const char* how);
 
@@ -163,10 +176,11 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     j.parent_segment = pb >= 0 ? segment_of(pb) : 0;
     bool done = false;
     if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
-    else if (lj.ball) done = place_ball(j, cb, w);
+    else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
-    else if (j.parent_segment == j.child_segment) done = place_in_section(j, pb, cb, w);
-    else done = place_hinge(j, pb, cb, w);  // a child without a segment of its own: whatever meets the parent
+    else if (j.parent_segment == j.child_segment) done = place_in_section(j, pb, cb, w) || reseed_shared(j, pb, cb, w);
+    else done = place_hinge(j, pb, cb, w) || reseed_hinge(j, pb, cb, w);  // a child without a segment of its
+                                                                            // own: whatever meets the parent
     if (!done && j.why.empty()) j.why = "the bones show no articulation there";
     out_.joints.push_back(j);
 }
@@ -219,10 +233,88 @@ bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
     return true;
 }
 
-bool Fitter::place_ball(BoneJoint& j, int cb, double w) {
+/// A hinge the outer shape put beyond the window of its bones' contact: started again between the facing ends of
+/// the two segments (the parent's end nearer the child's centroid, and the child's nearer the parent's).
+bool Fitter::reseed_hinge(BoneJoint& j, int pb, int cb, double w) {
+    if (j.child_segment == 0) return false;
+    const SegmentEnds p = segment_ends(g_, out_.segments.labels, j.parent_segment);
+    const SegmentEnds c = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!p.found || !c.found) return false;
+    const auto nearer = [](const SegmentEnds& e, const P3& q) { return norm(sub(e.a, q)) < norm(sub(e.b, q)) ? e.a : e.b; };
+    const P3 pe = nearer(p, c.centroid), ce = nearer(c, p.centroid);
+    const P3 seed{0.5 * (pe[0] + ce[0]), 0.5 * (pe[1] + ce[1]), 0.5 * (pe[2] + ce[2])};
+    if (norm(sub(seed, head(cb))) > 0.5 * (length(pb) + length(cb))) return false;  // not this limb's bones
+    const BoneJoint before = j;
+    const std::int64_t point = out_.rig.joint_points.empty() ? -1 : out_.rig.joint_points[static_cast<std::size_t>(j.joint)];
+    move(j, cb, seed, "seed");
+    if (place_hinge(j, pb, cb, w)) {
+        j.from = before.from;
+        j.why.clear();
+        return true;
+    }
+    move(j, cb, before.from, "kept");
+    if (!out_.rig.joint_points.empty()) out_.rig.joint_points[static_cast<std::size_t>(j.joint)] = point;
+    j.why = before.why;
+    return false;
+}
+
+/// Parent and child bones run through one segment with no narrower section between (the outer shape's joint far
+/// from the bones'): the child keeps it, and the parent takes the largest segment meeting it at its end nearer the
+/// joint (a femur, not the patella or the fibula).
+bool Fitter::reseed_shared(BoneJoint& j, int pb, int cb, double w) {
+    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!e.found) return false;
+    const P3 end = norm(sub(e.a, head(cb))) < norm(sub(e.b, head(cb))) ? e.a : e.b;
+    const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, end, w);
+    std::int32_t other = 0;
+    int most = 0;
+    for (const auto& [t, count] : segments_near(end, w))
+        if (t != j.child_segment && count > most &&
+            contact_of(own, patch_of(g_, out_.segments.labels, t, end, w), p_.reach, cell_).found)
+            most = count, other = t;
+    if (other == 0) return false;
+    const std::string why = j.why;
+    j.parent_segment = other;
+    j.why.clear();
+    if (reseed_hinge(j, pb, cb, w)) return true;
+    j.why = why;
+    return false;
+}
+
+/// A head the outer shape put nearer its limb's middle joint (knee, elbow: bone db's head) than half its long
+/// bone's length (a hip below the knee) starts again at the long bone's end away from that joint.
+bool Fitter::seed_ball(BoneJoint& j, int cb, int db) {
+    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!e.found) return false;
+    const P3 k = head(db);
+    const P3 far = norm(sub(e.a, k)) > norm(sub(e.b, k)) ? e.a : e.b;
+    const double bone_length = norm(sub(far, k));
+    if (norm(sub(head(cb), k)) >= 0.5 * bone_length) return false;
+    // a femur about as long as the tibia, a humerus as the forearm: else the segment is not this limb's
+    if (bone_length < 0.5 * length(db) || bone_length > 2.0 * length(db)) return false;
+    move(j, cb, far, "seed");
+    return true;
+}
+
+bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
+    const std::string side = j.name.substr(j.name.size() - 2);
+    const BoneJoint* mid = placed(std::string(j.name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
+    if (mid && mid->parent_segment > 0) j.child_segment = mid->parent_segment;  // the long bone the hinge found
+    const std::int32_t exclude = mid ? mid->child_segment : (db >= 0 ? segment_of(db) : 0);
+    const bool seeded = db >= 0 && seed_ball(j, cb, db);
+    if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, 60.0);  // the long bone's length
+    if (!fit_ball(j, cb, exclude, w)) return false;
+    for (int pass = 0; seeded && pass < 3 && j.how == "contact"; ++pass)  // from the socket, the head's sphere
+        fit_ball(j, cb, exclude, w);
+    return true;
+}
+
+/// A ball joint from where bone cb's head lies now: the sphere of its head, else the contact with its socket, else
+/// (no socket apart from it) its thickest bone.
+bool Fitter::fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w) {
     const P3 at = head(cb);
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
-    j.parent_segment = socket_of(j.child_segment, at, w, own);
+    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own);
     if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
         const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
         if (c) move(j, cb, *c, "thickest");
@@ -234,6 +326,7 @@ bool Fitter::place_ball(BoneJoint& j, int cb, double w) {
     // the head's surface facing its socket, a few voxels deep into the gap
     const Contact cap = contact_of(own, other, p_.reach, std::max(3 * cell_, 6.0));
     const Sphere s = fit_sphere(cap.a);
+
     if (s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius)
         move(j, cb, s.centre, "ball");
     else
@@ -258,8 +351,8 @@ void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
 
 /// Moves the head of bone cb to `to`; an end bone (its tail no bone's head) keeps its direction and length.
 void Fitter::move(BoneJoint& j, int cb, const P3& to, const char* how) {
-    const P3 d = sub(to, j.from);
     auto& rig = out_.rig;
+    const P3 d = sub(to, rig.joints[static_cast<std::size_t>(j.joint)]);
     rig.joints[static_cast<std::size_t>(j.joint)] = to;
     const std::int32_t t = rig.bones[cb][1];
     const bool end = std::none_of(rig.bones.begin(), rig.bones.end(), [&](const auto& b) { return b[0] == t; });

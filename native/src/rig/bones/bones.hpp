@@ -66,6 +66,14 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
 std::optional<P3> thickest_point(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s,
                                  const P3& centre, double radius);
 
+/// A segment's two ends along its principal axis (the centroids of its voxels within a few percent of its length
+/// of either extreme) and its centroid; found = false for an empty segment.
+struct SegmentEnds {
+    bool found = false;
+    P3 a{0, 0, 0}, b{0, 0, 0}, centroid{0, 0, 0};
+};
+SegmentEnds segment_ends(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s);
+
 /// World position of a voxel index (origin + spacing * ijk, as bind and autorig place points).
 P3 voxel_position(const Grid& grid, std::int64_t index);
 
