@@ -48,10 +48,10 @@ from . import compat, engines, materials, objects, properties, scans, staging  #
 from . import looks, ops_base, state, tissue_looks  # noqa: E402,F401
 # One module per feature, each with its operators and panel; registered in this order, which is the sidebar's
 # order of their panels (Volume, Segment, Skeleton, Rig, Motion capture, Look, Centerline, Bake, then Mesh).
-from . import (bake, collide, drawing, flythrough, looks_ui, medial, mesh_rig, mocap, preview, rig,  # noqa: E402
-               skeleton, volume)
+from . import (bake, collide, drawing, flythrough, looks_ui, markers, medial, mesh_rig, mocap, preview,  # noqa: E402
+               rig, skeleton, volume)
 
-FEATURES = (volume, medial, skeleton, rig, mocap, looks_ui, flythrough, bake, collide, drawing, preview, mesh_rig)
+FEATURES = (volume, medial, skeleton, markers, rig, mocap, looks_ui, flythrough, bake, collide, drawing, preview, mesh_rig)
 
 #: The volrig tab's top panels in the sidebar's order (the Mesh panel, mesh_rig.py, polls on meshes and comes last).
 PANELS = (volume.VOLRIG_PT_volume, volume.VOLRIG_PT_segment, skeleton.VOLRIG_PT_skeleton, rig.VOLRIG_PT_rig,

@@ -5,6 +5,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
+import volrig
 from volrig.deform import MODE_INFO, SAMPLING_INFO
 from volrig.pipeline import DEFAULT_THINNESS_VOXELS
 
@@ -124,7 +125,9 @@ class VolrigObject(bpy.types.PropertyGroup):
         ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
         ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),
         ("LUMEN", "Lumen wall", "The wall around the segmented lumen, seen from inside"),
+        ("MARKER", "Marker", "A joint the user placed for the rig (its name in marker)"),
     ], default="NONE")
+    marker: StringProperty(name="Marker", description="The joint this marker names (volrig.MARKER_NAMES)")
     volume: PointerProperty(name="Volume", type=bpy.types.Object, poll=_volume_object,
                             description="The volrig Volume object this object belongs to")
 
@@ -191,6 +194,8 @@ class VolrigObject(bpy.types.PropertyGroup):
                                               "of the object (for bones without flesh; the rig then follows the "
                                               "thinness)")
     rig_found: StringProperty(name="Found", description="What the last rig found: kind, fit and runner-up")
+    marker_name: EnumProperty(name="Marker", items=[(n, n, f"Place the {n} marker") for n in volrig.MARKER_NAMES],
+                              default="chin", description="The joint the next click places")
     rigid_voxels: IntProperty(name="Rigid voxels", default=0, min=0,
                               description="Voxels of rigid tissue the last Rig or Rebind bound: they move whole, as "
                                           "the rigid layer, while the flesh bends (0: none)")

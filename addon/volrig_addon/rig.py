@@ -10,7 +10,7 @@ from bpy.props import FloatProperty
 import volrig
 from volrig import pipeline
 
-from . import looks, objects, scans
+from . import looks, markers, objects, scans
 from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _VolrigPanel
 
 
@@ -33,7 +33,8 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
             r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
                                       progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
                                       up=objects.scene_up(vol) if s.use_scene_up else None,
-                                      own_scale=not s.rig_kept_points, rigid=scans.rigid(vol))
+                                      own_scale=not s.rig_kept_points, rigid=scans.rigid(vol),
+                                      markers=markers.marker_points(vol) or None)
         _save_rig(vol, r.points, r.tree, r.rig, r.binding)
         s.rig_found = pipeline.describe_rig(r.rig)
         rig_obj = objects.build_armature(vol, r.rig)
@@ -43,7 +44,8 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         if preview is not None:
             preview.hide_set(True)
         looks.refresh(vol)
-        self.report({"INFO"}, f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
+        self.report({"WARNING"} if r.rig.note else {"INFO"},
+                    f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
 
@@ -140,6 +142,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.prop(s, "rigid_low")
             row.prop(s, "rigid_high")
+        markers.draw(layout, vol)
         row = layout.row(align=True)
         row.operator("volrig.rig", icon="ARMATURE_DATA")
         row.operator("volrig.rebind", icon="FILE_REFRESH")
@@ -152,12 +155,15 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
             else:
                 layout.operator("volrig.thickness", icon="MOD_THICKNESS")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
-            if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61)": kind and fit, then the runner-up
-                found, _, runner_up = s.rig_found.partition(" (")
+            if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61); note": kind and fit, runner-up, note
+                found, _, note = s.rig_found.partition("; ")
+                found, _, runner_up = found.partition(" (")
                 col = layout.column(align=True)
                 col.label(text=found, icon="INFO")
                 if runner_up:
                     col.label(text=runner_up.rstrip(")"), icon="BLANK1")
+                if note:
+                    col.label(text=note, icon="ERROR")
             if s.rigid_voxels:  # the rigid layer: bones move whole
                 layout.label(text=f"rigid layer: {s.rigid_voxels:,} voxels", icon="MOD_SOLIDIFY")
         if "SPHERES" in parts:

@@ -1,6 +1,8 @@
 // Bindings for volrig/rig.hpp: autorig, bind, rest matrices. Conversions only.
 #include "volrig/rig.hpp"
 
+#include <map>
+
 #include "rig_arrays.hpp"
 
 namespace volrig::py {
@@ -38,6 +40,7 @@ py::dict dict_of(Rig&& r) {
     d["up_confidence"] = r.up_confidence;
     d["runner_up"] = r.runner_up;
     d["runner_up_fit"] = r.runner_up_fit;
+    d["note"] = r.note;
     return d;
 }
 
@@ -113,11 +116,14 @@ void bind_bones(py::module_& m) {
 
 void bind_rig(py::module_& m) {
     m.attr("AUTORIG_KINDS") = names_tuple(kAutorigKinds);  // spelled once in the core (volrig/rig.hpp)
+    m.attr("MARKER_NAMES") = names_tuple(kMarkerNames);
+    m.attr("PLAN_TERMS") = py::tuple(py::cast(autorig_plan_terms()));
     m.def(
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
            const EdgeArray& edges, int bones, double prune_scale, double tolerance, bool roles,
-           const std::string& kind, const std::optional<Vec3>& up, bool own_scale, const py::object& progress) {
+           const std::string& kind, const std::optional<Vec3>& up, bool own_scale, const py::object& progress,
+           const std::map<std::string, Vec3>& markers, const std::vector<double>& plan_weights) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             const PointSet pts = point_set(ijk, &radius, "autorig");
             const auto e = edges_of(edges);
@@ -129,6 +135,8 @@ void bind_rig(py::module_& m) {
             opt.kind = kind;
             opt.own_scale = own_scale;
             if (up) opt.up = std::array<double, 3>{(*up)[0], (*up)[1], (*up)[2]};
+            for (const auto& [name, at] : markers) opt.markers.emplace_back(name, std::array<double, 3>{at[0], at[1], at[2]});
+            opt.plan_weights = plan_weights;
             Progress p = progress_of(progress);
             Rig r;
             AutorigDetail detail;
@@ -148,11 +156,18 @@ void bind_rig(py::module_& m) {
             d["node_radius"] = to_numpy_shaped(std::move(detail.node_radius), {nn});
             d["node_edges"] = to_numpy_shaped(std::move(ne), {static_cast<py::ssize_t>(detail.node_edges.size()), 2});
             d["node_kept"] = to_numpy_shaped(std::move(detail.node_kept), {nn}).attr("view")("bool");
+            d["reading_kind"] = detail.reading_kind;
+            std::vector<double> feats;
+            for (const auto& f : detail.reading_features) feats.insert(feats.end(), f.begin(), f.end());
+            d["reading_features"] = to_numpy_shaped(std::move(feats), {static_cast<py::ssize_t>(detail.reading_kind.size()),
+                                                                        static_cast<py::ssize_t>(autorig_plan_terms().size())});
+            d["chains_fit"] = detail.chains_fit;
             return d;
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
         py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"), py::arg("kind") = "",
-        py::arg("up") = py::none(), py::arg("own_scale") = true, py::arg("progress") = py::none());
+        py::arg("up") = py::none(), py::arg("own_scale") = true, py::arg("progress") = py::none(),
+        py::arg("markers") = std::map<std::string, Vec3>{}, py::arg("plan_weights") = std::vector<double>{});
 
     m.def(
         "bind",

@@ -170,6 +170,19 @@ def _bone_summary(rig) -> str:
             + (f", kept {', '.join(kept)}" if kept else ""))
 
 
+def _read_markers(path: str) -> dict:
+    """--markers: a JSON object {name: [x, y, z]} (volrig.MARKER_NAMES; the volume's world frame)."""
+    import json
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except ValueError as e:
+        raise VolrigError(f"{path}: not JSON ({e})") from None
+    if not isinstance(data, dict) or not all(isinstance(v, list) and len(v) == 3 for v in data.values()):
+        raise VolrigError(f'{path}: markers must be a JSON object of name -> [x, y, z], e.g. {{"chin": [0, 10, 170]}}')
+    return data
+
+
 def cmd_rig(args) -> int:
     from .pipeline import describe_rig, parse_up, rig_skeleton
     from .rigfile import save_rig
@@ -181,7 +194,8 @@ def cmd_rig(args) -> int:
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
                      bind_mode=args.bind, progress=StepBars() if _show_progress(args) else None, source=args.file,
                      kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points,
-                     rigid=rigid, bone=_bone(args, rigid))
+                     rigid=rigid, bone=_bone(args, rigid),
+                     markers=_read_markers(args.markers) if args.markers else None)
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
     print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {describe_rig(rig)}: {len(rig)} "
@@ -642,6 +656,9 @@ def _rig_command(sub) -> None:
     p.add_argument("--rig-kept-points", action="store_true",
                    help="rig the kept skeleton points themselves, not autorig's own skeleton (thin, fragmented "
                         "objects such as bones without flesh; the rig then depends on --count / --thinness)")
+    p.add_argument("--markers", metavar="JSON",
+                   help='joints you marked, {"chin": [x, y, z], "wrist.L": [...], ...} in the volume\'s frame: they '
+                        "choose the body plan and place those joints (names: volrig.MARKER_NAMES)")
     p.add_argument("--bind", choices=["rigid", "smooth"], default="smooth", help="binding mode")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--rigid-labels", type=int, nargs="+", metavar="LABEL",

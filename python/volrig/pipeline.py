@@ -243,17 +243,19 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
                  bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
                  progress: StepProgress = None, source: Optional[str] = None, kind: Optional[str] = None,
                  up=None, own_scale: bool = True, rigid: Optional[Volume] = None,
-                 bone: Optional[Volume] = None) -> RiggedSkeleton:
+                 bone: Optional[Volume] = None, markers: Optional[dict] = None, plan_weights=None,
+                 detail: Optional[list] = None) -> RiggedSkeleton:
     """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
     template (humanoid, quadruped, hand, chains), ``up`` gives the world's up direction in the volume's frame,
     ``own_scale=False`` rigs ``points`` themselves rather than autorig's own skeleton (see ``autorig``) and ``rigid``
-    is tissue that must not bend (``bind(..., rigid=)``). ``bone``: the scan's bone tissue, whose articulations
-    then place the limb joints (``autorig(..., bone=)``); with ``rigid`` too, the bone's rigid tissue is split into
-    its segments (``volrig.bones.separated``) so that each segment binds wholly to one rig bone. Fewer than two
-    points are refused by autorig (lower the thinness)."""
+    is tissue that must not bend (``bind(..., rigid=)``); ``markers`` ({name: point}, see ``autorig``) guide the body
+    plan and place the marked joints; ``plan_weights`` and ``detail`` go to ``autorig``. ``bone``: the scan's bone
+    tissue, whose articulations then place the limb joints (``autorig(..., bone=)``); with ``rigid`` too, the bone's
+    rigid tissue is split into its segments (``volrig.bones.separated``) so that each segment binds wholly to one
+    rig bone. Fewer than two points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
     rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up,
-                  own_scale=own_scale)
+                  own_scale=own_scale, markers=markers, plan_weights=plan_weights, detail=detail)
     if bone is not None:
         fit = rig_to_bones(rig, bone, like_shape=np.shape(mask.array if isinstance(mask, Volume) else mask))
         rig = fit.rig
@@ -314,9 +316,10 @@ def parse_up(text: str) -> Tuple[float, float, float]:
 
 
 def describe_rig(rig: Rig) -> str:
-    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages."""
+    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages; its note after '; '."""
     text = f"{rig.kind}, fit {rig.fit:.2f}"
-    return text + (f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else "")
+    text += f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else ""
+    return text + (f"; {rig.note}" if rig.note else "")
 
 
 def load_rigged(path: str, binding: bool = False) -> RiggedSkeleton:

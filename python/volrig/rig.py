@@ -36,6 +36,8 @@ class Rig:
     up:      (3,) the up direction autorig used (given) or inferred (unit; zeros when unknown).
     up_confidence: 1 when up was given, else how clearly the shape showed it (0..1).
     runner_up: the second-best template's kind ("" when there was none); runner_up_fit its fit.
+    note:    what the user should know about an automatic rig ("" when nothing), e.g. "no body plan fits; place
+             markers or choose a plan".
     bone_joints: None, or (``autorig(..., bone=)``, ``volrig.bones.rig_to_bones``) a ``volrig.bones.BoneJoint`` per
              limb joint: where the bones put it, how, or why not.
     """
@@ -51,6 +53,7 @@ class Rig:
     up_confidence: float = 0.0
     runner_up: str = ""
     runner_up_fit: float = 0.0
+    note: str = ""
     bone_joints: Optional[list] = None
 
     def __post_init__(self):
@@ -211,6 +214,9 @@ class AutorigResult:
     root:       the point the pruned tree was rooted at.
     nodes:      (K, 3) centroids of the level-set tree's nodes; node_radius (K,); node_edges (K-1, 2);
     node_kept:  (K,) bool, nodes left after pruning.
+    reading_kind, reading_features: every body-plan reading the search scored: its kind and (R, len(PLAN_TERMS))
+                features (for fitting the plan weights: benchmarks/fit_plan_weights.py).
+    chains_fit: neutral chains' fit (-1 when not built).
     """
     kept: np.ndarray
     root: int
@@ -218,16 +224,24 @@ class AutorigResult:
     node_radius: np.ndarray
     node_edges: np.ndarray
     node_kept: np.ndarray
+    reading_kind: List[str] = field(default_factory=list)
+    reading_features: Optional[np.ndarray] = None
+    chains_fit: float = -1.0
 
 
 #: The templates autorig fits (spelled once in the core: volrig/rig.hpp kAutorigKinds).
 KINDS = tuple(_volrig.AUTORIG_KINDS)
+#: The joints a user may mark for autorig (``markers=``): chin, neck, head_top, groin and per side shoulder, elbow,
+#: wrist, hand_tip, hip, knee, ankle, toe (``wrist.L``...). Spelled once in the core (kMarkerNames).
+MARKER_NAMES = tuple(_volrig.MARKER_NAMES)
+#: The body-plan features whose weights are fitted to data (``plan_weights=`` adds neutral chains' score).
+PLAN_TERMS = tuple(_volrig.PLAN_TERMS)
 
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
             prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
             detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True,
-            bone=None) -> Rig:
+            markers: Optional[dict] = None, plan_weights=None, bone=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
     Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
@@ -253,6 +267,17 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     own_scale:   False rigs ``points`` and ``tree`` themselves (the rig then depends on how many points were kept):
                  for thin, fragmented objects (bones without flesh) whose thin parts autorig's own skeleton, at 1%
                  of the voxels, loses.
+    markers:     {name: (x, y, z) world point} for any of ``MARKER_NAMES`` (``{"chin": p, "wrist.L": p, ...}``):
+                 points the user marked on the object. Each must lie nearest the limb (or head, or pelvis) its name
+                 gives in the body plan chosen, and the marked joints move to them (a chin gives the head joint's
+                 height). With markers a body plan always wins over neutral chains; VolrigError when none meets them.
+    plan_weights: the body-plan penalties' weights (``PLAN_TERMS`` then chains' score; None: the fitted ones),
+                 for fitting and cross-validating them.
+    bone:        the scan's bone tissue (a bool Volume or array on the mask's grid, z, y, x), when known: a
+                 humanoid's or quadruped's limb joints then move to the articulations the bones show
+                 (``volrig.bones.rig_to_bones``; ``rig.bone_joints`` says which moved, and how). None: the rig
+                 from the outer shape alone.
+    When no body plan fits, the rig is neutral chains and ``rig.note`` says so.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
@@ -264,17 +289,34 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
         up = tuple(float(u) for u in np.asarray(up, dtype=np.float64).reshape(3))
     d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
                         float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(own_scale),
-                        progress)
+                        progress, _markers(markers),
+                        [] if plan_weights is None else [float(w) for w in plan_weights])
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
-                                    d["node_kept"]))
+                                    d["node_kept"], list(d["reading_kind"]), d["reading_features"],
+                                    float(d["chains_fit"])))
     rig = Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
-              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]))
+              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]), d["note"])
     if bone is None:
         return rig
     from .bones import rig_to_bones  # the bones' module builds on Rig
     _mask_for(points, bone)  # the same geometry as the skeleton's
     return rig_to_bones(rig, bone, like_shape=arr.shape).rig
+
+
+def _markers(markers) -> dict:
+    """``markers`` as {name: (x, y, z) floats}; names and finiteness are checked by the core."""
+    if not markers:
+        return {}
+    if not isinstance(markers, dict):
+        raise TypeError(f"markers must be a dict of name -> (x, y, z), got {type(markers).__name__}")
+    out = {}
+    for name, p in markers.items():
+        q = np.asarray(p, dtype=np.float64).reshape(-1)
+        if q.shape != (3,):
+            raise VolrigError(f"marker {name!r} must be a point (x, y, z), got {np.shape(p)}")
+        out[str(name)] = tuple(float(v) for v in q)
+    return out
 
 
 @dataclass

@@ -133,8 +133,8 @@ struct Quadruped {
 /// The quadruped body plan built on a figure in a solid 120 x 60 x 80 grid, told that up is +z.
 inline Candidate quadruped_rig(const Figure& f) {
     const Solid solid(f, {120, 60, 80});
-    const PlanSearch s = search_plans(solid.tree, Vec(0, 0, 1));
-    REQUIRE(s.quadruped.score < kPlanLimit);
+    const PlanSearch s = search_plans(solid.tree, {Vec(0, 0, 1), fitted_plan_weights(), {}});
+    REQUIRE(s.quadruped.score < plan_limit());
     return build_plan(solid.context(), s.quadruped, false, 0.35);
 }
 

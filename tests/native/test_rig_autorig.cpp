@@ -210,27 +210,24 @@ TEST_CASE("limb_fit finds a standing leg's hip, ankle and a knee halfway between
     CHECK(std::abs(static_cast<int>(f.cuts[3]) - 100) <= 1);  // the ankle at the corner
 }
 
-TEST_CASE("limbs_carry: a body's limbs carry its head; an arm's fingers do not carry the rest of it", "[autorig]") {
+TEST_CASE("limbs_short: a body's limbs carry its head; an arm's fingers do not carry the rest of it", "[autorig]") {
+    // Every reading of the stick figure that has its head as head has limbs reaching as far as the head.
     std::uint32_t head = 0;
-    const Figure stick = stick_figure(head);
-    const NodeTree t = stick.tree();
-    // The stick figure: pelvis node 0, chest at z = 30; its limb tips are the leaves other than the head.
-    std::vector<std::uint32_t> tips;
-    for (std::uint32_t l : t.leaves())
-        if (l != head) tips.push_back(l);
-    REQUIRE(tips.size() == 4);
-    std::uint32_t chest = 0;
-    for (std::uint32_t v = 0; v < stick.pos.size(); ++v)
-        if ((stick.pos[v] - Vec(0, 0, 30)).norm() < 0.5) chest = v;
-    const std::uint32_t legs[2] = {tips[0], tips[1]}, arms[2] = {tips[2], tips[3]};
-    CHECK(limbs_carry(t, 0, chest, head, legs, arms));
+    const NodeTree t = stick_figure(head).tree();
+    std::vector<PlanReading> all;
+    search_plans(t, {std::nullopt, fitted_plan_weights(), {}}, &all);
+    REQUIRE_FALSE(all.empty());
+    for (const PlanReading& r : all)
+        if (r.leaves[0] == head) CHECK(r.features[kLimbsShort] == 0.0);
     // An arm: the "head" is the shoulder end 100 away from a palm whose "limbs" are fingers 8 long.
     Figure arm(Vec(0, 0, 0), 3.0);
     const std::uint32_t shoulder_end = arm.limb(0, Vec(-100, 0, 0), 3, 4);
-    std::uint32_t fingers[4];
-    for (int k = 0; k < 4; ++k) fingers[k] = arm.limb(0, Vec(8, 2.0 * k - 3, 0), 1, 0.8);
-    const NodeTree a = arm.tree();
-    CHECK_FALSE(limbs_carry(a, 0, 0, shoulder_end, {fingers[0], fingers[1]}, {fingers[2], fingers[3]}));
+    for (int k = 0; k < 5; ++k) arm.limb(0, Vec(8, 2.0 * k - 4, 0), 1, 0.8);
+    all.clear();
+    search_plans(arm.tree(), {std::nullopt, fitted_plan_weights(), {}}, &all);
+    CHECK(std::none_of(all.begin(), all.end(), [&](const PlanReading& r) {
+        return r.leaves[0] == shoulder_end && r.features[kLimbsShort] < 0.8;
+    }));
 }
 
 TEST_CASE("restore_proximal moves a hidden shoulder out to its proportion, inside the object", "[autorig]") {
@@ -272,15 +269,15 @@ TEST_CASE("search_plans finds a stick figure's head, and a given up direction ru
           "[autorig]") {
     std::uint32_t head = 0;
     const NodeTree t = stick_figure(head).tree();
-    const PlanSearch free = search_plans(t, std::nullopt);
-    REQUIRE(free.humanoid.score < kPlanLimit);
+    const PlanSearch free = search_plans(t, {std::nullopt, fitted_plan_weights(), {}});
+    REQUIRE(free.humanoid.score < plan_limit());
     CHECK(free.humanoid.head == head);
     CHECK(free.humanoid.score < free.quadruped.score);
-    const PlanSearch up = search_plans(t, Vec(0, 0, 1));
+    const PlanSearch up = search_plans(t, {Vec(0, 0, 1), fitted_plan_weights(), {}});
     CHECK(up.humanoid.head == head);
-    // Told that up is -z, no humanoid reading of the figure has its spine pointing up.
-    const PlanSearch down = search_plans(t, Vec(0, 0, -1));
-    CHECK_FALSE(down.humanoid.score < kPlanLimit);
+    // Told that up is -z, the figure's upright reading (its head as head) is no humanoid any more.
+    const PlanSearch down = search_plans(t, {Vec(0, 0, -1), fitted_plan_weights(), {}});
+    CHECK((down.humanoid.head != head || !(down.humanoid.score < plan_limit())));
 }
 
 
@@ -288,13 +285,13 @@ TEST_CASE("search_plans reads four legs under a horizontal spine as a quadruped"
     std::uint32_t head = 0;
     const NodeTree t = Quadruped().figure(Vec(0, 0, 0), head).tree();
     for (const auto& up : {std::optional<Vec>{}, std::optional<Vec>{Vec(0, 0, 1)}}) {
-        const PlanSearch s = search_plans(t, up);
-        REQUIRE(s.quadruped.score < kPlanLimit);
+        const PlanSearch s = search_plans(t, {up, fitted_plan_weights(), {}});
+        REQUIRE(s.quadruped.score < plan_limit());
         CHECK(s.quadruped.head == head);
         CHECK(s.quadruped.score < s.humanoid.score);
     }
     // Upside down (told up is -z) the legs point up: no quadruped.
-    CHECK_FALSE(search_plans(t, Vec(0, 0, -1)).quadruped.score < kPlanLimit);
+    CHECK_FALSE(search_plans(t, {Vec(0, 0, -1), fitted_plan_weights(), {}}).quadruped.score < plan_limit());
 }
 
 TEST_CASE("coarse: the object's box, factors to its own scale, and a majority downsampling", "[autorig]") {

@@ -43,13 +43,12 @@ TEST_CASE("search_hand finds the thumb and orders the fingers; hand_rig names 16
     const Figure f = hand_figure(tips);
     const Solid solid(f, {120, 120, 60});
     const HandPlan p = search_hand(solid.tree);
-    REQUIRE(p.score < kPlanLimit);
+    REQUIRE(hand_plan_score(p, fitted_plan_weights()) < plan_limit());
     CHECK(p.fingers == tips);
     CHECK(solid.tree.at(p.wrist).y() == Approx(10));
     const Candidate c = hand_rig(solid.context(), p);
     REQUIRE(c.rig.bones.size() == 16);
     CHECK(c.rig.kind == "hand");
-    CHECK(c.fit > 0.5);
     const auto& names = c.rig.names;
     CHECK(names[0].rfind("palm", 0) == 0);
     const std::string side = names[0].substr(4);
@@ -58,26 +57,28 @@ TEST_CASE("search_hand finds the thumb and orders the fingers; hand_rig names 16
         CHECK(std::count(names.begin(), names.end(), bone + side) == 1);
     for (std::size_t b = 1; b < names.size(); ++b) CHECK(c.rig.parents[b] == static_cast<std::int32_t>(b % 3 == 1 ? 0 : b - 1));
     // Not a body plan: five fingers are no head, arms and legs.
-    const PlanSearch plans = search_plans(solid.tree, std::nullopt);
-    CHECK(plans.humanoid.score > p.score);
-    CHECK(plans.quadruped.score > p.score);
+    const PlanSearch plans = search_plans(solid.tree, {std::nullopt, fitted_plan_weights(), {}});
+    CHECK(plans.humanoid.score > hand_plan_score(p, fitted_plan_weights()));
+    CHECK(plans.quadruped.score > hand_plan_score(p, fitted_plan_weights()));
 }
 
 TEST_CASE("search_hand: a palm five times thicker than its fingers is a body, no palm", "[autorig]") {
     // A camel read as a hand: its hump the wrist, its body the palm, its legs the fingers, its neck the thumb.
     std::array<std::uint32_t, 5> tips{};
     const HandPlan thin = search_hand(hand_figure(tips).tree()), thick = search_hand(hand_figure(tips, 22).tree());
-    REQUIRE(thin.score < kPlanLimit);
+    const std::vector<double>& w = fitted_plan_weights();
+    REQUIRE(hand_plan_score(thin, w) < plan_limit());
     CHECK(thick.score >= thin.score + 2.0);
-    CHECK_FALSE(thick.score < kPlanLimit);
+    CHECK_FALSE(hand_plan_score(thick, w) < plan_limit());
 }
 
 TEST_CASE("a stick figure is no hand", "[autorig]") {
     std::uint32_t head = 0;
     Figure f = stick_figure(head);
-    CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
+    const std::vector<double>& w = fitted_plan_weights();
+    CHECK_FALSE(hand_plan_score(search_hand(f.tree()), w) < plan_limit());
     f.limb(0, Vec(0, -15, -5), 3, 2);  // a sixth extremity: a tail
-    CHECK_FALSE(search_hand(f.tree()).score < kPlanLimit);
+    CHECK_FALSE(hand_plan_score(search_hand(f.tree()), w) < plan_limit());
 }
 
 TEST_CASE("build_plan keeps a tail hanging down along a thick rump", "[autorig]") {
@@ -109,9 +110,24 @@ TEST_CASE("a branch looping back into the body from a thin attachment is no extr
         if (leaf == loop) CHECK(significance < 0);
 }
 
-TEST_CASE("search_plans: a figure whose hands reach its feet is a poor humanoid", "[autorig]") {
+/// The humanoid reading of a figure with this head (the first leaf of a reading), the lowest scored.
+PlanReading humanoid_reading(const NodeTree& t, std::uint32_t head) {
+    std::vector<PlanReading> all;
+    search_plans(t, {Vec(0, 0, 1), fitted_plan_weights(), {}}, &all);
+    PlanReading best;
+    double best_score = std::numeric_limits<double>::infinity();
+    for (const PlanReading& r : all)
+        if (r.kind == "humanoid" && r.leaves[0] == head && plan_score(r.features, fitted_plan_weights()) < best_score) {
+            best = r;
+            best_score = plan_score(r.features, fitted_plan_weights());
+        }
+    return best;
+}
+
+TEST_CASE("search_plans: a figure whose hands reach its feet shows it in h_hands_low", "[autorig]") {
     std::uint32_t head = 0;
-    const PlanSearch standing = search_plans(stick_figure(head).tree(), Vec(0, 0, 1));
+    const NodeTree stick = stick_figure(head).tree();
+    const PlanReading standing = humanoid_reading(stick, head);
     // The same figure with arms down to the ground (a quadruped's four feet read as legs and arms).
     Figure f(Vec(0, 0, 0), 8.0);
     const std::uint32_t chest = f.limb(0, Vec(0, 0, 30), 8, 7);
@@ -121,9 +137,15 @@ TEST_CASE("search_plans: a figure whose hands reach its feet is a poor humanoid"
         f.limb(elbow, Vec(s * 20, 0, -45), 2, 1.5);
         f.limb(f.limb(0, Vec(s * 6, 0, -22), 4.5, 4), Vec(s * 6, 0, -45), 4, 3);
     }
-    const PlanSearch low = search_plans(f.tree(), Vec(0, 0, 1));
-    REQUIRE(standing.humanoid.score < kPlanLimit);
-    CHECK(low.humanoid.score >= standing.humanoid.score + 0.8 * kHandsAboveFeet);
+    const NodeTree t = f.tree();
+    std::uint32_t low_head = 0;
+    for (std::uint32_t v : t.leaves())
+        if (t.at(v).z() > 40) low_head = v;
+    const PlanReading low = humanoid_reading(t, low_head);
+    REQUIRE(standing.kind == "humanoid");
+    REQUIRE(low.kind == "humanoid");
+    CHECK(standing.features[kHHandsLow] == 0.0);
+    CHECK(low.features[kHHandsLow] >= 0.8 * kHandsAboveFeet);
 }
 
 
@@ -138,8 +160,8 @@ TEST_CASE("search_plans: a walking quadruped looking aside keeps its head, not a
     std::uint32_t head = 0;
     const NodeTree t = q.figure(Vec(0, 0, 0), head).tree();
     for (const auto& up : {std::optional<Vec>{}, std::optional<Vec>{Vec(0, 0, 1)}}) {
-        const PlanSearch s = search_plans(t, up);
-        REQUIRE(s.quadruped.score < kPlanLimit);
+        const PlanSearch s = search_plans(t, {up, fitted_plan_weights(), {}});
+        REQUIRE(s.quadruped.score < plan_limit());
         CHECK(s.quadruped.head == head);
     }
 }
@@ -152,8 +174,8 @@ TEST_CASE("search_plans: a quadruped with thick front legs keeps its head at the
     q.tail = {Vec(-13, 0, 8), Vec(-26, 0, 4)};
     std::uint32_t head = 0;
     const NodeTree t = q.figure(Vec(0, 0, 0), head).tree();
-    const PlanSearch s = search_plans(t, Vec(0, 0, 1));
-    REQUIRE(s.quadruped.score < kPlanLimit);
+    const PlanSearch s = search_plans(t, {Vec(0, 0, 1), fitted_plan_weights(), {}});
+    REQUIRE(s.quadruped.score < plan_limit());
     CHECK(s.quadruped.head == head);
 }
 

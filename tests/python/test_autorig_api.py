@@ -39,7 +39,8 @@ def test_fit_runner_up_and_inferred_up_are_reported(half):
     rig = autorig(pts, tree, mask)
     assert rig.kind == "humanoid" and set(rig.names) == ROLE_BONES
     assert 0.8 <= rig.fit <= 1.0
-    assert rig.runner_up == "chains" and 0.0 <= rig.runner_up_fit < rig.fit
+    # The runner-up: the phantom read as a quadruped (no up given: nothing says its limbs do not hang down) or chains.
+    assert rig.runner_up in ("quadruped", "chains") and 0.0 <= rig.runner_up_fit < rig.fit
     assert rig.up @ [0, 0, 1] > 0.99 and rig.up_confidence > 0.5  # the phantom stands along +z
 
 

@@ -30,6 +30,8 @@ struct Rig {
     double up_confidence = 0;                ///< 1 when given, else how clearly the shape shows it (0..1)
     std::string runner_up;                   ///< the second-best template's kind ("" when there was none)
     double runner_up_fit = 0;
+    /// What the user should know about the result ("" when nothing): e.g. that no body plan fits.
+    std::string note;
 };
 
 /// Checks a rig's consistency (indices in range, finite joints, no zero-length bones, parents acyclic, names
@@ -42,6 +44,12 @@ std::array<double, 16> rest_matrix(const std::array<double, 3>& head, const std:
 
 /// The templates autorig fits (AutorigOptions::kind, Rig::kind): body plans, then neutral chains.
 inline constexpr std::array<const char*, 4> kAutorigKinds = {"humanoid", "quadruped", "hand", "chains"};
+
+/// Marker names autorig accepts (AutorigOptions::markers): joints of the humanoid and quadruped templates (a
+/// quadruped's front legs are its arms).
+inline constexpr std::array<const char*, 20> kMarkerNames = {
+    "chin",    "neck",    "head_top", "groin",      "shoulder.L", "shoulder.R", "elbow.L", "elbow.R", "wrist.L", "wrist.R",
+    "hand_tip.L", "hand_tip.R", "hip.L", "hip.R", "knee.L",     "knee.R",     "ankle.L", "ankle.R", "toe.L",   "toe.R"};
 
 struct AutorigOptions {
     /// Bone count target. Role-named rigs (humanoid, quadruped) use their 21 role bones when this allows;
@@ -65,7 +73,18 @@ struct AutorigOptions {
     /// when finer) instead of the given points: any point count gives the same rig; the given points only carry
     /// the joints. False always rigs the given points and tree, its joints on those points (end joints aside).
     bool own_scale = true;
+    /// Points the user marked on the object (world positions), by name (kMarkerNames; any subset). They are hard
+    /// constraints of the body-plan embedding (the extremity a marker lies nearest has the role its name gives),
+    /// then the marked joints move to them. Only for the humanoid and quadruped plans (an error with kind "hand"
+    /// or "chains"); with markers, the best body plan that meets them wins over neutral chains.
+    std::vector<std::pair<std::string, std::array<double, 3>>> markers;
+    /// The body-plan penalties' weights (kPlanTerms, then neutral chains' score; empty = the fitted ones). For
+    /// fitting and cross-validating them; users leave it empty.
+    std::vector<double> plan_weights;
 };
+
+/// The names of the body-plan features (the order of AutorigOptions::plan_weights, which adds the chains' score).
+std::vector<std::string> autorig_plan_terms();
 
 /// What autorig kept, for pictures and diagnostics.
 struct AutorigDetail {
@@ -76,6 +95,11 @@ struct AutorigDetail {
     std::vector<double> node_radius;
     std::vector<std::array<std::uint32_t, 2>> node_edges;
     std::vector<std::uint8_t> node_kept;
+    /// Every body-plan reading the search scored: its kind and features (autorig_plan_terms), for fitting weights.
+    std::vector<std::string> reading_kind;
+    std::vector<std::vector<double>> reading_features;
+    /// Neutral chains' fit (1 - worst deviation; -1 when chains were not built).
+    double chains_fit = -1;
 };
 
 /// Reduces a skeleton-tree (edges over the points) of the object in `mask` to an articulated skeleton (the stages

@@ -256,10 +256,11 @@ def _capsule_mask(capsules, balls, scale: float, pad: float):
     return mask, shift
 
 
-def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0) -> Subject:
+def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0, front: float = 1.0) -> Subject:
     """A four-legged animal of capsules (a dog: trunk 58 units long, legs 40, a neck and a ball head at -y, z up)
-    with a tail ``tail`` units long from the rump (0 for none), ``scale`` voxels per unit; reference joints: the
-    legs' (shoulder/elbow/wrist in front, hip/knee/ankle behind)."""
+    with a tail ``tail`` units long from the rump (0 for none), ``scale`` voxels per unit, front legs ``front``
+    times as thick as the dog's (a bull's may be its thickest); reference joints: the legs' (shoulder/elbow/wrist
+    in front, hip/knee/ankle behind)."""
     if not scale > 0 or not tail >= 0:
         raise ValueError(f"scale must be positive and tail not negative, got {scale}, {tail}")
     j = {"hips": (0, 30, 45), "chest": (0, -28, 48), "head": (0, -55, 70)}
@@ -273,13 +274,14 @@ def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0) -> Subject
         root = np.array([0, 38, 48.0])
         caps.append((root, root + tail * np.array([0, 37, 14]) / np.hypot(37, 14), 3.5))
     for side in "LR":
-        for a, b, r in (("shoulder", "elbow", 5), ("elbow", "wrist", 4), ("hip", "knee", 6), ("knee", "ankle", 4)):
+        for a, b, r in (("shoulder", "elbow", 5 * front), ("elbow", "wrist", 4 * front), ("hip", "knee", 6),
+                        ("knee", "ankle", 4)):
             caps.append((j[f"{a}.{side}"], j[f"{b}.{side}"], r))
         for end in ("wrist", "ankle"):
             caps.append((j[f"{end}.{side}"], j[f"{end}.{side}"] + (0, -7, -3), 3.5))
     mask, shift = _capsule_mask(caps, [(j["head"], 10)], scale, pad=8)
     joints = {n: (p + shift) * scale for n, p in j.items() if "." in n}
-    return Subject(f"quadruped_tail{tail:g}_{scale:g}", Volume(mask), "quadruped", _unit((0, 0, 1)),
+    return Subject(f"quadruped_tail{tail:g}_{scale:g}" + (f"_front{front:g}" if front != 1 else ""), Volume(mask), "quadruped", _unit((0, 0, 1)),
                    _unit((0, -1, 0)), joints, None,
                    f"volrig_support.subjects.capsule_quadruped_subject({tail:g}, {scale:g})")
 

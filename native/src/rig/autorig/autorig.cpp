@@ -75,47 +75,126 @@ void check_options(const PointSet& pts, const std::vector<std::array<std::uint32
     if (edges.size() + parts != pts.n) throw Error("autorig: the tree edges contain a cycle");
 }
 
-/// Whether a body plan of this kind and score is a candidate: within its limit when not forced, any finite
-/// score when forced.
-bool admits(const AutorigOptions& opt, const std::string& kind, double score) {
-    const bool forced = opt.kind == kind;
-    return (opt.kind.empty() || forced) && (score < rig_detail::kPlanLimit || (forced && std::isfinite(score)));
+void check_markers(const AutorigOptions& opt) {
+    if (opt.markers.empty()) return;
+    if (opt.kind == "hand" || opt.kind == "chains" || !opt.roles)
+        throw Error("autorig: markers place a humanoid's or quadruped's joints; they cannot guide kind '" +
+                    (opt.roles ? opt.kind : std::string("chains")) + "'");
+    std::vector<std::string> seen;
+    for (const auto& [name, at] : opt.markers) {
+        rig_detail::marker_role(name);  // throws for an unknown name
+        if (!std::isfinite(at[0]) || !std::isfinite(at[1]) || !std::isfinite(at[2]))
+            throw Error("autorig: marker '" + name + "' is not a finite point");
+        if (std::find(seen.begin(), seen.end(), name) != seen.end())
+            throw Error("autorig: marker '" + name + "' is given twice");
+        seen.push_back(name);
+    }
 }
 
-/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best fit first.
+/// What the templates read besides the tree: the up direction, the weights, the markers (in the tree's frame:
+/// world - shift).
+struct PlanInput {
+    std::optional<Vec> up;
+    const std::vector<double>& weights;
+    std::vector<std::pair<std::string, Vec>> markers;
+};
+
+/// Whether a body plan of this kind and score is a candidate: below neutral chains' score when not forced (any
+/// finite score with markers, which ask for a body plan), any finite score when forced.
+bool admits(const AutorigOptions& opt, const PlanInput& in, const std::string& kind, double score) {
+    const bool forced = opt.kind == kind;
+    if (!(opt.kind.empty() || forced) || !std::isfinite(score)) return false;
+    return forced || !in.markers.empty() || score < rig_detail::chains_score(in.weights);
+}
+
+/// Whether a built rig passes check_rig: a reading whose joints the rules placed on top of each other (a head
+/// joint moved onto its tail) is no candidate.
+bool consistent(const Rig& rig) {
+    try {
+        check_rig(rig);
+        return true;
+    } catch (const Error&) {
+        return false;
+    }
+}
+
+/// A built body plan: its fit from its score, the markers applied.
+void finish_plan(Candidate& k, double score, const PlanInput& in) {
+    k.fit = rig_detail::plan_fit(score, in.weights);
+    if (!in.markers.empty() && !k.rig.bones.empty())
+        rig_detail::apply_markers(k.rig, in.markers, in.up ? *in.up : k.up);
+}
+
+/// Every reading scored, for fitting the weights (AutorigDetail): the body plans' and the hand's best.
+void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_detail::HandPlan& hand,
+                     AutorigDetail& detail) {
+    if (std::isfinite(hand.score)) {  // the hand's search ranks its readings by shape alone
+        rig_detail::PlanReading r{"hand", {}, {hand.wrist}};
+        r.features[rig_detail::kBiasHand] = 1;
+        r.features[rig_detail::kHandShape] = hand.score;
+        readings.push_back(r);
+    }
+    for (const auto& r : readings) {
+        detail.reading_kind.push_back(r.kind);
+        detail.reading_features.emplace_back(r.features.begin(), r.features.end());
+    }
+}
+
+/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first (fewest markers broken,
+/// then lowest score); every reading scored goes to `detail` when given.
 std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const AutorigOptions& opt,
-                                       const std::optional<Vec>& up) {
-    std::vector<Candidate> out;
-    const rig_detail::PlanSearch s = rig_detail::search_plans(c.tree, up);
+                                       const PlanInput& in, AutorigDetail* detail) {
+    std::vector<rig_detail::RoleMarker> roles;
+    for (const auto& [name, at] : in.markers) roles.push_back({rig_detail::marker_role(name), at});
+    std::vector<rig_detail::PlanReading> readings;
+    const rig_detail::PlanSearch s =
+        rig_detail::search_plans(c.tree, {in.up, in.weights, roles}, detail ? &readings : nullptr);
+    std::vector<std::pair<std::pair<int, double>, Candidate>> ranked;
     for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
-        if (admits(opt, kind, plan.score))
-            out.push_back(rig_detail::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, up));
-    if (const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree); admits(opt, "hand", hand.score))
-        out.push_back(rig_detail::hand_rig(c, hand));
-    out.erase(std::remove_if(out.begin(), out.end(), [](const Candidate& k) { return k.rig.bones.empty(); }),
-              out.end());
-    std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.fit > b.fit; });
+        if (admits(opt, in, kind, plan.score)) {
+            ranked.push_back({{plan.broken, plan.score},
+                              rig_detail::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, in.up)});
+            finish_plan(ranked.back().second, plan.score, in);
+        }
+    const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree);
+    if (const double hs = rig_detail::hand_plan_score(hand, in.weights); in.markers.empty() && admits(opt, in, "hand", hs)) {
+        ranked.push_back({{0, hs}, rig_detail::hand_rig(c, hand)});
+        ranked.back().second.fit = rig_detail::plan_fit(hs, in.weights);
+    }
+    if (detail) export_readings(std::move(readings), hand, *detail);
+    std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<Candidate> out;
+    for (auto& [key, k] : ranked)
+        if (!k.rig.bones.empty() && consistent(k.rig)) out.push_back(std::move(k));
     return out;
 }
 
-/// Every template's candidate, best first: body plans within their limit (or forced) by fit, then chains.
-std::vector<Candidate> candidates(const rig_detail::RigContext& c, const AutorigOptions& opt) {
+/// Every template's candidate, best first: body plans within their limit (or forced, or meeting markers) by
+/// score, then chains (not with markers).
+std::vector<Candidate> candidates(const rig_detail::RigContext& c, const AutorigOptions& opt, const PlanInput& in,
+                                  AutorigDetail* detail) {
     const int target = opt.bones > 0 ? opt.bones : 24;
-    std::optional<Vec> up;
-    if (opt.up) up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
     std::vector<Candidate> out;
-    if (opt.kind.empty() ? opt.roles && target >= 21 : opt.kind != "chains") out = plan_candidates(c, opt, up);
+    if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains")
+        out = plan_candidates(c, opt, in, detail);
+    if (!in.markers.empty() && out.empty())
+        throw Error("autorig: the markers need a humanoid or quadruped body plan, and this shape has no five "
+                    "extremities for one");
     if (opt.kind.empty() || opt.kind == "chains") {
         Candidate chains = rig_detail::chain_rig(c, target, opt.tolerance);
-        if (!chains.rig.bones.empty()) out.push_back(std::move(chains));
+        if (detail) detail->chains_fit = chains.rig.bones.empty() ? -1.0 : chains.fit;
+        if (!chains.rig.bones.empty() && in.markers.empty()) {
+            if (out.empty() && opt.kind.empty() && opt.roles && target >= 21)
+                chains.rig.note = "no body plan fits; place markers or choose a plan";
+            out.push_back(std::move(chains));
+        }
     }
     if (out.empty() && opt.kind == "hand")
         throw Error("autorig: no hand fits this shape (it needs six extremities: five fingers meeting on a palm and a "
                     "wrist)");
     if (out.empty() && !opt.kind.empty() && opt.kind != "chains")
         throw Error("autorig: no " + opt.kind + " body plan fits this shape (it needs five extremities: head, two "
-                    "arms, two legs, spread over the object" +
-                    (opt.up ? std::string(", with the spine up for a humanoid, the limbs down for a quadruped)") : ")"));
+                    "arms, two legs, spread over the object)");
     return out;
 }
 
@@ -166,6 +245,10 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
                                      const std::vector<std::array<std::uint32_t, 2>>& redges, const Vec& shift,
                                      const AutorigOptions& opt, const Progress& progress, const Grid& g,
                                      const PointSet& pts, AutorigDetail* detail) {
+    const std::vector<double>& weights = rig_detail::plan_weights(opt.plan_weights);
+    PlanInput in{std::nullopt, weights, {}};
+    if (opt.up) in.up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
+    for (const auto& [name, at] : opt.markers) in.markers.emplace_back(name, Vec(at[0], at[1], at[2]) - shift);
     report(progress, 0.3);
     const rig_detail::LevelSetTree lst = rig_detail::shape_tree(rg, rmask, rpts, redges, progress);
     report(progress, 0.5);
@@ -177,10 +260,14 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
         *detail = AutorigDetail{};
         fill_detail(g, pts, lst, tree, shift, *detail);
     }
-    return candidates(rig_detail::RigContext{rg, rmask, rpts, tree, lst.rep}, opt);
+    return candidates(rig_detail::RigContext{rg, rmask, rpts, tree, lst.rep}, opt, in, detail);
 }
 
 }  // namespace
+
+std::vector<std::string> autorig_plan_terms() {
+    return {rig_detail::kPlanTermNames.begin(), rig_detail::kPlanTermNames.end()};
+}
 
 Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
             const std::vector<std::array<std::uint32_t, 2>>& edges, const AutorigOptions& opt,
@@ -189,6 +276,8 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     check_points(g, mask, pts, "autorig");
     if (pts.n < 2) throw Error("autorig: needs at least 2 skeleton points, got " + std::to_string(pts.n));
     check_options(pts, edges, opt);
+    check_markers(opt);
+    rig_detail::plan_weights(opt.plan_weights);  // checks given weights
 
     // Autorig's own skeleton first; when it has no branch to rig (a thin shell, a few voxels), the caller's points.
     rig_detail::CoarseShape coarse;

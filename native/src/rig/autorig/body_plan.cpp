@@ -36,67 +36,138 @@ double hands_at_feet(const NodeTree& t, std::uint32_t pelvis, const Vec& axis, c
     return std::max(0.0, kHandsAboveFeet - (hands - feet) / std::max(leg_length, 1e-12));
 }
 
-/// What a humanoid reading must also meet: its legs carry it (thicker than its arms; a quadruped's front and hind
-/// legs may go either way) and its hands stay above its feet (hands_at_feet).
-double humanoid_penalty(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, const Vec& axis,
-                        const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
-    const double rl = 0.5 * (t.mean_radius(t.path(pelvis, legs[0])) + t.mean_radius(t.path(pelvis, legs[1])));
-    const double ra = 0.5 * (t.mean_radius(t.path(chest, arms[0])) + t.mean_radius(t.path(chest, arms[1])));
-    return (rl < ra ? 0.25 : 0.0) + hands_at_feet(t, pelvis, axis, legs, arms);
+/// Where the limbs' left-right direction is taken: this share of the way out along each limb's path.
+constexpr double kRootShare = 1.0 / 3.0;
+
+/// Unit direction from a to b (zero when they coincide).
+Vec unit(const Vec& a, const Vec& b) {
+    const Vec d = b - a;
+    return d.norm() > 0 ? Vec(d / d.norm()) : Vec::Zero();
 }
 
-/// What any reading must meet beyond mirrored pairs: both pairs mirror across one midplane (the directions
-/// between their tips, across the spine, agree), and the neck continues the spine beyond the chest (forward, up
-/// or between: kHeadAhead), so a limb hanging across the spine is no head.
-double body_penalty(const NodeTree& t, std::uint32_t chest, const Vec& axis, std::uint32_t head,
-                    const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
-    const Vec across_legs = perp(t.at(legs[0]) - t.at(legs[1]), axis).normalized();
-    const Vec across_arms = perp(t.at(arms[0]) - t.at(arms[1]), axis).normalized();
-    const double ahead = (t.at(head) - t.at(chest)).normalized().dot(axis);
-    return 1.0 - std::abs(across_legs.dot(across_arms)) + std::max(0.0, kHeadAhead - ahead);
+/// The features every reading of five extremities shares, whatever its kind (plan_score.hpp).
+PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_out, double left_out_thickness,
+                             double object_extent) {
+    PlanFeatures f{};
+    const Vec axis = unit(t.at(r.pelvis), t.at(r.chest));
+    f[kMirrorLegs] = mirror(t, r.pelvis, axis, r.legs[0], r.legs[1], r.pelvis);
+    f[kMirrorArms] = mirror(t, r.pelvis, axis, r.arms[0], r.arms[1], r.chest);
+    f[kLeftOut] = left_out;
+    f[kHeadThin] = t.end_radius(r.head) < left_out_thickness ? 1.0 : 0.0;
+    const Vec across_legs = perp(t.at(r.legs[0]) - t.at(r.legs[1]), axis).normalized();
+    const Vec across_arms = perp(t.at(r.arms[0]) - t.at(r.arms[1]), axis).normalized();
+    // The same at the limbs' roots (a third of the way out): their tips swing with the pose (a stride).
+    auto root = [&](std::uint32_t base, std::uint32_t tip) { return t.point_along(t.path(base, tip), kRootShare); };
+    const Vec roots_legs = perp(root(r.pelvis, r.legs[0]) - root(r.pelvis, r.legs[1]), axis).normalized();
+    const Vec roots_arms = perp(root(r.chest, r.arms[0]) - root(r.chest, r.arms[1]), axis).normalized();
+    f[kRootsCross] = 1.0 - std::abs(roots_legs.dot(roots_arms));
+    f[kPairsCross] = 1.0 - std::abs(across_legs.dot(across_arms));
+    f[kHeadBehind] = std::max(0.0, -unit(t.at(r.chest), t.at(r.head)).dot(axis));
+    double reach = 0;
+    for (int s = 0; s < 2; ++s)
+        reach += 0.25 * ((t.at(r.legs[s]) - t.at(r.pelvis)).norm() + (t.at(r.arms[s]) - t.at(r.chest)).norm());
+    f[kLimbsShort] = std::max(0.0, 1.0 - reach / std::max((t.at(r.head) - t.at(r.chest)).norm(), 1e-12));
+    double leg = 0, arm = 0;
+    for (int k = 0; k < 2; ++k) {
+        leg += t.length(t.path(r.pelvis, r.legs[k]));
+        arm += t.length(t.path(r.chest, r.arms[k]));
+    }
+    f[kLimbRatio] = std::abs(std::log(std::max(leg, 1e-12) / std::max(arm, 1e-12)));
+    f[kNarrowSpan] =
+        std::max(0.0, 1.0 - t.extent({r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}) / std::max(object_extent, 1e-12));
+    return f;
 }
 
-/// Every assignment of five extremities to head, legs, arms, kept in `best` when better than its kind's.
-void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double leave_penalty,
-              double left_out_thickness, const std::optional<Vec>& up, PlanSearch& best) {
+/// The humanoid reading's own features (plan_score.hpp).
+void humanoid_features(const NodeTree& t, const Reading& r, const std::optional<Vec>& up, PlanFeatures& f) {
+    const Vec axis = unit(t.at(r.pelvis), t.at(r.chest));
+    f[kBiasHumanoid] = 1;
+    const double rl = 0.5 * (t.mean_radius(t.path(r.pelvis, r.legs[0])) + t.mean_radius(t.path(r.pelvis, r.legs[1])));
+    const double ra = 0.5 * (t.mean_radius(t.path(r.chest, r.arms[0])) + t.mean_radius(t.path(r.chest, r.arms[1])));
+    f[kHLegsThin] = std::max(0.0, (ra - rl) / std::max(ra, 1e-12));
+    f[kHHandsLow] = hands_at_feet(t, r.pelvis, axis, r.legs, r.arms);
+    const Vec legs = (0.5 * (t.at(r.legs[0]) + t.at(r.legs[1])) - t.at(r.pelvis)).normalized();
+    f[kHLegsNotDown] = 0.5 * (1.0 + legs.dot(axis));
+    if (up) f[kHSpineNotUp] = 0.5 * (1.0 - axis.dot(*up));  // without up, the reading's up is its spine: 0
+}
+
+/// The quadruped reading's own features (plan_score.hpp).
+void quadruped_features(const NodeTree& t, const Reading& r, const std::optional<Vec>& up, PlanFeatures& f) {
+    const Vec axis = unit(t.at(r.pelvis), t.at(r.chest));
+    f[kBiasQuadruped] = 1;
+    Vec limbs = Vec::Zero();
+    for (int s = 0; s < 2; ++s) limbs += unit(t.at(r.pelvis), t.at(r.legs[s])) + unit(t.at(r.chest), t.at(r.arms[s]));
+    const Vec legs = unit(t.at(r.pelvis), 0.5 * (t.at(r.legs[0]) + t.at(r.legs[1])));
+    f[kQLegsAlong] = std::abs(legs.dot(axis));
+    // Without up, the reading's own up: against its limbs' mean direction (how far they agree is what is left).
+    const Vec u = up ? *up : (limbs.norm() > 0 ? Vec(-limbs.normalized()) : Vec::Zero());
+    f[kQLimbsNotDown] = 0.5 * (1.0 + 0.25 * limbs.dot(u));
+    f[kQSpineTilt] = std::abs(axis.dot(u));
+}
+
+/// How many markers a reading breaks: a marker holds when the role it names (RoleMarker) is the one whose
+/// extremity path from its base lies nearest to it (a groin: the pelvis nearer than the chest).
+int broken_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMarker>& markers) {
+    if (markers.empty()) return 0;
+    const std::uint32_t base[5] = {r.chest, r.pelvis, r.pelvis, r.chest, r.chest};
+    const std::uint32_t tip[5] = {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]};
+    std::vector<std::uint32_t> paths[5];
+    for (int k = 0; k < 5; ++k) paths[k] = t.path(base[k], tip[k]);
+    int broken = 0;
+    for (const RoleMarker& m : markers) {
+        if (m.role == RoleMarker::Pelvis) {
+            broken += (m.at - t.at(r.pelvis)).norm() > (m.at - t.at(r.chest)).norm();
+            continue;
+        }
+        double d[5];
+        for (int k = 0; k < 5; ++k) {
+            d[k] = std::numeric_limits<double>::infinity();
+            for (std::size_t i = 1; i < paths[k].size(); ++i) d[k] = std::min(d[k], (m.at - t.at(paths[k][i])).norm());
+        }
+        const int nearest = static_cast<int>(std::min_element(d, d + 5) - d);
+        const bool ok = m.role == RoleMarker::Head ? nearest == 0
+                        : m.role == RoleMarker::Leg ? (nearest == 1 || nearest == 2)
+                                                    : (nearest == 3 || nearest == 4);
+        broken += !ok;
+    }
+    return broken;
+}
+
+/// Every assignment of five extremities to head, legs, arms, read as a humanoid and as a quadruped; the best of
+/// each kind kept in `best`, every reading appended to `all` when given.
+void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double left_out, double left_out_thickness,
+              const SearchInput& in, PlanSearch& best, std::vector<PlanReading>* all) {
+    const double object_extent = t.extent(t.order());
     for (int h = 0; h < 5; ++h)
         for (int a = 0; a < 5; ++a)
             for (int b = a + 1; b < 5; ++b) {
                 if (a == h || b == h) continue;
-                int rest[2], r = 0;
+                int rest[2], n = 0;
                 for (int i = 0; i < 5; ++i)
-                    if (i != h && i != a && i != b) rest[r++] = i;
-                const std::uint32_t H = leaf[h], A = leaf[a], B = leaf[b], C = leaf[rest[0]], D = leaf[rest[1]];
+                    if (i != h && i != a && i != b) rest[n++] = i;
+                Reading r{leaf[h], {leaf[a], leaf[b]}, {leaf[rest[0]], leaf[rest[1]]}, kNone, kNone};
                 // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where that
                 // branch joins the spine.
-                const std::uint32_t pelvis = t.median(A, B, H), chest = t.median(pelvis, t.median(C, D, H), H);
-                if (pelvis == chest || !limbs_carry(t, pelvis, chest, H, {A, B}, {C, D})) continue;
-                const Vec axis = (t.at(chest) - t.at(pelvis)).normalized();
-                double score = mirror(t, pelvis, axis, A, B, pelvis) + mirror(t, pelvis, axis, C, D, chest) + leave_penalty;
-                if (t.end_radius(H) < left_out_thickness) score += 0.05;  // a head is thicker than a tail (a tie-breaker)
-                score += body_penalty(t, chest, axis, H, {A, B}, {C, D});
-                const Vec legs = (0.5 * (t.at(A) + t.at(B)) - t.at(pelvis)).normalized();
-                const bool humanoid = legs.dot(axis) < -0.5;
-                if (humanoid) score += humanoid_penalty(t, pelvis, chest, axis, {A, B}, {C, D});
-                if (up) {
-                    const Vec limbs = (t.at(A) - t.at(pelvis)).normalized() + (t.at(B) - t.at(pelvis)).normalized() +
-                                      (t.at(C) - t.at(chest)).normalized() + (t.at(D) - t.at(chest)).normalized();
-                    if (humanoid ? axis.dot(*up) < 0.5 : 0.25 * limbs.dot(*up) > -0.3) continue;  // limbs hang down
+                r.pelvis = t.median(r.legs[0], r.legs[1], r.head);
+                r.chest = t.median(r.pelvis, t.median(r.arms[0], r.arms[1], r.head), r.head);
+                if (r.pelvis == r.chest) continue;
+                const int broken = broken_markers(t, r, in.markers);
+                const PlanFeatures shared = shared_features(t, r, left_out, left_out_thickness, object_extent);
+                for (const bool humanoid : {true, false}) {
+                    PlanFeatures f = shared;
+                    if (humanoid) humanoid_features(t, r, in.up, f);
+                    else quadruped_features(t, r, in.up, f);
+                    const double score = plan_score(f, in.weights);
+                    Plan& slot = humanoid ? best.humanoid : best.quadruped;
+                    // Markers first (fewest broken), then the score.
+                    if (broken < slot.broken || (broken == slot.broken && score < slot.score))
+                        slot = Plan{r.head, {r.legs[0], r.legs[1]}, {r.arms[0], r.arms[1]}, score, broken};
+                    if (all) all->push_back({humanoid ? "humanoid" : "quadruped", f, {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}});
                 }
-                Plan& slot = humanoid ? best.humanoid : best.quadruped;
-                if (score < slot.score) slot = Plan{H, {A, B}, {C, D}, score};
             }
 }
 
 }  // namespace
-
-bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
-                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]) {
-    double reach = 0;
-    for (int s = 0; s < 2; ++s)
-        reach += 0.25 * ((t.at(legs[s]) - t.at(pelvis)).norm() + (t.at(arms[s]) - t.at(chest)).norm());
-    return reach >= kLimbsToHead * (t.at(head) - t.at(chest)).norm();
-}
 
 Fit trunk_fit(const Chain4& spine) {
     if (spine.size() < kSpineProportions.size() + 1) return fit_chain(spine, 3);
@@ -136,17 +207,20 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves) {
     return t.extent(leaves) >= 0.5 * t.extent(t.order());
 }
 
-PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
+PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all) {
     PlanSearch best;
     const auto ext = t.extremities();
     if (ext.size() < 5) return best;
-    // Five of the (up to) seven most significant leaves.
-    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), 7));
+    // Five of the (up to) seven most significant leaves; ten with markers (they say which, even among fingers).
+    const int m = static_cast<int>(std::min<std::size_t>(ext.size(), in.markers.empty() ? 7 : 10));
     double total = 0;
-    for (int i = 0; i < m; ++i) total += std::max(ext[static_cast<std::size_t>(i)].first, 0.0);
+    // An extremity's weight: how far it sticks out times how thick it is at its end (a tail as long as the head
+    // but thinner weighs less).
+    auto weight = [&](std::size_t i) { return std::max(ext[i].first, 0.0) * t.end_radius(ext[i].second); };
+    for (int i = 0; i < m; ++i) total += weight(static_cast<std::size_t>(i));
     for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
-        // A body plan includes the two most prominent extremities.
-        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 3) != 3) continue;
+        // A body plan includes the most prominent extremity.
+        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 1) != 1) continue;
         std::array<std::uint32_t, 5> leaf{};
         double left_out = 0, left_out_thickness = 0;
         for (int i = 0, k = 0; i < m; ++i) {
@@ -154,13 +228,11 @@ PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up) {
             if (mask5 & (1 << i)) {
                 leaf[static_cast<std::size_t>(k++)] = node;
             } else {
-                left_out += std::max(significance, 0.0);
+                left_out += weight(static_cast<std::size_t>(i));
                 left_out_thickness = std::max(left_out_thickness, t.end_radius(node));
             }
         }
-        // A body spans the object: five fingers at the end of an arm are no body plan.
-        if (!spans_object(t, std::vector<std::uint32_t>(leaf.begin(), leaf.end()))) continue;
-        consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, up, best);
+        consider(t, leaf, total > 0 ? left_out / total : 0.0, left_out_thickness, in, best, all);
     }
     return best;
 }
@@ -278,7 +350,6 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
         recut_spine(out.rig, c.samples(spine));
         place_head(c, out.rig, c.samples(head), body_up);
     }
-    out.fit = std::clamp(1.0 - plan.score / kPlanLimit, 0.0, 1.0);
     return out;
 }
 

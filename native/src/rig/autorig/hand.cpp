@@ -20,12 +20,6 @@ std::uint32_t palm_centre(const NodeTree& t, std::uint32_t wrist, const std::vec
     return c;
 }
 
-double path_length(const NodeTree& t, const std::vector<std::uint32_t>& p) {
-    double s = 0;
-    for (std::size_t k = 1; k < p.size(); ++k) s += (t.at(p[k]) - t.at(p[k - 1])).norm();
-    return s;
-}
-
 /// (max - min) / max of positive values: 0 when all are equal.
 double spread(const std::vector<double>& v) {
     const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
@@ -64,13 +58,13 @@ double hand_penalty(const NodeTree& t, std::uint32_t wrist, const std::array<std
     double apart = 0, backwards = 0;
     for (std::uint32_t x : four) {
         const std::vector<std::uint32_t> p = t.path(c, x);
-        len.push_back(path_length(t, p));
+        len.push_back(t.length(p));
         rad.push_back(t.mean_radius(p));
         apart = std::max(apart, (t.at(t.median(wrist, c, x)) - t.at(c)).norm());  // a base off the palm centre
         backwards += std::max(0.0, -(t.at(x) - t.at(c)).normalized().dot(up) + 0.3);  // fingers leave the wrist
     }
     const double finger = std::accumulate(len.begin(), len.end(), 0.0) / 4.0;
-    const double stub = path_length(t, t.path(wrist, c));
+    const double stub = t.length(t.path(wrist, c));
     double score = 0.5 * spread(len) + 0.5 * spread(rad) + apart / finger + 0.5 * backwards;
     const double wrist_radius = t.mean_radius(t.path(wrist, c));
     if (wrist_radius < *std::max_element(rad.begin(), rad.end())) score += 0.25;  // a thick wrist
@@ -78,7 +72,7 @@ double hand_penalty(const NodeTree& t, std::uint32_t wrist, const std::array<std
     score += std::max(0.0, t.radius(c) / (0.25 * std::accumulate(rad.begin(), rad.end(), 0.0)) - kPalmThickness);
     // A thumb no longer than one and a half fingers, thinner than the wrist.
     const std::vector<std::uint32_t> thumb = t.path(thumb_base, f[0]);
-    score += std::max(0.0, path_length(t, thumb) / finger - 1.5);
+    score += std::max(0.0, t.length(thumb) / finger - 1.5);
     if (t.mean_radius(thumb) > wrist_radius) score += 0.25;
     if (stub > 2.0 * finger) score += 0.5 * (stub / finger - 2.0);  // a wrist stub, not a whole arm
     // The thumb joins between the wrist and the palm centre.
@@ -155,6 +149,14 @@ HandPlan search_hand(const NodeTree& t) {
     return best;
 }
 
+double hand_plan_score(const HandPlan& plan, const std::vector<double>& w) {
+    if (!std::isfinite(plan.score)) return plan.score;
+    PlanFeatures f{};
+    f[kBiasHand] = 1;
+    f[kHandShape] = plan.score;
+    return plan_score(f, w);
+}
+
 Candidate hand_rig(const RigContext& c, const HandPlan& p) {
     const NodeTree& t = c.tree;
     if (!std::isfinite(p.score)) return Candidate{};
@@ -181,7 +183,6 @@ Candidate hand_rig(const RigContext& c, const HandPlan& p) {
     }
     Candidate out;
     out.rig = b.finish("hand");
-    out.fit = std::clamp(1.0 - p.score / kPlanLimit, 0.0, 1.0);
     return out;
 }
 

@@ -176,4 +176,21 @@ double NodeTree::mean_radius(const std::vector<std::uint32_t>& nodes) const {
     return nodes.empty() ? 0.0 : s / static_cast<double>(nodes.size());
 }
 
+double NodeTree::length(const std::vector<std::uint32_t>& nodes) const {
+    double s = 0;
+    for (std::size_t k = 1; k < nodes.size(); ++k) s += (pos_[nodes[k]] - pos_[nodes[k - 1]]).norm();
+    return s;
+}
+
+Vec NodeTree::point_along(const std::vector<std::uint32_t>& nodes, double share) const {
+    double left = share * length(nodes);
+    for (std::size_t k = 1; k < nodes.size(); ++k) {
+        const Vec a = pos_[nodes[k - 1]], b = pos_[nodes[k]];
+        const double step = (b - a).norm();
+        if (step >= left && step > 0) return a + (left / step) * (b - a);
+        left -= step;
+    }
+    return pos_[nodes.back()];
+}
+
 }  // namespace volrig::rig_detail

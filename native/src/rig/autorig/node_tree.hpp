@@ -48,6 +48,10 @@ public:
     /// Diagonal of the bounding box of the given nodes' positions.
     double extent(const std::vector<std::uint32_t>& nodes) const;
     double mean_radius(const std::vector<std::uint32_t>& nodes) const;
+    /// Length of the polyline through the given nodes' positions.
+    double length(const std::vector<std::uint32_t>& nodes) const;
+    /// The point `share` (0..1) of the way along that polyline.
+    Vec point_along(const std::vector<std::uint32_t>& nodes, double share) const;
     /// Mean radius of the few nodes nearest an end of a path (its thickness there).
     double end_radius(std::uint32_t end) const;
 

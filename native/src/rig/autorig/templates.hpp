@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "rig/autorig/plan_score.hpp"
 #include "rig/autorig/rig_builder.hpp"
 
 namespace volrig::rig_detail {
@@ -23,14 +24,33 @@ struct Candidate {
 /// The five extremities of a body plan: head, two legs (meeting at the pelvis), two arms (meeting at the chest).
 struct Plan {
     std::uint32_t head = kNone, legs[2] = {kNone, kNone}, arms[2] = {kNone, kNone};
-    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+    double score = std::numeric_limits<double>::infinity();  ///< plan_score; kept when below the chains' score
+    int broken = std::numeric_limits<int>::max();  ///< markers the reading breaks (the search minimises them first)
 };
-constexpr double kPlanLimit = 0.6;
+/// A reading under way: a Plan's extremities and where its legs and arms meet the spine.
+struct Reading {
+    std::uint32_t head, legs[2], arms[2], pelvis, chest;
+};
+
+/// A marker (AutorigOptions::markers) as a constraint on which extremity has which role: its point (in the node
+/// tree's frame) and the role its name gives.
+struct RoleMarker {
+    enum Role { Head, Arm, Leg, Pelvis } role = Head;
+    Vec at = Vec::Zero();
+};
+/// The role of a marker name (kMarkerNames), or throws Error for an unknown one.
+RoleMarker::Role marker_role(const std::string& name);
+
+/// What the body-plan search reads besides the tree: the up direction when given, the weights (plan_weights) and
+/// the markers every reading must meet.
+struct SearchInput {
+    std::optional<Vec> up;
+    const std::vector<double>& weights;
+    std::vector<RoleMarker> markers;
+};
 /// A humanoid's upper arm or thigh shorter than this share of its proportional length (from the forearm or shin)
 /// has its proximal end hidden in the trunk: it is moved out (build_plan).
 constexpr double kHiddenEnd = 0.8;
-/// A body plan's limbs reach on average at least this share of its head's reach (limbs_carry in body_plan.cpp).
-constexpr double kLimbsToHead = 0.25;
 /// A humanoid's hand tips lie at least this fraction of its legs' length above its foot tips along the spine (a
 /// shortfall is added to the score: four feet on the ground are no humanoid's hands and feet).
 constexpr double kHandsAboveFeet = 0.25;
@@ -42,14 +62,13 @@ struct PlanSearch {
     Plan humanoid, quadruped;
 };
 
-/// Discrete search over the assignments of five of the seven most significant extremities (the two most
-/// significant always in) to head, legs and arms. Penalties: pairs not mirroring each other across the spine
-/// (tip height along the spine and distance from it), significant extremities left out, a head thinner than an
-/// extremity left out (a tail), a head not ahead of the chest (kHeadAhead), and for a humanoid, legs thinner than
-/// arms and hands as low as its feet (kHandsAboveFeet).
-/// A humanoid's legs point away from its head (and, with `up`, its spine points up); a quadruped's do not (and,
-/// with `up`, its limbs hang down). The best assignment of each kind.
-PlanSearch search_plans(const NodeTree& t, const std::optional<Vec>& up);
+/// Discrete search over the assignments of five of the seven most significant extremities (the most significant
+/// always in) to head, legs and arms, each read as a humanoid and as a quadruped and scored by plan_score over its
+/// features (plan_score.hpp). The best reading of each kind: the fewest markers broken, then the lowest score;
+/// every reading appended to `all` when given (for fitting the weights).
+PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all = nullptr);
+/// The score below which a body plan beats neutral chains, with the fitted weights.
+inline double plan_limit() { return chains_score(fitted_plan_weights()); }
 
 /// The trunk from the pelvis to the chest cut into hips, spine and chest at these shares of its chord (a trunk's
 /// medial axis wiggles: cuts at its bends, or shares of its arc, wander between resolutions), or by fit_chain when
@@ -65,12 +84,6 @@ bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 /// bones when its chains are too short to cut.
 Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
                      const std::optional<Vec>& up = std::nullopt);
-
-/// Whether the four limbs carry a body: their mean reach (tip from the pelvis or chest) is at least kLimbsToHead
-/// times the head's (tip from the chest). A long object with a few short branches at one end (an arm with its
-/// fingers) is no body whose head is the rest of it; search_plans skips such readings.
-bool limbs_carry(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head,
-                 const std::uint32_t (&legs)[2], const std::uint32_t (&arms)[2]);
 
 /// A limb whose proximal bone (upper arm, thigh) comes out shorter than kHiddenEnd times `ratio` times the next
 /// one (forearm, shin) had its proximal end hidden in the trunk: where an arm lies against the trunk, its medial
@@ -203,7 +216,7 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
 struct HandPlan {
     std::uint32_t wrist = kNone, palm = kNone;
     std::array<std::uint32_t, 5> fingers{kNone, kNone, kNone, kNone, kNone};
-    double score = std::numeric_limits<double>::infinity();  ///< 0 = perfect; accepted below kPlanLimit
+    double score = std::numeric_limits<double>::infinity();  ///< shape penalty (0 = perfect): kHandShape
 };
 
 /// Discrete search over the assignments of six of the eight most significant extremities to a wrist and five
@@ -213,6 +226,8 @@ struct HandPlan {
 /// than twice a finger (an arm), a thumb joining beyond the palm centre, a palm centre more than kPalmThickness
 /// times as thick as the fingers, significant extremities left out.
 HandPlan search_hand(const NodeTree& t);
+/// A hand plan's score (plan_score of its bias and shape penalty; infinite when there is none).
+double hand_plan_score(const HandPlan& plan, const std::vector<double>& w);
 /// A palm is a plate about as thick as its fingers (a human's palm radius is under twice their mean radius); the
 /// excess of the ratio over this is added to a hand's score: a body several times thicker than its legs is none.
 constexpr double kPalmThickness = 2.5;
@@ -224,6 +239,11 @@ constexpr double kPalmThickness = 2.5;
 /// palm (the thumb lies on the palm's side), none when the thumb lies in the palm's plane. No bones when a chain
 /// is too short to cut.
 Candidate hand_rig(const RigContext& c, const HandPlan& plan);
+
+/// Markers on a body plan's rig (`markers`: names of kMarkerNames and points in the rig's frame): limbs swap their
+/// .L / .R names when the markers say the other side, then each marked joint moves to its marker (a chin sets the
+/// head joint's height along `up`; a groin only chose the pelvis).
+void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers, const Vec& up);
 
 /// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
 /// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
