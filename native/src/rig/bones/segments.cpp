@@ -1,6 +1,7 @@
 // rig/bones/segments.cpp: the bone tissue split into rigid segments at its articulations (volrig/rig.hpp
 // bone_segments): an opening parts bones that touch across a joint at the voxel size.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 
@@ -67,6 +68,52 @@ Components kept_cores(const Grid& g, const std::uint8_t* bone, const BoneParams&
     return c;
 }
 
+/// The bone's bounding box grown by a voxel of background on every side, copied out (0/1 bytes).
+struct Crop {
+    Grid grid;
+    std::array<std::int64_t, 3> lo{};  ///< the crop's voxel (0, 0, 0) in the full grid (may be -1)
+    std::vector<std::uint8_t> bone;
+};
+
+Crop crop_of(const Grid& g, const std::uint8_t* bone) {
+    std::array<std::int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
+    for (std::int64_t z = 0; z < g.dims[2]; ++z)
+        for (std::int64_t y = 0; y < g.dims[1]; ++y) {
+            const std::uint8_t* row = bone + g.index(0, y, z);
+            for (std::int64_t x = 0; x < g.dims[0]; ++x)
+                if (row[x]) {
+                    const std::array<std::int64_t, 3> v{x, y, z};
+                    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
+                }
+        }
+    if (hi[0] < 0) throw Error("bone segments: the bone mask is empty (no bone voxels to rig from)");
+    Crop c;
+    c.grid = g;
+    for (int a = 0; a < 3; ++a) {
+        c.lo[a] = lo[a] - 1;
+        c.grid.dims[a] = hi[a] - lo[a] + 3;
+        c.grid.origin[a] = g.origin[a] + g.spacing[a] * static_cast<double>(c.lo[a]);
+    }
+    c.bone.assign(static_cast<std::size_t>(c.grid.voxel_count()), 0);
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+                c.bone[static_cast<std::size_t>(c.grid.index(x - c.lo[0], y - c.lo[1], z - c.lo[2]))] =
+                    bone[g.index(x, y, z)] != 0;
+    return c;
+}
+
+/// Labels on the crop placed back on the full grid (0 outside the crop).
+std::vector<std::int32_t> uncropped(const Grid& g, const Crop& c, const std::vector<std::int32_t>& labels) {
+    std::vector<std::int32_t> out(static_cast<std::size_t>(g.voxel_count()), 0);
+    for (std::int64_t z = 1; z + 1 < c.grid.dims[2]; ++z)
+        for (std::int64_t y = 1; y + 1 < c.grid.dims[1]; ++y)
+            for (std::int64_t x = 1; x + 1 < c.grid.dims[0]; ++x)
+                out[static_cast<std::size_t>(g.index(x + c.lo[0], y + c.lo[1], z + c.lo[2]))] =
+                    labels[static_cast<std::size_t>(c.grid.index(x, y, z))];
+    return out;
+}
+
 }  // namespace
 
 }  // namespace volrig::rig_detail
@@ -75,24 +122,23 @@ namespace volrig {
 
 BoneSegments bone_segments(const Grid& grid, const std::uint8_t* bone, const BoneRigOptions& opt) {
     using namespace rig_detail;
-    const auto n = static_cast<std::size_t>(grid.voxel_count());
-    if (n == 0 || std::none_of(bone, bone + n, [](std::uint8_t v) { return v != 0; }))
-        throw Error("bone segments: the bone mask is empty (no bone voxels to rig from)");
     const BoneParams p = bone_params(grid, opt);
-    Components cores = kept_cores(grid, bone, p);
+    const Crop crop = crop_of(grid, bone);  // the bone's box and a voxel round it: a whole body's bone is 40% less
+    Components cores = kept_cores(crop.grid, crop.bone.data(), p);
     if (cores.sizes.empty())
         throw Error("bone segments: no bone is thicker than the opening (" + std::to_string(p.erode_steps) +
                     " voxels); give a smaller opening");
     // Every bone voxel takes the core reached in fewest steps through the bone.
-    std::vector<std::uint8_t> code(n);
-    for (std::size_t i = 0; i < n; ++i) code[i] = cores.labels[i] ? 1 : (bone[i] ? 2 : 0);
-    const std::vector<std::int64_t> pairs = nearest_seed_fill(grid, code.data());
-    BoneSegments out;
-    out.labels = std::move(cores.labels);
+    const auto m = crop.bone.size();
+    std::vector<std::uint8_t> code(m);
+    for (std::size_t i = 0; i < m; ++i) code[i] = cores.labels[i] ? 1 : (crop.bone[i] ? 2 : 0);
+    const std::vector<std::int64_t> pairs = nearest_seed_fill(crop.grid, code.data());
     for (std::size_t k = 0; k + 1 < pairs.size(); k += 2)
-        out.labels[static_cast<std::size_t>(pairs[k])] = out.labels[static_cast<std::size_t>(pairs[k + 1])];
+        cores.labels[static_cast<std::size_t>(pairs[k])] = cores.labels[static_cast<std::size_t>(pairs[k + 1])];
+    BoneSegments out;
+    out.labels = uncropped(grid, crop, cores.labels);
     out.sizes.assign(cores.sizes.size(), 0);
-    for (std::int32_t s : out.labels)
+    for (std::int32_t s : cores.labels)
         if (s > 0) ++out.sizes[static_cast<std::size_t>(s - 1)];
     return out;
 }
