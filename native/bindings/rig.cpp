@@ -44,6 +44,74 @@ py::dict dict_of(Rig&& r) {
     return d;
 }
 
+py::list joints_of(const std::vector<BoneJoint>& js) {
+    py::list out;
+    for (const BoneJoint& j : js) {
+        py::dict d;
+        d["joint"] = j.joint;
+        d["name"] = j.name;
+        d["from"] = py::make_tuple(j.from[0], j.from[1], j.from[2]);
+        d["to"] = py::make_tuple(j.to[0], j.to[1], j.to[2]);
+        d["how"] = j.how;
+        d["why"] = j.why;
+        d["parent_segment"] = j.parent_segment;
+        d["child_segment"] = j.child_segment;
+        out.append(d);
+    }
+    return out;
+}
+
+BoneRigOptions bone_options(double opening, double min_volume, double reach) {
+    BoneRigOptions o;
+    o.opening = opening;
+    o.min_volume = min_volume;
+    o.reach = reach;
+    return o;
+}
+
+/// Rigs from a scan's bones (volrig/rig.hpp bone_segments, rig_to_bones; python/volrig/bones.py).
+void bind_bones(py::module_& m) {
+    m.def(
+        "bone_segments",
+        [](const MaskArray& bone, const Vec3& spacing, const Vec3& origin, double opening, double min_volume) {
+            const Grid g = grid_of(bone, spacing, origin, "bone");
+            BoneSegments s;
+            {
+                py::gil_scoped_release nogil;
+                s = bone_segments(g, bone.data(), bone_options(opening, min_volume, 0));
+            }
+            return py::make_tuple(to_numpy_shaped(std::move(s.labels), {bone.shape(0), bone.shape(1), bone.shape(2)}),
+                                  to_numpy_shaped(std::move(s.sizes), {static_cast<py::ssize_t>(s.sizes.size())}));
+        },
+        py::arg("bone"), py::arg("spacing"), py::arg("origin"), py::arg("opening") = 0.0, py::arg("min_volume") = 0.0);
+
+    m.def(
+        "rig_to_bones",
+        [](const MaskArray& bone, const Vec3& spacing, const Vec3& origin, const DoubleArray& joints,
+           const IntArray& bones, const std::vector<std::string>& names, const IntArray& parents, double opening,
+           double min_volume, double reach) {
+            const Grid g = grid_of(bone, spacing, origin, "bone");
+            const Rig r = rig_of(joints, bones, names, parents);
+            BoneRig out;
+            {
+                py::gil_scoped_release nogil;
+                out = rig_to_bones(g, bone.data(), r, bone_options(opening, min_volume, reach));
+            }
+            std::vector<double> flat(3 * out.rig.joints.size());
+            for (std::size_t j = 0; j < out.rig.joints.size(); ++j)
+                for (int a = 0; a < 3; ++a) flat[3 * j + a] = out.rig.joints[j][a];
+            py::dict d;
+            d["joints"] = to_numpy_shaped(std::move(flat), {static_cast<py::ssize_t>(out.rig.joints.size()), 3});
+            d["moves"] = joints_of(out.joints);
+            d["segments"] = to_numpy_shaped(std::move(out.segments.labels), {bone.shape(0), bone.shape(1), bone.shape(2)});
+            d["sizes"] = to_numpy_shaped(std::move(out.segments.sizes), {static_cast<py::ssize_t>(out.segments.sizes.size())});
+            d["bone_segment"] = to_numpy_shaped(std::move(out.bone_segment), {static_cast<py::ssize_t>(r.bones.size())});
+            return d;
+        },
+        py::arg("bone"), py::arg("spacing"), py::arg("origin"), py::arg("joints"), py::arg("bones"), py::arg("names"),
+        py::arg("parents"), py::arg("opening") = 0.0, py::arg("min_volume") = 0.0, py::arg("reach") = 0.0);
+}
+
 }  // namespace
 
 void bind_rig(py::module_& m) {
@@ -140,6 +208,7 @@ void bind_rig(py::module_& m) {
         py::arg("bones"), py::arg("names"), py::arg("parents"), py::arg("mode"), py::arg("progress") = py::none(),
         py::arg("rigid") = py::none());
 
+    bind_bones(m);
     m.def(
         "check_rig",
         [](const DoubleArray& joints, const IntArray& bones, const std::vector<std::string>& names,

@@ -17,6 +17,7 @@ from .volume import Volume, dicom_series, load, write_vdb
 read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
 from .rig import MARKER_NAMES, Binding, Rig, autorig, bind, rest_pose, rigid_tissue, rotation_about
+from .bones import BoneJoint, BonesFit, bone_segments, rig_to_bones
 from .markers import ray_marker
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import BrickedFrame, Deformer, Frame, deform, deform_reference, inverse_warp
@@ -38,6 +39,7 @@ __license__ = "GPL-3.0-or-later"
 __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segment", "label_components", "skeletonize", "distance_transform", "Skeleton",
            "SkeletonPoints", "reconstruct", "reconstruction_loss", "MAX_THINNESS", "VolrigError",
            "FileFormatError", "Cancelled", "phantom", "SkeletonTree", "skeleton_tree", "Rig", "autorig", "bind", "rigid_tissue",
+           "bone_segments", "rig_to_bones", "BoneJoint", "BonesFit",
            "MARKER_NAMES", "ray_marker",
            "Binding", "RiggedSkeleton", "save_rig", "load_rig", "read_mesh", "read_tgf", "voxelize", "Deformer", "Frame", "BrickedFrame", "deform",
            "deform_reference", "inverse_warp", "rest_pose", "rotation_about", "Motion", "read_bvh", "animate",

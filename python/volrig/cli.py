@@ -146,6 +146,30 @@ def _rigid(args):
     return out
 
 
+def _bone(args, rigid):
+    """The bone tissue whose articulations place the limb joints: ``--bone-labels`` / ``--bone-range`` of the volume,
+    else the rigid tissue (``--rigid-labels`` / ``--rigid-range``), else None (the rig from the outer shape)."""
+    from .rig import rigid_tissue
+    if args.bone_labels is None and args.bone_range is None:
+        return rigid
+    if args.voxel_size is not None:
+        raise VolrigError("--bone-labels / --bone-range: a mesh has no tissue values")
+    out = rigid_tissue(_load(args), labels=args.bone_labels, value_range=args.bone_range)
+    if not out.array.any():
+        raise VolrigError("bone: no voxel has the given " + ("labels" if args.bone_labels else "values"))
+    return out
+
+
+def _bone_summary(rig) -> str:
+    """'; bones moved hip.L 12 mm, knee.L 8 mm, ... (kept: wrist.R)' for the rig's bone joints, or ''."""
+    if rig.bone_joints is None:
+        return ""
+    moved = [f"{j.name} {j.shift:.0f}" for j in rig.bone_joints if j.moved]
+    kept = [j.name for j in rig.bone_joints if not j.moved]
+    return (f"; from the bones: {', '.join(moved) or 'no joint'} moved (world units)"
+            + (f", kept {', '.join(kept)}" if kept else ""))
+
+
 def _read_markers(path: str) -> dict:
     """--markers: a JSON object {name: [x, y, z]} (volrig.MARKER_NAMES; the volume's world frame)."""
     import json
@@ -166,15 +190,17 @@ def cmd_rig(args) -> int:
         raise VolrigError(f"{args.output}: the output must be a .vrig file")
     t = time.perf_counter()
     mask, sk, pts = _mask_and_skeleton(args)
+    rigid = _rigid(args)
     r = rig_skeleton(pts, mask, alpha=args.alpha, max_edge=args.max_edge, bones=args.bones, roles=not args.no_roles,
                      bind_mode=args.bind, progress=StepBars() if _show_progress(args) else None, source=args.file,
                      kind=args.kind, up=parse_up(args.up) if args.up else None, own_scale=not args.rig_kept_points,
-                     rigid=_rigid(args), markers=_read_markers(args.markers) if args.markers else None)
+                     rigid=rigid, bone=_bone(args, rigid),
+                     markers=_read_markers(args.markers) if args.markers else None)
     save_rig(args.output, r.points, r.tree, r.rig, r.binding, source=r.source)
     rig = r.rig
     print(f"{len(pts):,} skeleton points, tree of {r.tree.component_count} part(s), {describe_rig(rig)}: {len(rig)} "
           f"bones ({', '.join(rig.names[:8])}{', ...' if len(rig) > 8 else ''}), {args.bind} binding; "
-          f"{time.perf_counter() - t:.1f} s -> {args.output}")
+          f"{time.perf_counter() - t:.1f} s -> {args.output}{_bone_summary(rig)}")
     return 0
 
 
@@ -639,6 +665,12 @@ def _rig_command(sub) -> None:
                    help="tissue that must not bend: these label values (a label map's bone codes, e.g. 84 92)")
     g.add_argument("--rigid-range", type=float, nargs=2, metavar=("LOW", "HIGH"),
                    help="tissue that must not bend: values in this range (a CT's bone, e.g. 300 3000)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--bone-labels", type=int, nargs="+", metavar="LABEL",
+                   help="bone whose articulations place the limb joints: these label values (e.g. 84 92; default: "
+                        "the rigid tissue, when given)")
+    g.add_argument("--bone-range", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                   help="bone whose articulations place the limb joints: values in this range (a CT, e.g. 250 3000)")
     p.set_defaults(run=cmd_rig)
 
 

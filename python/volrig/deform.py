@@ -244,7 +244,8 @@ class Deformer:
         self.points = points
         self.binding = binding
         self.proximity = proximity
-        self._layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
+        self._layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool),
+                                                                    binding.rigid_whole)
         self._layer_proximity = None  # the proximity its pieces were labelled with
         ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
         self.bone_count = nb
@@ -286,7 +287,8 @@ class Deformer:
         """Takes a new binding of the same points (say, weights repainted). The next frame rebuilds only the per-rig
         data of the bones and blend groups whose spheres changed (``reused_fields`` says how many it kept)."""
         old, new = self.binding.rigid, binding.rigid
-        if old is not new and ((old is None) != (new is None) or not np.array_equal(old, new)):
+        if self.binding.rigid_whole != binding.rigid_whole or \
+                (old is not new and ((old is None) != (new is None) or not np.array_equal(old, new))):
             self.__init__(self.source, self.points, binding, self.proximity,  # other rigid tissue: another source
                           self.lattice_after)
             return
@@ -361,7 +363,7 @@ def coarse_level(source: Volume, points: SkeletonPoints, binding: Binding, facto
                          points.metric, coarse.spacing, coarse.origin, points.thinness)
     rigid = None if binding.rigid is None else np.ascontiguousarray(binding.rigid[::f, ::f, ::f])
     b = Binding(np.asarray(binding.bone)[keep], binding.weights.tocsr()[keep], binding.mode,
-                np.asarray(binding.unreachable)[keep], list(binding.bone_names), rigid)
+                np.asarray(binding.unreachable)[keep], list(binding.bone_names), rigid, binding.rigid_whole)
     return coarse, pts, b
 
 
@@ -396,7 +398,8 @@ def deform_reference(source: Volume, points: SkeletonPoints, binding: Binding, b
     ijk, radii, bone, nb, off, wb, w = _sphere_arrays(points, binding)
     box = None if like is None else tuple(like.offset) + tuple(like.bone.dims)
     scale = _radius_scale(radius_scale, len(points))
-    layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool))
+    layer = None if binding.rigid is None else RigidLayer(source, np.asarray(binding.rigid, dtype=bool),
+                                                          binding.rigid_whole)
 
     def scatter(src, matrices, sampling_, scale_, values_, box_):
         return _volrig.deform_reference(_source_array(src), source.spacing, source.origin, ijk, radii, bone, nb, off,

@@ -23,6 +23,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ._volrig import VolrigError
+from .bones import rig_to_bones, separated
 from .deform import DEFORM_REVISION, Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS, ProgressFn, voxelize
@@ -33,7 +34,7 @@ from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
 from .skin import MESH_VOXELS, MeshRig, _points, _span, mesh_voxel_size, skin_weights
-from .tree import skeleton_tree
+from .tree import _mask_for, skeleton_tree
 from .volume import Volume, format_of, load, write_vdb
 
 #: progress(step, fraction) -> False cancels; step is one of STEPS.
@@ -242,17 +243,28 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
                  bones: Optional[int] = None, roles: bool = True, bind_mode: str = "smooth",
                  progress: StepProgress = None, source: Optional[str] = None, kind: Optional[str] = None,
                  up=None, own_scale: bool = True, rigid: Optional[Volume] = None,
-                 markers: Optional[dict] = None, plan_weights=None, detail: Optional[list] = None) -> RiggedSkeleton:
+                 bone: Optional[Volume] = None, markers: Optional[dict] = None, plan_weights=None,
+                 detail: Optional[list] = None) -> RiggedSkeleton:
     """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
     template (humanoid, quadruped, hand, chains), ``up`` gives the world's up direction in the volume's frame,
     ``own_scale=False`` rigs ``points`` themselves rather than autorig's own skeleton (see ``autorig``) and ``rigid``
     is tissue that must not bend (``bind(..., rigid=)``); ``markers`` ({name: point}, see ``autorig``) guide the body
-    plan and place the marked joints; ``plan_weights`` and ``detail`` go to ``autorig``. Fewer than two points are refused by autorig (lower the
-    thinness)."""
+    plan and place the marked joints; ``plan_weights`` and ``detail`` go to ``autorig``. ``bone``: the scan's bone
+    tissue, whose articulations then place the limb joints (``autorig(..., bone=)``); with ``rigid`` too, the bone's
+    rigid tissue is split into its segments (``volrig.bones.separated``) so that each segment binds wholly to one
+    rig bone. Fewer than two points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
     rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up,
                   own_scale=own_scale, markers=markers, plan_weights=plan_weights, detail=detail)
+    if bone is not None:
+        fit = rig_to_bones(rig, bone, like_shape=np.shape(mask.array if isinstance(mask, Volume) else mask))
+        rig = fit.rig
+        if rigid is not None:
+            bone_arr, rigid_arr = _mask_for(points, bone) != 0, _mask_for(points, rigid) != 0
+            rigid = (rigid_arr & ~bone_arr) | (separated(fit.segments, bone_arr) & rigid_arr)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"), rigid=rigid)
+    if bone is not None and binding.rigid is not None:
+        binding.rigid_whole = True  # each segment moves whole with one bone
     return RiggedSkeleton(points, tree, rig, binding, source)
 
 

@@ -38,6 +38,8 @@ class Rig:
     runner_up: the second-best template's kind ("" when there was none); runner_up_fit its fit.
     note:    what the user should know about an automatic rig ("" when nothing), e.g. "no body plan fits; place
              markers or choose a plan".
+    bone_joints: None, or (``autorig(..., bone=)``, ``volrig.bones.rig_to_bones``) a ``volrig.bones.BoneJoint`` per
+             limb joint: where the bones put it, how, or why not.
     """
 
     joints: np.ndarray
@@ -52,6 +54,7 @@ class Rig:
     runner_up: str = ""
     runner_up_fit: float = 0.0
     note: str = ""
+    bone_joints: Optional[list] = None
 
     def __post_init__(self):
         self.joints = np.array(self.joints, dtype=np.float64, copy=True).reshape(-1, 3) if np.size(self.joints) \
@@ -238,7 +241,7 @@ PLAN_TERMS = tuple(_volrig.PLAN_TERMS)
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
             prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
             detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True,
-            markers: Optional[dict] = None, plan_weights=None) -> Rig:
+            markers: Optional[dict] = None, plan_weights=None, bone=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
     Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
@@ -270,6 +273,10 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  height). With markers a body plan always wins over neutral chains; VolrigError when none meets them.
     plan_weights: the body-plan penalties' weights (``PLAN_TERMS`` then chains' score; None: the fitted ones),
                  for fitting and cross-validating them.
+    bone:        the scan's bone tissue (a bool Volume or array on the mask's grid, z, y, x), when known: a
+                 humanoid's or quadruped's limb joints then move to the articulations the bones show
+                 (``volrig.bones.rig_to_bones``; ``rig.bone_joints`` says which moved, and how). None: the rig
+                 from the outer shape alone.
     When no body plan fits, the rig is neutral chains and ``rig.note`` says so.
     """
     ijk, radii = _point_arrays(points)
@@ -288,9 +295,13 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"], list(d["reading_kind"]), d["reading_features"],
                                     float(d["chains_fit"])))
-    return Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
-               np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]),
-               d["note"])
+    rig = Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
+              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]), d["note"])
+    if bone is None:
+        return rig
+    from .bones import rig_to_bones  # the bones' module builds on Rig
+    _mask_for(points, bone)  # the same geometry as the skeleton's
+    return rig_to_bones(rig, bone, like_shape=arr.shape).rig
 
 
 def _markers(markers) -> dict:
@@ -322,6 +333,9 @@ class Binding:
     bone_names:  the rig's bone names, for reference.
     rigid:       None, or the tissue that must not bend (bool, on the mask's grid, z, y, x) the binding was made
                  with (``bind(..., rigid=)``): deforming draws it as a rigid layer (``volrig.rigid_layer``).
+    rigid_whole: every 26-connected component of ``rigid`` moves whole, with the bone that carries most of it in the
+                 rest frame (a rig from the bones: its segments, parted, ``volrig.pipeline.rig_skeleton(bone=)``).
+                 False: each rigid voxel moves with the bone whose sphere covers it at rest.
     """
 
     bone: np.ndarray
@@ -330,6 +344,7 @@ class Binding:
     unreachable: np.ndarray
     bone_names: List[str] = field(default_factory=list)
     rigid: Optional[np.ndarray] = None
+    rigid_whole: bool = False
 
     def __len__(self) -> int:
         return len(self.bone)
@@ -363,7 +378,7 @@ class Binding:
         owner[idx] = b
         unreachable = self.unreachable.copy()
         unreachable[idx] = False
-        return Binding(owner, w, self.mode, unreachable, list(self.bone_names), self.rigid)
+        return Binding(owner, w, self.mode, unreachable, list(self.bone_names), self.rigid, self.rigid_whole)
 
     def groups(self):
         """The weights bone by bone, as vertex groups hold them: a list over bones of (point indices int64,
@@ -432,7 +447,8 @@ class Binding:
         order = np.lexsort((-data, row_of))
         owner = indices[order[indptr[:-1]]].astype(np.int32) if count else np.zeros(0, np.int32)
         mode = "rigid" if (per_row <= 1).all() else "smooth"
-        return cls(owner, w, mode, unreachable, names, None if fallback is None else fallback.rigid)
+        return cls(owner, w, mode, unreachable, names, None if fallback is None else fallback.rigid,
+                   fallback is not None and fallback.rigid_whole)
 
 
 def _canonical(weights):

@@ -72,6 +72,8 @@ def save_rig(path, points: SkeletonPoints, tree: Optional[SkeletonTree] = None, 
         if binding.rigid is not None:  # one bit a voxel
             a.update(binding_rigid_shape=np.array(binding.rigid.shape, np.int64),
                      binding_rigid_bits=np.packbits(np.asarray(binding.rigid, bool).reshape(-1)))
+            if binding.rigid_whole:
+                a.update(binding_rigid_whole=np.array(True))
     with atomic_output(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **a)
@@ -184,5 +186,6 @@ def load_rig(path) -> RiggedSkeleton:
         if mode not in ("rigid", "smooth"):
             raise bad(f"unknown binding mode {mode!r}")
         binding = Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names),
-                          _rigid(get, bad) if "binding_rigid_shape" in a else None)
+                          _rigid(get, bad) if "binding_rigid_shape" in a else None,
+                          bool(get("binding_rigid_whole", "b", 0)) if "binding_rigid_whole" in a else False)
     return RiggedSkeleton(points, tree, rig, binding, source)

@@ -73,13 +73,28 @@ def _labels_at(index: np.ndarray, shape, rest_bone: np.ndarray, rest_offset) -> 
     return out
 
 
-def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray, rest_offset=(0, 0, 0)) -> List[Piece]:
+def _whole_components(rigid: np.ndarray, index: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """``label`` (per rigid voxel ``index``) with every 26-connected component of ``rigid`` given its most
+    frequent label (uncovered voxels, 0, not counted)."""
+    comp = _volrig.label_components(np.ascontiguousarray(rigid).view(np.uint8))[0].reshape(-1)[index]
+    width = int(label.max()) + 1
+    counts = np.bincount(comp.astype(np.int64) * width + label, minlength=(int(comp.max()) + 1) * width)
+    counts = counts.reshape(-1, width)
+    counts[:, 0] = 0
+    major = counts.argmax(axis=1)
+    return np.where(counts.max(axis=1)[comp] > 0, major[comp], label).astype(label.dtype)
+
+
+def pieces_from_rest(rigid: np.ndarray, rest_bone: np.ndarray, rest_offset=(0, 0, 0),
+                     whole: bool = False) -> List[Piece]:
     """The rigid voxels grouped by the bone they come from in the rest frame (``rest_bone``: its bone labels,
     index + 1, at source-lattice ``rest_offset``); rigid voxels the rest frame leaves uncovered take the label of the
     nearest labelled rigid voxel. Memory: a few bytes per rigid voxel, one byte a voxel while some are uncovered, and kept, a bit a voxel of each
     piece's box."""
     index = np.flatnonzero(rigid)
     label = _labels_at(index, rigid.shape, rest_bone, rest_offset)
+    if whole and len(index) and label.any():  # each component with its majority bone (rigid_whole)
+        label = _whole_components(rigid, index, label)
     missing = label == 0
     if missing.any() and not missing.all():
         code = np.zeros(rigid.shape, dtype=np.uint8).reshape(-1)
@@ -105,12 +120,13 @@ class RigidLayer:
     """The rigid tissue of one binding on one source. Once built from the binding's rest frame (``build``): the
     soft source the spheres sample and the bones' pieces drawn over each frame."""
 
-    def __init__(self, source: Volume, rigid: np.ndarray):
+    def __init__(self, source: Volume, rigid: np.ndarray, whole: bool = False):
         if rigid.shape != np.asarray(source.array).shape:
             raise VolrigError(f"rigid tissue of shape {rigid.shape} does not lie on the source's grid "
                              f"{np.asarray(source.array).shape}")
         self.source = source
         self.rigid = rigid
+        self.whole = whole  # Binding.rigid_whole: each component moves with its majority bone
         self.soft: Optional[np.ndarray] = None
         self.pieces: Optional[List[Piece]] = None
 
@@ -125,7 +141,7 @@ class RigidLayer:
         body &= ~self.rigid
         self.soft = soft_source(self.source, body, self.rigid)
         del body
-        self.pieces = pieces_from_rest(self.rigid, rest_bone, rest_offset)
+        self.pieces = pieces_from_rest(self.rigid, rest_bone, rest_offset, self.whole)
 
     def paint(self, frame: dict, matrices, sampling: str, fixed: bool) -> dict:
         """A frame (the core's dict: values, bone, offset) with the pieces drawn over it: the brute-force

@@ -106,20 +106,29 @@ def test_rig_writes_a_rig_file(tmp_path):
     loaded = volrig.load_rig(out)  # joints on the kept points themselves (end joints aside)
     on = loaded.rig.joint_points >= 0
     assert on.any() and np.allclose(loaded.rig.joints[on], loaded.points.centers[loaded.rig.joint_points[on]])
-    # rigid tissue: the bone (220) bound as volrig.bind(..., rigid=) binds it; none of a label: a clear error
+    # rigid tissue: the bone (220) bound as volrig.bind(..., rigid=) binds it; it is the bone the limb joints are
+    # placed on too (issue 54), parted into its segments, each moving whole; none of a label: a clear error
     r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-labels", 220, "-o", out)
     assert r.returncode == 0, r.stderr
+    assert "from the bones: " in r.stdout
     loaded = volrig.load_rig(out)
     mask = volrig.segment(ph.volume, lo=1)
-    expected = volrig.bind(loaded.points, loaded.rig, mask, mode="smooth",
-                           rigid=volrig.rigid_tissue(ph.volume, labels=[220]))
+    expected = volrig.bind(loaded.points, loaded.rig, mask, mode="smooth", rigid=loaded.binding.rigid)
     assert np.array_equal(loaded.binding.weights.tocsr().indptr, expected.weights.tocsr().indptr)
-    on_bone = (ph.volume.array == 220)[tuple(np.asarray(loaded.points.ijk).T)]
+    on_bone = loaded.binding.rigid[tuple(np.asarray(loaded.points.ijk).T)]
     assert on_bone.any() and (np.diff(loaded.binding.weights.tocsr().indptr)[on_bone] == 1).all()
-    assert np.array_equal(loaded.binding.rigid, ph.volume.array == 220)  # bake-mocap's Deformer draws its layer
+    bone = ph.volume.array == 220  # bake-mocap's Deformer draws its layer: the bone, segments parted
+    assert loaded.binding.rigid_whole and not (loaded.binding.rigid & ~bone).any()
+    assert loaded.binding.rigid.sum() >= 0.8 * bone.sum()
     r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-range", 200, 255, "-o", out)
     assert r.returncode == 0, r.stderr
-    assert np.array_equal(volrig.load_rig(out).binding.rigid, ph.volume.array >= 200)
+    rigid = volrig.load_rig(out).binding.rigid
+    assert not (rigid & ~(ph.volume.array >= 200)).any() and rigid.sum() >= 0.8 * (ph.volume.array >= 200).sum()
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--bone-labels", 220, "-o", out)
+    assert r.returncode == 0 and "from the bones: " in r.stdout, r.stderr
+    assert volrig.load_rig(out).binding.rigid is None  # bone places joints; only rigid tissue binds rigidly
+    r = run("rig", src, "--lo", 1, "--count", 4000, "--bone-range", 5000, 6000, "-o", out)
+    assert r.returncode == 2 and "bone: no voxel has the given values" in r.stderr and "Traceback" not in r.stderr
     r = run("rig", src, "--lo", 1, "--count", 4000, "--rigid-labels", 7, "-o", out)
     assert r.returncode == 2 and "no voxel has the given labels" in r.stderr and "Traceback" not in r.stderr
     r = run("rig", src, "--lo", 1, "--count", 4000, "--up", "sideways", "-o", out)

@@ -133,4 +133,55 @@ struct Binding {
 Binding bind(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
              const Progress& progress = {}, const std::uint8_t* rigid = nullptr);
 
+// ---- rigs from a scan's bones (native/src/rig/bones/, docs/rig.md "Rigs from the bones") --------------------------
+
+struct BoneRigOptions {
+    /// Bones touching across an articulation are parted by an opening of this radius (mm; 0 = 4 mm, at least
+    /// one voxel): the bone is eroded (6-neighbour steps), its 26-connected components labelled, and every bone
+    /// voxel given the component reached in fewest steps.
+    double opening = 0;
+    /// Components of the eroded bone smaller than this (mm^3; 0 = 1000, a 10 mm cube) are no segments of their
+    /// own: their voxels go to the nearest segment.
+    double min_volume = 0;
+    /// How far (mm) two segments may lie apart and still meet at a joint (0 = 20 mm).
+    double reach = 0;
+};
+
+/// The bone tissue split into rigid segments at its articulations.
+struct BoneSegments {
+    std::vector<std::int32_t> labels;  ///< per voxel: 0 = no segment, 1..count, largest first
+    std::vector<std::int64_t> sizes;   ///< sizes[s - 1] = voxels in segment s
+};
+
+/// Splits `bone` (non-zero = bone, on `grid`) into segments (BoneRigOptions::opening). Throws Error for an empty
+/// bone mask.
+BoneSegments bone_segments(const Grid& grid, const std::uint8_t* bone, const BoneRigOptions& opt = {});
+
+/// One limb joint rig_to_bones placed: which (joint index, its name such as "knee.L"), from where to where, how
+/// ("contact": the centre of the contact between two segments; "ball": a sphere fitted to a head at its socket;
+/// "section": the narrowest section of one segment spanning the joint, split there; "kept": not moved, `why` says
+/// why), and the segments either side (0 = none).
+struct BoneJoint {
+    std::int32_t joint = -1;
+    std::string name;
+    std::array<double, 3> from{0, 0, 0}, to{0, 0, 0};
+    std::string how;
+    std::string why;
+    std::int32_t parent_segment = 0, child_segment = 0;
+};
+
+struct BoneRig {
+    Rig rig;                              ///< the input rig, limb joints moved; topology and names unchanged
+    std::vector<BoneJoint> joints;        ///< one per limb joint found in the rig (moved or kept)
+    BoneSegments segments;                ///< the segments, after splits at merged joints
+    std::vector<std::int32_t> bone_segment;  ///< per rig bone: the segment it runs through (0 = none)
+};
+
+/// Moves a role-named rig's limb joints (shoulders, elbows, wrists, hips, knees, ankles; .L and .R) to the
+/// articulations the bone tissue shows: each limb bone is matched to the segment its middle runs through, a joint
+/// between two segments goes to their contact's centre (hips and shoulders: the centre of a sphere fitted to the
+/// head's surface facing its socket), a joint inside one segment to its narrowest section, where the segment is
+/// split. End joints move with their bone's head (directions kept). A rig without role names is returned as is.
+BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt = {});
+
 }  // namespace volrig

@@ -1,0 +1,76 @@
+#!/usr/bin/python3
+"""Benchmark: rigs from a scan's bones (issue 54) on the Visible Human.
+
+Measures, in one run, best of --repeat each: the plain outer-shape ``volrig.autorig`` (15,000 points, up given)
+and ``volrig.bones.rig_to_bones`` on its rig (segments, then the limb joints), their ratio, and each limb joint's
+distance from the bone-derived reference (``volrig_support.subjects.visible_human_joints``) before and after.
+
+    PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py [--mm 2] [--repeat 3] [--json out.json]
+
+Target: rig_to_bones <= 3 s for the whole body at 2 mm.
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))
+import volrig  # noqa: E402
+from volrig.bones import rig_to_bones  # noqa: E402
+from volrig_support import subjects as S  # noqa: E402
+
+BONE = (84, 92)
+JOINTS = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
+
+
+def best_of(repeat, f):
+    times, out = [], None
+    for _ in range(repeat):
+        out = None
+        t0 = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--mm", type=int, default=2, choices=(1, 2, 4))
+    ap.add_argument("--points", type=int, default=15000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", help="also write the figures to this JSON file")
+    args = ap.parse_args()
+
+    labels = S.visible_human_labels(args.mm)
+    a = np.asarray(labels.array)
+    mask, bone = labels.like(a > 0), labels.like(np.isin(a, BONE))
+    pts = volrig.skeletonize(mask).top(args.points)
+    tree = volrig.skeleton_tree(pts, mask)
+    print(f"Visible Human {args.mm} mm: grid {a.shape[::-1]}, {int(np.count_nonzero(bone.array)):,} bone voxels, "
+          f"{len(pts):,} points")
+    t_plain, plain = best_of(args.repeat, lambda: volrig.autorig(pts, tree, mask, up=(0, 0, 1)))
+    t_bones, fit = best_of(args.repeat, lambda: rig_to_bones(plain, bone))
+    ref = S.visible_human_joints(labels)
+    err = {n: (float(np.linalg.norm(S.rig_joint(plain, n) - ref[n])), float(np.linalg.norm(S.rig_joint(fit.rig, n) -
+                                                                                          ref[n]))) for n in JOINTS}
+    print(f"autorig (outer shape) {t_plain:.3f} s; rig_to_bones {t_bones:.3f} s = {t_bones / t_plain:.2f}x "
+          f"(target <= 3 s)")
+    for j in fit.joints:
+        print(f"  {j.name:11s} {j.how:8s} {err[j.name][0]:5.1f} -> {err[j.name][1]:5.1f} mm {j.why}")
+    before, after = (np.mean([e[k] for e in err.values()]) for k in (0, 1))
+    print(f"mean distance from the bone-derived joints: {before:.1f} mm (outer shape) -> {after:.1f} mm (bones); "
+          f"max {max(e[1] for e in err.values()):.1f} mm")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(dict(mm=args.mm, autorig_s=t_plain, rig_to_bones_s=t_bones, ratio=t_bones / t_plain,
+                           errors_mm=err), f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

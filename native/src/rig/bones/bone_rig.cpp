@@ -1,0 +1,378 @@
+// rig/bones/bone_rig.cpp: a role-named rig's limb joints moved to the articulations its bone tissue shows
+// (volrig/rig.hpp rig_to_bones): limb bones matched to segments, joints at contacts, heads, narrowest sections.
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "rig/bones/bones.hpp"
+#include "volrig/error.hpp"
+
+namespace volrig::rig_detail {
+
+namespace {
+
+/// A limb joint: the head of bone `child`, whose parent long bone is `parent` ("" for hips and shoulders, where
+/// the socket's segment is whichever lies nearest but the `distal` bone's); `ball`: a head in a socket. Elbows
+/// and knees come first: a head lies at its long bone's end away from them.
+struct LimbJoint {
+    const char* child;
+    const char* parent;
+    const char* name;
+    bool ball;
+    const char* distal;
+};
+constexpr LimbJoint kLimbJoints[] = {
+    {"forearm", "upper_arm", "elbow", false, ""}, {"upper_arm", "", "shoulder", true, "forearm"},
+    {"hand", "forearm", "wrist", false, ""},      {"shin", "thigh", "knee", false, ""},
+    {"thigh", "", "hip", true, "shin"},           {"foot", "shin", "ankle", false, ""},
+};
+
+P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double norm(const P3& a) { return std::sqrt(dot(a, a)); }
+P3 unit(const P3& a) {
+    const double n = norm(a);
+    return n > 0 ? P3{a[0] / n, a[1] / n, a[2] / n} : P3{0, 0, 0};
+}
+
+/// Distance from q to the segment a..b.
+double to_segment(const P3& q, const P3& a, const P3& b) {
+    const P3 d = sub(b, a);
+    const double len2 = dot(d, d);
+    const double t = len2 > 0 ? std::clamp(dot(sub(q, a), d) / len2, 0.0, 1.0) : 0.0;
+    return norm(sub(q, {a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]}));
+}
+
+/// The voxel box around the points a and b grown by r (mm), clamped to the grid.
+void box_of(const Grid& g, const P3& a, const P3& b, double r, std::array<std::int64_t, 3>& lo,
+            std::array<std::int64_t, 3>& hi) {
+    for (int k = 0; k < 3; ++k) {
+        const double l = std::min(a[k], b[k]) - r, h = std::max(a[k], b[k]) + r;
+        lo[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((l - g.origin[k]) / g.spacing[k])));
+        hi[k] = std::min<std::int64_t>(g.dims[k] - 1,
+                                       static_cast<std::int64_t>(std::ceil((h - g.origin[k]) / g.spacing[k])));
+    }
+}
+
+/// Calls f(index, position) for every voxel of the box lo..hi.
+template <class F>
+void for_box(const Grid& g, const std::array<std::int64_t, 3>& lo, const std::array<std::int64_t, 3>& hi, F&& f) {
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
+                const std::int64_t i = g.index(x, y, z);
+                f(i, voxel_position(g, i));
+            }
+}
+
+class Fitter {
+public:
+    Fitter(const Grid& g, const BoneRigOptions& opt, const Rig& rig, BoneSegments&& segs)
+        : g_(g), p_(bone_params(g, opt)), out_{rig, {}, std::move(segs), {}} {
+        for (std::size_t b = 0; b < rig.names.size(); ++b) index_[rig.names[b]] = static_cast<int>(b);
+        cell_ = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+    }
+
+    BoneRig run() {
+        for (const char* sfx : {".L", ".R"})
+            for (const LimbJoint& lj : kLimbJoints) place(lj, sfx);
+        out_.bone_segment.assign(out_.rig.bones.size(), 0);
+        for (std::size_t b = 0; b < out_.rig.bones.size(); ++b) out_.bone_segment[b] = segment_of(static_cast<int>(b));
+        check_rig(out_.rig);
+        return std::move(out_);
+    }
+
+private:
+    int bone(const std::string& name) const {
+        const auto it = index_.find(name);
+        return it == index_.end() ? -1 : it->second;
+    }
+    P3 head(int b) const { return out_.rig.joints[static_cast<std::size_t>(out_.rig.bones[b][0])]; }
+    P3 tail(int b) const { return out_.rig.joints[static_cast<std::size_t>(out_.rig.bones[b][1])]; }
+    double length(int b) const { return norm(sub(tail(b), head(b))); }
+
+    /// The segment the middle half of bone b runs through: the one with most voxels near that stretch.
+    std::int32_t segment_of(int b) const {
+        const P3 h = head(b), t = tail(b), d = sub(t, h);
+        const P3 a{h[0] + 0.25 * d[0], h[1] + 0.25 * d[1], h[2] + 0.25 * d[2]};
+        const P3 e{h[0] + 0.75 * d[0], h[1] + 0.75 * d[1], h[2] + 0.75 * d[2]};
+        const double r = std::clamp(0.1 * length(b), 3 * cell_, 40.0);
+        std::array<std::int64_t, 3> lo{}, hi{};
+        box_of(g_, a, e, r, lo, hi);
+        std::map<std::int32_t, std::int64_t> votes;
+        for_box(g_, lo, hi, [&](std::int64_t i, const P3& q) {
+            const std::int32_t s = out_.segments.labels[static_cast<std::size_t>(i)];
+            if (s > 0 && to_segment(q, a, e) <= r) ++votes[s];
+        });
+        std::int32_t best = 0;
+        std::int64_t most = 0;
+        for (const auto& [s, v] : votes)
+            if (v > most) most = v, best = s;
+        return best;
+    }
+
+    /// The segments with voxels within w of c, and how many.
+    std::map<std::int32_t, int> segments_near(const P3& c, double w) const {
+        std::array<std::int64_t, 3> lo{}, hi{};
+        box_of(g_, c, c, w, lo, hi);
+        std::map<std::int32_t, int> seen;
+        for_box(g_, lo, hi, [&](std::int64_t i, const P3& q) {
+            const std::int32_t t = out_.segments.labels[static_cast<std::size_t>(i)];
+            if (t > 0 && norm(sub(q, c)) <= w) ++seen[t];
+        });
+        return seen;
+    }
+
+    /// The segment other than s (and `exclude`) nearest to s around the point c (within radius w): the socket of
+    /// a head.
+    std::int32_t socket_of(std::int32_t s, std::int32_t exclude, const P3& c, double w, const Patch& own) const {
+        std::int32_t best = 0;
+        double gap = p_.reach;
+        for (const auto& [t, count] : segments_near(c, w)) {
+            if (t == s || t == exclude || count < 8) continue;
+            const Contact k = contact_of(own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
+            if (k.found && k.gap < gap) gap = k.gap, best = t;
+        }
+        return best;
+    }
+
+    void place(const LimbJoint& lj, const std::string& sfx);
+    P3 axis_of(int b) const;
+    bool place_in_section(BoneJoint& j, int pb, int cb, double w);
+    Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
+    bool place_hinge(BoneJoint& j, int pb, int cb, double w);
+    bool place_ball(BoneJoint& j, int cb, int db, double w);
+    bool reseed_hinge(BoneJoint& j, int pb, int cb, double w);
+    bool reseed_shared(BoneJoint& j, int pb, int cb, double w);
+    const BoneJoint* placed(const std::string& name) const {
+        for (const BoneJoint& k : out_.joints)
+            if (k.name == name && k.how != "kept") return &k;
+        return nullptr;
+    }
+    bool seed_ball(BoneJoint& j, int cb, int db);
+    bool fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w);
+    void split(std::int32_t s, int cb, const P3& at, const P3& axis);
+    void move(BoneJoint& j, int cb, const P3& to, const char* how);
+
+    const Grid& g_;
+    BoneParams p_;
+    BoneRig out_;
+    std::map<std::string, int> index_;
+    double cell_ = 1;
+};
+
+void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
+    const int cb = bone(lj.child + sfx);
+    const int pb = *lj.parent ? bone(lj.parent + sfx) : -1;
+    if (cb < 0 || (*lj.parent && pb < 0)) return;
+    BoneJoint j;
+    j.joint = out_.rig.bones[cb][0];
+    j.name = lj.name + sfx;
+    j.from = j.to = head(cb);
+    j.how = "kept";
+    const double span = pb >= 0 ? std::min(length(cb), length(pb)) : length(cb);
+    const double w = std::clamp(0.3 * span, 3 * cell_, 60.0);
+    j.child_segment = segment_of(cb);
+    j.parent_segment = pb >= 0 ? segment_of(pb) : 0;
+    bool done = false;
+    if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
+    else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
+    else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
+    else if (j.parent_segment == j.child_segment) done = place_in_section(j, pb, cb, w) || reseed_shared(j, pb, cb, w);
+    else done = place_hinge(j, pb, cb, w) || reseed_hinge(j, pb, cb, w);  // a child without a segment of its
+                                                                            // own: whatever meets the parent
+    if (!done && j.why.empty()) j.why = "the bones show no articulation there";
+    out_.joints.push_back(j);
+}
+
+P3 Fitter::axis_of(int b) const { return unit(sub(tail(b), head(b))); }
+
+bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
+    const P3 axis = axis_of(pb), at = head(cb);
+    const Section s = narrowest_section(patch_of(g_, out_.segments.labels, j.child_segment, at, 1.5 * w), at, axis, w,
+                                        g_.min_spacing());
+    if (!s.found) {
+        j.why = "one segment spans the joint without a narrower section";
+        return false;
+    }
+    split(j.child_segment, cb, s.centre, axis);
+    j.child_segment = static_cast<std::int32_t>(out_.segments.sizes.size());
+    move(j, cb, s.centre, "section");
+    return true;
+}
+
+/// The child's side of a hinge at `at`: its own segment and the other segments meeting the parent's patch there
+/// that lie beyond the joint along the parent's axis (an ulna beside the radius, a talus under the tibia).
+Patch Fitter::child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const {
+    Patch out;
+    for (const auto& [t, count] : segments_near(at, w)) {
+        if (t == j.parent_segment || count < 8) continue;
+        Patch p = patch_of(g_, out_.segments.labels, t, at, w);
+        P3 c{0, 0, 0};
+        for (const P3& q : p.pos)
+            for (int a = 0; a < 3; ++a) c[a] += q[a] / static_cast<double>(p.pos.size());
+        if (t != j.child_segment && dot(sub(c, at), axis) <= 0) continue;
+        if (!contact_of(p, parent, p_.reach, cell_).found) continue;
+        out.pos.insert(out.pos.end(), p.pos.begin(), p.pos.end());
+        out.surface.insert(out.surface.end(), p.surface.begin(), p.surface.end());
+        out.index.insert(out.index.end(), p.index.begin(), p.index.end());
+    }
+    return out;
+}
+
+bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
+    const P3 at = head(cb);
+    const Patch parent = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
+    const Patch child = child_side(j, parent, at, axis_of(pb), w);
+    const Contact k = contact_of(parent, child, p_.reach, std::max(1.5 * cell_, 4.0));
+    if (!k.found) {
+        j.why = "no segment meets segment " + std::to_string(j.parent_segment) + " there";
+        return false;
+    }
+    move(j, cb, k.centre, "contact");
+    return true;
+}
+
+/// A hinge the outer shape put beyond the window of its bones' contact: started again between the facing ends of
+/// the two segments (the parent's end nearer the child's centroid, and the child's nearer the parent's).
+bool Fitter::reseed_hinge(BoneJoint& j, int pb, int cb, double w) {
+    if (j.child_segment == 0) return false;
+    const SegmentEnds p = segment_ends(g_, out_.segments.labels, j.parent_segment);
+    const SegmentEnds c = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!p.found || !c.found) return false;
+    const auto nearer = [](const SegmentEnds& e, const P3& q) { return norm(sub(e.a, q)) < norm(sub(e.b, q)) ? e.a : e.b; };
+    const P3 pe = nearer(p, c.centroid), ce = nearer(c, p.centroid);
+    const P3 seed{0.5 * (pe[0] + ce[0]), 0.5 * (pe[1] + ce[1]), 0.5 * (pe[2] + ce[2])};
+    if (norm(sub(seed, head(cb))) > 0.5 * (length(pb) + length(cb))) return false;  // not this limb's bones
+    const BoneJoint before = j;
+    const std::int64_t point = out_.rig.joint_points.empty() ? -1 : out_.rig.joint_points[static_cast<std::size_t>(j.joint)];
+    move(j, cb, seed, "seed");
+    if (place_hinge(j, pb, cb, w)) {
+        j.from = before.from;
+        j.why.clear();
+        return true;
+    }
+    move(j, cb, before.from, "kept");
+    if (!out_.rig.joint_points.empty()) out_.rig.joint_points[static_cast<std::size_t>(j.joint)] = point;
+    j.why = before.why;
+    return false;
+}
+
+/// Parent and child bones run through one segment with no narrower section between (the outer shape's joint far
+/// from the bones'): the child keeps it, and the parent takes the largest segment meeting it at its end nearer the
+/// joint (a femur, not the patella or the fibula).
+bool Fitter::reseed_shared(BoneJoint& j, int pb, int cb, double w) {
+    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!e.found) return false;
+    const P3 end = norm(sub(e.a, head(cb))) < norm(sub(e.b, head(cb))) ? e.a : e.b;
+    const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, end, w);
+    std::int32_t other = 0;
+    int most = 0;
+    for (const auto& [t, count] : segments_near(end, w))
+        if (t != j.child_segment && count > most &&
+            contact_of(own, patch_of(g_, out_.segments.labels, t, end, w), p_.reach, cell_).found)
+            most = count, other = t;
+    if (other == 0) return false;
+    const std::string why = j.why;
+    j.parent_segment = other;
+    j.why.clear();
+    if (reseed_hinge(j, pb, cb, w)) return true;
+    j.why = why;
+    return false;
+}
+
+/// A head the outer shape put nearer its limb's middle joint (knee, elbow: bone db's head) than half its long
+/// bone's length (a hip below the knee) starts again at the long bone's end away from that joint.
+bool Fitter::seed_ball(BoneJoint& j, int cb, int db) {
+    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    if (!e.found) return false;
+    const P3 k = head(db);
+    const P3 far = norm(sub(e.a, k)) > norm(sub(e.b, k)) ? e.a : e.b;
+    const double bone_length = norm(sub(far, k));
+    if (norm(sub(head(cb), k)) >= 0.5 * bone_length) return false;
+    // a femur about as long as the tibia, a humerus as the forearm: else the segment is not this limb's
+    if (bone_length < 0.5 * length(db) || bone_length > 2.0 * length(db)) return false;
+    move(j, cb, far, "seed");
+    return true;
+}
+
+bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
+    const std::string side = j.name.substr(j.name.size() - 2);
+    const BoneJoint* mid = placed(std::string(j.name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
+    if (mid && mid->parent_segment > 0) j.child_segment = mid->parent_segment;  // the long bone the hinge found
+    const std::int32_t exclude = mid ? mid->child_segment : (db >= 0 ? segment_of(db) : 0);
+    const bool seeded = db >= 0 && seed_ball(j, cb, db);
+    if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, 60.0);  // the long bone's length
+    if (!fit_ball(j, cb, exclude, w)) return false;
+    for (int pass = 0; seeded && pass < 3 && j.how == "contact"; ++pass)  // from the socket, the head's sphere
+        fit_ball(j, cb, exclude, w);
+    return true;
+}
+
+/// A ball joint from where bone cb's head lies now: the sphere of its head, else the contact with its socket, else
+/// (no socket apart from it) its thickest bone.
+bool Fitter::fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w) {
+    const P3 at = head(cb);
+    const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
+    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own);
+    if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
+        const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
+        if (c) move(j, cb, *c, "thickest");
+        else j.why = "no bone of segment " + std::to_string(j.child_segment) + " near the joint";
+        return c.has_value();
+    }
+    const Patch other = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
+    const Contact k = contact_of(own, other, p_.reach, cell_);
+    // the head's surface facing its socket, a few voxels deep into the gap
+    const Contact cap = contact_of(own, other, p_.reach, std::max(3 * cell_, 6.0));
+    const Sphere s = fit_sphere(cap.a);
+
+    if (s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius)
+        move(j, cb, s.centre, "ball");
+    else
+        move(j, cb, k.centre, "contact");
+    return true;
+}
+
+/// Voxels of segment s beyond the plane (at, axis) and near bone cb become a new segment.
+void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
+    const double r = std::clamp(0.3 * length(cb), 3 * cell_, 60.0);
+    std::array<std::int64_t, 3> lo{}, hi{};
+    box_of(g_, head(cb), tail(cb), r, lo, hi);
+    const auto fresh = static_cast<std::int32_t>(out_.segments.sizes.size() + 1);
+    std::int64_t moved = 0;
+    for_box(g_, lo, hi, [&](std::int64_t i, const P3& q) {
+        std::int32_t& l = out_.segments.labels[static_cast<std::size_t>(i)];
+        if (l == s && dot(sub(q, at), axis) > 0 && to_segment(q, head(cb), tail(cb)) <= r) l = fresh, ++moved;
+    });
+    out_.segments.sizes[static_cast<std::size_t>(s - 1)] -= moved;
+    out_.segments.sizes.push_back(moved);
+}
+
+/// Moves the head of bone cb to `to`; an end bone (its tail no bone's head) keeps its direction and length.
+void Fitter::move(BoneJoint& j, int cb, const P3& to, const char* how) {
+    auto& rig = out_.rig;
+    const P3 d = sub(to, rig.joints[static_cast<std::size_t>(j.joint)]);
+    rig.joints[static_cast<std::size_t>(j.joint)] = to;
+    const std::int32_t t = rig.bones[cb][1];
+    const bool end = std::none_of(rig.bones.begin(), rig.bones.end(), [&](const auto& b) { return b[0] == t; });
+    if (end)
+        for (int k = 0; k < 3; ++k) rig.joints[static_cast<std::size_t>(t)][k] += d[k];
+    if (!rig.joint_points.empty()) rig.joint_points[static_cast<std::size_t>(j.joint)] = -1;
+    j.to = to;
+    j.how = how;
+}
+
+}  // namespace
+
+}  // namespace volrig::rig_detail
+
+namespace volrig {
+
+BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt) {
+    check_rig(rig);
+    BoneSegments segs = bone_segments(grid, bone, opt);
+    return rig_detail::Fitter(grid, opt, rig, std::move(segs)).run();
+}
+
+}  // namespace volrig

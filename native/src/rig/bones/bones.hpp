@@ -1,0 +1,80 @@
+// rig/bones/bones.hpp: the stages of rigs from a scan's bones (volrig/rig.hpp rig_to_bones): bone voxels near a
+// joint, the contact between two segments, a sphere fitted to a head, the narrowest section of a segment.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "volrig/rig.hpp"
+
+namespace volrig::rig_detail {
+
+using P3 = std::array<double, 3>;
+
+/// The options with their defaults filled in for `grid` (opening in voxels at least 1).
+struct BoneParams {
+    int erode_steps = 1;
+    std::int64_t min_voxels = 8;
+    double reach = 20.0;
+};
+BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt);
+
+/// Bone voxels of a segment near a point: world positions, and whether each lies on the segment's surface (a
+/// 6-neighbour outside the segment).
+struct Patch {
+    std::vector<P3> pos;
+    std::vector<std::uint8_t> surface;
+    std::vector<std::int64_t> index;  ///< linear voxel index
+};
+
+/// The voxels of segment `s` within `radius` (mm) of `centre`.
+Patch patch_of(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s, const P3& centre,
+               double radius);
+
+/// The contact between two patches: the surface voxels of each within `tolerance` of the closest distance
+/// between them (searched up to `reach`); found = false when they lie farther apart.
+struct Contact {
+    bool found = false;
+    double gap = 0;                  ///< closest distance between surface voxel centres (mm)
+    std::vector<P3> a, b;            ///< the contact voxels of each side
+    P3 centre{0, 0, 0};              ///< midpoint of the two sides' centroids
+};
+Contact contact_of(const Patch& a, const Patch& b, double reach, double tolerance);
+
+/// Least-squares sphere through points: centre and radius; radius <= 0 when the fit is degenerate.
+struct Sphere {
+    P3 centre{0, 0, 0};
+    double radius = 0;
+};
+Sphere fit_sphere(const std::vector<P3>& pts);
+
+/// The narrowest section of a patch along `axis` (unit) through `centre`, within a cylinder of radius and half
+/// length `half_length`: the deepest valley of its slab profile (slabs `slab` thick, the wall on each side the
+/// most bone there), its centroid and offset t along the axis; found = false when the profile has no valley.
+struct Section {
+    bool found = false;
+    P3 centre{0, 0, 0};
+    double t = 0;
+};
+Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, double half_length, double slab);
+
+/// The centre of the thickest bone of segment `s` within `radius` of `centre`: the centroid of the voxels whose
+/// distance to the segment's surface lies within a voxel of the largest (a head's centre, where no gap shows it).
+/// Nothing when the segment has no voxel there.
+std::optional<P3> thickest_point(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s,
+                                 const P3& centre, double radius);
+
+/// A segment's two ends along its principal axis (the centroids of its voxels within a few percent of its length
+/// of either extreme) and its centroid; found = false for an empty segment.
+struct SegmentEnds {
+    bool found = false;
+    P3 a{0, 0, 0}, b{0, 0, 0}, centroid{0, 0, 0};
+};
+SegmentEnds segment_ends(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s);
+
+/// World position of a voxel index (origin + spacing * ijk, as bind and autorig place points).
+P3 voxel_position(const Grid& grid, std::int64_t index);
+
+}  // namespace volrig::rig_detail

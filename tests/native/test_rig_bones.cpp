@@ -1,0 +1,126 @@
+// Rigs from a scan's bones (volrig/rig.hpp bone_segments, rig_to_bones) on a synthetic "femur / tibia" phantom:
+// two cylinders along z with a gap between them (the knee at the gap's centre), or joined by a thin neck (split at
+// the narrowest section). The Visible Human's joints: tests/python/test_bones.py.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "volrig/error.hpp"
+#include "volrig/rig.hpp"
+
+using namespace volrig;
+
+namespace {
+
+constexpr double kRadius = 8.0;
+
+struct Phantom {
+    Grid grid;
+    std::vector<std::uint8_t> bone;
+};
+
+/// A femur (z 62..106) above a tibia (z 12..56), radius 8 about x = y = 20 (1 mm voxels); `neck` > 0 joins them
+/// through the gap z 57..61 with a cylinder of that radius.
+Phantom femur_tibia(double neck) {
+    Phantom p;
+    p.grid.dims = {40, 40, 120};
+    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
+    for (std::int64_t z = 0; z < 120; ++z)
+        for (std::int64_t y = 0; y < 40; ++y)
+            for (std::int64_t x = 0; x < 40; ++x) {
+                const double r = std::hypot(x - 20.0, y - 20.0);
+                const bool shaft = (z >= 62 && z <= 106) || (z >= 12 && z <= 56);
+                const bool in = (shaft && r <= kRadius) || (z > 56 && z < 62 && r <= neck);
+                p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = in;
+            }
+    return p;
+}
+
+/// A leg rig: thigh.L from (20, 20, 112) to a knee guessed at (23, 18, 66), shin.L down to (20, 20, 6).
+Rig leg_rig() {
+    Rig r;
+    r.joints = {{20, 20, 112}, {23, 18, 66}, {20, 20, 6}};
+    r.bones = {{0, 1}, {1, 2}};
+    r.names = {"thigh.L", "shin.L"};
+    r.parents = {-1, 0};
+    r.kind = "humanoid";
+    return r;
+}
+
+const BoneJoint& joint_named(const BoneRig& b, const std::string& name) {
+    for (const BoneJoint& j : b.joints)
+        if (j.name == name) return j;
+    FAIL("no joint " << name);
+    return b.joints.front();
+}
+
+}  // namespace
+
+TEST_CASE("bone segments: an opening parts bones, every bone voxel in one segment", "[rig][bones]") {
+    const Phantom p = femur_tibia(0);
+    const BoneSegments s = bone_segments(p.grid, p.bone.data());
+    REQUIRE(s.sizes.size() == 2);
+    const std::int32_t femur = s.labels[static_cast<std::size_t>(p.grid.index(20, 20, 80))];
+    const std::int32_t tibia = s.labels[static_cast<std::size_t>(p.grid.index(20, 20, 30))];
+    CHECK(femur != tibia);
+    std::int64_t total = 0;
+    for (std::size_t i = 0; i < p.bone.size(); ++i) {
+        CHECK((p.bone[i] != 0) == (s.labels[i] != 0));
+        total += p.bone[i];
+    }
+    CHECK(s.sizes[0] + s.sizes[1] == total);
+}
+
+TEST_CASE("bone rig: the knee goes to the centre of the gap between femur and tibia", "[rig][bones]") {
+    const Phantom p = femur_tibia(0);
+    const BoneRig b = rig_to_bones(p.grid, p.bone.data(), leg_rig());
+    const BoneJoint& knee = joint_named(b, "knee.L");
+    CHECK(knee.how == "contact");
+    CHECK(knee.parent_segment != knee.child_segment);
+    CHECK(knee.joint == 1);
+    CHECK(std::abs(knee.to[0] - 20.0) <= 1.0);  // the gap's centre: (20, 20, 59), exact within a voxel
+    CHECK(std::abs(knee.to[1] - 20.0) <= 1.0);
+    CHECK(std::abs(knee.to[2] - 59.0) <= 1.0);
+    CHECK(b.rig.joints[1] == knee.to);
+    CHECK(b.rig.names == leg_rig().names);  // topology and names unchanged
+    CHECK(b.rig.bones == leg_rig().bones);
+    CHECK(b.bone_segment[0] == knee.parent_segment);
+    CHECK(b.bone_segment[1] == knee.child_segment);
+}
+
+TEST_CASE("bone rig: touching bones split at the narrowest section", "[rig][bones]") {
+    const Phantom p = femur_tibia(3.0);
+    BoneRigOptions opt;
+    opt.opening = 1.0;  // one voxel: the neck (radius 3) survives it, femur and tibia stay one segment
+    REQUIRE(bone_segments(p.grid, p.bone.data(), opt).sizes.size() == 1);
+    const BoneRig b = rig_to_bones(p.grid, p.bone.data(), leg_rig(), opt);
+    const BoneJoint& knee = joint_named(b, "knee.L");
+    CHECK(knee.how == "section");
+    CHECK(std::abs(knee.to[0] - 20.0) <= 1.0);
+    CHECK(std::abs(knee.to[1] - 20.0) <= 1.0);
+    CHECK(std::abs(knee.to[2] - 59.0) <= 1.0);
+    // the split: the tibia is a segment of its own, the femur keeps the other
+    const std::int32_t femur = b.segments.labels[static_cast<std::size_t>(p.grid.index(20, 20, 80))];
+    const std::int32_t tibia = b.segments.labels[static_cast<std::size_t>(p.grid.index(20, 20, 30))];
+    CHECK(femur != tibia);
+    CHECK(tibia == knee.child_segment);
+    for (std::int64_t z = 12; z <= 56; ++z)
+        CHECK(b.segments.labels[static_cast<std::size_t>(p.grid.index(20 + 7, 20, z))] == tibia);
+    for (std::int64_t z = 62; z <= 106; ++z)
+        CHECK(b.segments.labels[static_cast<std::size_t>(p.grid.index(20, 20 - 7, z))] == femur);
+}
+
+TEST_CASE("bone rig: bad input is refused clearly; rigs without limbs are kept", "[rig][bones]") {
+    const Phantom p = femur_tibia(0);
+    const std::vector<std::uint8_t> empty(p.bone.size(), 0);
+    CHECK_THROWS_WITH(bone_segments(p.grid, empty.data()), Catch::Contains("bone mask is empty"));
+    CHECK_THROWS_AS(rig_to_bones(p.grid, empty.data(), leg_rig()), Error);
+    BoneRigOptions bad;
+    bad.opening = -1;
+    CHECK_THROWS_AS(bone_segments(p.grid, p.bone.data(), bad), Error);
+    Rig chains = leg_rig();
+    chains.names = {"chain.001", "chain.002"};
+    const BoneRig b = rig_to_bones(p.grid, p.bone.data(), chains);
+    CHECK(b.joints.empty());
+    CHECK(b.rig.joints == chains.joints);
+}

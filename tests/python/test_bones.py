@@ -1,0 +1,240 @@
+"""Rigs from a scan's bones (issue 54): ``autorig(..., bone=)``, ``volrig.bones``, ``rig_skeleton(bone=)``.
+
+The Visible Human (AustinMan labels at 4 and 2 mm) against references built from its tissue table's names, in the
+test only: the joints the bone tissue ("Bone..." rows) shows (``volrig_support.subjects.visible_human_joints``: a
+section profile along each long bone, the femoral and humeral heads as the thickest bone) and each knee's menisci
+("Meniscus"). The frog (label 13, skeleton). Synthetic phantoms: tests/native/test_rig_bones.cpp."""
+import csv
+
+import numpy as np
+import pytest
+
+import volrig
+from volrig.bones import BoneJoint, bone_segments, rig_to_bones, separated
+from volrig.pipeline import rig_skeleton
+
+from conftest import shared
+from volrig_support import subjects as S
+
+LIMB_JOINTS = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
+TOLERANCE = {4: 30.0, 2: 15.0}  # mm: a joint from the bones within this of the reference
+_CACHE = {}
+
+
+def tissue_codes():
+    """Tissue name -> code, from the Visible Human's own table."""
+    path = shared("visible-human/austinman_tissues.tsv")
+    with open(path, newline="") as f:
+        return {row["tissue"]: int(row["value"]) for row in csv.DictReader(f, delimiter="\t")}
+
+
+def vhm(mm):
+    """Labels, body mask, bone mask (every "Bone..." tissue), skeleton points, tree and the outer-shape rig."""
+    shared(f"visible-human/austinman_{mm}mm_labels.nii.gz")
+    if mm not in _CACHE:
+        codes = tissue_codes()
+        labels = S.visible_human_labels(mm)
+        a = np.asarray(labels.array)
+        bone = labels.like(np.isin(a, [c for n, c in codes.items() if n.startswith("Bone")]))
+        mask = labels.like(a > 0)
+        pts = volrig.skeletonize(mask).top(15000)
+        tree = volrig.skeleton_tree(pts, mask)
+        plain = volrig.autorig(pts, tree, mask, up=(0, 0, 1))
+        _CACHE[mm] = dict(labels=labels, mask=mask, bone=bone, pts=pts, tree=tree, plain=plain, codes=codes)
+    return _CACHE[mm]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _free_cache():
+    yield
+    _CACHE.clear()
+
+
+def from_bones(mm):
+    v = vhm(mm)
+    if "rig" not in v:
+        v["rig"] = volrig.autorig(v["pts"], v["tree"], v["mask"], up=(0, 0, 1), bone=v["bone"])
+        v["reference"] = S.visible_human_joints(v["labels"])
+    return v
+
+
+def menisci(v):
+    """Centroid of each side's menisci (+x is the body's left), from the tissue named Meniscus."""
+    lab = np.asarray(v["labels"].array)
+    z, y, x = np.nonzero(lab == v["codes"]["Meniscus"])
+    p = np.stack([x, y, z], axis=1) * np.asarray(v["labels"].spacing) + np.asarray(v["labels"].origin)
+    mid = float(np.median(p[:, 0]))
+    return {"L": p[p[:, 0] > mid].mean(axis=0), "R": p[p[:, 0] <= mid].mean(axis=0)}
+
+
+@pytest.mark.parametrize("mm", [4, 2])
+def test_vhm_limb_joints_at_the_bones_articulations(mm):
+    v = from_bones(mm)
+    rig, ref = v["rig"], v["reference"]
+    errors = {n: round(float(np.linalg.norm(S.rig_joint(rig, n) - ref[n])), 1) for n in LIMB_JOINTS}
+    assert max(errors.values()) <= TOLERANCE[mm], errors
+    for side in "LR":
+        hip, knee, ankle = (S.rig_joint(rig, f"{j}.{side}") for j in ("hip", "knee", "ankle"))
+        assert hip[2] > knee[2] + 300 and knee[2] > ankle[2] + 300, (hip, knee, ankle)
+        d = np.linalg.norm(knee - menisci(v)[side])
+        assert d <= TOLERANCE[mm], f"knee.{side} {d:.0f} mm from its menisci"
+    # the bones moved every limb joint of the Visible Human: the report says which, how and from where
+    moved = {j.name: j for j in rig.bone_joints}
+    assert sorted(moved) == sorted(LIMB_JOINTS)
+    for name, j in moved.items():
+        assert j.moved and j.how in ("contact", "ball", "thickest", "section"), j
+        assert np.allclose(rig.joints[j.joint], j.after) and np.allclose(v["plain"].joints[j.joint], j.before)
+        assert j.child_segment > 0 or j.parent_segment > 0  # a hand without a segment of its own: the forearm
+
+
+@pytest.mark.parametrize("mm", [4, 2])
+def test_vhm_bones_improve_on_the_outer_shape(mm):
+    """Summed over the twelve limb joints, the bones' joints lie nearer the reference than the outer shape's."""
+    v = from_bones(mm)
+    ref = v["reference"]
+    err = lambda rig: sum(float(np.linalg.norm(S.rig_joint(rig, n) - ref[n])) for n in LIMB_JOINTS)  # noqa: E731
+    assert err(v["rig"]) < 0.6 * err(v["plain"]), (err(v["rig"]), err(v["plain"]))
+
+
+def test_vhm_hips_below_the_knees_are_repaired():
+    """Issue 54's failure: an outer-shape rig with the hips below the knees (thighs touching) and the elbows 9 cm
+    too high. The bones put every limb joint back: a knee between the femur's and the tibia's facing ends, a hip at
+    the femur's end away from the knee, where the head's sphere is fitted."""
+    v = from_bones(2)
+    plain, ref = v["plain"], v["reference"]
+    joints = plain.joints.copy()
+    for side in "LR":
+        hip, knee = (int(plain.bones[plain.index(f"{b}.{side}")][0]) for b in ("thigh", "shin"))
+        elbow = int(plain.bones[plain.index(f"forearm.{side}")][0])
+        at = joints[knee].copy()
+        joints[hip], joints[knee] = at + [0, 0, -60], at + [0, 0, 150]
+        joints[elbow] += [0, 0, 90]
+    bad = volrig.Rig(joints, plain.bones, plain.names, plain.parents, plain.kind)
+    assert all(S.rig_joint(bad, f"hip.{s}")[2] < S.rig_joint(bad, f"knee.{s}")[2] for s in "LR")
+    rig = rig_to_bones(bad, v["bone"]).rig
+    errors = {n: round(float(np.linalg.norm(S.rig_joint(rig, n) - ref[n])), 1) for n in LIMB_JOINTS}
+    assert max(errors.values()) <= TOLERANCE[2], errors
+    for side in "LR":
+        assert S.rig_joint(rig, f"hip.{side}")[2] > S.rig_joint(rig, f"knee.{side}")[2] + 300
+
+
+def test_vhm_topology_and_other_joints_kept():
+    v = from_bones(4)
+    rig, plain = v["rig"], v["plain"]
+    assert rig.names == plain.names and np.array_equal(rig.bones, plain.bones)
+    assert np.array_equal(rig.parents, plain.parents) and rig.kind == plain.kind and rig.fit == plain.fit
+    moved = {j.joint for j in rig.bone_joints if j.moved}
+    ends = {int(plain.bones[plain.index(f"{b}.{s}")][1]) for b in ("hand", "foot") for s in "LR"}
+    changed = set(np.flatnonzero(np.abs(rig.joints - plain.joints).max(axis=1) > 0).tolist())
+    assert changed <= moved | ends and moved <= changed
+    for b in ("hand", "foot"):  # end joints keep their bone's direction and length
+        for s in "LR":
+            k = plain.index(f"{b}.{s}")
+            assert np.allclose(np.diff(rig.joints[rig.bones[k]], axis=0), np.diff(plain.joints[plain.bones[k]], axis=0))
+    assert (rig.joint_points[sorted(moved)] == -1).all()
+
+
+def test_without_bone_the_outer_shape_rig_is_unchanged():
+    v = vhm(4)
+    again = volrig.autorig(v["pts"], v["tree"], v["mask"], up=(0, 0, 1), bone=None)
+    plain = v["plain"]
+    assert again.bone_joints is None
+    assert np.array_equal(again.joints, plain.joints) and np.array_equal(again.bones, plain.bones)
+    assert np.array_equal(again.joint_points, plain.joint_points) and again.names == plain.names
+
+
+def test_bad_bone_masks_are_refused_clearly():
+    v = vhm(4)
+    with pytest.raises(volrig.VolrigError, match="same grid"):
+        volrig.autorig(v["pts"], v["tree"], v["mask"], bone=np.zeros((4, 4, 4), bool))
+    with pytest.raises(volrig.VolrigError, match="bone mask is empty"):
+        volrig.autorig(v["pts"], v["tree"], v["mask"], bone=v["mask"].like(np.zeros(v["mask"].array.shape, bool)))
+    with pytest.raises(volrig.VolrigError, match="empty"):
+        bone_segments(np.zeros((5, 5, 5), bool))
+
+
+def test_bone_segments_part_the_long_bones():
+    v = vhm(2)
+    segs, sizes = bone_segments(v["bone"])
+    lab = np.asarray(segs.array)
+    bone = np.asarray(v["bone"].array)
+    assert np.array_equal(lab > 0, bone & (lab > 0)) and len(sizes) == lab.max()
+    assert (lab > 0).sum() >= 0.97 * bone.sum()  # the bone, less the bits thinner than the opening
+    ref = S.visible_human_joints(v["labels"])
+
+    def at(p, r=20.0):
+        """The segment with the most voxels within r mm of p."""
+        c = np.rint((p - np.asarray(segs.origin)) / np.asarray(segs.spacing)).astype(int)[::-1]
+        k = int(np.ceil(r / min(segs.spacing)))
+        box = lab[c[0] - k:c[0] + k + 1, c[1] - k:c[1] + k + 1, c[2] - k:c[2] + k + 1]
+        counts = np.bincount(box[box > 0])
+        return int(np.argmax(counts)) if len(counts) else 0
+    for side in "LR":  # the femur's middle and the tibia's are different segments
+        hip, knee, ankle = ref[f"hip.{side}"], ref[f"knee.{side}"], ref[f"ankle.{side}"]
+        femur, tibia = at(0.5 * (hip + knee)), at(0.5 * (knee + ankle))
+        assert femur > 0 and tibia > 0 and femur != tibia
+
+
+def test_a_bent_knee_moves_the_whole_tibia_with_the_shin():
+    """The rig and the rigid layer agree: each bone segment binds wholly to its rig bone. The knee bent 90
+    degrees: every voxel of the tibia's segment in the rigid layer moves with shin.L (the rigid layer's piece of
+    it is exactly the segment moved by the shin's matrix) and no voxel of the femur does."""
+    from test_rigid_layer import piece_moved
+    v = vhm(2)
+    r = rig_skeleton(v["pts"], v["mask"], up=(0, 0, 1), rigid=v["bone"], bone=v["bone"])
+    fit = rig_to_bones(v["plain"], v["bone"])
+    assert np.allclose(fit.rig.joints, r.rig.joints)
+    lab = np.asarray(fit.segments.array)
+    rigid = r.binding.rigid
+    assert r.binding.rigid_whole and np.array_equal(rigid, separated(fit.segments, v["bone"]))
+    tibia = (lab == fit.bone_segment["shin.L"]) & rigid
+    femur = (lab == fit.bone_segment["thigh.L"]) & rigid
+    assert tibia.sum() >= 0.98 * (lab == fit.bone_segment["shin.L"]).sum() and femur.any()
+    d = volrig.Deformer(v["labels"], v["pts"], r.binding)
+    pose = r.rig.pose({"shin.L": ([1, 0, 0], 90)})
+    d.frame(pose, mode="rigid", sampling="nearest", values=False)
+    shin, thigh = r.rig.index("shin.L"), r.rig.index("thigh.L")
+    carried = np.zeros(lab.shape, np.int16)
+    for p in d._layer.pieces:
+        x, y, z = p.box[:3]
+        sz, sy, sx = p.voxels.shape
+        carried[z:z + sz, y:y + sy, x:x + sx][p.voxels > 0] = p.bone + 1
+    assert (carried[tibia] == shin + 1).all(), np.unique(carried[tibia], return_counts=True)
+    assert not (carried[femur] == shin + 1).any() and (carried[femur] == thigh + 1).all()
+    # the shin's pieces, moved by the shin's matrix, land where the tibia moved rigidly lands
+    spacing, origin = v["labels"].spacing, v["labels"].origin
+    m = np.asarray(pose[shin])
+    z, y, x = np.nonzero(tibia)
+    q = ((np.stack([x, y, z], axis=1) * spacing + origin) @ m[:3, :3].T + m[:3, 3] - origin) / spacing
+    want = set(map(tuple, np.floor(q + 0.5).astype(int).tolist()))
+    got = set()
+    for p in d._layer.pieces:
+        if p.bone == shin:
+            got |= set(map(tuple, piece_moved(p, m, spacing, origin).tolist()))
+    assert len(want & got) >= 0.97 * len(want)
+    assert np.linalg.norm(r.rig.joints[r.rig.bones[shin][1]] - fit.rig.joints[fit.rig.bones[shin][1]]) == 0
+
+
+def frog():
+    vol = volrig.load(str(shared("frogtissue/frogtissue.mhd")))
+    mask = volrig.segment(vol)
+    pts = volrig.skeletonize(mask).top(40000)
+    return vol, mask, pts, volrig.skeleton_tree(pts, mask), volrig.rigid_tissue(vol, labels=[13])
+
+
+def test_the_frog_rigs_with_its_skeleton_given():
+    """The frog (label 13 its skeleton) rigs with its bones given: a chains rig would be kept as is, with an empty
+    report; as a quadruped (its limbs misplaced: test_rig_real.py), each limb joint is placed or kept with its
+    reason, and at least one moves to the bones."""
+    vol, mask, pts, tree, bone = frog()
+    plain = volrig.autorig(pts, tree, mask, own_scale=False)
+    rig = volrig.autorig(pts, tree, mask, own_scale=False, bone=bone)
+    assert rig.names == plain.names
+    if plain.kind == "chains":
+        assert rig.bone_joints == [] and np.array_equal(rig.joints, plain.joints)
+    quad = volrig.autorig(pts, tree, mask, own_scale=False, kind="quadruped", bone=bone)
+    assert quad.kind == "quadruped" and len(quad.bone_joints) == 12
+    for j in quad.bone_joints:
+        assert isinstance(j, BoneJoint) and (j.moved != bool(j.why)), j
+        assert np.isfinite(j.after).all() and j.shift <= 120.0  # near the joint
+    assert any(j.moved and j.shift > 0 for j in quad.bone_joints)
