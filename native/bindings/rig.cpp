@@ -112,12 +112,34 @@ void bind_bones(py::module_& m) {
         py::arg("parents"), py::arg("opening") = 0.0, py::arg("min_volume") = 0.0, py::arg("reach") = 0.0);
 }
 
-}  // namespace
+/// What autorig worked on (AutorigDetail) into the result's dict.
+void add_detail(py::dict& d, AutorigDetail&& detail, std::size_t n_points) {
+    d["kept"] = to_numpy_shaped(std::move(detail.kept), {static_cast<py::ssize_t>(n_points)}).attr("view")("bool");
+    d["root"] = detail.root;
+    std::vector<double> nodes;
+    for (const auto& c : detail.nodes) nodes.insert(nodes.end(), c.begin(), c.end());
+    std::vector<std::uint32_t> ne;
+    for (const auto& ed : detail.node_edges) ne.insert(ne.end(), ed.begin(), ed.end());
+    const auto nn = static_cast<py::ssize_t>(detail.nodes.size());
+    d["nodes"] = to_numpy_shaped(std::move(nodes), {nn, 3});
+    d["node_radius"] = to_numpy_shaped(std::move(detail.node_radius), {nn});
+    d["node_edges"] = to_numpy_shaped(std::move(ne), {static_cast<py::ssize_t>(detail.node_edges.size()), 2});
+    d["node_kept"] = to_numpy_shaped(std::move(detail.node_kept), {nn}).attr("view")("bool");
+    d["reading_kind"] = detail.reading_kind;
+    std::vector<double> feats;
+    for (const auto& f : detail.reading_features) feats.insert(feats.end(), f.begin(), f.end());
+    d["reading_features"] = to_numpy_shaped(std::move(feats), {static_cast<py::ssize_t>(detail.reading_kind.size()),
+                        static_cast<py::ssize_t>(autorig_plan_terms().size())});
+    std::vector<std::int64_t> leaves(5 * detail.reading_leaves.size(), -1);
+    for (std::size_t r = 0; r < detail.reading_leaves.size(); ++r)
+        for (std::size_t k = 0; k < std::min<std::size_t>(5, detail.reading_leaves[r].size()); ++k)
+            leaves[5 * r + k] = detail.reading_leaves[r][k];
+    d["reading_leaves"] = to_numpy_shaped(std::move(leaves), {static_cast<py::ssize_t>(detail.reading_leaves.size()), 5});
+    d["chains_fit"] = detail.chains_fit;
+}
 
-void bind_rig(py::module_& m) {
-    m.attr("AUTORIG_KINDS") = names_tuple(kAutorigKinds);  // spelled once in the core (volrig/rig.hpp)
-    m.attr("MARKER_NAMES") = names_tuple(kMarkerNames);
-    m.attr("PLAN_TERMS") = py::tuple(py::cast(autorig_plan_terms()));
+/// autorig (volrig/rig.hpp; python/volrig/rig.py).
+void bind_autorig(py::module_& m) {
     m.def(
         "autorig",
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
@@ -145,29 +167,22 @@ void bind_rig(py::module_& m) {
                 r = autorig(g, mask.data(), pts, e, opt, p, &detail);
             }
             py::dict d = dict_of(std::move(r));
-            d["kept"] = to_numpy_shaped(std::move(detail.kept), {static_cast<py::ssize_t>(pts.n)}).attr("view")("bool");
-            d["root"] = detail.root;
-            std::vector<double> nodes;
-            for (const auto& c : detail.nodes) nodes.insert(nodes.end(), c.begin(), c.end());
-            std::vector<std::uint32_t> ne;
-            for (const auto& ed : detail.node_edges) ne.insert(ne.end(), ed.begin(), ed.end());
-            const auto nn = static_cast<py::ssize_t>(detail.nodes.size());
-            d["nodes"] = to_numpy_shaped(std::move(nodes), {nn, 3});
-            d["node_radius"] = to_numpy_shaped(std::move(detail.node_radius), {nn});
-            d["node_edges"] = to_numpy_shaped(std::move(ne), {static_cast<py::ssize_t>(detail.node_edges.size()), 2});
-            d["node_kept"] = to_numpy_shaped(std::move(detail.node_kept), {nn}).attr("view")("bool");
-            d["reading_kind"] = detail.reading_kind;
-            std::vector<double> feats;
-            for (const auto& f : detail.reading_features) feats.insert(feats.end(), f.begin(), f.end());
-            d["reading_features"] = to_numpy_shaped(std::move(feats), {static_cast<py::ssize_t>(detail.reading_kind.size()),
-                                                                        static_cast<py::ssize_t>(autorig_plan_terms().size())});
-            d["chains_fit"] = detail.chains_fit;
+            add_detail(d, std::move(detail), pts.n);
             return d;
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
         py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"), py::arg("kind") = "",
         py::arg("up") = py::none(), py::arg("own_scale") = true, py::arg("progress") = py::none(),
         py::arg("markers") = std::map<std::string, Vec3>{}, py::arg("plan_weights") = std::vector<double>{});
+}
+
+}  // namespace
+
+void bind_rig(py::module_& m) {
+    m.attr("AUTORIG_KINDS") = names_tuple(kAutorigKinds);  // spelled once in the core (volrig/rig.hpp)
+    m.attr("MARKER_NAMES") = names_tuple(kMarkerNames);
+    m.attr("PLAN_TERMS") = py::tuple(py::cast(autorig_plan_terms()));
+    bind_autorig(m);
 
     m.def(
         "bind",

@@ -214,8 +214,9 @@ class AutorigResult:
     root:       the point the pruned tree was rooted at.
     nodes:      (K, 3) centroids of the level-set tree's nodes; node_radius (K,); node_edges (K-1, 2);
     node_kept:  (K,) bool, nodes left after pruning.
-    reading_kind, reading_features: every body-plan reading the search scored: its kind and (R, len(PLAN_TERMS))
-                features (for fitting the plan weights: benchmarks/fit_plan_weights.py).
+    reading_kind, reading_features, reading_leaves: every body-plan reading the search scored: its kind,
+                (R, len(PLAN_TERMS)) features and (R, 5) extremities (node indices: head, legs, arms; a hand's
+                wrist then -1) (for fitting the plan weights: benchmarks/fit_plan_weights.py).
     chains_fit: neutral chains' fit (-1 when not built).
     """
     kept: np.ndarray
@@ -227,6 +228,7 @@ class AutorigResult:
     reading_kind: List[str] = field(default_factory=list)
     reading_features: Optional[np.ndarray] = None
     chains_fit: float = -1.0
+    reading_leaves: Optional[np.ndarray] = None
 
 
 #: The templates autorig fits (spelled once in the core: volrig/rig.hpp kAutorigKinds).
@@ -294,7 +296,7 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"], list(d["reading_kind"]), d["reading_features"],
-                                    float(d["chains_fit"])))
+                                    float(d["chains_fit"]), d["reading_leaves"]))
     rig = Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
               np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]), d["note"])
     if bone is None:

@@ -98,6 +98,8 @@ struct AutorigDetail {
     /// Every body-plan reading the search scored: its kind and features (autorig_plan_terms), for fitting weights.
     std::vector<std::string> reading_kind;
     std::vector<std::vector<double>> reading_features;
+    /// ... and its extremities (indices into nodes): head, legs, arms; a hand's wrist only.
+    std::vector<std::vector<std::uint32_t>> reading_leaves;
     /// Neutral chains' fit (1 - worst deviation; -1 when chains were not built).
     double chains_fit = -1;
 };

@@ -46,6 +46,7 @@ class PlanSubject:
     mesh: Optional[tuple] = None
     mask: object = None
     reference: Optional[tuple] = None
+    head: Optional[tuple] = None  #: the direction of the head end, when known (a humanoid's: up)
 
     @property
     def plan_label(self) -> str:
@@ -100,7 +101,8 @@ def characters(names: Optional[Sequence[str]] = None) -> List[PlanSubject]:
         v, f = volrig.read_mesh(str(root / row["mesh"]))
         ref = read_rig(root / row["rig"])[:2] if row.get("rig") else None
         out.append(PlanSubject(row["mesh"], row["plan"], AXES[row["up"]], row["mesh"].split("/")[0],
-                               mesh=(np.asarray(v, float), np.asarray(f)), reference=ref))
+                               mesh=(np.asarray(v, float), np.asarray(f)), reference=ref,
+                               head=AXES[row["up"]] if row["plan"] == "humanoid" else None))
     return out
 
 
@@ -116,7 +118,8 @@ def old_subjects(names: Sequence[str] = OLD_SUBJECTS) -> List[PlanSubject]:
             s = load_subject(mesh, voxels=int(voxels))
         else:
             s = load_subject(name)
-        out.append(PlanSubject(name, s.kind, tuple(float(u) for u in s.up), "older", mask=s.mask))
+        out.append(PlanSubject(name, s.kind, tuple(float(u) for u in s.up), "older", mask=s.mask,
+                               head=tuple(float(u) for u in s.head)))
     return out
 
 

@@ -137,6 +137,7 @@ void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_de
     for (const auto& r : readings) {
         detail.reading_kind.push_back(r.kind);
         detail.reading_features.emplace_back(r.features.begin(), r.features.end());
+        detail.reading_leaves.push_back(r.leaves);
     }
 }
 
