@@ -53,16 +53,20 @@ class PlanSubject:
         return plan_label(self.plan)
 
     def rig(self, **options):
-        """The rig a user gets (options go to autorig: detail=, plan_weights=, markers=, kind=)."""
+        """The rig a user gets (options go to autorig: detail=, plan_weights=, markers=, kind=): a mesh voxelized as
+        ``volrig.rig_mesh`` voxelizes it (its longest side / 160), then for both the skeleton at the default
+        thinness and ``pipeline.rig_skeleton``: rig_mesh's steps without its skin weights."""
         import volrig
         from volrig import pipeline as P
+        from volrig.skin import MESH_VOXELS, mesh_voxel_size
+        mask = self.mask
         if self.mesh is not None:
             v, f = self.mesh
-            return volrig.rig_mesh(v, f, up=self.up, **options).rig
-        sk = P.skeleton_of(self.mask)
+            mask = volrig.voxelize(v, f, mesh_voxel_size(v, MESH_VOXELS))
+        sk = P.skeleton_of(mask)
         pts = P.skeleton_points(sk, thinness=P.thinness_from_voxels(P.DEFAULT_THINNESS_VOXELS, sk.metric,
-                                                                     self.mask.spacing))
-        return P.rig_skeleton(pts, self.mask, up=self.up, **options).rig
+                                                                     mask.spacing))
+        return P.rig_skeleton(pts, mask, up=self.up, **options).rig
 
     def vertices(self) -> np.ndarray:
         """Points whose bounding box normalises the metric: the mesh's vertices, or the mask's corners."""
