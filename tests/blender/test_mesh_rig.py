@@ -270,3 +270,28 @@ def test_undo_removes_the_rig(empty_scene):
     assert not any(o.type == "ARMATURE" for o in bpy.data.objects)
     obj = bpy.data.objects["bar"]
     assert not obj.modifiers and not obj.vertex_groups and obj.parent is None and obj.data.shape_keys is None
+
+
+def test_markers_on_a_mesh_place_its_joints(empty_scene):
+    """The Mesh panel's Markers: markers parented to the mesh (a click's ray: half-way between where it enters
+    and leaves the surface) go to rig_mesh; the marked joint sits on its marker."""
+    from mathutils import Vector
+    from volrig_addon import markers
+    obj = knight()
+    bpy.context.view_layer.objects.active = obj
+    # a ray from the front (-Y) through the knight's middle: the marker lies inside, between its two surfaces
+    box = np.array([tuple(c) for c in obj.bound_box])
+    centre = box.mean(0)
+    p = markers.mesh_ray_marker(obj, (centre[0], box[:, 1].min() - 1.0, centre[2]), (0.0, 1.0, 0.0))
+    assert p is not None and box[:, 1].min() < p[1] < box[:, 1].max()
+    assert markers.mesh_ray_marker(obj, (centre[0], box[:, 1].min() - 1.0, centre[2]), (0.0, -1.0, 0.0)) is None
+    run_op(bpy.ops.volrig.rig_mesh)
+    knee = {b.name: b.head_local for b in obj.parent.data.bones}["shin.L"]
+    target = Vector(knee) + Vector((0.0, 0.0, 0.05 * float(np.ptp(box[:, 2]))))  # the knee 5% higher
+    obj.volrig.marker_name = "knee.L"
+    run_op(bpy.ops.volrig.place_marker, location=tuple(obj.matrix_world @ target))
+    assert set(markers.markers_of(obj)) == {"knee.L"}
+    bpy.context.view_layer.objects.active = obj
+    run_op(bpy.ops.volrig.rig_mesh)
+    moved = {b.name: b.head_local for b in obj.parent.data.bones}["shin.L"]
+    assert (moved - target).length < 1e-4
