@@ -13,7 +13,6 @@ import argparse
 import json
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -21,21 +20,12 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "support"))
 import volrig  # noqa: E402
+from bench_rig import best_of  # noqa: E402  (benchmarks/ is the script's folder, on sys.path)
 from volrig.bones import rig_to_bones  # noqa: E402
 from volrig_support import subjects as S  # noqa: E402
 
 BONE = (84, 92)
 JOINTS = [f"{j}.{s}" for s in "LR" for j in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")]
-
-
-def best_of(repeat, f):
-    times, out = [], None
-    for _ in range(repeat):
-        out = None
-        t0 = time.perf_counter()
-        out = f()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
 
 
 def main() -> int:
