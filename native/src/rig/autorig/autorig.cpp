@@ -125,6 +125,21 @@ void finish_plan(Candidate& k, double score, const PlanInput& in) {
         rig_detail::apply_markers(k.rig, in.markers, in.up ? *in.up : k.up);
 }
 
+/// The body plan markers name, when they show it: a humanoid's wrists are above its knees along up (standing,
+/// sitting, arms raised or out), a quadruped's front feet (its "wrists") below its hind knees. "" when the markers
+/// hold no wrist or no knee, or up is not given.
+std::string marked_kind(const PlanInput& in) {
+    if (!in.up) return "";
+    double wrist = 0, knee = 0;
+    int nw = 0, nk = 0;
+    for (const auto& [name, at] : in.markers) {
+        if (name.rfind("wrist.", 0) == 0) wrist += at.dot(*in.up), ++nw;
+        if (name.rfind("knee.", 0) == 0) knee += at.dot(*in.up), ++nk;
+    }
+    if (nw == 0 || nk == 0) return "";
+    return wrist / nw > knee / nk ? "humanoid" : "quadruped";
+}
+
 /// Every reading scored, for fitting the weights (AutorigDetail): the body plans' and the hand's best.
 void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_detail::HandPlan& hand,
                      AutorigDetail& detail) {
@@ -167,6 +182,9 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     std::vector<Candidate> out;
     for (auto& [key, k] : ranked)
         if (!k.rig.bones.empty() && consistent(k.rig)) out.push_back(std::move(k));
+    // The plan the markers show goes first, when it could be built.
+    const std::string marked = opt.kind.empty() ? marked_kind(in) : "";
+    std::stable_partition(out.begin(), out.end(), [&](const Candidate& k) { return k.rig.kind == marked; });
     return out;
 }
 
