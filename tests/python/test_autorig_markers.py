@@ -105,3 +105,16 @@ def test_cli_rig_takes_markers(tmp_path, stride):
     assert np.linalg.norm(S.rig_joint(rig, "knee.L") - s.joints["knee.L"]) < 1e-6
     marks.write_text("[1, 2]")
     assert main(["rig", str(vol), "--lo", "1", "--markers", str(marks), "-o", str(out)]) == 2
+
+
+def test_wrists_above_the_knees_make_a_humanoid_below_them_a_quadruped(stride):
+    s, pts, tree = stride
+    marks = {n: s.joints[n] for n in ("wrist.L", "wrist.R", "knee.L")}
+    assert volrig.autorig(pts, tree, s.mask, markers=marks, up=(0, 0, 1)).kind == "humanoid"
+    dog = S.capsule_quadruped_subject(0)
+    dpts = volrig.skeletonize(dog.mask).top(15000)
+    dtree = volrig.skeleton_tree(dpts, dog.mask)
+    marks = {n: dog.joints[n] for n in ("wrist.L", "wrist.R", "knee.L")}  # front feet below the hind knees
+    rig = volrig.autorig(dpts, dtree, dog.mask, markers=marks, up=(0, 0, 1))
+    assert rig.kind == "quadruped"
+    assert np.linalg.norm(S.rig_joint(rig, "wrist.L") - dog.joints["wrist.L"]) < 1e-6
