@@ -19,10 +19,15 @@ ASKED = ("chin", "wrist.L", "wrist.R", "groin", "knee.L", "knee.R")
 
 
 def target(context):
-    """The object markers go on: the active object's volrig volume, else the active mesh Rig Mesh rigs."""
-    from .mesh_rig import _target
-    vol = objects.volume_of(context.active_object)
-    return vol if vol is not None else _target(context)
+    """The object markers go on: the active object's volrig volume, else the active mesh (or the mesh a Rig Mesh
+    armature deforms: its ``volrig_mesh``), as the Mesh panel's ``mesh_rig._target``."""
+    obj = context.active_object
+    vol = objects.volume_of(obj)
+    if vol is not None or obj is None:
+        return vol
+    if obj.type == "ARMATURE":
+        return obj.get("volrig_mesh")
+    return obj if obj.type == "MESH" and obj.volrig.role == "NONE" else None
 
 
 def markers_of(obj) -> dict:
