@@ -730,15 +730,34 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
     v.grid = g.out;
     v.dtype = DType::UInt8;
     report(progress, 0.0);
-    const bool winding = opt.method == VoxelizeMethod::Winding ||
-                         (opt.method == VoxelizeMethod::Auto && !is_closed(mesh));
+    // Auto on a mesh that is not closed: the union of both masks (the flood's losses are interiors the exterior
+    // leaked into, the winding number's are connections the closing makes across narrow gaps; neither adds much).
+    const bool open = opt.method == VoxelizeMethod::Auto && !is_closed(mesh);
+    const bool flood = opt.method == VoxelizeMethod::Flood || opt.method == VoxelizeMethod::Auto;
+    const bool winding = opt.method == VoxelizeMethod::Winding || open;
+    const double split = flood && winding ? 0.5 : 1.0;
     std::int64_t inside = 0;
-    if (winding) {
-        inside = winding_mask(mesh, g.out, v, progress);
-    } else {
+    if (flood) {
+        const Progress part = !progress || split == 1.0 ? progress : Progress([&](double x) { return progress(split * x); });
         const IndexMesh m = index_mesh(mesh, g.work);
-        inside = opt.closing_radius == 0 ? signed_distance_mask(m, g, v, progress)
-                                         : closing_mask(m, g, opt.closing_radius, v, progress);
+        inside = opt.closing_radius == 0 ? signed_distance_mask(m, g, v, part)
+                                         : closing_mask(m, g, opt.closing_radius, v, part);
+    }
+    if (winding) {
+        const Progress part = !progress || split == 1.0
+                                  ? progress
+                                  : Progress([&](double x) { return progress(split + (1 - split) * x); });
+        if (!flood) {
+            inside = winding_mask(mesh, g.out, v, part);
+        } else {
+            Volume w;
+            winding_mask(mesh, g.out, w, part);
+            inside = 0;
+            for (std::size_t i = 0; i < v.data.size(); ++i) {
+                v.data[i] |= w.data[i];
+                inside += v.data[i];
+            }
+        }
     }
     if (inside == 0)
         throw Error("voxelize: the mesh encloses no voxel centre at voxel size " + number(h) +
