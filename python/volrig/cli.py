@@ -623,8 +623,8 @@ def _rig_command(sub) -> None:
     _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
     p.add_argument("--voxel-size", type=float, help="meshes (.obj .ply .off .stl .mesh): voxel size, mesh units")
     p.add_argument("--voxelize", choices=("auto", "winding", "flood"), default="auto",
-                   help="meshes: inside/outside test (default auto: the generalized winding number when the mesh "
-                        "is not closed, else the flood fill; see volrig.voxelize)")
+                   help="meshes: inside/outside test (default auto: the flood fill, and for a mesh that is not "
+                        "closed also the generalized winding number's solid; see volrig.voxelize)")
     p.add_argument("--alpha", type=float, default=0.9, help="skeleton-tree connectivity parameter (0..1)")
     p.add_argument("--max-edge", type=float, help="longest tree edge in world units (default 4 voxel diagonals)")
     p.add_argument("--bones", type=int, help="bone count target (default 24; role rigs use 21)")

@@ -4,8 +4,8 @@
 grid border through voxels farther than ``closing_radius`` voxels from the surface, so holes narrower than about
 twice that radius are bridged (see native/include/volrig/mesh.hpp for the method and its limits). Surfaces that
 are not closed (soups of open parts, missing caps) are better served by ``method="winding"`` (the generalized
-winding number) or ``method="auto"`` (the winding number unless the mesh is closed), which ``rig_mesh`` and the
-command line use.
+winding number) or ``method="auto"`` (for a mesh that is not closed, the union of both), which ``rig_mesh`` and
+the command line use.
 """
 from __future__ import annotations
 
@@ -81,8 +81,10 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     method:         "flood" (default; the exterior flood fill above, exact for closed surfaces), "winding" (inside
                     where the generalized winding number |w| >= 0.5: for meshes that are not closed: separate open
                     parts, missing caps, open skirts, overlapping or reversed pieces; ``closing_radius`` unused) or
-                    "auto" (winding when some edge is not shared by exactly two triangles, else flood, so a closed
-                    mesh gives exactly flood's mask). ``rig_mesh`` and the command line use "auto".
+                    "auto" (flood for a closed mesh, so it gives exactly flood's mask; when some edge is not shared
+                    by exactly two triangles, the union of flood's and winding's masks: the winding number restores
+                    the interiors the flood loses through wide holes, the flood keeps what its closing joins).
+                    ``rig_mesh`` and the command line use "auto".
 
     The volume's origin is the world position of voxel (0, 0, 0)'s centre; voxel (x, y, z) is inside when its
     centre is. Raises ValueError for bad arguments, a grid above the size limit ($VOLRIG_MAX_BYTES, default 16 GiB

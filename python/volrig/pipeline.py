@@ -197,7 +197,8 @@ def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float]
               voxelize_method: str = "auto", **hints) -> Volume:
     """The object mask of a file: a mesh (``volrig.mesh.MESH_EXTENSIONS``) voxelized at ``voxel_size`` (default
     ``volrig.skin.mesh_voxel_size``: the bounding box's longest side / 160, as ``rig_mesh`` and the add-on) by
-    ``voxelize_method`` (``voxelize``'s method: "auto" fills meshes that are not closed by the winding number),
+    ``voxelize_method`` (``voxelize``'s method: "auto" adds the winding number's solid for meshes that are not
+    closed),
     else the volume (``hints`` as for ``load_source``) segmented."""
     if path.lower().endswith(MESH_EXTENSIONS):
         from .mesh import read_mesh, voxelize
@@ -271,8 +272,9 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     skin_points: (S, 3) points to skin instead of the vertices (same frame), e.g. a Blender mesh's own vertices when
     the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
     mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
-    voxelize_method: ``voxelize``'s method; "auto" (default) fills a mesh that is not closed (open parts, missing
-    caps) by the generalized winding number and a closed one by the flood fill, "flood" as before for any mesh.
+    voxelize_method: ``voxelize``'s method; "auto" (default) adds the generalized winding number's solid to the
+    flood fill's for a mesh that is not closed (open parts, missing caps) and takes the flood fill alone for a
+    closed one; "flood" as before for any mesh.
     """
     thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v = _points(vertices)
