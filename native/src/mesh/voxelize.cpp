@@ -701,21 +701,27 @@ std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Pr
     });
     report(progress, 0.15);
 
-    const std::int64_t inside = tbb::parallel_reduce(
-        tbb::blocked_range<std::int64_t>(0, bx * by * bz, 1), std::int64_t(0),
-        [&](const tbb::blocked_range<std::int64_t>& r, std::int64_t count) {
-            for (std::int64_t b = r.begin(); b != r.end(); ++b) {
-                const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
-                float c[8];
-                for (int k = 0; k < 8; ++k)
-                    c[k] = corner[static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx + jx +
-                                                           (k & 1))];
-                count += filler.fill(jx * kStride, jy * kStride, jz * kStride, kStride, c);
-            }
-            return count;
-        },
-        [](std::int64_t a, std::int64_t b) { return a + b; });
-    report(progress, 0.95);
+    // Blocks in about ten slabs of block rows, so that progress is reported (and a cancel seen) between them
+    // from the calling thread.
+    const std::int64_t blocks = bx * by * bz, chunk = std::max<std::int64_t>(bx * by, blocks / 10);
+    std::int64_t inside = 0;
+    for (std::int64_t first = 0; first < blocks; first += chunk) {
+        inside += tbb::parallel_reduce(
+            tbb::blocked_range<std::int64_t>(first, std::min(blocks, first + chunk), 1), std::int64_t(0),
+            [&](const tbb::blocked_range<std::int64_t>& r, std::int64_t count) {
+                for (std::int64_t b = r.begin(); b != r.end(); ++b) {
+                    const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
+                    float c[8];
+                    for (int k = 0; k < 8; ++k)
+                        c[k] = corner[static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx +
+                                                               jx + (k & 1))];
+                    count += filler.fill(jx * kStride, jy * kStride, jz * kStride, kStride, c);
+                }
+                return count;
+            },
+            [](std::int64_t a, std::int64_t b) { return a + b; });
+        report(progress, 0.15 + 0.8 * static_cast<double>(std::min(blocks, first + chunk)) / static_cast<double>(blocks));
+    }
     return inside;
 }
 
