@@ -169,10 +169,11 @@ bool is_closed(const Mesh& mesh);
 /// non-finite voxel sizes, grids beyond max_bytes or 2^28 voxels along an axis, and meshes that enclose no voxel
 /// centre at this voxel size.
 ///
-/// With VoxelizeMethod::Winding (or Auto on a mesh that is not closed) a voxel is inside when the generalized
-/// winding number at its centre has |w| >= 0.5; it is evaluated on a lattice of every 4th voxel, and only the
-/// 4-voxel blocks that come within their circumradius of the surface or whose corners disagree (or lie within 0.1
-/// of the threshold) are evaluated voxel by voxel.
+/// With VoxelizeMethod::Winding a voxel is inside when the generalized winding number at its centre has
+/// |w| >= 0.5 (closing_radius unused); it is evaluated on a lattice of every 8th voxel, and a block is split in
+/// eight (recursively, down to single voxels) only when the surface comes within its circumradius (plus half a
+/// voxel) or its corners disagree or lie within 0.1 of the threshold. Auto on a mesh that is not closed gives the
+/// union of the Flood and Winding masks; on a closed mesh exactly Flood's.
 Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt, const Progress& progress = {});
 
 /// Same with default options except the padding.
