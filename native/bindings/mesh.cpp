@@ -55,12 +55,20 @@ void bind_mesh(py::module_& m) {
     m.def(
         "voxelize",
         [](const Vertices& vertices, const Faces& faces, double voxel_size, double padding, double closing_radius,
-           const py::object& progress, const std::optional<std::array<double, 3>>& anchor) {
+           const py::object& progress, const std::optional<std::array<double, 3>>& anchor, const std::string& method) {
             const std::size_t nv = rows_of(vertices, "vertices"), nf = rows_of(faces, "faces");
             VoxelizeOptions opt;
             opt.padding_voxels = padding;
             opt.closing_radius = closing_radius;
             opt.anchor = anchor;
+            if (method == "flood")
+                opt.method = VoxelizeMethod::Flood;
+            else if (method == "winding")
+                opt.method = VoxelizeMethod::Winding;
+            else if (method == "auto")
+                opt.method = VoxelizeMethod::Auto;
+            else
+                throw Error("voxelize: method must be 'auto', 'winding' or 'flood', got '" + method + "'");
             Progress p = progress_of(progress);
             Volume v;
             {
@@ -72,8 +80,9 @@ void bind_mesh(py::module_& m) {
         },
         py::arg("vertices"), py::arg("faces"), py::arg("voxel_size"), py::arg("padding") = 2.0,
         py::arg("closing_radius") = 1.5, py::arg("progress") = py::none(), py::arg("anchor") = py::none(),
+        py::arg("method") = "flood",
         "voxelize(vertices (V, 3), faces (F, 3), voxel_size, padding=2, closing_radius=1.5, progress=None, "
-        "anchor=None)\n"
+        "anchor=None, method='flood')\n"
         "-> (uint8 mask [z, y, x], spacing, origin). See volrig/mesh.hpp.");
 }
 

@@ -121,7 +121,8 @@ def _mask_and_skeleton(args):
     """The mask (segmented volume, or voxelized mesh) and its skeleton points, as the options say."""
     from .pipeline import Segmentation, load_mask, skeleton_of, skeleton_points, thinness_from_voxels
     seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
-    mask = load_mask(args.file, seg, voxel_size=args.voxel_size, **_hints(args))
+    mask = load_mask(args.file, seg, voxel_size=args.voxel_size,
+                     voxelize_method=getattr(args, "voxelize", "auto"), **_hints(args))
     bars = StepBars() if _show_progress(args) else None
     sk = skeleton_of(mask, args.metric, progress=bars)
     if bars is not None:
@@ -647,6 +648,9 @@ def _rig_command(sub) -> None:
     _add_load_options(p)
     _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
     p.add_argument("--voxel-size", type=float, help="meshes (.obj .ply .off .stl .mesh): voxel size, mesh units")
+    p.add_argument("--voxelize", choices=("auto", "winding", "flood"), default="auto",
+                   help="meshes: inside/outside test (default auto: the flood fill, and for a mesh that is not "
+                        "closed also the generalized winding number's solid; see volrig.voxelize)")
     p.add_argument("--alpha", type=float, default=0.9, help="skeleton-tree connectivity parameter (0..1)")
     p.add_argument("--max-edge", type=float, help="longest tree edge in world units (default 4 voxel diagonals)")
     p.add_argument("--bones", type=int, help="bone count target (default 24; role rigs use 21)")

@@ -2,7 +2,10 @@
 
 ``voxelize`` fills the solid a surface encloses. It tolerates small holes: the exterior is flood-filled from the
 grid border through voxels farther than ``closing_radius`` voxels from the surface, so holes narrower than about
-twice that radius are bridged (see native/include/volrig/mesh.hpp for the method and its limits).
+twice that radius are bridged (see native/include/volrig/mesh.hpp for the method and its limits). Surfaces that
+are not closed (soups of open parts, missing caps) are better served by ``method="winding"`` (the generalized
+winding number) or ``method="auto"`` (for a mesh that is not closed, the union of both), which ``rig_mesh`` and
+the command line use.
 """
 from __future__ import annotations
 
@@ -47,6 +50,10 @@ def read_tgf(path) -> Tuple[np.ndarray, np.ndarray]:
     return joints, edges.astype(np.int64)
 
 
+#: voxelize's inside/outside tests.
+VOXELIZE_METHODS: Tuple[str, ...] = ("auto", "winding", "flood")
+
+
 def _number(value, what: str) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise VolrigError(f"{what} must be a number, got {value!r}")
@@ -57,7 +64,7 @@ def _number(value, what: str) -> float:
 
 
 def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: ProgressFn = None, *,
-             closing_radius: float = 1.5, anchor=None) -> Volume:
+             closing_radius: float = 1.5, anchor=None, method: str = "flood") -> Volume:
     """The solid a triangle mesh encloses, as a boolean mask ``Volume``.
 
     vertices:       (V, 3) positions (x, y, z), any real dtype; finite.
@@ -71,6 +78,13 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     anchor:         (x, y, z) a point the voxel lattice must pass through (voxel centres at anchor + k * voxel_size;
                     the grid may start a voxel lower), e.g. another voxelization's origin, to compare the two voxel
                     for voxel (a mesh and its posed copy).
+    method:         "flood" (default; the exterior flood fill above, exact for closed surfaces), "winding" (inside
+                    where the generalized winding number |w| >= 0.5: for meshes that are not closed: separate open
+                    parts, missing caps, open skirts, overlapping or reversed pieces; ``closing_radius`` unused) or
+                    "auto" (flood for a closed mesh, so it gives exactly flood's mask; when some edge is not shared
+                    by exactly two triangles, the union of flood's and winding's masks: the winding number restores
+                    the interiors the flood loses through wide holes, the flood keeps what its closing joins).
+                    ``rig_mesh`` and the command line use "auto".
 
     The volume's origin is the world position of voxel (0, 0, 0)'s centre; voxel (x, y, z) is inside when its
     centre is. Raises ValueError for bad arguments, a grid above the size limit ($VOLRIG_MAX_BYTES, default 16 GiB
@@ -107,9 +121,11 @@ def voxelize(vertices, faces, voxel_size: float, padding: float = 2, progress: P
     closing = _number(closing_radius, "closing_radius")
     if not (closing == 0 or 0.5 <= closing <= 4):
         raise VolrigError(f"closing_radius must be 0 or between 0.5 and 4 voxels, got {closing}")
+    if method not in VOXELIZE_METHODS:
+        raise VolrigError(f"method must be one of {', '.join(map(repr, VOXELIZE_METHODS))}, got {method!r}")
     if anchor is not None:
         anchor = tuple(_number(a, "anchor") for a in np.asarray(anchor, dtype=np.float64).reshape(3))
-    mask, spacing, origin = _volrig.voxelize(v, f, size, pad, closing, progress, anchor)
+    mask, spacing, origin = _volrig.voxelize(v, f, size, pad, closing, progress, anchor, method)
     return Volume(mask.view(np.bool_), spacing, origin)
 
 

@@ -194,17 +194,20 @@ class Segmentation:
         return int(np.count_nonzero(keep))
 
 
-def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float] = None, **hints) -> Volume:
+def load_mask(path: str, segmentation: Segmentation, voxel_size: Optional[float] = None,
+              voxelize_method: str = "auto", **hints) -> Volume:
     """The object mask of a file: a mesh (``volrig.mesh.MESH_EXTENSIONS``) voxelized at ``voxel_size`` (default
-    ``volrig.skin.mesh_voxel_size``: the bounding box's longest side / 160, as ``rig_mesh`` and the add-on), else
-    the volume (``hints`` as for ``load_source``) segmented."""
+    ``volrig.skin.mesh_voxel_size``: the bounding box's longest side / 160, as ``rig_mesh`` and the add-on) by
+    ``voxelize_method`` (``voxelize``'s method: "auto" adds the winding number's solid for meshes that are not
+    closed),
+    else the volume (``hints`` as for ``load_source``) segmented."""
     if path.lower().endswith(MESH_EXTENSIONS):
         from .mesh import read_mesh, voxelize
         from .skin import mesh_voxel_size
         vertices, faces = read_mesh(path)
         if voxel_size is None:
             voxel_size = mesh_voxel_size(vertices)
-        return voxelize(vertices, faces, voxel_size)
+        return voxelize(vertices, faces, voxel_size, method=voxelize_method)
     return segmentation.mask(load_source(path, **hints), name=path)
 
 
@@ -270,7 +273,7 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
 
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
              thinness: Optional[float] = None, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
-             skin_points=None, **autorig_options) -> MeshRig:
+             skin_points=None, voxelize_method: str = "auto", **autorig_options) -> MeshRig:
     """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
     side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
     ``DEFAULT_THINNESS_VOXELS``, half a voxel), autorig
@@ -281,12 +284,15 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     skin_points: (S, 3) points to skin instead of the vertices (same frame), e.g. a Blender mesh's own vertices when
     the triangles voxelized are its evaluated surface after modifiers that change the topology (subdivision,
     mirror). The MeshRig then holds them as ``vertices`` (its ``weights`` are (S, B)) and ``faces`` is empty.
+    voxelize_method: ``voxelize``'s method; "auto" (default) adds the generalized winding number's solid to the
+    flood fill's for a mesh that is not closed (open parts, missing caps) and takes the flood fill alone for a
+    closed one; "flood" as before for any mesh.
     """
     thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v = _points(vertices)
     f = np.asarray(faces)
     size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
-    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15))
+    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15), method=voxelize_method)
     step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
     staged = None if progress is None else \
         (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))

@@ -354,6 +354,9 @@ void check_options(double h, const VoxelizeOptions& opt) {
     if (!std::isfinite(h) || h <= 0) throw Error("voxelize: voxel size must be finite and positive, got " + number(h));
     if (!std::isfinite(opt.padding_voxels) || opt.padding_voxels < 0 || opt.padding_voxels > 1000)
         throw Error("voxelize: padding must be between 0 and 1000 voxels, got " + number(opt.padding_voxels));
+    if (opt.method != VoxelizeMethod::Flood && opt.method != VoxelizeMethod::Winding &&
+        opt.method != VoxelizeMethod::Auto)
+        throw Error("voxelize: unknown method");
     const double r = opt.closing_radius;
     if (!(r == 0 || (r >= 0.5 && r <= 4)))
         throw Error("voxelize: closing radius must be 0 or between 0.5 and 4 voxels, got " + number(r));
@@ -578,6 +581,150 @@ std::int64_t closing_mask(const IndexMesh& m, const Grids& g, double r, Volume& 
     });
 }
 
+/// The recursive fill of VoxelizeMethod::Winding (winding_mask).
+class WindingFill {
+public:
+    WindingFill(const WindingNumber& wn, const TriangleTree& tree, const Grid& out, std::uint8_t* dst)
+        : wn_(wn), tree_(tree), nx_(out.dims[0]), ny_(out.dims[1]), nz_(out.dims[2]), dst_(dst) {}
+
+    float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return static_cast<float>(
+            std::abs(wn_({static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)})));
+    }
+
+    /// Fills the voxels of the block [x0, x0 + s)^3 (clipped to the grid) whose corners (x0 + s * (k & 1),
+    /// y0 + s * (k >> 1 & 1), z0 + s * (k >> 2)) have |w| = c[k]; returns the number of inside voxels.
+    std::int64_t fill(std::int64_t x0, std::int64_t y0, std::int64_t z0, std::int64_t s, const float c[8]) const {
+        if (x0 >= nx_ || y0 >= ny_ || z0 >= nz_) return 0;
+        if (s == 1) {
+            const bool in = c[0] >= 0.5f;
+            dst_[(z0 * ny_ + y0) * nx_ + x0] = in ? 1 : 0;
+            return in;
+        }
+        bool any_in = false, any_out = false, close = false;
+        for (int k = 0; k < 8; ++k) {
+            (c[k] >= 0.5f ? any_in : any_out) = true;
+            close = close || std::abs(c[k] - 0.5f) < kWindingMargin;
+        }
+        const double half = 0.5 * static_cast<double>(s);
+        if (!(any_in && any_out) && !close &&
+            !tree_.any_within(openvdb::Vec3d(static_cast<double>(x0) + half, static_cast<double>(y0) + half,
+                                             static_cast<double>(z0) + half),
+                              std::sqrt(3.0) * half + 0.5)) {
+            const std::int64_t x1 = std::min(nx_, x0 + s), y1 = std::min(ny_, y0 + s), z1 = std::min(nz_, z0 + s);
+            for (std::int64_t z = z0; z < z1; ++z)
+                for (std::int64_t y = y0; y < y1; ++y)
+                    std::fill(dst_ + (z * ny_ + y) * nx_ + x0, dst_ + (z * ny_ + y) * nx_ + x1, any_in ? 1 : 0);
+            return any_in ? (x1 - x0) * (y1 - y0) * (z1 - z0) : 0;
+        }
+        if (s == 2) {  // the block's eight voxels: (x0, y0, z0) known, the other seven evaluated
+            const std::int64_t x1 = std::min(nx_, x0 + 2), y1 = std::min(ny_, y0 + 2), z1 = std::min(nz_, z0 + 2);
+            std::int64_t count = 0;
+            for (std::int64_t z = z0; z < z1; ++z)
+                for (std::int64_t y = y0; y < y1; ++y)
+                    for (std::int64_t x = x0; x < x1; ++x) {
+                        const bool in = (x == x0 && y == y0 && z == z0 ? c[0] : at(x, y, z)) >= 0.5f;
+                        dst_[(z * ny_ + y) * nx_ + x] = in ? 1 : 0;
+                        count += in;
+                    }
+            return count;
+        }
+        // |w| on the 3 x 3 x 3 lattice of step s / 2: the eight corners known, the rest evaluated (those of
+        // children wholly outside the grid are not needed).
+        const std::int64_t h = s / 2;
+        float w[27];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j)
+                for (int i = 0; i < 3; ++i) {
+                    float& wv = w[9 * k + 3 * j + i];
+                    if (i != 1 && j != 1 && k != 1) {
+                        wv = c[(i >> 1) | (j & 2) | ((k >> 1) << 2)];
+                    } else if ((i == 2 && x0 + h >= nx_) || (j == 2 && y0 + h >= ny_) || (k == 2 && z0 + h >= nz_)) {
+                        wv = 0;  // a corner of children outside the grid only
+                    } else {
+                        wv = at(x0 + i * h, y0 + j * h, z0 + k * h);
+                    }
+                }
+        std::int64_t count = 0;
+        for (int k = 0; k < 8; ++k) {
+            const int a = k & 1, b = (k >> 1) & 1, d = k >> 2;
+            float cc[8];
+            for (int m = 0; m < 8; ++m) cc[m] = w[9 * (d + (m >> 2)) + 3 * (b + ((m >> 1) & 1)) + a + (m & 1)];
+            count += fill(x0 + a * h, y0 + b * h, z0 + d * h, h, cc);
+        }
+        return count;
+    }
+
+    static constexpr float kWindingMargin = 0.1f;
+
+private:
+    const WindingNumber& wn_;
+    const TriangleTree& tree_;
+    std::int64_t nx_, ny_, nz_;
+    std::uint8_t* dst_;
+};
+
+/// VoxelizeMethod::Winding: inside when |w| >= 0.5 at the voxel centre (w the generalized winding number). |w| is
+/// evaluated on the lattice of every 8th voxel (block corners, some just past the grid's far end). A block whose
+/// eight corners agree, none within 0.1 of the threshold, and whose circumscribed ball (plus half a voxel) no
+/// triangle enters takes their answer: w is harmonic off the surface, so it cannot swing across 0.5 and back
+/// inside such a block. Any other block is split in eight (|w| evaluated at the 19 new lattice points) and its
+/// children tested the same way, down to single voxels. Fills v; returns the number of inside voxels.
+std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Progress& progress) {
+    constexpr std::int64_t kStride = 8;
+    // The mesh in the output grid's index space: voxel centres at whole coordinates.
+    Mesh local;
+    local.triangles = mesh.triangles;
+    local.vertices.resize(mesh.vertices.size());
+    std::vector<openvdb::Vec3d> points(mesh.vertices.size());
+    for (std::size_t i = 0; i < points.size(); ++i)
+        for (std::size_t a = 0; a < 3; ++a) {
+            local.vertices[i][a] = (mesh.vertices[i][a] - out.origin[a]) / out.spacing[a];
+            points[i][static_cast<int>(a)] = local.vertices[i][a];
+        }
+    const WindingNumber wn(local);
+    const TriangleTree tree(points, local.triangles);
+    report(progress, 0.05);
+    v.data.assign(static_cast<std::size_t>(out.voxel_count()), 0);
+    const WindingFill filler(wn, tree, out, v.data.data());
+
+    const std::int64_t nx = out.dims[0], ny = out.dims[1], nz = out.dims[2];
+    const std::int64_t bx = (nx + kStride - 1) / kStride, by = (ny + kStride - 1) / kStride,
+                       bz = (nz + kStride - 1) / kStride;
+    const std::int64_t cx = bx + 1, cy = by + 1, cz = bz + 1;
+    std::vector<float> corner(static_cast<std::size_t>(cx * cy * cz));
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, cz * cy), [&](const tbb::blocked_range<std::int64_t>& r) {
+        for (std::int64_t zy = r.begin(); zy != r.end(); ++zy)
+            for (std::int64_t x = 0; x < cx; ++x)
+                corner[static_cast<std::size_t>(zy * cx + x)] =
+                    filler.at(x * kStride, (zy % cy) * kStride, (zy / cy) * kStride);
+    });
+    report(progress, 0.15);
+
+    // Blocks in about ten slabs of block rows, so that progress is reported (and a cancel seen) between them
+    // from the calling thread.
+    const std::int64_t blocks = bx * by * bz, chunk = std::max<std::int64_t>(bx * by, blocks / 10);
+    std::int64_t inside = 0;
+    for (std::int64_t first = 0; first < blocks; first += chunk) {
+        inside += tbb::parallel_reduce(
+            tbb::blocked_range<std::int64_t>(first, std::min(blocks, first + chunk), 1), std::int64_t(0),
+            [&](const tbb::blocked_range<std::int64_t>& r, std::int64_t count) {
+                for (std::int64_t b = r.begin(); b != r.end(); ++b) {
+                    const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
+                    float c[8];
+                    for (int k = 0; k < 8; ++k)
+                        c[k] = corner[static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx +
+                                                               jx + (k & 1))];
+                    count += filler.fill(jx * kStride, jy * kStride, jz * kStride, kStride, c);
+                }
+                return count;
+            },
+            [](std::int64_t a, std::int64_t b) { return a + b; });
+        report(progress, 0.15 + 0.8 * static_cast<double>(std::min(blocks, first + chunk)) / static_cast<double>(blocks));
+    }
+    return inside;
+}
+
 }  // namespace
 
 Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt, const Progress& progress) {
@@ -585,13 +732,39 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
     const double h = voxel_size;
     check_options(h, opt);
     const Grids g = voxelize_grids(mesh, h, opt);
-    const IndexMesh m = index_mesh(mesh, g.work);
     Volume v;
     v.grid = g.out;
     v.dtype = DType::UInt8;
     report(progress, 0.0);
-    const std::int64_t inside = opt.closing_radius == 0 ? signed_distance_mask(m, g, v, progress)
-                                                        : closing_mask(m, g, opt.closing_radius, v, progress);
+    // Auto on a mesh that is not closed: the union of both masks (the flood's losses are interiors the exterior
+    // leaked into, the winding number's are connections the closing makes across narrow gaps; neither adds much).
+    const bool open = opt.method == VoxelizeMethod::Auto && !is_closed(mesh);
+    const bool flood = opt.method == VoxelizeMethod::Flood || opt.method == VoxelizeMethod::Auto;
+    const bool winding = opt.method == VoxelizeMethod::Winding || open;
+    const double split = flood && winding ? 0.5 : 1.0;
+    std::int64_t inside = 0;
+    if (flood) {
+        const Progress part = !progress || split == 1.0 ? progress : Progress([&](double x) { return progress(split * x); });
+        const IndexMesh m = index_mesh(mesh, g.work);
+        inside = opt.closing_radius == 0 ? signed_distance_mask(m, g, v, part)
+                                         : closing_mask(m, g, opt.closing_radius, v, part);
+    }
+    if (winding) {
+        const Progress part = !progress || split == 1.0
+                                  ? progress
+                                  : Progress([&](double x) { return progress(split + (1 - split) * x); });
+        if (!flood) {
+            inside = winding_mask(mesh, g.out, v, part);
+        } else {
+            Volume w;
+            winding_mask(mesh, g.out, w, part);
+            inside = 0;
+            for (std::size_t i = 0; i < v.data.size(); ++i) {
+                v.data[i] |= w.data[i];
+                inside += v.data[i];
+            }
+        }
+    }
     if (inside == 0)
         throw Error("voxelize: the mesh encloses no voxel centre at voxel size " + number(h) +
                     " (an open surface, or a voxel size too large for the mesh)");
