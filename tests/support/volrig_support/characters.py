@@ -62,7 +62,7 @@ class PlanSubject:
         mask = self.mask
         if self.mesh is not None:
             v, f = self.mesh
-            mask = volrig.voxelize(v, f, mesh_voxel_size(v, MESH_VOXELS))
+            mask = volrig.voxelize(v, f, mesh_voxel_size(v, MESH_VOXELS), method="auto")
         sk = P.skeleton_of(mask)
         pts = P.skeleton_points(sk, thinness=P.thinness_from_voxels(P.DEFAULT_THINNESS_VOXELS, sk.metric,
                                                                      mask.spacing))
