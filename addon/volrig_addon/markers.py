@@ -111,6 +111,23 @@ class _OnTarget:
         return self.run(context, target(context))
 
 
+def _inside(region, event) -> bool:
+    return 0 <= event.mouse_x - region.x < region.width and 0 <= event.mouse_y - region.y < region.height
+
+
+def _view(area, event):
+    """(the 3D view's main region, the mouse in its coordinates) when the mouse is over the view itself, else None
+    (over the sidebar, the toolbar or a header, which overlap the view: the operator starts from the sidebar's
+    button, whose region is not the view's)."""
+    regions = {r.type: r for r in area.regions}
+    if any(t in regions and _inside(regions[t], event) for t in ("UI", "TOOLS", "HEADER", "TOOL_HEADER")):
+        return None
+    view = regions.get("WINDOW")
+    if view is None or not _inside(view, event):
+        return None
+    return view, (event.mouse_x - view.x, event.mouse_y - view.y)
+
+
 class VOLRIG_OT_place_marker(_OnTarget, bpy.types.Operator):
     """Click on the volume or mesh to place the chosen marker inside the part under the mouse; the next missing
     marker is picked after each click (right-click or Esc: done)"""
@@ -149,8 +166,8 @@ class VOLRIG_OT_place_marker(_OnTarget, bpy.types.Operator):
         if event.type in {"RIGHTMOUSE", "ESC"}:
             context.area.header_text_set(None)
             return {"FINISHED"}
-        if event.type != "LEFTMOUSE" or event.value != "PRESS":
-            return {"PASS_THROUGH"}
+        if event.type != "LEFTMOUSE" or event.value != "PRESS" or _view(context.area, event) is None:
+            return {"PASS_THROUGH"}  # navigation, and clicks on the sidebar or the header
         point = self._ray(context, event)
         if point is None:
             self.report({"WARNING"}, f"volrig: the click missed {self._vol.name}")
@@ -164,11 +181,12 @@ class VOLRIG_OT_place_marker(_OnTarget, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def _ray(self, context, event):
-        """The marker point (volume frame) under the mouse, or None."""
+        """The marker point (the object's frame) under the mouse, or None."""
         from bpy_extras import view3d_utils
-        xy = (event.mouse_region_x, event.mouse_region_y)
-        origin = view3d_utils.region_2d_to_origin_3d(context.region, context.region_data, xy)
-        direction = view3d_utils.region_2d_to_vector_3d(context.region, context.region_data, xy)
+        region, xy = _view(context.area, event)
+        rv3d = context.area.spaces.active.region_3d
+        origin = view3d_utils.region_2d_to_origin_3d(region, rv3d, xy)
+        direction = view3d_utils.region_2d_to_vector_3d(region, rv3d, xy)
         to_volume = self._vol.matrix_world.inverted_safe()
         o = to_volume @ origin
         d = to_volume.to_3x3() @ direction

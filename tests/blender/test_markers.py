@@ -49,3 +49,18 @@ def test_unknown_marker_names_are_refused(rigged):
     from volrig_addon import markers
     with pytest.raises(volrig.VolrigError, match="unknown marker"):
         markers.place(rigged, "elbow", (0, 0, 0))
+
+
+def test_clicks_count_over_the_view_only():
+    """The modal Place starts from the sidebar's button: a click counts over the view itself, in its coordinates,
+    not over the sidebar or the header that overlap it."""
+    from types import SimpleNamespace as NS
+    from volrig_addon.markers import _view
+    view = NS(type="WINDOW", x=100, y=50, width=800, height=600)
+    area = NS(regions=[view, NS(type="UI", x=650, y=50, width=250, height=600),
+                       NS(type="HEADER", x=100, y=626, width=800, height=24)])
+    region, xy = _view(area, NS(mouse_x=300, mouse_y=250))
+    assert region is view and xy == (200, 200)
+    assert _view(area, NS(mouse_x=700, mouse_y=250)) is None  # the sidebar
+    assert _view(area, NS(mouse_x=300, mouse_y=640)) is None  # the header
+    assert _view(area, NS(mouse_x=50, mouse_y=250)) is None  # outside the area
