@@ -31,7 +31,7 @@ namespace {
 
 /// One 6-neighbour erosion step of `in` into `out` (voxels at the grid's border erode).
 void erode6(const Grid& g, const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out) {
-    const auto [nx, ny, nz] = g.dims;
+    const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];  // (a lambda captures them: no binding)
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nz), [&](const tbb::blocked_range<std::int64_t>& r) {
         for (std::int64_t z = r.begin(); z != r.end(); ++z)
             for (std::int64_t y = 0; y < ny; ++y)
