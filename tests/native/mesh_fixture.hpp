@@ -314,4 +314,31 @@ inline bool skip_without_data() {
     return true;
 }
 
+/// voxelize reports progress from 0 to 1 in order (at least `min_calls` calls), and a progress callback that
+/// returns false once past each of `stops` cancels it: Cancelled, and no call after.
+inline void check_voxelize_progress(const Mesh& mesh, double voxel, const VoxelizeOptions& opt, std::size_t min_calls,
+                                    const std::vector<double>& stops) {
+    std::vector<double> seen;
+    voxelize(mesh, voxel, opt, [&](double f) {
+        seen.push_back(f);
+        return true;
+    });
+    REQUIRE(seen.size() >= min_calls);
+    CHECK(seen.front() == 0.0);
+    CHECK(seen.back() == 1.0);
+    CHECK(std::is_sorted(seen.begin(), seen.end()));
+    for (double stop_at : stops) {
+        int calls_after = 0;
+        bool stopped = false;
+        CHECK_THROWS_AS(voxelize(mesh, voxel, opt,
+                                 [&](double f) {
+                                     if (stopped) ++calls_after;
+                                     stopped = stopped || f > stop_at;
+                                     return !stopped;
+                                 }),
+                        Cancelled);
+        CHECK(calls_after == 0);
+    }
+}
+
 }  // namespace

@@ -213,27 +213,7 @@ TEST_CASE("voxelize: progress is reported in order and cancelling stops it", "[m
     for (double r : {1.5, 0.0}) {
         VoxelizeOptions opt;
         opt.closing_radius = r;
-        std::vector<double> seen;
-        voxelize(sphere, 0.05, opt, [&](double f) {
-            seen.push_back(f);
-            return true;
-        });
-        REQUIRE(seen.size() >= 3);
-        CHECK(seen.front() == 0.0);
-        CHECK(seen.back() == 1.0);
-        CHECK(std::is_sorted(seen.begin(), seen.end()));
-        for (double stop_at : {0.0, 0.3, 0.7}) {
-            int calls_after = 0;
-            bool stopped = false;
-            CHECK_THROWS_AS(voxelize(sphere, 0.05, opt,
-                                     [&](double f) {
-                                         if (stopped) ++calls_after;
-                                         stopped = stopped || f > stop_at;
-                                         return !stopped;
-                                     }),
-                            Cancelled);
-            CHECK(calls_after == 0);
-        }
+        check_voxelize_progress(sphere, 0.05, opt, 3, {0.0, 0.3, 0.7});
     }
 }
 

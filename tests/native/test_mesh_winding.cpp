@@ -8,7 +8,6 @@
 #include <functional>
 #include <map>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -242,30 +241,6 @@ TEST_CASE("voxelize, winding and auto: progress in order, cancelling stops it", 
     Mesh holed = icosphere(3);
     holed.triangles.resize(holed.triangles.size() - 40);  // open: Auto runs both methods
     for (VoxelizeMethod m : {VoxelizeMethod::Winding, VoxelizeMethod::Auto}) {
-        const VoxelizeOptions opt = with(m);
-        std::vector<double> seen;
-        voxelize(holed, 0.04, opt, [&](double f) {
-            seen.push_back(f);
-            return true;
-        });
-        REQUIRE(seen.size() >= 10);
-        std::ostringstream trace;
-        for (double f : seen) trace << f << " ";
-        INFO("progress " << trace.str());
-        CHECK(seen.front() == 0.0);
-        CHECK(seen.back() == 1.0);
-        CHECK(std::is_sorted(seen.begin(), seen.end()));
-        for (double stop_at : {0.0, 0.3, 0.6, 0.9}) {
-            int calls_after = 0;
-            bool stopped = false;
-            CHECK_THROWS_AS(voxelize(holed, 0.04, opt,
-                                     [&](double f) {
-                                         if (stopped) ++calls_after;
-                                         stopped = stopped || f > stop_at;
-                                         return !stopped;
-                                     }),
-                            Cancelled);
-            CHECK(calls_after == 0);
-        }
+        check_voxelize_progress(holed, 0.04, with(m), 10, {0.0, 0.3, 0.6, 0.9});
     }
 }

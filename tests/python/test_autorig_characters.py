@@ -70,5 +70,6 @@ def test_rig_distances_is_the_chamfer_of_the_joint_sets():
     b = a + [0.1, 0, 0]
     j2j, j2b, b2b = C.rig_distances(a, [[0, 1]], b, [[0, 1]], v)
     assert j2j == pytest.approx(10.0)
-    assert b2b == pytest.approx(100 * (0.1 / 0.6 * 0.05 * 2 / 2), rel=0.3)  # most samples overlap
-    assert 0 < j2b < j2j
+    # Joints against the other bone: each set has one end over the other's bone (0) and one 0.1 beyond it (10).
+    assert j2b == pytest.approx(5.0)
+    assert 0 < b2b < j2b  # the bones overlap over 0.5 of their 0.6

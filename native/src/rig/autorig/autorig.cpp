@@ -39,6 +39,7 @@
 //    head bone up from 0.6 of the way down from the crown.
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "rig/autorig/coarse.hpp"
 #include "rig/autorig/templates.hpp"
@@ -156,8 +157,8 @@ void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_de
     }
 }
 
-/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first (fewest markers broken,
-/// then lowest score); every reading scored goes to `detail` when given.
+/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first (the plan the markers
+/// show, fewest markers broken, lowest score); every reading scored goes to `detail` when given.
 std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const AutorigOptions& opt,
                                        const PlanInput& in, AutorigDetail* detail) {
     std::vector<rig_detail::RoleMarker> roles;
@@ -165,16 +166,18 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     std::vector<rig_detail::PlanReading> readings;
     const rig_detail::PlanSearch s =
         rig_detail::search_plans(c.tree, {in.up, in.weights, roles}, detail ? &readings : nullptr);
-    std::vector<std::pair<std::pair<int, double>, Candidate>> ranked;
+    // Best first: the plan the markers show (marked_kind), then the fewest markers broken, then the lowest score.
+    const std::string marked = opt.kind.empty() ? marked_kind(in) : "";
+    std::vector<std::pair<std::tuple<bool, int, double>, Candidate>> ranked;
     for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
         if (admits(opt, in, kind, plan.score)) {
-            ranked.push_back({{plan.broken, plan.score},
+            ranked.push_back({{!marked.empty() && marked != kind, plan.broken, plan.score},
                               rig_detail::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, in.up)});
             finish_plan(ranked.back().second, plan.score, in);
         }
     const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree);
     if (const double hs = rig_detail::hand_plan_score(hand, in.weights); in.markers.empty() && admits(opt, in, "hand", hs)) {
-        ranked.push_back({{0, hs}, rig_detail::hand_rig(c, hand)});
+        ranked.push_back({{false, 0, hs}, rig_detail::hand_rig(c, hand)});
         ranked.back().second.fit = rig_detail::plan_fit(hs, in.weights);
     }
     if (detail) export_readings(std::move(readings), hand, *detail);
@@ -182,9 +185,6 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     std::vector<Candidate> out;
     for (auto& [key, k] : ranked)
         if (!k.rig.bones.empty() && consistent(k.rig)) out.push_back(std::move(k));
-    // The plan the markers show goes first, when it could be built.
-    const std::string marked = opt.kind.empty() ? marked_kind(in) : "";
-    std::stable_partition(out.begin(), out.end(), [&](const Candidate& k) { return k.rig.kind == marked; });
     return out;
 }
 

@@ -49,8 +49,7 @@ Vec unit(const Vec& a, const Vec& b) {
 /// of their spread over their radius, divided by kSheetSpread and at most 1 (a round limb's pieces spread about as
 /// far as their band: 0 to 1 radius; a wing's span its width).
 constexpr double kSheetSpread = 4.0;
-double flatness(const NodeTree& t, std::uint32_t base, std::uint32_t tip) {
-    const std::vector<std::uint32_t> path = t.path(base, tip);
+double flatness(const NodeTree& t, const std::vector<std::uint32_t>& path) {
     std::vector<double> ratio;
     for (std::size_t k = path.size() / 3; k < path.size(); ++k)
         ratio.push_back(t.spread(path[k]) / std::max(t.radius(path[k]), 1e-12));
@@ -59,9 +58,17 @@ double flatness(const NodeTree& t, std::uint32_t base, std::uint32_t tip) {
     return std::min(1.0, ratio[ratio.size() / 2] / kSheetSpread);
 }
 
+/// A reading's limb paths, computed once: legs from the pelvis, arms from the chest.
+struct LimbPaths {
+    std::vector<std::uint32_t> legs[2], arms[2];
+    LimbPaths(const NodeTree& t, const Reading& r)
+        : legs{t.path(r.pelvis, r.legs[0]), t.path(r.pelvis, r.legs[1])},
+          arms{t.path(r.chest, r.arms[0]), t.path(r.chest, r.arms[1])} {}
+};
+
 /// The features every reading of five extremities shares, whatever its kind (plan_score.hpp).
-PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_out, double left_out_thickness,
-                             double object_extent) {
+PlanFeatures shared_features(const NodeTree& t, const Reading& r, const LimbPaths& p, double left_out,
+                             double left_out_thickness, double object_extent) {
     PlanFeatures f{};
     const Vec axis = unit(t.at(r.pelvis), t.at(r.chest));
     f[kMirrorLegs] = mirror(t, r.pelvis, axis, r.legs[0], r.legs[1], r.pelvis);
@@ -71,9 +78,9 @@ PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_ou
     const Vec across_legs = perp(t.at(r.legs[0]) - t.at(r.legs[1]), axis).normalized();
     const Vec across_arms = perp(t.at(r.arms[0]) - t.at(r.arms[1]), axis).normalized();
     // The same at the limbs' roots (a third of the way out): their tips swing with the pose (a stride).
-    auto root = [&](std::uint32_t base, std::uint32_t tip) { return t.point_along(t.path(base, tip), kRootShare); };
-    const Vec roots_legs = perp(root(r.pelvis, r.legs[0]) - root(r.pelvis, r.legs[1]), axis).normalized();
-    const Vec roots_arms = perp(root(r.chest, r.arms[0]) - root(r.chest, r.arms[1]), axis).normalized();
+    auto root = [&](const std::vector<std::uint32_t>& path) { return t.point_along(path, kRootShare); };
+    const Vec roots_legs = perp(root(p.legs[0]) - root(p.legs[1]), axis).normalized();
+    const Vec roots_arms = perp(root(p.arms[0]) - root(p.arms[1]), axis).normalized();
     f[kRootsCross] = 1.0 - std::abs(roots_legs.dot(roots_arms));
     f[kPairsCross] = 1.0 - std::abs(across_legs.dot(across_arms));
     f[kHeadBehind] = std::max(0.0, -unit(t.at(r.chest), t.at(r.head)).dot(axis));
@@ -81,25 +88,22 @@ PlanFeatures shared_features(const NodeTree& t, const Reading& r, double left_ou
     for (int s = 0; s < 2; ++s)
         reach += 0.25 * ((t.at(r.legs[s]) - t.at(r.pelvis)).norm() + (t.at(r.arms[s]) - t.at(r.chest)).norm());
     f[kLimbsShort] = std::max(0.0, 1.0 - reach / std::max((t.at(r.head) - t.at(r.chest)).norm(), 1e-12));
-    double leg = 0, arm = 0;
-    for (int k = 0; k < 2; ++k) {
-        leg += t.length(t.path(r.pelvis, r.legs[k]));
-        arm += t.length(t.path(r.chest, r.arms[k]));
-    }
+    const double leg = t.length(p.legs[0]) + t.length(p.legs[1]), arm = t.length(p.arms[0]) + t.length(p.arms[1]);
     f[kLimbRatio] = std::abs(std::log(std::max(leg, 1e-12) / std::max(arm, 1e-12)));
-    f[kArmsFlat] = 0.5 * (flatness(t, r.chest, r.arms[0]) + flatness(t, r.chest, r.arms[1]));
-    f[kLegsFlat] = 0.5 * (flatness(t, r.pelvis, r.legs[0]) + flatness(t, r.pelvis, r.legs[1]));
+    f[kArmsFlat] = 0.5 * (flatness(t, p.arms[0]) + flatness(t, p.arms[1]));
+    f[kLegsFlat] = 0.5 * (flatness(t, p.legs[0]) + flatness(t, p.legs[1]));
     f[kNarrowSpan] =
         std::max(0.0, 1.0 - t.extent({r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}) / std::max(object_extent, 1e-12));
     return f;
 }
 
 /// The humanoid reading's own features (plan_score.hpp).
-void humanoid_features(const NodeTree& t, const Reading& r, const std::optional<Vec>& up, PlanFeatures& f) {
+void humanoid_features(const NodeTree& t, const Reading& r, const LimbPaths& p, const std::optional<Vec>& up,
+                       PlanFeatures& f) {
     const Vec axis = unit(t.at(r.pelvis), t.at(r.chest));
     f[kBiasHumanoid] = 1;
-    const double rl = 0.5 * (t.mean_radius(t.path(r.pelvis, r.legs[0])) + t.mean_radius(t.path(r.pelvis, r.legs[1])));
-    const double ra = 0.5 * (t.mean_radius(t.path(r.chest, r.arms[0])) + t.mean_radius(t.path(r.chest, r.arms[1])));
+    const double rl = 0.5 * (t.mean_radius(p.legs[0]) + t.mean_radius(p.legs[1]));
+    const double ra = 0.5 * (t.mean_radius(p.arms[0]) + t.mean_radius(p.arms[1]));
     f[kHLegsThin] = std::max(0.0, (ra - rl) / std::max(ra, 1e-12));
     f[kHHandsLow] = hands_at_feet(t, r.pelvis, axis, r.legs, r.arms);
     const Vec legs = (0.5 * (t.at(r.legs[0]) + t.at(r.legs[1])) - t.at(r.pelvis)).normalized();
@@ -123,12 +127,10 @@ void quadruped_features(const NodeTree& t, const Reading& r, const std::optional
 
 /// How many markers a reading breaks: a marker holds when the role it names (RoleMarker) is the one whose
 /// extremity path from its base lies nearest to it (a groin: the pelvis nearer than the chest).
-int broken_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMarker>& markers) {
+int broken_markers(const NodeTree& t, const Reading& r, const LimbPaths& p, const std::vector<RoleMarker>& markers) {
     if (markers.empty()) return 0;
-    const std::uint32_t base[5] = {r.chest, r.pelvis, r.pelvis, r.chest, r.chest};
-    const std::uint32_t tip[5] = {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]};
-    std::vector<std::uint32_t> paths[5];
-    for (int k = 0; k < 5; ++k) paths[k] = t.path(base[k], tip[k]);
+    const std::vector<std::uint32_t> head = t.path(r.chest, r.head);
+    const std::vector<std::uint32_t>* paths[5] = {&head, &p.legs[0], &p.legs[1], &p.arms[0], &p.arms[1]};
     int broken = 0;
     for (const RoleMarker& m : markers) {
         if (m.role == RoleMarker::Pelvis) {
@@ -138,7 +140,7 @@ int broken_markers(const NodeTree& t, const Reading& r, const std::vector<RoleMa
         double d[5];
         for (int k = 0; k < 5; ++k) {
             d[k] = std::numeric_limits<double>::infinity();
-            for (std::size_t i = 1; i < paths[k].size(); ++i) d[k] = std::min(d[k], (m.at - t.at(paths[k][i])).norm());
+            for (std::size_t i = 1; i < paths[k]->size(); ++i) d[k] = std::min(d[k], (m.at - t.at((*paths[k])[i])).norm());
         }
         const int nearest = static_cast<int>(std::min_element(d, d + 5) - d);
         const bool ok = m.role == RoleMarker::Head ? nearest == 0
@@ -167,11 +169,12 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 r.pelvis = t.median(r.legs[0], r.legs[1], r.head);
                 r.chest = t.median(r.pelvis, t.median(r.arms[0], r.arms[1], r.head), r.head);
                 if (r.pelvis == r.chest) continue;
-                const int broken = broken_markers(t, r, in.markers);
-                const PlanFeatures shared = shared_features(t, r, left_out, left_out_thickness, object_extent);
+                const LimbPaths paths(t, r);
+                const int broken = broken_markers(t, r, paths, in.markers);
+                const PlanFeatures shared = shared_features(t, r, paths, left_out, left_out_thickness, object_extent);
                 for (const bool humanoid : {true, false}) {
                     PlanFeatures f = shared;
-                    if (humanoid) humanoid_features(t, r, in.up, f);
+                    if (humanoid) humanoid_features(t, r, paths, in.up, f);
                     else quadruped_features(t, r, in.up, f);
                     const double score = plan_score(f, in.weights);
                     Plan& slot = humanoid ? best.humanoid : best.quadruped;
