@@ -6,6 +6,10 @@ and ``volrig.bones.rig_to_bones`` on its rig (segments, then the limb joints), t
 distance from the bone-derived reference (``volrig_support.subjects.visible_human_joints``) before and after.
 
     PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py [--mm 2] [--repeat 3] [--json out.json]
+    PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py --mm 2 --slice-step 4   # slices 8 mm apart
+
+``--slice-step k`` keeps every k-th axial slice (an anisotropic scan: slices k * mm apart); the reference joints
+stay those of the full grid. Issue 54 asks for 11 of 12 limb joints within 30 mm with slices up to 8 mm apart.
 
 Target: rig_to_bones <= 3 s for the whole body at 2 mm.
 """
@@ -34,18 +38,21 @@ def main() -> int:
     ap.add_argument("--points", type=int, default=15000)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", help="also write the figures to this JSON file")
+    ap.add_argument("--slice-step", type=int, default=1, help="keep every k-th axial slice (default 1: all)")
     args = ap.parse_args()
 
-    labels = S.visible_human_labels(args.mm)
-    a = np.asarray(labels.array)
+    full = S.visible_human_labels(args.mm)
+    ref = S.visible_human_joints(full)
+    a = np.asarray(full.array)[::args.slice_step]
+    sp = full.spacing
+    labels = volrig.Volume(a, (sp[0], sp[1], sp[2] * args.slice_step), full.origin)
     mask, bone = labels.like(a > 0), labels.like(np.isin(a, BONE))
     pts = volrig.skeletonize(mask).top(args.points)
     tree = volrig.skeleton_tree(pts, mask)
-    print(f"Visible Human {args.mm} mm: grid {a.shape[::-1]}, {int(np.count_nonzero(bone.array)):,} bone voxels, "
+    print(f"Visible Human {args.mm} mm (slices {sp[2] * args.slice_step:g} mm apart): grid {a.shape[::-1]}, {int(np.count_nonzero(bone.array)):,} bone voxels, "
           f"{len(pts):,} points")
     t_plain, plain = best_of(args.repeat, lambda: volrig.autorig(pts, tree, mask, up=(0, 0, 1)))
     t_bones, fit = best_of(args.repeat, lambda: rig_to_bones(plain, bone))
-    ref = S.visible_human_joints(labels)
     err = {n: (float(np.linalg.norm(S.rig_joint(plain, n) - ref[n])), float(np.linalg.norm(S.rig_joint(fit.rig, n) -
                                                                                           ref[n]))) for n in JOINTS}
     print(f"autorig (outer shape) {t_plain:.3f} s; rig_to_bones {t_bones:.3f} s = {t_bones / t_plain:.2f}x "
@@ -54,7 +61,8 @@ def main() -> int:
         print(f"  {j.name:11s} {j.how:8s} {err[j.name][0]:5.1f} -> {err[j.name][1]:5.1f} mm {j.why}")
     before, after = (np.mean([e[k] for e in err.values()]) for k in (0, 1))
     print(f"mean distance from the bone-derived joints: {before:.1f} mm (outer shape) -> {after:.1f} mm (bones); "
-          f"max {max(e[1] for e in err.values()):.1f} mm")
+          f"max {max(e[1] for e in err.values()):.1f} mm; within 30 mm: {sum(e[0] <= 30 for e in err.values())} -> "
+          f"{sum(e[1] <= 30 for e in err.values())} of {len(err)}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(dict(mm=args.mm, autorig_s=t_plain, rig_to_bones_s=t_bones, ratio=t_bones / t_plain,

@@ -112,6 +112,48 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
     save(fig, path, dpi=90)
 
 
+def bone_case(name: str, mask: volrig.Volume, bone: volrig.Volume, count: int, up=None, reference=None):
+    """A scan rigged from its bones (``autorig(..., bone=)``), drawn over its bone tissue."""
+    pts = volrig.skeletonize(mask).top(count)
+    t0 = time.perf_counter()
+    tree = skeleton_tree(pts, mask)
+    detail = []
+    rig = autorig(pts, tree, mask, detail=detail, up=up, bone=bone)
+    seconds = time.perf_counter() - t0
+    moved = sum(j.moved for j in rig.bone_joints)
+    print(f"{name}: {rig}, {moved} of {len(rig.bone_joints)} limb joints placed by the bones, {seconds:.2f} s"
+          + (f" ({rig.note})" if rig.note else ""))
+    return dict(name=f"{name}: {moved} of {len(rig.bone_joints)} limb joints from the bones", mask=bone,
+                points=pts, tree=tree, rig=rig, detail=detail[0], binding=bind(pts, rig, mask), reference=reference,
+                seconds=seconds)
+
+
+def draw_bone_rigs(out: str, only: set) -> None:
+    """Rigs from the bones over projections of each shared scan's bone tissue (docs/images/rig_bones_<scan>.png)."""
+    vhm = os.path.join(SHARED, "visible-human", "austinman_2mm_labels.nii.gz")
+    if "bones_vhm" in only and os.path.exists(vhm):
+        from volrig_support import subjects as S
+        labels = S.visible_human_labels(2)
+        a = np.asarray(labels.array)
+        ref = S.visible_human_joints(labels)
+        draw(bone_case("Visible Human 2 mm (bone labels)", labels.like(a > 0), labels.like(np.isin(a, S.BONE_LABELS)), 15000,
+                       up=(0, 0, 1), reference=np.array(list(ref.values()))),
+             os.path.join(out, "rig_bones_vhm.png"), views=((0, 2), (1, 2)))
+    frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
+    if "bones_frog" in only and os.path.exists(frog):
+        vol = volrig.load(frog)  # organs and bones, no skin: the plan comes from the bone (label 13) itself
+        draw(bone_case("frog (label 13 its skeleton)", volrig.segment(vol), volrig.rigid_tissue(vol, labels=[13]),
+                       40000),
+             os.path.join(out, "rig_bones_frog.png"), views=((0, 1), (0, 2)))
+    ct = os.path.join(SHARED, "totalseg", "example_ct.nii.gz")
+    if "bones_ct" in only and os.path.exists(ct):
+        vol = volrig.load(ct)  # an abdominal CT (part of a body): bone by Hounsfield units
+        body = volrig.segment(vol, lo=-300, largest_component=True)  # the body: above -300 HU (air and lungs out)
+        draw(bone_case("abdominal CT (bone 250-3000 HU)", body, volrig.rigid_tissue(vol, value_range=(250, 3000)),
+                       15000),
+             os.path.join(out, "rig_bones_ct.png"), views=((0, 2), (1, 2)))
+
+
 def draw_poses(path: str, poses=("knees_apart", "wide", "stride", "tpose"), scale: float = 0.9):
     """The capsule humanoid (volrig_support.subjects.capsule_subject) in ``poses``, front view: its rig and true
     joints."""
@@ -141,7 +183,8 @@ def draw_poses(path: str, poses=("knees_apart", "wide", "stride", "tpose"), scal
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
-    ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4"]),
+    ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4", "bones_vhm",
+                                                "bones_frog", "bones_ct"]),
                     help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
@@ -188,6 +231,7 @@ def main(argv=None):
         mask = volrig.voxelize(v, f, float(np.ptp(v, axis=0).max()) / 160)
         draw(rig_case(f"{name} ({file}, 160 voxels long)", mask, 15000, ref),
              os.path.join(args.out, f"rig_{name}.png"), views=views)
+    draw_bone_rigs(args.out, only)
     vhm = os.path.join(SHARED, "visible-human", "austinman_4mm_labels.nii.gz")
     if "vhm4" in only:
         if os.path.exists(vhm):

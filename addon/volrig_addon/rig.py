@@ -30,10 +30,11 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
             progress = bar.steps(_RIG_STEPS)
             mask = scans.mask(vol)
             pts = scans.skeleton(vol, progress=progress).at(scans.thinness(vol))
+            rigid = scans.rigid(vol)  # the rigid tissue (bone) places the limb joints too (docs/rig.md)
             r = pipeline.rig_skeleton(pts, mask, alpha=s.alpha, bones=s.bones, roles=s.roles, bind_mode=s.bind_mode,
                                       progress=progress, kind=None if s.body_plan == "AUTO" else s.body_plan,
                                       up=objects.scene_up(vol) if s.use_scene_up else None,
-                                      own_scale=not s.rig_kept_points, rigid=scans.rigid(vol),
+                                      own_scale=not s.rig_kept_points, rigid=rigid, bone=rigid,
                                       markers=markers.marker_points(vol) or None)
         _save_rig(vol, r.points, r.tree, r.rig, r.binding)
         s.rig_found = pipeline.describe_rig(r.rig)
@@ -44,7 +45,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         if preview is not None:
             preview.hide_set(True)
         looks.refresh(vol)
-        self.report({"WARNING"} if r.rig.note else {"INFO"},
+        self.report({"WARNING"} if r.rig.kind == "chains" and r.rig.note else {"INFO"},
                     f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 

@@ -85,6 +85,33 @@ void bind_bones(py::module_& m) {
         },
         py::arg("bone"), py::arg("spacing"), py::arg("origin"), py::arg("opening") = 0.0, py::arg("min_volume") = 0.0);
 
+    m.attr("BARE_BONE_SHARE") = kBareBoneShare;
+    m.def(
+        "bare_bone_share",
+        [](const MaskArray& body, const MaskArray& bone) {
+            const Grid g = grid_of(body, {1, 1, 1}, {0, 0, 0}, "body");
+            if (bone.ndim() != 3 || bone.shape(0) != body.shape(0) || bone.shape(1) != body.shape(1) ||
+                bone.shape(2) != body.shape(2))
+                throw Error("bare_bone_share: bone and body must be on the same grid");
+            py::gil_scoped_release nogil;
+            return bare_bone_share(g, body.data(), bone.data());
+        },
+        py::arg("body"), py::arg("bone"));
+
+    m.def(
+        "bone_body",
+        [](const MaskArray& bone, const Vec3& spacing, const Vec3& origin) {
+            const Grid g = grid_of(bone, spacing, origin, "bone");
+            BoneBody b;
+            {
+                py::gil_scoped_release nogil;
+                b = bone_body(g, bone.data());
+            }
+            return py::make_tuple(
+                to_numpy_shaped(std::move(b.mask), {bone.shape(0), bone.shape(1), bone.shape(2)}), b.radius, b.joined);
+        },
+        py::arg("bone"), py::arg("spacing"), py::arg("origin"));
+
     m.def(
         "rig_to_bones",
         [](const MaskArray& bone, const Vec3& spacing, const Vec3& origin, const DoubleArray& joints,

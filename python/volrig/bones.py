@@ -78,6 +78,26 @@ def _bone_array(bone, like_shape=None) -> np.ndarray:
     return arr
 
 
+def bare_bone_share(body, bone) -> float:
+    """The share of ``body``'s surface voxels (a 6-neighbour outside it, inside the grid) that are ``bone``: about 0
+    for a scan with skin, large for organs and bones without skin or the bone alone. ``autorig(bone=)`` reads the
+    body plan from the bone itself at ``volrig.rig.BARE_BONE_SHARE`` or more."""
+    arr = _mask_array(body)
+    return float(_volrig.bare_bone_share(arr, _bone_array(bone, like_shape=arr.shape)))
+
+
+def bone_body(bone) -> Tuple[Volume, float, float]:
+    """The bone grown into a body whose shape the body-plan search reads when the flesh is missing: the voxels
+    within a radius of the bone, the largest 26-connected component. The radius starts at twice the bone's median
+    depth (at least 1.5 voxels) and grows by half, at most 5 times, until that component holds 95% of the bone
+    (joint spaces and girdles apart from the spine bridged). Returns (bool Volume, radius in mm, share of the bone
+    joined)."""
+    arr = _bone_array(bone)
+    spacing, origin = _geometry(bone)
+    mask, radius, joined = _volrig.bone_body(arr, spacing, origin)
+    return Volume(mask.view(bool), spacing, origin), float(radius), float(joined)
+
+
 def bone_segments(bone, opening: Optional[float] = None, min_volume: Optional[float] = None) -> Tuple[Volume, np.ndarray]:
     """The bone tissue (a bool Volume or array, z, y, x) split into rigid segments: an opening of ``opening`` mm
     (default 4, at least one voxel) parts bones touching across a joint at the voxel size; the eroded bone's

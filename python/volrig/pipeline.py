@@ -23,13 +23,13 @@ from typing import Callable, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ._volrig import VolrigError
-from .bones import rig_to_bones, separated
+from .bones import separated
 from .deform import DEFORM_REVISION, Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS, ProgressFn, voxelize
 from .parts import part_grids, substitute_grid
 from .tissues import tissue_grids
-from .rig import Binding, Rig, autorig, bind, rest_pose
+from .rig import Binding, Rig, autorig_fit, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
@@ -257,14 +257,12 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
     rigid tissue is split into its segments (``volrig.bones.separated``) so that each segment binds wholly to one
     rig bone. Fewer than two points are refused by autorig (lower the thinness)."""
     tree = skeleton_tree(points, mask, alpha=alpha, max_edge=max_edge, progress=_step(progress, "skeleton-tree"))
-    rig = autorig(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind, up=up,
-                  own_scale=own_scale, markers=markers, plan_weights=plan_weights, detail=detail)
-    if bone is not None:
-        fit = rig_to_bones(rig, bone, like_shape=np.shape(mask.array if isinstance(mask, Volume) else mask))
-        rig = fit.rig
-        if rigid is not None:
-            bone_arr, rigid_arr = _mask_for(points, bone) != 0, _mask_for(points, rigid) != 0
-            rigid = (rigid_arr & ~bone_arr) | (separated(fit.segments, bone_arr) & rigid_arr)
+    rig, fit = autorig_fit(points, tree, mask, bones=bones, roles=roles, progress=_step(progress, "autorig"), kind=kind,
+                           up=up, own_scale=own_scale, markers=markers, plan_weights=plan_weights, detail=detail,
+                           bone=bone)
+    if fit is not None and rigid is not None:
+        bone_arr, rigid_arr = _mask_for(points, bone) != 0, _mask_for(points, rigid) != 0
+        rigid = (rigid_arr & ~bone_arr) | (separated(fit.segments, bone_arr) & rigid_arr)
     binding = bind(points, rig, mask, mode=bind_mode, progress=_step(progress, "bind"), rigid=rigid)
     if bone is not None and binding.rigid is not None:
         binding.rigid_whole = True  # each segment moves whole with one bone
@@ -322,9 +320,12 @@ def parse_up(text: str) -> Tuple[float, float, float]:
 
 
 def describe_rig(rig: Rig) -> str:
-    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages; its note after '; '."""
+    """'humanoid, fit 0.82 (runner-up chains 0.41)': what autorig found, for messages; how many limb joints the bones
+    placed (a rig from the bones) and its note after '; '."""
     text = f"{rig.kind}, fit {rig.fit:.2f}"
     text += f" (runner-up {rig.runner_up} {rig.runner_up_fit:.2f})" if rig.runner_up else ""
+    if rig.bone_joints:
+        text += f"; {sum(j.moved for j in rig.bone_joints)} of {len(rig.bone_joints)} limb joints from the bones"
     return text + (f"; {rig.note}" if rig.note else "")
 
 

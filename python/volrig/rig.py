@@ -236,6 +236,9 @@ KINDS = tuple(_volrig.AUTORIG_KINDS)
 #: The joints a user may mark for autorig (``markers=``): chin, neck, head_top, groin and per side shoulder, elbow,
 #: wrist, hand_tip, hip, knee, ankle, toe (``wrist.L``...). Spelled once in the core (kMarkerNames).
 MARKER_NAMES = tuple(_volrig.MARKER_NAMES)
+#: ``autorig(bone=)`` reads the body plan from the bone itself (grown into a body: ``volrig.bones.bone_body``) when
+#: at least this share of the outer surface is bare bone (organs and bones without skin, or the bone alone).
+BARE_BONE_SHARE = float(_volrig.BARE_BONE_SHARE)
 #: The body-plan features whose weights are fitted to data (``plan_weights=`` adds neutral chains' score).
 PLAN_TERMS = tuple(_volrig.PLAN_TERMS)
 
@@ -277,10 +280,23 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  for fitting and cross-validating them.
     bone:        the scan's bone tissue (a bool Volume or array on the mask's grid, z, y, x), when known: a
                  humanoid's or quadruped's limb joints then move to the articulations the bones show
-                 (``volrig.bones.rig_to_bones``; ``rig.bone_joints`` says which moved, and how). None: the rig
-                 from the outer shape alone.
+                 (``volrig.bones.rig_to_bones``; ``rig.bone_joints`` says which moved, and how). When the
+                 flesh is missing (``BARE_BONE_SHARE`` of the outer surface or more is bone), the body plan is read
+                 from the bone grown into a body (``volrig.bones.bone_body``) and ``rig.note`` says so. None: the
+                 rig from the outer shape alone.
     When no body plan fits, the rig is neutral chains and ``rig.note`` says so.
     """
+    return autorig_fit(points, tree, mask, bones=bones, prune_scale=prune_scale, tolerance=tolerance, roles=roles,
+                       progress=progress, detail=detail, kind=kind, up=up, own_scale=own_scale, markers=markers,
+                       plan_weights=plan_weights, bone=bone)[0]
+
+
+def autorig_fit(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
+                prune_scale: float = 1.5, tolerance: float = 0.35, roles: bool = True, progress: ProgressFn = None,
+                detail: Optional[list] = None, kind: Optional[str] = None, up=None, own_scale: bool = True,
+                markers: Optional[dict] = None, plan_weights=None, bone=None):
+    """``autorig`` (the same arguments), returning (rig, ``volrig.bones.BonesFit`` or None without ``bone``): the
+    fit's segments are what ``pipeline.rig_skeleton`` binds rigidly."""
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)
     if not isinstance(tree, SkeletonTree):
@@ -289,21 +305,73 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
         raise VolrigError(f"the tree has {len(tree.component)} points but {len(points)} points were given")
     if up is not None:  # bones, kind and up are checked by the core
         up = tuple(float(u) for u in np.asarray(up, dtype=np.float64).reshape(3))
-    d = _volrig.autorig(arr, points.spacing, points.origin, ijk, radii, tree.edges, int(bones or 0),
-                        float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(own_scale),
+    plan = _Plan(arr, points, ijk, radii, tree.edges, own_scale)
+    if bone is not None:
+        _mask_for(points, bone)  # the same geometry as the skeleton's
+        plan = _plan_from_bones(plan, bone)
+    d = _volrig.autorig(plan.mask, points.spacing, points.origin, plan.ijk, plan.radii, plan.edges, int(bones or 0),
+                        float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(plan.own_scale),
                         progress, _markers(markers),
                         [] if plan_weights is None else [float(w) for w in plan_weights])
+    d["joint_points"] = plan.joint_points(d["joint_points"])
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
                                     d["node_kept"], list(d["reading_kind"]), d["reading_features"],
                                     float(d["chains_fit"]), d["reading_leaves"]))
     rig = Rig(d["joints"], d["bones"], d["names"], d["parents"], d["kind"], d["joint_points"], float(d["fit"]),
-              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]), d["note"])
+              np.asarray(d["up"]), float(d["up_confidence"]), d["runner_up"], float(d["runner_up_fit"]),
+              "; ".join(n for n in (plan.note, d["note"]) if n))
     if bone is None:
-        return rig
+        return rig, None
     from .bones import rig_to_bones  # the bones' module builds on Rig
-    _mask_for(points, bone)  # the same geometry as the skeleton's
-    return rig_to_bones(rig, bone, like_shape=arr.shape).rig
+    fit = rig_to_bones(rig, bone, like_shape=arr.shape)
+    return fit.rig, fit
+
+
+@dataclass
+class _Plan:
+    """What autorig reads the body plan from: the mask, and the skeleton points and tree given with it."""
+    mask: np.ndarray
+    points: SkeletonPoints
+    ijk: np.ndarray
+    radii: np.ndarray
+    edges: np.ndarray
+    own_scale: bool
+    note: str = ""
+    user_points: Optional[SkeletonPoints] = None  # set when the plan's points are not the caller's
+
+    def joint_points(self, jp: np.ndarray) -> np.ndarray:
+        """The rig's joint points as indices into the caller's points (the nearest of them; -1 stays)."""
+        if self.user_points is None:
+            return jp
+        out = np.full(len(jp), -1, dtype=np.int64)
+        theirs = self.user_points.centers
+        for k, p in enumerate(jp):
+            if p >= 0 and len(theirs):
+                d = theirs - self.points.centers[p]
+                out[k] = int(np.argmin(np.einsum("ij,ij->i", d, d)))
+        return out
+
+
+#: Skeleton points the grown bone is rigged with (autorig rigs its own skeleton of it: these only place
+#: ``joint_points``, mapped back to the caller's points).
+_BONE_BODY_POINTS = 2000
+
+
+def _plan_from_bones(plan: _Plan, bone) -> _Plan:
+    """``plan``, or, when the flesh is missing (``BARE_BONE_SHARE`` of the outer surface or more is bone), the
+    bone grown into a body (``volrig.bones.bone_body``) rigged at autorig's own scale."""
+    from .bones import _bone_array, bone_body  # the bones' module builds on Rig
+    from .skeleton import skeletonize
+    from .tree import skeleton_tree
+    share = float(_volrig.bare_bone_share(plan.mask, _bone_array(bone, like_shape=plan.mask.shape)))
+    if share < BARE_BONE_SHARE:
+        return plan
+    body, radius, _ = bone_body(bone)
+    pts = skeletonize(body).top(_BONE_BODY_POINTS)
+    ijk, radii = _point_arrays(pts)
+    note = f"body plan from the bones ({share:.0%} of the surface is bare bone; the bone grown by {radius:.1f} mm)"
+    return _Plan(_mask_for(pts, body), pts, ijk, radii, skeleton_tree(pts, body).edges, True, note, plan.points)
 
 
 def _markers(markers) -> dict:

@@ -124,3 +124,78 @@ TEST_CASE("bone rig: bad input is refused clearly; rigs without limbs are kept",
     CHECK(b.joints.empty());
     CHECK(b.rig.joints == chains.joints);
 }
+
+// ---- when the flesh is missing (bare_bone_share, bone_body) --------------------------------------------------------
+
+namespace {
+
+/// The phantom's bones inside a body: a cylinder of `skin` mm about them (0: the bone alone is the body).
+std::vector<std::uint8_t> body_around(const Phantom& p, double skin) {
+    std::vector<std::uint8_t> body = p.bone;
+    for (std::int64_t z = 4; z < 116; ++z)
+        for (std::int64_t y = 0; y < 40; ++y)
+            for (std::int64_t x = 0; x < 40; ++x)
+                if (skin > 0 && std::hypot(x - 20.0, y - 20.0) <= kRadius + skin)
+                    body[static_cast<std::size_t>(p.grid.index(x, y, z))] = 1;
+    return body;
+}
+
+}  // namespace
+
+TEST_CASE("bare bone share: about 0 under skin, about 1 for the bone alone", "[rig][bones]") {
+    const Phantom p = femur_tibia(0);
+    const auto skinned = body_around(p, 6.0);
+    CHECK(bare_bone_share(p.grid, skinned.data(), p.bone.data()) == 0.0);
+    CHECK(bare_bone_share(p.grid, p.bone.data(), p.bone.data()) == 1.0);
+    // Bones poking out of a body (a fleshless leg beside a skinned one): the share is the bare bone's part of the
+    // surface, between the two.
+    auto half = skinned;
+    for (std::int64_t z = 4; z < 60; ++z)
+        for (std::int64_t y = 0; y < 40; ++y)
+            for (std::int64_t x = 0; x < 40; ++x) {
+                const auto i = static_cast<std::size_t>(p.grid.index(x, y, z));
+                half[i] = p.bone[i];
+            }
+    const double share = bare_bone_share(p.grid, half.data(), p.bone.data());
+    CHECK(share > kBareBoneShare);
+    CHECK(share < 0.9);
+    // An empty body has no surface.
+    const std::vector<std::uint8_t> none(p.bone.size(), 0);
+    CHECK(bare_bone_share(p.grid, none.data(), p.bone.data()) == 0.0);
+}
+
+TEST_CASE("bone body: grown until the bones are one body, the gap bridged", "[rig][bones]") {
+    const Phantom p = femur_tibia(0);  // two bones 5 mm apart (z 57..61 empty)
+    const BoneBody b = bone_body(p.grid, p.bone.data());
+    // The median depth of a radius-8 cylinder's voxels is a few mm: the first radius already bridges 5 mm.
+    CHECK(b.joined == 1.0);
+    CHECK(b.radius >= 2.5);
+    CHECK(b.radius < 2 * kRadius);
+    std::int64_t grown = 0;
+    for (std::size_t i = 0; i < p.bone.size(); ++i) {
+        if (p.bone[i]) REQUIRE(b.mask[i] == 1);  // every bone voxel in the body
+        grown += b.mask[i];
+    }
+    // The body is the bones thickened by the radius, bounded: no more than the cylinder of radius 8 + radius.
+    const double cap = M_PI * std::pow(kRadius + b.radius + 1, 2) * (106 - 12 + 2 * b.radius + 2);
+    CHECK(static_cast<double>(grown) < cap);
+    CHECK(b.mask[static_cast<std::size_t>(p.grid.index(20, 20, 59))] == 1);  // the gap's centre
+    // Far from the bone (the grid's corner, where an unpadded transform would see the grid's face as bone): out.
+    CHECK(b.mask[static_cast<std::size_t>(p.grid.index(0, 0, 0))] == 0);
+    CHECK(b.mask[static_cast<std::size_t>(p.grid.index(39, 39, 119))] == 0);
+}
+
+TEST_CASE("bone body: bones far apart stay apart after the last growth; an empty bone is refused", "[rig][bones]") {
+    Phantom p;
+    p.grid.dims = {200, 8, 8};
+    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
+    for (std::int64_t x : {2, 3, 196, 197})  // two thin plates 193 voxels apart
+        for (std::int64_t y = 2; y < 6; ++y)
+            for (std::int64_t z = 2; z < 6; ++z) p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = 1;
+    const BoneBody b = bone_body(p.grid, p.bone.data());
+    CHECK(b.joined == 0.5);
+    // Plates two voxels thick: depth 1, so the first radius is 2, grown kBoneBodySteps - 1 times.
+    CHECK(b.radius == Approx(2.0 * std::pow(kBoneBodyGrowth, kBoneBodySteps - 1)));
+    const std::vector<std::uint8_t> none(p.bone.size(), 0);
+    CHECK_THROWS_AS(bone_body(p.grid, none.data()), Error);
+}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import volrig
-from volrig.bones import BoneJoint, bone_segments, rig_to_bones, separated
+from volrig.bones import bone_segments, rig_to_bones, separated
 from volrig.pipeline import rig_skeleton
 
 from conftest import shared
@@ -222,19 +222,44 @@ def frog():
     return vol, mask, pts, volrig.skeleton_tree(pts, mask), volrig.rigid_tissue(vol, labels=[13])
 
 
-def test_the_frog_rigs_with_its_skeleton_given():
-    """The frog (label 13 its skeleton) rigs with its bones given: a chains rig would be kept as is, with an empty
-    report; as a quadruped (its limbs misplaced: test_rig_real.py), each limb joint is placed or kept with its
-    reason, and at least one moves to the bones."""
+LIMBS = {"leg": ("thigh", "shin", "foot"), "arm": ("upper_arm", "forearm", "hand")}
+LIMB_JOINTS_OF = {"leg": ("hip", "knee", "ankle"), "arm": ("shoulder", "elbow", "wrist")}
+
+
+def test_the_frog_rigs_from_its_bones():
+    """The frog's labels hold organs and bones, no skin: 47% of its outer surface is bare bone, so the body plan is
+    read from the bone (label 13) grown into a body. Each limb chain then runs on its own limb's bones: the four
+    limbs' bone segments are disjoint, their middle joints lie within 5 mm of bone, the legs hang from the end away from the
+    head, and left and right lie on either side of the spine."""
     vol, mask, pts, tree, bone = frog()
-    plain = volrig.autorig(pts, tree, mask, own_scale=False)
-    rig = volrig.autorig(pts, tree, mask, own_scale=False, bone=bone)
-    assert rig.names == plain.names
-    if plain.kind == "chains":
-        assert rig.bone_joints == [] and np.array_equal(rig.joints, plain.joints)
-    quad = volrig.autorig(pts, tree, mask, own_scale=False, kind="quadruped", bone=bone)
-    assert quad.kind == "quadruped" and len(quad.bone_joints) == 12
-    for j in quad.bone_joints:
-        assert isinstance(j, BoneJoint) and (j.moved != bool(j.why)), j
-        assert np.isfinite(j.after).all() and j.shift <= 120.0  # near the joint
-    assert any(j.moved and j.shift > 0 for j in quad.bone_joints)
+    assert volrig.bones.bare_bone_share(mask, bone) > volrig.rig.BARE_BONE_SHARE
+    rig = volrig.autorig(pts, tree, mask, bone=bone)
+    assert rig.kind in ("humanoid", "quadruped") and rig.note.startswith("body plan from the bones"), rig.note
+    b = np.asarray(bone.array).astype(bool)
+    to_bone = volrig.distance_transform(bone.like(~b))  # mm to the nearest bone voxel
+    segs, names = {}, []
+    for limb, parts in LIMBS.items():
+        for side in "LR":
+            name = f"{limb}.{side}"
+            chain = {f"{p}.{side}" for p in parts}
+            segs[name] = {j.child_segment for j in rig.bone_joints
+                          if j.name == f"{j.name.partition('.')[0]}.{side}" and j.child_segment
+                          and j.name.partition(".")[0] in LIMB_JOINTS_OF[limb]}
+            middle = S.rig_joint(rig, ("knee." if limb == "leg" else "elbow.") + side)
+            ijk = np.round((middle - np.asarray(bone.origin)) / np.asarray(bone.spacing)).astype(int)[::-1]
+            assert to_bone[tuple(ijk)] <= 5.0, (name, middle)  # within the grown bone (3.6 mm)
+            assert chain <= set(rig.names)
+            names.append(name)
+    for x in names:
+        assert segs[x], x
+        for y in names:
+            if x < y:
+                assert not segs[x] & segs[y], (x, y, segs)
+    head = rig.joints[rig.bones[rig.index("head")][0]]
+    hips = rig.joints[rig.bones[rig.index("hips")][0]]
+    axis = (head - hips) / np.linalg.norm(head - hips)
+    for side in "LR":
+        knee, elbow = S.rig_joint(rig, "knee." + side), S.rig_joint(rig, "elbow." + side)
+        assert (knee - hips) @ axis < (elbow - hips) @ axis  # the legs nearer the hips' end than the arms
+    across = np.cross(axis, S.rig_joint(rig, "knee.L") - hips)
+    assert across @ np.cross(axis, S.rig_joint(rig, "knee.R") - hips) < 0  # legs either side of the spine

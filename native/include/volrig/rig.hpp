@@ -186,4 +186,27 @@ struct BoneRig {
 /// split. End joints move with their bone's head (directions kept). A rig without role names is returned as is.
 BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt = {});
 
+// ---- when the flesh is missing (native/src/rig/bones/body.cpp) ---------------------------------------------------
+
+/// The share of `body`'s surface voxels (a 6-neighbour outside it, inside the grid) that are bone: about 0 for a
+/// scan with skin (bone lies under flesh), large for organs and bones without skin or the bone alone.
+double bare_bone_share(const Grid& grid, const std::uint8_t* body, const std::uint8_t* bone);
+
+/// autorig(bone=) reads the body plan from the bone when at least this share of the surface is bare bone.
+inline constexpr double kBareBoneShare = 0.1;
+
+/// The bone grown into a body: every voxel within `radius` of the bone, the largest 26-connected component. The
+/// radius starts at twice the bone's median depth (at least kBoneBodyMinVoxels voxels) and grows by
+/// kBoneBodyGrowth, at most kBoneBodySteps times, until that component holds kBoneBodyJoined of the bone (joint
+/// spaces and girdles apart from the spine bridged; thin bones thick enough for autorig's own scale).
+struct BoneBody {
+    std::vector<std::uint8_t> mask;  ///< per voxel 0/1
+    double radius = 0;               ///< the radius used (mm)
+    double joined = 0;               ///< the share of the bone in the body
+};
+inline constexpr double kBoneBodyMinVoxels = 1.5, kBoneBodyGrowth = 1.5, kBoneBodyJoined = 0.95;
+inline constexpr int kBoneBodySteps = 5;
+/// Throws Error for an empty bone mask.
+BoneBody bone_body(const Grid& grid, const std::uint8_t* bone);
+
 }  // namespace volrig

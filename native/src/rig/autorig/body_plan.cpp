@@ -151,6 +151,14 @@ int broken_markers(const NodeTree& t, const Reading& r, const LimbPaths& p, cons
     return broken;
 }
 
+/// Whether the arms hang between the head and the legs: where they meet lies nearer the head, along the tree, than
+/// where the legs meet. Both templates are built so (the chest between the pelvis and the head); a reading whose
+/// arms meet beyond its pelvis (seen from the head) reads the body back to front, its spine then the short side
+/// branch to a girdle.
+bool arms_between(const NodeTree& t, std::uint32_t head, std::uint32_t arms_meet, std::uint32_t pelvis) {
+    return t.length(t.path(head, arms_meet)) < t.length(t.path(head, pelvis));
+}
+
 /// Every assignment of five extremities to head, legs, arms, read as a humanoid and as a quadruped; the best of
 /// each kind kept in `best`, every reading appended to `all` when given.
 void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double left_out, double left_out_thickness,
@@ -167,8 +175,9 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 // The arms' meeting point may sit on a side branch (a shoulder girdle): the chest is where that
                 // branch joins the spine.
                 r.pelvis = t.median(r.legs[0], r.legs[1], r.head);
-                r.chest = t.median(r.pelvis, t.median(r.arms[0], r.arms[1], r.head), r.head);
-                if (r.pelvis == r.chest) continue;
+                const std::uint32_t arms_meet = t.median(r.arms[0], r.arms[1], r.head);
+                r.chest = t.median(r.pelvis, arms_meet, r.head);
+                if (r.pelvis == r.chest || !arms_between(t, r.head, arms_meet, r.pelvis)) continue;
                 const LimbPaths paths(t, r);
                 const int broken = broken_markers(t, r, paths, in.markers);
                 const PlanFeatures shared = shared_features(t, r, paths, left_out, left_out_thickness, object_extent);

@@ -139,6 +139,7 @@ private:
     void place(const LimbJoint& lj, const std::string& sfx);
     P3 axis_of(int b) const;
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
+    double slab_along(const P3& axis) const;
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
     bool place_ball(BoneJoint& j, int cb, int db, double w);
@@ -187,10 +188,19 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
 
 P3 Fitter::axis_of(int b) const { return unit(sub(tail(b), head(b))); }
 
+/// How thick a section's slabs are along `axis`: a voxel's longest extent along it (its spacing times the axis'
+/// share on each grid axis, the largest), at least the finest spacing. On a grid with slices 8 mm apart a slab
+/// along the slices' normal is 8 mm thick: thinner slabs would fall between the slices and read as valleys.
+double Fitter::slab_along(const P3& axis) const {
+    double slab = g_.min_spacing();
+    for (int a = 0; a < 3; ++a) slab = std::max(slab, std::abs(axis[a]) * g_.spacing[a]);
+    return slab;
+}
+
 bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
     const P3 axis = axis_of(pb), at = head(cb);
     const Section s = narrowest_section(patch_of(g_, out_.segments.labels, j.child_segment, at, 1.5 * w), at, axis, w,
-                                        g_.min_spacing());
+                                        slab_along(axis));
     if (!s.found) {
         j.why = "one segment spans the joint without a narrower section";
         return false;
