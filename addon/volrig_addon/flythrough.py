@@ -2,7 +2,7 @@
 curve on the centerline, a camera keyed along it looking down the averaged tangent, a headlight riding with it and
 the wall seen from inside), the straightened volume (curved planar reformation) beside the original, and the
 straightening animation through the rig machinery (a chain armature along the centerline keyed from its curved
-rest to a straight line; Bake then straightens the organ). The numbers come from ``volrig.centerlines``.
+rest to a straight line; Bake then straightens the organ). The numbers come from ``volrig.centerline``.
 
 Objects of a volume's set made here (roles): ``<name>_path`` (PATH, curve, child of the volume),
 ``<name>_camera`` (CAMERA), ``<name>_light`` (LIGHT, child of the camera), ``<name>_lumen`` (LUMEN, the wall as a
@@ -17,7 +17,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 import volrig
-from volrig.centerlines import flight_frames, flight_path, lumen_wall, straightening_rig
+from volrig.centerline import flight_frames, flight_path, lumen_wall, straightening_rig
 
 from . import compat, engines, materials, objects, scans, staging
 from .bake import exit_with
@@ -120,7 +120,7 @@ def camera_keys(matrix_world, flight) -> tuple:
 
 
 def build_lumen(volume_obj, mask: volrig.Volume):
-    """``<name>_lumen``: the wall around the segmented lumen as a Volume object (``volrig.centerlines.lumen_wall``:
+    """``<name>_lumen``: the wall around the segmented lumen as a Volume object (``volrig.centerline.lumen_wall``:
     only a shell a few voxels thick is stored, so Cycles marches the wall alone), child of the volume, with the
     wall material; written to the cache as lumen_<key>.vdb."""
     import hashlib
