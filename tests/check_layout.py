@@ -56,7 +56,6 @@ PY_TESTS = REPO / "tests" / "python"
 CAPABILITIES: dict[str, dict[str, list[str]]] = {
     # volume readers and writers (NRRD, NIfTI, MetaImage, DICOM, TIFF, VDB, raw), zlib
     "io": {"headers": [], "python": ["volume", "files"], "python_tests": ["dicom", "tiff", "vdb", "orientation"]},
-    "drawing": {"headers": []},  # drawings: PNG reading (native), inflation to a solid (Python)
     "skeleton": {"headers": ["distance.hpp", "components.hpp", "reconstruct.hpp"]},  # DT, thinness skeleton
     "medial": {"headers": ["medial_surface.hpp", "thickness.hpp"]},  # plane measure, medial surface, thickness
     "tree": {"headers": []},  # the skeleton-tree
@@ -68,6 +67,7 @@ CAPABILITIES: dict[str, dict[str, list[str]]] = {
     "mocap": {"headers": []},  # motion capture: the BVH reader (native), retargeting and animation (Python)
     "centerline": {"headers": []},
     "collide": {"headers": []},
+    "drawing": {"headers": []},  # drawings: PNG reading (native), inflation to a solid (Python)
 }
 
 # Modules of python/volrig that belong to no one capability: the package's front, the pipeline that chains the
