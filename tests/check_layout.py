@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
-"""tests/check_layout.py: one capability, one name at every layer of the native code.
+"""tests/check_layout.py: one capability, one name at every layer, native code and Python package.
 
 For every capability in CAPABILITIES (the one list of them) it checks that
   native/src/<cap>/                 holds the capability's sources,
   native/include/volrig/<cap>.hpp   is its public header,
   native/bindings/<cap>.cpp         is its binding file,
   tests/native/test_<cap>*.cpp      holds at least one of its Catch2 test files (test_<cap>.cpp or test_<cap>_<stage>.cpp),
+  python/volrig/<cap>.py            is its Python module (or python/volrig/<cap>/, a subpackage),
+  tests/python/test_<cap>*.py       holds at least one of its pytest files (test_<cap>.py or test_<cap>_<stage>.py),
 and, across the tree, that
   - no .cpp lies loose in native/src (the shared helpers live in native/src/common/, see COMMON below);
   - every folder of native/src, public header, binding file and Catch2 test file belongs to a capability by its name
@@ -13,7 +15,22 @@ and, across the tree, that
   - every internal namespace of native/src/<cap>/ is volrig::<cap>_detail (common/: volrig::common_detail);
   - no source file of native/ or tests/native/ is over MAX_FILE_LINES lines, and no C++ function of native/ over
     MAX_FUNCTION_LINES lines (a rough brace-matching count: comments and strings stripped, a function is a brace block opened after a
-    parenthesised signature at namespace or class level; lambdas count inside their function).
+    parenthesised signature at namespace or class level; lambdas count inside their function);
+  - every module and subpackage of python/volrig belongs to a capability (its "python" list), is one of the shared
+    and pipeline modules of SHARED_MODULES (each with the reason it belongs to no one capability), or is an old name
+    kept for compatibility (ALIASES);
+  - every tests/python/test_<name>*.py is named after a capability, one of its Python modules or test stages
+    ("python_tests"), a shared module, or is one of PROJECT_TESTS (tests of the repository as a whole).
+
+Where the Python modules are not named as the capability, CAPABILITIES says so ("python"):
+  - io: `volume.py` (Volume, load, save, dicom_series, write_vdb) and `files.py` (atomic_output). They are not
+    merged into an io.py: the hostile-input work (issue 55) is editing volume.py's load and dicom_series and
+    native/src/io at the same time, and a move would collide with it. For the same reason io's pytest files
+    test_dicom.py, test_tiff.py, test_vdb.py and test_orientation.py keep their names ("python_tests"; the native
+    side's are test_io_<format>.cpp); rename them test_io_<format>.py, and drop this exception, once that work is in.
+  - rig: `markers.py`, `bones.py` (rigs from a scan's bones) and `rigfile.py` (the .vrig file) beside `rig.py`;
+    deform: `rigid_layer.py` beside `deform.py`. They keep their module names, which are public
+    (`volrig.markers`, ...), rather than move into subpackages.
 
 Plain Python, no dependencies: `python3 tests/check_layout.py` prints the problems and exits 1 when there are any
 (tests/python/test_layout.py runs it).
@@ -29,22 +46,57 @@ SRC = REPO / "native" / "src"
 INCLUDE = REPO / "native" / "include" / "volrig"
 BINDINGS = REPO / "native" / "bindings"
 TESTS = REPO / "tests" / "native"
+PACKAGE = REPO / "python" / "volrig"
+PY_TESTS = REPO / "tests" / "python"
 
 # The capabilities, in the order the module binds them. "headers": further public headers of the capability, besides
-# <cap>.hpp (they declare one stage each and are kept so that includes stay small).
+# <cap>.hpp (they declare one stage each and are kept so that includes stay small). "python": its modules (or
+# subpackages) of python/volrig when they are not just <cap> (the module docstring says why); "python_tests": further
+# stems of its tests/python/test_<stem>*.py files, besides <cap> and its modules' names.
 CAPABILITIES: dict[str, dict[str, list[str]]] = {
-    "io": {"headers": []},  # volume readers and writers (NRRD, NIfTI, MetaImage, DICOM, TIFF, VDB, raw), zlib
-    "image": {"headers": []},  # drawings: PNG reading
+    # volume readers and writers (NRRD, NIfTI, MetaImage, DICOM, TIFF, VDB, raw), zlib
+    "io": {"headers": [], "python": ["volume", "files"], "python_tests": ["dicom", "tiff", "vdb", "orientation"]},
     "skeleton": {"headers": ["distance.hpp", "components.hpp", "reconstruct.hpp"]},  # DT, thinness skeleton
     "medial": {"headers": ["medial_surface.hpp", "thickness.hpp"]},  # plane measure, medial surface, thickness
     "tree": {"headers": []},  # the skeleton-tree
-    "rig": {"headers": []},  # autorig (rig/autorig/), bind, rest matrices
+    # autorig (rig/autorig/), bind, rest matrices, rigs from the bones (rig/bones/)
+    "rig": {"headers": [], "python": ["rig", "markers", "bones", "rigfile"]},
     "skin": {"headers": []},  # skin weights
     "mesh": {"headers": []},  # mesh readers and writers, voxelize
-    "deform": {"headers": []},
-    "bvh": {"headers": []},  # motion capture files
+    "deform": {"headers": [], "python": ["deform", "rigid_layer"]},
+    "mocap": {"headers": []},  # motion capture: the BVH reader (native), retargeting and animation (Python)
     "centerline": {"headers": []},
     "collide": {"headers": []},
+    "drawing": {"headers": []},  # drawings: PNG reading (native), inflation to a solid (Python)
+}
+
+# Modules of python/volrig that belong to no one capability: the package's front, the pipeline that chains the
+# capabilities, and what several of them share.
+SHARED_MODULES = {
+    "__init__": "the package: every capability's functions re-exported as volrig.<name>",
+    "__main__": "python -m volrig",
+    "cli": "the command line, over the pipeline",
+    "pipeline": "the steps chained from a file to baked frames, for the CLI, the add-on and the demo",
+    "demo": "the README's demo",
+    "_optional": "scipy is optional: the numpy fallbacks several capabilities use",
+    "segment": "segmentation, from a volume to the mask every capability starts from (numpy, no native part)",
+    "phantom": "the procedural humanoid, data for tests, demos and benchmarks",
+    "walk": "a procedural walk cycle for humanoid rigs, motion for demos, tests and the add-on",
+    "parts": "looks by rig part and exploded views, over a rig, a binding and the deformer",
+    "tissues": "looks by tissue class of label maps, for bakes",
+}
+# Old module names kept so that existing imports keep working, and the module they stand for.
+ALIASES = {"centerlines": "centerline"}
+# tests/python files of the repository as a whole (test_<name>.py), not of one module.
+PROJECT_TESTS = {
+    "layout": "this check",
+    "docs": "the paths the docs name exist",
+    "project": "pyproject.toml's metadata, the linters",
+    "imports": "no import cycles; no module of the package reads the shared data",
+    "wheel": "the wheel in a bare Debian root",
+    "flamenco_job": "farm/flamenco's job type",
+    "subjects": "tests/support's shared subjects",
+    "armature_data": "what the add-on stores (armatures, vertex groups, VDB) read back without Blender",
 }
 
 # Shared by every capability: native/src/common/ (volume.cpp: the Grid of volume.hpp; memory.cpp: the pools of
@@ -114,9 +166,12 @@ def functions(path: Path) -> list[tuple[int, int, str]]:
 
 
 
-def problems() -> list[str]:
+def rel(p: Path) -> str:
+    return p.relative_to(REPO).as_posix()
+
+
+def native_problems() -> list[str]:
     out: list[str] = []
-    rel = lambda p: p.relative_to(REPO).as_posix()  # noqa: E731
 
     # Each capability: folder, header, binding, tests.
     for cap, extra in CAPABILITIES.items():
@@ -177,11 +232,64 @@ def problems() -> list[str]:
     return out
 
 
+def python_modules(cap: str) -> list[str]:
+    """The modules (or subpackages) of python/volrig that make up a capability."""
+    return CAPABILITIES[cap].get("python", [cap])
+
+
+def package_modules() -> list[str]:
+    """The modules (`name.py`) and subpackages (`name/__init__.py`) of python/volrig, by name."""
+    mods = [p.stem for p in PACKAGE.glob("*.py")]
+    mods += [p.name for p in PACKAGE.iterdir() if p.is_dir() and (p / "__init__.py").is_file()]
+    return sorted(mods)
+
+
+def python_problems() -> list[str]:
+    out: list[str] = []
+    present = set(package_modules())
+    tests = sorted(p.stem[len("test_"):] for p in PY_TESTS.glob("test_*.py"))
+
+    # Each capability: its module(s) and at least one test file by its name.
+    for cap in CAPABILITIES:
+        for m in python_modules(cap):
+            if m not in present:
+                out.append(f"{cap}: no Python module python/volrig/{m}.py (or subpackage python/volrig/{m}/)")
+        if not [t for t in tests if _stem_matches(t, cap)]:
+            out.append(f"{cap}: no pytest file tests/python/test_{cap}.py or test_{cap}_<stage>.py")
+
+    # Every module belongs somewhere; every alias stands for a module.
+    owned = {m: cap for cap in CAPABILITIES for m in python_modules(cap)}
+    for m in sorted(present):
+        if m not in owned and m not in SHARED_MODULES and m not in ALIASES:
+            out.append(f"python/volrig/{m}: a module of no capability (name it <cap>.py, or list it in CAPABILITIES' "
+                       "\"python\" or, with its reason, in SHARED_MODULES)")
+    for old, new in ALIASES.items():
+        if new not in present:
+            out.append(f"python/volrig/{old}: an alias of {new}, which is no module")
+    for m in SHARED_MODULES:
+        if m in owned:
+            out.append(f"python/volrig/{m}: listed both as shared and as {owned[m]}'s")
+
+    # Every test file is named after what it tests.
+    names = set(CAPABILITIES) | set(owned) | {m.lstrip("_") for m in SHARED_MODULES if not m.startswith("__")}
+    names |= {t for e in CAPABILITIES.values() for t in e.get("python_tests", [])} | set(PROJECT_TESTS)
+    for t in tests:
+        if not any(_stem_matches(t, n) for n in names):
+            out.append(f"tests/python/test_{t}.py: a pytest file of no capability or module (name it test_<cap>.py, "
+                       "test_<cap>_<stage>.py or test_<module>.py)")
+    return out
+
+
+def problems() -> list[str]:
+    return native_problems() + python_problems()
+
+
 def main() -> int:
     found = problems()
     for p in found:
         print(p)
-    print(f"check_layout: {len(CAPABILITIES)} capabilities, {len(found)} problem(s)")
+    print(f"check_layout: {len(CAPABILITIES)} capabilities, {len(package_modules())} Python modules, "
+          f"{len(found)} problem(s)")
     return 1 if found else 0
 
 

@@ -36,9 +36,10 @@ _find_volrig()
 
 if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     import importlib
-    for _m in ("compat", "engines", "scans", "state", "materials", "objects", "looks", "tissue_looks", "properties",
-               "ops_base", "staging", "volume", "medial", "skeleton", "rig", "mocap", "looks_ui", "bake",
-               "flythrough", "collide", "drawing", "preview", "mesh_rig"):
+    # properties last: its VolrigObject joins the feature modules' settings classes.
+    for _m in ("compat", "engines", "scans", "state", "materials", "objects", "looks", "tissue_looks", "ops_base",
+               "staging", "volume", "medial", "skeleton", "markers", "rig", "mocap", "looks_ui", "bake",
+               "flythrough", "collide", "drawing", "preview", "mesh_rig", "properties"):
         if _m in locals():
             importlib.reload(locals()[_m])
 

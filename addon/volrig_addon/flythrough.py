@@ -2,7 +2,7 @@
 curve on the centerline, a camera keyed along it looking down the averaged tangent, a headlight riding with it and
 the wall seen from inside), the straightened volume (curved planar reformation) beside the original, and the
 straightening animation through the rig machinery (a chain armature along the centerline keyed from its curved
-rest to a straight line; Bake then straightens the organ). The numbers come from ``volrig.centerlines``.
+rest to a straight line; Bake then straightens the organ). The numbers come from ``volrig.centerline``.
 
 Objects of a volume's set made here (roles): ``<name>_path`` (PATH, curve, child of the volume),
 ``<name>_camera`` (CAMERA), ``<name>_light`` (LIGHT, child of the camera), ``<name>_lumen`` (LUMEN, the wall as a
@@ -13,11 +13,12 @@ The Fly Through, Straighten and Animate Straightening operators and the Centerli
 import os
 
 import bpy
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty
 import numpy as np
 from mathutils import Matrix, Vector
 
 import volrig
-from volrig.centerlines import flight_frames, flight_path, lumen_wall, straightening_rig
+from volrig.centerline import flight_frames, flight_path, lumen_wall, straightening_rig
 
 from . import compat, engines, materials, objects, scans, staging
 from .bake import exit_with
@@ -27,6 +28,39 @@ from .volume import import_samples
 
 #: The headlight's power for a lumen of radius 1 Blender unit (W); it scales with the radius squared, so the wall
 #: at the lumen's radius is lit alike in a trachea and in a bronchus a tenth as wide.
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+class CenterlineSettings:
+    """Where the centerline runs, the fly-through's camera and the straightening."""
+    fly_ends: EnumProperty(name="Ends", items=[
+        ("AUTO", "Automatic", "From the end of the thickest terminal branch (a trachea, a tube's wide end) to the "
+                              "end farthest from it along the object"),
+        ("POINTS", "Points", "From Start to End (volume units, e.g. mm in the scan's frame)"),
+    ], default="AUTO")
+    fly_start: FloatVectorProperty(name="Start", size=3, precision=2,
+                                   description="Where the centerline starts (volume units, on the object)")
+    fly_end: FloatVectorProperty(name="End", size=3, precision=2,
+                                 description="Where the centerline ends (volume units, on the object)")
+    frames_per_mm: FloatProperty(name="Frames per mm", default=1.0, min=0.01, soft_max=20.0,
+                                 description="Frames per volume unit of the centerline: the camera's speed")
+    look_ahead: FloatProperty(name="Look ahead", default=10.0, min=0.0, soft_max=100.0,
+                              description="The camera looks along the centerline's tangent averaged over this "
+                                          "length ahead of it (volume units)")
+    fly_fov: FloatProperty(name="Field of view", default=100.0, min=10.0, max=170.0,
+                           description="The camera's field of view, degrees (endoscopes: 90 to 140)")
+    fly_light: FloatProperty(name="Headlight", default=1.0, min=0.0, soft_max=10.0,
+                             description="The headlight's power, relative (it follows the lumen's radius)")
+    fly_frame_start: IntProperty(name="First frame", default=1,
+                                 description="Scene frame where the fly-through and the straightening start")
+    straighten_radius: FloatProperty(name="Radius", default=0.0, min=0.0,
+                                     description="Straighten: half the width of the straightened volume (volume "
+                                                 "units); 0 = 1.5 times the widest radius plus two voxels")
+    straighten_bones: IntProperty(name="Bones", default=12, min=1, max=200,
+                                  description="Straightening rig: bones along the centerline (equal arc pieces)")
+    straighten_frames: IntProperty(name="Frames", default=48, min=2, max=100000,
+                                   description="Straightening rig: frames from curved to straight")
+
+
 LIGHT_POWER = 80.0
 
 
@@ -120,7 +154,7 @@ def camera_keys(matrix_world, flight) -> tuple:
 
 
 def build_lumen(volume_obj, mask: volrig.Volume):
-    """``<name>_lumen``: the wall around the segmented lumen as a Volume object (``volrig.centerlines.lumen_wall``:
+    """``<name>_lumen``: the wall around the segmented lumen as a Volume object (``volrig.centerline.lumen_wall``:
     only a shell a few voxels thick is stored, so Cycles marches the wall alone), child of the volume, with the
     wall material; written to the cache as lumen_<key>.vdb."""
     import hashlib

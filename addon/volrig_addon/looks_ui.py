@@ -3,9 +3,113 @@ The Parts panel (under Look): the rig's parts in a list, each with visible, colo
 *Find Parts* button, and the *Explode* factor the bake applies. The Tissues panel (under Look): a label map's
 tissue classes in a list, each with visible, colour and opacity (tissue_looks.py), and the tissue table."""
 import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, StringProperty)
 
-from . import engines, looks, objects, tissue_looks
+from . import engines, looks, materials, objects, tissue_looks
+from .compat import BLEND_RELATIVE
 from .ops_base import _labelled, _OnVolume, _settings, _VolrigPanel
+
+
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+#: The transfer-function presets (materials.PRESETS and the lumen view); stored by position: append only.
+PRESET_ITEMS = [
+    ("CT_BONE", "CT bone", "Dense values opaque and bone-white, soft values transparent"),
+    ("SOFT_TISSUE", "Soft tissue", "Low values reddish and translucent, dense values white"),
+    ("LABELS", "Label map", "One colour per integer label"),
+    ("GREY", "Grey", "Density proportional to the value"),
+    ("LUMEN", "Lumen view", "The segmented range clear, every other value an opaque pink wall: for cameras "
+                            "inside a hollow organ (Fly Through sets it)"),
+]
+
+
+def _look_changed(self, context):
+    materials.update_volume_material(self.id_data)
+
+
+def _parts_toggled(self, context):
+    looks.parts_toggled(self.id_data)
+
+
+def _substitute_changed(self, context):
+    looks.substitute_changed(self.id_data)
+
+
+def _tissues_toggled(self, context):
+    tissue_looks.toggled(self.id_data)
+
+
+class VolrigPart(bpy.types.PropertyGroup):
+    """One line of the Parts list: a group of bones ("left arm") and its look (see looks.py)."""
+    key: StringProperty(name="Key", description="The part's grids: density_<key> and mask_<key>")
+    bones: StringProperty(name="Bones", description="The part's bones, comma-separated")
+    visible: BoolProperty(name="Visible", default=True, update=_look_changed,
+                          description="Show the part's voxels (hidden: rendered as if they were empty)")
+    colored: BoolProperty(name="Colour", default=False, update=_look_changed,
+                          description="Give the part its own colour instead of the transfer function's")
+    color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.9, 0.15, 0.1), min=0.0, max=1.0,
+                               update=_look_changed)
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=10.0, update=_look_changed,
+                           description="The part's opacity, a factor on the transfer function's")
+    preset: EnumProperty(name="Transfer function", update=_look_changed, items=[
+        ("VOLUME", "Volume's", "The volume's transfer function (with this part's colour and opacity)")]
+        + [item for item in PRESET_ITEMS if item[0] != "LUMEN"],
+        description="The part's own transfer function over its values (the volume's value range), or the volume's")
+    substitute: StringProperty(name="Substitute", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                               update=_substitute_changed,
+                               description="Take this part's values from another volume file in the same world frame "
+                                           "(any voxel size): the full-resolution scan under a downsampled one, or "
+                                           "another co-registered scan (its values through the same transfer "
+                                           "function); empty: the volume's own")
+
+
+class VolrigTissue(bpy.types.PropertyGroup):
+    """One line of the Tissues list: a class of a label map's codes ("bone": 84, 92, 172) and its look
+    (tissue_looks.py)."""
+    key: StringProperty(name="Key", description="The class's grid: tissue_<key>")
+    codes: StringProperty(name="Codes", description="The label map's codes in this class, comma-separated")
+    visible: BoolProperty(name="Visible", default=True, update=_look_changed,
+                          description="Show the class's voxels (hidden: rendered as if they were empty)")
+    color: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, default=(0.8, 0.8, 0.8), min=0.0, max=1.0,
+                               update=_look_changed)
+    opacity: FloatProperty(name="Opacity", default=1.0, min=0.0, soft_max=1.0, max=100.0, precision=3,
+                           update=_look_changed,
+                           description="The class's opacity (times the Density multiplier)")
+
+
+class LookSettings:
+    """The transfer function, the highlight, and the looks by part and by tissue."""
+    preset: EnumProperty(name="Transfer function", items=PRESET_ITEMS, default="SOFT_TISSUE", update=_look_changed)
+    density_scale: FloatProperty(name="Density", default=1.0, min=0.0, soft_max=100.0, update=_look_changed,
+                                 description="Density multiplier (per Blender unit of the scaled object)")
+    highlight_bone: StringProperty(name="Highlight bone", update=_look_changed,
+                                   description="Make this bone's part of the volume glow (needs a baked frame)")
+    highlight_strength: FloatProperty(name="Glow", default=2.0, min=0.0, soft_max=20.0, update=_look_changed)
+    highlight_color: FloatVectorProperty(name="Glow colour", subtype="COLOR", size=3, default=(1.0, 0.35, 0.05),
+                                         min=0.0, max=1.0, update=_look_changed)
+    use_parts: BoolProperty(name="Per-part looks", default=False, update=_parts_toggled,
+                            description="Give each part of the rig its own look (visible, colour, opacity): the rest "
+                                        "volume and every baked frame get two grids per part (bakes take about "
+                                        "twice as long; bake again for frames baked without them)")
+    parts: CollectionProperty(type=VolrigPart, name="Parts",
+                              description="The rig's parts (bone groups), each with its own look")
+    parts_index: IntProperty(name="Part", default=0)
+    use_tissues: BoolProperty(name="Per-tissue looks", default=False, update=_tissues_toggled,
+                              description="Label maps: give each tissue class (skin, muscle, bone, ... from the "
+                                          "tissue table, or each label without one) its own colour, opacity and "
+                                          "visibility; the rest volume and every baked frame get one grid per "
+                                          "class, baked with nearest sampling")
+    tissue_table: StringProperty(name="Tissue table", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                                 update=_tissues_toggled,
+                                 description="A TSV or CSV file of tissue codes and names (code, name per line), "
+                                             "matched against volrig's tissue classes; empty: one class per label")
+    tissues: CollectionProperty(type=VolrigTissue, name="Tissues",
+                                description="The label map's tissue classes, each with its own look")
+    tissues_index: IntProperty(name="Tissue", default=0)
+    explode: FloatProperty(name="Explode", default=0.0, min=0.0, soft_max=2.0,
+                           description="Bake each part moved away from its parent by this many times its length "
+                                       "(animatable; added to the animated pose)")
 
 
 class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):

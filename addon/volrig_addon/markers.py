@@ -15,6 +15,14 @@ from . import objects, scans
 from .ops_base import _reported
 
 #: The markers the panel asks for first, in this order: with them the plan and every limb come out right.
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+class MarkerSettings:
+    """The joint the next click places."""
+    marker_name: EnumProperty(name="Marker", items=[(n, n, f"Place the {n} marker") for n in volrig.MARKER_NAMES],
+                              default="chin", description="The joint the next click places")
+
+
 ASKED = ("chin", "wrist.L", "wrist.R", "groin", "knee.L", "knee.R")
 
 

@@ -2,11 +2,22 @@
 and Medial Surface (``volrig.medial_surface``); their buttons are on the Segment panel (volume.py)."""
 import bpy
 import numpy as np
+from bpy.props import FloatProperty
 
 import volrig
 
 from . import objects, scans
 from .ops_base import _OnVolume, _ProgressBar
+
+
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+class MedialSettings:
+    """Which plates get a medial surface."""
+    plane_t: FloatProperty(name="Plate t", default=5.0, min=1.0, soft_max=30.0, precision=1,
+                           description="Plane-like threshold of Medial Surface, in voxels: plates whose sides lie "
+                                       "more than t apart around their rim get a medial surface (larger: only the "
+                                       "larger plates; at least 5 against noise)")
 
 
 class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):

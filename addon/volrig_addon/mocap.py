@@ -6,7 +6,7 @@ import os
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, StringProperty
+from bpy.props import CollectionProperty, EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 from mathutils import Matrix
 
@@ -14,7 +14,25 @@ import volrig
 from volrig import pipeline
 
 from . import compat, objects
+from .compat import BLEND_RELATIVE
 from .ops_base import _OnVolume, _settings, _VolrigPanel
+
+
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+class VolrigBonePair(bpy.types.PropertyGroup):
+    """One line of the motion capture bone map: a BVH joint and the rig bone it drives."""
+    joint: StringProperty(name="BVH joint", description="A joint of the BVH clip")
+    bone: StringProperty(name="Rig bone", description="The rig bone this joint drives (empty: not mapped)")
+
+
+class MocapSettings:
+    """The clip that last drove the rig and the bone map."""
+    bvh_file: StringProperty(name="BVH", subtype="FILE_PATH", options=BLEND_RELATIVE,
+                             description="The clip that last drove the rig")
+    bone_map: CollectionProperty(type=VolrigBonePair, name="Bone map",
+                                 description="BVH joint -> rig bone; Drive with BVH uses it for the same clip")
+    bone_map_index: IntProperty(name="Bone map line", default=0)
 
 
 def stored_bone_map(volume_obj, motion: volrig.Motion):

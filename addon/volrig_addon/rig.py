@@ -5,7 +5,7 @@ import uuid
 
 import bpy
 import numpy as np
-from bpy.props import FloatProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 import volrig
 from volrig import pipeline
@@ -15,6 +15,51 @@ from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _Vo
 
 
 #: The Rig button's progress bar: each pipeline step's share.
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+class RigSettings:
+    """How the rig is built and bound, and what the last Rig found."""
+    # --- rig ---
+    alpha: FloatProperty(name="Alpha", default=0.9, min=0.0, max=1.0,
+                         description="Skeleton-tree: 1 weighs edges by length only, lower prefers equal radii")
+    bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
+    roles: BoolProperty(name="Body roles", default=True,
+                        description="Name bones as a humanoid, quadruped or hand when the shape looks like one")
+    body_plan: EnumProperty(name="Body plan", items=[
+        ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, hand, chains) and keep the best"),
+        ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
+        ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
+        ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
+        ("hand", "Hand", "Force the hand template (palm, thumb and four fingers of three bones each)"),
+    ], default="AUTO", description="The template the rig is fitted to; pick another and press Rig to refit")
+    use_scene_up: BoolProperty(name="Scene up", default=True,
+                               description="Tell the rig where up is: the scene's +Z seen from the volume (else inferred)")
+    rig_kept_points: BoolProperty(name="Kept points", default=False,
+                                  description="Rig the kept skeleton points themselves, not autorig's own skeleton "
+                                              "of the object (for bones without flesh; the rig then follows the "
+                                              "thinness)")
+    rig_found: StringProperty(name="Found", description="What the last rig found: kind, fit and runner-up")
+    rigid_voxels: IntProperty(name="Rigid voxels", default=0, min=0,
+                              description="Voxels of rigid tissue the last Rig or Rebind bound: they move whole, as "
+                                          "the rigid layer, while the flesh bends (0: none)")
+    bind_mode: EnumProperty(name="Binding", items=[
+        ("smooth", "Smooth", "Points near a joint share their weight between its two bones"),
+        ("rigid", "Rigid", "Every point follows one bone"),
+    ], default="smooth")
+    rigid_by: EnumProperty(name="Rigid tissue", default="AUTO", items=[
+        ("AUTO", "Automatic", "The tissue table's bone codes (Look > Tissues) when the volume has a table, else none"),
+        ("NONE", "None", "Every tissue bends at the joints"),
+        ("LABELS", "Labels", "The voxels with these label values do not bend (a label map's bone codes)"),
+        ("RANGE", "Value range", "The voxels with values in this range do not bend (a CT's bone, e.g. 300-3000 HU)"),
+    ], description="Tissue that must not bend: each connected piece is bound wholly to one bone, its spheres with "
+                   "weight 1; only the rest blends across joints (Rig and Rebind)")
+    rigid_labels: StringProperty(name="Rigid labels", default="",
+                                 description="Label values of the rigid tissue, e.g. 84, 92 or 80-90")
+    rigid_low: FloatProperty(name="From", default=300.0, description="Lowest value of the rigid tissue")
+    rigid_high: FloatProperty(name="To", default=3000.0, description="Highest value of the rigid tissue")
+    rig_file: StringProperty(name="Rig file", description="The .vrig file (points, tree, rig, binding) in the cache")
+
+
 _RIG_STEPS = {"skeletonize": (0, 30), "skeleton-tree": (30, 55), "autorig": (55, 85), "bind": (85, 100)}
 
 

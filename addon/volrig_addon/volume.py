@@ -7,7 +7,8 @@ import uuid
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntVectorProperty, StringProperty
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, IntVectorProperty,
+                       StringProperty)
 from bpy_extras.io_utils import ImportHelper
 
 import volrig
@@ -15,8 +16,52 @@ from volrig import pipeline
 from volrig.volume import FORMATS, format_of
 
 from . import materials, objects, scans
+from .compat import BLEND_RELATIVE
 from .ops_base import _OnVolume, _reported, _settings, _VolrigPanel
-from .properties import UNIT_FACTOR, UNIT_SCALES
+
+
+# ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
+
+UNIT_SCALES = [
+    ("MM", "mm to m", "Volume units are millimetres (medical scans); 1 mm = 0.001 Blender units", 0),
+    ("CM", "cm to m", "Volume units are centimetres; 1 cm = 0.01 Blender units", 1),
+    ("M", "m", "Volume units are metres; no scaling", 2),
+    ("CUSTOM", "Custom", "Blender units per volume unit", 3),
+]
+UNIT_FACTOR = {"MM": 0.001, "CM": 0.01, "M": 1.0}
+
+
+def _segmentation_changed(self, context):
+    scans.update_mask_count(self.id_data)
+
+
+class VolumeSettings:
+    """Where the volume came from (read-only in the UI) and how it is segmented."""
+    # --- the source (read-only in the UI) ---
+    source: StringProperty(name="Source", description="The file the volume was imported from (never modified)")
+    cache_dir: StringProperty(name="Cache", subtype="DIR_PATH", options=BLEND_RELATIVE,
+                              description="Folder holding this volume's source copy, rig file and baked frames")
+    dims: IntVectorProperty(name="Voxels", size=3, description="Grid size (x, y, z)")
+    spacing: FloatVectorProperty(name="Spacing", size=3, precision=4, description="Voxel size (x, y, z)")
+    origin: FloatVectorProperty(name="Origin", size=3, precision=3, description="World position of voxel 0")
+    value_min: FloatProperty(name="Minimum")
+    value_max: FloatProperty(name="Maximum")
+    unit_scale: FloatProperty(name="Unit scale", default=0.001, min=1e-9, precision=6,
+                              description="Blender units per volume unit")
+
+    # --- segmentation ---
+    segment_by: EnumProperty(name="Segment by", items=[
+        ("RANGE", "Range", "Object = samples between Low and High"),
+        ("LABELS", "Labels", "Object = samples equal to one of the labels (label maps)"),
+    ], default="RANGE", update=_segmentation_changed)
+    low: FloatProperty(name="Low", default=1.0, update=_segmentation_changed,
+                       description="Lowest object value (e.g. Hounsfield units)")
+    high: FloatProperty(name="High", default=1e9, update=_segmentation_changed, description="Highest object value")
+    labels: StringProperty(name="Labels", default="1", update=_segmentation_changed,
+                           description="Object labels: numbers and ranges, e.g. '1 4 7-9'")
+    largest: BoolProperty(name="Largest part only", default=True, update=_segmentation_changed,
+                          description="Keep only the largest connected part of the object")
+    mask_count: IntProperty(name="Object voxels", default=-1)
 
 
 class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):

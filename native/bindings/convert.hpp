@@ -185,9 +185,9 @@ void bind_rig(py::module_& m);
 void bind_skin(py::module_& m);
 void bind_mesh(py::module_& m);
 void bind_deform(py::module_& m);
-void bind_bvh(py::module_& m);
+void bind_mocap(py::module_& m);
 void bind_centerline(py::module_& m);
 void bind_collide(py::module_& m);
-void bind_image(py::module_& m);
+void bind_drawing(py::module_& m);
 
 }  // namespace volrig::py

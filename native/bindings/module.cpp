@@ -30,8 +30,8 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_skin(m);
     volrig::py::bind_mesh(m);
     volrig::py::bind_deform(m);
-    volrig::py::bind_bvh(m);
+    volrig::py::bind_mocap(m);
     volrig::py::bind_centerline(m);
     volrig::py::bind_collide(m);
-    volrig::py::bind_image(m);
+    volrig::py::bind_drawing(m);
 }

@@ -22,7 +22,7 @@ from .markers import ray_marker
 from .rigfile import RiggedSkeleton, load_rig, save_rig
 from .deform import BrickedFrame, Deformer, Frame, deform, deform_reference, inverse_warp
 from .mocap import Motion, animate, default_bone_map, load_bone_map, read_bvh, save_bone_map
-from .centerlines import (Centerline, CenterlineTree, StraighteningRig, StraightenMap, centerline, centerline_tree,
+from .centerline import (Centerline, CenterlineTree, StraighteningRig, StraightenMap, centerline, centerline_tree,
                           straighten, straightening_rig)
 from .medial import MedialSurface, local_thickness, medial_surface, plane_like, plane_measure
 from .collide import ClipContacts, Collider, Collision, Contact, collide, collisions, self_collide
@@ -56,6 +56,9 @@ def __getattr__(name):
     if name in ("phantom", "drawing"):  # numpy/scipy-heavy modules, imported on first use
         import importlib
         return importlib.import_module("." + name, __name__)
+    if name == "centerlines":  # volrig.centerline's old name (its module, not the function volrig.centerline)
+        import importlib
+        return importlib.import_module(".centerlines", __name__)
     if name in ("inflate", "drawing_colours"):  # scipy.ndimage, imported on first use
         from . import drawing
         return getattr(drawing, name)

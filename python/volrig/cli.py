@@ -485,7 +485,7 @@ def cmd_flythrough(args) -> int:
 
 
 def cmd_centerline(args) -> int:
-    from .centerlines import centerline, centerline_tree
+    from .centerline import centerline, centerline_tree
     from .files import atomic_output
     from .pipeline import Segmentation
     if not args.output.endswith(".csv"):

@@ -152,7 +152,7 @@ class Motion:
 
 def read_bvh(path) -> Motion:
     """Read a BVH file. Raises FileNotFoundError, or ``volrig.FileFormatError`` (a ValueError) whose message starts
-    with the file name and names the line and the problem (see native/include/volrig/bvh.hpp for what is
+    with the file name and names the line and the problem (see native/include/volrig/mocap.hpp for what is
     checked)."""
     path = os.fspath(path)
     d = _volrig.read_bvh(path)

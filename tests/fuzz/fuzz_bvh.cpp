@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <cstdlib>
 
-#include "volrig/bvh.hpp"
+#include "volrig/mocap.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const auto src = volrig::memory_source(data, size, "fuzz.bvh");

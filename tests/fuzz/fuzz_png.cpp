@@ -4,7 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "volrig/image.hpp"
+#include "volrig/drawing.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const auto src = volrig::memory_source(data, size, "fuzz.png");

@@ -1,4 +1,4 @@
-"""Fly-through helpers (volrig.centerlines.flight_path, flight_frames, lumen_wall) on synthetic tubes, and
+"""Fly-through helpers (volrig.centerline.flight_path, flight_frames, lumen_wall) on synthetic tubes, and
 ``volrig flythrough`` end to end in headless Blender (skipped when Blender is absent)."""
 import os
 import shutil
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import volrig
-from volrig.centerlines import flight_frames, flight_path, lumen_wall
+from volrig.centerline import flight_frames, flight_path, lumen_wall
 from test_centerline import helix, segment, torus_segment, tube
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

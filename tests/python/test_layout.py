@@ -1,4 +1,4 @@
-"""The native code's layout: one capability, one name at every layer (tests/check_layout.py)."""
+"""The layout of the native code and the Python package: one capability, one name at every layer (tests/check_layout.py)."""
 import subprocess
 import sys
 from pathlib import Path

@@ -1,5 +1,5 @@
 // io/io_detail.hpp: internals shared by the file readers and writers (io.cpp, io/nrrd.cpp, io/metaimage.cpp,
-// io/nifti.cpp; the text readers of mesh_io.cpp and bvh.cpp). Not installed; not part of the public API.
+// io/nifti.cpp; the text readers of mesh_io.cpp and mocap/bvh.cpp). Not installed; not part of the public API.
 // Defined in io/io_detail.cpp (messages, text, LineReader), io/voxels.cpp (grids and voxels) and io/write.cpp
 // (writing); none of them depends on a format reader.
 #pragma once

@@ -1,4 +1,4 @@
-// bvh/bvh.cpp: the BVH reader of volrig/bvh.hpp.
+// mocap/bvh.cpp: the BVH reader of volrig/mocap.hpp.
 //
 // The hierarchy is read as a stream of words (braces are words of their own, wherever they stand) with the line
 // of each, the motion line by line (one frame per line). The file is read through a LineReader in chunks, never
@@ -10,7 +10,7 @@
 #include <unordered_map>
 
 #include "io/io_detail.hpp"
-#include "volrig/bvh.hpp"
+#include "volrig/mocap.hpp"
 
 namespace volrig {
 

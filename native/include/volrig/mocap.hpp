@@ -1,4 +1,4 @@
-// volrig/bvh.hpp: motion capture in: the Biovision Hierarchy (BVH) reader.
+// volrig/mocap.hpp: motion capture in: the Biovision Hierarchy (BVH) reader.
 //
 // The reader follows volrig/io.hpp's rules: it validates everything it reads and every error is a FileFormatError
 // (or FileNotFound) whose message starts with the file name and names the line and the problem

@@ -1,4 +1,4 @@
-// volrig/image.hpp: 2-D images (drawings to inflate): PNG through libpng.
+// volrig/drawing.hpp: 2-D images (drawings to inflate): PNG through libpng.
 #pragma once
 
 #include <cstdint>

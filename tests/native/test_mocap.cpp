@@ -1,4 +1,4 @@
-// Tests for volrig/bvh.hpp: the BVH reader on files written here (every construct of the format, every kind of
+// Tests for volrig/mocap.hpp: the BVH reader on files written here (every construct of the format, every kind of
 // malformed input, truncation at every byte), the fuzz seed corpus, and CMU subject 131 in ../shared/data when
 // present.
 #include <catch2/catch.hpp>
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "volrig/bvh.hpp"
+#include "volrig/mocap.hpp"
 
 using namespace volrig;
 namespace fs = std::filesystem;

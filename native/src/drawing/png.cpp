@@ -1,4 +1,4 @@
-// image/png.cpp: PNG images through libpng's simplified API (image.hpp says what is read and refused).
+// drawing/png.cpp: PNG images through libpng's simplified API (drawing.hpp says what is read and refused).
 //
 // The whole file is read into memory (it is checked against max_bytes first), libpng reads the header, the
 // decoded size is checked (max_bytes; the deflate bound of the compressed bytes), then libpng decodes into an
@@ -8,7 +8,7 @@
 
 #include "io/zlib_inflate.hpp"
 #include "io/io_detail.hpp"
-#include "volrig/image.hpp"
+#include "volrig/drawing.hpp"
 
 namespace volrig {
 

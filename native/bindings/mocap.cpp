@@ -1,14 +1,14 @@
-// Bindings for volrig/bvh.hpp: conversions only. Reading runs with the GIL released.
+// Bindings for volrig/mocap.hpp: conversions only. Reading runs with the GIL released.
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "convert.hpp"
-#include "volrig/bvh.hpp"
+#include "volrig/mocap.hpp"
 
 namespace volrig::py {
 
-void bind_bvh(py::module_& m) {
+void bind_mocap(py::module_& m) {
     m.def(
         "read_bvh",
         [](const std::string& path) {
@@ -48,7 +48,7 @@ void bind_bvh(py::module_& m) {
         },
         py::arg("path"),
         "read_bvh(path) -> dict(names, parents (J,) int32, offsets (J, 3), channels [tuple of names per joint], "
-        "end_parents (E,) int32, end_offsets (E, 3), frame_time, frames (F, C) float64). See volrig/bvh.hpp.");
+        "end_parents (E,) int32, end_offsets (E, 3), frame_time, frames (F, C) float64). See volrig/mocap.hpp.");
 }
 
 }  // namespace volrig::py

@@ -1,11 +1,11 @@
-// Bindings for volrig/image.hpp: conversions only; reading runs with the GIL released.
-#include "volrig/image.hpp"
+// Bindings for volrig/drawing.hpp: conversions only; reading runs with the GIL released.
+#include "volrig/drawing.hpp"
 
 #include "convert.hpp"
 
 namespace volrig::py {
 
-void bind_image(py::module_& m) {
+void bind_drawing(py::module_& m) {
     m.def(
         "read_png",
         [](const std::string& path, std::int64_t max_bytes) {

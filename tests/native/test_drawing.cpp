@@ -1,4 +1,4 @@
-// Tests for read_png / read_png_file (image.hpp): images written here with libpng's simplified API (grey, grey +
+// Tests for read_png / read_png_file (drawing.hpp): images written here with libpng's simplified API (grey, grey +
 // alpha, RGB, RGBA, 16-bit), read back as RGBA; truncated, corrupt, lying and oversized files refused with a
 // FileFormatError naming the source; the fuzz corpus reads.
 #include <catch2/catch.hpp>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "volrig/image.hpp"
+#include "volrig/drawing.hpp"
 
 using namespace volrig;
 namespace fs = std::filesystem;
