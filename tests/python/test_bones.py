@@ -175,44 +175,51 @@ def test_bone_segments_part_the_long_bones():
         assert femur > 0 and tibia > 0 and femur != tibia
 
 
-def test_a_bent_knee_moves_the_whole_tibia_with_the_shin():
-    """The rig and the rigid layer agree: each bone segment binds wholly to its rig bone. The knee bent 90
-    degrees: every voxel of the tibia's segment in the rigid layer moves with shin.L (the rigid layer's piece of
-    it is exactly the segment moved by the shin's matrix) and no voxel of the femur does."""
+@pytest.mark.parametrize("child,joint", [("shin.L", "knee.L"), ("forearm.R", "elbow.R"), ("thigh.R", "hip.R")],
+                         ids=["knee", "elbow", "hip"])
+def test_a_joint_bent_90_degrees_moves_each_segment_with_its_own_bone(child, joint):
+    """The rig and the rigid layer agree: each bone segment binds wholly to its rig bone. A knee, an elbow or a hip
+    bent 90 degrees: every voxel of the child's segment in the rigid layer moves with the child bone (the rigid
+    layer's piece of it is the segment moved by the child's matrix) and no voxel of the segment across the joint
+    (femur, humerus, pelvis) does: that one moves wholly with one other bone."""
     from test_rigid_layer import piece_moved
     v = vhm(2)
-    r = rig_skeleton(v["pts"], v["mask"], up=(0, 0, 1), rigid=v["bone"], bone=v["bone"])
-    fit = rig_to_bones(v["plain"], v["bone"])
+    if "rigged" not in v:
+        v["rigged"] = (rig_skeleton(v["pts"], v["mask"], up=(0, 0, 1), rigid=v["bone"], bone=v["bone"]),
+                       rig_to_bones(v["plain"], v["bone"]))
+    r, fit = v["rigged"]
     assert np.allclose(fit.rig.joints, r.rig.joints)
     lab = np.asarray(fit.segments.array)
     rigid = r.binding.rigid
     assert r.binding.rigid_whole and np.array_equal(rigid, separated(fit.segments, v["bone"]))
-    tibia = (lab == fit.bone_segment["shin.L"]) & rigid
-    femur = (lab == fit.bone_segment["thigh.L"]) & rigid
-    assert tibia.sum() >= 0.98 * (lab == fit.bone_segment["shin.L"]).sum() and femur.any()
+    across = next(j.parent_segment for j in fit.joints if j.name == joint)
+    assert fit.bone_segment[child] and across and fit.bone_segment[child] != across
+    moved = (lab == fit.bone_segment[child]) & rigid
+    held = (lab == across) & rigid
+    assert moved.sum() >= 0.98 * (lab == fit.bone_segment[child]).sum() and held.any()
     d = volrig.Deformer(v["labels"], v["pts"], r.binding)
-    pose = r.rig.pose({"shin.L": ([1, 0, 0], 90)})
+    pose = r.rig.pose({child: ([1, 0, 0], 90)})
     d.frame(pose, mode="rigid", sampling="nearest", values=False)
-    shin, thigh = r.rig.index("shin.L"), r.rig.index("thigh.L")
+    cb = r.rig.index(child)
     carried = np.zeros(lab.shape, np.int16)
     for p in d._layer.pieces:
         x, y, z = p.box[:3]
         sz, sy, sx = p.voxels.shape
         carried[z:z + sz, y:y + sy, x:x + sx][p.voxels > 0] = p.bone + 1
-    assert (carried[tibia] == shin + 1).all(), np.unique(carried[tibia], return_counts=True)
-    assert not (carried[femur] == shin + 1).any() and (carried[femur] == thigh + 1).all()
-    # the shin's pieces, moved by the shin's matrix, land where the tibia moved rigidly lands
+    assert (carried[moved] == cb + 1).all(), np.unique(carried[moved], return_counts=True)
+    assert len(np.unique(carried[held])) == 1 and carried[held][0] not in (0, cb + 1), np.unique(carried[held])
+    # the child's pieces, moved by its matrix, land where its segment moved rigidly lands
     spacing, origin = v["labels"].spacing, v["labels"].origin
-    m = np.asarray(pose[shin])
-    z, y, x = np.nonzero(tibia)
+    m = np.asarray(pose[cb])
+    z, y, x = np.nonzero(moved)
     q = ((np.stack([x, y, z], axis=1) * spacing + origin) @ m[:3, :3].T + m[:3, 3] - origin) / spacing
     want = set(map(tuple, np.floor(q + 0.5).astype(int).tolist()))
     got = set()
     for p in d._layer.pieces:
-        if p.bone == shin:
+        if p.bone == cb:
             got |= set(map(tuple, piece_moved(p, m, spacing, origin).tolist()))
     assert len(want & got) >= 0.97 * len(want)
-    assert np.linalg.norm(r.rig.joints[r.rig.bones[shin][1]] - fit.rig.joints[fit.rig.bones[shin][1]]) == 0
+    assert np.linalg.norm(r.rig.joints[r.rig.bones[cb][1]] - fit.rig.joints[fit.rig.bones[cb][1]]) == 0
 
 
 def frog():
