@@ -16,6 +16,9 @@ and, across the tree, that
   - no source file of native/ or tests/native/ is over MAX_FILE_LINES lines, and no C++ function of native/ over
     MAX_FUNCTION_LINES lines (a rough brace-matching count: comments and strings stripped, a function is a brace block opened after a
     parenthesised signature at namespace or class level; lambdas count inside their function);
+  - no Python file of PYTHON_FOLDERS (the package, the add-on, the Python tests and their support, the scripts and
+    the benchmarks) is over MAX_FILE_LINES lines either: its .py files, and in scripts/ also the extensionless
+    scripts run by python3 (their first line says so);
   - every module and subpackage of python/volrig belongs to a capability (its "python" list), is one of the shared
     and pipeline modules of SHARED_MODULES (each with the reason it belongs to no one capability), or is an old name
     kept for compatibility (ALIASES);
@@ -76,6 +79,8 @@ SHARED_MODULES = {
     "__init__": "the package: every capability's functions re-exported as volrig.<name>",
     "__main__": "python -m volrig",
     "cli": "the command line, over the pipeline",
+    "cli_commands": "the command line's commands (cli.py keeps the argument parser and main): one file of 800 "
+                    "lines would not hold both",
     "pipeline": "the steps chained from a file to baked frames, for the CLI, the add-on and the demo",
     "demo": "the README's demo",
     "_optional": "scipy is optional: the numpy fallbacks several capabilities use",
@@ -111,6 +116,8 @@ BINDING_HELPERS = ["convert.hpp"]
 
 MAX_FILE_LINES = 800
 MAX_FUNCTION_LINES = 100
+# The folders whose Python files MAX_FILE_LINES holds for too (with their subfolders).
+PYTHON_FOLDERS = ["python/volrig", "addon/volrig_addon", "tests/python", "tests/support", "scripts", "benchmarks"]
 
 
 def _stem_matches(stem: str, cap: str) -> bool:
@@ -232,6 +239,24 @@ def native_problems() -> list[str]:
     return out
 
 
+def python_files() -> list[Path]:
+    """The Python files of PYTHON_FOLDERS: every .py file, and the extensionless scripts whose first line runs
+    python (scripts/extension)."""
+    out = []
+    for folder in PYTHON_FOLDERS:
+        for p in sorted((REPO / folder).rglob("*")):
+            if not p.is_file() or "__pycache__" in p.parts:
+                continue
+            if p.suffix == ".py":
+                out.append(p)
+            elif not p.suffix:
+                with p.open("rb") as f:
+                    first = f.readline()
+                if first.startswith(b"#!") and b"python" in first:
+                    out.append(p)
+    return out
+
+
 def python_modules(cap: str) -> list[str]:
     """The modules (or subpackages) of python/volrig that make up a capability."""
     return CAPABILITIES[cap].get("python", [cap])
@@ -269,6 +294,12 @@ def python_problems() -> list[str]:
     for m in SHARED_MODULES:
         if m in owned:
             out.append(f"python/volrig/{m}: listed both as shared and as {owned[m]}'s")
+
+    # Sizes.
+    for p in python_files():
+        n = len(p.read_text(encoding="utf-8").splitlines())
+        if n > MAX_FILE_LINES:
+            out.append(f"{rel(p)}: {n} lines (at most {MAX_FILE_LINES})")
 
     # Every test file is named after what it tests.
     names = set(CAPABILITIES) | set(owned) | {m.lstrip("_") for m in SHARED_MODULES if not m.startswith("__")}
