@@ -20,20 +20,16 @@ struct LimbJoint {
     const char* name;
     bool ball;
     const char* distal;
+    double along;  ///< a hinge (knee, elbow, ankle): its share of the limb from the parent's head to the child's
+                   ///< tail (Drillis-Contini: thigh 0.245 / shin 0.246, upper arm 0.186 / forearm 0.146, shin 0.246
+                   ///< / foot 0.11), where it is searched when hidden; 0 for the others
 };
 constexpr LimbJoint kLimbJoints[] = {
-    {"forearm", "upper_arm", "elbow", false, ""}, {"upper_arm", "", "shoulder", true, "forearm"},
-    {"hand", "forearm", "wrist", false, ""},      {"shin", "thigh", "knee", false, ""},
-    {"thigh", "", "hip", true, "shin"},           {"foot", "shin", "ankle", false, ""},
+    {"forearm", "upper_arm", "elbow", false, "", 0.56}, {"upper_arm", "", "shoulder", true, "forearm", 0},
+    {"hand", "forearm", "wrist", false, "", 0},         {"shin", "thigh", "knee", false, "", 0.5},
+    {"thigh", "", "hip", true, "shin", 0},              {"foot", "shin", "ankle", false, "", 0.69},
 };
 
-P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-double norm(const P3& a) { return std::sqrt(dot(a, a)); }
-P3 unit(const P3& a) {
-    const double n = norm(a);
-    return n > 0 ? P3{a[0] / n, a[1] / n, a[2] / n} : P3{0, 0, 0};
-}
 
 /// Distance from q to the segment a..b.
 double to_segment(const P3& q, const P3& a, const P3& b) {
@@ -92,10 +88,13 @@ private:
     double length(int b) const { return norm(sub(tail(b), head(b))); }
 
     /// The segment the middle half of bone b runs through: the one with most voxels near that stretch.
-    std::int32_t segment_of(int b) const {
+    std::int32_t segment_of(int b) const { return segment_along(b, 0.25, 0.75); }
+
+    /// The segment with most voxels near the stretch of bone b between the shares `from` and `to` of its length.
+    std::int32_t segment_along(int b, double from, double to) const {
         const P3 h = head(b), t = tail(b), d = sub(t, h);
-        const P3 a{h[0] + 0.25 * d[0], h[1] + 0.25 * d[1], h[2] + 0.25 * d[2]};
-        const P3 e{h[0] + 0.75 * d[0], h[1] + 0.75 * d[1], h[2] + 0.75 * d[2]};
+        const P3 a{h[0] + from * d[0], h[1] + from * d[1], h[2] + from * d[2]};
+        const P3 e{h[0] + to * d[0], h[1] + to * d[1], h[2] + to * d[2]};
         const double r = std::clamp(0.1 * length(b), 3 * cell_, 40.0);
         std::array<std::int64_t, 3> lo{}, hi{};
         box_of(g_, a, e, r, lo, hi);
@@ -139,6 +138,8 @@ private:
     void place(const LimbJoint& lj, const std::string& sfx);
     P3 axis_of(int b) const;
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
+    bool place_in_limb(BoneJoint& j, int pb, int cb, double along);
+    bool hidden_in_parent(BoneJoint& j, int pb, int cb, double along);
     double slab_along(const P3& axis) const;
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
@@ -174,14 +175,18 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     const double span = pb >= 0 ? std::min(length(cb), length(pb)) : length(cb);
     const double w = std::clamp(0.3 * span, 3 * cell_, 60.0);
     j.child_segment = segment_of(cb);
-    j.parent_segment = pb >= 0 ? segment_of(pb) : 0;
+    // the parent's segment at the joint's end of it (a forearm parted mid-shaft where slices lie far apart: the
+    // wrist's is the lower piece)
+    j.parent_segment = pb >= 0 ? segment_along(pb, 0.5, 0.95) : 0;
     bool done = false;
     if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
-    else if (j.parent_segment == j.child_segment) done = place_in_section(j, pb, cb, w) || reseed_shared(j, pb, cb, w);
-    else done = place_hinge(j, pb, cb, w) || reseed_hinge(j, pb, cb, w);  // a child without a segment of its
-                                                                            // own: whatever meets the parent
+    else if (j.parent_segment == j.child_segment)
+        done = place_in_section(j, pb, cb, w) || (lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
+    else  // a child without a segment of its own: whatever meets the parent
+        done = place_hinge(j, pb, cb, w) || (lj.along > 0 && hidden_in_parent(j, pb, cb, lj.along)) ||
+               reseed_hinge(j, pb, cb, w);
     if (!done && j.why.empty()) j.why = "the bones show no articulation there";
     out_.joints.push_back(j);
 }
@@ -208,6 +213,44 @@ bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
     split(j.child_segment, cb, s.centre, axis);
     j.child_segment = static_cast<std::int32_t>(out_.segments.sizes.size());
     move(j, cb, s.centre, "section");
+    return true;
+}
+
+/// A knee or an elbow whose two long bones run through one segment with no narrower section near the outer shape's
+/// joint (slices too far apart to show the joint space, and that joint far off): searched along the whole limb, the
+/// limb from the parent's head through the outer shape's joint to the child's tail, within kLimbBand of the
+/// share its proportions put the joint at and kLimbRadius of the limb (limb_section: its deepest valley, else its
+/// bulge, the condyles and the plateau or the epicondyles).
+constexpr double kLimbRadius = 60.0, kLimbBand = 0.15;
+/// A knee or an elbow whose parent's segment runs on into the child bone's first stretch (slices too far apart to
+/// part them there: the humerus fused with the top of the forearm), where the bones show no contact near the outer
+/// shape's joint, itself where the limb's proportions put it: the joint is sought inside the parent's segment along
+/// the limb (place_in_limb).
+bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
+    // Only where the outer shape's joint sits where the limb's proportions put it: a joint far off (a knee guessed
+    // 15 cm too high sits inside the femur) is the reseed's to repair.
+    const double upper = length(pb), share = upper / std::max(upper + length(cb), 1e-9);
+    if (std::abs(share - along) > kLimbBand || segment_along(cb, 0.05, 0.3) != j.parent_segment) return false;
+    const std::int32_t child = j.child_segment;
+    j.child_segment = j.parent_segment;
+    if (place_in_limb(j, pb, cb, along)) return true;
+    j.child_segment = child;
+    return false;
+}
+
+bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
+    const Limb limb{head(pb), head(cb), tail(cb), along - kLimbBand, along + kLimbBand};
+    const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
+    const P3 mid{(limb.a[0] + limb.b[0]) / 2, (limb.a[1] + limb.b[1]) / 2, (limb.a[2] + limb.b[2]) / 2};
+    const P3 axis = unit(add(unit(sub(limb.k, limb.a)), unit(sub(limb.b, limb.k))));  // splits upper from lower
+    const Patch p = patch_of(g_, out_.segments.labels, j.child_segment, mid, 0.5 * length + kLimbRadius);
+    const Section s = limb_section(p, limb, kLimbRadius, slab_along(axis));
+    if (!s.found) return false;
+    const std::int32_t shared = j.child_segment;
+    move(j, cb, s.centre, s.bulge ? "bulge" : "section");
+    split(shared, cb, s.centre, axis);
+    j.child_segment = static_cast<std::int32_t>(out_.segments.sizes.size());
+    j.why.clear();
     return true;
 }
 
@@ -347,14 +390,21 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w) {
 /// Voxels of segment s beyond the plane (at, axis) and near bone cb become a new segment.
 void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
     const double r = std::clamp(0.3 * length(cb), 3 * cell_, 60.0);
-    std::array<std::int64_t, 3> lo{}, hi{};
-    box_of(g_, head(cb), tail(cb), r, lo, hi);
+    // the child bone and the bones below it (a shin and its foot: a foot fused with the tibia goes with it)
+    std::vector<int> below{cb};
+    for (std::size_t k = 0; k < below.size(); ++k)
+        for (std::size_t b = 0; b < out_.rig.parents.size(); ++b)
+            if (out_.rig.parents[b] == below[k]) below.push_back(static_cast<int>(b));
     const auto fresh = static_cast<std::int32_t>(out_.segments.sizes.size() + 1);
     std::int64_t moved = 0;
-    for_box(g_, lo, hi, [&](std::int64_t i, const P3& q) {
-        std::int32_t& l = out_.segments.labels[static_cast<std::size_t>(i)];
-        if (l == s && dot(sub(q, at), axis) > 0 && to_segment(q, head(cb), tail(cb)) <= r) l = fresh, ++moved;
-    });
+    for (const int b : below) {
+        std::array<std::int64_t, 3> lo{}, hi{};
+        box_of(g_, head(b), tail(b), r, lo, hi);
+        for_box(g_, lo, hi, [&](std::int64_t i, const P3& q) {
+            std::int32_t& l = out_.segments.labels[static_cast<std::size_t>(i)];
+            if (l == s && dot(sub(q, at), axis) > 0 && to_segment(q, head(b), tail(b)) <= r) l = fresh, ++moved;
+        });
+    }
     out_.segments.sizes[static_cast<std::size_t>(s - 1)] -= moved;
     out_.segments.sizes.push_back(moved);
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -12,6 +13,16 @@
 namespace volrig::rig_detail {
 
 using P3 = std::array<double, 3>;
+
+inline P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+inline P3 add(const P3& a, const P3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+inline double dot(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+inline double norm(const P3& a) { return std::sqrt(dot(a, a)); }
+inline double dist2(const P3& a, const P3& b) { return dot(sub(a, b), sub(a, b)); }
+inline P3 unit(const P3& a) {
+    const double n = norm(a);
+    return n > 0 ? P3{a[0] / n, a[1] / n, a[2] / n} : P3{0, 0, 0};
+}
 
 /// The options with their defaults filled in for `grid` (opening in voxels at least 1).
 struct BoneParams {
@@ -57,8 +68,24 @@ struct Section {
     bool found = false;
     P3 centre{0, 0, 0};
     double t = 0;
+    bool bulge = false;  ///< limb_section: the bulge, no valley
 };
 Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, double half_length, double slab);
+
+/// A limb as the outer shape guessed it: from the parent bone's head a through the guessed joint k to the child
+/// bone's tail b; its joint is searched between the shares `from` and `to` of its length from a.
+struct Limb {
+    P3 a, k, b;
+    double from = 0.25, to = 0.75;
+};
+
+/// Where a long hinge lies along a limb (between its shares; arc length from a; voxels within `radius` of it): the
+/// deepest valley of its slab profile when it is at least kLimbValley of its lower wall (a joint space the slices
+/// show), else the bulge: the centroid of the run of slabs around the widest holding at least kLimbBulge of its
+/// bone (the joint's wide ends fused at the voxel size). found = false for too short a limb or no bone; t = the arc
+/// length of the centre.
+inline constexpr double kLimbValley = 0.25, kLimbBulge = 0.7;
+Section limb_section(const Patch& p, const Limb& limb, double radius, double slab);
 
 /// The centre of the thickest bone of segment `s` within `radius` of `centre`: the centroid of the voxels whose
 /// distance to the segment's surface lies within a voxel of the largest (a head's centre, where no gap shows it).

@@ -16,11 +16,6 @@ namespace volrig::rig_detail {
 
 namespace {
 
-double dist2(const P3& a, const P3& b) {
-    const double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-    return dx * dx + dy * dy + dz * dz;
-}
-
 P3 centroid(const std::vector<P3>& pts) {
     P3 c{0, 0, 0};
     for (const P3& p : pts)
@@ -152,20 +147,30 @@ std::vector<long> slab_profile(const Patch& p, const P3& centre, const P3& axis,
 
 /// The deepest valley of a profile (three-slab sums): the bin whose lower wall, the most bone on either side,
 /// stands highest above it; -1 when there is none.
-int deepest_valley(const std::vector<long>& count) {
+/// `share` (when given): the valley's depth over its lower wall.
+int deepest_valley(const std::vector<long>& count, double* share = nullptr) {
     const int m = static_cast<int>(count.size());
     std::vector<long> sum(count.size(), 0);
     for (int b = 1; b + 1 < m; ++b) sum[b] = count[b - 1] + count[b] + count[b + 1];
     int best = -1, run = 0;  // the middle of the first run of equally deep bins
-    long best_depth = 0;
+    long best_depth = 0, best_wall = 1;
     for (int b = 2; b + 2 < m; ++b) {
         const long left = *std::max_element(sum.begin() + 1, sum.begin() + b);
         const long right = *std::max_element(sum.begin() + b + 1, sum.end() - 1);
         const long depth = std::min(left, right) - sum[b];
-        if (depth > best_depth) best_depth = depth, best = b, run = 1;
+        if (depth > best_depth) best_depth = depth, best = b, run = 1, best_wall = std::max(1L, std::min(left, right));
         else if (depth == best_depth && best >= 0 && b == best + run) ++run;
     }
+    if (share) *share = static_cast<double>(best_depth) / static_cast<double>(best_wall);
     return best < 0 ? best : best + (run - 1) / 2;
+}
+
+/// The centroid of the voxels whose bin lies in [lo, hi].
+P3 bins_centroid(const Patch& p, const std::vector<int>& bin, int lo, int hi) {
+    std::vector<P3> in;
+    for (std::size_t k = 0; k < p.pos.size(); ++k)
+        if (bin[k] >= lo && bin[k] <= hi) in.push_back(p.pos[k]);
+    return centroid(in);
 }
 
 }  // namespace
@@ -178,12 +183,62 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
     const std::vector<long> count = slab_profile(p, centre, axis, half_length, slab, n, bin);
     const int best = deepest_valley(count);
     if (best < 0) return s;
-    std::vector<P3> in;
-    for (std::size_t k = 0; k < p.pos.size(); ++k)
-        if (bin[k] >= best - 1 && bin[k] <= best + 1) in.push_back(p.pos[k]);
     s.found = true;
-    s.centre = centroid(in);
+    s.centre = bins_centroid(p, bin, best - 1, best + 1);
     s.t = (best - n) * slab;
+    return s;
+}
+
+namespace {
+
+/// Each voxel's bin along the limb a -> k -> b (arc length from a, nearest point of either stretch; -1 beyond
+/// `radius` of it or outside [from, to]), `slab` per bin; returns the bone per bin.
+std::vector<long> limb_profile(const Patch& p, const Limb& limb, double radius, double from, double to, double slab,
+                               std::vector<int>& bin) {
+    const int n = static_cast<int>(std::floor((to - from) / slab)) + 1;
+    std::vector<long> count(static_cast<std::size_t>(n), 0);
+    bin.assign(p.pos.size(), -1);
+    const double first = norm(sub(limb.k, limb.a));
+    for (std::size_t v = 0; v < p.pos.size(); ++v) {
+        double best = radius * radius, along = -1;
+        for (int part = 0; part < 2; ++part) {
+            const P3 s = part ? limb.k : limb.a, e = part ? limb.b : limb.k, d = sub(e, s);
+            const double len2 = std::max(dot(d, d), 1e-12);
+            const double t = std::clamp(dot(sub(p.pos[v], s), d) / len2, 0.0, 1.0);
+            const double d2 = dist2(p.pos[v], P3{s[0] + t * d[0], s[1] + t * d[1], s[2] + t * d[2]});
+            if (d2 <= best) best = d2, along = (part ? first : 0.0) + t * std::sqrt(len2);
+        }
+        if (along < from || along > to) continue;
+        const int b = std::min(n - 1, static_cast<int>((along - from) / slab));
+        bin[v] = b;
+        ++count[static_cast<std::size_t>(b)];
+    }
+    return count;
+}
+
+}  // namespace
+
+Section limb_section(const Patch& p, const Limb& limb, double radius, double slab) {
+    Section s;
+    const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
+    if ((limb.to - limb.from) * length < 6 * slab || p.pos.empty()) return s;
+    std::vector<int> bin;
+    const std::vector<long> count = limb_profile(p, limb, radius, limb.from * length, limb.to * length, slab, bin);
+    double share = 0;
+    int at = deepest_valley(count, &share), lo = at - 1, hi = at + 1;
+    s.bulge = at < 0 || share < kLimbValley;
+    if (s.bulge) {  // no joint space: the bulge around the widest slab
+        at = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
+        if (count[static_cast<std::size_t>(at)] == 0) return s;
+        const double floor = kLimbBulge * static_cast<double>(count[static_cast<std::size_t>(at)]);
+        for (lo = at; lo > 0 && static_cast<double>(count[static_cast<std::size_t>(lo - 1)]) >= floor;) --lo;
+        for (hi = at; hi + 1 < static_cast<int>(count.size()) &&
+                      static_cast<double>(count[static_cast<std::size_t>(hi + 1)]) >= floor;)
+            ++hi;
+    }
+    s.found = true;
+    s.centre = bins_centroid(p, bin, lo, hi);
+    s.t = limb.from * length + (0.5 * (lo + hi) + 0.5) * slab;
     return s;
 }
 
