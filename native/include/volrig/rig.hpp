@@ -161,7 +161,8 @@ BoneSegments bone_segments(const Grid& grid, const std::uint8_t* bone, const Bon
 
 /// One limb joint rig_to_bones placed: which (joint index, its name such as "knee.L"), from where to where, how
 /// ("contact": the centre of the contact between two segments; "ball": a sphere fitted to a head at its socket;
-/// "section": the narrowest section of one segment spanning the joint, split there; "kept": not moved, `why` says
+/// "section": the narrowest section of one segment spanning the joint, split there; "bulge": a knee, elbow or ankle
+/// inside one segment with no narrower section, at its widest bone along the limb, split there; "kept": not moved, `why` says
 /// why), and the segments either side (0 = none).
 struct BoneJoint {
     std::int32_t joint = -1;
