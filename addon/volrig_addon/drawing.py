@@ -18,17 +18,14 @@ from volrig import drawing as drawings
 
 from . import materials
 from .ops_base import _reported
+from .rig import BODY_PLANS
 from .volume import import_samples
 
-#: The body plans offered (the volume settings' own list, read once they are registered).
-_PLANS = []
 
-
-def _body_plans(self, context):
-    if not _PLANS:
-        prop = bpy.types.Object.bl_rna.properties["volrig"].fixed_type.bl_rna.properties["body_plan"]
-        _PLANS.extend((i.identifier, i.name, i.description) for i in prop.enum_items)
-    return _PLANS
+def body_plan_property():
+    """The Body plan option of Import Drawing and Rig Mesh: the template the rig is fitted to (the Rig panel's)."""
+    return EnumProperty(name="Body plan", items=BODY_PLANS,
+                        description="The template the rig is fitted to (Best fit: every template, the best kept)")
 
 
 def drawing_volume(context, path: str, *, height: float, resolution: int, depth_scale: float, gap: int,
@@ -103,8 +100,7 @@ class VOLRIG_OT_import_drawing(bpy.types.Operator, ImportHelper):
                                description="Depth of the parts relative to round cross-sections (lower: flatter)")
     gap: IntProperty(name="Gap", default=0, min=0, max=20,
                      description="Voxels between a part drawn in front (an arm across the body) and what is behind")
-    body_plan: EnumProperty(name="Body plan", items=_body_plans,
-                            description="The template the rig is fitted to (Best fit: every template, the best kept)")
+    body_plan: body_plan_property()
     rig: BoolProperty(name="Rig", default=True, description="Skeletonize and rig the volume after importing it")
     mesh: BoolProperty(name="Mesh", default=False,
                        description="Also add a mesh of the surface (Volume to Mesh modifier; follows the bake)")

@@ -18,7 +18,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 import volrig
-from volrig.centerline import flight_frames, flight_path, lumen_wall, straightening_rig
+from volrig.centerline import STRAIGHTENING_BONES, flight_frames, flight_path, lumen_wall, straightening_rig
 
 from . import compat, engines, materials, objects, scans, staging
 from .bake import exit_with
@@ -55,7 +55,7 @@ class CenterlineSettings:
     straighten_radius: FloatProperty(name="Radius", default=0.0, min=0.0,
                                      description="Straighten: half the width of the straightened volume (volume "
                                                  "units); 0 = 1.5 times the widest radius plus two voxels")
-    straighten_bones: IntProperty(name="Bones", default=12, min=1, max=200,
+    straighten_bones: IntProperty(name="Bones", default=STRAIGHTENING_BONES, min=1, max=200,
                                   description="Straightening rig: bones along the centerline (equal arc pieces)")
     straighten_frames: IntProperty(name="Frames", default=48, min=2, max=100000,
                                    description="Straightening rig: frames from curved to straight")
@@ -370,55 +370,54 @@ def command_line() -> None:
     exit_with(work)
 
 
-def _centerline_progress(bar):
-    """The centerline's progress on the first 80 % of the bar."""
-    show = bar.steps({"centerline": (0, 80)})
-    return lambda f: show("centerline", f)
+class _AlongCenterline(_OnVolume):
+    """The operators that follow the volume's centerline: ``build(context, vol, progress)`` does the work, finding
+    the centerline first (its progress on the first 80 % of the bar), and returns what to report."""
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            show = bar.steps({"centerline": (0, 80)})
+            message = self.build(context, vol, lambda f: show("centerline", f))
+        self.report({"INFO"}, f"volrig: {message}")
+        return {"FINISHED"}
 
 
-class VOLRIG_OT_fly_through(_OnVolume, bpy.types.Operator):
+class VOLRIG_OT_fly_through(_AlongCenterline, bpy.types.Operator):
     """Fly a camera along the volume's centerline: a Bezier curve on it, a camera keyed along it looking down the
     averaged tangent, a headlight riding with it, the lumen's wall shown from inside, and the scene's frame range"""
     bl_idname = "volrig.fly_through"
     bl_label = "Fly Through"
 
-    def run(self, context, vol):
-        with _ProgressBar(context) as bar:
-            made = fly_through(context, vol, progress=_centerline_progress(bar))
+    def build(self, context, vol, progress):
+        made = fly_through(context, vol, progress=progress)
         scene = context.scene
-        self.report({"INFO"}, f"volrig: fly-through of {made['line'].length:.1f} units in {len(made['flight'])} "
-                              f"frames ({scene.frame_start} .. {scene.frame_end}) by {made['camera'].name}")
-        return {"FINISHED"}
+        return (f"fly-through of {made['line'].length:.1f} units in {len(made['flight'])} frames "
+                f"({scene.frame_start} .. {scene.frame_end}) by {made['camera'].name}")
 
 
-class VOLRIG_OT_straighten(_OnVolume, bpy.types.Operator):
+class VOLRIG_OT_straighten(_AlongCenterline, bpy.types.Operator):
     """Resample the volume on the planes normal to its centerline (curved planar reformation) and add the straight
     volume as <name>_straight beside it"""
     bl_idname = "volrig.straighten"
     bl_label = "Straighten"
 
-    def run(self, context, vol):
-        with _ProgressBar(context) as bar:
-            obj, line = straighten(context, vol, import_samples, progress=_centerline_progress(bar))
+    def build(self, context, vol, progress):
+        obj, line = straighten(context, vol, import_samples, progress=progress)
         x, y, z = obj.volrig.dims
-        self.report({"INFO"}, f"volrig: {obj.name}: {x} x {y} x {z} voxels along {line.length:.1f} units of "
-                              f"centerline")
-        return {"FINISHED"}
+        return f"{obj.name}: {x} x {y} x {z} voxels along {line.length:.1f} units of centerline"
 
 
-class VOLRIG_OT_straightening_rig(_OnVolume, bpy.types.Operator):
+class VOLRIG_OT_straightening_rig(_AlongCenterline, bpy.types.Operator):
     """Rig the volume with a chain of bones along its centerline and key it from curved to straight (Bake then
     straightens the organ); replaces the volume's rig"""
     bl_idname = "volrig.straightening_rig"
     bl_label = "Animate Straightening"
 
-    def run(self, context, vol):
-        with _ProgressBar(context) as bar:
-            sr, rig_obj = straightening_animation(context, vol, _save_rig, progress=_centerline_progress(bar))
+    def build(self, context, vol, progress):
+        sr, rig_obj = straightening_animation(context, vol, _save_rig, progress=progress)
         scene = context.scene
-        self.report({"INFO"}, f"volrig: {rig_obj.name}: {len(sr.rig)} bones keyed straight over frames "
-                              f"{scene.frame_start} .. {scene.frame_end}; press Bake")
-        return {"FINISHED"}
+        return (f"{rig_obj.name}: {len(sr.rig)} bones keyed straight over frames {scene.frame_start} .. "
+                f"{scene.frame_end}; press Bake")
 
 
 class VOLRIG_PT_centerline(_VolrigPanel, bpy.types.Panel):

@@ -147,6 +147,11 @@ class VOLRIG_PT_look(_VolrigPanel, bpy.types.Panel):
                 box.label(text="hide some tissues or parts")
 
 
+class _UnderLook(_VolrigPanel):
+    """The panels under the Look panel (Parts, Tissues)."""
+    bl_parent_id = "VOLRIG_PT_look"
+
+
 class VOLRIG_OT_find_parts(_OnVolume, bpy.types.Operator):
     """Group the rig's bones into parts (left arm, spine, head ... from the bone names; one part per chain
     otherwise), keeping the looks of parts already listed, and write the rest volume's part grids"""
@@ -160,31 +165,32 @@ class VOLRIG_OT_find_parts(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _look_line(layout, item, split, coloured_toggle):
-    """A list line: visible (the eye), name, then colour (behind a toggle for parts) and opacity."""
-    row = layout.split(factor=split)
-    left = row.row(align=True)
-    left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
-    left.label(text=item.name)
-    right = row.row(align=True)
-    right.active = item.visible
-    if coloured_toggle:
-        right.prop(item, "colored", text="", icon="COLOR")
-    if not coloured_toggle or item.colored:
-        right.prop(item, "color", text="")
-    right.prop(item, "opacity", text="", slider=True)
-
-
-class VOLRIG_UL_parts(bpy.types.UIList):
-    """One line per part: visible, name, own colour, opacity."""
+class _LookList:
+    """A list of looks, a line each: visible (the eye), the name on ``_split`` of the width, then the colour (behind
+    a toggle where ``_coloured_toggle``) and the opacity."""
+    _split = 0.5
+    _coloured_toggle = True
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        _look_line(layout, item, 0.5, coloured_toggle=True)
+        row = layout.split(factor=self._split)
+        left = row.row(align=True)
+        left.prop(item, "visible", text="", icon="HIDE_OFF" if item.visible else "HIDE_ON", emboss=False)
+        left.label(text=item.name)
+        right = row.row(align=True)
+        right.active = item.visible
+        if self._coloured_toggle:
+            right.prop(item, "colored", text="", icon="COLOR")
+        if not self._coloured_toggle or item.colored:
+            right.prop(item, "color", text="")
+        right.prop(item, "opacity", text="", slider=True)
 
 
-class VOLRIG_PT_parts(_VolrigPanel, bpy.types.Panel):
+class VOLRIG_UL_parts(_LookList, bpy.types.UIList):
+    """One line per part: visible, name, own colour, opacity."""
+
+
+class VOLRIG_PT_parts(_UnderLook, bpy.types.Panel):
     bl_label = "Parts"
-    bl_parent_id = "VOLRIG_PT_look"
 
     def draw(self, context):
         s, layout = _settings(self, context)
@@ -215,16 +221,14 @@ class VOLRIG_OT_find_tissues(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class VOLRIG_UL_tissues(bpy.types.UIList):
+class VOLRIG_UL_tissues(_LookList, bpy.types.UIList):
     """One line per tissue class: visible, name, colour, opacity."""
+    _split = 0.45
+    _coloured_toggle = False
 
-    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
-        _look_line(layout, item, 0.45, coloured_toggle=False)
 
-
-class VOLRIG_PT_tissues(_VolrigPanel, bpy.types.Panel):
+class VOLRIG_PT_tissues(_UnderLook, bpy.types.Panel):
     bl_label = "Tissues"
-    bl_parent_id = "VOLRIG_PT_look"
 
     def draw(self, context):
         s, layout = _settings(self, context)

@@ -29,7 +29,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 import volrig
 from volrig import pipeline
-from volrig.skin import thickness_offsets
+from volrig.skin import MESH_VOXELS, SKIN_BLEND, thickness_offsets
 
 from . import drawing, objects
 from . import markers as marker_ui
@@ -260,8 +260,8 @@ def revalidate_drivers(obj) -> None:
     bpy.context.view_layer.update()
 
 
-def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=160, blend=1.0, preserve_volume=False,
-                    thickness_keys=True, progress=None, markers=None):
+def rig_mesh_object(context, obj, *, kind=None, up=None, voxels=MESH_VOXELS, blend=SKIN_BLEND,
+                    preserve_volume=False, thickness_keys=True, progress=None, markers=None):
     """Rigs the mesh object ``obj`` (see the module's docstring); replaces an earlier Rig Mesh of it once the new
     rig is computed. Returns (armature object, volrig.MeshRig, seconds spent writing the vertex groups)."""
     if obj.type != "MESH":
@@ -325,14 +325,13 @@ class VOLRIG_OT_rig_mesh(bpy.types.Operator):
     bl_label = "Rig Mesh"
     bl_options = {"REGISTER", "UNDO"}
 
-    body_plan: EnumProperty(name="Body plan", items=drawing._body_plans,
-                            description="The template the rig is fitted to (Best fit: every template, the best kept)")
+    body_plan: drawing.body_plan_property()
     use_scene_up: BoolProperty(name="Scene up", default=True,
                                description="Tell the rig where up is: the scene's +Z seen from the mesh (else "
                                            "inferred)")
-    voxels: IntProperty(name="Voxels", default=160, min=16, max=1000,
+    voxels: IntProperty(name="Voxels", default=MESH_VOXELS, min=16, max=1000,
                         description="Voxels along the mesh's longest side (finer: slower, thinner parts kept)")
-    blend: FloatProperty(name="Blend", default=1.0, min=0.05, max=5.0,
+    blend: FloatProperty(name="Blend", default=SKIN_BLEND, min=0.05, max=5.0,
                          description="Weight falloff across joints, in limb radii (larger: smoother, smaller: stiffer)")
     preserve_volume: BoolProperty(name="Preserve volume", default=False,
                                   description="Dual quaternion skinning: bent joints keep their volume")

@@ -17,6 +17,16 @@ from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _Vo
 #: The Rig button's progress bar: each pipeline step's share.
 # ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
 
+#: The body plans a rig is fitted to (Rig's Body plan, and Import Drawing's and Rig Mesh's).
+BODY_PLANS = [
+    ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, hand, chains) and keep the best"),
+    ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
+    ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
+    ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
+    ("hand", "Hand", "Force the hand template (palm, thumb and four fingers of three bones each)"),
+]
+
+
 class RigSettings:
     """How the rig is built and bound, and what the last Rig found."""
     # --- rig ---
@@ -25,13 +35,8 @@ class RigSettings:
     bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
     roles: BoolProperty(name="Body roles", default=True,
                         description="Name bones as a humanoid, quadruped or hand when the shape looks like one")
-    body_plan: EnumProperty(name="Body plan", items=[
-        ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, hand, chains) and keep the best"),
-        ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
-        ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
-        ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
-        ("hand", "Hand", "Force the hand template (palm, thumb and four fingers of three bones each)"),
-    ], default="AUTO", description="The template the rig is fitted to; pick another and press Rig to refit")
+    body_plan: EnumProperty(name="Body plan", items=BODY_PLANS, default="AUTO",
+                            description="The template the rig is fitted to; pick another and press Rig to refit")
     use_scene_up: BoolProperty(name="Scene up", default=True,
                                description="Tell the rig where up is: the scene's +Z seen from the volume (else inferred)")
     rig_kept_points: BoolProperty(name="Kept points", default=False,

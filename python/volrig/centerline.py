@@ -333,7 +333,11 @@ class StraighteningRig:
         return M
 
 
-def straightening_rig(line: Centerline, bones: int = 12, axis: Optional[Sequence[float]] = None) \
+#: The bones of a straightening rig unless told (the add-on's Straighten > Bones starts at it too).
+STRAIGHTENING_BONES = 12
+
+
+def straightening_rig(line: Centerline, bones: int = STRAIGHTENING_BONES, axis: Optional[Sequence[float]] = None) \
         -> StraighteningRig:
     """The chain armature along ``line`` (``bones`` equal-arc pieces) and the rest-to-pose matrices that make it
     straight: bind skeleton points of the organ to ``.rig`` (``volrig.bind``) and deform the organ with

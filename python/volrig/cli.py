@@ -86,22 +86,34 @@ def _at_least_one(text: str) -> int:
     return value
 
 
+def _add_command(sub, name: str, help_text: str, run) -> argparse.ArgumentParser:
+    """The parser of the command ``name``, which ``run(args)`` carries out."""
+    p = sub.add_parser(name, help=help_text)
+    p.set_defaults(run=run)
+    return p
+
+
+def _add_blender_options(p: argparse.ArgumentParser) -> None:
+    """The commands that run in headless Blender (bake, flythrough): which Blender, and which add-on."""
+    p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
+    p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
+                                   "volrig_addon Python finds, else the one installed in Blender)")
+
+
 def _info_command(sub) -> None:
-    p = sub.add_parser("info", help="print a volume file's grid, type and value range")
+    p = _add_command(sub, "info", "print a volume file's grid, type and value range", cmd_info)
     _add_load_options(p)
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(run=cmd_info)
 
 
 def _skeletonize_command(sub) -> None:
-    p = sub.add_parser("skeletonize", help="skeleton points of a volume at a thinness")
+    p = _add_command(sub, "skeletonize", "skeleton points of a volume at a thinness", cmd_skeletonize)
     _add_load_options(p)
     _add_skeleton_options(p, "output .npz (ijk, centers, radii, dt, scores, ...)")
-    p.set_defaults(run=cmd_skeletonize)
 
 
 def _rig_command(sub) -> None:
-    p = sub.add_parser("rig", help="skeleton, skeleton-tree, automatic rig and binding, saved as one .vrig file")
+    p = _add_command(sub, "rig", "skeleton, skeleton-tree, automatic rig and binding, saved as one .vrig file", cmd_rig)
     _add_load_options(p)
     _add_skeleton_options(p, "output .vrig (points, tree, rig, binding, source path)")
     p.add_argument("--voxel-size", type=float, help="meshes (.obj .ply .off .stl .mesh): voxel size, mesh units")
@@ -132,12 +144,11 @@ def _rig_command(sub) -> None:
                         "the rigid tissue, when given)")
     g.add_argument("--bone-range", type=float, nargs=2, metavar=("LOW", "HIGH"),
                    help="bone whose articulations place the limb joints: values in this range (a CT, e.g. 250 3000)")
-    p.set_defaults(run=cmd_rig)
 
 
 def _bake_command(sub) -> None:
-    p = sub.add_parser("bake", help="bake a saved .blend's volrig volumes in headless Blender (then render with "
-                                    "blender -b scene.blend -a)")
+    p = _add_command(sub, "bake", "bake a saved .blend's volrig volumes in headless Blender (then render with blender "
+                                  "-b scene.blend -a)", cmd_bake)
     p.add_argument("blend", help="the saved .blend file")
     p.add_argument("--frames", help="frames to bake, e.g. 1-48 or 1-10,20 (default: the scene's range); split a "
                                     "range across machines sharing the cache folder")
@@ -145,14 +156,11 @@ def _bake_command(sub) -> None:
     p.add_argument("--mode", choices=MODES, help="override the deform mode")
     p.add_argument("--force", action="store_true", help="bake frames whose pose did not change, too")
     p.add_argument("--no-save", action="store_true", help="do not save the .blend after baking")
-    p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
-    p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
-                                   "volrig_addon Python finds, else the one installed in Blender)")
-    p.set_defaults(run=cmd_bake)
+    _add_blender_options(p)
 
 
 def _animate_command(sub) -> None:
-    p = sub.add_parser("animate", help="per-frame bone matrices driving a rig with a BVH clip")
+    p = _add_command(sub, "animate", "per-frame bone matrices driving a rig with a BVH clip", cmd_animate)
     p.add_argument("rig", help="rig file (.vrig, from `volrig rig`)")
     p.add_argument("clip", help="motion capture (.bvh)")
     p.add_argument("-o", "--output", required=True,
@@ -160,11 +168,11 @@ def _animate_command(sub) -> None:
                         "bone_names, frame_time, bone_map (JSON), ...")
     _add_mocap_options(p)
     p.add_argument("--save-map", help="also write the bone map used as JSON (to edit and pass back with --map)")
-    p.set_defaults(run=cmd_animate)
 
 
 def _bake_mocap_command(sub) -> None:
-    p = sub.add_parser("bake-mocap", help="bake a VDB sequence of a volume driven by a BVH clip (no Blender)")
+    p = _add_command(sub, "bake-mocap", "bake a VDB sequence of a volume driven by a BVH clip (no Blender)",
+                     cmd_bake_mocap)
     _add_load_options(p)
     p.add_argument("rig", help="rig file (.vrig, from `volrig rig` on the same volume, with its binding)")
     p.add_argument("clip", help="motion capture (.bvh)")
@@ -189,12 +197,11 @@ def _bake_mocap_command(sub) -> None:
                         "about 5%% (smooth) to 20%% (rigid) faster for 1-3 bytes per source voxel more memory "
                         "(docs/deform.md, Bakes and the lattice tables)")
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
-    p.set_defaults(run=cmd_bake_mocap)
 
 
 def _centerline_command(sub) -> None:
-    p = sub.add_parser("centerline", help="centerline of a tubular object (--tree: every branch of a branching one) "
-                                          "as CSV")
+    p = _add_command(sub, "centerline", "centerline of a tubular object (--tree: every branch of a branching one) as "
+                                        "CSV", cmd_centerline)
     _add_load_options(p)
     p.add_argument("--start", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="world start point (default: the object's end farthest from the other)")
@@ -206,22 +213,20 @@ def _centerline_command(sub) -> None:
     _add_segmentation_options(p)
     p.add_argument("-o", "--output", required=True,
                    help="output .csv: branch,parent,generation,index,x,y,z,radius,arc_length (world units)")
-    p.set_defaults(run=cmd_centerline)
 
 
 def _thickness_command(sub) -> None:
-    p = sub.add_parser("thickness", help="local thickness of an object (each voxel: the diameter of the largest "
-                                         "inscribed ball containing it) as a volume")
+    p = _add_command(sub, "thickness", "local thickness of an object (each voxel: the diameter of the largest "
+                                       "inscribed ball containing it) as a volume", cmd_thickness)
     _add_load_options(p)
     _add_segmentation_options(p)
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.add_argument("-o", "--output", required=True, help="output .nrrd, .mha or .vdb (grid 'thickness'), world units")
-    p.set_defaults(run=cmd_thickness)
 
 
 def _medial_command(sub) -> None:
-    p = sub.add_parser("medial", help="medial surface of the object's plates (a mesh with per-vertex thickness) and "
-                                      "its rods, as a PLY")
+    p = _add_command(sub, "medial", "medial surface of the object's plates (a mesh with per-vertex thickness) and its "
+                                    "rods, as a PLY", cmd_medial)
     _add_load_options(p)
     _add_segmentation_options(p)
     p.add_argument("--t", type=float, default=5.0,
@@ -229,12 +234,11 @@ def _medial_command(sub) -> None:
     p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
     p.add_argument("-o", "--output", required=True,
                    help="output .ply: vertices with a 'thickness' property, triangles, rods as edges (world units)")
-    p.set_defaults(run=cmd_medial)
 
 
 def _contacts_command(sub) -> None:
-    p = sub.add_parser("contacts", help="frames where two rigged volumes touch, or one passes through itself, over "
-                                        "BVH clips")
+    p = _add_command(sub, "contacts", "frames where two rigged volumes touch, or one passes through itself, over BVH "
+                                      "clips", cmd_contacts)
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="one or two rig files (.vrig, with their binding) then a clip (.bvh) for each; one clip "
                         "drives the first rig (the second holds its rest pose); one rig alone: self-contact")
@@ -244,12 +248,11 @@ def _contacts_command(sub) -> None:
     p.add_argument("--min-distance", type=_at_least_one, default=2,
                    help="self-contact: bones at least this many bones apart in the rig (default 2: not parent and "
                         "child)")
-    p.set_defaults(run=cmd_contacts)
 
 
 def _flythrough_command(sub) -> None:
-    p = sub.add_parser("flythrough", help="a fly-through along a tubular object's centerline, built in headless "
-                                          "Blender and saved as a .blend (optionally a few frames rendered)")
+    p = _add_command(sub, "flythrough", "a fly-through along a tubular object's centerline, built in headless Blender "
+                                        "and saved as a .blend (optionally a few frames rendered)", cmd_flythrough)
     p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb), in mm")
     p.add_argument("--lo", type=float, help="segmentation: lowest lumen value (default: the add-on's guess)")
     p.add_argument("--hi", type=float, help="segmentation: highest lumen value")
@@ -269,15 +272,13 @@ def _flythrough_command(sub) -> None:
     p.add_argument("--resolution", type=int, nargs=2, default=(320, 320), metavar=("W", "H"),
                    help="--render: image size (default 320 320)")
     p.add_argument("--samples", type=_at_least_one, default=16, help="--render: samples (default 16)")
-    p.add_argument("--blender", help="the Blender executable (default: $BLENDER or blender on PATH)")
-    p.add_argument("--addon", help="the volrig add-on: its zip or a folder holding volrig_addon (default: the "
-                                   "volrig_addon Python finds, else the one installed in Blender)")
-    p.set_defaults(run=cmd_flythrough)
+    _add_blender_options(p)
 
 
 def _inflate_command(sub) -> None:
-    p = sub.add_parser("inflate", help="a front-view drawing (PNG with alpha or on a light background) inflated to a "
-                                       "rounded solid, with its colours, as a VDB (grids density, color_r/g/b)")
+    p = _add_command(sub, "inflate", "a front-view drawing (PNG with alpha or on a light background) inflated to a "
+                                     "rounded solid, with its colours, as a VDB (grids density, color_r/g/b)",
+                     cmd_inflate)
     p.add_argument("drawing", help="the drawing (.png)")
     p.add_argument("output", help="output .vdb")
     p.add_argument("--pixel-size", type=float, default=1.0, help="world units per pixel (default 1)")
@@ -287,15 +288,13 @@ def _inflate_command(sub) -> None:
     p.add_argument("--gap", type=int, default=0, help="voxels between a part drawn in front and what is behind it")
     p.add_argument("--resolution", type=int, help="downscale the drawing to about this many pixels along its "
                                                   "longer side first")
-    p.set_defaults(run=cmd_inflate)
 
 
 def _demo_command(sub) -> None:
-    p = sub.add_parser("demo", help="phantom -> skeleton -> pictures and a report")
+    p = _add_command(sub, "demo", "phantom -> skeleton -> pictures and a report", cmd_demo)
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--scale", type=float, default=0.5, help="phantom scale (1.0 = 290 x 169 x 940)")
     p.add_argument("--thinness", type=float, default=0.3, help="thinness for the pictured skeleton")
-    p.set_defaults(run=cmd_demo)
 
 
 def main(argv=None) -> int:

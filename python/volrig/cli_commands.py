@@ -53,6 +53,13 @@ def _print_series(series) -> None:
         print(f"    {s['uid']}  {s['modality'] or '?'}  {s['description']!r}  {z} slices of {x} x {y}")
 
 
+def _check_output(path: str, ending: str, *, any_case: bool = False, what: str = "") -> None:
+    """A VolrigError unless the output ``path`` ends in ``ending`` (``any_case``: in either case); ``what`` the
+    message's name for it (default: a <ending> file)."""
+    if not (path.lower() if any_case else path).endswith(ending):
+        raise VolrigError(f"{path}: the output must be {what or f'a {ending} file'}")
+
+
 def cmd_info(args) -> int:
     series = _dicom_listing(args.file) if args.dims is None else None
     v = _load(args)
@@ -92,8 +99,7 @@ def cmd_skeletonize(args) -> int:
     mask, sk, pts = _mask_and_skeleton(args)
     elapsed = time.perf_counter() - t
     out = args.output
-    if not out.endswith(".npz"):
-        raise VolrigError(f"{out}: the output must be a .npz file")
+    _check_output(out, ".npz")
     with atomic_output(out, suffix=".npz") as tmp:
         np.savez_compressed(tmp, ijk=pts.ijk, centers=pts.centers, radii=pts.radii, dt=pts.dt, scores=pts.scores,
                             metric=pts.metric, thinness=np.nan if pts.thinness is None else pts.thinness,
@@ -176,8 +182,7 @@ def _read_markers(path: str) -> dict:
 def cmd_rig(args) -> int:
     from .pipeline import describe_rig, parse_up, rig_skeleton
     from .rigfile import save_rig
-    if not args.output.endswith(".vrig"):
-        raise VolrigError(f"{args.output}: the output must be a .vrig file")
+    _check_output(args.output, ".vrig")
     t = time.perf_counter()
     mask, sk, pts = _mask_and_skeleton(args)
     rigid = _rigid(args)
@@ -210,8 +215,7 @@ def _mocap_matrices(args, step: int = 1, binding: bool = False):
 def cmd_animate(args) -> int:
     from .files import atomic_output
     from .mocap import save_bone_map
-    if not args.output.endswith(".npz"):
-        raise VolrigError(f"{args.output}: the output must be a .npz file")
+    _check_output(args.output, ".npz")
     t = time.perf_counter()
     saved, motion, frames, bone_map, matrices = _mocap_matrices(args)
     with atomic_output(args.output, suffix=".npz") as tmp:
@@ -420,8 +424,7 @@ def cmd_bake(args) -> int:
 
 
 def cmd_flythrough(args) -> int:
-    if not args.output.endswith(".blend"):
-        raise VolrigError(f"{args.output}: the output must be a .blend file")
+    _check_output(args.output, ".blend")
     if not os.path.isfile(args.file):
         raise FileNotFoundError(f"{args.file}: no such file")
     if (args.start is None) != (args.end is None):
@@ -442,8 +445,7 @@ def cmd_centerline(args) -> int:
     from .centerline import centerline, centerline_tree
     from .files import atomic_output
     from .pipeline import Segmentation
-    if not args.output.endswith(".csv"):
-        raise VolrigError(f"{args.output}: the output must be a .csv file")
+    _check_output(args.output, ".csv")
     if args.tree and (args.start or args.end):
         raise VolrigError("--tree takes --root, not --start / --end")
     seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)  # default: non-zero
@@ -468,20 +470,26 @@ def cmd_centerline(args) -> int:
     return 0
 
 
-def cmd_thickness(args) -> int:
-    from .medial import local_thickness
+def _timed_on_mask(args, step: str, compute, **options):
+    """(the segmented mask, ``compute(mask, **options, progress=...)``, its seconds): thickness and medial, with a
+    progress bar for ``step`` when --progress or on a terminal."""
     from .pipeline import Segmentation
-    from .volume import format_of
-    if format_of(args.output) not in ("nrrd", "metaimage", "vdb"):
-        raise VolrigError(f"{args.output}: the output must be .nrrd, .mha or .vdb")
     seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
     mask = seg.mask(_load(args), name=args.file)
     t = time.perf_counter()
     bars = StepBars() if _show_progress(args) else None
-    thick = local_thickness(mask, progress=(lambda f: bars("local thickness", f)) if bars else None)
+    result = compute(mask, **options, progress=(lambda f: bars(step, f)) if bars else None)
     if bars is not None:
         bars.close()
-    elapsed = time.perf_counter() - t
+    return mask, result, time.perf_counter() - t
+
+
+def cmd_thickness(args) -> int:
+    from .medial import local_thickness
+    from .volume import format_of
+    if format_of(args.output) not in ("nrrd", "metaimage", "vdb"):
+        raise VolrigError(f"{args.output}: the output must be .nrrd, .mha or .vdb")
+    mask, thick, elapsed = _timed_on_mask(args, "local thickness", local_thickness)
     thick.save(args.output, grid="thickness")
     values = thick.array[mask.array != 0]
     if values.size:
@@ -496,17 +504,8 @@ def cmd_thickness(args) -> int:
 
 def cmd_medial(args) -> int:
     from .medial import medial_surface
-    from .pipeline import Segmentation
-    if not args.output.lower().endswith(".ply"):
-        raise VolrigError(f"{args.output}: the output must be .ply")
-    seg = Segmentation(lo=args.lo, hi=args.hi, labels=args.labels, largest=args.largest)
-    mask = seg.mask(_load(args), name=args.file)
-    t = time.perf_counter()
-    bars = StepBars() if _show_progress(args) else None
-    ms = medial_surface(mask, t=args.t, progress=(lambda f: bars("medial surface", f)) if bars else None)
-    if bars is not None:
-        bars.close()
-    elapsed = time.perf_counter() - t
+    _check_output(args.output, ".ply", any_case=True, what=".ply")
+    _, ms, elapsed = _timed_on_mask(args, "medial surface", medial_surface, t=args.t)
     ms.save_ply(args.output)
     med = f"median thickness {np.median(ms.thickness):.3g}, " if len(ms.thickness) else ""
     print(f"{len(ms.faces):,} triangles, area {ms.area:.4g}, {med}{len(ms.rods):,} rods (world units); medial "
@@ -566,8 +565,7 @@ def cmd_contacts(args) -> int:
 
 def cmd_inflate(args) -> int:
     from .drawing import write_drawing_vdb
-    if not args.output.lower().endswith(".vdb"):
-        raise VolrigError(f"{args.output}: the output must be a .vdb file")
+    _check_output(args.output, ".vdb", any_case=True)
     t = time.perf_counter()
     mask = write_drawing_vdb(args.output, args.drawing, pixel_size=args.pixel_size, depth_scale=args.depth_scale,
                              stroke_width=args.stroke_width, gap=args.gap, resolution=args.resolution)

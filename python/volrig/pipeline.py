@@ -33,7 +33,7 @@ from .rig import Binding, Rig, autorig_fit, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
 from .skeleton import Skeleton, SkeletonPoints, skeletonize
-from .skin import MESH_VOXELS, MeshRig, _points, _span, mesh_voxel_size, skin_weights
+from .skin import MESH_VOXELS, SKIN_BLEND, MeshRig, _points, _span, mesh_voxel_size, skin_weights
 from .tree import _mask_for, skeleton_tree
 from .volume import Volume, format_of, load, write_vdb
 
@@ -270,8 +270,9 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
 
 
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
-             thinness: Optional[float] = None, influences: int = 4, blend: float = 1.0, progress: ProgressFn = None,
-             skin_points=None, voxelize_method: str = "auto", **autorig_options) -> MeshRig:
+             thinness: Optional[float] = None, influences: int = 4, blend: float = SKIN_BLEND,
+             progress: ProgressFn = None, skin_points=None, voxelize_method: str = "auto",
+             **autorig_options) -> MeshRig:
     """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
     side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
     ``DEFAULT_THINNESS_VOXELS``, half a voxel), autorig

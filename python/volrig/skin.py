@@ -23,6 +23,8 @@ from .volume import Volume
 
 #: voxels along the longest side of a mesh's bounding box when ``rig_mesh`` chooses the voxel size
 MESH_VOXELS = 160
+#: how far a vertex's weights blend across a joint, in limb radii, unless told (``skin_weights``, ``rig_mesh``)
+SKIN_BLEND = 1.0
 
 
 def _span(progress: ProgressFn, lo: float, hi: float) -> ProgressFn:
@@ -38,7 +40,7 @@ def _points(vertices) -> np.ndarray:
     return v
 
 
-def skin_weights(mask: Volume, rig: Rig, vertices, influences: int = 4, blend: float = 1.0,
+def skin_weights(mask: Volume, rig: Rig, vertices, influences: int = 4, blend: float = SKIN_BLEND,
                  progress: ProgressFn = None):
     """Weights of ``vertices`` (V, 3; world positions in the mask's frame) for ``rig``'s bones, by geodesic distance
     through ``mask`` (a bool Volume: the solid the vertices bound, e.g. ``voxelize``'s).
