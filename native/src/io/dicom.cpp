@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "io/io_detail.hpp"
@@ -88,7 +89,8 @@ struct Slice {
     std::vector<double> position, orientation;  // ImagePositionPatient (3), ImageOrientationPatient (6)
     std::string pixel_spacing;
     std::int64_t rows = 0, columns = 0, frames = 1;
-    double along = 0;  // position along the slice normal
+    double along = 0;      // position along the slice normal
+    bool isolate = false;  // compressed (JPEG family): decoded in a child process (io/isolate.cpp)
 };
 
 struct Series {
@@ -105,39 +107,46 @@ bool vr_suits_tag(std::uint16_t group, std::uint16_t element, const char* vr) {
     return dict.Compatible(gdcm::VR(gdcm::VR::GetVRType(two)));
 }
 
-// The Part-10 structure check with GDCM's dictionary VRs.
-void check_part10(const ByteSource& src) { io_detail::check_dicom_part10(src, vr_suits_tag); }
+// The Part-10 structure check with GDCM's dictionary VRs; returns the transfer syntax UID.
+std::string check_part10(const ByteSource& src) { return io_detail::check_dicom_part10(src, vr_suits_tag); }
 
-// True when the file passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
+// The files to read: each passed the Part-10 check; those in `isolate` are decoded in a child process.
+struct Candidates {
+    std::vector<std::string> files;
+    std::set<std::string> isolate;
+};
+
+// Adds the file when it passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
 // for GDCM, and are left out).
-bool well_formed(const std::string& file) {
+void add_if_well_formed(Candidates& c, const std::string& file) {
     try {
-        check_part10(*open_file(file));
-        return true;
+        if (io_detail::dicom_needs_isolation(check_part10(*open_file(file)))) c.isolate.insert(file);
+        c.files.push_back(file);
     } catch (const Error&) {
-        return false;
     }
 }
 
 // The files to scan (each passed check_dicom_part10 or, for a single file, is checked when read): a folder's
 // (recursively), those under a DICOMDIR's folder, or the file itself.
-std::vector<std::string> candidate_files(const std::string& path) {
+Candidates candidate_files(const std::string& path) {
     namespace fs = std::filesystem;
+    io_detail::check_input_path(path);
     std::error_code ec;
-    if (!fs::exists(path, ec)) throw FileNotFound(path + ": no such file or folder");
     const bool dicomdir = io_detail::iequals(base_name(path), "DICOMDIR");
+    Candidates c;
     if (!fs::is_directory(path, ec) && !dicomdir) {
-        check_part10(*open_file(path));
-        return {path};
+        if (io_detail::dicom_needs_isolation(check_part10(*open_file(path)))) c.isolate.insert(path);
+        c.files.push_back(path);
+        return c;
     }
     gdcm::Directory dir;
     const std::string folder = dicomdir ? fs::path(path).parent_path().string() : path;
     dir.Load(folder.empty() ? "." : folder, true);
-    std::vector<std::string> files;
-    for (const std::string& f : dir.GetFilenames())
-        if (!io_detail::iequals(base_name(f), "DICOMDIR") && well_formed(f)) files.push_back(f);
+    std::vector<std::string> files = dir.GetFilenames();
     std::sort(files.begin(), files.end());
-    return files;
+    for (const std::string& f : files)
+        if (!io_detail::iequals(base_name(f), "DICOMDIR")) add_if_well_formed(c, f);
+    return c;
 }
 
 gdcm::Scanner scan(const std::string& path, const std::vector<std::string>& files) {
@@ -170,12 +179,14 @@ bool slice_of(const gdcm::Scanner& s, const std::string& file, Slice& out) {
 
 // Image slices grouped by SeriesInstanceUID, the series with the most slices first.
 std::vector<Series> find_series(const std::string& path) {
-    const std::vector<std::string> files = candidate_files(path);
+    const Candidates found = candidate_files(path);
+    const std::vector<std::string>& files = found.files;
     const gdcm::Scanner s = scan(path, files);
     std::map<std::string, Series> by_uid;
     for (const std::string& file : files) {
         Slice slice;
         if (!slice_of(s, file, slice)) continue;
+        slice.isolate = found.isolate.count(file) > 0;
         const std::string uid = text_of(s, file, kSeriesUid);
         Series& series = by_uid[uid];
         if (series.slices.empty()) {
@@ -436,7 +447,10 @@ Volume read_series(const std::string& path, Series series, const ReadOptions& op
     g.origin = {slices[0].position[0], slices[0].position[1], slices[0].position[2]};
     const std::vector<double> ps = numbers_of(slices[0].pixel_spacing);
     if (ps.size() == 2 && ps[0] > 0 && ps[1] > 0) g.spacing[0] = ps[1], g.spacing[1] = ps[0];  // row\column spacing
-    return read_stack(path, slices, g, opt);
+    if (std::none_of(slices.begin(), slices.end(), [](const Slice& s) { return s.isolate; }))
+        return read_stack(path, slices, g, opt);
+    return io_detail::isolated_volume(path, "GDCM's decoder", opt,
+                                      [&](const ReadOptions& o) { return read_stack(path, slices, g, o); });
 }
 
 // Reads the whole byte source (DICOM files are read whole by GDCM anyway).
@@ -464,11 +478,9 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
     return g;
 }
 
-}  // namespace
-
-Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
+// A checked single file (check_part10), decoded.
+Volume decode_file(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
-    check_part10(src);
     std::istringstream in(all_bytes(src, opt));
     gdcm::ImageReader r;
     r.SetStream(in);
@@ -481,6 +493,14 @@ Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
     decode(name, im, raw.data.data(), raw.data.size());
     const std::vector<Scale> scales(static_cast<std::size_t>(g.dims[2]), scale_of(name, im));
     return rescale(name, std::move(raw), scales, opt.max_bytes);
+}
+
+}  // namespace
+
+Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
+    if (!io_detail::dicom_needs_isolation(check_part10(src))) return decode_file(src, opt);
+    return io_detail::isolated_volume(src.name(), "GDCM's decoder", opt,
+                                      [&](const ReadOptions& o) { return decode_file(src, o); });
 }
 
 Volume read_dicom(const std::string& path, const ReadOptions& opt) {

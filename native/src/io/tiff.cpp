@@ -315,6 +315,7 @@ Volume read_tiff_file(const ByteSource& src, const ReadOptions& opt) {
 }
 
 Volume read_tiff(const std::string& path, const ReadOptions& opt) {
+    io_detail::check_input_path(path);
     std::error_code ec;
     if (!std::filesystem::is_directory(path, ec)) return read_tiff_file(*open_file(path), opt);
     const std::vector<std::string> files = tiff_files(path);

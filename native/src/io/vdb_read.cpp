@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "volrig/io.hpp"
+#include "io/io_detail.hpp"
 #include "io/vdb_detail.hpp"
 
 namespace volrig {
@@ -267,7 +268,9 @@ void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
 
 // ---- public API ----------------------------------------------------------------------------------------------
 
-std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+namespace {
+
+std::vector<VdbGridInfo> grids_here(const std::string& path) {
     VdbReader file(path);
     std::vector<VdbGridInfo> out;
     for (const auto& gd : file.descriptors()) {
@@ -294,7 +297,7 @@ std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
     return out;
 }
 
-Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+Volume read_here(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
     VdbReader file(path);
     const openvdb::io::GridDescriptor* gd = nullptr;
     if (grid_name.empty()) {
@@ -352,6 +355,58 @@ Volume read_vdb(const std::string& path, const std::string& grid_name, const Rea
         return 0;
     });
     return vol;
+}
+
+}  // namespace
+
+// OpenVDB reads in a child process (io/isolate.cpp): a corrupt leaf can make it overrun a buffer.
+Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+    io_detail::check_regular_file(path);
+    return io_detail::isolated_volume(path, "OpenVDB's reader", opt,
+                                      [&](const ReadOptions& o) { return read_here(path, grid_name, o); });
+}
+
+std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+    io_detail::check_regular_file(path);
+    std::vector<VdbGridInfo> out;
+    const auto send_text = [](io_detail::IsolatedOutput& o, const std::string& t) {
+        const std::uint64_t n = t.size();
+        o.more(&n, sizeof n);
+        o.more(t.data(), t.size());
+    };
+    const auto take_text = [&](io_detail::IsolatedInput& in, std::string& t) {
+        std::uint64_t n = 0;
+        if (!in.read(&n, sizeof n) || n > (std::uint64_t(1) << 20)) io_detail::fail(path, "OpenVDB's reader stopped");
+        t.resize(static_cast<std::size_t>(n));
+        if (n && !in.read(&t[0], t.size())) io_detail::fail(path, "OpenVDB's reader stopped");
+    };
+    io_detail::run_isolated(
+        path, "OpenVDB's reader",
+        [&](io_detail::IsolatedOutput& o) {
+            const std::vector<VdbGridInfo> all = grids_here(path);
+            const std::uint64_t n = all.size();
+            o.result(&n, sizeof n);
+            for (const VdbGridInfo& g : all) {
+                send_text(o, g.name);
+                send_text(o, g.type);
+                o.more(g.bbox_min.data(), sizeof g.bbox_min);
+                o.more(g.bbox_max.data(), sizeof g.bbox_max);
+                o.more(&g.active_voxels, sizeof g.active_voxels);
+            }
+        },
+        [&](io_detail::IsolatedInput& in) {
+            std::uint64_t n = 0;
+            if (!in.read(&n, sizeof n) || n > (std::uint64_t(1) << 24)) io_detail::fail(path, "OpenVDB's reader stopped");
+            out.resize(static_cast<std::size_t>(n));
+            for (VdbGridInfo& g : out) {
+                take_text(in, g.name);
+                take_text(in, g.type);
+                if (!in.read(g.bbox_min.data(), sizeof g.bbox_min) || !in.read(g.bbox_max.data(), sizeof g.bbox_max) ||
+                    !in.read(&g.active_voxels, sizeof g.active_voxels))
+                    io_detail::fail(path, "OpenVDB's reader stopped");
+            }
+        });
+    return out;
 }
 
 }  // namespace volrig
