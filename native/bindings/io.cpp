@@ -10,7 +10,7 @@ namespace {
 
 ReadOptions options_of(std::int64_t max_bytes) {
     ReadOptions opt;
-    if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+    if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes), opt.max_bytes_given = true;
     return opt;
 }
 

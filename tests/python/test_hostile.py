@@ -138,3 +138,110 @@ def test_vdb_still_reads_through_the_child(tmp_path):
     a = np.random.default_rng(1).random((40, 36, 30)).astype(np.float32)
     a[a < 0.5] = 0
     np.testing.assert_allclose(v.array, a, atol=1e-3)
+
+
+# ---- the file budget: small files that declare huge images ------------------------------------------------------
+
+def tiny_tiff(path, width, height, pages=1):
+    """A little-endian TIFF whose pages declare width x height 8-bit grey pixels in one 10-byte Deflate strip."""
+    import struct
+    entries = lambda strip, nxt: [(256, 4, width), (257, 4, height), (258, 3, 8), (259, 3, 8), (262, 3, 1),  # noqa
+                                  (273, 4, strip), (277, 3, 1), (278, 4, height), (279, 4, 10)]
+    out = bytearray(b"II*\0" + struct.pack("<I", 8))
+    for p in range(pages):
+        ifd_at = len(out)
+        size = 2 + 9 * 12 + 4
+        strip = ifd_at + size
+        nxt = strip + 10 if p + 1 < pages else 0
+        out += struct.pack("<H", 9)
+        for tag, typ, value in entries(strip, nxt):
+            out += struct.pack("<HHI", tag, typ, 1) + (struct.pack("<HH", value, 0) if typ == 3 else
+                                                      struct.pack("<I", value))
+        out += struct.pack("<I", nxt) + bytes(10)
+    path.write_bytes(bytes(out))
+    return path
+
+
+def tiny_png(path, width, height, colour_type, depth, idat):
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    ihdr = struct.pack(">IIBBBBB", width, height, depth, colour_type, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b""))
+    return path
+
+
+@pytest.fixture
+def no_env_limit(monkeypatch):
+    monkeypatch.delenv("VOLRIG_MAX_BYTES", raising=False)
+
+
+def test_tiny_tiff_declaring_40000_squared_is_refused_before_allocating(tmp_path, no_env_limit):
+    f = tiny_tiff(tmp_path / "huge.tif", 40000, 40000)
+    assert f.stat().st_size < 200
+    with pytest.raises(volrig.FileFormatError) as e:
+        volrig.load(str(f))
+    assert str(e.value).startswith(f"{f}: page 1's 40000 x 40000 uint8 pixels need 1,600,000,000 bytes from a file "
+                                   f"of {f.stat().st_size} bytes")
+    assert "max_bytes=1600000000" in str(e.value)
+    # 100000 x 100000: the same error, no bare MemoryError.
+    g = tiny_tiff(tmp_path / "huger.tif", 100000, 100000)
+    with pytest.raises(volrig.FileFormatError, match="huger.tif: page 1's 100000 x 100000 uint8 pixels need"):
+        volrig.load(str(g))
+
+
+def test_tiff_pages_in_total_are_budgeted(tmp_path, no_env_limit):
+    f = tiny_tiff(tmp_path / "many.tif", 10000, 10000, pages=12)  # 100 MB a page, 1.2 GB in all, from 1.6 KB
+    with pytest.raises(volrig.FileFormatError, match=r"many.tif: the 12 pages need 1,200,000,000 bytes from a file"):
+        volrig.load(str(f))
+
+
+def test_png_size_checks_count_the_bits_of_each_pixel(tmp_path, no_env_limit):
+    from volrig.drawing import read_png
+    # RGBA 20000 x 20000 (1.6 GB of pixels) in a 1 KB file: the deflate bound, counting 32 bits a pixel, refuses it.
+    f = tiny_png(tmp_path / "rgba.png", 20000, 20000, 6, 8, bytes(1000))
+    with pytest.raises(volrig.FileFormatError, match=r"rgba.png: header declares 1,600,000,000 bytes but 1,0\d\d "
+                                                     r"compressed bytes can inflate to at most"):
+        read_png(f)
+    # 1-bit grey 20000 x 20000 in 60 KB could inflate to its 50 MB of bits, but decodes to 1.6 GB of RGBA.
+    g = tiny_png(tmp_path / "bits.png", 20000, 20000, 0, 1, bytes(60000))
+    with pytest.raises(volrig.FileFormatError, match=r"bits.png: the 20000 x 20000 RGBA pixels need 1,600,000,000 "
+                                                     r"bytes from a file of 60,\d+ bytes.*max_bytes=1600000000"):
+        read_png(g)
+
+
+def test_vrig_with_a_1024_cubed_rigid_mask_is_refused(tmp_path, no_env_limit):
+    from volrig import phantom
+    from volrig.rig import autorig, bind
+    from volrig.rigfile import load_rig
+    from volrig.tree import skeleton_tree
+    mask = volrig.segment(phantom.humanoid(scale=0.25).volume)
+    pts = volrig.skeletonize(mask).top(4000)
+    tree = skeleton_tree(pts, mask)
+    rig = autorig(pts, tree, mask)
+    good = tmp_path / "good.vrig"
+    volrig.save_rig(good, pts, tree, rig, bind(pts, rig, mask, rigid=np.asarray(mask.array)))
+    assert load_rig(good).binding.rigid.shape == np.asarray(mask.array).shape
+    with np.load(good) as z:
+        a = {k: z[k] for k in z.files}
+    a.update(binding_rigid_shape=np.array([1024, 1024, 1024]), binding_rigid_bits=np.zeros(1024 ** 3 // 8, np.uint8))
+    f = tmp_path / "mask.vrig"
+    with open(f, "wb") as out:
+        np.savez_compressed(out, **a)
+    assert f.stat().st_size < 500_000
+    with pytest.raises(volrig.FileFormatError, match=r"mask.vrig: the 1024 x 1024 x 1024 rigid tissue mask need "
+                                                     r"1,073,741,824 bytes from a file of"):
+        load_rig(f)
+    with pytest.raises(volrig.FileFormatError, match=r"mask need 1,073,741,824 bytes, more than max_bytes=1,000,000,000"):
+        load_rig(f, max_bytes=10 ** 9)  # a caller's max_bytes decides alone
+
+
+def test_vrig_archive_members_are_budgeted_before_unpacking(tmp_path, no_env_limit):
+    from volrig.rigfile import load_rig
+    f = tmp_path / "bomb.vrig"
+    with open(f, "wb") as out:
+        np.savez_compressed(out, format=np.array("volrig-rig"), junk=np.zeros(1_100_000_000, np.uint8))
+    with pytest.raises(volrig.FileFormatError, match=r"bomb.vrig: the archive's members need 1,100,000,\d+ bytes"):
+        load_rig(f)

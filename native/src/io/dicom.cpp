@@ -91,6 +91,7 @@ struct Slice {
     std::int64_t rows = 0, columns = 0, frames = 1;
     double along = 0;      // position along the slice normal
     bool isolate = false;  // compressed (JPEG family): decoded in a child process (io/isolate.cpp)
+    std::uint64_t file_bytes = 0;
 };
 
 struct Series {
@@ -187,6 +188,9 @@ std::vector<Series> find_series(const std::string& path) {
         Slice slice;
         if (!slice_of(s, file, slice)) continue;
         slice.isolate = found.isolate.count(file) > 0;
+        std::error_code ec;
+        slice.file_bytes = std::filesystem::file_size(file, ec);
+        if (ec) slice.file_bytes = 0;
         const std::string uid = text_of(s, file, kSeriesUid);
         Series& series = by_uid[uid];
         if (series.slices.empty()) {
@@ -423,7 +427,10 @@ Volume read_stack(const std::string& path, const std::vector<Slice>& slices, Gri
         const gdcm::Image& im = r.GetImage();
         const DType t = image_dtype(file, im);
         if (k == 0) {
-            io_detail::check_volume(path, g, t, opt.max_bytes);
+            const std::uint64_t bytes = io_detail::check_volume(path, g, t, opt.max_bytes);
+            std::uint64_t files = 0;
+            for (const Slice& s : slices) files += s.file_bytes;
+            io_detail::check_budget(path, bytes, files, opt, "the " + io_detail::describe(g.dims, t) + " voxels");
             raw = io_detail::allocate(g, t);
             slice_bytes = static_cast<std::size_t>(g.dims[0] * g.dims[1]) * dtype_size(t);
         } else if (t != raw.dtype) {
@@ -488,7 +495,8 @@ Volume decode_file(const ByteSource& src, const ReadOptions& opt) {
     const gdcm::Image& im = r.GetImage();
     const DType t = image_dtype(name, im);
     const Grid g = single_grid(name, im);
-    io_detail::check_volume(name, g, t, opt.max_bytes);
+    const std::uint64_t bytes = io_detail::check_volume(name, g, t, opt.max_bytes);
+    io_detail::check_budget(name, bytes, src.size(), opt, "the " + io_detail::describe(g.dims, t) + " voxels");
     Volume raw = io_detail::allocate(g, t);
     decode(name, im, raw.data.data(), raw.data.size());
     const std::vector<Scale> scales(static_cast<std::size_t>(g.dims[2]), scale_of(name, im));

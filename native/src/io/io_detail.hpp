@@ -121,6 +121,13 @@ struct HeaderFields : std::map<std::string, HeaderField> {
 /// Validates dims/spacing/origin and the decoded size against opt.max_bytes (check_grid), rethrowing as a
 /// FileFormatError naming `name`. Returns the byte count.
 std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std::uint64_t max_bytes);
+/// The file budget (ReadOptions::max_bytes_given): fails naming `name` when `demand` bytes are more than
+/// kBudgetFloor and more than kBudgetRatio times `file_bytes`, unless the caller gave max_bytes. `what` says what
+/// the demand is for ("the pixels", "the dense grid").
+constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
+constexpr std::uint64_t kBudgetRatio = 1000;
+void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
+                  const std::string& what);
 /// A volume of the grid's size (zero-filled).
 Volume allocate(const Grid& g, DType t);
 

@@ -29,6 +29,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -122,6 +123,7 @@ public:
     VdbReader& operator=(const VdbReader&) = delete;
 
     const std::vector<openvdb::io::GridDescriptor>& descriptors() const { return descriptors_; }
+    std::uint64_t size() const { return static_cast<std::uint64_t>(size_); }
 
     /// The descriptor of the first grid named `name`, or nullptr.
     const openvdb::io::GridDescriptor* find(const std::string& name) const {
@@ -256,10 +258,35 @@ DType dtype_of_grid(const std::string& type) {
     return DType::UInt8;  // bool
 }
 
+/// Copies the grid over bbox into out (x fastest, z slowest), in slabs of z on plain threads: read_vdb runs in a
+/// child process (io/isolate.cpp) where TBB has a single thread.
 template <class T, class GridT>
 void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
-    openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(bbox, static_cast<T*>(out));
-    openvdb::tools::copyToDense(grid, dense);
+    const int z0 = bbox.min().z(), depth = bbox.max().z() - z0 + 1;
+    const std::size_t slab = std::size_t(bbox.dim().x()) * std::size_t(bbox.dim().y());
+    const int n = static_cast<int>(std::max(1u, std::min(std::thread::hardware_concurrency(), 16u)));
+    std::vector<std::thread> threads;
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    for (int i = 0; i < n; ++i) {
+        const int a = z0 + static_cast<int>(std::int64_t(depth) * i / n);
+        const int b = z0 + static_cast<int>(std::int64_t(depth) * (i + 1) / n) - 1;
+        if (a > b) continue;
+        threads.emplace_back([&, a, b] {
+            try {
+                const openvdb::CoordBBox part(openvdb::Coord(bbox.min().x(), bbox.min().y(), a),
+                                              openvdb::Coord(bbox.max().x(), bbox.max().y(), b));
+                openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(part, static_cast<T*>(out) +
+                                                                                     std::size_t(a - z0) * slab);
+                openvdb::tools::copyToDense(grid, dense, /*serial=*/true);
+            } catch (...) {
+                const std::lock_guard<std::mutex> lock(error_mutex);
+                if (!error) error = std::current_exception();
+            }
+        });
+    }
+    for (std::thread& t : threads) t.join();
+    if (error) std::rethrow_exception(error);
 }
 
 }  // namespace
@@ -326,6 +353,11 @@ Volume read_here(const std::string& path, const std::string& grid_name, const Re
         } catch (const Error& e) {
             throw FileFormatError(e.what());
         }
+        const std::uint64_t dense = static_cast<std::uint64_t>(g.voxel_count()) * esize;
+        io_detail::check_budget(path, dense, file.size(), opt,
+                                "grid '" + name + "' as a dense " + std::to_string(g.dims[0]) + " x " +
+                                    std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) +
+                                    " box (the active voxels' bounding box)");
     };
 
     // Check the size the stats metadata declare (when present) before reading the tree.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <type_traits>
@@ -21,6 +22,19 @@ std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std:
         throw FileFormatError(e.what());
     }
     return static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(t);
+}
+
+void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
+                  const std::string& what) {
+    if (opt.max_bytes_given || demand <= kBudgetFloor) return;
+    if (file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio || demand <= file_bytes * kBudgetRatio)
+        return;
+    if (const char* env = std::getenv("VOLRIG_MAX_BYTES"); env && *env) return;  // chosen for the process
+    fail(name, what + " need " + with_commas(demand) + " bytes from a file of " + with_commas(file_bytes) +
+                   " bytes: more than 1 GB and more than " + with_commas(kBudgetRatio) +
+                   " times the file, so it is refused as broken or hostile; if the file is right, allow it with "
+                   "max_bytes=" + std::to_string(demand) + " (Python) or VOLRIG_MAX_BYTES=" + std::to_string(demand) +
+                   " in the environment");
 }
 
 Volume allocate(const Grid& g, DType t) {
