@@ -245,3 +245,62 @@ def test_vrig_archive_members_are_budgeted_before_unpacking(tmp_path, no_env_lim
         np.savez_compressed(out, format=np.array("volrig-rig"), junk=np.zeros(1_100_000_000, np.uint8))
     with pytest.raises(volrig.FileFormatError, match=r"bomb.vrig: the archive's members need 1,100,000,\d+ bytes"):
         load_rig(f)
+
+
+# ---- values: rescaling in double, spacing refused like the other readers ------------------------------------------
+
+def nifti_with_slope(path, values, slope, inter=0.0):
+    """A single-file NIfTI-1 (.nii) of uint8 values [z, y, x] with scl_slope/scl_inter set."""
+    import struct
+    z, y, x = values.shape
+    h = bytearray(352)
+    struct.pack_into("<i", h, 0, 348)
+    struct.pack_into("<8h", h, 40, 3, x, y, z, 1, 1, 1, 1)
+    struct.pack_into("<hh", h, 70, 2, 8)                     # datatype uint8, 8 bits
+    struct.pack_into("<8f", h, 76, 1, 1, 1, 1, 1, 1, 1, 1)   # pixdim
+    struct.pack_into("<fff", h, 108, 352, slope, inter)      # vox_offset, scl_slope, scl_inter
+    h[344:348] = b"n+1\0"
+    path.write_bytes(bytes(h) + values.astype(np.uint8).tobytes())
+    return path
+
+
+def test_nifti_slope_3e38_gives_its_true_values_in_float64(tmp_path):
+    values = np.arange(24, dtype=np.uint8).reshape(2, 3, 4)
+    v = volrig.load(str(nifti_with_slope(tmp_path / "big.nii", values, 3e38)))
+    assert v.array.dtype == np.float64 and np.isfinite(v.array).all()
+    np.testing.assert_allclose(v.array, values * float(np.float32(3e38)), rtol=1e-12)
+    small = volrig.load(str(nifti_with_slope(tmp_path / "small.nii", values, 0.5, -3)))
+    assert small.array.dtype == np.float32
+    np.testing.assert_array_equal(small.array, values * 0.5 - 3)
+
+
+def test_nifti_slope_beyond_double_is_refused(tmp_path):
+    values = np.full((2, 2, 2), 255, np.uint8)
+    f = nifti_with_slope(tmp_path / "inf.nii", values, 3e38)
+    # 3e38 x 255 fits a double; a slope that overflows it needs a float32 above its range: inf is refused already.
+    assert np.isfinite(volrig.load(str(f)).array).all()
+    g = nifti_with_slope(tmp_path / "huge.nii", values, float("inf"))
+    with pytest.raises(volrig.FileFormatError, match="huge.nii: scl_slope is inf"):
+        volrig.load(str(g))
+
+
+def test_dicom_rescale_slope_3e38_gives_float64(tmp_path):
+    pytest.importorskip("pydicom")
+    from test_dicom import raw_slices, write_series
+    pixels, _ = write_series(tmp_path / "s", raw_slices(), slope=3e38, intercept=0.0)
+    v = volrig.load(str(tmp_path / "s"))
+    assert v.array.dtype == np.float64 and np.isfinite(v.array).all()
+    np.testing.assert_allclose(v.array, pixels.astype(np.float64) * 3e38, rtol=1e-12)
+
+
+@pytest.mark.filterwarnings("ignore:Invalid value for VR DS")
+@pytest.mark.parametrize("spacing", [(0.0, 0.6), (0.7, -0.6), ("nan", 0.6)])
+def test_dicom_pixel_spacing_that_is_not_finite_and_positive_is_refused(tmp_path, spacing):
+    pytest.importorskip("pydicom")
+    from test_dicom import raw_slices, write_series
+    write_series(tmp_path / "s", raw_slices(), pixel_spacing=spacing)
+    with pytest.raises(volrig.FileFormatError, match=r"PixelSpacing '.*' is not two finite positive numbers"):
+        volrig.load(str(tmp_path / "s"))
+    one = next((tmp_path / "s").iterdir())
+    with pytest.raises(volrig.FileFormatError, match=f"{one.name}: PixelSpacing"):
+        volrig.load(str(one))

@@ -217,6 +217,24 @@ const Series& choose_series(const std::string& path, const std::vector<Series>& 
     fail(path, "no series with SeriesInstanceUID " + io_detail::quoted(uid) + " (found: " + known + ")");
 }
 
+// PixelSpacing (0028,0030) must be two finite positive numbers when present (GDCM would take 0, NaN or a
+// negative value as 1), as the NRRD, MetaImage and NIfTI readers require of their spacings.
+void check_pixel_spacing(const std::string& file, const std::string& text) {
+    const std::vector<double> ps = numbers_of(text);
+    if (!text.empty() && (ps.size() != 2 || !(ps[0] > 0) || !(ps[1] > 0)))
+        fail(file, "PixelSpacing " + io_detail::quoted(text) + " is not two finite positive numbers");
+}
+
+// The PixelSpacing text of a data set without its padding ("" when absent).
+std::string pixel_spacing_text(const gdcm::DataSet& ds) {
+    if (!ds.FindDataElement(kPixelSpacing)) return {};
+    const gdcm::ByteValue* bv = ds.GetDataElement(kPixelSpacing).GetByteValue();
+    if (!bv || !bv->GetPointer()) return {};
+    std::string out(bv->GetPointer(), bv->GetLength());
+    while (!out.empty() && (out.back() == ' ' || out.back() == '\0')) out.pop_back();
+    return std::string(io_detail::trim(out));
+}
+
 // ---- geometry of a stack of slices ---------------------------------------------------------------------------
 
 // Checks that every slice has the first one's size, orientation, pixel spacing and a position.
@@ -330,16 +348,6 @@ Scale scale_of(const std::string& name, const gdcm::Image& im) {
     return s;
 }
 
-template <class In>
-void raw_range(const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
-    for (std::size_t i = 0; i < n; ++i) {
-        In x;
-        std::memcpy(&x, p + i * sizeof(In), sizeof(In));
-        lo = std::min(lo, static_cast<double>(x));
-        hi = std::max(hi, static_cast<double>(x));
-    }
-}
-
 template <class In, class Out>
 void rescale_slice(const std::uint8_t* in, std::uint8_t* out, std::size_t n, const Scale& s) {
     for (std::size_t i = 0; i < n; ++i) {
@@ -354,6 +362,8 @@ template <class In>
 void rescale_as(DType out_type, const std::uint8_t* in, std::uint8_t* out, std::size_t n, const Scale& s) {
     if (out_type == DType::Int16)
         rescale_slice<In, std::int16_t>(in, out, n, s);
+    else if (out_type == DType::Float64)
+        rescale_slice<In, double>(in, out, n, s);
     else
         rescale_slice<In, float>(in, out, n, s);
 }
@@ -374,38 +384,29 @@ void rescale_any(DType in_type, DType out_type, const std::uint8_t* in, std::uin
     }
 }
 
-void range_any(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
-    switch (t) {
-        case DType::UInt8: return raw_range<std::uint8_t>(p, n, lo, hi);
-        case DType::Int8: return raw_range<std::int8_t>(p, n, lo, hi);
-        case DType::UInt16: return raw_range<std::uint16_t>(p, n, lo, hi);
-        case DType::Int16: return raw_range<std::int16_t>(p, n, lo, hi);
-        case DType::UInt32: return raw_range<std::uint32_t>(p, n, lo, hi);
-        case DType::Int32: return raw_range<std::int32_t>(p, n, lo, hi);
-        case DType::UInt64: return raw_range<std::uint64_t>(p, n, lo, hi);
-        case DType::Int64: return raw_range<std::int64_t>(p, n, lo, hi);
-        case DType::Float32: return raw_range<float>(p, n, lo, hi);
-        case DType::Float64: return raw_range<double>(p, n, lo, hi);
-    }
-}
-
 bool integral(double v) { return std::floor(v) == v; }
 
 // Applies each slice's rescale: the stored values when every slice has (1, 0); int16 when the slopes and
-// intercepts are integral and the values fit; else float32.
+// intercepts are integral and the values fit; else float32, or float64 when the values do not fit float32 (a
+// slope of 3e38); refused when they overflow a double.
 Volume rescale(const std::string& name, Volume&& raw, const std::vector<Scale>& scales, std::uint64_t max_bytes) {
     const bool identity = std::all_of(scales.begin(), scales.end(), [](const Scale& s) { return s.slope == 1 && s.inter == 0; });
     if (identity) return std::move(raw);
     const auto slice = static_cast<std::size_t>(raw.grid.dims[0] * raw.grid.dims[1]);
     const std::size_t esize = dtype_size(raw.dtype);
     bool fits = raw.dtype != DType::Float32 && raw.dtype != DType::Float64;
-    for (std::size_t k = 0; k < scales.size() && fits; ++k) {
+    DType wide = DType::Float32;
+    for (std::size_t k = 0; k < scales.size(); ++k) {
         double lo = std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::lowest();
-        range_any(raw.dtype, raw.data.data() + k * slice * esize, slice, lo, hi);
+        io_detail::finite_range(raw.dtype, raw.data.data() + k * slice * esize, slice, lo, hi);
+        if (io_detail::rescaled_type(name, "RescaleSlope/RescaleIntercept", lo, hi, scales[k].slope, scales[k].inter,
+                                     raw.dtype) == DType::Float64)
+            wide = DType::Float64;
         const double a = lo * scales[k].slope + scales[k].inter, b = hi * scales[k].slope + scales[k].inter;
-        fits = integral(scales[k].slope) && integral(scales[k].inter) && std::min(a, b) >= -32768 && std::max(a, b) <= 32767;
+        fits = fits && integral(scales[k].slope) && integral(scales[k].inter) && std::min(a, b) >= -32768 &&
+               std::max(a, b) <= 32767;
     }
-    const DType out_type = fits ? DType::Int16 : DType::Float32;
+    const DType out_type = fits ? DType::Int16 : wide;
     io_detail::check_volume(name, raw.grid, out_type, max_bytes);
     Volume out = io_detail::allocate(raw.grid, out_type);
     for (std::size_t k = 0; k < scales.size(); ++k)
@@ -452,8 +453,9 @@ Volume read_series(const std::string& path, Series series, const ReadOptions& op
     g.spacing[2] = sort_and_space(path, slices, g.direction, opt);
     g.dims = {slices[0].columns, slices[0].rows, static_cast<std::int64_t>(slices.size())};
     g.origin = {slices[0].position[0], slices[0].position[1], slices[0].position[2]};
-    const std::vector<double> ps = numbers_of(slices[0].pixel_spacing);
-    if (ps.size() == 2 && ps[0] > 0 && ps[1] > 0) g.spacing[0] = ps[1], g.spacing[1] = ps[0];  // row\column spacing
+    check_pixel_spacing(slices[0].file, slices[0].pixel_spacing);
+    const std::vector<double> ps = numbers_of(slices[0].pixel_spacing);  // absent: 1 mm
+    if (ps.size() == 2) g.spacing[0] = ps[1], g.spacing[1] = ps[0];  // row\column spacing
     if (std::none_of(slices.begin(), slices.end(), [](const Slice& s) { return s.isolate; }))
         return read_stack(path, slices, g, opt);
     return io_detail::isolated_volume(path, "GDCM's decoder", opt,
@@ -476,7 +478,9 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
     g.dims = {dims[0], dims[1], im.GetNumberOfDimensions() > 2 ? dims[2] : 1};
     for (int a = 0; a < 3; ++a) {
         const double s = im.GetSpacing(static_cast<unsigned>(a)), o = im.GetOrigin(static_cast<unsigned>(a));
-        g.spacing[a] = std::isfinite(s) && s > 0 ? s : 1.0;
+        if (!std::isfinite(s) || !(s > 0))  // GDCM gives 1 when the file has none
+            fail(name, "pixel spacing " + io_detail::format_double(s) + " is not a finite positive number");
+        g.spacing[a] = s;
         if (!std::isfinite(o)) fail(name, "the image position is not finite");
         g.origin[a] = o;
     }
@@ -494,6 +498,7 @@ Volume decode_file(const ByteSource& src, const ReadOptions& opt) {
     if (!guarded(name, [&] { return r.Read(); })) fail(name, "not a DICOM image GDCM can read");
     const gdcm::Image& im = r.GetImage();
     const DType t = image_dtype(name, im);
+    check_pixel_spacing(name, pixel_spacing_text(r.GetFile().GetDataSet()));
     const Grid g = single_grid(name, im);
     const std::uint64_t bytes = io_detail::check_volume(name, g, t, opt.max_bytes);
     io_detail::check_budget(name, bytes, src.size(), opt, "the " + io_detail::describe(g.dims, t) + " voxels");

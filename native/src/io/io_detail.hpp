@@ -128,6 +128,13 @@ constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
 constexpr std::uint64_t kBudgetRatio = 1000;
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
                   const std::string& what);
+/// The smallest and largest finite values among n elements of type t (lo > hi when there are none).
+void finite_range(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi);
+/// The element type a rescaled volume (value * slope + inter) needs: float32 when every result fits it, else
+/// float64 (so a slope of 3e38 gives its true values, not inf); fails naming `name` when results overflow double
+/// too. `lo`/`hi`: finite_range of the stored values.
+DType rescaled_type(const std::string& name, const std::string& what, double lo, double hi, double slope,
+                    double inter, DType stored);
 /// A volume of the grid's size (zero-filled).
 Volume allocate(const Grid& g, DType t);
 

@@ -62,7 +62,9 @@ void send_text(int fd, char tag, const std::string& text) {
 
 // The child: runs `work`, sends its outcome, and leaves without unwinding into the caller's frames.
 [[noreturn]] void child_main(int fd, const std::function<void(IsolatedOutput&)>& work) {
-    ::signal(SIGPIPE, SIG_DFL);
+    // A crash must end the child plainly: not in the parent's handlers (Python's faulthandler, Blender's crash
+    // report, a test framework's), which would report it as the parent's own.
+    for (int sig : {SIGPIPE, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS}) ::signal(sig, SIG_DFL);
     try {
         IsolatedOutput out(fd);
         // One thread: the parent's TBB workers do not exist in the child.
