@@ -20,7 +20,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from . import _volrig
-from ._volrig import VolrigError
+from ._volrig import FileFormatError, VolrigError
 
 Vec3 = Tuple[float, float, float]
 
@@ -53,6 +53,20 @@ def _direction(d) -> np.ndarray:
     return m
 
 
+def _refuse_special(path) -> None:
+    """FileFormatError for a path that exists but is neither a regular file nor a folder (as the native readers)."""
+    import stat
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
+                "a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode) else
+                "not a regular file")
+        raise FileFormatError(f"{os.fsdecode(path)}: {kind}, not a regular file or folder")
+
+
 def format_of(path: str) -> str:
     """The reader/writer name for ``path`` from its ending (see ``FORMATS``), "folder" for a folder (of DICOM or
     TIFF files), "dicom" for a file with the DICOM preamble; raises VolrigError when unknown."""
@@ -63,6 +77,7 @@ def format_of(path: str) -> str:
     for ending in sorted(FORMATS, key=len, reverse=True):
         if low.endswith(ending):
             return FORMATS[ending]
+    _refuse_special(path)  # open() would block on a FIFO
     try:
         with open(path, "rb") as f:
             if f.read(132)[128:] == b"DICM":

@@ -304,3 +304,75 @@ def test_dicom_pixel_spacing_that_is_not_finite_and_positive_is_refused(tmp_path
     one = next((tmp_path / "s").iterdir())
     with pytest.raises(volrig.FileFormatError, match=f"{one.name}: PixelSpacing"):
         volrig.load(str(one))
+
+
+# ---- special files and folders: nothing blocks, loops, or silently drops slices ----------------------------------
+
+LOAD_WARN = """
+import sys, warnings, volrig
+with warnings.catch_warnings(record=True) as said:
+    warnings.simplefilter("always")
+    try:
+        v = volrig.load(sys.argv[1])
+        print("SHAPE", v.array.shape)
+    except volrig.VolrigError as e:
+        print(type(e).__name__ + ": " + str(e))
+for w in said:
+    print("WARNING", w.message)
+"""
+
+
+def test_dicom_folder_with_dangling_link_fifo_socket_and_loops(tmp_path):
+    import socket
+    pytest.importorskip("pydicom")
+    from test_dicom import raw_slices, write_series
+    folder = tmp_path / "ct"
+    pixels, _ = write_series(folder, raw_slices(n=4), names=["a", "b", "c", "d"])
+    os.symlink(tmp_path / "nowhere", folder / "b_dangling")
+    os.mkfifo(folder / "b_fifo")
+    s = socket.socket(socket.AF_UNIX)
+    s.bind(str(folder / "b_socket"))
+    os.symlink(folder, folder / "loop1")
+    os.symlink(".", folder / "loop2")
+    rc, out = read_in_child(folder, code=LOAD_WARN, timeout=20)
+    s.close()
+    assert rc == 0, out
+    lines = out.splitlines()
+    assert lines[0] == "SHAPE (4, 7, 8)", out
+    said = "\n".join(lines[1:])
+    assert f"WARNING {folder}/b_dangling: a dangling link; skipped" in said
+    assert f"WARNING {folder}/b_fifo: a FIFO, not a file; skipped" in said
+    assert f"WARNING {folder}/b_socket: a socket, not a file; skipped" in said
+    assert f"WARNING {folder}/loop1: a folder already scanned (a link loop?); skipped" in said
+    assert f"WARNING {folder}/loop2: a folder already scanned (a link loop?); skipped" in said
+    with pytest.warns(UserWarning, match="skipped"):
+        v = volrig.load(str(folder))
+    np.testing.assert_array_equal(v.array, pixels.astype(np.int32) - 1024)
+
+
+def test_a_link_to_another_folder_is_followed_once(tmp_path):
+    pytest.importorskip("pydicom")
+    from test_dicom import raw_slices, write_series
+    write_series(tmp_path / "real", raw_slices(n=3))
+    (tmp_path / "scan").mkdir()
+    os.symlink(tmp_path / "real", tmp_path / "scan" / "series")
+    assert volrig.load(str(tmp_path / "scan")).array.shape == (3, 7, 8)
+
+
+@pytest.mark.parametrize("name", ["pipe.nrrd", "pipe.vdb", "pipe.tif", "pipe.dcm", "pipe.nii", "pipe"])
+def test_a_fifo_is_refused_without_blocking(tmp_path, name):
+    f = tmp_path / name
+    os.mkfifo(f)
+    rc, out = read_in_child(f, timeout=20)
+    assert rc == 0, out
+    assert out == f"FileFormatError: {f}: a FIFO, not a regular file or folder", out
+
+
+def test_a_fifo_as_nrrd_data_file_is_refused_without_blocking(tmp_path):
+    os.mkfifo(tmp_path / "data.raw")
+    h = tmp_path / "h.nhdr"
+    h.write_text("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\ndata file: data.raw\n\n")
+    rc, out = read_in_child(h, timeout=20)
+    assert rc == 0, out
+    assert out.startswith(f"FileFormatError: {h}: data file 'data.raw' cannot be opened") or \
+        out.startswith(f"FileFormatError: {tmp_path / 'data.raw'}: not a regular file (a FIFO)"), out

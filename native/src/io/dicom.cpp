@@ -6,16 +6,20 @@
 // wrong; nothing is allocated before the series' size is checked against max_bytes. Every file passes
 // check_dicom_part10 (io/dicom_part10.cpp) before GDCM reads it: Debian's GDCM aborts on some broken files.
 #include <gdcmDicts.h>
-#include <gdcmDirectory.h>
 #include <gdcmGlobal.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
 #include <gdcmScanner.h>
 
+#include <dirent.h>
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
 #include <set>
@@ -127,9 +131,47 @@ void add_if_well_formed(Candidates& c, const std::string& file) {
     }
 }
 
+using Warn = std::function<void(const std::string&)>;
+
+// Adds the regular files under `folder` (recursively) to `files`. volrig walks the folder, not GDCM (which stopped
+// at a FIFO, a socket or a dangling link, and looped forever on a link to a parent): symbolic links are followed,
+// each folder is entered once (a second way into one, e.g. a link loop, is skipped with a warning), and entries
+// that are neither regular files nor folders are skipped with a warning naming them.
+void walk_folder(const std::string& folder, std::set<std::pair<dev_t, ino_t>>& entered, std::vector<std::string>& files,
+                 const Warn& warn, int depth) {
+    const auto say = [&](const std::string& what) {
+        if (warn) warn(what);
+    };
+    if (depth > 64) return say(folder + ": folders nested more than 64 deep; not scanned further");
+    DIR* d = ::opendir(folder.c_str());
+    if (!d) return say(folder + ": cannot be read (" + io_detail::errno_text(errno) + "); skipped");
+    std::vector<std::string> names;
+    while (const dirent* e = ::readdir(d))
+        if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) names.emplace_back(e->d_name);
+    ::closedir(d);
+    std::sort(names.begin(), names.end());
+    for (const std::string& name : names) {
+        const std::string full = folder + (folder.back() == '/' ? "" : "/") + name;
+        struct stat st {};
+        if (::stat(full.c_str(), &st) != 0) {
+            say(full + ": " + (errno == ENOENT ? std::string("a dangling link") : io_detail::errno_text(errno)) +
+                "; skipped");
+        } else if (S_ISDIR(st.st_mode)) {
+            if (entered.insert({st.st_dev, st.st_ino}).second)
+                walk_folder(full, entered, files, warn, depth + 1);
+            else
+                say(full + ": a folder already scanned (a link loop?); skipped");
+        } else if (S_ISREG(st.st_mode)) {
+            files.push_back(full);
+        } else {
+            say(full + ": " + io_detail::file_kind(st.st_mode) + ", not a file; skipped");
+        }
+    }
+}
+
 // The files to scan (each passed check_dicom_part10 or, for a single file, is checked when read): a folder's
 // (recursively), those under a DICOMDIR's folder, or the file itself.
-Candidates candidate_files(const std::string& path) {
+Candidates candidate_files(const std::string& path, const Warn& warn) {
     namespace fs = std::filesystem;
     io_detail::check_input_path(path);
     std::error_code ec;
@@ -140,10 +182,12 @@ Candidates candidate_files(const std::string& path) {
         c.files.push_back(path);
         return c;
     }
-    gdcm::Directory dir;
     const std::string folder = dicomdir ? fs::path(path).parent_path().string() : path;
-    dir.Load(folder.empty() ? "." : folder, true);
-    std::vector<std::string> files = dir.GetFilenames();
+    std::vector<std::string> files;
+    std::set<std::pair<dev_t, ino_t>> entered;
+    struct stat st {};
+    if (::stat(folder.empty() ? "." : folder.c_str(), &st) == 0) entered.insert({st.st_dev, st.st_ino});
+    walk_folder(folder.empty() ? "." : folder, entered, files, warn, 0);
     std::sort(files.begin(), files.end());
     for (const std::string& f : files)
         if (!io_detail::iequals(base_name(f), "DICOMDIR")) add_if_well_formed(c, f);
@@ -179,8 +223,8 @@ bool slice_of(const gdcm::Scanner& s, const std::string& file, Slice& out) {
 }
 
 // Image slices grouped by SeriesInstanceUID, the series with the most slices first.
-std::vector<Series> find_series(const std::string& path) {
-    const Candidates found = candidate_files(path);
+std::vector<Series> find_series(const std::string& path, const Warn& warn) {
+    const Candidates found = candidate_files(path, warn);
     const std::vector<std::string>& files = found.files;
     const gdcm::Scanner s = scan(path, files);
     std::map<std::string, Series> by_uid;
@@ -267,6 +311,31 @@ Matrix3 direction_of(const std::string& file, const std::vector<double>& iop) {
     return d;
 }
 
+// When every gap is a whole number of the smallest (within 10 %), the series has slices missing from a regular
+// spacing: fails naming each missing position (along the normal from the first slice, and in patient
+// coordinates), at most 10 of them.
+void refuse_missing(const std::string& path, const std::vector<Slice>& slices, const Vec3& n, double lo) {
+    std::vector<double> missing;  // along the normal
+    for (std::size_t i = 1; i < slices.size(); ++i) {
+        const double steps = (slices[i].along - slices[i - 1].along) / lo;
+        const double whole = std::round(steps);
+        if (std::fabs(steps - whole) > 0.1) return;  // not a regular spacing with gaps
+        for (int j = 1; j < static_cast<int>(whole) && missing.size() <= 10; ++j)
+            missing.push_back(slices[i - 1].along + j * (slices[i].along - slices[i - 1].along) / whole);
+    }
+    if (missing.empty()) return;
+    const auto num = [](double v) { return io_detail::format_double(std::round(v * 1e3) / 1e3); };
+    std::string list;
+    for (std::size_t k = 0; k < missing.size() && k < 10; ++k) {
+        const double d = missing[k] - slices[0].along;
+        list += (k ? "; " : "") + num(d) + " mm (" + num(slices[0].position[0] + d * n[0]) + ", " +
+                num(slices[0].position[1] + d * n[1]) + ", " + num(slices[0].position[2] + d * n[2]) + ")";
+    }
+    fail(path, "incomplete series: no slice at " + list + (missing.size() > 10 ? "; ..." : "") +
+                   " (along the slice normal from " + base_name(slices[0].file) + ", and in patient coordinates)"
+                   " where the others are " + num(lo) + " mm apart");
+}
+
 // Sorts the slices along the normal (column 2 of d) and returns the mean gap; fails on repeated positions,
 // uneven gaps or slices off the normal, warns about small jitter.
 double sort_and_space(const std::string& path, std::vector<Slice>& slices, const Matrix3& d, const ReadOptions& opt) {
@@ -285,9 +354,11 @@ double sort_and_space(const std::string& path, std::vector<Slice>& slices, const
         if (gap > hi) hi = gap, at_hi = i;
     }
     const auto mm = [](double v) { return io_detail::format_double(std::round(v * 1e4) / 1e4) + " mm"; };
-    if (hi - lo > 0.1 * mean)
+    if (hi - lo > 0.1 * mean) {
+        refuse_missing(path, slices, n, lo);
         fail(path, "uneven slice gaps: " + mm(hi) + " between " + base_name(slices[at_hi - 1].file) + " and " +
-                       base_name(slices[at_hi].file) + " where the smallest is " + mm(lo) + " (missing slices?)");
+                       base_name(slices[at_hi].file) + " where the smallest is " + mm(lo));
+    }
     for (const Slice& s : slices) {  // each position on the line through the first along the normal
         Vec3 off{};
         for (int r = 0; r < 3; ++r) off[r] = s.position[r] - slices[0].position[r] - (s.along - slices[0].along) * n[r];
@@ -517,13 +588,13 @@ Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
 }
 
 Volume read_dicom(const std::string& path, const ReadOptions& opt) {
-    std::vector<Series> all = find_series(path);
+    std::vector<Series> all = find_series(path, opt.warn);
     return read_series(path, choose_series(path, all, opt.series), opt);
 }
 
 std::vector<DicomSeriesInfo> dicom_series(const std::string& path) {
     std::vector<DicomSeriesInfo> out;
-    for (const Series& s : find_series(path)) {
+    for (const Series& s : find_series(path, {})) {
         DicomSeriesInfo i;
         i.uid = s.uid;
         i.description = s.description;
