@@ -376,3 +376,102 @@ def test_a_fifo_as_nrrd_data_file_is_refused_without_blocking(tmp_path):
     assert rc == 0, out
     assert out.startswith(f"FileFormatError: {h}: data file 'data.raw' cannot be opened") or \
         out.startswith(f"FileFormatError: {tmp_path / 'data.raw'}: not a regular file (a FIFO)"), out
+
+
+# ---- paths: NUL refused, any other name works and shows, writes keep what they replace ----------------------------
+
+def small_volume():
+    return volrig.Volume(np.arange(24, dtype=np.uint8).reshape(2, 3, 4), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+
+
+def test_nul_in_a_path_is_a_value_error_everywhere(tmp_path):
+    from volrig.drawing import read_png
+    from volrig.rigfile import load_rig
+    evil = str(tmp_path / "evil.vdb\x00.nrrd")
+    with pytest.raises(ValueError, match="must not contain a NUL") as e:
+        small_volume().save(evil)
+    assert isinstance(e.value, volrig.VolrigError)
+    assert not (tmp_path / "evil.vdb").exists()
+    for call in (lambda: volrig.load(evil), lambda: volrig.load(str(tmp_path / "a\x00.vdb")),
+                 lambda: volrig.dicom_series(str(tmp_path) + "\x00x"), lambda: read_png(str(tmp_path / "x\x00.png")),
+                 lambda: load_rig(str(tmp_path / "x\x00.vrig")), lambda: volrig._volrig.read_volume(evil, -1, "",
+                                                                                                   (0, 0, 0))):
+        with pytest.raises(volrig.VolrigError, match="must not contain a NUL"):
+            call()
+    assert sorted(os.listdir(tmp_path)) == []
+
+
+def test_names_that_are_not_utf8_load_save_and_show_in_messages(tmp_path):
+    raw_name = os.fsencode(str(tmp_path)) + b"/caf\xe9.nrrd"
+    name = os.fsdecode(raw_name)  # 'caf\udce9.nrrd'
+    small_volume().save(name)
+    assert os.path.exists(raw_name)
+    np.testing.assert_array_equal(volrig.load(name).array, small_volume().array)
+    np.testing.assert_array_equal(volrig.load(raw_name).array, small_volume().array)  # bytes too
+    missing = os.fsdecode(os.fsencode(str(tmp_path)) + b"/gon\xe9.nrrd")
+    with pytest.raises(FileNotFoundError) as e:
+        volrig.load(missing)
+    assert str(e.value).startswith(missing + ": ")
+    (tmp_path / "bad").mkdir()
+    broken = os.fsdecode(os.fsencode(str(tmp_path)) + b"/bad/x\xff.nrrd")
+    with open(broken, "wb") as f:
+        f.write(b"NRRD0004\nnonsense\n")
+    with pytest.raises(volrig.FileFormatError) as e:
+        volrig.load(broken)
+    assert str(e.value).startswith(broken + ": ")
+
+
+def test_dicom_series_with_names_that_are_not_utf8(tmp_path):
+    pytest.importorskip("pydicom")
+    from test_dicom import raw_slices, write_series
+    folder = os.fsdecode(os.fsencode(str(tmp_path)) + b"/s\xe9rie")
+    write_series(folder, raw_slices(n=3), names=[os.fsdecode(b"im\xe9%d" % k) for k in range(3)])
+    series = volrig.dicom_series(folder)
+    assert len(series) == 1 and sorted(os.path.basename(f) for f in series[0]["files"]) == \
+        [os.fsdecode(b"im\xe9%d" % k) for k in range(3)]
+    assert volrig.load(folder).array.shape == (3, 7, 8)
+
+
+def test_cli_names_a_non_utf8_file_in_its_error(tmp_path):
+    missing = os.fsencode(str(tmp_path)) + b"/gon\xe9.nrrd"
+    r = subprocess.run([sys.executable, "-m", "volrig", "info", missing], capture_output=True,
+                       env=dict(os.environ, PYTHONPATH=PYTHON_DIR), timeout=60)
+    assert r.returncode != 0
+    assert b"gon" in r.stderr and b".nrrd" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("ending", [".nrrd", ".mha", ".vdb", ".vrig"])
+def test_overwrites_keep_permission_bits_and_write_through_links(tmp_path, ending):
+    target = tmp_path / f"data{ending}"
+    link = tmp_path / f"link{ending}"
+
+    def write(path, scale):
+        v = small_volume()
+        if ending == ".vrig":
+            from volrig.skeleton import SkeletonPoints
+            ones = np.ones(scale, np.float32)
+            pts = SkeletonPoints(np.array([[1, 2, 3]] * scale, np.int32), np.array([[3.0, 2, 1]] * scale), ones,
+                                 ones, ones, "euclidean", (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+            volrig.save_rig(path, pts)
+        else:
+            volrig.Volume(v.array * scale, v.spacing, v.origin).save(str(path))
+
+    write(target, 1)
+    os.chmod(target, 0o600)
+    write(target, 2)
+    assert stat_mode(target) == 0o600
+    os.chmod(target, 0o640)
+    os.symlink(target.name, link)  # relative link
+    write(link, 3)
+    assert os.path.islink(link) and os.readlink(link) == target.name
+    assert stat_mode(target) == 0o640
+    assert sorted(os.listdir(tmp_path)) == sorted([target.name, link.name])  # no temporary files left
+    if ending == ".vrig":
+        assert len(volrig.load_rig(str(target)).points) == 3
+    else:
+        np.testing.assert_allclose(volrig.load(str(target)).array, small_volume().array * 3)
+
+
+def stat_mode(path):
+    import stat
+    return stat.S_IMODE(os.stat(path).st_mode)
