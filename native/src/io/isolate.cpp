@@ -223,6 +223,7 @@ Volume receive_volume(const std::string& name, IsolatedInput& in, std::uint64_t 
     std::uint64_t n = 0;
     if (!in.read(&v.grid, sizeof(Grid)) || !in.read(&t, 1) || !in.read(&n, sizeof n))
         fail(name, "the decoding process stopped while sending its result");
+    if (t > static_cast<std::uint8_t>(DType::Float64)) fail(name, "the decoding process sent an unknown voxel type");
     v.dtype = static_cast<DType>(t);
     const std::uint64_t want = static_cast<std::uint64_t>(v.grid.voxel_count()) * dtype_size(v.dtype);
     if (n != want || n > max_bytes) fail(name, "the decoding process sent a volume of an unexpected size");

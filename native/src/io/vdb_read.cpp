@@ -97,6 +97,7 @@ public:
             setLibraryVersion(is_);
             setDataCompression(is_);
             openvdb::MetaMap file_meta;
+            check_meta("the file metadata");
             file_meta.readMeta(is_);
             check_stream("the file metadata");
             const std::int32_t count = readGridCount(is_);
@@ -145,6 +146,7 @@ public:
             is_.clear();
             gd.seekToGrid(is_);
             readGridCompression(is_);
+            check_meta("grid '" + gd.gridName() + "' metadata");
             grid->readMeta(is_);
             grid->readTransform(is_);
             check_stream("grid '" + gd.gridName() + "' metadata");
@@ -195,6 +197,31 @@ public:
     }
 
 private:
+    /// Walks the metadata map at the stream's position without reading it (a count, then per entry three blocks
+    /// of a 32-bit length and that many bytes: name, type name, value) and fails unless every length fits in the
+    /// file: OpenVDB allocates (and zero-fills) a string of whatever length the file declares before reading it.
+    void check_meta(const std::string& what) {
+        const std::streampos start = is_.tellg();
+        const auto left = [&] { return size_ - static_cast<std::int64_t>(is_.tellg()); };
+        std::uint32_t count = 0;
+        is_.read(reinterpret_cast<char*>(&count), sizeof count);
+        check_stream(what);
+        if (std::int64_t(count) * 12 > left())
+            throw FileFormatError(path_ + ": corrupt OpenVDB file: " + what + " declares " + std::to_string(count) +
+                                  " entries, more than the file holds");
+        for (std::uint32_t i = 0; i < count * 3; ++i) {
+            std::uint32_t n = 0;
+            is_.read(reinterpret_cast<char*>(&n), sizeof n);
+            check_stream(what);
+            if (std::int64_t(n) > left())
+                throw FileFormatError(path_ + ": corrupt OpenVDB file: " + what + " declares a " + std::to_string(n) +
+                                      "-byte value, more than the file holds");
+            is_.seekg(n, std::ios::cur);
+        }
+        check_stream(what);
+        is_.seekg(start);
+    }
+
     void check_stream(const std::string& what) const {
         if (!is_.good())
             throw FileFormatError(path_ + ": truncated or corrupt OpenVDB file (reading " + what +
