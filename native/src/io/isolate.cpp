@@ -55,7 +55,9 @@ bool read_all(int fd, void* data, std::size_t n) {
     return true;
 }
 
-void send_text(int fd, char tag, const std::string& text) {
+void send_text(int fd, char tag, const std::string& full) {
+    // A message quoting a corrupt file can be huge (OpenVDB quotes a grid type name of any length): cut it.
+    const std::string text = full.size() > 4096 ? full.substr(0, 4096) + "..." : full;
     const std::uint64_t n = text.size();
     if (!write_all(fd, &tag, 1) || !write_all(fd, &n, sizeof n) || !write_all(fd, text.data(), text.size())) _exit(3);
 }

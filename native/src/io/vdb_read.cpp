@@ -105,6 +105,9 @@ public:
             if (count < 0) throw FileFormatError(path_ + ": negative grid count " + std::to_string(count));
             for (std::int32_t i = 0; i < count; ++i) {
                 openvdb::io::GridDescriptor gd;
+                // The descriptor's names: unique name, type name, and (since instancing) the parent's name.
+                check_blocks(fileVersion() >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING ? 3 : 2,
+                             "grid descriptor " + std::to_string(i));
                 gd.read(is_);
                 check_stream("grid descriptor " + std::to_string(i));
                 const std::int64_t here = static_cast<std::int64_t>(is_.tellg());
@@ -202,14 +205,22 @@ private:
     /// file: OpenVDB allocates (and zero-fills) a string of whatever length the file declares before reading it.
     void check_meta(const std::string& what) {
         const std::streampos start = is_.tellg();
-        const auto left = [&] { return size_ - static_cast<std::int64_t>(is_.tellg()); };
         std::uint32_t count = 0;
         is_.read(reinterpret_cast<char*>(&count), sizeof count);
         check_stream(what);
-        if (std::int64_t(count) * 12 > left())
+        if (std::int64_t(count) * 12 > size_ - static_cast<std::int64_t>(is_.tellg()))
             throw FileFormatError(path_ + ": corrupt OpenVDB file: " + what + " declares " + std::to_string(count) +
                                   " entries, more than the file holds");
-        for (std::uint32_t i = 0; i < count * 3; ++i) {
+        check_blocks(std::int64_t(count) * 3, what);
+        is_.seekg(start);
+    }
+
+    /// Walks `blocks` blocks of a 32-bit length and that many bytes from the stream's position (then returns to
+    /// it), failing unless each fits in the file.
+    void check_blocks(std::int64_t blocks, const std::string& what) {
+        const std::streampos start = is_.tellg();
+        const auto left = [&] { return size_ - static_cast<std::int64_t>(is_.tellg()); };
+        for (std::int64_t i = 0; i < blocks; ++i) {
             std::uint32_t n = 0;
             is_.read(reinterpret_cast<char*>(&n), sizeof n);
             check_stream(what);
