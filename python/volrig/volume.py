@@ -329,4 +329,4 @@ def _vdb_arguments(path, grids, spacing, origin, half, labels):
             a = a.view(np.uint8)
         arrays.append((str(name), a))
         origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
-    return os.fspath(path), arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]
+    return _native_path(path)[1], arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]

@@ -490,3 +490,32 @@ def test_vdb_metadata_lengths_beyond_the_file_are_refused_at_once():
     rc, out = read_in_child(slow, timeout=10)
     assert rc == 0 and out == (f"FileFormatError: {slow}: corrupt OpenVDB file: grid descriptor 0 declares a "
                                "1681470775-byte value, more than the file holds"), out[:300]
+
+
+def test_mesh_skeleton_motion_and_vdb_entry_points_take_any_name_and_refuse_nul(tmp_path):
+    from volrig.mesh import read_mesh, read_tgf
+    from volrig.mocap import read_bvh
+    base = os.fsencode(str(tmp_path))
+    obj = os.fsdecode(base + b"/m\xe9sh.obj")
+    with open(obj, "w") as f:
+        f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    vertices, faces = read_mesh(obj)
+    assert vertices.shape == (3, 3) and faces.tolist() == [[0, 1, 2]]
+    tgf = os.fsdecode(base + b"/sk\xe9l.tgf")
+    with open(tgf, "w") as f:
+        f.write("1 0 0 0\n2 0 1 0\n#\n1 2\n")
+    joints, edges = read_tgf(tgf)
+    assert joints.shape == (2, 3) and edges.tolist() == [[0, 1]]
+    vdb = os.fsdecode(base + b"/gr\xe9d.vdb")
+    volrig.write_vdb(vdb, {"density": small_volume()})
+    assert volrig.load(vdb).array.shape == (2, 3, 4)
+    missing = os.fsdecode(base + b"/m\xe9tion.bvh")
+    with pytest.raises(FileNotFoundError) as e:
+        read_bvh(missing)
+    assert str(e.value).startswith(missing)
+    for call in (lambda: read_mesh(str(tmp_path / "a\x00.obj")), lambda: read_tgf(str(tmp_path / "a\x00.tgf")),
+                 lambda: read_bvh(str(tmp_path / "a\x00.bvh")),
+                 lambda: volrig.write_vdb(str(tmp_path / "a.vdb\x00.x"), {"density": small_volume()})):
+        with pytest.raises(volrig.VolrigError, match="must not contain a NUL"):
+            call()
+    assert not (tmp_path / "a.vdb").exists()
