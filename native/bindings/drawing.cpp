@@ -10,7 +10,7 @@ void bind_drawing(py::module_& m) {
         "read_png",
         [](const std::string& path, std::int64_t max_bytes) {
             ReadOptions opt;
-            if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+            if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes), opt.max_bytes_given = true;
             Image im;
             {
                 py::gil_scoped_release release;

@@ -10,8 +10,16 @@ namespace {
 
 ReadOptions options_of(std::int64_t max_bytes) {
     ReadOptions opt;
-    if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+    if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes), opt.max_bytes_given = true;
     return opt;
+}
+
+/// Text as os.fsdecode gives it: UTF-8, other bytes as surrogates (a name or DICOM text that is not UTF-8 must not
+/// raise UnicodeDecodeError).
+py::object fs_str(const std::string& s) {
+    PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "surrogateescape");
+    if (!o) throw py::error_already_set();
+    return py::reinterpret_steal<py::object>(o);
 }
 
 /// The readers: read_volume, dicom_series, read_raw.
@@ -51,11 +59,13 @@ void bind_readers(py::module_& m) {
             py::list out;
             for (const DicomSeriesInfo& s : all) {
                 py::dict d;
-                d["uid"] = s.uid;
-                d["description"] = s.description;
-                d["modality"] = s.modality;
+                d["uid"] = fs_str(s.uid);
+                d["description"] = fs_str(s.description);
+                d["modality"] = fs_str(s.modality);
                 d["dims"] = py::make_tuple(s.dims[0], s.dims[1], s.dims[2]);
-                d["files"] = s.files;
+                py::list files;
+                for (const std::string& f : s.files) files.append(fs_str(f));
+                d["files"] = files;
                 out.append(d);
             }
             return out;

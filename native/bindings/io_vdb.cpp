@@ -43,7 +43,7 @@ void bind_vdb(py::module_& m) {
         "read_vdb",
         [](const std::string& path, const std::string& grid, long long max_bytes) {
             ReadOptions opt;
-            if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes);
+            if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes), opt.max_bytes_given = true;
             Volume v;
             {
                 py::gil_scoped_release release;

@@ -60,7 +60,8 @@ COVERED = 0.5
 
 def read_png(path: str) -> np.ndarray:
     """An (H, W, 4) uint8 RGBA array from a PNG file (native libpng reader; FileFormatError when malformed)."""
-    return _volrig.read_png(os.fspath(path))
+    from .volume import _native_path
+    return _volrig.read_png(_native_path(path)[1])
 
 
 def write_png(path: str, image: np.ndarray) -> None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 
@@ -9,17 +10,26 @@ from contextlib import contextmanager
 @contextmanager
 def atomic_output(path: str, suffix: str = ""):
     """Yields a temporary path in the target's folder; on success it is renamed onto ``path``, on error removed.
+    An existing file keeps its permission bits; a symbolic link keeps pointing at its target, which is replaced.
     ``suffix`` keeps writers that insist on an ending (numpy adds ".npz", matplotlib picks the format) happy."""
     path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
+    if ("\0" if isinstance(path, str) else b"\0") in path:
+        from ._volrig import VolrigError
+        raise VolrigError(f"{os.fsdecode(path).split(chr(0))[0]}...: a file name must not contain a NUL character")
+    path = os.path.realpath(path)  # a symbolic link is written through: its target is replaced, the link stays
+    folder = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp" + suffix,
                                dir=folder)
     os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)  # an overwritten file keeps its permission bits
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask  # mkstemp creates 0600; give a new file the permissions open() would
     try:
         yield tmp
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the permissions open() would
+        os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -10,14 +10,13 @@ the command line use.
 from __future__ import annotations
 
 import numbers
-import os
 from typing import Callable, Optional, Tuple
 
 import numpy as np
 
 from . import _volrig
 from ._volrig import VolrigError
-from .volume import Volume
+from .volume import Volume, _native_path
 
 ProgressFn = Optional[Callable[[float], Optional[bool]]]
 
@@ -37,7 +36,7 @@ def read_mesh(path) -> Tuple[np.ndarray, np.ndarray]:
     Polygons are fan-triangulated. Raises FileNotFoundError, or ``volrig.FileFormatError`` (a ValueError) naming
     the file, the line (text formats) or byte (binary) and what is wrong.
     """
-    vertices, faces = _volrig.read_mesh(os.fspath(path))
+    vertices, faces = _volrig.read_mesh(_native_path(path)[1])
     return vertices, faces.astype(np.int64)
 
 
@@ -46,7 +45,7 @@ def read_tgf(path) -> Tuple[np.ndarray, np.ndarray]:
 
     Returns ``(joints, edges)``: joints (K, 3) float64 positions, edges (E, 2) int64 0-based joint indices.
     """
-    joints, edges = _volrig.read_tgf(os.fspath(path))
+    joints, edges = _volrig.read_tgf(_native_path(path)[1])
     return joints, edges.astype(np.int64)
 
 

@@ -154,8 +154,9 @@ def read_bvh(path) -> Motion:
     """Read a BVH file. Raises FileNotFoundError, or ``volrig.FileFormatError`` (a ValueError) whose message starts
     with the file name and names the line and the problem (see native/include/volrig/mocap.hpp for what is
     checked)."""
-    path = os.fspath(path)
-    d = _volrig.read_bvh(path)
+    from .volume import _native_path
+    path, raw = _native_path(path)
+    d = _volrig.read_bvh(raw)
     return Motion(list(d["names"]), d["parents"], d["offsets"], [tuple(c) for c in d["channels"]],
                   float(d["frame_time"]), d["frames"], d["end_parents"], d["end_offsets"], path)
 

@@ -79,27 +79,53 @@ def save_rig(path, points: SkeletonPoints, tree: Optional[SkeletonTree] = None, 
             np.savez_compressed(f, **a)
 
 
-def _rigid(get, bad) -> np.ndarray:
+def _budget(demand: int, file_bytes: int, max_bytes: Optional[int], bad, what: str) -> None:
+    """The readers' file budget (docs/io.md): without max_bytes (or $VOLRIG_MAX_BYTES), refuse a demand of more
+    than 1 GB (10**9 bytes) that is also more than 1000 times the file's bytes; with it, refuse more than
+    max_bytes."""
+    if max_bytes is not None:
+        if demand > max_bytes:
+            raise bad(f"{what} need {demand:,} bytes, more than max_bytes={max_bytes:,}")
+        return
+    if demand > 10 ** 9 and demand > 1000 * file_bytes and not os.environ.get("VOLRIG_MAX_BYTES"):
+        raise bad(f"{what} need {demand:,} bytes from a file of {file_bytes:,} bytes: more than 1 GB and more than "
+                  f"1,000 times the file, so it is refused as broken or hostile; if the file is right, allow it "
+                  f"with max_bytes={demand} (Python) or VOLRIG_MAX_BYTES={demand} in the environment")
+
+
+def _rigid(get, bad, file_bytes: int, max_bytes: Optional[int]) -> np.ndarray:
     """The binding's rigid tissue (bool, z, y, x) from its shape and packed bits."""
     shape = get("binding_rigid_shape", "i", 1, (3,))
     if (shape <= 0).any() or int(np.prod(shape.astype(np.float64))) > 2 ** 34:
         raise bad(f"rigid tissue of impossible shape {tuple(int(v) for v in shape)}")
     count = int(np.prod(shape))
+    _budget(count, file_bytes, max_bytes, bad, f"the {' x '.join(str(int(v)) for v in shape)} rigid tissue mask")
     bits = get("binding_rigid_bits", "u", 1, ((count + 7) // 8,))
-    return np.unpackbits(bits, count=count).astype(bool).reshape(tuple(int(v) for v in shape))
+    return np.unpackbits(bits, count=count).view(bool).reshape(tuple(int(v) for v in shape))
 
 
-def load_rig(path) -> RiggedSkeleton:
+def load_rig(path, *, max_bytes: Optional[int] = None) -> RiggedSkeleton:
     """Reads a file written by ``save_rig``. Raises FileNotFoundError, or ``volrig.FileFormatError`` for anything
-    that is not a complete, consistent rig file of a version this volrig reads."""
+    that is not a complete, consistent rig file of a version this volrig reads. ``max_bytes``: the most memory the
+    arrays may take once unpacked (default: the readers' file budget, docs/io.md)."""
     path = os.fspath(path)
+    if "\0" in path:
+        raise VolrigError(f"{path.split(chr(0))[0]}...: a file name must not contain a NUL character")
     name = os.path.basename(path)
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path}: no such file")
+    if not os.path.isfile(path):
+        raise FileFormatError(f"{path}: not a regular file")
+    file_bytes = os.path.getsize(path)
 
     def bad(what: str):
         return FileFormatError(f"{name}: {what}")
 
+    try:
+        with zipfile.ZipFile(path) as zf:  # the members' unpacked sizes, before np.load unpacks them
+            _budget(sum(i.file_size for i in zf.infolist()), file_bytes, max_bytes, bad, "the archive's members")
+    except zipfile.BadZipFile as e:
+        raise bad(f"not a readable volrig rig file ({e})") from None
     try:
         with np.load(path, allow_pickle=False) as z:
             a = {k: z[k] for k in z.files}
@@ -186,6 +212,6 @@ def load_rig(path) -> RiggedSkeleton:
         if mode not in ("rigid", "smooth"):
             raise bad(f"unknown binding mode {mode!r}")
         binding = Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names),
-                          _rigid(get, bad) if "binding_rigid_shape" in a else None,
+                          _rigid(get, bad, file_bytes, max_bytes) if "binding_rigid_shape" in a else None,
                           bool(get("binding_rigid_whole", "b", 0)) if "binding_rigid_whole" in a else False)
     return RiggedSkeleton(points, tree, rig, binding, source)

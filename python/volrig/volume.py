@@ -20,7 +20,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from . import _volrig
-from ._volrig import VolrigError
+from ._volrig import FileFormatError, VolrigError
 
 Vec3 = Tuple[float, float, float]
 
@@ -53,6 +53,29 @@ def _direction(d) -> np.ndarray:
     return m
 
 
+def _native_path(path) -> Tuple[str, bytes]:
+    """(the name for messages and format detection, the bytes the native core opens): any name the filesystem
+    allows, UTF-8 or not (os.fsdecode/os.fsencode); a NUL, which the OS would cut the name at, is refused."""
+    text = os.fsdecode(os.fspath(path))
+    if "\0" in text:
+        raise VolrigError(f"{text.split(chr(0))[0]}...: a file name must not contain a NUL character")
+    return text, os.fsencode(text)
+
+
+def _refuse_special(path) -> None:
+    """FileFormatError for a path that exists but is neither a regular file nor a folder (as the native readers)."""
+    import stat
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
+                "a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode) else
+                "not a regular file")
+        raise FileFormatError(f"{os.fsdecode(path)}: {kind}, not a regular file or folder")
+
+
 def format_of(path: str) -> str:
     """The reader/writer name for ``path`` from its ending (see ``FORMATS``), "folder" for a folder (of DICOM or
     TIFF files), "dicom" for a file with the DICOM preamble; raises VolrigError when unknown."""
@@ -63,6 +86,7 @@ def format_of(path: str) -> str:
     for ending in sorted(FORMATS, key=len, reverse=True):
         if low.endswith(ending):
             return FORMATS[ending]
+    _refuse_special(path)  # open() would block on a FIFO
     try:
         with open(path, "rb") as f:
             if f.read(132)[128:] == b"DICM":
@@ -182,20 +206,20 @@ class Volume:
         or ``.vdb`` (one float grid named ``grid``; half floats when ``half``; VDB keeps the grid frame, not the
         direction). NRRD and MetaImage keep the direction. Written to a temporary file and
         renamed, so a failed write never leaves a partial file."""
-        path = os.fspath(path)
+        path, raw = _native_path(path)
         fmt = format_of(path)
         arr = np.ascontiguousarray(self.array)
         if arr.dtype == np.bool_:
             arr = arr.view(np.uint8)
         d = tuple(float(x) for x in self.direction.ravel())
         if fmt == "nrrd":
-            _volrig.write_nrrd(path, arr, self.spacing, self.origin, compress, d)
+            _volrig.write_nrrd(raw, arr, self.spacing, self.origin, compress, d)
         elif fmt == "metaimage":
             if path.lower().endswith(".mhd"):
                 raise VolrigError(f"{path}: write MetaImage as a single .mha file")
-            _volrig.write_metaimage(path, arr, self.spacing, self.origin, compress, d)
+            _volrig.write_metaimage(raw, arr, self.spacing, self.origin, compress, d)
         elif fmt == "vdb":
-            _volrig.write_vdb(path, [(grid, arr)], self.spacing, self.origin, half)
+            _volrig.write_vdb(raw, [(grid, arr)], self.spacing, self.origin, half)
         else:
             raise VolrigError(f"{path}: cannot write {fmt} files (write .nrrd, .mha or .vdb)")
 
@@ -238,7 +262,7 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
     Errors: FileNotFoundError when the file is missing; ``volrig.FileFormatError`` (a ValueError) naming the
     file and the problem for anything malformed, before any large allocation.
     """
-    path = os.fspath(path)
+    path, raw = _native_path(path)
     fmt = format_of(path) if dims is None else "raw"
     limit = -1 if max_bytes is None else int(max_bytes)
     if fmt == "raw":
@@ -246,16 +270,16 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
             raise VolrigError(f"{path}: raw files need dims=(x, y, z) and dtype=...")
         if byte_order not in ("little", "big"):
             raise VolrigError(f"byte_order must be 'little' or 'big', got {byte_order!r}")
-        arr, sp, org = _volrig.read_raw(path, tuple(int(d) for d in dims), np.dtype(dtype).name,
+        arr, sp, org = _volrig.read_raw(raw, tuple(int(d) for d in dims), np.dtype(dtype).name,
                                         _vec3(1.0 if spacing is None else spacing, "spacing"),
                                         _vec3(origin, "origin"),
                                         byte_order == "big", int(offset), limit)
     elif fmt == "vdb":
-        arr, sp, org = _volrig.read_vdb(path, grid, limit)
+        arr, sp, org = _volrig.read_vdb(raw, grid, limit)
     else:
         given = (0.0, 0.0, 0.0) if spacing is None else tuple(
             0.0 if x is None else float(x) for x in (spacing if np.ndim(spacing) else (spacing,) * 3))
-        arr, sp, org, d, said = _volrig.read_volume(path, limit, str(series), given)
+        arr, sp, org, d, said = _volrig.read_volume(raw, limit, str(series), given)
         for w in said:
             warnings.warn(w, stacklevel=2)
         return Volume(arr, sp, org, path=path, direction=np.asarray(d).reshape(3, 3))
@@ -265,7 +289,7 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
 def dicom_series(path: str) -> list:
     """The DICOM image series under a folder, DICOMDIR or file, the largest first: dicts with ``uid``,
     ``description``, ``modality``, ``dims`` (columns, rows, slices) and ``files``."""
-    return _volrig.dicom_series(os.fspath(path))
+    return _volrig.dicom_series(_native_path(path)[1])
 
 
 def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()) -> None:
@@ -305,4 +329,4 @@ def _vdb_arguments(path, grids, spacing, origin, half, labels):
             a = a.view(np.uint8)
         arrays.append((str(name), a))
         origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
-    return os.fspath(path), arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]
+    return _native_path(path)[1], arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]

@@ -83,7 +83,7 @@ TEST_CASE("NIfTI: scl_slope/scl_inter", "[io][nifti]") {
         CHECK(values<std::int16_t>(read_mem(read_nifti, n.header() + data, "s.nii")) ==
               std::vector<std::int16_t>{-1000, 0, 1, 3000});
     }
-    SECTION("float64 data stays float64; huge results saturate to inf in float32") {
+    SECTION("float64 stays float64; too large for float32: float64; beyond double: refused") {
         n.datatype = 64;
         n.bitpix = 64;
         n.slope = 3;
@@ -93,8 +93,19 @@ TEST_CASE("NIfTI: scl_slope/scl_inter", "[io][nifti]") {
         n.datatype = 1280;
         n.slope = 3e38f;
         const Volume w = read_mem(read_nifti, n.header() + raw_of<std::uint64_t>({0, 1, 2, ~0ull}), "u.nii");
-        CHECK(w.dtype == DType::Float32);
-        CHECK(values<float>(w)[3] == std::numeric_limits<float>::infinity());
+        CHECK(w.dtype == DType::Float64);  // it was float32 with inf: a silently wrong volume (issue 55)
+        CHECK(values<double>(w) == std::vector<double>{0, double(3e38f), 2 * double(3e38f),
+                                                       static_cast<double>(~0ull) * double(3e38f)});
+        n.datatype = 64;
+        n.bitpix = 64;
+        std::string what;
+        try {
+            read_mem(read_nifti, n.header() + raw_of<double>({1, 1e300, 0, -1}), "o.nii");
+        } catch (const FileFormatError& e) {
+            what = e.what();
+        }
+        CHECK(what == "o.nii: scl_slope/scl_inter 3.0000000054977558e+38/0 take the stored values -1 to 1e+300 beyond "
+                      "the range of a double");
     }
     SECTION("NaN or infinite slope is refused") {
         n.slope = std::numeric_limits<float>::quiet_NaN();

@@ -24,6 +24,12 @@ std::uint64_t default_max_bytes();
 
 struct ReadOptions {
     std::uint64_t max_bytes = default_max_bytes();
+    /// The caller chose max_bytes: then the file budget does not apply. Otherwise a file may not demand (decode
+    /// to, or need as working memory) more than 1 GB (10^9 bytes) when that is also more than 1000 times its own
+    /// size: a small file that declares a huge image is far more often broken or hostile than sparse. The error
+    /// names the file, the demand and how to allow it (pass max_bytes, or set $VOLRIG_MAX_BYTES, which lifts the
+    /// budget too).
+    bool max_bytes_given = false;
     /// DICOM: the SeriesInstanceUID to read from a folder holding several series (empty: the one with most slices).
     std::string series;
     /// TIFF: spacing (x, y, z) to use instead of the file's resolution (a component <= 0: from the file; z,

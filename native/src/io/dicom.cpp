@@ -6,18 +6,23 @@
 // wrong; nothing is allocated before the series' size is checked against max_bytes. Every file passes
 // check_dicom_part10 (io/dicom_part10.cpp) before GDCM reads it: Debian's GDCM aborts on some broken files.
 #include <gdcmDicts.h>
-#include <gdcmDirectory.h>
 #include <gdcmGlobal.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
 #include <gdcmScanner.h>
 
+#include <dirent.h>
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "io/io_detail.hpp"
@@ -88,7 +93,9 @@ struct Slice {
     std::vector<double> position, orientation;  // ImagePositionPatient (3), ImageOrientationPatient (6)
     std::string pixel_spacing;
     std::int64_t rows = 0, columns = 0, frames = 1;
-    double along = 0;  // position along the slice normal
+    double along = 0;      // position along the slice normal
+    bool isolate = false;  // compressed (JPEG family): decoded in a child process (io/isolate.cpp)
+    std::uint64_t file_bytes = 0;
 };
 
 struct Series {
@@ -105,39 +112,86 @@ bool vr_suits_tag(std::uint16_t group, std::uint16_t element, const char* vr) {
     return dict.Compatible(gdcm::VR(gdcm::VR::GetVRType(two)));
 }
 
-// The Part-10 structure check with GDCM's dictionary VRs.
-void check_part10(const ByteSource& src) { io_detail::check_dicom_part10(src, vr_suits_tag); }
+// The Part-10 structure check with GDCM's dictionary VRs; returns the transfer syntax UID.
+std::string check_part10(const ByteSource& src) { return io_detail::check_dicom_part10(src, vr_suits_tag); }
 
-// True when the file passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
+// The files to read: each passed the Part-10 check; those in `isolate` are decoded in a child process.
+struct Candidates {
+    std::vector<std::string> files;
+    std::set<std::string> isolate;
+};
+
+// Adds the file when it passes the Part-10 structure check (other files in a folder are not DICOM, or too broken
 // for GDCM, and are left out).
-bool well_formed(const std::string& file) {
+void add_if_well_formed(Candidates& c, const std::string& file) {
     try {
-        check_part10(*open_file(file));
-        return true;
+        if (io_detail::dicom_needs_isolation(check_part10(*open_file(file)))) c.isolate.insert(file);
+        c.files.push_back(file);
     } catch (const Error&) {
-        return false;
+    }
+}
+
+using Warn = std::function<void(const std::string&)>;
+
+// Adds the regular files under `folder` (recursively) to `files`. volrig walks the folder, not GDCM (which stopped
+// at a FIFO, a socket or a dangling link, and looped forever on a link to a parent): symbolic links are followed,
+// each folder is entered once (a second way into one, e.g. a link loop, is skipped with a warning), and entries
+// that are neither regular files nor folders are skipped with a warning naming them.
+void walk_folder(const std::string& folder, std::set<std::pair<dev_t, ino_t>>& entered, std::vector<std::string>& files,
+                 const Warn& warn, int depth) {
+    const auto say = [&](const std::string& what) {
+        if (warn) warn(what);
+    };
+    if (depth > 64) return say(folder + ": folders nested more than 64 deep; not scanned further");
+    DIR* d = ::opendir(folder.c_str());
+    if (!d) return say(folder + ": cannot be read (" + io_detail::errno_text(errno) + "); skipped");
+    std::vector<std::string> names;
+    while (const dirent* e = ::readdir(d))
+        if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) names.emplace_back(e->d_name);
+    ::closedir(d);
+    std::sort(names.begin(), names.end());
+    for (const std::string& name : names) {
+        const std::string full = folder + (folder.back() == '/' ? "" : "/") + name;
+        struct stat st {};
+        if (::stat(full.c_str(), &st) != 0) {
+            say(full + ": " + (errno == ENOENT ? std::string("a dangling link") : io_detail::errno_text(errno)) +
+                "; skipped");
+        } else if (S_ISDIR(st.st_mode)) {
+            if (entered.insert({st.st_dev, st.st_ino}).second)
+                walk_folder(full, entered, files, warn, depth + 1);
+            else
+                say(full + ": a folder already scanned (a link loop?); skipped");
+        } else if (S_ISREG(st.st_mode)) {
+            files.push_back(full);
+        } else {
+            say(full + ": " + io_detail::file_kind(st.st_mode) + ", not a file; skipped");
+        }
     }
 }
 
 // The files to scan (each passed check_dicom_part10 or, for a single file, is checked when read): a folder's
 // (recursively), those under a DICOMDIR's folder, or the file itself.
-std::vector<std::string> candidate_files(const std::string& path) {
+Candidates candidate_files(const std::string& path, const Warn& warn) {
     namespace fs = std::filesystem;
+    io_detail::check_input_path(path);
     std::error_code ec;
-    if (!fs::exists(path, ec)) throw FileNotFound(path + ": no such file or folder");
     const bool dicomdir = io_detail::iequals(base_name(path), "DICOMDIR");
+    Candidates c;
     if (!fs::is_directory(path, ec) && !dicomdir) {
-        check_part10(*open_file(path));
-        return {path};
+        if (io_detail::dicom_needs_isolation(check_part10(*open_file(path)))) c.isolate.insert(path);
+        c.files.push_back(path);
+        return c;
     }
-    gdcm::Directory dir;
     const std::string folder = dicomdir ? fs::path(path).parent_path().string() : path;
-    dir.Load(folder.empty() ? "." : folder, true);
     std::vector<std::string> files;
-    for (const std::string& f : dir.GetFilenames())
-        if (!io_detail::iequals(base_name(f), "DICOMDIR") && well_formed(f)) files.push_back(f);
+    std::set<std::pair<dev_t, ino_t>> entered;
+    struct stat st {};
+    if (::stat(folder.empty() ? "." : folder.c_str(), &st) == 0) entered.insert({st.st_dev, st.st_ino});
+    walk_folder(folder.empty() ? "." : folder, entered, files, warn, 0);
     std::sort(files.begin(), files.end());
-    return files;
+    for (const std::string& f : files)
+        if (!io_detail::iequals(base_name(f), "DICOMDIR")) add_if_well_formed(c, f);
+    return c;
 }
 
 gdcm::Scanner scan(const std::string& path, const std::vector<std::string>& files) {
@@ -169,13 +223,18 @@ bool slice_of(const gdcm::Scanner& s, const std::string& file, Slice& out) {
 }
 
 // Image slices grouped by SeriesInstanceUID, the series with the most slices first.
-std::vector<Series> find_series(const std::string& path) {
-    const std::vector<std::string> files = candidate_files(path);
+std::vector<Series> find_series(const std::string& path, const Warn& warn) {
+    const Candidates found = candidate_files(path, warn);
+    const std::vector<std::string>& files = found.files;
     const gdcm::Scanner s = scan(path, files);
     std::map<std::string, Series> by_uid;
     for (const std::string& file : files) {
         Slice slice;
         if (!slice_of(s, file, slice)) continue;
+        slice.isolate = found.isolate.count(file) > 0;
+        std::error_code ec;
+        slice.file_bytes = std::filesystem::file_size(file, ec);
+        if (ec) slice.file_bytes = 0;
         const std::string uid = text_of(s, file, kSeriesUid);
         Series& series = by_uid[uid];
         if (series.slices.empty()) {
@@ -200,6 +259,24 @@ const Series& choose_series(const std::string& path, const std::vector<Series>& 
     std::string known;
     for (const Series& s : all) known += (known.empty() ? "" : ", ") + s.uid;
     fail(path, "no series with SeriesInstanceUID " + io_detail::quoted(uid) + " (found: " + known + ")");
+}
+
+// PixelSpacing (0028,0030) must be two finite positive numbers when present (GDCM would take 0, NaN or a
+// negative value as 1), as the NRRD, MetaImage and NIfTI readers require of their spacings.
+void check_pixel_spacing(const std::string& file, const std::string& text) {
+    const std::vector<double> ps = numbers_of(text);
+    if (!text.empty() && (ps.size() != 2 || !(ps[0] > 0) || !(ps[1] > 0)))
+        fail(file, "PixelSpacing " + io_detail::quoted(text) + " is not two finite positive numbers");
+}
+
+// The PixelSpacing text of a data set without its padding ("" when absent).
+std::string pixel_spacing_text(const gdcm::DataSet& ds) {
+    if (!ds.FindDataElement(kPixelSpacing)) return {};
+    const gdcm::ByteValue* bv = ds.GetDataElement(kPixelSpacing).GetByteValue();
+    if (!bv || !bv->GetPointer()) return {};
+    std::string out(bv->GetPointer(), bv->GetLength());
+    while (!out.empty() && (out.back() == ' ' || out.back() == '\0')) out.pop_back();
+    return std::string(io_detail::trim(out));
 }
 
 // ---- geometry of a stack of slices ---------------------------------------------------------------------------
@@ -234,6 +311,31 @@ Matrix3 direction_of(const std::string& file, const std::vector<double>& iop) {
     return d;
 }
 
+// When every gap is a whole number of the smallest (within 10 %), the series has slices missing from a regular
+// spacing: fails naming each missing position (along the normal from the first slice, and in patient
+// coordinates), at most 10 of them.
+void refuse_missing(const std::string& path, const std::vector<Slice>& slices, const Vec3& n, double lo) {
+    std::vector<double> missing;  // along the normal
+    for (std::size_t i = 1; i < slices.size(); ++i) {
+        const double steps = (slices[i].along - slices[i - 1].along) / lo;
+        const double whole = std::round(steps);
+        if (std::fabs(steps - whole) > 0.1) return;  // not a regular spacing with gaps
+        for (int j = 1; j < static_cast<int>(whole) && missing.size() <= 10; ++j)
+            missing.push_back(slices[i - 1].along + j * (slices[i].along - slices[i - 1].along) / whole);
+    }
+    if (missing.empty()) return;
+    const auto num = [](double v) { return io_detail::format_double(std::round(v * 1e3) / 1e3); };
+    std::string list;
+    for (std::size_t k = 0; k < missing.size() && k < 10; ++k) {
+        const double d = missing[k] - slices[0].along;
+        list += (k ? "; " : "") + num(d) + " mm (" + num(slices[0].position[0] + d * n[0]) + ", " +
+                num(slices[0].position[1] + d * n[1]) + ", " + num(slices[0].position[2] + d * n[2]) + ")";
+    }
+    fail(path, "incomplete series: no slice at " + list + (missing.size() > 10 ? "; ..." : "") +
+                   " (along the slice normal from " + base_name(slices[0].file) + ", and in patient coordinates)"
+                   " where the others are " + num(lo) + " mm apart");
+}
+
 // Sorts the slices along the normal (column 2 of d) and returns the mean gap; fails on repeated positions,
 // uneven gaps or slices off the normal, warns about small jitter.
 double sort_and_space(const std::string& path, std::vector<Slice>& slices, const Matrix3& d, const ReadOptions& opt) {
@@ -252,9 +354,11 @@ double sort_and_space(const std::string& path, std::vector<Slice>& slices, const
         if (gap > hi) hi = gap, at_hi = i;
     }
     const auto mm = [](double v) { return io_detail::format_double(std::round(v * 1e4) / 1e4) + " mm"; };
-    if (hi - lo > 0.1 * mean)
+    if (hi - lo > 0.1 * mean) {
+        refuse_missing(path, slices, n, lo);
         fail(path, "uneven slice gaps: " + mm(hi) + " between " + base_name(slices[at_hi - 1].file) + " and " +
-                       base_name(slices[at_hi].file) + " where the smallest is " + mm(lo) + " (missing slices?)");
+                       base_name(slices[at_hi].file) + " where the smallest is " + mm(lo));
+    }
     for (const Slice& s : slices) {  // each position on the line through the first along the normal
         Vec3 off{};
         for (int r = 0; r < 3; ++r) off[r] = s.position[r] - slices[0].position[r] - (s.along - slices[0].along) * n[r];
@@ -315,16 +419,6 @@ Scale scale_of(const std::string& name, const gdcm::Image& im) {
     return s;
 }
 
-template <class In>
-void raw_range(const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
-    for (std::size_t i = 0; i < n; ++i) {
-        In x;
-        std::memcpy(&x, p + i * sizeof(In), sizeof(In));
-        lo = std::min(lo, static_cast<double>(x));
-        hi = std::max(hi, static_cast<double>(x));
-    }
-}
-
 template <class In, class Out>
 void rescale_slice(const std::uint8_t* in, std::uint8_t* out, std::size_t n, const Scale& s) {
     for (std::size_t i = 0; i < n; ++i) {
@@ -339,6 +433,8 @@ template <class In>
 void rescale_as(DType out_type, const std::uint8_t* in, std::uint8_t* out, std::size_t n, const Scale& s) {
     if (out_type == DType::Int16)
         rescale_slice<In, std::int16_t>(in, out, n, s);
+    else if (out_type == DType::Float64)
+        rescale_slice<In, double>(in, out, n, s);
     else
         rescale_slice<In, float>(in, out, n, s);
 }
@@ -359,38 +455,29 @@ void rescale_any(DType in_type, DType out_type, const std::uint8_t* in, std::uin
     }
 }
 
-void range_any(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
-    switch (t) {
-        case DType::UInt8: return raw_range<std::uint8_t>(p, n, lo, hi);
-        case DType::Int8: return raw_range<std::int8_t>(p, n, lo, hi);
-        case DType::UInt16: return raw_range<std::uint16_t>(p, n, lo, hi);
-        case DType::Int16: return raw_range<std::int16_t>(p, n, lo, hi);
-        case DType::UInt32: return raw_range<std::uint32_t>(p, n, lo, hi);
-        case DType::Int32: return raw_range<std::int32_t>(p, n, lo, hi);
-        case DType::UInt64: return raw_range<std::uint64_t>(p, n, lo, hi);
-        case DType::Int64: return raw_range<std::int64_t>(p, n, lo, hi);
-        case DType::Float32: return raw_range<float>(p, n, lo, hi);
-        case DType::Float64: return raw_range<double>(p, n, lo, hi);
-    }
-}
-
 bool integral(double v) { return std::floor(v) == v; }
 
 // Applies each slice's rescale: the stored values when every slice has (1, 0); int16 when the slopes and
-// intercepts are integral and the values fit; else float32.
+// intercepts are integral and the values fit; else float32, or float64 when the values do not fit float32 (a
+// slope of 3e38); refused when they overflow a double.
 Volume rescale(const std::string& name, Volume&& raw, const std::vector<Scale>& scales, std::uint64_t max_bytes) {
     const bool identity = std::all_of(scales.begin(), scales.end(), [](const Scale& s) { return s.slope == 1 && s.inter == 0; });
     if (identity) return std::move(raw);
     const auto slice = static_cast<std::size_t>(raw.grid.dims[0] * raw.grid.dims[1]);
     const std::size_t esize = dtype_size(raw.dtype);
     bool fits = raw.dtype != DType::Float32 && raw.dtype != DType::Float64;
-    for (std::size_t k = 0; k < scales.size() && fits; ++k) {
+    DType wide = DType::Float32;
+    for (std::size_t k = 0; k < scales.size(); ++k) {
         double lo = std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::lowest();
-        range_any(raw.dtype, raw.data.data() + k * slice * esize, slice, lo, hi);
+        io_detail::finite_range(raw.dtype, raw.data.data() + k * slice * esize, slice, lo, hi);
+        if (io_detail::rescaled_type(name, "RescaleSlope/RescaleIntercept", lo, hi, scales[k].slope, scales[k].inter,
+                                     raw.dtype) == DType::Float64)
+            wide = DType::Float64;
         const double a = lo * scales[k].slope + scales[k].inter, b = hi * scales[k].slope + scales[k].inter;
-        fits = integral(scales[k].slope) && integral(scales[k].inter) && std::min(a, b) >= -32768 && std::max(a, b) <= 32767;
+        fits = fits && integral(scales[k].slope) && integral(scales[k].inter) && std::min(a, b) >= -32768 &&
+               std::max(a, b) <= 32767;
     }
-    const DType out_type = fits ? DType::Int16 : DType::Float32;
+    const DType out_type = fits ? DType::Int16 : wide;
     io_detail::check_volume(name, raw.grid, out_type, max_bytes);
     Volume out = io_detail::allocate(raw.grid, out_type);
     for (std::size_t k = 0; k < scales.size(); ++k)
@@ -412,7 +499,10 @@ Volume read_stack(const std::string& path, const std::vector<Slice>& slices, Gri
         const gdcm::Image& im = r.GetImage();
         const DType t = image_dtype(file, im);
         if (k == 0) {
-            io_detail::check_volume(path, g, t, opt.max_bytes);
+            const std::uint64_t bytes = io_detail::check_volume(path, g, t, opt.max_bytes);
+            std::uint64_t files = 0;
+            for (const Slice& s : slices) files += s.file_bytes;
+            io_detail::check_budget(path, bytes, files, opt, "the " + io_detail::describe(g.dims, t) + " voxels");
             raw = io_detail::allocate(g, t);
             slice_bytes = static_cast<std::size_t>(g.dims[0] * g.dims[1]) * dtype_size(t);
         } else if (t != raw.dtype) {
@@ -434,9 +524,13 @@ Volume read_series(const std::string& path, Series series, const ReadOptions& op
     g.spacing[2] = sort_and_space(path, slices, g.direction, opt);
     g.dims = {slices[0].columns, slices[0].rows, static_cast<std::int64_t>(slices.size())};
     g.origin = {slices[0].position[0], slices[0].position[1], slices[0].position[2]};
-    const std::vector<double> ps = numbers_of(slices[0].pixel_spacing);
-    if (ps.size() == 2 && ps[0] > 0 && ps[1] > 0) g.spacing[0] = ps[1], g.spacing[1] = ps[0];  // row\column spacing
-    return read_stack(path, slices, g, opt);
+    check_pixel_spacing(slices[0].file, slices[0].pixel_spacing);
+    const std::vector<double> ps = numbers_of(slices[0].pixel_spacing);  // absent: 1 mm
+    if (ps.size() == 2) g.spacing[0] = ps[1], g.spacing[1] = ps[0];  // row\column spacing
+    if (std::none_of(slices.begin(), slices.end(), [](const Slice& s) { return s.isolate; }))
+        return read_stack(path, slices, g, opt);
+    return io_detail::isolated_volume(path, "GDCM's decoder", opt,
+                                      [&](const ReadOptions& o) { return read_stack(path, slices, g, o); });
 }
 
 // Reads the whole byte source (DICOM files are read whole by GDCM anyway).
@@ -455,7 +549,9 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
     g.dims = {dims[0], dims[1], im.GetNumberOfDimensions() > 2 ? dims[2] : 1};
     for (int a = 0; a < 3; ++a) {
         const double s = im.GetSpacing(static_cast<unsigned>(a)), o = im.GetOrigin(static_cast<unsigned>(a));
-        g.spacing[a] = std::isfinite(s) && s > 0 ? s : 1.0;
+        if (!std::isfinite(s) || !(s > 0))  // GDCM gives 1 when the file has none
+            fail(name, "pixel spacing " + io_detail::format_double(s) + " is not a finite positive number");
+        g.spacing[a] = s;
         if (!std::isfinite(o)) fail(name, "the image position is not finite");
         g.origin[a] = o;
     }
@@ -464,33 +560,41 @@ Grid single_grid(const std::string& name, const gdcm::Image& im) {
     return g;
 }
 
-}  // namespace
-
-Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
+// A checked single file (check_part10), decoded.
+Volume decode_file(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
-    check_part10(src);
     std::istringstream in(all_bytes(src, opt));
     gdcm::ImageReader r;
     r.SetStream(in);
     if (!guarded(name, [&] { return r.Read(); })) fail(name, "not a DICOM image GDCM can read");
     const gdcm::Image& im = r.GetImage();
     const DType t = image_dtype(name, im);
+    check_pixel_spacing(name, pixel_spacing_text(r.GetFile().GetDataSet()));
     const Grid g = single_grid(name, im);
-    io_detail::check_volume(name, g, t, opt.max_bytes);
+    const std::uint64_t bytes = io_detail::check_volume(name, g, t, opt.max_bytes);
+    io_detail::check_budget(name, bytes, src.size(), opt, "the " + io_detail::describe(g.dims, t) + " voxels");
     Volume raw = io_detail::allocate(g, t);
     decode(name, im, raw.data.data(), raw.data.size());
     const std::vector<Scale> scales(static_cast<std::size_t>(g.dims[2]), scale_of(name, im));
     return rescale(name, std::move(raw), scales, opt.max_bytes);
 }
 
+}  // namespace
+
+Volume read_dicom_file(const ByteSource& src, const ReadOptions& opt) {
+    if (!io_detail::dicom_needs_isolation(check_part10(src))) return decode_file(src, opt);
+    return io_detail::isolated_volume(src.name(), "GDCM's decoder", opt,
+                                      [&](const ReadOptions& o) { return decode_file(src, o); });
+}
+
 Volume read_dicom(const std::string& path, const ReadOptions& opt) {
-    std::vector<Series> all = find_series(path);
+    std::vector<Series> all = find_series(path, opt.warn);
     return read_series(path, choose_series(path, all, opt.series), opt);
 }
 
 std::vector<DicomSeriesInfo> dicom_series(const std::string& path) {
     std::vector<DicomSeriesInfo> out;
-    for (const Series& s : find_series(path)) {
+    for (const Series& s : find_series(path, {})) {
         DicomSeriesInfo i;
         i.uid = s.uid;
         i.description = s.description;

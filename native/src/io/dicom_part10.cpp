@@ -319,8 +319,8 @@ void check_native_pixels(const Walker& w) {
 
 }  // namespace
 
-void check_dicom_part10(const ByteSource& src,
-                        const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok) {
+std::string check_dicom_part10(const ByteSource& src,
+                               const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok) {
     Walker w{src, src.size(), true, false, {}, {}, -1, {}, vr_ok};
     char magic[4] = {0, 0, 0, 0};
     if (w.size >= 132) src.read(128, magic, 4);
@@ -330,6 +330,12 @@ void check_dicom_part10(const ByteSource& src,
     check_image_module(w);
     if (w.syntax == "1.2.840.10008.1.2.5") check_rle(w);
     if (w.pixel_bytes >= 0) check_native_pixels(w);
+    return w.syntax;
+}
+
+bool dicom_needs_isolation(const std::string& syntax) {
+    return syntax != "1.2.840.10008.1.2" && syntax != "1.2.840.10008.1.2.1" && syntax != "1.2.840.10008.1.2.2" &&
+           syntax != "1.2.840.10008.1.2.5";
 }
 
 }  // namespace volrig::io_detail

@@ -92,6 +92,7 @@ Volume read_folder(const std::string& path, const ReadOptions& opt) {
 }  // namespace
 
 Volume read_volume(const std::string& path, const ReadOptions& opt) {
+    io_detail::check_input_path(path);
     const std::string low = io_detail::lower(path);
     auto ends = [&](const char* e) {
         const std::size_t n = std::strlen(e);

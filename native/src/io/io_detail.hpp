@@ -29,6 +29,18 @@ std::string describe(const std::array<std::int64_t, 3>& dims, DType t);
 /// The system's text for an errno value.
 std::string errno_text(int e);
 
+// ---- paths ---------------------------------------------------------------------------------------------------
+
+/// Fails with Error (ValueError in Python) when the path holds a NUL byte (the OS would cut the name there).
+void check_path(const std::string& path);
+/// "a FIFO", "a socket", ... for a stat st_mode that is not a regular file.
+std::string file_kind(unsigned mode);
+/// check_path, then refuses (without opening it) a path that is neither a regular file nor a folder: a FIFO would
+/// block open() and read() forever. FileNotFound when it does not exist.
+void check_input_path(const std::string& path);
+/// check_input_path, and refuses folders too.
+void check_regular_file(const std::string& path);
+
 // ---- text ----------------------------------------------------------------------------------------------------
 
 std::string_view trim(std::string_view s);
@@ -109,6 +121,20 @@ struct HeaderFields : std::map<std::string, HeaderField> {
 /// Validates dims/spacing/origin and the decoded size against opt.max_bytes (check_grid), rethrowing as a
 /// FileFormatError naming `name`. Returns the byte count.
 std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std::uint64_t max_bytes);
+/// The file budget (ReadOptions::max_bytes_given): fails naming `name` when `demand` bytes are more than
+/// kBudgetFloor and more than kBudgetRatio times `file_bytes`, unless the caller gave max_bytes. `what` says what
+/// the demand is for ("the pixels", "the dense grid").
+constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
+constexpr std::uint64_t kBudgetRatio = 1000;
+void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
+                  const std::string& what);
+/// The smallest and largest finite values among n elements of type t (lo > hi when there are none).
+void finite_range(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi);
+/// The element type a rescaled volume (value * slope + inter) needs: float32 when every result fits it, else
+/// float64 (so a slope of 3e38 gives its true values, not inf); fails naming `name` when results overflow double
+/// too. `lo`/`hi`: finite_range of the stored values.
+DType rescaled_type(const std::string& name, const std::string& what, double lo, double hi, double slope,
+                    double inter, DType stored);
 /// A volume of the grid's size (zero-filled).
 Volume allocate(const Grid& g, DType t);
 
@@ -160,8 +186,51 @@ bool names_several_files(std::string_view value);
 /// and checks its image pixel module; fails naming the source unless GDCM can safely be handed it and it is a
 /// grey image (io/dicom_part10.cpp says why).
 /// `vr_ok(group, element, vr)`, when given, says whether an explicit VR suits the tag (GDCM's dictionary).
-void check_dicom_part10(const ByteSource& src,
-                        const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok = {});
+/// Returns the transfer syntax UID.
+std::string check_dicom_part10(const ByteSource& src,
+                               const std::function<bool(std::uint16_t, std::uint16_t, const char*)>& vr_ok = {});
+/// True unless the transfer syntax is native (implicit/explicit VR, either byte order) or RLE, which
+/// check_dicom_part10 validates completely: the JPEG family (JPEG, JPEG-LS, JPEG 2000, ...) is decoded in a child
+/// process (run_isolated).
+bool dicom_needs_isolation(const std::string& syntax);
+
+// ---- decoders that may crash (io/isolate.cpp) -------------------------------------------------------------------
+
+/// What a child process sends its parent (run_isolated): warnings, then one result.
+class IsolatedOutput {
+public:
+    explicit IsolatedOutput(int fd);
+    void warn(const std::string& text);
+    /// Starts the result with its first bytes; more() sends the rest.
+    void result(const void* data, std::size_t n);
+    void more(const void* data, std::size_t n);
+
+private:
+    int fd_;
+};
+
+/// The parent's end: the result's bytes, in the order the child sent them.
+class IsolatedInput {
+public:
+    explicit IsolatedInput(int fd) : fd_(fd) {}
+    /// False when the child stopped before sending n more bytes.
+    bool read(void* data, std::size_t n);
+
+private:
+    int fd_;
+};
+
+/// Runs `work` in a fork()ed child (on one thread) and `receive` in the caller on what it sent. The child's
+/// volrig errors are rethrown here as the same class; a child that dies (a failed assertion, a segfault) becomes
+/// FileFormatError("<name>: <doing> crashed on this file (killed by signal 6 (Aborted)): ..."). `warn` gets the
+/// child's warnings (may be empty). For decoders that abort or corrupt memory on broken input (GDCM's JPEG
+/// family, OpenVDB).
+void run_isolated(const std::string& name, const std::string& doing, const std::function<void(IsolatedOutput&)>& work,
+                  const std::function<void(IsolatedInput&)>& receive,
+                  const std::function<void(const std::string&)>& warn = {});
+/// A volume decoded by `decode` in a child process (run_isolated); its warnings go to opt.warn.
+Volume isolated_volume(const std::string& name, const std::string& doing, const ReadOptions& opt,
+                       const std::function<Volume(const ReadOptions&)>& decode);
 
 // ---- writing -------------------------------------------------------------------------------------------------
 

@@ -109,9 +109,9 @@ void scale_from(DType in_type, const std::uint8_t* in, std::uint8_t* out, std::s
     }
 }
 
-// Applies value * slope + inter, giving float32 (float64 for float64 data).
-Volume apply_scaling(Volume&& in, double slope, double inter) {
-    const DType out_type = in.dtype == DType::Float64 ? DType::Float64 : DType::Float32;
+// Applies value * slope + inter, giving out_type (io_detail::rescaled_type: float32, or float64 when the values
+// need it).
+Volume apply_scaling(Volume&& in, double slope, double inter, DType out_type) {
     const std::size_t n = in.data.size() / dtype_size(in.dtype);
     if (dtype_size(out_type) <= dtype_size(in.dtype)) {
         // Same or smaller elements: convert in place front to back (each write lands at or before its read).
@@ -359,7 +359,14 @@ Volume read_nifti(const ByteSource& src, const ReadOptions& opt) {
     if (gz && pair) fail(name, "a gzip-compressed 'ni1' header (.hdr.gz) is not supported");
     Volume v = gz ? read_gzip_voxels(src, *inf, offset, g, dtype, big_endian)
                   : read_file_voxels(src, pair, offset, g, dtype, big_endian);
-    if (scaling.on) v = apply_scaling(std::move(v), scaling.slope, scaling.inter);
+    if (scaling.on) {
+        double lo = std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::lowest();
+        io_detail::finite_range(v.dtype, v.data.data(), v.data.size() / dtype_size(v.dtype), lo, hi);
+        const DType out = io_detail::rescaled_type(name, "scl_slope/scl_inter", lo, hi, scaling.slope, scaling.inter,
+                                                   v.dtype);
+        io_detail::check_volume(name, g, out, opt.max_bytes);
+        v = apply_scaling(std::move(v), scaling.slope, scaling.inter, out);
+    }
     return v;
 }
 

@@ -20,7 +20,9 @@ class FileSource final : public ByteSource {
 public:
     explicit FileSource(std::string path) : path_(std::move(path)) {
         if (path_.empty()) throw FileNotFound("(empty path): no such file");
-        fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+        io_detail::check_path(path_);
+        // Non-blocking: opening a FIFO must not wait for a writer (it is refused below); regular files ignore it.
+        fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
         if (fd_ < 0) {
             const int e = errno;
             if (e == ENOENT || e == ENOTDIR) throw FileNotFound(path_ + ": no such file");
@@ -38,7 +40,7 @@ public:
         }
         if (!S_ISREG(st.st_mode)) {
             ::close(fd_);
-            throw FileFormatError(path_ + ": not a regular file");
+            throw FileFormatError(path_ + ": not a regular file (" + io_detail::file_kind(st.st_mode) + ")");
         }
         size_ = static_cast<std::uint64_t>(st.st_size);
     }
@@ -115,6 +117,42 @@ private:
 };
 
 }  // namespace
+
+namespace io_detail {
+
+void check_path(const std::string& path) {
+    if (path.find('\0') != std::string::npos)
+        throw Error(path.substr(0, path.find('\0')) + "...: a file name must not contain a NUL character");
+}
+
+std::string file_kind(unsigned mode) {
+    if (S_ISFIFO(mode)) return "a FIFO";
+    if (S_ISSOCK(mode)) return "a socket";
+    if (S_ISCHR(mode)) return "a character device";
+    if (S_ISBLK(mode)) return "a block device";
+    if (S_ISDIR(mode)) return "a folder";
+    return "not a regular file";
+}
+
+void check_input_path(const std::string& path) {
+    check_path(path);
+    struct stat st {};
+    if (path.empty() || ::stat(path.c_str(), &st) != 0) {
+        const int e = errno;
+        if (path.empty() || e == ENOENT || e == ENOTDIR) throw FileNotFound(path + ": no such file or folder");
+        throw FileNotFound(path + ": cannot open: " + errno_text(e));
+    }
+    if (!S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode))
+        throw FileFormatError(path + ": " + file_kind(st.st_mode) + ", not a regular file or folder");
+}
+
+void check_regular_file(const std::string& path) {
+    check_input_path(path);
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw FileNotFound(path + ": is a folder, not a file");
+}
+
+}  // namespace io_detail
 
 std::unique_ptr<ByteSource> open_file(const std::string& path) { return std::make_unique<FileSource>(path); }
 

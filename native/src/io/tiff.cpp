@@ -208,13 +208,18 @@ struct Stack {
     Page first;
     std::array<double, 2> spacing{1, 1};
     std::int64_t pages = 0;
+    std::uint64_t file_bytes = 0;  // of every file
 };
 
-void add_file(Stack& s, const ByteSource& src) {
+void add_file(Stack& s, const ByteSource& src, const ReadOptions& opt) {
     TiffFile f(src);
+    s.file_bytes += src.size();
     int index = 0;
     do {
         const Page p = page_of(f, index);
+        io_detail::check_budget(src.name(), std::uint64_t(p.width) * p.height * dtype_size(p.dtype), src.size(), opt,
+                                "page " + std::to_string(index + 1) + "'s " + std::to_string(p.width) + " x " +
+                                    std::to_string(p.height) + " " + dtype_name(p.dtype) + " pixels");
         if (s.pages == 0) {
             s.first = p;
             s.spacing = resolution_spacing(f);
@@ -260,9 +265,10 @@ using EachSource = std::function<void(const std::function<void(const ByteSource&
 // Two passes over the sources: the pages' shape and count, then (sized against max_bytes) their pixels.
 Volume read_sources(const std::string& name, const EachSource& each, const ReadOptions& opt) {
     Stack s;
-    each([&](const ByteSource& src) { add_file(s, src); });
+    each([&](const ByteSource& src) { add_file(s, src, opt); });
     const Grid g = grid_of(s, opt);
-    io_detail::check_volume(name, g, s.first.dtype, opt.max_bytes);
+    const std::uint64_t bytes = io_detail::check_volume(name, g, s.first.dtype, opt.max_bytes);
+    io_detail::check_budget(name, bytes, s.file_bytes, opt, "the " + std::to_string(s.pages) + " pages");
     Volume v = io_detail::allocate(g, s.first.dtype);
     std::size_t done = 0;
     each([&](const ByteSource& src) { done += copy_file(src, s.first, v.data.data() + done, v.data.size() - done); });
@@ -315,6 +321,7 @@ Volume read_tiff_file(const ByteSource& src, const ReadOptions& opt) {
 }
 
 Volume read_tiff(const std::string& path, const ReadOptions& opt) {
+    io_detail::check_input_path(path);
     std::error_code ec;
     if (!std::filesystem::is_directory(path, ec)) return read_tiff_file(*open_file(path), opt);
     const std::vector<std::string> files = tiff_files(path);

@@ -29,10 +29,12 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
 #include "volrig/io.hpp"
+#include "io/io_detail.hpp"
 #include "io/vdb_detail.hpp"
 
 namespace volrig {
@@ -95,6 +97,7 @@ public:
             setLibraryVersion(is_);
             setDataCompression(is_);
             openvdb::MetaMap file_meta;
+            check_meta("the file metadata");
             file_meta.readMeta(is_);
             check_stream("the file metadata");
             const std::int32_t count = readGridCount(is_);
@@ -102,6 +105,9 @@ public:
             if (count < 0) throw FileFormatError(path_ + ": negative grid count " + std::to_string(count));
             for (std::int32_t i = 0; i < count; ++i) {
                 openvdb::io::GridDescriptor gd;
+                // The descriptor's names: unique name, type name, and (since instancing) the parent's name.
+                check_blocks(fileVersion() >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING ? 3 : 2,
+                             "grid descriptor " + std::to_string(i));
                 gd.read(is_);
                 check_stream("grid descriptor " + std::to_string(i));
                 const std::int64_t here = static_cast<std::int64_t>(is_.tellg());
@@ -121,6 +127,7 @@ public:
     VdbReader& operator=(const VdbReader&) = delete;
 
     const std::vector<openvdb::io::GridDescriptor>& descriptors() const { return descriptors_; }
+    std::uint64_t size() const { return static_cast<std::uint64_t>(size_); }
 
     /// The descriptor of the first grid named `name`, or nullptr.
     const openvdb::io::GridDescriptor* find(const std::string& name) const {
@@ -142,6 +149,7 @@ public:
             is_.clear();
             gd.seekToGrid(is_);
             readGridCompression(is_);
+            check_meta("grid '" + gd.gridName() + "' metadata");
             grid->readMeta(is_);
             grid->readTransform(is_);
             check_stream("grid '" + gd.gridName() + "' metadata");
@@ -192,6 +200,39 @@ public:
     }
 
 private:
+    /// Walks the metadata map at the stream's position without reading it (a count, then per entry three blocks
+    /// of a 32-bit length and that many bytes: name, type name, value) and fails unless every length fits in the
+    /// file: OpenVDB allocates (and zero-fills) a string of whatever length the file declares before reading it.
+    void check_meta(const std::string& what) {
+        const std::streampos start = is_.tellg();
+        std::uint32_t count = 0;
+        is_.read(reinterpret_cast<char*>(&count), sizeof count);
+        check_stream(what);
+        if (std::int64_t(count) * 12 > size_ - static_cast<std::int64_t>(is_.tellg()))
+            throw FileFormatError(path_ + ": corrupt OpenVDB file: " + what + " declares " + std::to_string(count) +
+                                  " entries, more than the file holds");
+        check_blocks(std::int64_t(count) * 3, what);
+        is_.seekg(start);
+    }
+
+    /// Walks `blocks` blocks of a 32-bit length and that many bytes from the stream's position (then returns to
+    /// it), failing unless each fits in the file.
+    void check_blocks(std::int64_t blocks, const std::string& what) {
+        const std::streampos start = is_.tellg();
+        const auto left = [&] { return size_ - static_cast<std::int64_t>(is_.tellg()); };
+        for (std::int64_t i = 0; i < blocks; ++i) {
+            std::uint32_t n = 0;
+            is_.read(reinterpret_cast<char*>(&n), sizeof n);
+            check_stream(what);
+            if (std::int64_t(n) > left())
+                throw FileFormatError(path_ + ": corrupt OpenVDB file: " + what + " declares a " + std::to_string(n) +
+                                      "-byte value, more than the file holds");
+            is_.seekg(n, std::ios::cur);
+        }
+        check_stream(what);
+        is_.seekg(start);
+    }
+
     void check_stream(const std::string& what) const {
         if (!is_.good())
             throw FileFormatError(path_ + ": truncated or corrupt OpenVDB file (reading " + what +
@@ -255,10 +296,35 @@ DType dtype_of_grid(const std::string& type) {
     return DType::UInt8;  // bool
 }
 
+/// Copies the grid over bbox into out (x fastest, z slowest), in slabs of z on plain threads: read_vdb runs in a
+/// child process (io/isolate.cpp) where TBB has a single thread.
 template <class T, class GridT>
 void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
-    openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(bbox, static_cast<T*>(out));
-    openvdb::tools::copyToDense(grid, dense);
+    const int z0 = bbox.min().z(), depth = bbox.max().z() - z0 + 1;
+    const std::size_t slab = std::size_t(bbox.dim().x()) * std::size_t(bbox.dim().y());
+    const int n = static_cast<int>(std::max(1u, std::min(std::thread::hardware_concurrency(), 16u)));
+    std::vector<std::thread> threads;
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    for (int i = 0; i < n; ++i) {
+        const int a = z0 + static_cast<int>(std::int64_t(depth) * i / n);
+        const int b = z0 + static_cast<int>(std::int64_t(depth) * (i + 1) / n) - 1;
+        if (a > b) continue;
+        threads.emplace_back([&, a, b] {
+            try {
+                const openvdb::CoordBBox part(openvdb::Coord(bbox.min().x(), bbox.min().y(), a),
+                                              openvdb::Coord(bbox.max().x(), bbox.max().y(), b));
+                openvdb::tools::Dense<T, openvdb::tools::LayoutXYZ> dense(part, static_cast<T*>(out) +
+                                                                                     std::size_t(a - z0) * slab);
+                openvdb::tools::copyToDense(grid, dense, /*serial=*/true);
+            } catch (...) {
+                const std::lock_guard<std::mutex> lock(error_mutex);
+                if (!error) error = std::current_exception();
+            }
+        });
+    }
+    for (std::thread& t : threads) t.join();
+    if (error) std::rethrow_exception(error);
 }
 
 }  // namespace
@@ -267,7 +333,9 @@ void copy_dense(const GridT& grid, const openvdb::CoordBBox& bbox, void* out) {
 
 // ---- public API ----------------------------------------------------------------------------------------------
 
-std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+namespace {
+
+std::vector<VdbGridInfo> grids_here(const std::string& path) {
     VdbReader file(path);
     std::vector<VdbGridInfo> out;
     for (const auto& gd : file.descriptors()) {
@@ -294,7 +362,7 @@ std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
     return out;
 }
 
-Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+Volume read_here(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
     VdbReader file(path);
     const openvdb::io::GridDescriptor* gd = nullptr;
     if (grid_name.empty()) {
@@ -323,6 +391,11 @@ Volume read_vdb(const std::string& path, const std::string& grid_name, const Rea
         } catch (const Error& e) {
             throw FileFormatError(e.what());
         }
+        const std::uint64_t dense = static_cast<std::uint64_t>(g.voxel_count()) * esize;
+        io_detail::check_budget(path, dense, file.size(), opt,
+                                "grid '" + name + "' as a dense " + std::to_string(g.dims[0]) + " x " +
+                                    std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) +
+                                    " box (the active voxels' bounding box)");
     };
 
     // Check the size the stats metadata declare (when present) before reading the tree.
@@ -352,6 +425,58 @@ Volume read_vdb(const std::string& path, const std::string& grid_name, const Rea
         return 0;
     });
     return vol;
+}
+
+}  // namespace
+
+// OpenVDB reads in a child process (io/isolate.cpp): a corrupt leaf can make it overrun a buffer.
+Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
+    io_detail::check_regular_file(path);
+    return io_detail::isolated_volume(path, "OpenVDB's reader", opt,
+                                      [&](const ReadOptions& o) { return read_here(path, grid_name, o); });
+}
+
+std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
+    io_detail::check_regular_file(path);
+    std::vector<VdbGridInfo> out;
+    const auto send_text = [](io_detail::IsolatedOutput& o, const std::string& t) {
+        const std::uint64_t n = t.size();
+        o.more(&n, sizeof n);
+        o.more(t.data(), t.size());
+    };
+    const auto take_text = [&](io_detail::IsolatedInput& in, std::string& t) {
+        std::uint64_t n = 0;
+        if (!in.read(&n, sizeof n) || n > (std::uint64_t(1) << 20)) io_detail::fail(path, "OpenVDB's reader stopped");
+        t.resize(static_cast<std::size_t>(n));
+        if (n && !in.read(&t[0], t.size())) io_detail::fail(path, "OpenVDB's reader stopped");
+    };
+    io_detail::run_isolated(
+        path, "OpenVDB's reader",
+        [&](io_detail::IsolatedOutput& o) {
+            const std::vector<VdbGridInfo> all = grids_here(path);
+            const std::uint64_t n = all.size();
+            o.result(&n, sizeof n);
+            for (const VdbGridInfo& g : all) {
+                send_text(o, g.name);
+                send_text(o, g.type);
+                o.more(g.bbox_min.data(), sizeof g.bbox_min);
+                o.more(g.bbox_max.data(), sizeof g.bbox_max);
+                o.more(&g.active_voxels, sizeof g.active_voxels);
+            }
+        },
+        [&](io_detail::IsolatedInput& in) {
+            std::uint64_t n = 0;
+            if (!in.read(&n, sizeof n) || n > (std::uint64_t(1) << 24)) io_detail::fail(path, "OpenVDB's reader stopped");
+            out.resize(static_cast<std::size_t>(n));
+            for (VdbGridInfo& g : out) {
+                take_text(in, g.name);
+                take_text(in, g.type);
+                if (!in.read(g.bbox_min.data(), sizeof g.bbox_min) || !in.read(g.bbox_max.data(), sizeof g.bbox_max) ||
+                    !in.read(&g.active_voxels, sizeof g.active_voxels))
+                    io_detail::fail(path, "OpenVDB's reader stopped");
+            }
+        });
+    return out;
 }
 
 }  // namespace volrig

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <type_traits>
@@ -21,6 +22,62 @@ std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std:
         throw FileFormatError(e.what());
     }
     return static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(t);
+}
+
+void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
+                  const std::string& what) {
+    if (opt.max_bytes_given || demand <= kBudgetFloor) return;
+    if (file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio || demand <= file_bytes * kBudgetRatio)
+        return;
+    if (const char* env = std::getenv("VOLRIG_MAX_BYTES"); env && *env) return;  // chosen for the process
+    fail(name, what + " need " + with_commas(demand) + " bytes from a file of " + with_commas(file_bytes) +
+                   " bytes: more than 1 GB and more than " + with_commas(kBudgetRatio) +
+                   " times the file, so it is refused as broken or hostile; if the file is right, allow it with "
+                   "max_bytes=" + std::to_string(demand) + " (Python) or VOLRIG_MAX_BYTES=" + std::to_string(demand) +
+                   " in the environment");
+}
+
+namespace {
+
+template <class T>
+void finite_range_of(const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
+    for (std::size_t i = 0; i < n; ++i) {
+        T x;
+        std::memcpy(&x, p + i * sizeof(T), sizeof(T));
+        const auto d = static_cast<double>(x);
+        if (!std::isfinite(d)) continue;
+        lo = std::min(lo, d);
+        hi = std::max(hi, d);
+    }
+}
+
+}  // namespace
+
+void finite_range(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi) {
+    switch (t) {
+        case DType::UInt8: return finite_range_of<std::uint8_t>(p, n, lo, hi);
+        case DType::Int8: return finite_range_of<std::int8_t>(p, n, lo, hi);
+        case DType::UInt16: return finite_range_of<std::uint16_t>(p, n, lo, hi);
+        case DType::Int16: return finite_range_of<std::int16_t>(p, n, lo, hi);
+        case DType::UInt32: return finite_range_of<std::uint32_t>(p, n, lo, hi);
+        case DType::Int32: return finite_range_of<std::int32_t>(p, n, lo, hi);
+        case DType::UInt64: return finite_range_of<std::uint64_t>(p, n, lo, hi);
+        case DType::Int64: return finite_range_of<std::int64_t>(p, n, lo, hi);
+        case DType::Float32: return finite_range_of<float>(p, n, lo, hi);
+        case DType::Float64: return finite_range_of<double>(p, n, lo, hi);
+    }
+}
+
+DType rescaled_type(const std::string& name, const std::string& what, double lo, double hi, double slope,
+                    double inter, DType stored) {
+    if (lo > hi) return stored == DType::Float64 ? DType::Float64 : DType::Float32;  // no finite values
+    const double a = lo * slope + inter, b = hi * slope + inter;
+    if (!std::isfinite(a) || !std::isfinite(b))
+        fail(name, what + " " + format_double(slope) + "/" + format_double(inter) + " take the stored values " +
+                       format_double(lo) + " to " + format_double(hi) + " beyond the range of a double");
+    const double most = std::max(std::fabs(a), std::fabs(b));
+    return stored == DType::Float64 || most > static_cast<double>(std::numeric_limits<float>::max()) ? DType::Float64
+                                                                                                      : DType::Float32;
 }
 
 Volume allocate(const Grid& g, DType t) {

@@ -1,6 +1,7 @@
 // io/write.cpp: writing files: atomic replacement (write_atomically), the FileWriter the format writers use, and
 // the checks and byte order of the voxels they write.
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 
 #include "io/io_detail.hpp"
@@ -15,13 +17,38 @@
 
 namespace volrig {
 
-void write_atomically(const std::string& path, const std::function<void(const std::string& tmp_path)>& write) {
+namespace {
+
+// The file a write to `path` replaces: `path` itself, or the file its symbolic links lead to (at most 40 links;
+// relative links resolve against their own folder), so that a link is written through and keeps pointing there.
+std::string write_target(const std::string& path) {
+    namespace fs = std::filesystem;
+    fs::path p(path);
+    std::error_code ec;
+    for (int links = 0; links < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++links) {
+        const fs::path to = fs::read_symlink(p, ec);
+        if (ec) break;
+        p = to.is_absolute() ? to : p.parent_path() / to;
+    }
+    return p.string();
+}
+
+}  // namespace
+
+void write_atomically(const std::string& requested,
+                      const std::function<void(const std::string& tmp_path)>& write) {
     static std::atomic<unsigned long> counter{0};
-    if (path.empty()) throw Error("cannot write to an empty path");
+    if (requested.empty()) throw Error("cannot write to an empty path");
+    io_detail::check_path(requested);
+    const std::string path = write_target(requested);
+    struct stat old {};
+    const bool replaces = ::stat(path.c_str(), &old) == 0 && S_ISREG(old.st_mode);
     const std::string tmp =
         path + ".tmp-" + std::to_string(static_cast<long>(::getpid())) + "-" + std::to_string(++counter);
     try {
         write(tmp);
+        if (replaces && ::chmod(tmp.c_str(), old.st_mode & 07777) != 0)  // the replaced file's permission bits
+            throw Error(requested + ": cannot keep the file's permissions: " + io_detail::errno_text(errno));
     } catch (...) {
         std::remove(tmp.c_str());
         throw;
@@ -37,6 +64,7 @@ namespace io_detail {
 
 FileWriter::FileWriter(const std::string& path, const std::string& shown_as)
     : path_(shown_as.empty() ? path : shown_as) {
+    check_path(path);
     fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
     if (fd_ < 0) {
         const int e = errno;
