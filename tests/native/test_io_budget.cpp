@@ -1,6 +1,6 @@
 // Tests for the readers' file budget (ReadOptions::max_bytes_given, io_detail::check_budget): a small file that
 // demands more than 1 GB and more than 1000 times its size is refused before anything is allocated, naming the file,
-// the demand and how to allow it; a caller that gives max_bytes decides alone. (PNG and TIFF: test_hostile.py.)
+// the demand and how to allow it; a caller that gives max_bytes decides alone. (PNG and TIFF: test_io_hostile.py.)
 #include <catch2/catch.hpp>
 
 #include <openvdb/openvdb.h>

@@ -160,15 +160,27 @@ void check_image_module(const Walker& w) {
         fail(name, "photometric interpretation " + quoted(pi) + ": only MONOCHROME1/2 images are supported");
 }
 
+// Where a walk from `at` stops (`end`, or the file's end when 0); refuses nesting deeper than kMaxDepth.
+std::uint64_t walk_stop(Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
+    if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
+    return end ? end : w.size;
+}
+
+// The element at `at`, refused when its tag already appeared in the data set (`seen`): GDCM keeps the first, the
+// checks below the last.
+Element element_once(Walker& w, std::uint64_t at, std::set<std::uint32_t>& seen) {
+    const Element e = header_at(w, at, w.explicit_vr, w.big);
+    if (e.group != kItemGroup && !seen.insert((std::uint32_t(e.group) << 16) | e.elem).second)
+        w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") appears twice in one data set");
+    return e;
+}
+
 // Walks the elements from `at` to `end` (or to an item delimiter when `end` is 0: returns just past it).
 std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int depth) {
-    if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
-    const std::uint64_t stop = end ? end : w.size;
-    std::set<std::uint32_t> seen;  // a tag twice in one data set: GDCM keeps the first, the checks below the last
+    const std::uint64_t stop = walk_stop(w, at, end, depth);
+    std::set<std::uint32_t> seen;
     while (at < stop) {
-        const Element e = header_at(w, at, w.explicit_vr, w.big);
-        if (e.group != kItemGroup && !seen.insert((std::uint32_t(e.group) << 16) | e.elem).second)
-            w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") appears twice in one data set");
+        const Element e = element_once(w, at, seen);
         if (e.group == kItemGroup) {
             if (!end && e.elem == kItemEnd) {
                 if (e.length != 0) w.bad(at, "an item delimiter with a non-zero length");
@@ -201,13 +213,10 @@ std::uint64_t walk_elements(Walker& w, std::uint64_t at, std::uint64_t end, int 
 // Walks sequence items from `at` to `end` (or to a sequence delimiter when `end` is 0: returns just past it).
 // `fragments`: encapsulated pixel data (items hold bytes, not data sets).
 std::uint64_t walk_items(Walker& w, std::uint64_t at, std::uint64_t end, int depth, bool fragments) {
-    if (depth > kMaxDepth) w.bad(at, "sequences nested more than " + std::to_string(kMaxDepth) + " deep");
-    const std::uint64_t stop = end ? end : w.size;
-    std::set<std::uint32_t> seen;  // a tag twice in one data set: GDCM keeps the first, the checks below the last
+    const std::uint64_t stop = walk_stop(w, at, end, depth);
+    std::set<std::uint32_t> seen;
     while (at < stop) {
-        const Element e = header_at(w, at, w.explicit_vr, w.big);
-        if (e.group != kItemGroup && !seen.insert((std::uint32_t(e.group) << 16) | e.elem).second)
-            w.bad(at, "element (" + hex4(e.group) + "," + hex4(e.elem) + ") appears twice in one data set");
+        const Element e = element_once(w, at, seen);
         if (e.group != kItemGroup) w.bad(at, "an element where a sequence item was expected");
         if (e.elem == kSequenceEnd) {
             if (end) w.bad(at, "a sequence delimiter in a sequence of defined length");

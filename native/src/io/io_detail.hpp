@@ -10,6 +10,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "volrig/io.hpp"
@@ -259,5 +260,16 @@ private:
 void check_view(const std::string& path, const VolumeView& v);
 /// Hands the voxels to `sink` in little-endian byte order, in chunks (no copy on little-endian hosts).
 void little_endian_chunks(const VolumeView& v, const std::function<void(const void*, std::size_t)>& sink);
+
+/// A format's type code to DType through a table of (code, type) pairs: false for a code not in it.
+template <std::size_t N>
+bool dtype_from_table(const std::array<std::pair<int, DType>, N>& table, int code, DType& t) {
+    for (const auto& [c, type] : table)
+        if (c == code) {
+            t = type;
+            return true;
+        }
+    return false;
+}
 
 }  // namespace volrig::io_detail

@@ -30,29 +30,28 @@ constexpr char kWarning = 'W', kFailure = 'E', kResult = 'K';
 // Error kinds in a kFailure record.
 constexpr char kFormat = 'F', kNotFound = 'N', kOther = 'O';
 
-bool write_all(int fd, const void* data, std::size_t n) {
-    const auto* p = static_cast<const char*>(data);
+// Moves n bytes through `step` (::read or ::write on fd), retrying after signals; false when it stops short (the
+// other end died or closed the pipe).
+template <class Byte, class Step>
+bool transfer_all(Byte* p, std::size_t n, Step step) {
     while (n > 0) {
-        const ssize_t w = ::write(fd, p, n);
-        if (w < 0 && errno == EINTR) continue;
-        if (w <= 0) return false;
-        p += w;
-        n -= static_cast<std::size_t>(w);
+        const ssize_t k = step(p, n);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) return false;
+        p += k;
+        n -= static_cast<std::size_t>(k);
     }
     return true;
 }
 
+bool write_all(int fd, const void* data, std::size_t n) {
+    return transfer_all(static_cast<const char*>(data), n,
+                        [fd](const char* p, std::size_t k) { return ::write(fd, p, k); });
+}
+
 // Reads n bytes; false at the end of the pipe (the child died or closed it).
 bool read_all(int fd, void* data, std::size_t n) {
-    auto* p = static_cast<char*>(data);
-    while (n > 0) {
-        const ssize_t r = ::read(fd, p, n);
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0) return false;
-        p += r;
-        n -= static_cast<std::size_t>(r);
-    }
-    return true;
+    return transfer_all(static_cast<char*>(data), n, [fd](char* p, std::size_t k) { return ::read(fd, p, k); });
 }
 
 void send_text(int fd, char tag, const std::string& full) {

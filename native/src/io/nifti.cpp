@@ -49,19 +49,10 @@ private:
 };
 
 bool nifti_type(int code, DType& t) {
-    switch (code) {
-        case 2: t = DType::UInt8; return true;
-        case 4: t = DType::Int16; return true;
-        case 8: t = DType::Int32; return true;
-        case 16: t = DType::Float32; return true;
-        case 64: t = DType::Float64; return true;
-        case 256: t = DType::Int8; return true;
-        case 512: t = DType::UInt16; return true;
-        case 768: t = DType::UInt32; return true;
-        case 1024: t = DType::Int64; return true;
-        case 1280: t = DType::UInt64; return true;
-        default: return false;
-    }
+    static constexpr std::array<std::pair<int, DType>, 10> kTypes{{{2, DType::UInt8}, {4, DType::Int16},
+        {8, DType::Int32}, {16, DType::Float32}, {64, DType::Float64}, {256, DType::Int8}, {512, DType::UInt16},
+        {768, DType::UInt32}, {1024, DType::Int64}, {1280, DType::UInt64}}};
+    return io_detail::dtype_from_table(kTypes, code, t);
 }
 
 const char* unsupported_type_name(int code) {

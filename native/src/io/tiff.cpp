@@ -111,18 +111,11 @@ struct Page {
 };
 
 bool dtype_for(std::uint16_t format, std::uint16_t bits, DType& t) {
-    const int key = format * 100 + bits;
-    switch (key) {
-        case 108: t = DType::UInt8; return true;
-        case 116: t = DType::UInt16; return true;
-        case 132: t = DType::UInt32; return true;
-        case 208: t = DType::Int8; return true;
-        case 216: t = DType::Int16; return true;
-        case 232: t = DType::Int32; return true;
-        case 332: t = DType::Float32; return true;
-        case 364: t = DType::Float64; return true;
-        default: return false;
-    }
+    // key: SampleFormat * 100 + BitsPerSample
+    static constexpr std::array<std::pair<int, DType>, 8> kTypes{{{108, DType::UInt8}, {116, DType::UInt16},
+        {132, DType::UInt32}, {208, DType::Int8}, {216, DType::Int16}, {232, DType::Int32}, {332, DType::Float32},
+        {364, DType::Float64}}};
+    return io_detail::dtype_from_table(kTypes, format * 100 + bits, t);
 }
 
 // The current page's size and type; fails for colour, palette, bilevel and unsupported samples.

@@ -4,7 +4,7 @@ Reads that could kill the process run in a subprocess here, so a crash fails the
 Each crash test also reads the same file with the decoder's isolation turned off (VOLRIG_ISOLATE=0) and checks that
 it does crash that way: the file really is one the decoder dies on.
 
-Run: PYTHONPATH=python /usr/bin/python3 -m pytest -q tests/python/test_hostile.py
+Run: PYTHONPATH=python /usr/bin/python3 -m pytest -q tests/python/test_io_hostile.py
 """
 from __future__ import annotations
 
