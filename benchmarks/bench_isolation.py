@@ -31,7 +31,7 @@ t = time.perf_counter(); v = volrig.load(sys.argv[1]); print(time.perf_counter()
 def jpeg_series(folder):
     import pydicom
     sys.path.insert(0, os.path.join(HERE, "..", "tests", "python"))
-    from test_dicom import write_slice
+    from test_io_dicom import write_slice
     from pydicom.uid import generate_uid
     ct = volrig.load(str(data_root() / "lidc2" / "LIDC2.mha")).array.astype(np.uint16) * 8
     raw = os.path.join(folder, "raw")

@@ -18,7 +18,8 @@ and, across the tree, that
     parenthesised signature at namespace or class level; lambdas count inside their function);
   - no Python file of PYTHON_FOLDERS (the package, the add-on, the Python tests and their support, the scripts and
     the benchmarks) is over MAX_FILE_LINES lines either: its .py files, and in scripts/ also the extensionless
-    scripts run by python3 (their first line says so);
+    scripts run by python3 (their first line says so); nor any Python function over MAX_FUNCTION_LINES lines (its
+    whole definition, by the ast);
   - every module and subpackage of python/volrig belongs to a capability (its "python" list), is one of the shared
     and pipeline modules of SHARED_MODULES (each with the reason it belongs to no one capability), or is an old name
     kept for compatibility (ALIASES);
@@ -26,11 +27,9 @@ and, across the tree, that
     ("python_tests"), a shared module, or is one of PROJECT_TESTS (tests of the repository as a whole).
 
 Where the Python modules are not named as the capability, CAPABILITIES says so ("python"):
-  - io: `volume.py` (Volume, load, save, dicom_series, write_vdb) and `files.py` (atomic_output). They are not
-    merged into an io.py: the hostile-input work (issue 55) is editing volume.py's load and dicom_series and
-    native/src/io at the same time, and a move would collide with it. For the same reason io's pytest files
-    test_dicom.py, test_tiff.py, test_vdb.py and test_orientation.py keep their names ("python_tests"; the native
-    side's are test_io_<format>.cpp); rename them test_io_<format>.py, and drop this exception, once that work is in.
+  - io: `volume.py` (Volume, load, save, dicom_series, write_vdb) and `files.py` (atomic_output): public module
+    names (`volrig.volume.Volume`, the type every capability's API takes) that an io.py would break. io's pytest
+    files are test_io_<format>.py, as the native side's test_io_<format>.cpp.
   - rig: `markers.py`, `bones.py` (rigs from a scan's bones) and `rigfile.py` (the .vrig file) beside `rig.py`;
     deform: `rigid_layer.py` beside `deform.py`. They keep their module names, which are public
     (`volrig.markers`, ...), rather than move into subpackages.
@@ -40,6 +39,7 @@ Plain Python, no dependencies: `python3 tests/check_layout.py` prints the proble
 """
 from __future__ import annotations
 
+import ast
 import re
 import sys
 from pathlib import Path
@@ -58,7 +58,7 @@ PY_TESTS = REPO / "tests" / "python"
 # stems of its tests/python/test_<stem>*.py files, besides <cap> and its modules' names.
 CAPABILITIES: dict[str, dict[str, list[str]]] = {
     # volume readers and writers (NRRD, NIfTI, MetaImage, DICOM, TIFF, VDB, raw), zlib
-    "io": {"headers": [], "python": ["volume", "files"], "python_tests": ["dicom", "tiff", "vdb", "orientation"]},
+    "io": {"headers": [], "python": ["volume", "files"]},
     "skeleton": {"headers": ["distance.hpp", "components.hpp", "reconstruct.hpp"]},  # DT, thinness skeleton
     "medial": {"headers": ["medial_surface.hpp", "thickness.hpp"]},  # plane measure, medial surface, thickness
     "tree": {"headers": []},  # the skeleton-tree
@@ -295,11 +295,18 @@ def python_problems() -> list[str]:
         if m in owned:
             out.append(f"python/volrig/{m}: listed both as shared and as {owned[m]}'s")
 
-    # Sizes.
+    # Sizes: files, and functions (their whole definition, decorators and docstring included).
     for p in python_files():
-        n = len(p.read_text(encoding="utf-8").splitlines())
+        text = p.read_text(encoding="utf-8")
+        n = len(text.splitlines())
         if n > MAX_FILE_LINES:
             out.append(f"{rel(p)}: {n} lines (at most {MAX_FILE_LINES})")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    out.append(f"{rel(p)}:{node.lineno}: a function of {lines} lines (at most {MAX_FUNCTION_LINES}): "
+                               f"{node.name}")
 
     # Every test file is named after what it tests.
     names = set(CAPABILITIES) | set(owned) | {m.lstrip("_") for m in SHARED_MODULES if not m.startswith("__")}

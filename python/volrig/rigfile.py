@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import zipfile
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -104,23 +104,15 @@ def _rigid(get, bad, file_bytes: int, max_bytes: Optional[int]) -> np.ndarray:
     return np.unpackbits(bits, count=count).view(bool).reshape(tuple(int(v) for v in shape))
 
 
-def load_rig(path, *, max_bytes: Optional[int] = None) -> RiggedSkeleton:
-    """Reads a file written by ``save_rig``. Raises FileNotFoundError, or ``volrig.FileFormatError`` for anything
-    that is not a complete, consistent rig file of a version this volrig reads. ``max_bytes``: the most memory the
-    arrays may take once unpacked (default: the readers' file budget, docs/io.md)."""
-    path = os.fspath(path)
+def _open_archive(path: str, max_bytes: Optional[int], bad) -> Tuple[dict, int]:
+    """The rig file's arrays by name and the file's size: a regular file, its members within the budget."""
     if "\0" in path:
         raise VolrigError(f"{path.split(chr(0))[0]}...: a file name must not contain a NUL character")
-    name = os.path.basename(path)
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path}: no such file")
     if not os.path.isfile(path):
         raise FileFormatError(f"{path}: not a regular file")
     file_bytes = os.path.getsize(path)
-
-    def bad(what: str):
-        return FileFormatError(f"{name}: {what}")
-
     try:
         with zipfile.ZipFile(path) as zf:  # the members' unpacked sizes, before np.load unpacks them
             _budget(sum(i.file_size for i in zf.infolist()), file_bytes, max_bytes, bad, "the archive's members")
@@ -128,11 +120,47 @@ def load_rig(path, *, max_bytes: Optional[int] = None) -> RiggedSkeleton:
         raise bad(f"not a readable volrig rig file ({e})") from None
     try:
         with np.load(path, allow_pickle=False) as z:
-            a = {k: z[k] for k in z.files}
+            return {k: z[k] for k in z.files}, file_bytes
     except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError, zipfile.LargeZipFile) as e:
         raise bad(f"not a readable volrig rig file ({e})") from None
     except Exception as e:  # zlib errors and the like from a damaged member
         raise bad(f"damaged archive ({type(e).__name__}: {e})") from None
+
+
+def _binding(a: dict, get, bad, rig, n: int, file_bytes: int, max_bytes: Optional[int]) -> Binding:
+    """The binding a rig file holds (``get`` reads and checks one array, ``bad`` makes the error)."""
+    if rig is None:
+        raise bad("a binding without a rig")
+    nb = len(rig.bones)
+    bone = get("binding_bone", "i", 1, (n,))
+    if n and (bone.min() < 0 or bone.max() >= nb):
+        raise bad(f"binding refers to a bone outside 0..{nb - 1}")
+    indptr = get("weights_indptr", "i", 1, (n + 1,))
+    indices = get("weights_indices", "i", 1)
+    data = get("weights_data", "f", 1, (len(indices),))
+    if indptr[0] != 0 or indptr[-1] != len(indices) or (np.diff(indptr) < 0).any() or \
+            (len(indices) and (indices.min() < 0 or indices.max() >= nb)):
+        raise bad("binding weights are not a valid sparse matrix")
+    w = _optional.csr_matrix(data.astype(np.float32), indices, indptr, (n, nb))
+    mode = str(get("binding_mode", "U", 0))
+    if mode not in ("rigid", "smooth"):
+        raise bad(f"unknown binding mode {mode!r}")
+    return Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names),
+                   _rigid(get, bad, file_bytes, max_bytes) if "binding_rigid_shape" in a else None,
+                   bool(get("binding_rigid_whole", "b", 0)) if "binding_rigid_whole" in a else False)
+
+
+def load_rig(path, *, max_bytes: Optional[int] = None) -> RiggedSkeleton:
+    """Reads a file written by ``save_rig``. Raises FileNotFoundError, or ``volrig.FileFormatError`` for anything
+    that is not a complete, consistent rig file of a version this volrig reads. ``max_bytes``: the most memory the
+    arrays may take once unpacked (default: the readers' file budget, docs/io.md)."""
+    path = os.fspath(path)
+    name = os.path.basename(path)
+
+    def bad(what: str):
+        return FileFormatError(f"{name}: {what}")
+
+    a, file_bytes = _open_archive(path, max_bytes, bad)
 
     def get(key, dtype_kind, ndim, shape=None):
         if key not in a:
@@ -195,23 +223,5 @@ def load_rig(path, *, max_bytes: Optional[int] = None) -> RiggedSkeleton:
         except VolrigError as e:
             raise bad(f"inconsistent rig ({e})") from None
     if "binding_bone" in a:
-        if rig is None:
-            raise bad("a binding without a rig")
-        nb = len(rig.bones)
-        bone = get("binding_bone", "i", 1, (n,))
-        if n and (bone.min() < 0 or bone.max() >= nb):
-            raise bad(f"binding refers to a bone outside 0..{nb - 1}")
-        indptr = get("weights_indptr", "i", 1, (n + 1,))
-        indices = get("weights_indices", "i", 1)
-        data = get("weights_data", "f", 1, (len(indices),))
-        if indptr[0] != 0 or indptr[-1] != len(indices) or (np.diff(indptr) < 0).any() or \
-                (len(indices) and (indices.min() < 0 or indices.max() >= nb)):
-            raise bad("binding weights are not a valid sparse matrix")
-        w = _optional.csr_matrix(data.astype(np.float32), indices, indptr, (n, nb))
-        mode = str(get("binding_mode", "U", 0))
-        if mode not in ("rigid", "smooth"):
-            raise bad(f"unknown binding mode {mode!r}")
-        binding = Binding(bone.astype(np.int32), w, mode, get("binding_unreachable", "b", 1, (n,)), list(rig.names),
-                          _rigid(get, bad, file_bytes, max_bytes) if "binding_rigid_shape" in a else None,
-                          bool(get("binding_rigid_whole", "b", 0)) if "binding_rigid_whole" in a else False)
+        binding = _binding(a, get, bad, rig, n, file_bytes, max_bytes)
     return RiggedSkeleton(points, tree, rig, binding, source)

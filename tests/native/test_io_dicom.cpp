@@ -1,6 +1,6 @@
 // Tests for read_dicom / read_dicom_file / dicom_series (io.hpp): series written here byte by byte (explicit VR
 // little endian Part-10 files), shuffled, rescaled, broken; the fuzz corpus never crashes the reader.
-// (tests/python/test_dicom.py covers compressed series, written with pydicom and gdcmconv.)
+// (tests/python/test_io_dicom.py covers compressed series, written with pydicom and gdcmconv.)
 #include <catch2/catch.hpp>
 
 #include <algorithm>

@@ -47,7 +47,7 @@ def broken_jpeg_dicom(path, first_fragment=b"\xff\xd8" + b"\0" * 62):
     pydicom = pytest.importorskip("pydicom")
     from pydicom.encaps import encapsulate
     from pydicom.uid import generate_uid
-    from test_dicom import write_slice
+    from test_io_dicom import write_slice
 
     write_slice(path, np.zeros((7, 8), np.uint16), 0, series_uid=generate_uid())
     ds = pydicom.dcmread(str(path))
@@ -87,7 +87,7 @@ def test_valid_jpeg_still_decodes_in_the_child(tmp_path):
     if shutil.which("gdcmconv") is None:
         pytest.skip("gdcmconv (libgdcm-tools) not installed")
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     pixels = raw_slices()
     write_series(tmp_path / "raw", pixels, shuffle=False, names=[f"s{k}.dcm" for k in range(6)])
     (tmp_path / "c").mkdir()
@@ -286,7 +286,7 @@ def test_nifti_slope_beyond_double_is_refused(tmp_path):
 
 def test_dicom_rescale_slope_3e38_gives_float64(tmp_path):
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     pixels, _ = write_series(tmp_path / "s", raw_slices(), slope=3e38, intercept=0.0)
     v = volrig.load(str(tmp_path / "s"))
     assert v.array.dtype == np.float64 and np.isfinite(v.array).all()
@@ -297,7 +297,7 @@ def test_dicom_rescale_slope_3e38_gives_float64(tmp_path):
 @pytest.mark.parametrize("spacing", [(0.0, 0.6), (0.7, -0.6), ("nan", 0.6)])
 def test_dicom_pixel_spacing_that_is_not_finite_and_positive_is_refused(tmp_path, spacing):
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     write_series(tmp_path / "s", raw_slices(), pixel_spacing=spacing)
     with pytest.raises(volrig.FileFormatError, match=r"PixelSpacing '.*' is not two finite positive numbers"):
         volrig.load(str(tmp_path / "s"))
@@ -325,7 +325,7 @@ for w in said:
 def test_dicom_folder_with_dangling_link_fifo_socket_and_loops(tmp_path):
     import socket
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     folder = tmp_path / "ct"
     pixels, _ = write_series(folder, raw_slices(n=4), names=["a", "b", "c", "d"])
     os.symlink(tmp_path / "nowhere", folder / "b_dangling")
@@ -352,7 +352,7 @@ def test_dicom_folder_with_dangling_link_fifo_socket_and_loops(tmp_path):
 
 def test_a_link_to_another_folder_is_followed_once(tmp_path):
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     write_series(tmp_path / "real", raw_slices(n=3))
     (tmp_path / "scan").mkdir()
     os.symlink(tmp_path / "real", tmp_path / "scan" / "series")
@@ -423,7 +423,7 @@ def test_names_that_are_not_utf8_load_save_and_show_in_messages(tmp_path):
 
 def test_dicom_series_with_names_that_are_not_utf8(tmp_path):
     pytest.importorskip("pydicom")
-    from test_dicom import raw_slices, write_series
+    from test_io_dicom import raw_slices, write_series
     folder = os.fsdecode(os.fsencode(str(tmp_path)) + b"/s\xe9rie")
     write_series(folder, raw_slices(n=3), names=[os.fsdecode(b"im\xe9%d" % k) for k in range(3)])
     series = volrig.dicom_series(folder)

@@ -1,7 +1,7 @@
 """OpenVDB reading and writing through Python: round trips, grid types, named grids, bad files, and a check that
 Blender (when installed) reads what volrig writes with the geometry volrig means.
 
-Run: PYTHONPATH=python /usr/bin/python3 -m pytest tests/python/test_vdb.py
+Run: PYTHONPATH=python /usr/bin/python3 -m pytest tests/python/test_io_vdb.py
 """
 from __future__ import annotations
 

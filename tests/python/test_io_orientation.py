@@ -108,7 +108,7 @@ def test_the_same_volume_as_a_dicom_series_and_a_tiff_stack(tmp_path):
     # the same voxels at the same patient positions as the NRRD; as a TIFF stack (no orientation, no origin) the
     # same voxels on the same lattice.
     pytest.importorskip("pydicom")
-    from test_dicom import write_slice
+    from test_io_dicom import write_slice
     v = phantom()
     want = positions(v)
     folder = tmp_path / "series"
