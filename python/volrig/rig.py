@@ -361,10 +361,10 @@ _BONE_BODY_POINTS = 2000
 def _plan_from_bones(plan: _Plan, bone) -> _Plan:
     """``plan``, or, when the flesh is missing (``BARE_BONE_SHARE`` of the outer surface or more is bone), the
     bone grown into a body (``volrig.bones.bone_body``) rigged at autorig's own scale."""
-    from .bones import _bone_array, bone_body  # the bones' module builds on Rig
+    from .bones import bare_bone_share, bone_body  # the bones' module builds on Rig
     from .skeleton import skeletonize
     from .tree import skeleton_tree
-    share = float(_volrig.bare_bone_share(plan.mask, _bone_array(bone, like_shape=plan.mask.shape)))
+    share = bare_bone_share(plan.mask, bone)
     if share < BARE_BONE_SHARE:
         return plan
     body, radius, _ = bone_body(bone)

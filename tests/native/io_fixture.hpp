@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <set>
 #include <string>
@@ -126,6 +127,16 @@ inline Volume read_mem(Volume (*reader)(const ByteSource&, const ReadOptions&), 
                 ReadOptions opt = {}) {
     auto src = memory_source(b.data(), b.size(), name);
     return reader(*src, opt);
+}
+
+/// The message of what f throws ("(no error)" when it throws nothing).
+inline std::string message_of(const std::function<void()>& f) {
+    try {
+        f();
+    } catch (const std::exception& e) {
+        return e.what();
+    }
+    return "(no error)";
 }
 
 /// Runs f and checks it throws E whose message contains every part.

@@ -13,23 +13,11 @@
 #include <unistd.h>
 
 #include "io/io_detail.hpp"
+#include "io_fixture.hpp"
 #include "volrig/io.hpp"
 
 namespace fs = std::filesystem;
 using namespace volrig;
-
-namespace {
-
-std::string message_of(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const std::exception& e) {
-        return e.what();
-    }
-    return "(no error)";
-}
-
-}  // namespace
 
 TEST_CASE("check_budget: more than 1 GB and more than 1000x the file is refused unless max_bytes was given",
           "[io][budget]") {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "io/io_detail.hpp"
+#include "io_fixture.hpp"
 #include "volrig/io.hpp"
 
 using namespace volrig;
@@ -28,15 +29,6 @@ Volume small_volume() {
     v.data.resize(12 * 2);
     for (std::size_t i = 0; i < v.data.size(); ++i) v.data[i] = static_cast<std::uint8_t>(i * 7);
     return v;
-}
-
-std::string message_of(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const std::exception& e) {
-        return e.what();
-    }
-    return "(no error)";
 }
 
 }  // namespace

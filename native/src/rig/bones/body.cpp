@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <vector>
 
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "rig/bones/bones.hpp"
@@ -33,56 +31,39 @@ bool on_surface(const Grid& g, const std::uint8_t* body, std::int64_t x, std::in
     return false;
 }
 
-/// The median of `dt` over the voxels of `mask` (0 for an empty mask).
-double median_over(const std::vector<float>& dt, const std::uint8_t* mask) {
+/// The bone's crop (rig_detail::crop_of) padded past `pad` mm along every axis.
+rig_detail::Crop padded(const Grid& grid, const std::uint8_t* bone, double pad) {
+    std::array<std::int64_t, 3> steps{};
+    for (int a = 0; a < 3; ++a) steps[a] = static_cast<std::int64_t>(std::ceil(pad / grid.spacing[a])) + 2;
+    return rig_detail::crop_of(grid, bone, steps);
+}
+
+/// Whether crop voxel (x, y, z) lies inside the full grid.
+bool in_grid(const rig_detail::Crop& c, const Grid& g, std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::int64_t v[3] = {x + c.lo[0], y + c.lo[1], z + c.lo[2]};
+    for (int a = 0; a < 3; ++a)
+        if (v[a] < 0 || v[a] >= g.dims[a]) return false;
+    return true;
+}
+
+/// The bone's median depth: its voxels' median distance to the nearest voxel that is not bone (the box's padding
+/// holds none, so a bone cut by the grid's face is as deep there as the grid's outside makes it).
+double bone_depth(const rig_detail::Crop& b) {
+    const std::vector<float> dt = distance_transform(b.grid, b.bone.data(), Metric::Euclidean);
     std::vector<float> v;
     for (std::size_t i = 0; i < dt.size(); ++i)
-        if (mask[i]) v.push_back(dt[i]);
-    if (v.empty()) return 0.0;
+        if (b.bone[i]) v.push_back(dt[i]);
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
     return v[v.size() / 2];
 }
 
-/// Per voxel of `grid`: the distance (mm) to the nearest bone voxel where it is at most `reach`, infinity
-/// elsewhere. The distance transform runs on the bone's bounding box padded past `reach` (the transform counts
-/// the outside of its grid as background: the padding keeps the grid's faces from looking like bone).
-std::vector<float> distance_to(const Grid& grid, const std::uint8_t* bone, double reach) {
-    std::int64_t lo[3] = {grid.dims[0], grid.dims[1], grid.dims[2]}, hi[3] = {-1, -1, -1};
-    for (std::int64_t z = 0; z < grid.dims[2]; ++z)
-        for (std::int64_t y = 0; y < grid.dims[1]; ++y)
-            for (std::int64_t x = 0; x < grid.dims[0]; ++x)
-                if (bone[grid.index(x, y, z)]) {
-                    const std::int64_t v[3] = {x, y, z};
-                    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
-                }
-    Grid box = grid;
-    std::int64_t start[3];
-    for (int a = 0; a < 3; ++a) {
-        const auto pad = static_cast<std::int64_t>(std::ceil(reach / grid.spacing[a])) + 2;
-        start[a] = lo[a] - pad;
-        box.dims[a] = hi[a] - lo[a] + 1 + 2 * pad;
-    }
-    std::vector<std::uint8_t> outside(static_cast<std::size_t>(box.voxel_count()), 1);
-    for (std::int64_t z = std::max<std::int64_t>(start[2], 0); z <= hi[2]; ++z)
-        for (std::int64_t y = std::max<std::int64_t>(start[1], 0); y <= hi[1]; ++y)
-            for (std::int64_t x = std::max<std::int64_t>(start[0], 0); x <= hi[0]; ++x)
-                if (bone[grid.index(x, y, z)]) outside[box.index(x - start[0], y - start[1], z - start[2])] = 0;
-    const std::vector<float> dt = distance_transform(box, outside.data(), Metric::Euclidean);
-    std::vector<float> out(static_cast<std::size_t>(grid.voxel_count()), std::numeric_limits<float>::infinity());
-    for (std::int64_t z = 0; z < grid.dims[2]; ++z)
-        for (std::int64_t y = 0; y < grid.dims[1]; ++y)
-            for (std::int64_t x = 0; x < grid.dims[0]; ++x) {
-                const std::int64_t bx = x - start[0], by = y - start[1], bz = z - start[2];
-                if (bx < 0 || by < 0 || bz < 0 || bx >= box.dims[0] || by >= box.dims[1] || bz >= box.dims[2]) continue;
-                const float d = dt[static_cast<std::size_t>(box.index(bx, by, bz))];
-                if (d <= reach) out[static_cast<std::size_t>(grid.index(x, y, z))] = d;
-            }
-    return out;
-}
-
-/// The bone's median depth: its voxels' median distance to the nearest non-bone voxel (or the grid's outside).
-double bone_depth(const Grid& grid, const std::uint8_t* bone) {
-    return median_over(distance_transform(grid, bone, Metric::Euclidean), bone);
+/// Per box voxel, its distance (mm) to the nearest bone voxel. The box is padded past every radius tried: the
+/// transform counts the outside of its grid as background, and the padding keeps the box's faces from looking like
+/// bone.
+std::vector<float> distance_to_bone(const rig_detail::Crop& b) {
+    std::vector<std::uint8_t> outside(b.bone.size());
+    for (std::size_t i = 0; i < outside.size(); ++i) outside[i] = b.bone[i] ? 0 : 1;
+    return distance_transform(b.grid, outside.data(), Metric::Euclidean);
 }
 
 }  // namespace
@@ -108,28 +89,37 @@ double bare_bone_share(const Grid& grid, const std::uint8_t* body, const std::ui
 }
 
 BoneBody bone_body(const Grid& grid, const std::uint8_t* bone) {
-    const std::size_t n = static_cast<std::size_t>(grid.voxel_count());
-    std::int64_t bone_voxels = 0;
-    for (std::size_t i = 0; i < n; ++i) bone_voxels += bone[i] != 0;
-    if (bone_voxels == 0) throw Error("bone body: the bone mask is empty");
-    // The bone's own depth (median distance of its voxels to its surface) sets the first radius.
-    const double first = std::max(2.0 * bone_depth(grid, bone),
-                                  kBoneBodyMinVoxels * std::max({grid.spacing[0], grid.spacing[1], grid.spacing[2]}));
-    const std::vector<float> to_bone = distance_to(grid, bone, first * std::pow(kBoneBodyGrowth, kBoneBodySteps - 1));
+    const double most = std::max({grid.spacing[0], grid.spacing[1], grid.spacing[2]});
+    // The first radius needs the bone's depth (measured in a crop padded by two voxels; crop_of refuses an empty
+    // bone); the crop the body grows in is padded past the last.
+    const double first = std::max(2.0 * bone_depth(padded(grid, bone, 0.0)), kBoneBodyMinVoxels * most);
+    const rig_detail::Crop b = padded(grid, bone, first * std::pow(kBoneBodyGrowth, kBoneBodySteps - 1));
+    const Grid& box = b.grid;
+    const std::vector<float> to_bone = distance_to_bone(b);
+    const auto bone_voxels = static_cast<double>(std::count(b.bone.begin(), b.bone.end(), 1));
+    std::vector<std::uint8_t> grown(b.bone.size());
+    Components c;
     BoneBody out;
-    double radius = first;
-    std::vector<std::uint8_t> grown(n);
-    for (int k = 0; k < kBoneBodySteps; ++k, radius *= kBoneBodyGrowth) {
-        for (std::size_t i = 0; i < n; ++i) grown[i] = (bone[i] || to_bone[i] <= radius) ? 1 : 0;
-        Components c = label_components(grid, grown.data());
+    for (int k = 0; k < kBoneBodySteps; ++k) {
+        out.radius = first * std::pow(kBoneBodyGrowth, k);
+        for (std::int64_t z = 0; z < box.dims[2]; ++z)
+            for (std::int64_t y = 0; y < box.dims[1]; ++y)
+                for (std::int64_t x = 0; x < box.dims[0]; ++x) {
+                    const auto i = static_cast<std::size_t>(box.index(x, y, z));
+                    grown[i] = in_grid(b, grid, x, y, z) && to_bone[i] <= out.radius;
+                }
+        c = label_components(box, grown.data());
         std::int64_t held = 0;  // bone voxels in the largest component
-        for (std::size_t i = 0; i < n; ++i) held += bone[i] && c.labels[i] == 1;
-        out.radius = radius;
-        out.joined = static_cast<double>(held) / static_cast<double>(bone_voxels);
-        out.mask.assign(n, 0);
-        for (std::size_t i = 0; i < n; ++i) out.mask[i] = c.labels[i] == 1;
+        for (std::size_t i = 0; i < grown.size(); ++i) held += b.bone[i] && c.labels[i] == 1;
+        out.joined = static_cast<double>(held) / bone_voxels;
         if (out.joined >= kBoneBodyJoined) break;
     }
+    out.mask.assign(static_cast<std::size_t>(grid.voxel_count()), 0);
+    for (std::int64_t z = 0; z < box.dims[2]; ++z)
+        for (std::int64_t y = 0; y < box.dims[1]; ++y)
+            for (std::int64_t x = 0; x < box.dims[0]; ++x)
+                if (c.labels[static_cast<std::size_t>(box.index(x, y, z))] == 1)
+                    out.mask[static_cast<std::size_t>(grid.index(x + b.lo[0], y + b.lo[1], z + b.lo[2]))] = 1;
     return out;
 }
 

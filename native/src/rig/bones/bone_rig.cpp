@@ -32,12 +32,7 @@ constexpr LimbJoint kLimbJoints[] = {
 
 
 /// Distance from q to the segment a..b.
-double to_segment(const P3& q, const P3& a, const P3& b) {
-    const P3 d = sub(b, a);
-    const double len2 = dot(d, d);
-    const double t = len2 > 0 ? std::clamp(dot(sub(q, a), d) / len2, 0.0, 1.0) : 0.0;
-    return norm(sub(q, {a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]}));
-}
+double to_segment(const P3& q, const P3& a, const P3& b) { return norm(sub(q, lerp(a, b, share_along(q, a, b)))); }
 
 /// The voxel box around the points a and b grown by r (mm), clamped to the grid.
 void box_of(const Grid& g, const P3& a, const P3& b, double r, std::array<std::int64_t, 3>& lo,
@@ -92,9 +87,7 @@ private:
 
     /// The segment with most voxels near the stretch of bone b between the shares `from` and `to` of its length.
     std::int32_t segment_along(int b, double from, double to) const {
-        const P3 h = head(b), t = tail(b), d = sub(t, h);
-        const P3 a{h[0] + from * d[0], h[1] + from * d[1], h[2] + from * d[2]};
-        const P3 e{h[0] + to * d[0], h[1] + to * d[1], h[2] + to * d[2]};
+        const P3 a = lerp(head(b), tail(b), from), e = lerp(head(b), tail(b), to);
         const double r = std::clamp(0.1 * length(b), 3 * cell_, 40.0);
         std::array<std::int64_t, 3> lo{}, hi{};
         box_of(g_, a, e, r, lo, hi);
@@ -216,12 +209,9 @@ bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
     return true;
 }
 
-/// A knee or an elbow whose two long bones run through one segment with no narrower section near the outer shape's
-/// joint (slices too far apart to show the joint space, and that joint far off): searched along the whole limb, the
-/// limb from the parent's head through the outer shape's joint to the child's tail, within kLimbBand of the
-/// share its proportions put the joint at and kLimbRadius of the limb (limb_section: its deepest valley, else its
-/// bulge, the condyles and the plateau or the epicondyles).
+/// How far from the limb (mm) and from the share its proportions put a hidden hinge at it is sought.
 constexpr double kLimbRadius = 60.0, kLimbBand = 0.15;
+
 /// A knee or an elbow whose parent's segment runs on into the child bone's first stretch (slices too far apart to
 /// part them there: the humerus fused with the top of the forearm), where the bones show no contact near the outer
 /// shape's joint, itself where the limb's proportions put it: the joint is sought inside the parent's segment along
@@ -238,10 +228,15 @@ bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
     return false;
 }
 
+/// A knee, an elbow or an ankle whose two bones run through one segment with no narrower section near the outer
+/// shape's joint (slices too far apart to show the joint space, and that joint far off): sought along the whole
+/// limb, from the parent's head through the outer shape's joint to the child's tail, within kLimbBand of the share
+/// its proportions put the joint at and kLimbRadius of the limb (limb_section: its deepest valley, else its bulge,
+/// the condyles and the plateau or the epicondyles), where the segment is split.
 bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
     const Limb limb{head(pb), head(cb), tail(cb), along - kLimbBand, along + kLimbBand};
     const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
-    const P3 mid{(limb.a[0] + limb.b[0]) / 2, (limb.a[1] + limb.b[1]) / 2, (limb.a[2] + limb.b[2]) / 2};
+    const P3 mid = lerp(limb.a, limb.b, 0.5);
     const P3 axis = unit(add(unit(sub(limb.k, limb.a)), unit(sub(limb.b, limb.k))));  // splits upper from lower
     const Patch p = patch_of(g_, out_.segments.labels, j.child_segment, mid, 0.5 * length + kLimbRadius);
     const Section s = limb_section(p, limb, kLimbRadius, slab_along(axis));

@@ -2,6 +2,7 @@
 // joint, the contact between two segments, a sphere fitted to a head, the narrowest section of a segment.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -23,6 +24,23 @@ inline P3 unit(const P3& a) {
     const double n = norm(a);
     return n > 0 ? P3{a[0] / n, a[1] / n, a[2] / n} : P3{0, 0, 0};
 }
+/// Where on the segment a..b the point nearest q lies: its share t of the way from a (0..1).
+inline double share_along(const P3& q, const P3& a, const P3& b) {
+    const P3 d = sub(b, a);
+    const double len2 = dot(d, d);
+    return len2 > 0 ? std::clamp(dot(sub(q, a), d) / len2, 0.0, 1.0) : 0.0;
+}
+/// The point t of the way from a to b.
+inline P3 lerp(const P3& a, const P3& b, double t) { return {a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])}; }
+
+/// The bone's bounding box grown by `pad` voxels of background along each axis (it may reach past the grid), the
+/// bone copied in (0/1 bytes). Throws Error for an empty bone mask.
+struct Crop {
+    Grid grid;
+    std::array<std::int64_t, 3> lo{};  ///< the crop's voxel (0, 0, 0) in the full grid (may be negative)
+    std::vector<std::uint8_t> bone;
+};
+Crop crop_of(const Grid& g, const std::uint8_t* bone, const std::array<std::int64_t, 3>& pad);
 
 /// The options with their defaults filled in for `grid` (opening in voxels at least 1).
 struct BoneParams {
@@ -63,11 +81,10 @@ Sphere fit_sphere(const std::vector<P3>& pts);
 
 /// The narrowest section of a patch along `axis` (unit) through `centre`, within a cylinder of radius and half
 /// length `half_length`: the deepest valley of its slab profile (slabs `slab` thick, the wall on each side the
-/// most bone there), its centroid and offset t along the axis; found = false when the profile has no valley.
+/// most bone there) and its centroid; found = false when the profile has no valley.
 struct Section {
     bool found = false;
     P3 centre{0, 0, 0};
-    double t = 0;
     bool bulge = false;  ///< limb_section: the bulge, no valley
 };
 Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, double half_length, double slab);
@@ -76,14 +93,13 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
 /// bone's tail b; its joint is searched between the shares `from` and `to` of its length from a.
 struct Limb {
     P3 a, k, b;
-    double from = 0.25, to = 0.75;
+    double from, to;
 };
 
 /// Where a long hinge lies along a limb (between its shares; arc length from a; voxels within `radius` of it): the
 /// deepest valley of its slab profile when it is at least kLimbValley of its lower wall (a joint space the slices
 /// show), else the bulge: the centroid of the run of slabs around the widest holding at least kLimbBulge of its
-/// bone (the joint's wide ends fused at the voxel size). found = false for too short a limb or no bone; t = the arc
-/// length of the centre.
+/// bone (the joint's wide ends fused at the voxel size). found = false for too short a limb or no bone.
 inline constexpr double kLimbValley = 0.25, kLimbBulge = 0.7;
 Section limb_section(const Patch& p, const Limb& limb, double radius, double slab);
 

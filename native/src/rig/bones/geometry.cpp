@@ -185,7 +185,6 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
     if (best < 0) return s;
     s.found = true;
     s.centre = bins_centroid(p, bin, best - 1, best + 1);
-    s.t = (best - n) * slab;
     return s;
 }
 
@@ -202,11 +201,10 @@ std::vector<long> limb_profile(const Patch& p, const Limb& limb, double radius, 
     for (std::size_t v = 0; v < p.pos.size(); ++v) {
         double best = radius * radius, along = -1;
         for (int part = 0; part < 2; ++part) {
-            const P3 s = part ? limb.k : limb.a, e = part ? limb.b : limb.k, d = sub(e, s);
-            const double len2 = std::max(dot(d, d), 1e-12);
-            const double t = std::clamp(dot(sub(p.pos[v], s), d) / len2, 0.0, 1.0);
-            const double d2 = dist2(p.pos[v], P3{s[0] + t * d[0], s[1] + t * d[1], s[2] + t * d[2]});
-            if (d2 <= best) best = d2, along = (part ? first : 0.0) + t * std::sqrt(len2);
+            const P3& s = part ? limb.k : limb.a;
+            const P3& e = part ? limb.b : limb.k;
+            const double t = share_along(p.pos[v], s, e), d2 = dist2(p.pos[v], lerp(s, e, t));
+            if (d2 <= best) best = d2, along = (part ? first : 0.0) + t * norm(sub(e, s));
         }
         if (along < from || along > to) continue;
         const int b = std::min(n - 1, static_cast<int>((along - from) / slab));
@@ -238,7 +236,6 @@ Section limb_section(const Patch& p, const Limb& limb, double radius, double sla
     }
     s.found = true;
     s.centre = bins_centroid(p, bin, lo, hi);
-    s.t = limb.from * length + (0.5 * (lo + hi) + 0.5) * slab;
     return s;
 }
 

@@ -68,41 +68,6 @@ Components kept_cores(const Grid& g, const std::uint8_t* bone, const BoneParams&
     return c;
 }
 
-/// The bone's bounding box grown by a voxel of background on every side, copied out (0/1 bytes).
-struct Crop {
-    Grid grid;
-    std::array<std::int64_t, 3> lo{};  ///< the crop's voxel (0, 0, 0) in the full grid (may be -1)
-    std::vector<std::uint8_t> bone;
-};
-
-Crop crop_of(const Grid& g, const std::uint8_t* bone) {
-    std::array<std::int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
-    for (std::int64_t z = 0; z < g.dims[2]; ++z)
-        for (std::int64_t y = 0; y < g.dims[1]; ++y) {
-            const std::uint8_t* row = bone + g.index(0, y, z);
-            for (std::int64_t x = 0; x < g.dims[0]; ++x)
-                if (row[x]) {
-                    const std::array<std::int64_t, 3> v{x, y, z};
-                    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
-                }
-        }
-    if (hi[0] < 0) throw Error("bone segments: the bone mask is empty (no bone voxels to rig from)");
-    Crop c;
-    c.grid = g;
-    for (int a = 0; a < 3; ++a) {
-        c.lo[a] = lo[a] - 1;
-        c.grid.dims[a] = hi[a] - lo[a] + 3;
-        c.grid.origin[a] = g.origin[a] + g.spacing[a] * static_cast<double>(c.lo[a]);
-    }
-    c.bone.assign(static_cast<std::size_t>(c.grid.voxel_count()), 0);
-    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
-        for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
-            for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
-                c.bone[static_cast<std::size_t>(c.grid.index(x - c.lo[0], y - c.lo[1], z - c.lo[2]))] =
-                    bone[g.index(x, y, z)] != 0;
-    return c;
-}
-
 /// Labels on the crop placed back on the full grid (0 outside the crop).
 std::vector<std::int32_t> uncropped(const Grid& g, const Crop& c, const std::vector<std::int32_t>& labels) {
     std::vector<std::int32_t> out(static_cast<std::size_t>(g.voxel_count()), 0);
@@ -116,6 +81,34 @@ std::vector<std::int32_t> uncropped(const Grid& g, const Crop& c, const std::vec
 
 }  // namespace
 
+Crop crop_of(const Grid& g, const std::uint8_t* bone, const std::array<std::int64_t, 3>& pad) {
+    std::array<std::int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
+    for (std::int64_t z = 0; z < g.dims[2]; ++z)
+        for (std::int64_t y = 0; y < g.dims[1]; ++y) {
+            const std::uint8_t* row = bone + g.index(0, y, z);
+            for (std::int64_t x = 0; x < g.dims[0]; ++x)
+                if (row[x]) {
+                    const std::array<std::int64_t, 3> v{x, y, z};
+                    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
+                }
+        }
+    if (hi[0] < 0) throw Error("bone: the bone mask is empty (no bone voxels to rig from)");
+    Crop c;
+    c.grid = g;
+    for (int a = 0; a < 3; ++a) {
+        c.lo[a] = lo[a] - pad[a];
+        c.grid.dims[a] = hi[a] - lo[a] + 1 + 2 * pad[a];
+        c.grid.origin[a] = g.origin[a] + g.spacing[a] * static_cast<double>(c.lo[a]);
+    }
+    c.bone.assign(static_cast<std::size_t>(c.grid.voxel_count()), 0);
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+                c.bone[static_cast<std::size_t>(c.grid.index(x - c.lo[0], y - c.lo[1], z - c.lo[2]))] =
+                    bone[g.index(x, y, z)] != 0;
+    return c;
+}
+
 }  // namespace volrig::rig_detail
 
 namespace volrig {
@@ -123,7 +116,7 @@ namespace volrig {
 BoneSegments bone_segments(const Grid& grid, const std::uint8_t* bone, const BoneRigOptions& opt) {
     using namespace rig_detail;
     const BoneParams p = bone_params(grid, opt);
-    const Crop crop = crop_of(grid, bone);  // the bone's box and a voxel round it: a whole body's bone is 40% less
+    const Crop crop = crop_of(grid, bone, {1, 1, 1});  // the bone's box and a voxel round it: a whole body's bone is 40% less
     Components cores = kept_cores(crop.grid, crop.bone.data(), p);
     if (cores.sizes.empty())
         throw Error("bone segments: no bone is thicker than the opening (" + std::to_string(p.erode_steps) +
