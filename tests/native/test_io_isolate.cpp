@@ -9,6 +9,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -119,4 +120,27 @@ TEST_CASE("isolated_volume: a volume larger than the pipe's buffer arrives whole
     bool same = true;
     for (std::size_t i = 0; i < v.data.size(); ++i) same = same && v.data[i] == static_cast<std::uint8_t>(i % 253);
     CHECK(same);
+}
+
+TEST_CASE("isolated_volume: a decoder asking for far more memory than the file's budget fails at once", "[io][isolate]") {
+    // OpenVDB reads a string of any length a corrupt file claims (fuzz_vdb found 1.7 GB): the child may map three
+    // times the budget plus 256 MiB, so it fails instead of filling memory for minutes.
+    CHECK(io_detail::decoder_memory(std::uint64_t(64) << 20) == (std::uint64_t(448) << 20));
+    CHECK(io_detail::decoder_memory(std::numeric_limits<std::uint64_t>::max()) == 0);
+    ReadOptions opt;
+    opt.max_bytes = std::uint64_t(1) << 20;
+    opt.max_bytes_given = true;
+    const auto greedy = [](const ReadOptions&) -> Volume {
+        std::string claimed(std::size_t(4) << 30, ' ');  // 4 GiB, as a corrupt header claims
+        Volume v = small_volume();
+        v.data[0] = static_cast<std::uint8_t>(claimed[claimed.size() / 2]);
+        return v;
+    };
+    const std::string m = message_of([&] { io_detail::isolated_volume("big.vdb", "OpenVDB's reader", opt, greedy); });
+    CHECK(m.rfind("big.vdb: ", 0) == 0);
+    // Without sanitizers std::bad_alloc comes back as the budget's message; AddressSanitizer's allocator aborts
+    // the child instead, which is a crash on this file.
+    CHECK((m.find("needed more than the 259 MiB this file may use") != std::string::npos ||
+           m.find("crashed on this file") != std::string::npos));
+    CHECK_THROWS_AS(io_detail::isolated_volume("big.vdb", "OpenVDB's reader", opt, greedy), FileFormatError);
 }

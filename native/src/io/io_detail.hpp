@@ -225,10 +225,15 @@ private:
 /// volrig errors are rethrown here as the same class; a child that dies (a failed assertion, a segfault) becomes
 /// FileFormatError("<name>: <doing> crashed on this file (killed by signal 6 (Aborted)): ..."). `warn` gets the
 /// child's warnings (may be empty). For decoders that abort or corrupt memory on broken input (GDCM's JPEG
-/// family, OpenVDB).
-void run_isolated(const std::string& name, const std::string& doing, const std::function<void(IsolatedOutput&)>& work,
+/// family, OpenVDB). The child may map at most `memory` bytes of data beyond what it holds at the fork (0: no cap;
+/// decoder_memory); a decoder that needs more fails at once, as FileFormatError when it throws std::bad_alloc.
+void run_isolated(const std::string& name, const std::string& doing, std::uint64_t memory,
+                  const std::function<void(IsolatedOutput&)>& work,
                   const std::function<void(IsolatedInput&)>& receive,
                   const std::function<void(const std::string&)>& warn = {});
+/// The memory a decoder may use for a file of budget `max_bytes`: three times it (the result, the decoder's own
+/// copy, slack) plus 256 MiB; 0 (no cap) for a budget too large to triple.
+std::uint64_t decoder_memory(std::uint64_t max_bytes);
 /// A volume decoded by `decode` in a child process (run_isolated); its warnings go to opt.warn.
 Volume isolated_volume(const std::string& name, const std::string& doing, const ReadOptions& opt,
                        const std::function<Volume(const ReadOptions&)>& decode);

@@ -8,6 +8,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -17,6 +18,8 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <limits>
 #include <string>
 
 #include "io/io_detail.hpp"
@@ -61,11 +64,35 @@ void send_text(int fd, char tag, const std::string& full) {
     if (!write_all(fd, &tag, 1) || !write_all(fd, &n, sizeof n) || !write_all(fd, text.data(), text.size())) _exit(3);
 }
 
+// The child's data memory now (VmData of /proc/self/status, bytes; 0 when unknown).
+std::uint64_t data_memory() {
+    std::ifstream status("/proc/self/status");
+    std::string key;
+    std::uint64_t kb = 0;
+    while (status >> key) {
+        if (key == "VmData:" && status >> kb) return kb * 1024;
+        status.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+    }
+    return 0;
+}
+
+// Lets the child map at most `more` bytes of data beyond what it holds (RLIMIT_DATA): a file that claims a string
+// or a grid of gigabytes then fails at once instead of filling memory for minutes. 0: no cap.
+void cap_memory(std::uint64_t more) {
+    const std::uint64_t now = data_memory();
+    if (more == 0 || now == 0) return;
+    const rlim_t cap = static_cast<rlim_t>(now + more);
+    const rlimit limit{cap, cap};
+    ::setrlimit(RLIMIT_DATA, &limit);
+}
+
 // The child: runs `work`, sends its outcome, and leaves without unwinding into the caller's frames.
-[[noreturn]] void child_main(int fd, const std::function<void(IsolatedOutput&)>& work) {
+[[noreturn]] void child_main(int fd, const std::string& name, std::uint64_t memory,
+                             const std::function<void(IsolatedOutput&)>& work) {
     // A crash must end the child plainly: not in the parent's handlers (Python's faulthandler, Blender's crash
     // report, a test framework's), which would report it as the parent's own.
     for (int sig : {SIGPIPE, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS}) ::signal(sig, SIG_DFL);
+    cap_memory(memory);
     try {
         IsolatedOutput out(fd);
         // One thread: the parent's TBB workers do not exist in the child.
@@ -77,7 +104,10 @@ void send_text(int fd, char tag, const std::string& full) {
     } catch (const FileFormatError& e) {
         send_text(fd, kFailure, std::string(1, kFormat) + e.what());
     } catch (const std::bad_alloc&) {
-        send_text(fd, kFailure, std::string(1, kOther) + "out of memory");
+        send_text(fd, kFailure, memory ? kFormat + name + ": the decoder needed more than the " +
+                                             std::to_string(memory >> 20) + " MiB this file may use (three times "
+                                             "its size budget: max_bytes, or $VOLRIG_MAX_BYTES)"
+                                       : kOther + name + ": out of memory");
     } catch (const std::exception& e) {
         send_text(fd, kFailure, std::string(1, kOther) + e.what());
     }
@@ -141,7 +171,12 @@ void IsolatedOutput::more(const void* data, std::size_t n) {
 
 bool IsolatedInput::read(void* data, std::size_t n) { return read_all(fd_, data, n); }
 
-void run_isolated(const std::string& name, const std::string& doing,
+std::uint64_t decoder_memory(std::uint64_t max_bytes) {
+    const std::uint64_t most = std::numeric_limits<std::uint64_t>::max() / 4;
+    return max_bytes >= most ? 0 : 3 * max_bytes + (std::uint64_t(256) << 20);
+}
+
+void run_isolated(const std::string& name, const std::string& doing, std::uint64_t memory,
                   const std::function<void(IsolatedOutput&)>& work,
                   const std::function<void(IsolatedInput&)>& receive,
                   const std::function<void(const std::string&)>& warn) {
@@ -159,7 +194,7 @@ void run_isolated(const std::string& name, const std::string& doing,
     if (pid == 0) {
         ::close(fds[0]);
         if (err >= 0) ::dup2(err, 2);
-        child_main(fds[1], work);
+        child_main(fds[1], name, memory, work);
     }
     ::close(fds[1]);
     const int fd = fds[0];
@@ -238,7 +273,7 @@ Volume isolated_volume(const std::string& name, const std::string& doing, const 
     if (const char* e = std::getenv("VOLRIG_ISOLATE"); e && std::strcmp(e, "0") == 0) return decode(opt);
     Volume v;
     run_isolated(
-        name, doing,
+        name, doing, decoder_memory(opt.max_bytes),
         [&](IsolatedOutput& out) {
             ReadOptions child = opt;
             child.warn = [&out](const std::string& w) { out.warn(w); };
