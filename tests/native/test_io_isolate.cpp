@@ -122,11 +122,24 @@ TEST_CASE("isolated_volume: a volume larger than the pipe's buffer arrives whole
     CHECK(same);
 }
 
+TEST_CASE("decoder_limits: memory and CPU time from the file's budget", "[io][isolate]") {
+    const io_detail::ChildLimits fuzz = io_detail::decoder_limits(std::uint64_t(64) << 20);
+    CHECK(fuzz.memory == (std::uint64_t(448) << 20));
+    CHECK(fuzz.cpu_seconds == 8);  // 5 + 67 MB at 20 MB/s
+    CHECK(io_detail::decoder_limits(std::numeric_limits<std::uint64_t>::max()).memory == 0);
+    CHECK(io_detail::decoder_limits(std::numeric_limits<std::uint64_t>::max()).cpu_seconds == 0);
+    // A file's budget (budget_of): 1 GB for a small file, unless max_bytes is given; a folder's is max_bytes.
+    const TempDir dir;
+    write_file(dir.path / "small.vdb", bytes("not a grid"));
+    const io_detail::ChildLimits small = io_detail::decoder_limits((dir.path / "small.vdb").string(), ReadOptions{});
+    CHECK(small.memory == 3 * io_detail::kBudgetFloor + (std::uint64_t(256) << 20));
+    CHECK(small.cpu_seconds == 55);
+    CHECK(io_detail::decoder_limits(dir.path.string(), ReadOptions{}).memory ==
+          io_detail::decoder_limits(ReadOptions{}.max_bytes).memory);
+}
+
 TEST_CASE("isolated_volume: a decoder asking for far more memory than the file's budget fails at once", "[io][isolate]") {
-    // OpenVDB reads a string of any length a corrupt file claims (fuzz_vdb found 1.7 GB): the child may map three
-    // times the budget plus 256 MiB, so it fails instead of filling memory for minutes.
-    CHECK(io_detail::decoder_memory(std::uint64_t(64) << 20) == (std::uint64_t(448) << 20));
-    CHECK(io_detail::decoder_memory(std::numeric_limits<std::uint64_t>::max()) == 0);
+    // OpenVDB reads a string of any length a corrupt file claims (fuzz_vdb found 1.7 GB).
     ReadOptions opt;
     opt.max_bytes = std::uint64_t(1) << 20;
     opt.max_bytes_given = true;
@@ -143,4 +156,15 @@ TEST_CASE("isolated_volume: a decoder asking for far more memory than the file's
     CHECK((m.find("needed more than the 259 MiB this file may use") != std::string::npos ||
            m.find("crashed on this file") != std::string::npos));
     CHECK_THROWS_AS(io_detail::isolated_volume("big.vdb", "OpenVDB's reader", opt, greedy), FileFormatError);
+}
+
+TEST_CASE("run_isolated: a decoder that runs past its CPU time is stopped", "[io][isolate]") {
+    // fuzz_vdb found a 10 KB file on which OpenVDB's topology reader loops for minutes.
+    const std::string m = message_of([] {
+        io_detail::run_isolated("loop.vdb", "OpenVDB's reader", {0, 1}, [](io_detail::IsolatedOutput&) {
+            volatile std::uint64_t n = 0;
+            for (;;) n = n + 1;
+        }, [](io_detail::IsolatedInput&) {});
+    });
+    CHECK(m.rfind("loop.vdb: OpenVDB's reader crashed on this file (killed by signal 24", 0) == 0);
 }

@@ -129,6 +129,9 @@ constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
 constexpr std::uint64_t kBudgetRatio = 1000;
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
                   const std::string& what);
+/// The most a file of `file_bytes` may demand: opt.max_bytes, and while the file budget applies (no max_bytes given,
+/// no $VOLRIG_MAX_BYTES) at most the larger of kBudgetFloor and kBudgetRatio times the file.
+std::uint64_t budget_of(std::uint64_t file_bytes, const ReadOptions& opt);
 /// The smallest and largest finite values among n elements of type t (lo > hi when there are none).
 void finite_range(DType t, const std::uint8_t* p, std::size_t n, double& lo, double& hi);
 /// The element type a rescaled volume (value * slope + inter) needs: float32 when every result fits it, else
@@ -225,15 +228,26 @@ private:
 /// volrig errors are rethrown here as the same class; a child that dies (a failed assertion, a segfault) becomes
 /// FileFormatError("<name>: <doing> crashed on this file (killed by signal 6 (Aborted)): ..."). `warn` gets the
 /// child's warnings (may be empty). For decoders that abort or corrupt memory on broken input (GDCM's JPEG
-/// family, OpenVDB). The child may map at most `memory` bytes of data beyond what it holds at the fork (0: no cap;
-/// decoder_memory); a decoder that needs more fails at once, as FileFormatError when it throws std::bad_alloc.
-void run_isolated(const std::string& name, const std::string& doing, std::uint64_t memory,
+/// family, OpenVDB). The child is held to `limits` (decoder_limits): a decoder that needs more memory fails at once
+/// (FileFormatError when it throws std::bad_alloc), one that runs longer is stopped ("killed by signal 24 (CPU time
+/// limit exceeded)").
+struct ChildLimits {
+    std::uint64_t memory = 0;       ///< bytes of data the child may map beyond what it holds at the fork (0: no cap)
+    std::uint64_t cpu_seconds = 0;  ///< CPU seconds it may use (0: no cap)
+};
+void run_isolated(const std::string& name, const std::string& doing, const ChildLimits& limits,
                   const std::function<void(IsolatedOutput&)>& work,
                   const std::function<void(IsolatedInput&)>& receive,
                   const std::function<void(const std::string&)>& warn = {});
-/// The memory a decoder may use for a file of budget `max_bytes`: three times it (the result, the decoder's own
-/// copy, slack) plus 256 MiB; 0 (no cap) for a budget too large to triple.
-std::uint64_t decoder_memory(std::uint64_t max_bytes);
+/// What a decoder may use for a file whose budget (budget_of) is `budget`: three times it in memory (the result,
+/// the decoder's own copy, slack) plus 256 MiB, and kDecodeSecondsFloor CPU seconds plus one per
+/// kDecodeBytesPerSecond of budget (decoders run at 100 MB/s or more, about 5 times slower under sanitizers); no
+/// cap for a budget too large to triple.
+constexpr std::uint64_t kDecodeSecondsFloor = 5;
+constexpr std::uint64_t kDecodeBytesPerSecond = 20000000;
+ChildLimits decoder_limits(std::uint64_t budget);
+/// decoder_limits for the file or folder `path` read with `opt`: a regular file's budget_of, a folder's max_bytes.
+ChildLimits decoder_limits(const std::string& path, const ReadOptions& opt);
 /// A volume decoded by `decode` in a child process (run_isolated); its warnings go to opt.warn.
 Volume isolated_volume(const std::string& name, const std::string& doing, const ReadOptions& opt,
                        const std::function<Volume(const ReadOptions&)>& decode);

@@ -9,6 +9,7 @@
 #include <signal.h>
 #include <sys/mman.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -76,23 +77,28 @@ std::uint64_t data_memory() {
     return 0;
 }
 
-// Lets the child map at most `more` bytes of data beyond what it holds (RLIMIT_DATA): a file that claims a string
-// or a grid of gigabytes then fails at once instead of filling memory for minutes. 0: no cap.
-void cap_memory(std::uint64_t more) {
+// Holds the child to `limits` (setrlimit): RLIMIT_DATA at what it maps now plus limits.memory, so a file claiming a
+// string or a grid of gigabytes fails at once instead of filling memory for minutes; RLIMIT_CPU at
+// limits.cpu_seconds, so a decoder looping over a corrupt tree is stopped (SIGXCPU). A 0 leaves that one unlimited.
+void limit_child(const ChildLimits& limits) {
     const std::uint64_t now = data_memory();
-    if (more == 0 || now == 0) return;
-    const rlim_t cap = static_cast<rlim_t>(now + more);
-    const rlimit limit{cap, cap};
-    ::setrlimit(RLIMIT_DATA, &limit);
+    if (limits.memory > 0 && now > 0) {
+        const rlimit data{static_cast<rlim_t>(now + limits.memory), static_cast<rlim_t>(now + limits.memory)};
+        ::setrlimit(RLIMIT_DATA, &data);
+    }
+    if (limits.cpu_seconds > 0) {
+        const rlimit cpu{static_cast<rlim_t>(limits.cpu_seconds), static_cast<rlim_t>(limits.cpu_seconds + 5)};
+        ::setrlimit(RLIMIT_CPU, &cpu);
+    }
 }
 
 // The child: runs `work`, sends its outcome, and leaves without unwinding into the caller's frames.
-[[noreturn]] void child_main(int fd, const std::string& name, std::uint64_t memory,
+[[noreturn]] void child_main(int fd, const std::string& name, const ChildLimits& limits,
                              const std::function<void(IsolatedOutput&)>& work) {
     // A crash must end the child plainly: not in the parent's handlers (Python's faulthandler, Blender's crash
     // report, a test framework's), which would report it as the parent's own.
-    for (int sig : {SIGPIPE, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS}) ::signal(sig, SIG_DFL);
-    cap_memory(memory);
+    for (int sig : {SIGPIPE, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS, SIGXCPU}) ::signal(sig, SIG_DFL);
+    limit_child(limits);
     try {
         IsolatedOutput out(fd);
         // One thread: the parent's TBB workers do not exist in the child.
@@ -104,10 +110,10 @@ void cap_memory(std::uint64_t more) {
     } catch (const FileFormatError& e) {
         send_text(fd, kFailure, std::string(1, kFormat) + e.what());
     } catch (const std::bad_alloc&) {
-        send_text(fd, kFailure, memory ? kFormat + name + ": the decoder needed more than the " +
-                                             std::to_string(memory >> 20) + " MiB this file may use (three times "
-                                             "its size budget: max_bytes, or $VOLRIG_MAX_BYTES)"
-                                       : kOther + name + ": out of memory");
+        send_text(fd, kFailure, limits.memory ? kFormat + name + ": the decoder needed more than the " +
+                                                    std::to_string(limits.memory >> 20) + " MiB this file may use "
+                                                    "(three times its size budget: max_bytes, or $VOLRIG_MAX_BYTES)"
+                                              : kOther + name + ": out of memory");
     } catch (const std::exception& e) {
         send_text(fd, kFailure, std::string(1, kOther) + e.what());
     }
@@ -171,12 +177,18 @@ void IsolatedOutput::more(const void* data, std::size_t n) {
 
 bool IsolatedInput::read(void* data, std::size_t n) { return read_all(fd_, data, n); }
 
-std::uint64_t decoder_memory(std::uint64_t max_bytes) {
-    const std::uint64_t most = std::numeric_limits<std::uint64_t>::max() / 4;
-    return max_bytes >= most ? 0 : 3 * max_bytes + (std::uint64_t(256) << 20);
+ChildLimits decoder_limits(std::uint64_t budget) {
+    if (budget >= std::numeric_limits<std::uint64_t>::max() / 4) return {};
+    return {3 * budget + (std::uint64_t(256) << 20), kDecodeSecondsFloor + budget / kDecodeBytesPerSecond};
 }
 
-void run_isolated(const std::string& name, const std::string& doing, std::uint64_t memory,
+ChildLimits decoder_limits(const std::string& path, const ReadOptions& opt) {
+    struct stat st {};
+    const bool file = ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+    return decoder_limits(file ? budget_of(static_cast<std::uint64_t>(st.st_size), opt) : opt.max_bytes);
+}
+
+void run_isolated(const std::string& name, const std::string& doing, const ChildLimits& limits,
                   const std::function<void(IsolatedOutput&)>& work,
                   const std::function<void(IsolatedInput&)>& receive,
                   const std::function<void(const std::string&)>& warn) {
@@ -194,7 +206,7 @@ void run_isolated(const std::string& name, const std::string& doing, std::uint64
     if (pid == 0) {
         ::close(fds[0]);
         if (err >= 0) ::dup2(err, 2);
-        child_main(fds[1], name, memory, work);
+        child_main(fds[1], name, limits, work);
     }
     ::close(fds[1]);
     const int fd = fds[0];
@@ -273,7 +285,7 @@ Volume isolated_volume(const std::string& name, const std::string& doing, const 
     if (const char* e = std::getenv("VOLRIG_ISOLATE"); e && std::strcmp(e, "0") == 0) return decode(opt);
     Volume v;
     run_isolated(
-        name, doing, decoder_memory(opt.max_bytes),
+        name, doing, decoder_limits(name, opt),
         [&](IsolatedOutput& out) {
             ReadOptions child = opt;
             child.warn = [&out](const std::string& w) { out.warn(w); };

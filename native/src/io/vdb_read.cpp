@@ -451,7 +451,7 @@ std::vector<VdbGridInfo> vdb_grids(const std::string& path) {
         if (n && !in.read(&t[0], t.size())) io_detail::fail(path, "OpenVDB's reader stopped");
     };
     io_detail::run_isolated(
-        path, "OpenVDB's reader", io_detail::decoder_memory(ReadOptions{}.max_bytes),
+        path, "OpenVDB's reader", io_detail::decoder_limits(path, ReadOptions{}),
         [&](io_detail::IsolatedOutput& o) {
             const std::vector<VdbGridInfo> all = grids_here(path);
             const std::uint64_t n = all.size();

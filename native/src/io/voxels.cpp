@@ -24,12 +24,29 @@ std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std:
     return static_cast<std::uint64_t>(g.voxel_count()) * dtype_size(t);
 }
 
+namespace {
+
+// Whether the file budget applies: the caller chose no max_bytes, and $VOLRIG_MAX_BYTES chose none for the process.
+bool budget_applies(const ReadOptions& opt) {
+    const char* env = std::getenv("VOLRIG_MAX_BYTES");
+    return !opt.max_bytes_given && !(env && *env);
+}
+
+// kBudgetRatio times the file (saturating), at least kBudgetFloor.
+std::uint64_t file_allowance(std::uint64_t file_bytes) {
+    const bool huge = file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio;
+    return std::max(kBudgetFloor, huge ? std::numeric_limits<std::uint64_t>::max() : file_bytes * kBudgetRatio);
+}
+
+}  // namespace
+
+std::uint64_t budget_of(std::uint64_t file_bytes, const ReadOptions& opt) {
+    return budget_applies(opt) ? std::min(opt.max_bytes, file_allowance(file_bytes)) : opt.max_bytes;
+}
+
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
                   const std::string& what) {
-    if (opt.max_bytes_given || demand <= kBudgetFloor) return;
-    if (file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio || demand <= file_bytes * kBudgetRatio)
-        return;
-    if (const char* env = std::getenv("VOLRIG_MAX_BYTES"); env && *env) return;  // chosen for the process
+    if (demand <= file_allowance(file_bytes) || !budget_applies(opt)) return;
     fail(name, what + " need " + with_commas(demand) + " bytes from a file of " + with_commas(file_bytes) +
                    " bytes: more than 1 GB and more than " + with_commas(kBudgetRatio) +
                    " times the file, so it is refused as broken or hostile; if the file is right, allow it with "
