@@ -26,7 +26,7 @@ struct LimbJoint {
 };
 constexpr LimbJoint kLimbJoints[] = {
     {"forearm", "upper_arm", "elbow", false, "", 0.56}, {"upper_arm", "", "shoulder", true, "forearm", 0},
-    {"hand", "forearm", "wrist", false, "", 0},         {"shin", "thigh", "knee", false, "", 0.5},
+    {"hand", "forearm", "wrist", false, "", 0.575},         {"shin", "thigh", "knee", false, "", 0.5},
     {"thigh", "", "hip", true, "shin", 0},              {"foot", "shin", "ankle", false, "", 0.69},
 };
 
@@ -133,6 +133,9 @@ private:
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
     bool place_in_limb(BoneJoint& j, int pb, int cb, double along);
     bool hidden_in_parent(BoneJoint& j, int pb, int cb, double along);
+    /// Whether the outer shape's joint between bones pb and cb lies further than kLimbBand from the share `along`
+    /// the limb's proportions put it at (never when along is 0: no share known).
+    bool off_proportion(int pb, int cb, double along) const;
     double slab_along(const P3& axis) const;
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
@@ -175,8 +178,9 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
-    else if (j.parent_segment == j.child_segment)
-        done = place_in_section(j, pb, cb, w) || (lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
+    else if (j.parent_segment == j.child_segment)  // near the outer shape's joint unless that is far off
+        done = (!off_proportion(pb, cb, lj.along) && place_in_section(j, pb, cb, w)) ||
+               (lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
     else  // a child without a segment of its own: whatever meets the parent
         done = place_hinge(j, pb, cb, w) || (lj.along > 0 && hidden_in_parent(j, pb, cb, lj.along)) ||
                reseed_hinge(j, pb, cb, w);
@@ -216,11 +220,15 @@ constexpr double kLimbRadius = 60.0, kLimbBand = 0.15;
 /// part them there: the humerus fused with the top of the forearm), where the bones show no contact near the outer
 /// shape's joint, itself where the limb's proportions put it: the joint is sought inside the parent's segment along
 /// the limb (place_in_limb).
+bool Fitter::off_proportion(int pb, int cb, double along) const {
+    const double upper = length(pb), share = upper / std::max(upper + length(cb), 1e-9);
+    return along > 0 && std::abs(share - along) > kLimbBand;
+}
+
 bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
     // Only where the outer shape's joint sits where the limb's proportions put it: a joint far off (a knee guessed
     // 15 cm too high sits inside the femur) is the reseed's to repair.
-    const double upper = length(pb), share = upper / std::max(upper + length(cb), 1e-9);
-    if (std::abs(share - along) > kLimbBand || segment_along(cb, 0.05, 0.3) != j.parent_segment) return false;
+    if (off_proportion(pb, cb, along) || segment_along(cb, 0.05, 0.3) != j.parent_segment) return false;
     const std::int32_t child = j.child_segment;
     j.child_segment = j.parent_segment;
     if (place_in_limb(j, pb, cb, along)) return true;
