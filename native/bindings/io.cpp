@@ -52,9 +52,10 @@ void bind_readers(py::module_& m) {
         "dicom_series",
         [](const std::string& path) {
             std::vector<DicomSeriesInfo> all;
+            std::vector<std::string> warnings;
             {
                 py::gil_scoped_release release;
-                all = dicom_series(path);
+                all = dicom_series(path, [&warnings](const std::string& w) { warnings.push_back(w); });
             }
             py::list out;
             for (const DicomSeriesInfo& s : all) {
@@ -68,11 +69,11 @@ void bind_readers(py::module_& m) {
                 d["files"] = files;
                 out.append(d);
             }
-            return out;
+            return py::make_tuple(out, py::cast(warnings));
         },
         py::arg("path"),
-        "The DICOM image series under a folder, DICOMDIR or file, the largest first: dicts with uid, description, "
-        "modality, dims (columns, rows, slices) and files.");
+        "The DICOM image series under a folder, DICOMDIR or file, the largest first: (dicts with uid, description, "
+        "modality, dims (columns, rows, slices) and files; what the folder walk skipped, as warnings).");
 
     m.def(
         "read_raw",

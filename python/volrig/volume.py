@@ -288,8 +288,12 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
 
 def dicom_series(path: str) -> list:
     """The DICOM image series under a folder, DICOMDIR or file, the largest first: dicts with ``uid``,
-    ``description``, ``modality``, ``dims`` (columns, rows, slices) and ``files``."""
-    return _volrig.dicom_series(_native_path(path)[1])
+    ``description``, ``modality``, ``dims`` (columns, rows, slices) and ``files``. What the folder walk skipped
+    (dangling links, FIFOs, sockets, link loops, unreadable folders) is told as warnings, as ``load`` tells it."""
+    series, said = _volrig.dicom_series(_native_path(path)[1])
+    for w in said:
+        warnings.warn(w, stacklevel=2)
+    return series
 
 
 def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()) -> None:

@@ -348,6 +348,11 @@ def test_dicom_folder_with_dangling_link_fifo_socket_and_loops(tmp_path):
     with pytest.warns(UserWarning, match="skipped"):
         v = volrig.load(str(folder))
     np.testing.assert_array_equal(v.array, pixels.astype(np.int32) - 1024)
+    with pytest.warns(UserWarning) as told:  # listing the series tells the same
+        listed = volrig.dicom_series(str(folder))
+    assert [len(x["files"]) for x in listed] == [4]
+    assert f"{folder}/b_fifo: a FIFO, not a file; skipped" in [str(w.message) for w in told]
+    assert f"{folder}/loop2: a folder already scanned (a link loop?); skipped" in [str(w.message) for w in told]
 
 
 def test_a_link_to_another_folder_is_followed_once(tmp_path):

@@ -93,8 +93,10 @@ struct DicomSeriesInfo {
     std::array<std::int64_t, 3> dims{0, 0, 0};  ///< columns, rows, slices (frames of a single multi-frame file)
     std::vector<std::string> files;
 };
-/// The image series under a folder / DICOMDIR / file, the largest first.
-std::vector<DicomSeriesInfo> dicom_series(const std::string& path);
+/// The image series under a folder / DICOMDIR / file, the largest first. `warn` hears what the folder walk skipped
+/// (dangling links, FIFOs, sockets, link loops, unreadable folders), as read_dicom's opt.warn does.
+std::vector<DicomSeriesInfo> dicom_series(const std::string& path,
+                                          const std::function<void(const std::string&)>& warn = {});
 
 /// A TIFF stack (through libtiff): a multi-page TIFF file or a folder of TIFF files in natural order (slice2 before
 /// slice10), one page per slice. Single-channel 8/16/32-bit unsigned or signed integers or 32/64-bit floats;

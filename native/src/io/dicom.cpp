@@ -592,9 +592,9 @@ Volume read_dicom(const std::string& path, const ReadOptions& opt) {
     return read_series(path, choose_series(path, all, opt.series), opt);
 }
 
-std::vector<DicomSeriesInfo> dicom_series(const std::string& path) {
+std::vector<DicomSeriesInfo> dicom_series(const std::string& path, const std::function<void(const std::string&)>& warn) {
     std::vector<DicomSeriesInfo> out;
-    for (const Series& s : find_series(path, {})) {
+    for (const Series& s : find_series(path, warn)) {
         DicomSeriesInfo i;
         i.uid = s.uid;
         i.description = s.description;
