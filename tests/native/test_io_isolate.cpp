@@ -122,20 +122,25 @@ TEST_CASE("isolated_volume: a volume larger than the pipe's buffer arrives whole
     CHECK(same);
 }
 
-TEST_CASE("decoder_limits: memory and CPU time from the file's budget", "[io][isolate]") {
-    const io_detail::ChildLimits fuzz = io_detail::decoder_limits(std::uint64_t(64) << 20);
+TEST_CASE("decoder_limits: memory from the file's budget, CPU time from what it may hold", "[io][isolate]") {
+    const io_detail::ChildLimits fuzz = io_detail::decoder_limits(std::uint64_t(64) << 20, std::uint64_t(64) << 20);
     CHECK(fuzz.memory == (std::uint64_t(448) << 20));
     CHECK(fuzz.cpu_seconds == 8);  // 5 + 67 MB at 20 MB/s
-    CHECK(io_detail::decoder_limits(std::numeric_limits<std::uint64_t>::max()).memory == 0);
-    CHECK(io_detail::decoder_limits(std::numeric_limits<std::uint64_t>::max()).cpu_seconds == 0);
-    // A file's budget (budget_of): 1 GB for a small file, unless max_bytes is given; a folder's is max_bytes.
+    const std::uint64_t all = std::numeric_limits<std::uint64_t>::max();
+    CHECK(io_detail::decoder_limits(all, all).memory == 0);
+    CHECK(io_detail::decoder_limits(all, all).cpu_seconds == 0);
+    // A small file: 1 GB of budget (budget_of), but 1000 times its 10,000 bytes of work; a folder: max_bytes.
     const TempDir dir;
-    write_file(dir.path / "small.vdb", bytes("not a grid"));
+    write_file(dir.path / "small.vdb", Bytes(10000, 0));
     const io_detail::ChildLimits small = io_detail::decoder_limits((dir.path / "small.vdb").string(), ReadOptions{});
     CHECK(small.memory == 3 * io_detail::kBudgetFloor + (std::uint64_t(256) << 20));
-    CHECK(small.cpu_seconds == 55);
+    CHECK(small.cpu_seconds == 5);  // 5 + 10 MB at 20 MB/s, rounded down
+    ReadOptions given;
+    given.max_bytes = std::uint64_t(1) << 20;
+    given.max_bytes_given = true;
+    CHECK(io_detail::decoder_limits((dir.path / "small.vdb").string(), given).memory == (std::uint64_t(259) << 20));
     CHECK(io_detail::decoder_limits(dir.path.string(), ReadOptions{}).memory ==
-          io_detail::decoder_limits(ReadOptions{}.max_bytes).memory);
+          io_detail::decoder_limits(ReadOptions{}.max_bytes, 0).memory);
 }
 
 TEST_CASE("isolated_volume: a decoder asking for far more memory than the file's budget fails at once", "[io][isolate]") {

@@ -239,14 +239,15 @@ void run_isolated(const std::string& name, const std::string& doing, const Child
                   const std::function<void(IsolatedOutput&)>& work,
                   const std::function<void(IsolatedInput&)>& receive,
                   const std::function<void(const std::string&)>& warn = {});
-/// What a decoder may use for a file whose budget (budget_of) is `budget`: three times it in memory (the result,
-/// the decoder's own copy, slack) plus 256 MiB, and kDecodeSecondsFloor CPU seconds plus one per
-/// kDecodeBytesPerSecond of budget (decoders run at 100 MB/s or more, about 5 times slower under sanitizers); no
-/// cap for a budget too large to triple.
+/// What a decoder may use: three times the file's budget (budget_of) in memory (the result, the decoder's own copy,
+/// slack) plus 256 MiB; kDecodeSecondsFloor CPU seconds plus one per kDecodeBytesPerSecond of `work` (decoders run
+/// at 100 MB/s or more, about 5 times slower under sanitizers). A 0 (no cap) for values too large to triple.
 constexpr std::uint64_t kDecodeSecondsFloor = 5;
 constexpr std::uint64_t kDecodeBytesPerSecond = 20000000;
-ChildLimits decoder_limits(std::uint64_t budget);
-/// decoder_limits for the file or folder `path` read with `opt`: a regular file's budget_of, a folder's max_bytes.
+ChildLimits decoder_limits(std::uint64_t budget, std::uint64_t work);
+/// decoder_limits for the file or folder `path` read with `opt`. A regular file: its budget_of, and as work what it
+/// may hold at kBudgetRatio to 1 (not the 1 GB floor: a 10 KB file gets 5.5 s, so a decoder looping on a tiny
+/// hostile file stops within 10 s). A folder: max_bytes for both.
 ChildLimits decoder_limits(const std::string& path, const ReadOptions& opt);
 /// A volume decoded by `decode` in a child process (run_isolated); its warnings go to opt.warn.
 Volume isolated_volume(const std::string& name, const std::string& doing, const ReadOptions& opt,

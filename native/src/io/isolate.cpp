@@ -16,6 +16,7 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -177,15 +178,19 @@ void IsolatedOutput::more(const void* data, std::size_t n) {
 
 bool IsolatedInput::read(void* data, std::size_t n) { return read_all(fd_, data, n); }
 
-ChildLimits decoder_limits(std::uint64_t budget) {
-    if (budget >= std::numeric_limits<std::uint64_t>::max() / 4) return {};
-    return {3 * budget + (std::uint64_t(256) << 20), kDecodeSecondsFloor + budget / kDecodeBytesPerSecond};
+ChildLimits decoder_limits(std::uint64_t budget, std::uint64_t work) {
+    const std::uint64_t most = std::numeric_limits<std::uint64_t>::max() / 4;
+    return {budget >= most ? 0 : 3 * budget + (std::uint64_t(256) << 20),
+            work >= most ? 0 : kDecodeSecondsFloor + work / kDecodeBytesPerSecond};
 }
 
 ChildLimits decoder_limits(const std::string& path, const ReadOptions& opt) {
     struct stat st {};
-    const bool file = ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
-    return decoder_limits(file ? budget_of(static_cast<std::uint64_t>(st.st_size), opt) : opt.max_bytes);
+    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return decoder_limits(opt.max_bytes, opt.max_bytes);
+    const auto file = static_cast<std::uint64_t>(st.st_size);
+    const std::uint64_t budget = budget_of(file, opt);
+    const bool huge = file > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio;
+    return decoder_limits(budget, huge ? budget : std::min(budget, kBudgetRatio * file));
 }
 
 void run_isolated(const std::string& name, const std::string& doing, const ChildLimits& limits,
