@@ -129,6 +129,8 @@ constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
 constexpr std::uint64_t kBudgetRatio = 1000;
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
                   const std::string& what);
+/// kBudgetRatio times `file_bytes`, saturating: what the file may hold at that ratio.
+std::uint64_t ratio_allowance(std::uint64_t file_bytes);
 /// The most a file of `file_bytes` may demand: opt.max_bytes, and while the file budget applies (no max_bytes given,
 /// no $VOLRIG_MAX_BYTES) at most the larger of kBudgetFloor and kBudgetRatio times the file.
 std::uint64_t budget_of(std::uint64_t file_bytes, const ReadOptions& opt);

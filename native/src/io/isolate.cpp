@@ -189,8 +189,7 @@ ChildLimits decoder_limits(const std::string& path, const ReadOptions& opt) {
     if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return decoder_limits(opt.max_bytes, opt.max_bytes);
     const auto file = static_cast<std::uint64_t>(st.st_size);
     const std::uint64_t budget = budget_of(file, opt);
-    const bool huge = file > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio;
-    return decoder_limits(budget, huge ? budget : std::min(budget, kBudgetRatio * file));
+    return decoder_limits(budget, std::min(budget, ratio_allowance(file)));
 }
 
 void run_isolated(const std::string& name, const std::string& doing, const ChildLimits& limits,

@@ -32,13 +32,15 @@ bool budget_applies(const ReadOptions& opt) {
     return !opt.max_bytes_given && !(env && *env);
 }
 
-// kBudgetRatio times the file (saturating), at least kBudgetFloor.
-std::uint64_t file_allowance(std::uint64_t file_bytes) {
-    const bool huge = file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio;
-    return std::max(kBudgetFloor, huge ? std::numeric_limits<std::uint64_t>::max() : file_bytes * kBudgetRatio);
-}
+// ratio_allowance, at least kBudgetFloor.
+std::uint64_t file_allowance(std::uint64_t file_bytes) { return std::max(kBudgetFloor, ratio_allowance(file_bytes)); }
 
 }  // namespace
+
+std::uint64_t ratio_allowance(std::uint64_t file_bytes) {
+    const bool huge = file_bytes > std::numeric_limits<std::uint64_t>::max() / kBudgetRatio;
+    return huge ? std::numeric_limits<std::uint64_t>::max() : file_bytes * kBudgetRatio;
+}
 
 std::uint64_t budget_of(std::uint64_t file_bytes, const ReadOptions& opt) {
     return budget_applies(opt) ? std::min(opt.max_bytes, file_allowance(file_bytes)) : opt.max_bytes;
