@@ -45,6 +45,14 @@ void bind_medial(py::module_& m) {
             });
         },
         py::arg("mask"), py::arg("spacing"), py::arg("progress") = py::none());
+    m.def(
+        "local_thickness_from_dt",
+        [](const FloatArray& dt, const Vec3& spacing, const py::object& progress) {
+            return per_voxel(dt, spacing, progress, [](const Grid& g, const float* data, const Progress& p) {
+                return local_thickness_from_dt(g, data, p);
+            });
+        },
+        py::arg("dt"), py::arg("spacing"), py::arg("progress") = py::none());
 }
 
 }  // namespace volrig::py

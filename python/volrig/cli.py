@@ -288,6 +288,9 @@ def _inflate_command(sub) -> None:
     p.add_argument("--gap", type=int, default=0, help="voxels between a part drawn in front and what is behind it")
     p.add_argument("--resolution", type=int, help="downscale the drawing to about this many pixels along its "
                                                   "longer side first")
+    p.add_argument("--max-voxels", type=int, default=None,
+                   help="refuse a solid whose box holds more voxels (default 2^28; the error names the resolution "
+                        "that fits)")
 
 
 def _demo_command(sub) -> None:

@@ -564,11 +564,12 @@ def cmd_contacts(args) -> int:
 
 
 def cmd_inflate(args) -> int:
-    from .drawing import write_drawing_vdb
+    from .drawing import MAX_VOXELS, write_drawing_vdb
     _check_output(args.output, ".vdb", any_case=True)
     t = time.perf_counter()
     mask = write_drawing_vdb(args.output, args.drawing, pixel_size=args.pixel_size, depth_scale=args.depth_scale,
-                             stroke_width=args.stroke_width, gap=args.gap, resolution=args.resolution)
+                             stroke_width=args.stroke_width, gap=args.gap, resolution=args.resolution,
+                             max_voxels=args.max_voxels or MAX_VOXELS)
     x, y, z = mask.dims
     print(f"{args.drawing}: {int(mask.array.sum()):,} voxels in {x} x {y} x {z} (spacing {mask.spacing[0]:g}; up +z, "
           f"depth +y) with its colours, in {time.perf_counter() - t:.2f} s -> {args.output}")

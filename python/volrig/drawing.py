@@ -214,36 +214,19 @@ def in_front(labels: np.ndarray) -> List[int]:
 
 # ---- inflation --------------------------------------------------------------------------------------------------
 
-def local_radius(shape: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Per pixel of ``shape``: the radius of the largest inscribed disc covering it (discs centred on the 2-D
-    medial axis: pixels whose disc no neighbour's disc contains); ``dist`` is the distance to the outline."""
-    pad = np.pad(dist, 1)
-    medial = shape.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            if dy or dx:
-                q = pad[1 + dy:1 + dy + dist.shape[0], 1 + dx:1 + dx + dist.shape[1]]
-                medial &= q - dist < 0.999 * np.hypot(dy, dx)
-    radius = np.zeros_like(dist)
-    ys, xs = np.nonzero(medial)
-    order = np.argsort(dist[ys, xs], kind="stable")  # ascending radii: the largest disc is painted last
-    h, w = dist.shape
-    offsets = np.arange(-int(np.ceil(dist.max())), int(np.ceil(dist.max())) + 1)
-    squares = offsets * offsets
-    for y, x in zip(ys[order].tolist(), xs[order].tolist()):
-        r = dist[y, x]
-        k = int(np.ceil(r))
-        y0, y1, x0, x1 = max(y - k, 0), min(y + k + 1, h), max(x - k, 0), min(x + k + 1, w)
-        c = len(offsets) // 2
-        inside = squares[c + y0 - y:c + y1 - y, None] + squares[None, c + x0 - x:c + x1 - x] <= r * r
-        radius[y0:y1, x0:x1][inside] = r
-    return np.where(shape, np.maximum(radius, dist), 0.0)
+def local_radius(shape: np.ndarray, edt: np.ndarray) -> np.ndarray:
+    """Per pixel of ``shape``: the radius of the largest inscribed disc covering it, less half a pixel (the outline
+    lies half a pixel inside the nearest background pixel's centre); ``edt`` is the distance to that centre. The
+    native local thickness on a one-slice grid (discs are its balls; Hildebrand-Ruegsegger, time near-linear)."""
+    thick = np.asarray(_volrig.local_thickness_from_dt(edt.astype(np.float32)[None], (1.0, 1.0, 1.0)))[0]
+    return np.where(shape, np.maximum(thick / 2.0, edt) - 0.5, 0.0)
 
 
 def half_depth(shape: np.ndarray, depth_scale: float) -> np.ndarray:
     """depth_scale * sqrt(R^2 - (R - D)^2) over ``shape`` (0 outside), in pixels."""
-    dist = np.where(shape, ndi.distance_transform_edt(shape) - 0.5, 0.0)
-    r = local_radius(shape, dist)
+    edt = ndi.distance_transform_edt(shape)
+    dist = np.where(shape, edt - 0.5, 0.0)
+    r = local_radius(shape, edt)
     return depth_scale * np.sqrt(np.maximum(r * r - (r - dist) ** 2, 0.0)) * shape
 
 
@@ -289,7 +272,7 @@ def layers(labels: np.ndarray, depth_scale: float, gap: int) -> List[Layer]:
 class Drawing:
     """A drawing read and analysed, cropped to the figure and a margin: rgb (h, w, 3) float 0..1, the silhouette,
     its strokes and parts (labels 1..n), the pixel size after any downscaling, the crop's first row and column and
-    the whole image's row count (which place the crop in the frame: see the module docstring)."""
+    the whole image's row and column counts (which place the crop in the frame: see the module docstring)."""
     rgb: np.ndarray
     silhouette: np.ndarray
     strokes: np.ndarray
@@ -298,6 +281,7 @@ class Drawing:
     row0: int = 0
     col0: int = 0
     rows: int = 0
+    cols: int = 0
 
     def x_of(self, col):
         """World x of crop column(s) ``col``."""
@@ -327,7 +311,7 @@ def analyse(image, *, pixel_size: float = 1.0, stroke_width: float = 3.0, stroke
     rgb, fg = rgb[r0:r1, c0:c1], fg[r0:r1, c0:c1]                                       # away from the figure
     lines = strokes(rgb, fg, stroke_width, stroke_level)
     return Drawing(rgb, fg, lines, parts(fg, lines, stroke_width), float(pixel_size) * factor, int(r0), int(c0),
-                   int(a.shape[0]))
+                   int(a.shape[0]), int(a.shape[1]))
 
 
 def _depth_range(placed: List[Layer]):
@@ -336,8 +320,33 @@ def _depth_range(placed: List[Layer]):
     return lo - 1, hi + 1
 
 
+#: the largest solid ``inflate`` builds unless told (voxels of its box: 1 GiB of int32 labels); docs/drawing.md
+MAX_VOXELS = 2 ** 28
+
+
+def _check_size(shape, longer_side: int, max_voxels: int) -> None:
+    n = int(np.prod(shape, dtype=np.int64))
+    if n > max_voxels:
+        fits = int(longer_side * (max_voxels / n) ** (1 / 3))
+        raise VolrigError(f"the drawing inflates to a {shape[2]} x {shape[1]} x {shape[0]} solid ({n:,} voxels), "
+                          f"more than max_voxels={max_voxels:,}: pass resolution={fits} (or less) to downscale it, or "
+                          f"raise max_voxels")
+
+
+def _fill_layers(out: np.ndarray, y0: int, bounds) -> None:
+    """Writes each layer's label into ``out`` [z, y, x] (z from the top row down), later layers over earlier: voxel
+    y of column (z, x) is in a layer where lo <= y <= hi. One slice at a time: temporaries of one slice only."""
+    ys = np.arange(y0, y0 + out.shape[1], dtype=np.int32)[:, None]
+    nz = out.shape[0]
+    for z in range(nz):
+        dst = out[nz - 1 - z]
+        for label, lo, hi in bounds:
+            np.copyto(dst, label, where=(ys >= lo[z]) & (ys <= hi[z]), casting="unsafe")
+
+
 def inflate_parts(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, stroke_width: float = 3.0,
-                  stroke_level: float = 0.3, gap: int = 0, resolution: Optional[int] = None):
+                  stroke_level: float = 0.3, gap: int = 0, resolution: Optional[int] = None,
+                  max_voxels: int = MAX_VOXELS):
     """``inflate``'s solid as part labels: (int32 Volume [z, y, x], 0 empty, the base 1 and the front parts
     2.. in the order they were placed; the ``Drawing``)."""
     if not (np.isfinite(depth_scale) and depth_scale > 0):
@@ -350,20 +359,24 @@ def inflate_parts(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, s
     rows, cols = np.nonzero(d.silhouette)
     r0, r1, c0, c1 = rows.min() - 1, rows.max() + 2, cols.min() - 1, cols.max() + 2
     y0, y1 = _depth_range(placed)
-    ys = np.arange(y0, y1 + 1, dtype=np.float64)[None, :, None]
-    out = np.zeros((r1 - r0, ys.shape[1], c1 - c0), np.int32)
+    shape = (int(r1 - r0), int(y1 - y0 + 1), int(c1 - c0))
+    _check_size(shape, max(d.rows, d.cols), max_voxels)
+    bounds = []
     for i, layer in enumerate(placed, start=1):
-        half = np.full((d.silhouette.shape[0] + 2, d.silhouette.shape[1] + 2), -1.0)  # crops reach 1 pixel out
-        half[1:-1, 1:-1] = np.where(layer.shape, layer.half, -1.0)
-        h = half[r0 + 1:r1 + 1, c0 + 1:c1 + 1][:, None, :]
-        out[np.abs(ys - layer.centre) <= h] = i
+        extent = np.full((d.silhouette.shape[0] + 2, d.silhouette.shape[1] + 2), -1, np.int32)  # crops reach 1
+        extent[1:-1, 1:-1] = np.where(layer.shape, np.floor(layer.half), -1)                 # pixel out
+        e = extent[r0 + 1:r1 + 1, c0 + 1:c1 + 1]  # |y - centre| <= half  <=>  |y - centre| <= floor(half)
+        bounds.append((i, layer.centre - e, layer.centre + e))
+    out = np.zeros(shape, np.int32)
+    _fill_layers(out, y0, bounds)
     s = d.pixel_size
     origin = (float(d.x_of(c0)), y0 * s, float(d.z_of(r1 - 1)))
-    return Volume(out[::-1].copy(), (s, s, s), origin), d
+    return Volume(out, (s, s, s), origin), d
 
 
 def inflate(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, stroke_width: float = 3.0,
-            stroke_level: float = 0.3, gap: int = 0, resolution: Optional[int] = None) -> Volume:
+            stroke_level: float = 0.3, gap: int = 0, resolution: Optional[int] = None,
+            max_voxels: int = MAX_VOXELS) -> Volume:
     """A rounded solid (bool mask Volume) from one front-view drawing (see the module docstring).
 
     image:        a PNG path, or an (H, W), (H, W, 3) or (H, W, 4) array (uint8/uint16, bool, or float in 0..1).
@@ -372,9 +385,10 @@ def inflate(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, stroke_
     stroke_width: the widest inner line (pixels) that separates parts; stroke_level: how dark (luminance 0..1).
     gap:          empty voxels between a part drawn in front and what lies behind it (0: they touch).
     resolution:   downscale a large drawing to about this many pixels along its longer side first.
+    max_voxels:   refuse (VolrigError, naming the resolution that fits) a solid whose box holds more voxels.
     """
     labels, _ = inflate_parts(image, pixel_size=pixel_size, depth_scale=depth_scale, stroke_width=stroke_width,
-                              stroke_level=stroke_level, gap=gap, resolution=resolution)
+                              stroke_level=stroke_level, gap=gap, resolution=resolution, max_voxels=max_voxels)
     return labels.like(labels.array > 0)
 
 

@@ -82,6 +82,32 @@ TEST_CASE("local thickness equals the brute-force maximum over all balls", "[thi
     }
 }
 
+TEST_CASE("on one or two slices of a deep object, local thickness is the brute-force maximum", "[thickness]") {
+    // The DT of a deep object, and one or two of its slices as the grid (a drawing: one image, the DT of its
+    // extrusion): the balls reach far deeper than the grid, whose tables stop at its depth.
+    std::mt19937 rng(20261206);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int trial = 0; trial < 16; ++trial) {
+        const Grid deep = grid_of({28 + trial % 3 * 6, 32 - trial % 4 * 3, 30});
+        std::vector<std::uint8_t> m(static_cast<std::size_t>(deep.voxel_count()), 0);
+        for (int b = 0; b < 4; ++b) {
+            const double c[3] = {u(rng) * 30.0, u(rng) * 30.0, 8.0 + u(rng) * 14.0}, r = 3.0 + u(rng) * 11.0;
+            for (std::int64_t z = 0; z < deep.dims[2]; ++z)
+                for (std::int64_t y = 0; y < deep.dims[1]; ++y)
+                    for (std::int64_t x = 0; x < deep.dims[0]; ++x) {
+                        const double dx = double(x) - c[0], dy = double(y) - c[1], dz = double(z) - c[2];
+                        if (dx * dx + dy * dy + dz * dz < r * r) m[static_cast<std::size_t>(deep.index(x, y, z))] = 1;
+                    }
+        }
+        const auto all = distance_transform(deep, m.data(), Metric::Euclidean);
+        const Grid g = grid_of({deep.dims[0], deep.dims[1], 1 + trial % 2});
+        const auto from = all.begin() + deep.index(0, 0, 13);
+        const std::vector<float> dt(from, from + g.voxel_count());
+        INFO("trial " << trial << " dims " << g.dims[0] << "x" << g.dims[1] << "x" << g.dims[2]);
+        REQUIRE(local_thickness_from_dt(g, dt.data()) == brute_thickness(g, dt));
+    }
+}
+
 TEST_CASE("local thickness of plates is the plate's thickness within a voxel", "[thickness]") {
     for (int n : {1, 2, 3, 4, 5, 8, 11}) {
         for (double sz : {1.0, 0.5, 2.0}) {

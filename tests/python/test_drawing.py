@@ -239,6 +239,16 @@ def test_resolution_downscales():
     assert v.array.sum() * 8 == pytest.approx(volrig.inflate(big).array.sum(), rel=0.06)
 
 
+def test_a_solid_above_max_voxels_is_refused_with_the_resolution_that_fits():
+    big = K.disc(r=60)  # 140 px: a 123^3 box
+    with pytest.raises(volrig.VolrigError, match=r"inflates to a 12\d x 12\d x 12\d solid \(1,[\d,]+ voxels\), more "
+                                                 r"than max_voxels=500,000: pass resolution=(\d+)") as e:
+        volrig.inflate(big, max_voxels=500_000)
+    fits = int(e.value.args[0].split("resolution=")[1].split()[0])
+    v = volrig.inflate(big, resolution=fits, max_voxels=500_000)
+    assert 0 < int(np.prod(v.dims)) <= 500_000
+
+
 def test_cli_inflate(tmp_path):
     png, out = tmp_path / "quad.png", tmp_path / "quad.vdb"
     D.write_png(str(png), K.quadruped())

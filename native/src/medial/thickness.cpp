@@ -59,12 +59,17 @@ struct BallProfile {
     }
 };
 
+/// The rows of a ball of radius r as seen from inside the grid: no deeper than the grid has slices (a thin slab
+/// or one image, where balls are discs, needs only those rows). A clipped ball's reach is r (an upper bound: tests
+/// that use it stay true), and containment past the clip reads "outside" (containments are missed, never invented).
 BallProfile profile_of(double r, const Grid& g) {
     const double lim = open_ball_limit_sq(r);
     const auto& sp = g.spacing;
     BallProfile b;
     double far = 0.0;
-    const std::int64_t hz = ball_half_extent(r, sp[2], Metric::Euclidean);
+    const std::int64_t full = ball_half_extent(r, sp[2], Metric::Euclidean);
+    const std::int64_t hz = std::min(full, g.dims[2] - 1);
+    if (hz < full) far = r * r;
     for (std::int64_t dz = 0; dz <= hz; ++dz) {
         b.start.push_back(static_cast<std::int64_t>(b.width.size()));
         for (std::int64_t dy = 0;; ++dy) {
