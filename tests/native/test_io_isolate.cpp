@@ -69,6 +69,15 @@ TEST_CASE("isolated_volume: a child that aborts or segfaults is a FileFormatErro
         });
     });
     CHECK(s.rfind("a.vdb: OpenVDB's reader crashed on this file (killed by signal 11", 0) == 0);
+    // A reader of several files names the one it was decoding.
+    const std::string r = message_of([&] {
+        io_detail::isolated_volume("series", "the decoder", ReadOptions{}, [](const ReadOptions& o) -> Volume {
+            o.reading("series/1.dcm");
+            o.reading("series/2.dcm");
+            std::abort();
+        });
+    });
+    CHECK(r.rfind("series: the decoder crashed on series/2.dcm (killed by signal 6", 0) == 0);
 }
 
 TEST_CASE("isolated_volume: the child's errors keep their class and message", "[io][isolate]") {

@@ -42,14 +42,15 @@ def read_in_child(path, isolate=True, code=READ, timeout=60):
 
 # ---- DICOM: a JPEG stream GDCM's decoder aborts on ---------------------------------------------------------------
 
-def broken_jpeg_dicom(path, first_fragment=b"\xff\xd8" + b"\0" * 62):
-    """A JPEG Lossless DICOM slice whose only fragment is SOI followed by zeros (GDCM asserts precision >= 1)."""
+def broken_jpeg_dicom(path, first_fragment=b"\xff\xd8" + b"\0" * 62, k=0, series_uid=None):
+    """A JPEG Lossless DICOM slice whose only fragment is SOI followed by zeros (GDCM asserts precision >= 1): slice
+    ``k`` of the series ``series_uid`` (a new one if None)."""
     pydicom = pytest.importorskip("pydicom")
     from pydicom.encaps import encapsulate
     from pydicom.uid import generate_uid
     from test_io_dicom import write_slice
 
-    write_slice(path, np.zeros((7, 8), np.uint16), 0, series_uid=generate_uid())
+    write_slice(path, np.zeros((7, 8), np.uint16), k, series_uid=series_uid or generate_uid())
     ds = pydicom.dcmread(str(path))
     ds.file_meta.TransferSyntaxUID = "1.2.840.10008.1.2.4.70"  # JPEG Lossless, first-order prediction
     ds.PixelData = encapsulate([first_fragment])
@@ -79,6 +80,20 @@ def test_jpeg_dicom_folder_and_cli_survive(tmp_path):
     env = dict(os.environ, PYTHONPATH=PYTHON_DIR)
     r = subprocess.run([sys.executable, "-c", code, str(folder)], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.startswith("error: ") and "crashed on this file" in r.stderr, r.stderr
+
+
+def test_a_slice_that_crashes_the_decoder_is_named(tmp_path):
+    pytest.importorskip("pydicom")
+    from pydicom.uid import generate_uid
+    from test_io_dicom import write_slice
+    folder, uid = tmp_path / "series", generate_uid()
+    folder.mkdir()
+    for k, name in ((0, "a.dcm"), (2, "c.dcm")):
+        write_slice(folder / name, np.zeros((7, 8), np.uint16), k, series_uid=uid)
+    broken_jpeg_dicom(folder / "b.dcm", k=1, series_uid=uid)
+    rc, out = read_in_child(folder)
+    assert rc == 0 and out.startswith(f"FileFormatError: {folder}: GDCM's decoder crashed on {folder / 'b.dcm'} "
+                                      "(killed by signal 6"), out
 
 
 def test_valid_jpeg_still_decodes_in_the_child(tmp_path):
@@ -446,7 +461,7 @@ def test_cli_names_a_non_utf8_file_in_its_error(tmp_path):
 
 
 @pytest.mark.parametrize("ending", [".nrrd", ".mha", ".vdb", ".vrig"])
-def test_overwrites_keep_permission_bits_and_write_through_links(tmp_path, ending):
+def test_overwrites_keep_owner_permission_bits_and_write_through_links(tmp_path, ending):
     target = tmp_path / f"data{ending}"
     link = tmp_path / f"link{ending}"
 
@@ -475,6 +490,11 @@ def test_overwrites_keep_permission_bits_and_write_through_links(tmp_path, endin
         assert len(volrig.load_rig(str(target)).points) == 3
     else:
         np.testing.assert_allclose(volrig.load(str(target)).array, small_volume().array * 3)
+    if os.geteuid() == 0:  # the owner and group too (only root may give a file to another user)
+        os.chown(target, 4321, 8765)
+        write(target, 4)
+        st = os.stat(target)
+        assert (st.st_uid, st.st_gid, stat_mode(target)) == (4321, 8765, 0o640)
 
 
 def stat_mode(path):

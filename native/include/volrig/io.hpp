@@ -37,6 +37,9 @@ struct ReadOptions {
     std::array<double, 3> spacing{0.0, 0.0, 0.0};
     /// Told what a reader assumed about a doubtful file (e.g. DICOM slice spacing that jitters); may be empty.
     std::function<void(const std::string&)> warn;
+    /// Told the file a reader is about to decode when it reads several (a DICOM folder's slices); may be empty.
+    /// A decoder that crashes in its child process is reported as crashing on the last file named so.
+    std::function<void(const std::string&)> reading;
 };
 
 /// A random-access byte source: a file on disk or a block of memory (fuzzing, tests).

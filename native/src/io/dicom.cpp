@@ -493,6 +493,7 @@ Volume read_stack(const std::string& path, const std::vector<Slice>& slices, Gri
     std::size_t slice_bytes = 0;
     for (std::size_t k = 0; k < slices.size(); ++k) {
         const std::string& file = slices[k].file;
+        if (opt.reading) opt.reading(file);
         gdcm::ImageReader r;
         r.SetFileName(file.c_str());
         if (!guarded(file, [&] { return r.Read(); })) fail(file, "GDCM could not read the image");

@@ -207,6 +207,8 @@ class IsolatedOutput {
 public:
     explicit IsolatedOutput(int fd);
     void warn(const std::string& text);
+    /// Names the file the child decodes next (a crash is then reported on it).
+    void reading(const std::string& file);
     /// Starts the result with its first bytes; more() sends the rest.
     void result(const void* data, std::size_t n);
     void more(const void* data, std::size_t n);

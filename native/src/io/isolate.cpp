@@ -31,7 +31,7 @@ namespace volrig::io_detail {
 namespace {
 
 // Record tags the child writes.
-constexpr char kWarning = 'W', kFailure = 'E', kResult = 'K';
+constexpr char kWarning = 'W', kFailure = 'E', kResult = 'K', kReading = 'R';
 // Error kinds in a kFailure record.
 constexpr char kFormat = 'F', kNotFound = 'N', kOther = 'O';
 
@@ -167,6 +167,8 @@ IsolatedOutput::IsolatedOutput(int fd) : fd_(fd) {}
 
 void IsolatedOutput::warn(const std::string& text) { send_text(fd_, kWarning, text); }
 
+void IsolatedOutput::reading(const std::string& file) { send_text(fd_, kReading, file); }
+
 void IsolatedOutput::result(const void* data, std::size_t n) {
     const char tag = kResult;
     if (!write_all(fd_, &tag, 1) || !write_all(fd_, data, n)) _exit(3);
@@ -214,11 +216,12 @@ void run_isolated(const std::string& name, const std::string& doing, const Child
     }
     ::close(fds[1]);
     const int fd = fds[0];
+    std::string now;  // the file the child said it decodes (kReading), if it named one
     auto crashed = [&](const std::string& after) {
         ::close(fd);
         const std::string how = reap(pid), said = last_words(err);
         if (err >= 0) ::close(err);
-        fail(name, doing + " crashed on this file (" + (how.empty() ? after : how) +
+        fail(name, doing + " crashed on " + (now.empty() ? "this file" : now) + " (" + (how.empty() ? after : how) +
                        (said.empty() ? "" : ": " + said) +
                        "): it is corrupt or uses a feature the decoder cannot handle");
     };
@@ -234,7 +237,8 @@ void run_isolated(const std::string& name, const std::string& doing, const Child
         if (!in.read(&tag, 1)) crashed("it stopped without a result");
         if (tag == kResult) break;
         std::uint64_t n = 0;
-        if ((tag != kWarning && tag != kFailure) || !in.read(&n, sizeof n) || n > (std::uint64_t(1) << 24))
+        if ((tag != kWarning && tag != kFailure && tag != kReading) || !in.read(&n, sizeof n) ||
+            n > (std::uint64_t(1) << 24))
             crashed("it sent a broken record");
         std::string text(static_cast<std::size_t>(n), '\0');
         if (n && !in.read(&text[0], text.size())) crashed("it stopped in a record");
@@ -244,7 +248,10 @@ void run_isolated(const std::string& name, const std::string& doing, const Child
             if (err >= 0) ::close(err);
             rethrow(text);
         }
-        if (warn) warn(text);
+        if (tag == kReading)
+            now = std::move(text);
+        else if (warn)
+            warn(text);
     }
     const CloseErr close_err{err};
     try {
@@ -293,6 +300,7 @@ Volume isolated_volume(const std::string& name, const std::string& doing, const 
         [&](IsolatedOutput& out) {
             ReadOptions child = opt;
             child.warn = [&out](const std::string& w) { out.warn(w); };
+            child.reading = [&out](const std::string& f) { out.reading(f); };
             send_volume(out, decode(child));
         },
         [&](IsolatedInput& in) { v = receive_volume(name, in, opt.max_bytes); }, opt.warn);

@@ -47,7 +47,12 @@ void write_atomically(const std::string& requested,
         path + ".tmp-" + std::to_string(static_cast<long>(::getpid())) + "-" + std::to_string(++counter);
     try {
         write(tmp);
-        if (replaces && ::chmod(tmp.c_str(), old.st_mode & 07777) != 0)  // the replaced file's permission bits
+        // The replaced file's owner (where this process may give it: root, or a group it is in; else the file
+        // becomes the writer's, as a new one would), then its permission bits (after: chown clears set-id bits).
+        if (replaces && (old.st_uid != ::geteuid() || old.st_gid != ::getegid()) &&
+            ::chown(tmp.c_str(), old.st_uid, old.st_gid) != 0)
+            (void)::chown(tmp.c_str(), static_cast<uid_t>(-1), old.st_gid);
+        if (replaces && ::chmod(tmp.c_str(), old.st_mode & 07777) != 0)
             throw Error(requested + ": cannot keep the file's permissions: " + io_detail::errno_text(errno));
     } catch (...) {
         std::remove(tmp.c_str());
