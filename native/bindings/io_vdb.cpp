@@ -1,5 +1,7 @@
 // Bindings for OpenVDB reading and writing (volrig/io.hpp, "OpenVDB"). Conversions only.
 #include <algorithm>
+#include <array>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -41,9 +43,11 @@ VdbGrids built_grids(const std::string& path, const Grids& grids, const std::arr
 void bind_vdb(py::module_& m) {
     m.def(
         "read_vdb",
-        [](const std::string& path, const std::string& grid, long long max_bytes) {
+        [](const std::string& path, const std::string& grid, long long max_bytes,
+           const std::optional<std::array<std::array<std::int64_t, 3>, 2>>& crop) {
             ReadOptions opt;
             if (max_bytes >= 0) opt.max_bytes = static_cast<std::uint64_t>(max_bytes), opt.max_bytes_given = true;
+            if (crop) opt.crop = ReadOptions::IndexBox{(*crop)[0], (*crop)[1]};
             Volume v;
             {
                 py::gil_scoped_release release;
@@ -51,10 +55,11 @@ void bind_vdb(py::module_& m) {
             }
             return volume_tuple(std::move(v));
         },
-        py::arg("path"), py::arg("grid") = "", py::arg("max_bytes") = -1,
-        "read_vdb(path, grid='', max_bytes=-1) -> (array [z, y, x], spacing (x, y, z), origin (x, y, z))\n\n"
+        py::arg("path"), py::arg("grid") = "", py::arg("max_bytes") = -1, py::arg("crop") = py::none(),
+        "read_vdb(path, grid='', max_bytes=-1, crop=None) -> (array [z, y, x], spacing (x, y, z), origin (x, y, z))\n\n"
         "Reads one scalar grid (default 'density', else the first scalar grid) densely over its active voxel\n"
-        "bounding box. float -> float32, double -> float64, int32/int64 -> int32/int64, bool -> uint8.\n"
+        "bounding box, met with crop ((x0, y0, z0), (x1, y1, z1)), index coordinates, inclusive) when given.\n"
+        "float -> float32, double -> float64, int32/int64 -> int32/int64, bool -> uint8.\n"
         "max_bytes < 0 uses the default limit.");
 
     m.def(

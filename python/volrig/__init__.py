@@ -12,7 +12,7 @@ from .mesh import read_mesh, read_tgf, subdivide, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
-from .volume import Volume, dicom_series, load, write_vdb
+from .volume import Volume, dicom_series, load, vdb_grids, write_vdb
 
 read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
@@ -49,7 +49,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
            "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
-           "part_grids", "explode_matrices"]
+           "part_grids", "explode_matrices", "vdb_grids"]
 
 
 def __getattr__(name):

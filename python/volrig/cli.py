@@ -46,6 +46,8 @@ def _add_load_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--big-endian", action="store_true", help="raw files: big-endian samples")
     p.add_argument("--offset", type=int, default=0, help="raw files: header bytes to skip")
     p.add_argument("--grid", default="", help="VDB files: grid name (default: density, else the first)")
+    p.add_argument("--crop", type=int, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+                   help="VDB files: read only this box of the grid (index coordinates, inclusive)")
     p.add_argument("--series", default="", help="DICOM: SeriesInstanceUID (default: the series with most slices)")
     p.add_argument("--tiff-spacing", type=float, nargs=3, metavar=("SX", "SY", "SZ"),
                    help="TIFF stacks: voxel size; 0 takes it from the file (x, y from its resolution, z = x)")

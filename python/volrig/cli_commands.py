@@ -23,7 +23,8 @@ def _hints(args) -> dict:
     """The load options as ``pipeline.load_source``'s keywords."""
     return dict(dims=args.dims, dtype=args.dtype, spacing=args.spacing, big_endian=args.big_endian,
                 offset=args.offset, grid=args.grid, series=getattr(args, "series", ""),
-                tiff_spacing=getattr(args, "tiff_spacing", None))
+                tiff_spacing=getattr(args, "tiff_spacing", None),
+                crop=None if getattr(args, "crop", None) is None else (args.crop[:3], args.crop[3:]))
 
 
 def _load(args):

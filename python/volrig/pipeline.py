@@ -54,15 +54,15 @@ def _step(progress: StepProgress, name: str):
 
 def load_source(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=(1.0, 1.0, 1.0),
                 big_endian: bool = False, offset: int = 0, grid: str = "", series: str = "",
-                tiff_spacing=None) -> Volume:
+                tiff_spacing=None, crop=None) -> Volume:
     """``volrig.load`` with the hints the command line and the import dialog take: with ``dims`` the file is read
     as raw voxels of ``dtype``; a raw file (.raw .bin .img) without them is refused. ``series``: the DICOM
-    series; ``tiff_spacing``: TIFF spacing (x, y, z), 0 = from the file."""
+    series; ``tiff_spacing``: TIFF spacing (x, y, z), 0 = from the file; ``crop``: a VDB's index box (``load``)."""
     if dims is None:
         if format_of(path) == "raw":
             raise VolrigError(f"{os.path.basename(path)}: a raw file needs its size in voxels (x, y, z) and its "
                               "element type")
-        return load(path, grid=grid, series=series, spacing=tiff_spacing)
+        return load(path, grid=grid, series=series, spacing=tiff_spacing, crop=crop)
     if not dtype:
         raise VolrigError(f"{os.path.basename(path)}: a raw file needs its element type besides its size")
     return load(path, dims=tuple(int(d) for d in dims), dtype=dtype, spacing=spacing,

@@ -242,7 +242,7 @@ def _source_array(source: Volume) -> np.ndarray:
 
 def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing=None,
          origin=(0.0, 0.0, 0.0), byte_order: str = "little", offset: int = 0, grid: str = "",
-         max_bytes: Optional[int] = None, series: str = "") -> Volume:
+         max_bytes: Optional[int] = None, series: str = "", crop=None) -> Volume:
     """Read a volume file or folder.
 
     The format comes from the name: NRRD (``.nrrd``, ``.nhdr``), MetaImage (``.mha``, ``.mhd``), NIfTI-1
@@ -253,7 +253,9 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
 
     Raw files need the hints: ``dims`` (x, y, z) in voxels, ``dtype`` (numpy name or type), ``spacing`` and
     ``origin`` (x, y, z, world units), ``byte_order`` ("little" or "big"), ``offset`` (bytes to skip).
-    VDB files: ``grid`` names the grid to read (default "density", else the first scalar grid).
+    VDB files: ``grid`` names the grid to read (default "density", else the first scalar grid); ``crop``
+    ((x0, y0, z0), (x1, y1, z1)), the grid's index coordinates, inclusive, reads only that box of it (met with the
+    active voxels' bounding box, which ``vdb_grids`` gives): for a sparse grid too large to read densely.
     DICOM: ``series`` picks a SeriesInstanceUID (default: the series with most slices; ``dicom_series`` lists
     them). Slice spacing that jitters is averaged with a ``UserWarning`` saying so.
     TIFF: ``spacing`` (x, y, z), a component 0 or None taken from the file (x, y from its resolution, z = x).
@@ -265,6 +267,8 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
     path, raw = _native_path(path)
     fmt = format_of(path) if dims is None else "raw"
     limit = -1 if max_bytes is None else int(max_bytes)
+    if crop is not None and fmt != "vdb":
+        raise VolrigError(f"{path}: crop= applies to VDB files only")
     if fmt == "raw":
         if dims is None or dtype is None:
             raise VolrigError(f"{path}: raw files need dims=(x, y, z) and dtype=...")
@@ -275,7 +279,7 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
                                         _vec3(origin, "origin"),
                                         byte_order == "big", int(offset), limit)
     elif fmt == "vdb":
-        arr, sp, org = _volrig.read_vdb(raw, grid, limit)
+        arr, sp, org = _volrig.read_vdb(raw, grid, limit, _index_box(crop))
     else:
         given = (0.0, 0.0, 0.0) if spacing is None else tuple(
             0.0 if x is None else float(x) for x in (spacing if np.ndim(spacing) else (spacing,) * 3))
@@ -284,6 +288,26 @@ def load(path: str, *, dims: Optional[Sequence[int]] = None, dtype=None, spacing
             warnings.warn(w, stacklevel=2)
         return Volume(arr, sp, org, path=path, direction=np.asarray(d).reshape(3, 3))
     return Volume(arr, sp, org, path=path)
+
+
+def vdb_grids(path: str) -> list:
+    """The grids of an OpenVDB file, without reading their voxels: dicts with ``name``, ``type``, ``bbox_min`` and
+    ``bbox_max`` (the active voxels' bounding box, index coordinates x, y, z, inclusive: what ``load``'s ``crop``
+    takes) and ``active_voxels``."""
+    return _volrig.vdb_grids(_native_path(path)[1])
+
+
+def _index_box(crop):
+    """``crop`` as ((x0, y0, z0), (x1, y1, z1)) whole numbers, or None."""
+    if crop is None:
+        return None
+    try:
+        box = np.asarray(crop, dtype=np.float64)
+    except (TypeError, ValueError):
+        box = None
+    if box is None or box.shape != (2, 3) or not np.all(np.isfinite(box)) or np.any(box != np.round(box)):
+        raise VolrigError(f"crop must be ((x0, y0, z0), (x1, y1, z1)) in whole index coordinates, got {crop!r}")
+    return tuple(tuple(int(v) for v in row) for row in box)
 
 
 def dicom_series(path: str) -> list:

@@ -6,6 +6,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
@@ -51,6 +52,24 @@ TEST_CASE("read_vdb: two voxels far apart are refused as a 1.2 GB dense box from
                                   "box) need 1,200,000,000 bytes from a file of ",
                   0) == 0);
     CHECK(m.find("max_bytes=1200000000") != std::string::npos);
+    CHECK(m.find("; or read part of it with crop=(min, max) in the grid's index coordinates (its active voxels lie "
+                 "in (0, 0, 0) .. (999, 999, 299))") != std::string::npos);
+    // The crop the message offers: a box around one voxel reads it alone, at its world place.
+    ReadOptions crop;
+    crop.crop = ReadOptions::IndexBox{{990, 995, 290}, {1200, 1200, 400}};
+    const Volume v = read_vdb(path.string(), "", crop);
+    CHECK(v.grid.dims == std::array<std::int64_t, 3>{10, 5, 10});
+    CHECK(v.grid.origin == std::array<double, 3>{990.0, 995.0, 290.0});
+    const auto* f = reinterpret_cast<const float*>(v.data.data());
+    CHECK(f[v.grid.voxel_count() - 1] == 2.0f);
+    CHECK(std::count(f, f + v.grid.voxel_count(), 0.0f) == v.grid.voxel_count() - 1);
+    crop.crop = ReadOptions::IndexBox{{-50, -50, -50}, {-1, 10, 10}};
+    CHECK(message_of([&] { read_vdb(path.string(), "", crop); }) ==
+          path.string() + ": grid 'density': the crop box (-50, -50, -50) .. (-1, 10, 10) holds none of the active "
+                          "voxels, which lie in (0, 0, 0) .. (999, 999, 299)");
+    crop.crop = ReadOptions::IndexBox{{5, 0, 0}, {4, 10, 10}};
+    CHECK(message_of([&] { read_vdb(path.string(), "", crop); }).find("min must not exceed its max") !=
+          std::string::npos);
     // A caller's max_bytes decides alone (here: refused by it, without the budget's words).
     ReadOptions opt;
     opt.max_bytes = 1000;

@@ -544,3 +544,33 @@ def test_mesh_skeleton_motion_and_vdb_entry_points_take_any_name_and_refuse_nul(
         with pytest.raises(volrig.VolrigError, match="must not contain a NUL"):
             call()
     assert not (tmp_path / "a.vdb").exists()
+
+
+def test_vdb_crop_reads_part_of_a_sparse_grid(tmp_path):
+    """Issue 55: the dense box of a sparse VDB is refused by the file budget, whose message offers crop=; crop reads
+    that box of the grid (index coordinates, inclusive) at its world place."""
+    a = np.zeros((30, 20, 40), np.float32)  # [z, y, x]
+    a[1, 2, 3], a[25, 15, 30] = 1.0, 2.0
+    path = str(tmp_path / "sparse.vdb")
+    volrig.write_vdb(path, {"density": volrig.Volume(a, (0.5, 0.5, 0.5), (10.0, 0.0, 0.0))}, half=False)
+    info = volrig.vdb_grids(path)[0]
+    lo, hi = np.array(info["bbox_min"]), np.array(info["bbox_max"])
+    assert (hi - lo).tolist() == [27, 13, 24]  # x, y, z
+    part = volrig.load(path, crop=(hi - 2, hi + 5))
+    assert part.dims == (3, 3, 3) and part.array[-1, -1, -1] == 2.0 and part.array.sum() == 2.0
+    np.testing.assert_allclose(part.origin, volrig.load(path).origin + 0.5 * (hi - 2 - lo))
+    with pytest.raises(volrig.FileFormatError, match=r"sparse.vdb: grid 'density': the crop box \(-9, -9, -9\) \.\. "
+                                                     r"\(-1, -1, -1\) holds none of the active voxels"):
+        volrig.load(path, crop=((-9, -9, -9), (-1, -1, -1)))
+    for bad in (((0, 0), (1, 1)), ((0, 0, 0.5), (1, 1, 1)), "box", ((0, 0, float("nan")), (1, 1, 1))):
+        with pytest.raises(volrig.VolrigError, match="crop must be"):
+            volrig.load(path, crop=bad)
+    with pytest.raises(volrig.VolrigError, match="min must not exceed its max"):
+        volrig.load(path, crop=((5, 0, 0), (4, 9, 9)))
+    nrrd = str(tmp_path / "a.nrrd")
+    volrig.Volume(a, (1.0, 1.0, 1.0)).save(nrrd)
+    with pytest.raises(volrig.VolrigError, match="crop= applies to VDB files only"):
+        volrig.load(nrrd, crop=((0, 0, 0), (1, 1, 1)))
+    r = subprocess.run([sys.executable, "-m", "volrig", "info", path, "--crop", *map(str, hi - 2), *map(str, hi + 5)],
+                       capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=PYTHON_DIR), timeout=60)
+    assert r.returncode == 0 and "3 x 3 x 3" in r.stdout, r.stdout + r.stderr

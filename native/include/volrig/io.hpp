@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -40,6 +41,12 @@ struct ReadOptions {
     /// Told the file a reader is about to decode when it reads several (a DICOM folder's slices); may be empty.
     /// A decoder that crashes in its child process is reported as crashing on the last file named so.
     std::function<void(const std::string&)> reading;
+    /// VDB: read only the voxels of this box (the grid's index coordinates, inclusive), met with its active
+    /// voxels' bounding box; the read is refused when they do not meet. Unused by the other formats.
+    struct IndexBox {
+        std::array<std::int64_t, 3> min, max;
+    };
+    std::optional<IndexBox> crop;
 };
 
 /// A random-access byte source: a file on disk or a block of memory (fuzzing, tests).

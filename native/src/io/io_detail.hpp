@@ -124,11 +124,11 @@ struct HeaderFields : std::map<std::string, HeaderField> {
 std::uint64_t check_volume(const std::string& name, const Grid& g, DType t, std::uint64_t max_bytes);
 /// The file budget (ReadOptions::max_bytes_given): fails naming `name` when `demand` bytes are more than
 /// kBudgetFloor and more than kBudgetRatio times `file_bytes`, unless the caller gave max_bytes. `what` says what
-/// the demand is for ("the pixels", "the dense grid").
+/// the demand is for ("the pixels", "the dense grid"); `or_else`, when given, another way out the message offers.
 constexpr std::uint64_t kBudgetFloor = 1000000000;  // 1 GB
 constexpr std::uint64_t kBudgetRatio = 1000;
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
-                  const std::string& what);
+                  const std::string& what, const std::string& or_else = "");
 /// kBudgetRatio times `file_bytes`, saturating: what the file may hold at that ratio.
 std::uint64_t ratio_allowance(std::uint64_t file_bytes);
 /// The most a file of `file_bytes` may demand: opt.max_bytes, and while the file budget applies (no max_bytes given,

@@ -362,6 +362,33 @@ std::vector<VdbGridInfo> grids_here(const std::string& path) {
     return out;
 }
 
+std::string box_text(const openvdb::CoordBBox& b) {
+    const auto c = [](const openvdb::Coord& p) {
+        return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) + ")";
+    };
+    return c(b.min()) + " .. " + c(b.max());
+}
+
+/// `active` met with opt.crop (when given); refused when they do not meet, or the crop box is not a box.
+openvdb::CoordBBox cropped(const openvdb::CoordBBox& active, const ReadOptions& opt, const std::string& subject) {
+    if (!opt.crop) return active;
+    constexpr std::int64_t lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max();
+    openvdb::Coord a, b;
+    for (int k = 0; k < 3; ++k) {
+        const std::int64_t m = opt.crop->min[static_cast<std::size_t>(k)], n = opt.crop->max[static_cast<std::size_t>(k)];
+        if (m > n || m < lo || n > hi)
+            throw Error(subject + ": the crop box's min must not exceed its max, within 32-bit index coordinates");
+        a[k] = static_cast<openvdb::Int32>(m);
+        b[k] = static_cast<openvdb::Int32>(n);
+    }
+    openvdb::CoordBBox out = active;
+    out.intersect(openvdb::CoordBBox(a, b));
+    if (out.empty())
+        throw FileFormatError(subject + ": the crop box " + box_text(openvdb::CoordBBox(a, b)) +
+                              " holds none of the active voxels, which lie in " + box_text(active));
+    return out;
+}
+
 Volume read_here(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
     VdbReader file(path);
     const openvdb::io::GridDescriptor* gd = nullptr;
@@ -383,7 +410,7 @@ Volume read_here(const std::string& path, const std::string& grid_name, const Re
         throw FileFormatError(subject + " holds " + type +
                               " values; only scalar grids (float, double, int32, int64, bool) can be read");
     const std::size_t esize = dtype_size(dtype_of_grid(type));
-    auto checked = [&](const Grid& g) {
+    auto checked = [&](const Grid& g, const openvdb::CoordBBox& active) {
         try {
             check_grid(g, esize, opt.max_bytes, subject);
         } catch (const FileFormatError&) {
@@ -394,8 +421,11 @@ Volume read_here(const std::string& path, const std::string& grid_name, const Re
         const std::uint64_t dense = static_cast<std::uint64_t>(g.voxel_count()) * esize;
         io_detail::check_budget(path, dense, file.size(), opt,
                                 "grid '" + name + "' as a dense " + std::to_string(g.dims[0]) + " x " +
-                                    std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) +
-                                    " box (the active voxels' bounding box)");
+                                    std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) + " box (" +
+                                    (opt.crop ? "the crop box met with the active voxels' bounding box"
+                                              : "the active voxels' bounding box") + ")",
+                                "read part of it with crop=(min, max) in the grid's index coordinates (its active "
+                                "voxels lie in " + box_text(active) + ")");
     };
 
     // Check the size the stats metadata declare (when present) before reading the tree.
@@ -403,17 +433,20 @@ Volume read_here(const std::string& path, const std::string& grid_name, const Re
         auto meta = file.read_metadata(*gd);
         openvdb::CoordBBox bbox;
         std::int64_t count = 0;
-        if (stats_bbox(*meta, bbox, count) && count > 0 && !bbox.empty())
-            checked(geometry_of(meta->transform(), bbox, path, name));
+        if (stats_bbox(*meta, bbox, count) && count > 0 && !bbox.empty()) {
+            const openvdb::CoordBBox part = cropped(bbox, opt, subject);
+            checked(geometry_of(meta->transform(), part, path, name), bbox);
+        }
     }
 
     auto base = file.read_grid(*gd);
-    const openvdb::CoordBBox bbox = base->evalActiveVoxelBoundingBox();
-    if (bbox.empty() || base->activeVoxelCount() == 0) throw FileFormatError(subject + " has no active voxels");
+    const openvdb::CoordBBox active = base->evalActiveVoxelBoundingBox();
+    if (active.empty() || base->activeVoxelCount() == 0) throw FileFormatError(subject + " has no active voxels");
+    const openvdb::CoordBBox bbox = cropped(active, opt, subject);
     Volume vol;
     vol.grid = geometry_of(base->transform(), bbox, path, name);
     vol.dtype = dtype_of_grid(type);
-    checked(vol.grid);
+    checked(vol.grid, active);
     vol.data.resize(static_cast<std::size_t>(vol.grid.voxel_count()) * esize);
     void* out = vol.data.data();
     guarded_read(path, "copying grid '" + name + "'", [&] {

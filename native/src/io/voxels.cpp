@@ -47,13 +47,13 @@ std::uint64_t budget_of(std::uint64_t file_bytes, const ReadOptions& opt) {
 }
 
 void check_budget(const std::string& name, std::uint64_t demand, std::uint64_t file_bytes, const ReadOptions& opt,
-                  const std::string& what) {
+                  const std::string& what, const std::string& or_else) {
     if (demand <= file_allowance(file_bytes) || !budget_applies(opt)) return;
     fail(name, what + " need " + with_commas(demand) + " bytes from a file of " + with_commas(file_bytes) +
                    " bytes: more than 1 GB and more than " + with_commas(kBudgetRatio) +
                    " times the file, so it is refused as broken or hostile; if the file is right, allow it with "
                    "max_bytes=" + std::to_string(demand) + " (Python) or VOLRIG_MAX_BYTES=" + std::to_string(demand) +
-                   " in the environment");
+                   " in the environment" + (or_else.empty() ? "" : "; or " + or_else));
 }
 
 namespace {
