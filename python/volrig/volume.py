@@ -30,6 +30,7 @@ FORMATS = {
     ".nrrd": "nrrd", ".nhdr": "nrrd",
     ".mha": "metaimage", ".mhd": "metaimage",
     ".vdb": "vdb",
+    ".vti": "vti",
     ".tif": "tiff", ".tiff": "tiff",
     ".dcm": "dicom", "dicomdir": "dicom",
     ".raw": "raw", ".bin": "raw", ".img": "raw",

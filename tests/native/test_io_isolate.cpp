@@ -134,7 +134,7 @@ TEST_CASE("isolated_volume: a volume larger than the pipe's buffer arrives whole
 TEST_CASE("decoder_limits: memory from the file's budget, CPU time from what it may hold", "[io][isolate]") {
     const io_detail::ChildLimits fuzz = io_detail::decoder_limits(std::uint64_t(64) << 20, std::uint64_t(64) << 20);
     CHECK(fuzz.memory == (std::uint64_t(448) << 20));
-    CHECK(fuzz.cpu_seconds == 8);  // 5 + 67 MB at 20 MB/s
+    CHECK(fuzz.cpu_seconds == 5);  // 5 + 67 MB at 100 MB/s, rounded down
     const std::uint64_t all = std::numeric_limits<std::uint64_t>::max();
     CHECK(io_detail::decoder_limits(all, all).memory == 0);
     CHECK(io_detail::decoder_limits(all, all).cpu_seconds == 0);
@@ -143,7 +143,9 @@ TEST_CASE("decoder_limits: memory from the file's budget, CPU time from what it 
     write_file(dir.path / "small.vdb", Bytes(10000, 0));
     const io_detail::ChildLimits small = io_detail::decoder_limits((dir.path / "small.vdb").string(), ReadOptions{});
     CHECK(small.memory == 3 * io_detail::kBudgetFloor + (std::uint64_t(256) << 20));
-    CHECK(small.cpu_seconds == 5);  // 5 + 10 MB at 20 MB/s, rounded down
+    CHECK(small.cpu_seconds == 5);  // 5 + 10 MB at 100 MB/s, rounded down
+    write_file(dir.path / "large.vdb", Bytes(2000000, 0));  // 2 GB of work: 20 s more
+    CHECK(io_detail::decoder_limits((dir.path / "large.vdb").string(), ReadOptions{}).cpu_seconds == 25);
     ReadOptions given;
     given.max_bytes = std::uint64_t(1) << 20;
     given.max_bytes_given = true;

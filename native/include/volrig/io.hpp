@@ -81,6 +81,9 @@ Volume read_raw(const ByteSource& src, const RawLayout& layout, const ReadOption
 Volume read_nrrd(const ByteSource& src, const ReadOptions& opt = {});
 /// MetaImage (.mhd with a separate data file, .mha with LOCAL data; zlib CompressedData).
 Volume read_metaimage(const ByteSource& src, const ReadOptions& opt = {});
+/// VTK XML image data (.vti): one whole piece, the point data's active scalars (else its first array), appended
+/// raw, uncompressed or zlib-compressed (vtkZLibDataCompressor), UInt32/UInt64 headers, either byte order.
+Volume read_vti(const ByteSource& src, const ReadOptions& opt = {});
 /// NIfTI-1 (.nii, .nii.gz, .hdr/.img pair). scl_slope/scl_inter are applied (result float32, or float64 for
 /// float64 data) unless the slope is 0 or (slope, inter) = (1, 0). Spacing = |pixdim[1..3]|; origin from the
 /// sform (sform_code > 0) or else the qform offsets.

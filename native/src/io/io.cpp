@@ -101,23 +101,26 @@ Volume read_volume(const std::string& path, const ReadOptions& opt) {
     if (ends(".vdb")) return read_vdb(path, "", opt);
     if (ends(".tif") || ends(".tiff")) return read_tiff(path, opt);
     if (ends(".dcm") || ends(".dicom") || ends("dicomdir") || has_dicom_preamble(path)) return read_dicom(path, opt);
-    enum class Kind { Nrrd, Meta, Nifti } kind;
+    enum class Kind { Nrrd, Meta, Nifti, Vti } kind;
     if (ends(".nrrd") || ends(".nhdr"))
         kind = Kind::Nrrd;
     else if (ends(".mhd") || ends(".mha"))
         kind = Kind::Meta;
     else if (ends(".nii") || ends(".nii.gz") || ends(".hdr"))
         kind = Kind::Nifti;
+    else if (ends(".vti"))
+        kind = Kind::Vti;
     else if (std::error_code ec; std::filesystem::is_directory(path, ec))  // a folder by another name
         return read_folder(path, opt);
     else
         throw FileFormatError(path + ": unknown volume format (known endings: .nrrd .nhdr .mhd .mha .nii .nii.gz "
-                                     ".hdr .vdb .tif .tiff .dcm, DICOMDIR, folders of DICOM or TIFF files; raw "
+                                     ".hdr .vti .vdb .tif .tiff .dcm, DICOMDIR, folders of DICOM or TIFF files; raw "
                                      "files need read_raw)");
     auto src = open_file(path);
     switch (kind) {
         case Kind::Nrrd: return read_nrrd(*src, opt);
         case Kind::Meta: return read_metaimage(*src, opt);
+        case Kind::Vti: return read_vti(*src, opt);
         case Kind::Nifti: break;
     }
     return read_nifti(*src, opt);

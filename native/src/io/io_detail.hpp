@@ -245,9 +245,11 @@ void run_isolated(const std::string& name, const std::string& doing, const Child
                   const std::function<void(const std::string&)>& warn = {});
 /// What a decoder may use: three times the file's budget (budget_of) in memory (the result, the decoder's own copy,
 /// slack) plus 256 MiB; kDecodeSecondsFloor CPU seconds plus one per kDecodeBytesPerSecond of `work` (decoders run
-/// at 100 MB/s or more, about 5 times slower under sanitizers). A 0 (no cap) for values too large to triple.
+/// at 100 MB/s or more of output, about 5 times slower under sanitizers, and `work`, what the file may hold at
+/// 1000:1, is far more than any real file's output: a looping decoder on a file under 500 KB stops within 10 s).
+/// A 0 (no cap) for values too large to triple.
 constexpr std::uint64_t kDecodeSecondsFloor = 5;
-constexpr std::uint64_t kDecodeBytesPerSecond = 20000000;
+constexpr std::uint64_t kDecodeBytesPerSecond = 100000000;
 ChildLimits decoder_limits(std::uint64_t budget, std::uint64_t work);
 /// decoder_limits for the file or folder `path` read with `opt`. A regular file: its budget_of, and as work what it
 /// may hold at kBudgetRatio to 1 (not the 1 GB floor: a 10 KB file gets 5.5 s, so a decoder looping on a tiny
