@@ -10,17 +10,23 @@ Bytes vti_of(const std::vector<float>& v, std::array<int, 3> dims, std::size_t b
     const Bytes payload(reinterpret_cast<const std::uint8_t*>(v.data()),
                         reinterpret_cast<const std::uint8_t*>(v.data() + v.size()));
     Bytes data;
+    const auto word = [&data](std::size_t w) {  // a UInt32 header word, little-endian
+        for (int k = 0; k < 4; ++k) data.push_back(static_cast<std::uint8_t>(w >> (8 * k)));
+    };
     if (block == 0) {
-        data = raw_of<std::uint32_t>({static_cast<std::uint32_t>(payload.size())}) + payload;
+        word(payload.size());
+        data.insert(data.end(), payload.begin(), payload.end());
     } else {
         std::vector<Bytes> parts;
-        for (std::size_t i = 0; i < payload.size(); i += block)
-            parts.push_back(zlib(Bytes(payload.begin() + i, payload.begin() + std::min(payload.size(), i + block))));
-        const std::size_t last = payload.size() % block;
-        data = raw_of<std::uint32_t>({static_cast<std::uint32_t>(parts.size()), static_cast<std::uint32_t>(block),
-                                      static_cast<std::uint32_t>(last)});
-        for (const Bytes& p : parts) data = data + raw_of<std::uint32_t>({static_cast<std::uint32_t>(p.size())});
-        for (const Bytes& p : parts) data = data + p;
+        for (std::size_t i = 0; i < payload.size(); i += block) {
+            const auto from = payload.begin() + static_cast<std::ptrdiff_t>(i);
+            parts.push_back(zlib(Bytes(from, from + static_cast<std::ptrdiff_t>(std::min(block, payload.size() - i)))));
+        }
+        word(parts.size());
+        word(block);
+        word(payload.size() % block);
+        for (const Bytes& p : parts) word(p.size());
+        for (const Bytes& p : parts) data.insert(data.end(), p.begin(), p.end());
     }
     const std::string ext = extent.empty() ? "0 " + std::to_string(dims[0] - 1) + " 0 " + std::to_string(dims[1] - 1) +
                                                  " 0 " + std::to_string(dims[2] - 1)
@@ -72,9 +78,11 @@ TEST_CASE("read_vti: lying tables, offsets and extents are FileFormatErrors nami
     CHECK_THROWS_AS(read_mem(read_vti, with_word(2, 65), "t.vti"), FileFormatError);  // last block > block size
     CHECK_THROWS_AS(read_mem(read_vti, with_word(3, 0x7FFFFFFFu), "t.vti"), FileFormatError);  // past the end
     CHECK_THROWS_AS(read_mem(read_vti, with_word(3, 1), "t.vti"), FileFormatError);  // a block cut short
-    for (std::size_t cut = 1; cut < good.size(); cut += 37)
-        CHECK_THROWS_AS(read_mem(read_vti, Bytes(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(cut)), "c.vti"),
-                        FileFormatError);
+    const std::size_t tail = std::string("\n</AppendedData>\n</VTKFile>\n").size();  // not needed to read
+    for (std::size_t cut = 1; cut < good.size() - tail; cut += 37)
+        CHECK_THROWS_AS(
+            read_mem(read_vti, Bytes(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(cut)), "c.vti"),
+            FileFormatError);
     const Bytes raw = vti_of(v, {5, 4, 3});
     Bytes lying = raw;
     const std::string raw_text(raw.begin(), raw.end());

@@ -103,7 +103,8 @@ GOOD = vti_bytes(np.arange(60, dtype=np.float32).reshape(3, 4, 5), zlib_blocks=6
 @pytest.mark.parametrize("change, message", [
     (lambda b: b[:-60], r"past the end|truncated"),
     (lambda b: b.replace(b'WholeExtent="0 4', b'WholeExtent="0 40000000'), r"Extent differs|past the end|block table"),
-    (lambda b: b.replace(b"0 4 0 3 0 2", b"0 4 0 3 0 200000000"), r"5x4x200000001 float32 voxels need 16,000,000,080 bytes from a file of .* refused as broken"),
+    (lambda b: b.replace(b"0 4 0 3 0 2", b"0 4 0 3 0 200000000"),
+     r"5x4x200000001 float32 voxels need 16,000,000,080 bytes from a file of .* refused as broken"),
     (lambda b: b.replace(b"0 4 0 3 0 2", b"0 nan 0 3 0 2"), r"WholeExtent .* is not 6 finite numbers"),
     (lambda b: b.replace(b"0 4 0 3 0 2", b"4 0 0 3 0 2"), r"not three whole ranges"),
     (lambda b: b.replace(b'Spacing="1 1 1"', b'Spacing="1 0 1"'), r"spacing"),

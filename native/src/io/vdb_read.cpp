@@ -375,7 +375,8 @@ openvdb::CoordBBox cropped(const openvdb::CoordBBox& active, const ReadOptions& 
     constexpr std::int64_t lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max();
     openvdb::Coord a, b;
     for (int k = 0; k < 3; ++k) {
-        const std::int64_t m = opt.crop->min[static_cast<std::size_t>(k)], n = opt.crop->max[static_cast<std::size_t>(k)];
+        const auto i = static_cast<std::size_t>(k);
+        const std::int64_t m = opt.crop->min[i], n = opt.crop->max[i];
         if (m > n || m < lo || n > hi)
             throw Error(subject + ": the crop box's min must not exceed its max, within 32-bit index coordinates");
         a[k] = static_cast<openvdb::Int32>(m);

@@ -210,7 +210,8 @@ Array point_array(const std::string& name, const std::string& xml) {
     const std::string what = "DataArray " + quoted(a.name);
     a.type = vtk_type(name, attribute(chosen.attributes, "type"));
     const std::string comps = attribute(chosen.attributes, "NumberOfComponents");
-    if (!comps.empty() && comps != "1") fail(name, what + " has " + quoted(comps) + " components: only scalars are read");
+    if (!comps.empty() && comps != "1")
+        fail(name, what + " has " + quoted(comps) + " components: only scalars are read");
     if (attribute(chosen.attributes, "format") != "appended")
         fail(name, what + " is stored " + quoted(attribute(chosen.attributes, "format")) +
                        ": only appended data is read");
@@ -252,7 +253,8 @@ Volume read_blocks(const ByteSource& src, std::uint64_t at, const Layout& l, con
     std::uint64_t total = 0;
     for (std::uint64_t k = 0; k < blocks; ++k) {
         packed[k] = header_word(src, at + (3 + k) * l.header_bytes, l);
-        if (packed[k] > src.size() - pos - total) fail(name, what + "'s compressed blocks run past the end of the file");
+        if (packed[k] > src.size() - pos - total)
+            fail(name, what + "'s compressed blocks run past the end of the file");
         total += packed[k];
     }
     check_inflate_bound(name, need, total);
