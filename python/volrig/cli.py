@@ -37,8 +37,8 @@ __all__ = ["main", "addon_folder", "StepBars"]
 
 
 def _add_load_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vdb .tif .tiff .dcm, a DICOMDIR, "
-                                "a folder of DICOM or TIFF files, or raw with --dims)")
+    p.add_argument("file", help="volume file (.nrrd .nhdr .mha .mhd .nii .nii.gz .vti .vdb .tif .tiff .dcm, a "
+                                "DICOMDIR, a folder of DICOM or TIFF files, or raw with --dims)")
     p.add_argument("--dims", type=int, nargs=3, metavar=("X", "Y", "Z"), help="raw files: size in voxels")
     p.add_argument("--dtype", help="raw files: element type (uint8, int16, float32, ...)")
     p.add_argument("--spacing", type=float, nargs=3, default=(1.0, 1.0, 1.0), metavar=("SX", "SY", "SZ"),
