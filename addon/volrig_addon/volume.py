@@ -65,7 +65,7 @@ class VolumeSettings:
 
 
 class VOLRIG_OT_import_volume(bpy.types.Operator, ImportHelper):
-    """Import a volume (NRRD, MetaImage, NIfTI, OpenVDB or raw) as a Volume object for rigging"""
+    """Import a volume (NRRD, MetaImage, NIfTI, DICOM, TIFF, VTK image data, OpenVDB or raw) for rigging"""
     bl_idname = "volrig.import_volume"
     bl_label = "Import Volume"
     bl_options = {"REGISTER", "UNDO"}
