@@ -324,11 +324,12 @@ def _depth_range(placed: List[Layer]):
 MAX_VOXELS = 2 ** 28
 
 
-def _check_size(shape, longer_side: int, max_voxels: int) -> None:
+def _check_size(image, shape, longer_side: int, max_voxels: int) -> None:
     n = int(np.prod(shape, dtype=np.int64))
     if n > max_voxels:
         fits = int(longer_side * (max_voxels / n) ** (1 / 3))
-        raise VolrigError(f"the drawing inflates to a {shape[2]} x {shape[1]} x {shape[0]} solid ({n:,} voxels), "
+        named = f"{os.fsdecode(image)}: " if isinstance(image, (str, bytes, os.PathLike)) else ""
+        raise VolrigError(f"{named}the drawing inflates to a {shape[2]} x {shape[1]} x {shape[0]} solid ({n:,} voxels), "
                           f"more than max_voxels={max_voxels:,}: pass resolution={fits} (or less) to downscale it, or "
                           f"raise max_voxels")
 
@@ -360,7 +361,7 @@ def inflate_parts(image, *, pixel_size: float = 1.0, depth_scale: float = 1.0, s
     r0, r1, c0, c1 = rows.min() - 1, rows.max() + 2, cols.min() - 1, cols.max() + 2
     y0, y1 = _depth_range(placed)
     shape = (int(r1 - r0), int(y1 - y0 + 1), int(c1 - c0))
-    _check_size(shape, max(d.rows, d.cols), max_voxels)
+    _check_size(image, shape, max(d.rows, d.cols), max_voxels)
     bounds = []
     for i, layer in enumerate(placed, start=1):
         extent = np.full((d.silhouette.shape[0] + 2, d.silhouette.shape[1] + 2), -1, np.int32)  # crops reach 1

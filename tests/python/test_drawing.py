@@ -249,6 +249,18 @@ def test_a_solid_above_max_voxels_is_refused_with_the_resolution_that_fits():
     assert 0 < int(np.prod(v.dims)) <= 500_000
 
 
+def test_the_size_refusal_names_the_drawing_file(tmp_path):
+    path = tmp_path / "big disc.png"
+    D.write_png(str(path), (K.disc(r=60) * 255).astype(np.uint8))
+    with pytest.raises(volrig.VolrigError, match=rf"^{tmp_path}/big disc.png: the drawing inflates to"):
+        volrig.inflate(str(path), max_voxels=500_000)
+    r = subprocess.run([sys.executable, "-m", "volrig", "inflate", str(path), str(tmp_path / "o.vdb"),
+                        "--max-voxels", "500000"], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, PYTHONPATH=os.path.join(os.path.dirname(__file__), "..", "..", "python")))
+    assert r.returncode != 0 and "big disc.png: the drawing inflates to" in r.stderr and "resolution=" in r.stderr
+    assert not (tmp_path / "o.vdb").exists()
+
+
 def test_cli_inflate(tmp_path):
     png, out = tmp_path / "quad.png", tmp_path / "quad.vdb"
     D.write_png(str(png), K.quadruped())
