@@ -219,7 +219,7 @@ def local_radius(shape: np.ndarray, edt: np.ndarray) -> np.ndarray:
     lies half a pixel inside the nearest background pixel's centre); ``edt`` is the distance to that centre. The
     native local thickness on a one-slice grid (discs are its balls; Hildebrand-Ruegsegger, time near-linear)."""
     thick = np.asarray(_volrig.local_thickness_from_dt(edt.astype(np.float32)[None], (1.0, 1.0, 1.0)))[0]
-    return np.where(shape, np.maximum(thick / 2.0, edt) - 0.5, 0.0)
+    return np.where(shape, thick / 2.0 - 0.5, 0.0)  # >= edt - 0.5: a pixel lies in its own disc
 
 
 def half_depth(shape: np.ndarray, depth_scale: float) -> np.ndarray:
@@ -329,9 +329,9 @@ def _check_size(image, shape, longer_side: int, max_voxels: int) -> None:
     if n > max_voxels:
         fits = int(longer_side * (max_voxels / n) ** (1 / 3))
         named = f"{os.fsdecode(image)}: " if isinstance(image, (str, bytes, os.PathLike)) else ""
-        raise VolrigError(f"{named}the drawing inflates to a {shape[2]} x {shape[1]} x {shape[0]} solid ({n:,} voxels), "
-                          f"more than max_voxels={max_voxels:,}: pass resolution={fits} (or less) to downscale it, or "
-                          f"raise max_voxels")
+        raise VolrigError(f"{named}the drawing inflates to a {shape[2]} x {shape[1]} x {shape[0]} solid "
+                          f"({n:,} voxels), more than max_voxels={max_voxels:,}: pass resolution={fits} (or less) "
+                          f"to downscale it, or raise max_voxels")
 
 
 def _fill_layers(out: np.ndarray, y0: int, bounds) -> None:

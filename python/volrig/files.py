@@ -24,7 +24,8 @@ def _keep_owner(tmp: str, owner) -> None:
 @contextmanager
 def atomic_output(path: str, suffix: str = ""):
     """Yields a temporary path in the target's folder; on success it is renamed onto ``path``, on error removed.
-    An existing file keeps its owner (where allowed) and permission bits; a symbolic link keeps pointing at its target, which is replaced.
+    An existing file keeps its owner (where allowed) and permission bits; a symbolic link keeps pointing at its
+    target, which is replaced.
     ``suffix`` keeps writers that insist on an ending (numpy adds ".npz", matplotlib picks the format) happy."""
     path = os.fspath(path)
     if ("\0" if isinstance(path, str) else b"\0") in path:

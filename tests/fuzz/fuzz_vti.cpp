@@ -1,5 +1,5 @@
-// libFuzzer target for read_vti (VTK XML image data): any input must either read or fail with a volrig::Error (a FileFormatError
-// naming the input). Any other exception, crash, leak or sanitizer report is a finding. Built by scripts/fuzz.
+// libFuzzer target for read_vti (VTK XML image data): any input must either read or fail with a volrig::Error (a
+// FileFormatError naming the input). Any other exception, crash, leak or sanitizer report is a finding. Built by scripts/fuzz.
 #include <cstddef>
 #include <cstdint>
 

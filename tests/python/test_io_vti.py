@@ -153,3 +153,10 @@ def test_the_viscous_fingering_run_reads_with_its_declared_ranges():
             head = fh.read(2000).decode("latin-1")
         lo, hi = (float(re.search(k + r'="([^"]+)"', head).group(1)) for k in ("RangeMin", "RangeMax"))
         assert v.array.min() == pytest.approx(lo, abs=1e-5) and v.array.max() == pytest.approx(hi, rel=1e-7)
+
+
+def test_a_one_byte_array_at_the_very_end_reads(tmp_path):
+    """An uncompressed array needs only its byte count before it (not a block table's three words)."""
+    data = vti_bytes(np.array([[[7]]], np.uint8))
+    data = data[:data.rindex(b"\n  </AppendedData>")]  # the closing tags are not needed to read
+    assert volrig.load(write(tmp_path, data)).array.tolist() == [[[7]]]

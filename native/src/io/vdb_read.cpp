@@ -369,18 +369,23 @@ std::string box_text(const openvdb::CoordBBox& b) {
     return c(b.min()) + " .. " + c(b.max());
 }
 
-/// `active` met with opt.crop (when given); refused when they do not meet, or the crop box is not a box.
+/// Refuses (in the caller's process, before OpenVDB's) a crop box whose min exceeds its max or that leaves
+/// OpenVDB's 32-bit index coordinates.
+void check_crop(const std::string& path, const ReadOptions& opt) {
+    if (!opt.crop) return;
+    constexpr std::int64_t lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max();
+    for (std::size_t i = 0; i < 3; ++i)
+        if (opt.crop->min[i] > opt.crop->max[i] || opt.crop->min[i] < lo || opt.crop->max[i] > hi)
+            throw Error(path + ": the crop box's min must not exceed its max, within 32-bit index coordinates");
+}
+
+/// `active` met with opt.crop (checked by check_crop, when given); refused when they do not meet.
 openvdb::CoordBBox cropped(const openvdb::CoordBBox& active, const ReadOptions& opt, const std::string& subject) {
     if (!opt.crop) return active;
-    constexpr std::int64_t lo = std::numeric_limits<std::int32_t>::min(), hi = std::numeric_limits<std::int32_t>::max();
     openvdb::Coord a, b;
     for (int k = 0; k < 3; ++k) {
-        const auto i = static_cast<std::size_t>(k);
-        const std::int64_t m = opt.crop->min[i], n = opt.crop->max[i];
-        if (m > n || m < lo || n > hi)
-            throw Error(subject + ": the crop box's min must not exceed its max, within 32-bit index coordinates");
-        a[k] = static_cast<openvdb::Int32>(m);
-        b[k] = static_cast<openvdb::Int32>(n);
+        a[k] = static_cast<openvdb::Int32>(opt.crop->min[static_cast<std::size_t>(k)]);
+        b[k] = static_cast<openvdb::Int32>(opt.crop->max[static_cast<std::size_t>(k)]);
     }
     openvdb::CoordBBox out = active;
     out.intersect(openvdb::CoordBBox(a, b));
@@ -466,6 +471,7 @@ Volume read_here(const std::string& path, const std::string& grid_name, const Re
 // OpenVDB reads in a child process (io/isolate.cpp): a corrupt leaf can make it overrun a buffer.
 Volume read_vdb(const std::string& path, const std::string& grid_name, const ReadOptions& opt) {
     io_detail::check_regular_file(path);
+    check_crop(path, opt);
     return io_detail::isolated_volume(path, "OpenVDB's reader", opt,
                                       [&](const ReadOptions& o) { return read_here(path, grid_name, o); });
 }

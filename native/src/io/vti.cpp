@@ -266,6 +266,7 @@ Volume read_blocks(const ByteSource& src, std::uint64_t at, const Layout& l, con
         inf.finish();
         pos += packed[k];
     }
+    if (l.big_endian != host_is_big_endian()) swap_bytes(v.data.data(), v.data.size() / dtype_size(t), dtype_size(t));
     return v;
 }
 
@@ -275,30 +276,23 @@ Volume read_vti(const ByteSource& src, const ReadOptions& opt) {
     const std::string& name = src.name();
     const VtiText text = read_text(src);
     const Layout l = file_layout(name, text.xml);
-    Grid g = image_grid(name, text.xml);
+    const Grid g = image_grid(name, text.xml);
     const Array a = point_array(name, text.xml);
     const std::uint64_t bytes = check_volume(name, g, a.type, opt.max_bytes);
     check_budget(name, bytes, src.size(), opt, "the " + describe(g.dims, a.type) + " voxels");
     const std::string what = "DataArray " + quoted(a.name);
     if (a.offset > src.size() - text.data_start) fail(name, what + "'s offset runs past the end of the file");
     const std::uint64_t at = text.data_start + a.offset;
-    if (at + 3 * l.header_bytes > src.size()) fail(name, what + "'s header runs past the end of the file");
-    Volume v;
-    if (l.zlib) {
-        v = read_blocks(src, at, l, g, a.type, what);
-    } else {
-        const std::uint64_t n = header_word(src, at, l);
-        if (n != bytes)
-            fail(name, what + " holds " + with_commas(n) + " bytes but " + describe(g.dims, a.type) + " needs " +
-                           with_commas(bytes));
-        DataLocation loc(src);
-        loc.offset = at + l.header_bytes;
-        v = read_raw_voxels(loc, g, a.type, l.big_endian);
-        return v;
-    }
-    if (l.big_endian != host_is_big_endian())
-        swap_bytes(v.data.data(), v.data.size() / dtype_size(a.type), dtype_size(a.type));
-    return v;
+    const std::uint64_t words = l.zlib ? 3 : 1;  // the block table's first three words, or the byte count
+    if (words * l.header_bytes > src.size() - at) fail(name, what + "'s header runs past the end of the file");
+    if (l.zlib) return read_blocks(src, at, l, g, a.type, what);
+    const std::uint64_t n = header_word(src, at, l);
+    if (n != bytes)
+        fail(name, what + " holds " + with_commas(n) + " bytes but " + describe(g.dims, a.type) + " needs " +
+                       with_commas(bytes));
+    DataLocation loc(src);
+    loc.offset = at + l.header_bytes;
+    return read_raw_voxels(loc, g, a.type, l.big_endian);
 }
 
 }  // namespace volrig
