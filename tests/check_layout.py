@@ -71,6 +71,7 @@ CAPABILITIES: dict[str, dict[str, list[str]]] = {
     "centerline": {"headers": []},
     "collide": {"headers": []},
     "drawing": {"headers": []},  # drawings: PNG reading (native), inflation to a solid (Python)
+    "track": {"headers": []},  # feature tracking over time steps: features and point overlaps (native), events (Python)
 }
 
 # Modules of python/volrig that belong to no one capability: the package's front, the pipeline that chains the

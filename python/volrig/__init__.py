@@ -5,7 +5,7 @@ Pipeline: ``load`` -> ``segment`` -> ``skeletonize`` -> ``Skeleton.at(tp)`` -> `
 ``volrig.pipeline`` chains these steps as the command line, the Blender add-on and the demo use them.
 Meshes come in through ``read_mesh`` -> ``voxelize`` (a mask, like ``segment``'s). Motion capture: ``read_bvh``
 -> ``animate(rig, motion)`` gives per-frame bone matrices. Drawings come in through ``inflate`` (a mask, too)
-and ``drawing_colours``.
+and ``drawing_colours``. Time series: ``track`` follows features from step to step by their skeletons.
 """
 from ._volrig import Cancelled, FileFormatError, VolrigError
 from .mesh import read_mesh, read_tgf, subdivide, voxelize
@@ -31,6 +31,7 @@ from .pipeline import rig_mesh
 from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
                       tissue_classes, tissue_grids)
+from .track import Event, Tracking, track
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -49,7 +50,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
            "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
-           "part_grids", "explode_matrices", "vdb_grids"]
+           "part_grids", "explode_matrices", "vdb_grids", "track", "Tracking", "Event"]
 
 
 def __getattr__(name):

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,inflate,demo}``. Run with -h for each command's options.
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,inflate,track,demo}``. Run with -h for each command's options.
 
 The parser and ``main`` live here; the commands themselves (``cmd_<name>``) and their helpers in volrig.cli_commands.
 """
@@ -25,6 +25,7 @@ from .cli_commands import (
     cmd_rig,
     cmd_skeletonize,
     cmd_thickness,
+    cmd_track,
 )
 from .deform import MODES, SAMPLINGS
 from .pipeline import DEFAULT_THINNESS_VOXELS
@@ -295,6 +296,22 @@ def _inflate_command(sub) -> None:
                         "that fits)")
 
 
+def _track_command(sub) -> None:
+    p = _add_command(sub, "track", "track the features of a time series by their skeletons (thesis 9.1): prints "
+                                   "the events, writes the tracking graph as JSON", cmd_track)
+    p.add_argument("steps", help="a folder of time steps (any volume format, .vti too; taken in name order)")
+    p.add_argument("--lo", type=float, required=True, help="a feature's voxels are >= LO")
+    p.add_argument("--hi", type=float, help="... and <= HI")
+    p.add_argument("--thinness", type=float, default=1.0,
+                   help="skeleton thinness (<3,4,5> chamfer units as in the thesis' Table 9.1; 0 = whole features)")
+    p.add_argument("--min-size", type=_at_least_one, default=20, help="smallest feature in voxels (default 20)")
+    p.add_argument("--tolerance", type=float, default=0.1,
+                   help="a match overlaps by at least this share of the smaller feature (default 0.1)")
+    p.add_argument("-o", "--output", help="the tracking graph (.json: features, edges, events)")
+    p.add_argument("--vdb", metavar="DIR", help="also write DIR/track_NNNN.vdb: a `track` grid (each voxel its "
+                                                "feature's track id) a step")
+
+
 def _demo_command(sub) -> None:
     p = _add_command(sub, "demo", "phantom -> skeleton -> pictures and a report", cmd_demo)
     p.add_argument("-o", "--output", default="out/demo", help="output folder (default out/demo)")
@@ -319,6 +336,7 @@ def main(argv=None) -> int:
     _contacts_command(sub)
     _flythrough_command(sub)
     _inflate_command(sub)
+    _track_command(sub)
     _demo_command(sub)
 
     args = parser.parse_args(argv)

@@ -577,6 +577,35 @@ def cmd_inflate(args) -> int:
     return 0
 
 
+def cmd_track(args) -> int:
+    from .files import atomic_output
+    from .track import track
+    from .volume import write_vdb
+    if args.output:
+        _check_output(args.output, ".json")
+    t = time.perf_counter()
+    tr = track(args.steps, lo=args.lo, hi=args.hi, thinness=args.thinness, min_size=args.min_size,
+               tolerance=args.tolerance)
+    counts = ", ".join(f"{n} {k}" for k, n in tr.event_counts().items() if n)
+    tracks = len(set(np.concatenate(tr.track_ids).tolist()))
+    print(f"{args.steps}: {tr.steps} steps, {sum(len(v) for v in tr.volumes)} features, {tracks} tracks; "
+          f"events: {counts or 'none'} ({time.perf_counter() - t:.2f} s)")
+    for e in tr.events:
+        if e.kind != "continuation":
+            print(f"  step {e.step} -> {e.step + 1}: {e.kind} {list(e.before)} -> {list(e.after)}")
+    if args.output:
+        with atomic_output(args.output) as tmp, open(tmp, "w") as f:
+            json.dump(tr.to_dict(), f, indent=1)
+        print(f"-> {args.output}")
+    if args.vdb:
+        os.makedirs(args.vdb, exist_ok=True)
+        for s in range(tr.steps):
+            write_vdb(os.path.join(args.vdb, f"track_{s:04d}.vdb"), {"track": tr.track_volume(s)},
+                      spacing=tr.spacing, origin=tr.origin)
+        print(f"-> {args.vdb}/track_0000.vdb .. track_{tr.steps - 1:04d}.vdb")
+    return 0
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
     run_demo(args.output, scale=args.scale, thinness=args.thinness)

@@ -18,6 +18,12 @@ struct Components {
 /// (ties by first voxel in index order).
 Components label_components(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {});
 
+/// Labels the `connectivity`-connected (6: faces, 26: faces, edges and corners) components of `mask` in scan order:
+/// 1..count numbered by each component's first voxel in index order (x fastest), as scipy.ndimage.label numbers
+/// them; sizes[c - 1] = voxels in component c. Works on the mask's runs along x (union-find over the runs of
+/// neighbouring rows): one read of the mask, memory per run besides the labels.
+Components scan_components(const Grid& grid, const std::uint8_t* mask, int connectivity);
+
 /// Mask (0/1 bytes) of the largest 26-connected component; all zeros for an empty mask.
 std::vector<std::uint8_t> largest_component(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {});
 

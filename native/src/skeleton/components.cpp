@@ -4,6 +4,7 @@
 #include <cstring>
 #include <limits>
 #include <numeric>
+#include <string>
 
 #include "common/neighbourhood.hpp"
 
@@ -121,13 +122,15 @@ std::int64_t find_root(std::vector<std::int64_t>& parent, std::int64_t a) {
     return a;
 }
 
-/// Joins the runs of row `r` with those of row `s` that touch them 26-wise (x ranges within one voxel).
-void join_rows(const Runs& runs, std::int64_t r, std::int64_t s, std::vector<std::int64_t>& parent) {
+/// Joins the runs of row `r` with those of row `s` that touch them: 26-wise when `diagonal` (x ranges within one
+/// voxel), else face to face (x ranges overlapping).
+void join_rows(const Runs& runs, std::int64_t r, std::int64_t s, bool diagonal, std::vector<std::int64_t>& parent) {
     std::int64_t i = runs.row_start[static_cast<std::size_t>(r)], j = runs.row_start[static_cast<std::size_t>(s)];
     const std::int64_t ie = runs.row_start[static_cast<std::size_t>(r) + 1];
     const std::int64_t je = runs.row_start[static_cast<std::size_t>(s) + 1];
+    const std::int32_t reach = diagonal ? 1 : 0;
     while (i < ie && j < je) {
-        const auto a0 = runs.x0[static_cast<std::size_t>(i)] - 1, a1 = runs.x1[static_cast<std::size_t>(i)] + 1;
+        const auto a0 = runs.x0[static_cast<std::size_t>(i)] - reach, a1 = runs.x1[static_cast<std::size_t>(i)] + reach;
         const auto b0 = runs.x0[static_cast<std::size_t>(j)], b1 = runs.x1[static_cast<std::size_t>(j)];
         if (a0 <= b1 && b0 <= a1) {
             const std::int64_t ra = find_root(parent, i), rb = find_root(parent, j);
@@ -138,30 +141,53 @@ void join_rows(const Runs& runs, std::int64_t r, std::int64_t s, std::vector<std
     }
 }
 
+/// The mask's runs and each run's component, 1.. numbered by the component's first run in scan order.
+struct RunComponents {
+    Runs runs;
+    std::vector<std::int32_t> number;
+    std::int32_t count = 0;
+};
+
+RunComponents run_components(const Grid& g, const std::uint8_t* mask, int connectivity) {
+    if (connectivity != 6 && connectivity != 26)
+        throw Error("connected components: connectivity must be 6 or 26, got " + std::to_string(connectivity));
+    RunComponents rc{mask_runs(g, mask), {}, 0};
+    const Runs& runs = rc.runs;
+    const std::int64_t ny = g.dims[1], nz = g.dims[2];
+    const bool diagonal = connectivity == 26;
+    std::vector<std::int64_t> parent(runs.x0.size());
+    std::iota(parent.begin(), parent.end(), std::int64_t{0});
+    for (std::int64_t z = 0; z < nz; ++z)
+        for (std::int64_t y = 0; y < ny; ++y) {  // the rows before this one among its neighbouring rows
+            const std::int64_t r = z * ny + y;
+            if (y > 0) join_rows(runs, r, r - 1, diagonal, parent);
+            if (z == 0) continue;
+            for (std::int64_t dy = diagonal ? -1 : 0; dy <= (diagonal ? 1 : 0); ++dy)
+                if (y + dy >= 0 && y + dy < ny) join_rows(runs, r, r - ny + dy, diagonal, parent);
+        }
+    rc.number.assign(runs.x0.size(), 0);
+    for (std::size_t k = 0; k < runs.x0.size(); ++k) {
+        const auto root = static_cast<std::size_t>(find_root(parent, static_cast<std::int64_t>(k)));
+        if (!rc.number[root]) {  // roots are the least run of their component: seen first
+            if (rc.count == std::numeric_limits<std::int32_t>::max())
+                throw Error("connected components: too many components");
+            rc.number[root] = ++rc.count;
+        }
+        rc.number[k] = rc.number[root];
+    }
+    return rc;
+}
+
 }  // namespace
 
 std::vector<std::int32_t> point_components(const Grid& g, const std::uint8_t* mask, const std::int32_t* ijk,
                                            std::size_t n) {
     check_grid(g, 1, std::numeric_limits<std::uint64_t>::max(), "point_components");
-    const Runs runs = mask_runs(g, mask);
+    const RunComponents rc = run_components(g, mask, 26);
+    const Runs& runs = rc.runs;
+    const auto& number = rc.number;
     const std::int64_t ny = g.dims[1], nz = g.dims[2];
-    std::vector<std::int64_t> parent(runs.x0.size());
-    std::iota(parent.begin(), parent.end(), std::int64_t{0});
-    for (std::int64_t z = 0; z < nz; ++z)
-        for (std::int64_t y = 0; y < ny; ++y) {  // the rows before this one among its 8 neighbouring rows
-            const std::int64_t r = z * ny + y;
-            if (y > 0) join_rows(runs, r, r - 1, parent);
-            if (z == 0) continue;
-            for (std::int64_t dy = -1; dy <= 1; ++dy)
-                if (y + dy >= 0 && y + dy < ny) join_rows(runs, r, r - ny + dy, parent);
-        }
-    std::vector<std::int32_t> number(runs.x0.size(), 0), out(n, 0);
-    std::int32_t next = 0;
-    for (std::size_t k = 0; k < runs.x0.size(); ++k) {
-        const auto root = static_cast<std::size_t>(find_root(parent, static_cast<std::int64_t>(k)));
-        if (!number[root]) number[root] = ++next;  // roots are the least run of their component: seen first
-        number[k] = number[root];
-    }
+    std::vector<std::int32_t> out(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
         const std::int64_t z = ijk[3 * i], y = ijk[3 * i + 1], x = ijk[3 * i + 2];
         if (z < 0 || y < 0 || x < 0 || z >= nz || y >= ny || x >= g.dims[0]) continue;
@@ -174,6 +200,24 @@ std::vector<std::int32_t> point_components(const Grid& g, const std::uint8_t* ma
         if (x <= runs.x1[k]) out[i] = number[k];
     }
     return out;
+}
+
+Components scan_components(const Grid& g, const std::uint8_t* mask, int connectivity) {
+    check_grid(g, 1, std::numeric_limits<std::uint64_t>::max(), "scan_components");
+    const RunComponents rc = run_components(g, mask, connectivity);
+    Components c;
+    c.labels.assign(static_cast<std::size_t>(g.voxel_count()), 0);
+    c.sizes.assign(static_cast<std::size_t>(rc.count), 0);
+    const std::int64_t nx = g.dims[0], rows = g.dims[1] * g.dims[2];
+    for (std::int64_t r = 0; r < rows; ++r)
+        for (std::int64_t k = rc.runs.row_start[static_cast<std::size_t>(r)];
+             k < rc.runs.row_start[static_cast<std::size_t>(r) + 1]; ++k) {
+            const auto kk = static_cast<std::size_t>(k);
+            const std::int32_t label = rc.number[kk];
+            std::fill(c.labels.begin() + r * nx + rc.runs.x0[kk], c.labels.begin() + r * nx + rc.runs.x1[kk] + 1, label);
+            c.sizes[static_cast<std::size_t>(label) - 1] += rc.runs.x1[kk] - rc.runs.x0[kk] + 1;
+        }
+    return c;
 }
 
 std::vector<std::int64_t> nearest_seed_fill(const Grid& g, const std::uint8_t* code) {

@@ -1,0 +1,336 @@
+"""Feature tracking over time steps by the overlap of skeletons (thesis 9.1, after Silver and Wang; docs/track.md).
+
+``track(steps, lo=...)`` segments each step's features (6-connected components above ``lo`` of at least
+``min_size`` voxels, numbered as ``scipy.ndimage.label`` numbers them), skeletonizes each step once and matches
+features of consecutive steps by the overlap of their skeletons: each skeleton point stands for its share of its
+feature's volume (its ball's volume, the feature's balls summing to the feature), and counts where it lies in the
+other step, both ways. At thinness 0 every voxel is a point of weight 1: the exact overlap of the whole features,
+Silver and Wang's volume test. ``Tracking.at(thinness)`` re-tracks without skeletonizing again.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional, Sequence
+
+import numpy as np
+
+from . import _volrig
+from ._volrig import Cancelled, VolrigError
+from .skeleton import skeletonize
+from .volume import FORMATS, Volume, load
+
+#: The kinds of event between two steps, by how many features before and after a group of matches holds.
+EVENT_KINDS = ("continuation", "split", "merge", "split-merge", "creation", "dissipation")
+
+ProgressFn = Optional[Callable[[float], Optional[bool]]]
+
+
+@dataclass(frozen=True)
+class Event:
+    """Features ``before`` (of step ``step``) became features ``after`` (of step ``step + 1``): one group of the
+    matches between the two steps (a connected component of the bipartite match graph). ``kind``: continuation
+    (1 to 1), split (1 to 2 or more: Silver and Wang's bifurcation), merge (2 or more to 1: amalgamation),
+    split-merge (several to several), creation (none to 1), dissipation (1 to none)."""
+
+    step: int
+    kind: str
+    before: tuple
+    after: tuple
+
+
+@dataclass
+class _Step:
+    """One time step, prepared once: its features and its skeleton's points in descending score order."""
+
+    labels: np.ndarray        # int32 [z, y, x], 0 = no feature
+    sizes: np.ndarray         # int64 voxels per feature
+    centroids: np.ndarray     # (F, 3) world x, y, z
+    voxels: np.ndarray        # int64 flat index of every feature voxel (the full-volume test's points)
+    voxel_label: np.ndarray   # int32 their features
+    points: np.ndarray        # int64 flat index of the skeleton's points, by descending score
+    point_label: np.ndarray   # int32 their features
+    dt: np.ndarray            # float32 their distance transform (ball radius in the metric's units)
+    scores: np.ndarray        # float32 their thinness scores (descending)
+    ijk: np.ndarray           # int32 (N, 3) their voxel indices [z, y, x]
+    ball: np.ndarray          # float32 dt³: their balls' volumes (to a constant)
+    first: np.ndarray         # int64 per feature, the position of its first point in the order
+    spacing: tuple
+    origin: tuple
+
+    @property
+    def ones(self) -> np.ndarray:
+        """Weight 1 for every feature voxel (made once)."""
+        if getattr(self, "_ones", None) is None:
+            self._ones = np.ones(len(self.voxels), np.float32)
+        return self._ones
+
+
+def _step_files(folder: str) -> List[str]:
+    names = sorted(n for n in os.listdir(folder) if any(n.lower().endswith(e) for e in FORMATS if e.startswith(".")))
+    if not names:
+        raise VolrigError(f"{folder}: no volume files (endings {', '.join(sorted(FORMATS))})")
+    return [os.path.join(folder, n) for n in names]
+
+
+def _volumes(steps):
+    """The steps as a list of things to load lazily: Volumes, arrays or file names (a folder: its files by name)."""
+    if isinstance(steps, (str, os.PathLike)):
+        if not os.path.isdir(steps):
+            raise VolrigError(f"{os.fspath(steps)}: not a folder of time steps")
+        steps = _step_files(os.fspath(steps))
+    steps = list(steps)
+    if len(steps) < 2:
+        raise VolrigError(f"tracking needs at least two time steps, got {len(steps)}")
+    return steps
+
+
+def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str) -> _Step:
+    v = load(step) if isinstance(step, (str, os.PathLike)) else step
+    arr = v.array if isinstance(v, Volume) else np.asarray(v)
+    spacing, origin = (v.spacing, v.origin) if isinstance(v, Volume) else ((1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+    if arr.ndim != 3:
+        raise VolrigError(f"a time step must be 3-D [z, y, x], got shape {arr.shape}")
+    with np.errstate(invalid="ignore"):  # NaN is no feature
+        mask = arr >= lo if hi is None else (arr >= lo) & (arr <= hi)
+    labels, sizes, centroids = _volrig.track_features(np.ascontiguousarray(mask).view(np.uint8), int(min_size))
+    del mask
+    voxels = np.flatnonzero(labels)
+    skel = skeletonize(Volume(labels > 0, spacing, origin), metric=metric)
+    ijk, _, dt, scores = skel._native.points(skel.object_count)  # object voxels by descending score
+    del skel
+    ny, nx = labels.shape[1:]
+    order = (ijk[:, 0].astype(np.int64) * ny + ijk[:, 1]) * nx + ijk[:, 2]
+    flat = labels.reshape(-1)
+    world = np.asarray(origin) + centroids * np.asarray(spacing)
+    point_label = flat[order]
+    first = np.full(len(sizes) + 1, len(order), np.int64)
+    np.minimum.at(first, point_label, np.arange(len(order)))
+    dt = np.asarray(dt)
+    return _Step(labels, sizes, world, voxels, flat[voxels], order, point_label, dt, np.asarray(scores),
+                 np.asarray(ijk), dt ** 3, first[1:], tuple(spacing), tuple(origin))
+
+
+def _count_above(scores: np.ndarray, thinness: float) -> int:
+    """Points with a score above ``thinness`` (``scores`` descending): a prefix, found by bisection."""
+    return int(np.searchsorted(-scores, -np.float32(thinness), side="left"))
+
+
+def _points_at(s: _Step, thinness: float):
+    """(flat index, feature, weight) of the points standing for the features at ``thinness``: every voxel with
+    weight 1 at thinness 0; else the skeleton (score > thinness), each point weighted by its ball's volume (the
+    weights are scaled to each feature's voxels once counted, ``_overlaps``). A feature whose skeleton is empty
+    there keeps its best point."""
+    if thinness <= 0:
+        return s.voxels, s.voxel_label, s.ones
+    k = _count_above(s.scores, thinness)
+    late = s.first[s.first >= k]  # features without a point in the prefix: their best point
+    if not len(late):
+        return s.points[:k], s.point_label[:k], s.ball[:k]
+    return (np.concatenate([s.points[:k], s.points[late]]), np.concatenate([s.point_label[:k], s.point_label[late]]),
+            np.concatenate([s.ball[:k], s.ball[late]]))
+
+
+def _overlaps(a: _Step, b: _Step, pa, pb, clock: list) -> dict:
+    """{(feature of a, feature of b): overlap in voxels}: each step's points looked up in the other (a point's
+    weight scaled so that its feature's points sum to the feature's voxels), the larger estimate of the two
+    directions kept (equal, and exact, at thinness 0)."""
+    t0 = time.perf_counter()
+    fa, fb, wf, ta = _volrig.point_overlaps(b.labels, *pa)
+    gb, ga, wg, tb = _volrig.point_overlaps(a.labels, *pb)
+    clock[0] += time.perf_counter() - t0
+    wf = wf * a.sizes[fa - 1] / ta[fa]
+    wg = wg * b.sizes[gb - 1] / tb[gb]
+    out = dict(zip(zip(fa.tolist(), fb.tolist()), wf.tolist()))
+    for x, y, w in zip(ga.tolist(), gb.tolist(), wg.tolist()):
+        out[(x, y)] = max(out.get((x, y), 0.0), w)
+    return out
+
+
+def _groups(na: int, nb: int, pairs) -> list:
+    """Connected components of the bipartite match graph over features 1..na (before) and 1..nb (after), as
+    (before, after) tuples of sorted feature numbers, in order of their least feature."""
+    parent = list(range(na + nb))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a, b in pairs:
+        ra, rb = root(a - 1), root(na + b - 1)
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    groups = {}
+    for i in range(na + nb):
+        before, after = groups.setdefault(root(i), ([], []))
+        (before if i < na else after).append(i + 1 if i < na else i - na + 1)
+    return [(tuple(b), tuple(a)) for b, a in groups.values()]
+
+
+def _kind(before: tuple, after: tuple) -> str:
+    if not before:
+        return "creation"
+    if not after:
+        return "dissipation"
+    if len(before) == 1:
+        return "continuation" if len(after) == 1 else "split"
+    return "merge" if len(after) == 1 else "split-merge"
+
+
+def _pass_ids(ids_a: np.ndarray, a: _Step, b: _Step, pairs, next_id: int):
+    """Track ids of b's features: each match, larger features first (the successor's volume, then the
+    predecessor's), passes its predecessor's id on if neither has taken part yet; so a continuation keeps its id, a
+    split's largest branch and a merge's result keep the largest one's. The rest get new ids."""
+    ids_b = np.zeros(len(b.sizes), np.int32)
+    used = set()
+    for x, y in sorted(pairs, key=lambda p: (-b.sizes[p[1] - 1], -a.sizes[p[0] - 1], p)):
+        if ids_b[y - 1] == 0 and x not in used:
+            ids_b[y - 1] = ids_a[x - 1]
+            used.add(x)
+    for j in np.flatnonzero(ids_b == 0):
+        ids_b[j] = next_id
+        next_id += 1
+    return ids_b, next_id
+
+
+@dataclass
+class Tracking:
+    """The tracking graph of a time series at one thinness (see ``track``).
+
+    labels:    per step, the feature label volume (int32 [z, y, x]; features 1.. as scipy.ndimage.label numbers
+               6-connected components above ``lo``, those under ``min_size`` voxels removed and the rest renumbered).
+    volumes:   per step, int64 voxels of each feature (index f - 1).
+    centroids: per step, (F, 3) world x, y, z of each feature.
+    edges:     one (step, feature, next_feature, overlap) a match: overlap in voxels (estimated from the skeletons,
+               exact at thinness 0); a pair matches when it overlaps by ``tolerance`` of the smaller feature.
+    events:    the ``Event`` of every group of matches, step by step.
+    track_ids: per step, int32 track id of each feature (index f - 1), kept while a feature continues.
+    seconds:   time spent tracking (overlaps, events, ids), not preparing the steps; overlap_seconds: of which the
+               overlap test (the points looked up in the other step), the part the skeleton makes cheaper.
+    """
+
+    thinness: float
+    tolerance: float
+    labels: List[np.ndarray]
+    volumes: List[np.ndarray]
+    centroids: List[np.ndarray]
+    edges: list
+    events: List[Event]
+    track_ids: List[np.ndarray]
+    seconds: float
+    overlap_seconds: float
+    _steps: List[_Step] = field(repr=False)
+
+    @property
+    def steps(self) -> int:
+        return len(self._steps)
+
+    @property
+    def spacing(self) -> tuple:
+        return self._steps[0].spacing
+
+    @property
+    def origin(self) -> tuple:
+        return self._steps[0].origin
+
+    def at(self, thinness: float, tolerance: Optional[float] = None) -> "Tracking":
+        """The same steps tracked at another thinness (no skeletonization: each step's skeleton is kept)."""
+        return _track_steps(self._steps, thinness, self.tolerance if tolerance is None else tolerance)
+
+    def skeleton_points(self, step: int, feature: int, thinness: Optional[float] = None):
+        """(ijk (N, 3) [z, y, x], radii in voxels) of one feature's skeleton at ``thinness`` (default: this
+        tracking's)."""
+        s = self._steps[step]
+        tp = self.thinness if thinness is None else thinness
+        k = _count_above(s.scores, tp)
+        sel = np.flatnonzero(s.point_label[:k] == feature)
+        return s.ijk[sel], s.dt[sel]
+
+    def track_volume(self, step: int) -> np.ndarray:
+        """int32 [z, y, x]: each voxel its feature's track id (0 outside the features)."""
+        lut = np.concatenate([[0], self.track_ids[step]]).astype(np.int32)
+        return lut[self.labels[step]]
+
+    def event_counts(self) -> dict:
+        return {k: sum(e.kind == k for e in self.events) for k in EVENT_KINDS}
+
+    def agreement(self, reference: "Tracking") -> dict:
+        """How far this tracking agrees with ``reference`` (say the full-volume one, thinness 0): the share of
+        matched feature pairs matched by both among those matched by either, and the same for events."""
+        mine = {(s, a, b) for s, a, b, _ in self.edges}
+        theirs = {(s, a, b) for s, a, b, _ in reference.edges}
+        ev = {(e.step, e.kind, e.before, e.after) for e in self.events}
+        ev_ref = {(e.step, e.kind, e.before, e.after) for e in reference.events}
+        share = (lambda x, y: len(x & y) / len(x | y) if x | y else 1.0)
+        return {"matches": share(mine, theirs), "events": share(ev, ev_ref)}
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary: features (step, feature, track, volume, centroid), edges, events."""
+        feats = [{"step": s, "feature": f + 1, "track": int(self.track_ids[s][f]), "volume": int(v[f]),
+                  "centroid": [round(float(c), 4) for c in self.centroids[s][f]]}
+                 for s, v in enumerate(self.volumes) for f in range(len(v))]
+        return {"thinness": self.thinness, "tolerance": self.tolerance, "steps": self.steps, "features": feats,
+                "edges": [{"step": s, "feature": a, "next_feature": b, "overlap": round(o, 3)}
+                          for s, a, b, o in self.edges],
+                "events": [{"step": e.step, "kind": e.kind, "before": list(e.before), "after": list(e.after)}
+                           for e in self.events]}
+
+
+def _track_steps(steps: List[_Step], thinness: float, tolerance: float) -> Tracking:
+    if not np.isfinite(thinness) or thinness < 0:
+        raise VolrigError(f"thinness must be a finite number >= 0, got {thinness}")
+    if not 0 < tolerance <= 1:
+        raise VolrigError(f"tolerance must lie in (0, 1], got {tolerance}")
+    t0, clock = time.perf_counter(), [0.0]
+    points = [_points_at(s, thinness) for s in steps]
+    edges, events = [], []
+    ids = [np.arange(1, len(steps[0].sizes) + 1, dtype=np.int32)]
+    next_id = len(steps[0].sizes) + 1
+    for t in range(len(steps) - 1):
+        a, b = steps[t], steps[t + 1]
+        over = _overlaps(a, b, points[t], points[t + 1], clock)
+        pairs = sorted(p for p, w in over.items()
+                       if w >= tolerance * min(a.sizes[p[0] - 1], b.sizes[p[1] - 1]))
+        edges += [(t, x, y, over[(x, y)]) for x, y in pairs]
+        events += [Event(t, _kind(bf, af), bf, af) for bf, af in _groups(len(a.sizes), len(b.sizes), pairs)]
+        ids_b, next_id = _pass_ids(ids[-1], a, b, pairs, next_id)
+        ids.append(ids_b)
+    seconds = time.perf_counter() - t0
+    return Tracking(float(thinness), float(tolerance), [s.labels for s in steps], [s.sizes for s in steps],
+                    [s.centroids for s in steps], edges, events, ids, seconds, clock[0], steps)
+
+
+def track(steps, lo: float, hi: Optional[float] = None, thinness: float = 1.0, min_size: int = 20,
+          tolerance: float = 0.1, metric: str = "chamfer345", progress: ProgressFn = None) -> Tracking:
+    """Track the features of a time series (thesis 9.1) and return the ``Tracking`` graph.
+
+    steps:     a folder of volume files (any format ``load`` reads, ``.vti`` too; taken in name order), or a list of
+               file names, Volumes or arrays [z, y, x], one per step, all on one grid.
+    lo, hi:    a feature is a 6-connected component of voxels >= lo (and <= hi) with at least ``min_size`` voxels.
+    thinness:  the skeleton's thinness (in the metric's units; the thesis' <3,4,5> chamfer by default, whose useful
+               range is 0 to 4.08 as in its Table 9.1); 0 tracks by the whole features (Silver and Wang).
+    tolerance: a pair of features of consecutive steps matches when they overlap by at least this share of the
+               smaller one.
+    progress:  called with the fraction of steps prepared; returning False cancels (``volrig.Cancelled``).
+    """
+    if min_size < 1:
+        raise VolrigError(f"min_size must be >= 1, got {min_size}")
+    if not np.isfinite(lo) or (hi is not None and not hi >= lo):
+        raise VolrigError(f"the feature range must be finite with hi >= lo, got lo={lo}, hi={hi}")
+    items = _volumes(steps)
+    prepared: List[_Step] = []
+    for i, item in enumerate(items):
+        s = _prepare(item, float(lo), None if hi is None else float(hi), min_size, metric)
+        if prepared and s.labels.shape != prepared[0].labels.shape:
+            raise VolrigError(f"time step {i} has shape {s.labels.shape}, step 0 {prepared[0].labels.shape}: "
+                              "all steps must share one grid")
+        prepared.append(s)
+        if progress is not None and progress((i + 1) / len(items)) is False:
+            raise Cancelled("track: cancelled")
+    return _track_steps(prepared, thinness, tolerance)
+
+
+__all__ = ["track", "Tracking", "Event", "EVENT_KINDS"]

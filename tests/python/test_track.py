@@ -1,0 +1,148 @@
+"""Feature tracking (thesis 9.1): features numbered as scipy.ndimage.label numbers them; events and track ids of a
+synthetic series whose history is known, at thinness 0 (whole features) and from skeletons; exact overlaps at
+thinness 0 against numpy; re-tracking without skeletonizing; the shared viscous-fingering run against full-volume
+tracking; the CLI's JSON and VDB output; bad input."""
+import glob
+import json
+import os
+
+import numpy as np
+import pytest
+
+import volrig
+from volrig import track as trackmod
+from volrig.track import track
+
+FINGERS = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "timevarying",
+                       "viscous_fingers_run01")
+
+
+def ball(shape, centre, r):
+    z, y, x = np.indices(shape)
+    return (x - centre[0]) ** 2 + (y - centre[1]) ** 2 + (z - centre[2]) ** 2 <= r * r
+
+
+def series():
+    """Four steps of 24 x 24 x 64: feature B (two overlapping balls) splits into a big and a small blob which merge
+    again; A drifts and dissipates; C is created in the last step, where A never was."""
+    shape = (24, 24, 64)
+    a = [ball(shape, (8 + t, 12, 12), 5) for t in range(3)]
+    big = [ball(shape, (x, 12, 12), 7) for x in (38, 36, 37, 38)]
+    small = [ball(shape, (x, 12, 12), 5) for x in (47, 52, 51, 47)]  # apart at steps 1 and 2
+    c3 = ball(shape, (21, 12, 12), 4)
+    steps = [a[0] | big[0] | small[0], a[1] | big[1] | small[1], a[2] | big[2] | small[2], big[3] | small[3] | c3]
+    return [s.astype(np.float32) * 10 for s in steps]
+
+
+def test_features_are_numbered_as_scipy_numbers_6_connected_components():
+    ndimage = pytest.importorskip("scipy.ndimage")
+    rng = np.random.default_rng(5)
+    for _ in range(6):
+        v = rng.random((15, 17, 19)).astype(np.float32)
+        tr = track([v, v], lo=0.7, min_size=3, thinness=0)
+        ref, n = ndimage.label(v >= 0.7)
+        sizes = np.bincount(ref.ravel())[1:]
+        keep = np.flatnonzero(sizes >= 3) + 1
+        want = np.zeros_like(ref)
+        for k, lab in enumerate(keep):
+            want[ref == lab] = k + 1
+        assert np.array_equal(tr.labels[0], want)
+        assert np.array_equal(tr.volumes[0], sizes[keep - 1])
+        centre = np.array(ndimage.center_of_mass(want > 0, want, range(1, len(keep) + 1)))[:, ::-1]
+        assert np.allclose(tr.centroids[0], centre)
+
+
+@pytest.mark.parametrize("thinness", [0.0, 1.0, 2.0])
+def test_events_and_track_ids_of_a_known_history(thinness):
+    tr = track(series(), lo=5, thinness=thinness)
+    ev = [(e.step, e.kind, e.before, e.after) for e in tr.events]
+    # features are numbered by first voxel (lowest z first): B (or its big branch) 1, A 2, the small branch 3, C 2
+    assert ev == [(0, "split", (1,), (1, 3)), (0, "continuation", (2,), (2,)),
+                  (1, "continuation", (1,), (1,)), (1, "continuation", (2,), (2,)), (1, "continuation", (3,), (3,)),
+                  (2, "merge", (1, 3), (1,)), (2, "dissipation", (2,), ()), (2, "creation", (), (2,))]
+    # B's id persists through the split's larger branch and the merge; the small branch and C get new ids
+    assert [list(t) for t in tr.track_ids] == [[1, 2], [1, 2, 3], [1, 2, 3], [1, 4]]
+    assert tr.event_counts()["split"] == 1 and tr.event_counts()["merge"] == 1
+    vol = tr.track_volume(1)
+    assert set(np.unique(vol)) == {0, 1, 2, 3} and np.array_equal(vol > 0, tr.labels[1] > 0)
+
+
+def test_thinness_0_overlaps_are_the_exact_intersections():
+    steps = series()
+    tr = track(steps, lo=5, thinness=0)
+    for s, a, b, overlap in tr.edges:
+        assert overlap == np.count_nonzero((tr.labels[s] == a) & (tr.labels[s + 1] == b))
+    # and every pair that overlaps at all by a tenth of the smaller feature is an edge
+    for s in range(tr.steps - 1):
+        la, lb = tr.labels[s].ravel(), tr.labels[s + 1].ravel()
+        both = (la > 0) & (lb > 0)
+        pairs, counts = np.unique(np.stack([la[both], lb[both]]), axis=1, return_counts=True)
+        want = {(int(a), int(b)) for (a, b), c in zip(pairs.T, counts)
+                if c >= 0.1 * min(tr.volumes[s][a - 1], tr.volumes[s + 1][b - 1])}
+        assert {(a, b) for t, a, b, _ in tr.edges if t == s} == want
+
+
+def test_retracking_at_another_thinness_does_not_skeletonize_again(monkeypatch):
+    tr = track(series(), lo=5, thinness=1.0)
+    calls = []
+    monkeypatch.setattr(trackmod, "skeletonize", lambda *a, **k: calls.append(1))
+    thin = tr.at(3.0)
+    assert calls == [] and thin.thinness == 3.0
+    ijk, radii = thin.skeleton_points(0, 1)
+    ijk1, _ = tr.skeleton_points(0, 1)
+    assert 0 < len(ijk) < len(ijk1)  # a thinner skeleton of the same feature
+    assert np.all(tr.labels[0][tuple(ijk.T)] == 1) and np.all(radii > 0)
+    assert thin.agreement(tr.at(0)) == {"matches": 1.0, "events": 1.0}
+
+
+@pytest.mark.skipif(not os.path.isdir(FINGERS), reason="../shared/data/timevarying is absent (the shared data)")
+def test_viscous_fingers_match_full_volume_tracking_from_a_thin_skeleton():
+    steps = [volrig.load(f).array[:52] for f in sorted(glob.glob(os.path.join(FINGERS, "*.vti")))]
+    full = track(steps, lo=30, thinness=0)
+    assert len(full.events) > 50 and full.event_counts()["split"] >= 5  # a history worth tracking
+    points = sum(len(s.voxels) for s in full._steps)
+    for tp, least in ((1.0, 1.0), (2.0, 0.9)):
+        tr = full.at(tp)
+        agree = tr.agreement(full)
+        assert agree["matches"] >= least and agree["events"] >= least, (tp, agree)
+        used = sum(trackmod._count_above(s.scores, tp) for s in full._steps)
+        assert used < points * (0.35 if tp == 1.0 else 0.05)
+
+
+def test_cli_writes_the_graph_and_a_track_grid_a_step(tmp_path, capsys):
+    from volrig.cli import main
+    folder = tmp_path / "steps"
+    folder.mkdir()
+    from test_io_vti import vti_bytes  # the time series as VTK image data, as simulations write them
+    for i, s in enumerate(series()):
+        (folder / f"step_{i:02d}.vti").write_bytes(vti_bytes(s, zlib_blocks=4096))
+    (folder / "notes.txt").write_text("not a step")
+    out = tmp_path / "tracks.json"
+    assert main(["track", str(folder), "--lo", "5", "-o", str(out), "--vdb", str(tmp_path / "vdb")]) == 0
+    text = capsys.readouterr().out
+    assert "4 steps, 10 features, 4 tracks" in text and "split [1] -> [1, 3]" in text
+    graph = json.loads(out.read_text())
+    assert [e["kind"] for e in graph["events"]].count("merge") == 1
+    assert {"step": 0, "feature": 1, "next_feature": 3} == {k: graph["edges"][1][k] for k in
+                                                            ("step", "feature", "next_feature")}
+    grid = volrig.load(str(tmp_path / "vdb" / "track_0003.vdb"), grid="track")
+    assert set(np.unique(grid.array)) == {0, 1, 4}
+
+
+def test_bad_input_is_refused_clearly(tmp_path):
+    v = series()[0]
+    with pytest.raises(volrig.VolrigError, match="at least two time steps"):
+        track([v], lo=5)
+    with pytest.raises(volrig.VolrigError, match="share one grid"):
+        track([v, v[:, :, :32]], lo=5)
+    with pytest.raises(volrig.VolrigError, match="thinness"):
+        track([v, v], lo=5, thinness=float("nan"))
+    with pytest.raises(volrig.VolrigError, match="hi >= lo"):
+        track([v, v], lo=5, hi=1)
+    with pytest.raises(volrig.VolrigError, match="no volume files"):
+        track(str(tmp_path), lo=5)
+    with pytest.raises(volrig.Cancelled):
+        track([v, v, v], lo=5, progress=lambda f: f < 0.5)
+    nan = v.copy()
+    nan[0] = np.nan  # NaN is no feature
+    assert track([nan, v], lo=5, thinness=0).volumes[0].sum() == (v[1:] >= 5).sum()
