@@ -30,7 +30,8 @@ void bind_track(py::module_& m) {
         "of at least min_size voxels, numbered in scan order");
     m.def(
         "point_overlaps",
-        [](const LabelArray& next, const IndexArray& index, const LabelArray& label, const FloatArray& weight) {
+        [](const LabelArray& next, std::int32_t next_count, const IndexArray& index, const LabelArray& label,
+           const FloatArray& weight) {
             const auto n = static_cast<std::size_t>(index.size());
             if (next.ndim() != 3) throw Error("point_overlaps: next_labels must be 3-D [z, y, x]");
             if (label.size() != index.size() || weight.size() != index.size())
@@ -39,7 +40,7 @@ void bind_track(py::module_& m) {
             Overlaps o;
             {
                 py::gil_scoped_release nogil;
-                o = point_overlaps(g, next.data(), index.data(), label.data(), weight.data(), n);
+                o = point_overlaps(g, next.data(), next_count, index.data(), label.data(), weight.data(), n);
             }
             const auto k = static_cast<py::ssize_t>(o.a.size());
             const auto nt = static_cast<py::ssize_t>(o.totals.size());
@@ -47,7 +48,7 @@ void bind_track(py::module_& m) {
                                   to_numpy_shaped(std::move(o.weight), {k}),
                                   to_numpy_shaped(std::move(o.totals), {nt}));
         },
-        py::arg("next_labels"), py::arg("index"), py::arg("label"), py::arg("weight"));
+        py::arg("next_labels"), py::arg("next_count"), py::arg("index"), py::arg("label"), py::arg("weight"));
 }
 
 }  // namespace volrig::py

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Callable, List, Optional, Sequence
+from typing import Callable, List, Optional
 
 import numpy as np
 
@@ -118,18 +118,16 @@ def _count_above(scores: np.ndarray, thinness: float) -> int:
 
 
 def _points_at(s: _Step, thinness: float):
-    """(flat index, feature, weight) of the points standing for the features at ``thinness``: every voxel with
-    weight 1 at thinness 0; else the skeleton (score > thinness), each point weighted by its ball's volume (the
-    weights are scaled to each feature's voxels once counted, ``_overlaps``). A feature whose skeleton is empty
-    there keeps its best point."""
+    """(flat index, feature, weight) of the points standing for the features at ``thinness``, in index order (the
+    other step's labels are then read in memory order): every voxel with weight 1 at thinness 0; else the skeleton
+    (score > thinness), each point weighted by its ball's volume (the weights are scaled to each feature's voxels
+    once counted, ``_overlaps``). A feature whose skeleton is empty there keeps its best point."""
     if thinness <= 0:
         return s.voxels, s.voxel_label, s.ones
     k = _count_above(s.scores, thinness)
-    late = s.first[s.first >= k]  # features without a point in the prefix: their best point
-    if not len(late):
-        return s.points[:k], s.point_label[:k], s.ball[:k]
-    return (np.concatenate([s.points[:k], s.points[late]]), np.concatenate([s.point_label[:k], s.point_label[late]]),
-            np.concatenate([s.ball[:k], s.ball[late]]))
+    take = np.concatenate([np.arange(k), s.first[s.first >= k]])  # the late features' best points too
+    take = take[np.argsort(s.points[take], kind="stable")]
+    return s.points[take], s.point_label[take], s.ball[take]
 
 
 def _overlaps(a: _Step, b: _Step, pa, pb, clock: list) -> dict:
@@ -137,8 +135,8 @@ def _overlaps(a: _Step, b: _Step, pa, pb, clock: list) -> dict:
     weight scaled so that its feature's points sum to the feature's voxels), the larger estimate of the two
     directions kept (equal, and exact, at thinness 0)."""
     t0 = time.perf_counter()
-    fa, fb, wf, ta = _volrig.point_overlaps(b.labels, *pa)
-    gb, ga, wg, tb = _volrig.point_overlaps(a.labels, *pb)
+    fa, fb, wf, ta = _volrig.point_overlaps(b.labels, len(b.sizes), *pa)
+    gb, ga, wg, tb = _volrig.point_overlaps(a.labels, len(a.sizes), *pb)
     clock[0] += time.perf_counter() - t0
     wf = wf * a.sizes[fa - 1] / ta[fa]
     wg = wg * b.sizes[gb - 1] / tb[gb]
@@ -209,7 +207,9 @@ class Tracking:
     events:    the ``Event`` of every group of matches, step by step.
     track_ids: per step, int32 track id of each feature (index f - 1), kept while a feature continues.
     seconds:   time spent tracking (overlaps, events, ids), not preparing the steps; overlap_seconds: of which the
-               overlap test (the points looked up in the other step), the part the skeleton makes cheaper.
+               overlap test (the points looked up in the other step), the part the skeleton makes cheaper;
+               points_seconds: taking each step's skeleton at this thinness, in index order (the skeletonization's
+               part, as in the thesis' Table 9.1).
     """
 
     thinness: float
@@ -222,6 +222,7 @@ class Tracking:
     track_ids: List[np.ndarray]
     seconds: float
     overlap_seconds: float
+    points_seconds: float
     _steps: List[_Step] = field(repr=False)
 
     @property
@@ -284,8 +285,9 @@ def _track_steps(steps: List[_Step], thinness: float, tolerance: float) -> Track
         raise VolrigError(f"thinness must be a finite number >= 0, got {thinness}")
     if not 0 < tolerance <= 1:
         raise VolrigError(f"tolerance must lie in (0, 1], got {tolerance}")
-    t0, clock = time.perf_counter(), [0.0]
-    points = [_points_at(s, thinness) for s in steps]
+    t0 = time.perf_counter()
+    points = [_points_at(s, thinness) for s in steps]  # the skeletons at this thinness: not tracking's time
+    t0, clock, points_seconds = time.perf_counter(), [0.0], time.perf_counter() - t0
     edges, events = [], []
     ids = [np.arange(1, len(steps[0].sizes) + 1, dtype=np.int32)]
     next_id = len(steps[0].sizes) + 1
@@ -300,7 +302,8 @@ def _track_steps(steps: List[_Step], thinness: float, tolerance: float) -> Track
         ids.append(ids_b)
     seconds = time.perf_counter() - t0
     return Tracking(float(thinness), float(tolerance), [s.labels for s in steps], [s.sizes for s in steps],
-                    [s.centroids for s in steps], edges, events, ids, seconds, clock[0], steps)
+                    [s.centroids for s in steps], edges, events, ids, seconds, clock[0], points_seconds,
+                    steps)
 
 
 def track(steps, lo: float, hi: Optional[float] = None, thinness: float = 1.0, min_size: int = 20,

@@ -110,13 +110,17 @@ TEST_CASE("point overlaps of every voxel at weight 1 are the exact intersections
         if (b.labels[i]) ref[{a.labels[i], b.labels[i]}] += 1;
     }
     const std::vector<float> ones(index.size(), 1.0f);
-    const Overlaps o = point_overlaps(g, b.labels.data(), index.data(), label.data(), ones.data(), index.size());
+    const auto nb = static_cast<std::int32_t>(b.sizes.size());
+    const auto overlaps = [&](std::int32_t count) {
+        return point_overlaps(g, b.labels.data(), count, index.data(), label.data(), ones.data(), index.size());
+    };
+    const Overlaps o = overlaps(nb);
     std::map<std::pair<std::int32_t, std::int32_t>, double> got;
     for (std::size_t k = 0; k < o.a.size(); ++k) got[{o.a[k], o.b[k]}] = o.weight[k];
     REQUIRE(got == ref);
     for (std::size_t f = 1; f < o.totals.size(); ++f)
         REQUIRE(o.totals[f] == static_cast<double>(a.sizes[f - 1]));
+    REQUIRE_THROWS_WITH(overlaps(1), Catch::Contains("exceeds"));
     index[0] = g.voxel_count();
-    REQUIRE_THROWS_WITH(point_overlaps(g, b.labels.data(), index.data(), label.data(), ones.data(), index.size()),
-                        Catch::Contains("off the grid"));
+    REQUIRE_THROWS_WITH(overlaps(nb), Catch::Contains("off the grid"));
 }

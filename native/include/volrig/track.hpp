@@ -22,7 +22,8 @@ Features track_features(const Grid& grid, const std::uint8_t* mask, std::int64_t
 
 /// Overlaps between features a of one step and b of the next: each of `n` points (voxel `index[i]` of the grid
 /// `next_labels` is on, standing for `weight[i]` voxels of feature `label[i]`) adds its weight to (label[i], b)
-/// where b = next_labels[index[i]] > 0. With every voxel of every feature as a point of weight 1 this is the exact
+/// where b = next_labels[index[i]] > 0 (the next step has `next_count` features: no label above it). Points in
+/// ascending index order read the next step's labels in memory order. With every voxel of every feature as a point of weight 1 this is the exact
 /// overlap |a ∩ b| in voxels (Silver and Wang's volume test). The pairs come sorted by (a, b); `totals[a]` sums
 /// the weights of a's points wherever they lie. Cost: one pass over the points (a dense pair table while it stays
 /// under 2^20 entries, a hash table beyond).
@@ -32,7 +33,8 @@ struct Overlaps {
     std::vector<double> totals;
 };
 
-Overlaps point_overlaps(const Grid& grid, const std::int32_t* next_labels, const std::int64_t* index,
+Overlaps point_overlaps(const Grid& grid, const std::int32_t* next_labels, std::int32_t next_count,
+                        const std::int64_t* index,
                         const std::int32_t* label, const float* weight, std::size_t n);
 
 }  // namespace volrig

@@ -18,13 +18,13 @@ void check_point(const Grid& g, const std::int64_t* index, const std::int32_t* l
 
 }  // namespace
 
-Overlaps point_overlaps(const Grid& g, const std::int32_t* next_labels, const std::int64_t* index,
+Overlaps point_overlaps(const Grid& g, const std::int32_t* next_labels, std::int32_t nb, const std::int64_t* index,
                         const std::int32_t* label, const float* weight, std::size_t n) {
-    std::int32_t na = 0, nb = 0;
+    if (nb < 0) throw Error("point_overlaps: the next step's feature count must be >= 0");
+    std::int32_t na = 0;
     for (std::size_t i = 0; i < n; ++i) {
         check_point(g, index, label, i);
         na = std::max(na, label[i]);
-        nb = std::max(nb, next_labels[index[i]]);
     }
     Overlaps o;
     o.totals.assign(static_cast<std::size_t>(na) + 1, 0.0);
@@ -34,6 +34,7 @@ Overlaps point_overlaps(const Grid& g, const std::int32_t* next_labels, const st
     std::unordered_map<std::uint64_t, double> sparse;
     for (std::size_t i = 0; i < n; ++i) {
         const std::int32_t b = next_labels[index[i]];
+        if (b > nb) throw Error("point_overlaps: a next-step label exceeds its feature count");
         o.totals[static_cast<std::size_t>(label[i])] += weight[i];
         if (b <= 0 || label[i] == 0) continue;
         if (dense) table[static_cast<std::size_t>(label[i]) * width + static_cast<std::size_t>(b)] += weight[i];
