@@ -4,8 +4,11 @@
 id (stable colours per track), its skeleton's points drawn over it. Bottom: the tracking graph, one node per
 feature (x: step, y: centroid x, size: volume, colour: track), edges for matches, splits and merges marked.
 Needs ../shared/data. Writes docs/images/track_fingers.png.
+With --blender, run inside Blender: the same run imported with the add-on's Import Tracked Series (salt >= 30,
+the whole box) and four frames rendered in Cycles: docs/images/track_blender.png.
 
     PYTHONPATH=python /usr/bin/python3 scripts/track_pictures.py [--out docs/images]
+    blender -b --factory-startup --python scripts/track_pictures.py -- --blender [--out docs/images]
 """
 from __future__ import annotations
 
@@ -63,15 +66,53 @@ def graph(ax, tr, palette):
     ax.set_title(f"tracking graph at thinness {tr.thinness:g}: {counts}", fontsize=9)
 
 
+def blender_sheet(out: str) -> None:
+    """Import Tracked Series on the run in an empty scene (saved in a temporary folder), four frames in Cycles."""
+    import tempfile
+    sys.path[:0] = [os.path.join(ROOT, "addon"), os.path.join(ROOT, "scripts")]
+    import bpy
+    import mathutils
+    import volrig_addon
+    from blender_scenes import new_scene, render_frames, sheet
+    volrig_addon.register()
+    work = tempfile.mkdtemp(prefix="volrig_tracks_")
+    scene = new_scene(os.path.join(work, "tracks.blend"))
+    first = sorted(glob.glob(os.path.join(RUN, "*.vti")))[0]
+    if bpy.ops.volrig.import_tracks(filepath=first, lo=30, thinness=1.0, size=2.0) != {"FINISHED"}:
+        raise RuntimeError("Import Tracked Series failed")
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (1.0, -2.6, 0.4)
+    cam.rotation_euler = (mathutils.Vector((1.0, 1.0, 1.2)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    scene.collection.objects.link(sun)
+    sun.rotation_euler, sun.data.energy = (0.6, 0.2, 0.3), 6.0
+    scene.world = bpy.data.worlds.new("world")
+    scene.world.color = (0.35, 0.35, 0.38)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples, scene.cycles.use_denoising = 32, False
+    scene.render.resolution_x, scene.render.resolution_y = 480, 400
+    frames = [1, 10, 19, 28]
+    paths = render_frames(scene, frames, work)
+    sheet(paths, [f"frame {f}" for f in frames], os.path.join(out, "track_blender.png"),
+          "viscous fingers (salt >= 30) by Import Tracked Series: a colour per track (Cycles)")
+    print(f"-> {os.path.join(out, 'track_blender.png')}")
+
+
 def main():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
-    args = ap.parse_args()
+    ap.add_argument("--blender", action="store_true", help="inside Blender: the add-on's import, rendered")
+    args = ap.parse_args(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else None)
     if not os.path.isdir(RUN):
         print(f"skipped: {RUN} is absent")
+        return 0
+    if args.blender:
+        blender_sheet(args.out)
         return 0
     steps = [volrig.load(f).array[:52] for f in sorted(glob.glob(os.path.join(RUN, "*.vti")))]
     tr = volrig.track(steps, lo=30, thinness=1.0)

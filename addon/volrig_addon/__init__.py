@@ -39,7 +39,7 @@ if "bpy" in locals():  # reloading (F3 > Reload Scripts)
     # properties last: its VolrigObject joins the feature modules' settings classes.
     for _m in ("compat", "engines", "scans", "state", "materials", "objects", "looks", "tissue_looks", "ops_base",
                "staging", "volume", "medial", "skeleton", "markers", "rig", "mocap", "looks_ui", "bake",
-               "flythrough", "collide", "drawing", "preview", "mesh_rig", "properties"):
+               "flythrough", "collide", "drawing", "track", "preview", "mesh_rig", "properties"):
         if _m in locals():
             importlib.reload(locals()[_m])
 
@@ -50,9 +50,10 @@ from . import looks, ops_base, state, tissue_looks  # noqa: E402,F401
 # One module per feature, each with its operators and panel; registered in this order, which is the sidebar's
 # order of their panels (Volume, Segment, Skeleton, Rig, Motion capture, Look, Centerline, Bake, then Mesh).
 from . import (bake, collide, drawing, flythrough, looks_ui, markers, medial, mesh_rig, mocap, preview,  # noqa: E402
-               rig, skeleton, volume)
+               rig, skeleton, track, volume)
 
-FEATURES = (volume, medial, skeleton, markers, rig, mocap, looks_ui, flythrough, bake, collide, drawing, preview, mesh_rig)
+FEATURES = (volume, medial, skeleton, markers, rig, mocap, looks_ui, flythrough, bake, collide, drawing, track, preview,
+            mesh_rig)
 
 #: The volrig tab's top panels in the sidebar's order (the Mesh panel, mesh_rig.py, polls on meshes and comes last).
 PANELS = (volume.VOLRIG_PT_volume, volume.VOLRIG_PT_segment, skeleton.VOLRIG_PT_skeleton, rig.VOLRIG_PT_rig,

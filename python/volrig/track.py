@@ -86,7 +86,47 @@ def _volumes(steps):
     return steps
 
 
-def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str) -> _Step:
+def _vdb_box(path: str):
+    """The index box (min, max; x, y, z) of the grid ``load`` reads from a VDB file (density, else the first)."""
+    from .volume import vdb_grids
+    grids = vdb_grids(path)
+    g = next((g for g in grids if g["name"] == "density"), grids[0] if grids else None)
+    return None if g is None else (np.array(g["bbox_min"]), np.array(g["bbox_max"]))
+
+
+def _common_boxes(items):
+    """Per step, the [z, y, x] offset of its array in the box all steps fit (None where steps share a grid as they
+    are: arrays, dense files), and that box's shape. VDB steps are stored cropped to their active voxels, each step
+    its own box on one lattice; they are placed in the box around them all. In-memory Volumes likewise, by origin."""
+    boxes = []
+    for it in items:
+        if isinstance(it, (str, os.PathLike)) and os.fspath(it).lower().endswith(".vdb"):
+            boxes.append(_vdb_box(os.fspath(it)))
+        elif isinstance(it, Volume):
+            first = next(x for x in items if isinstance(x, Volume))
+            lo = np.round((np.array(it.origin) - first.origin) / np.array(first.spacing)).astype(np.int64)
+            boxes.append((lo, lo + np.array(it.dims) - 1))
+        else:
+            return None, None
+    if any(b is None for b in boxes) or len({tuple(b[1] - b[0]) for b in boxes}) == 1 and \
+            len({tuple(b[0]) for b in boxes}) == 1:
+        return None, None
+    low = np.min([b[0] for b in boxes], axis=0)
+    high = np.max([b[1] for b in boxes], axis=0)
+    return [tuple(int(v) for v in (b[0] - low)[::-1]) for b in boxes], tuple(int(v) for v in (high - low + 1)[::-1])
+
+
+def _placed(mask: np.ndarray, spacing, origin, offset, shape):
+    """``mask`` placed at ``offset`` ([z, y, x]) in a box of ``shape``, and that box's origin (x, y, z)."""
+    box = np.zeros(shape, np.bool_)
+    z, y, x = offset
+    if any(o + n > m for o, n, m in zip(offset, mask.shape, shape)):
+        raise VolrigError("time steps on different lattices: their boxes do not line up")
+    box[z:z + mask.shape[0], y:y + mask.shape[1], x:x + mask.shape[2]] = mask
+    return box, tuple(o - i * s for o, i, s in zip(origin, (x, y, z), spacing))
+
+
+def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str, place=None) -> _Step:
     v = load(step) if isinstance(step, (str, os.PathLike)) else step
     arr = v.array if isinstance(v, Volume) else np.asarray(v)
     spacing, origin = (v.spacing, v.origin) if isinstance(v, Volume) else ((1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
@@ -94,6 +134,9 @@ def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str) -
         raise VolrigError(f"a time step must be 3-D [z, y, x], got shape {arr.shape}")
     with np.errstate(invalid="ignore"):  # NaN is no feature
         mask = arr >= lo if hi is None else (arr >= lo) & (arr <= hi)
+    del arr, v
+    if place is not None:
+        mask, origin = _placed(mask, spacing, origin, *place)
     labels, sizes, centroids = _volrig.track_features(np.ascontiguousarray(mask).view(np.uint8), int(min_size))
     del mask
     voxels = np.flatnonzero(labels)
@@ -311,7 +354,8 @@ def track(steps, lo: float, hi: Optional[float] = None, thinness: float = 1.0, m
     """Track the features of a time series (thesis 9.1) and return the ``Tracking`` graph.
 
     steps:     a folder of volume files (any format ``load`` reads, ``.vti`` too; taken in name order), or a list of
-               file names, Volumes or arrays [z, y, x], one per step, all on one grid.
+               file names, Volumes or arrays [z, y, x], one per step, all on one grid (VDB files and Volumes may
+               each cover their own box of one lattice: they are placed in the box around them all).
     lo, hi:    a feature is a 6-connected component of voxels >= lo (and <= hi) with at least ``min_size`` voxels.
     thinness:  the skeleton's thinness (in the metric's units; the thesis' <3,4,5> chamfer by default, whose useful
                range is 0 to 4.08 as in its Table 9.1); 0 tracks by the whole features (Silver and Wang).
@@ -324,9 +368,11 @@ def track(steps, lo: float, hi: Optional[float] = None, thinness: float = 1.0, m
     if not np.isfinite(lo) or (hi is not None and not hi >= lo):
         raise VolrigError(f"the feature range must be finite with hi >= lo, got lo={lo}, hi={hi}")
     items = _volumes(steps)
+    offsets, shape = _common_boxes(items)
     prepared: List[_Step] = []
     for i, item in enumerate(items):
-        s = _prepare(item, float(lo), None if hi is None else float(hi), min_size, metric)
+        place = None if offsets is None else (offsets[i], shape)
+        s = _prepare(item, float(lo), None if hi is None else float(hi), min_size, metric, place)
         if prepared and s.labels.shape != prepared[0].labels.shape:
             raise VolrigError(f"time step {i} has shape {s.labels.shape}, step 0 {prepared[0].labels.shape}: "
                               "all steps must share one grid")

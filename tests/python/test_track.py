@@ -130,6 +130,18 @@ def test_cli_writes_the_graph_and_a_track_grid_a_step(tmp_path, capsys):
     assert set(np.unique(grid.array)) == {0, 1, 4}
 
 
+def test_vdb_steps_cropped_to_their_own_boxes_share_the_box_around_them(tmp_path):
+    steps = series()
+    for i, s in enumerate(steps):
+        volrig.write_vdb(str(tmp_path / f"s{i}.vdb"), {"density": volrig.Volume(s, (0.5, 0.5, 0.5), (1, 2, 3))})
+    boxes = {volrig.load(str(tmp_path / f"s{i}.vdb")).dims for i in range(len(steps))}
+    assert len(boxes) > 1  # each file holds its active voxels only
+    tr = track(str(tmp_path), lo=5, thinness=0)
+    ref = track(steps, lo=5, thinness=0)
+    assert tr.edges == ref.edges and tr.events == ref.events
+    assert np.allclose(np.concatenate(tr.centroids), np.concatenate(ref.centroids) * 0.5 + (1, 2, 3))
+
+
 def test_bad_input_is_refused_clearly(tmp_path):
     v = series()[0]
     with pytest.raises(volrig.VolrigError, match="at least two time steps"):
