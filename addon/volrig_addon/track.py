@@ -61,6 +61,17 @@ def add_markers(scene, tr: "volrig.Tracking") -> int:
     return len(events)
 
 
+def frame_timelines(context) -> None:
+    """Fits the open timelines and dope sheets to the scene's range, so the events' markers show (no windows in
+    background mode: nothing to do)."""
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            region = next((r for r in area.regions if r.type == "WINDOW"), None)
+            if area.type == "DOPESHEET_EDITOR" and region is not None:
+                with context.temp_override(window=window, area=area, region=region):
+                    bpy.ops.action.view_all()
+
+
 def write_sequence(folder: str, tr: "volrig.Tracking", progress=None) -> None:
     """Each step as ``folder/tracks_<frame>.vdb`` (frame = step + 1) and the graph as ``folder/tracks.json``."""
     for s in range(tr.steps):
@@ -122,6 +133,7 @@ class VOLRIG_OT_import_tracks(bpy.types.Operator, ImportHelper):
         scene = context.scene
         scene.frame_start, scene.frame_end = 1, tr.steps
         n = add_markers(scene, tr) if self.markers else 0
+        frame_timelines(context)
         tracks = len(set(np.concatenate(tr.track_ids).tolist()))
         self.report({"INFO"}, f"volrig: {obj.name}: {tr.steps} steps, {tracks} tracks, {n} events marked")
         return {"FINISHED"}
