@@ -147,6 +147,29 @@ TEST_CASE("a path is rooted at its thicker end", "[autorig]") {
     CHECK(t.at(t.root()).x() == Approx(-20));
 }
 
+TEST_CASE("a thick end on a neck becomes a leaf; a thick end that is the body stays the root", "[autorig]") {
+    // A big head (radius 12) on a thin neck down to a trunk junction with two legs: the head is the thickest node.
+    Figure mouse(Vec(0, 0, 40), 12.0);
+    const std::uint32_t junction = mouse.limb(0, Vec(0, 0, 10), 3, 5);
+    const std::uint32_t leg_a = mouse.limb(junction, Vec(15, 0, -20), 4, 3);
+    mouse.limb(junction, Vec(-15, 0, -20), 4, 3);
+    NodeTree t = mouse.tree();
+    REQUIRE(t.root() == 0);
+    t.root_off_an_end();
+    CHECK(t.root() == junction);
+    const auto leaves = t.leaves();
+    CHECK(std::count(leaves.begin(), leaves.end(), 0u) == 1);  // the head is an extremity
+    CHECK(std::count(leaves.begin(), leaves.end(), leg_a) == 1);
+    // The same head right on the junction (their balls overlap: the thick end is the body): nothing moves.
+    Figure blob(Vec(0, 0, 14), 12.0);
+    const std::uint32_t j = blob.limb(0, Vec(0, 0, 10), 6, 6);
+    blob.limb(j, Vec(15, 0, -20), 4, 3);
+    blob.limb(j, Vec(-15, 0, -20), 4, 3);
+    NodeTree u = blob.tree();
+    u.root_off_an_end();
+    CHECK(u.root() == 0);
+}
+
 TEST_CASE("fit_chain cuts an L at its corner; limb_fit puts an elbow at the bend", "[autorig]") {
     Chain4 l;
     for (int k = 0; k <= 20; ++k) l.emplace_back(k, 0, 0, 1);

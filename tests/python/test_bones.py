@@ -287,3 +287,63 @@ def test_the_frog_rigs_from_its_bones():
         assert (knee - hips) @ axis < (elbow - hips) @ axis  # the legs nearer the hips' end than the arms
     across = np.cross(axis, S.rig_joint(rig, "knee.L") - hips)
     assert across @ np.cross(axis, S.rig_joint(rig, "knee.R") - hips) < 0  # legs either side of the spine
+
+def _segment_distance(p, a, b):
+    d = b - a
+    t = np.clip((p - a) @ d / (d @ d), 0, 1)
+    return float(np.linalg.norm(p - (a + t * d)))
+
+
+def bones_only_quadruped(scale=2.0):
+    """A small four-legged animal's skeleton and organs, no skin (as a frog's or a mouse's labels may be): label 13
+    its bones (vertebrae, girdles, leg bones with joint spaces between them, a tail, a skull thicker than the trunk
+    on a neck), label 5 organs in the trunk; trunk along y (head at -y), legs down (z up), ``scale`` voxels a unit.
+    Returns the labels Volume and each leg's long bones (name -> [(a, b)] in voxels, x, y, z)."""
+    from volrig_support.subjects import _capsule_mask
+
+    def apart(a, b, gap):  # a bone from a to b, short of both joints by ``gap``
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        d = (b - a) / np.linalg.norm(b - a)
+        return a + gap * d, b - gap * d
+
+    j = {"hips": np.array([0, 30, 45.]), "chest": np.array([0, -28, 48.])}
+    legs = {}
+    for side, s in (("L", 1), ("R", -1)):
+        legs[f"front.{side}"] = [(s * 9, -28, 42), (s * 9, -30, 24), (s * 9, -28, 6)]
+        legs[f"hind.{side}"] = [(s * 9, 30, 40), (s * 9, 36, 24), (s * 9, 30, 6)]
+    spine = [j["hips"] + t * (j["chest"] - j["hips"]) for t in np.linspace(0, 1, 9)]
+    bones = [(*apart(a, b, 0.8), 2.2) for a, b in zip(spine[:-1], spine[1:])]
+    bones.append((*apart(j["chest"], (0, -46, 56), 1.0), 1.8))  # neck
+    bones += [(*apart((0, 38 + 6 * k, 46 - k), (0, 44 + 6 * k, 45 - k), 0.6), 1.2) for k in range(4)]  # tail
+    for name, (top, mid, low) in legs.items():
+        girdle = j["chest" if name.startswith("front") else "hips"]
+        bones += [(girdle, np.add(top, (-np.sign(top[0]) * 1.5, 0, 0.5)), 2.0),
+                  (*apart(top, mid, 1.5), 2.4), (*apart(mid, low, 1.5), 1.9), (*apart(low, np.add(low, (0, -7, -3)), 1.0), 1.2)]
+    skull = [((0, -55, 60), 7)]
+    bone, shift = _capsule_mask(bones, skull, scale, pad=10)
+    body, _ = _capsule_mask([(j["hips"] + (0, -3, -2), j["chest"] + (0, 3, -2), 8)] + bones, skull, scale, pad=10)
+    labels = np.where(bone, 13, np.where(body, 5, 0)).astype(np.uint8)
+    at = {name: [(np.add(a, shift) * scale, np.add(b, shift) * scale) for a, b in zip(p[:-1], p[1:])]
+          for name, p in legs.items()}
+    return volrig.Volume(labels), at
+
+
+def test_a_small_quadruped_rigs_from_its_bones_with_each_leg_on_its_own_bones():
+    """Issue 54's small four-legged vertebrate: bones and organs, no skin, the skull thicker than the trunk. The
+    body plan is read from the bone grown into a body (its thickest node, the skull, an end on a neck: a leaf like
+    the feet, so five extremities); it is a quadruped, up given or not, and each leg's knee or elbow lies on its own
+    leg's bones."""
+    labels, legs = bones_only_quadruped()
+    mask = volrig.segment(labels)
+    bone = volrig.rigid_tissue(labels, labels=[13])
+    pts = volrig.skeletonize(mask).top(40000)
+    tree = volrig.skeleton_tree(pts, mask)
+    for up in ((0, 0, 1), None):
+        rig = volrig.autorig(pts, tree, mask, bone=bone, up=up)
+        assert rig.kind == "quadruped" and rig.note.startswith("body plan from the bones"), (up, rig.kind, rig.note)
+        for joint, leg in (("elbow", "front"), ("knee", "hind")):
+            for side in "LR":
+                p = S.rig_joint(rig, f"{joint}.{side}")
+                dist = {name: min(_segment_distance(p, a, b) for a, b in segs) for name, segs in legs.items()}
+                assert min(dist, key=dist.get) == f"{leg}.{side}", (joint, side, dist)
+                assert dist[f"{leg}.{side}"] < 6.0  # within the grown bone of its own leg (voxels)

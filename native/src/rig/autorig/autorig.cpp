@@ -14,7 +14,8 @@
 //    wide, split into connected pieces) follows the middle of each branch; node sizes follow the object's radii,
 //    not the number of points kept.
 // 2. node_tree: the nodes rooted at the largest-radius node; spurs pruned (a leaf branch goes when the leaf's ball
-//    lies inside the ball, scaled by prune_scale, of a node between its junction and the root); a path is rerooted
+//    lies inside the ball, scaled by prune_scale, of a node between its junction and the root); a root at an end
+//    of the tree (a head thicker than the trunk) moves to the first junction, its end a leaf; a path is rerooted
 //    at its thicker end. Leaves are ranked by significance: how far each leaf's branch (in the longest-path
 //    decomposition) sticks out of the balls from where it attaches up to the root (a branch that loops back into
 //    the body from a thin node, as a thigh hung from a touching knee, is no extremity).
@@ -274,6 +275,7 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
     rig_detail::NodeTree tree(lst.centroid, lst.radius, lst.edges);
     tree.set_spread(lst.spread);
     tree.prune(opt.prune_scale);
+    tree.root_off_an_end();
     tree.root_path_at_thicker_end();
     report(progress, 0.7);
     if (detail) {

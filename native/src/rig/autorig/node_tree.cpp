@@ -81,6 +81,13 @@ void NodeTree::prune(double s) {
     }
 }
 
+void NodeTree::root_off_an_end() {
+    std::uint32_t v = root_;
+    while (children_[v].size() == 1) v = children_[v][0];
+    if (v == root_ || children_[v].empty()) return;  // an inner root, or a path
+    if ((at(root_) - at(v)).norm() > radius(root_) + radius(v)) reroot(v);  // the end's ball clear of the junction's
+}
+
 void NodeTree::root_path_at_thicker_end() {
     if (children_[root_].size() > 2) return;
     for (std::uint32_t v : order_)

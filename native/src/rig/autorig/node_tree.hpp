@@ -36,6 +36,11 @@ public:
     /// scaled by `scale`, of the junction or of any node between it and the root; repeated until stable. Of the
     /// branches of one junction, the one whose tip reaches farthest always stays.
     void prune(double scale);
+    /// When the root (the thickest node) is an end of the tree standing clear of the first junction below it (their
+    /// balls apart: a part on a neck), reroots at that junction, so that end is a leaf and counts as an extremity:
+    /// a head thicker than the trunk (a mouse's, a child's, a cartoon's) is the end of a branch like any other.
+    /// Nothing changes on a path (no junction), an inner root, or a thick end that is the body itself.
+    void root_off_an_end();
     /// When the kept nodes form a path, reroots it at its thicker end (its bones then run outward from there).
     void root_path_at_thicker_end();
     /// Leaves by descending significance: each leaf's branch in the longest-path decomposition of the rooted tree
