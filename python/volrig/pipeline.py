@@ -269,10 +269,36 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
     return RiggedSkeleton(points, tree, rig, binding, source)
 
 
+#: A mesh whose skeleton's median radius is under this many voxels (a stick figure, a wire character) is voxelized
+#: finer by ``rig_mesh``, up to ``MAX_MESH_VOXELS`` along its longest side: at 1 voxel its limbs break apart and
+#: no body plan can be read.
+MIN_RADIUS_VOXELS = 2.0
+#: autorig's own scale (kCoarseCells in native/src/rig/autorig/coarse.hpp): finer voxels would be resampled away.
+MAX_MESH_VOXELS = 400
+#: A finer voxelization is held to about this many object voxels (their count grows at most with the cube of the
+#: refinement): thin limbs (few voxels) get all of it, a thin sheet of many voxels (a wing) little, so the skin
+#: weights' geodesics and the voxelization stay within a few seconds.
+MAX_REFINED_OBJECT_VOXELS = 400_000
+
+
+def _finer_voxels(pts, size: float, voxels: int, min_radius: float, object_voxels: int) -> Optional[int]:
+    """The voxel count along the longest side that makes the skeleton's median radius ``min_radius`` voxels, when
+    the one used (``voxels``, of ``size``, giving ``object_voxels``) leaves it thinner; None when it is thick enough
+    or cannot be refined. A median of one voxel or less says only that the parts are unresolved: as fine as
+    ``MAX_MESH_VOXELS`` and ``MAX_REFINED_OBJECT_VOXELS`` allow then."""
+    median = float(np.median(pts.radii)) / size if len(pts) else 0.0
+    if not min_radius > 0 or median >= min_radius or voxels >= MAX_MESH_VOXELS:
+        return None
+    want = MAX_MESH_VOXELS if median <= 1.0 + 1e-6 else np.ceil(voxels * min_radius / median)
+    room = voxels * (MAX_REFINED_OBJECT_VOXELS / max(object_voxels, 1)) ** (1 / 3)
+    finer = int(min(MAX_MESH_VOXELS, want, room))
+    return finer if finer >= 1.25 * voxels else None
+
+
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
              thinness: Optional[float] = None, influences: int = 4, blend: float = SKIN_BLEND,
              progress: ProgressFn = None, skin_points=None, voxelize_method: str = "auto",
-             **autorig_options) -> MeshRig:
+             min_radius_voxels: float = MIN_RADIUS_VOXELS, **autorig_options) -> MeshRig:
     """Rig and skin a triangle mesh through its volume: voxelize (``voxel_size``, default the bounding box's longest
     side / ``voxels``), skeletonize, skeleton points at ``thinness`` (in voxels, as the add-on's slider; default
     ``DEFAULT_THINNESS_VOXELS``, half a voxel), autorig
@@ -286,17 +312,25 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     voxelize_method: ``voxelize``'s method; "auto" (default) adds the generalized winding number's solid to the
     flood fill's for a mesh that is not closed (open parts, missing caps) and takes the flood fill alone for a
     closed one; "flood" as before for any mesh.
+    min_radius_voxels: with ``voxel_size`` not given, a mesh whose skeleton's median radius comes out thinner than
+    this many voxels is voxelized again, finer (up to ``MAX_MESH_VOXELS``), so thin limbs stay whole; 0: never.
     """
     thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v = _points(vertices)
     f = np.asarray(faces)
     size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
-    mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15), method=voxelize_method)
     step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
     staged = None if progress is None else \
         (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))
-    sk = skeleton_of(mask, progress=staged)
-    pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
+    for attempt in range(2):  # once more, finer, when the parts came out too thin
+        mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15), method=voxelize_method)
+        sk = skeleton_of(mask, progress=staged)
+        pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
+        finer = None if voxel_size is not None or attempt else _finer_voxels(pts, size, voxels, min_radius_voxels,
+                                                                           int(np.count_nonzero(mask.array)))
+        if finer is None:
+            break
+        voxels, size = finer, mesh_voxel_size(v, finer)
     r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
     if skin_points is not None:
         v, f = _points(skin_points), np.zeros((0, 3), dtype=np.int64)
