@@ -31,6 +31,7 @@ from .pipeline import rig_mesh
 from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
                       tissue_classes, tissue_grids)
+from .pores import PoreNetwork, load_network, pore_network
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -49,7 +50,7 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
            "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
-           "part_grids", "explode_matrices", "vdb_grids"]
+           "part_grids", "explode_matrices", "vdb_grids", "PoreNetwork", "pore_network", "load_network"]
 
 
 def __getattr__(name):
