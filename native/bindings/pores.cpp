@@ -10,7 +10,7 @@ using IndexArray = py::array_t<std::int32_t, py::array::c_style | py::array::for
 using FlagArray = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
 /// The network as a dict of numpy arrays (the vectors handed over without copies).
-py::dict network_dict(PoreNetwork&& n) {
+py::dict network_dict(PoreNetwork&& n, const Grid& g) {
     const auto np = static_cast<py::ssize_t>(n.pore_count()), nt = static_cast<py::ssize_t>(n.throat_count());
     py::dict d;
     d["pore_voxels"] = n.pore_voxels;
@@ -23,6 +23,7 @@ py::dict network_dict(PoreNetwork&& n) {
     d["throat_coords"] = to_numpy_shaped(std::move(n.throat_coords), {nt, 3});
     d["throat_area"] = to_numpy_shaped(std::move(n.throat_area), {nt});
     d["throat_total_length"] = to_numpy_shaped(std::move(n.throat_total_length), {nt});
+    if (!n.regions.empty()) d["regions"] = to_numpy(std::move(n.regions), g);
     return d;
 }
 
@@ -31,17 +32,18 @@ py::dict network_dict(PoreNetwork&& n) {
 void bind_pores(py::module_& m) {
     m.def(
         "pore_network",
-        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const py::object& progress) {
+        [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, bool regions, const py::object& progress) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             Progress p = progress_of(progress);
             PoreNetwork n;
             {
                 py::gil_scoped_release nogil;
-                n = extract_pore_network(g, mask.data(), p);
+                n = extract_pore_network(g, mask.data(), p, regions);
             }
-            return network_dict(std::move(n));
+            return network_dict(std::move(n), g);
         },
-        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("progress") = py::none());
+        py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("regions") = false,
+        py::arg("progress") = py::none());
     m.def(
         "network_rate",
         [](std::size_t nodes, const IndexArray& conns, const DoubleArray& g, const FlagArray& inlet,

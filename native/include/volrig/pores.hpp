@@ -33,6 +33,7 @@ struct PoreNetwork {
     std::vector<double> throat_coords;          ///< 3 per throat: where that largest ball is (world x, y, z)
     std::vector<double> throat_area;            ///< per throat: the interface's area (voxel faces, world)
     std::vector<double> throat_total_length;    ///< per throat: |pore 1 - throat| + |throat - pore 2| (world)
+    std::vector<std::int32_t> regions;          ///< with keep_regions: per voxel its pore + 1 (0 = solid), else empty
     std::size_t pore_count() const { return pore_volume.size(); }
     std::size_t throat_count() const { return throat_inscribed.size(); }
 };
@@ -41,7 +42,9 @@ struct PoreNetwork {
 /// as open (the pore space is mirrored across them), so pores cut by a face keep their size. Memory: the mask, a
 /// float distance and an int32 region label per voxel (plus the flood's front). Throws Error for a mask without
 /// pore or without solid voxels; Cancelled when `progress` says so.
-PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {});
+/// With `keep_regions`, the network keeps the region labels (4 bytes a voxel).
+PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {},
+                                 bool keep_regions = false);
 
 /// Steady transport on a network (Laplace: sum of g (x_j - x_i) = 0 at every free node): `conns` holds 2 node
 /// indices per edge, `g` its conductance (> 0). Nodes flagged in `inlet` are held at 1, in `outlet` at 0 (a node in

@@ -4,6 +4,7 @@
 #include <limits>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -158,7 +159,8 @@ std::vector<std::int64_t> pore_seeds(const Grid& g, const float* dt) {
 
 namespace volrig {
 
-PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, const Progress& progress) {
+PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, const Progress& progress,
+                                 bool keep_regions) {
     check_grid(grid, 1, std::numeric_limits<std::uint64_t>::max(), "pore_network");
     const std::int64_t n = grid.voxel_count();
     std::int64_t pore = 0;
@@ -169,10 +171,11 @@ PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, con
     report(progress, 0.4);
     std::vector<std::int64_t> seeds = pores_detail::pore_seeds(grid, dt.data());
     report(progress, 0.5);
-    const std::vector<std::int32_t> labels =
+    std::vector<std::int32_t> labels =
         pores_detail::flood_regions(grid, dt.data(), seeds, progress_span(progress, 0.5, 0.9));
     PoreNetwork net = pores_detail::measure_network(grid, dt.data(), labels, seeds.size());
     net.pore_voxels = pore;
+    if (keep_regions) net.regions = std::move(labels);
     report(progress, 1.0);
     return net;
 }

@@ -12,7 +12,21 @@ namespace volrig::pores_detail {
 
 namespace {
 
-using Item = std::pair<float, std::int64_t>;  // (flood level, voxel): the highest level leaves the queue first
+/// A voxel queued at a flood level: the highest level leaves the queue first, and within a level the first queued
+/// (breadth first, so seeds on one plateau grow alike).
+struct Item {
+    float level;
+    std::int64_t order;
+    std::int64_t voxel;
+    bool operator<(const Item& o) const { return level < o.level || (level == o.level && order > o.order); }
+};
+
+/// The flood's queue, numbering what it queues.
+struct FloodQueue {
+    std::priority_queue<Item> heap;
+    std::int64_t queued = 0;
+    void push(float level, std::int64_t voxel) { heap.push(Item{level, queued++, voxel}); }
+};
 
 /// The 6 face neighbours of voxel i inside the grid, as f(neighbour).
 template <class F>
@@ -28,16 +42,18 @@ void face_neighbours(const Grid& g, std::int64_t i, F&& f) {
 }
 
 /// Floods from the items queued, each voxel taking the label of the voxel it was reached from.
-void flood(const Grid& g, const float* dt, std::vector<std::int32_t>& labels, std::priority_queue<Item>& queue,
-           std::int64_t& done, std::int64_t total, const Progress& progress) {
-    while (!queue.empty()) {
-        const auto [level, i] = queue.top();
-        queue.pop();
+void flood(const Grid& g, const float* dt, std::vector<std::int32_t>& labels, FloodQueue& queue, std::int64_t& done,
+           std::int64_t total, const Progress& progress) {
+    while (!queue.heap.empty()) {
+        const Item top = queue.heap.top();
+        queue.heap.pop();
+        const float level = top.level;
+        const std::int64_t i = top.voxel;
         const std::int32_t label = labels[static_cast<std::size_t>(i)];
         face_neighbours(g, i, [&](std::int64_t j) {
             if (dt[j] <= 0 || labels[static_cast<std::size_t>(j)] != 0) return;
             labels[static_cast<std::size_t>(j)] = label;
-            queue.emplace(std::min(level, dt[j]), j);
+            queue.push(std::min(level, dt[j]), j);
         });
         if ((++done & ((std::int64_t{1} << 20) - 1)) == 0) report(progress, static_cast<double>(done) / static_cast<double>(total));
     }
@@ -130,12 +146,12 @@ std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vec
     if (seeds.size() >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw Error("pore_network: too many pores");
     std::vector<std::int32_t> labels(static_cast<std::size_t>(n), 0);
-    std::priority_queue<Item> queue;
+    FloodQueue queue;
     std::int64_t total = 0, done = 0;
     for (std::int64_t i = 0; i < n; ++i) total += dt[i] > 0 ? 1 : 0;
     for (std::size_t s = 0; s < seeds.size(); ++s) {
         labels[static_cast<std::size_t>(seeds[s])] = static_cast<std::int32_t>(s + 1);
-        queue.emplace(dt[seeds[s]], seeds[s]);
+        queue.push(dt[seeds[s]], seeds[s]);
     }
     flood(g, dt, labels, queue, done, total, progress);
     // Pore voxels no seed reached (a 6-connected bit whose maximum lay in another bit's ball): new regions.
@@ -143,7 +159,7 @@ std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vec
         if (dt[i] <= 0 || labels[static_cast<std::size_t>(i)] != 0) continue;
         seeds.push_back(i);
         labels[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(seeds.size());
-        queue.emplace(dt[i], i);
+        queue.push(dt[i], i);
         flood(g, dt, labels, queue, done, total, progress);
     }
     return labels;
