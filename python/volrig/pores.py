@@ -54,6 +54,8 @@ class PoreNetwork:
                                path joins the two faces.
     formation_factor:          (3,) D_bulk / D_eff along x, y, z; inf where no path joins the two faces.
     shape:                     the image's shape [z, y, x]; voxel: its spacing (x, y, z).
+    regions:                   with ``pore_network(..., regions=True)``: int32 [z, y, x], each voxel its pore's
+                               index + 1 (0 = solid); else None.
     """
     porosity: float
     pore_coords: np.ndarray
@@ -71,6 +73,7 @@ class PoreNetwork:
     model: str = "pyramids_and_cuboids"
     permeability: np.ndarray = field(default_factory=lambda: np.zeros(3))
     formation_factor: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+    regions: Optional[np.ndarray] = None
 
     @property
     def pore_count(self) -> int:
@@ -175,7 +178,7 @@ def _voxel(pore_mask, voxel) -> tuple:
 
 
 def pore_network(pore_mask, voxel: Union[float, Sequence[float], None] = None, model: str = "pyramids_and_cuboids",
-                 progress: ProgressFn = None) -> PoreNetwork:
+                 regions: bool = False, progress: ProgressFn = None) -> PoreNetwork:
     """The pore network of a pore mask, with its permeability and formation factor along x, y and z.
 
     pore_mask: a 3-D array [z, y, x] or a ``Volume``; non-zero / True = pore.
@@ -183,6 +186,7 @@ def pore_network(pore_mask, voxel: Union[float, Sequence[float], None] = None, m
                spacing, else 1.
     model:     the conduits' shapes: "pyramids_and_cuboids" (OpenPNM's SNOW Berea example) or
                "cones_and_cylinders" (round sections: Hagen-Poiseuille's pi r^4 / 8 L).
+    regions:   keep the pores' regions (``PoreNetwork.regions``, 4 bytes a voxel).
     progress:  optional callable(fraction) -> bool; False cancels (``volrig.Cancelled``).
     Raises ``VolrigError`` for a mask without pore or without solid voxels, or with NaN values.
     """
@@ -190,7 +194,7 @@ def pore_network(pore_mask, voxel: Union[float, Sequence[float], None] = None, m
         raise VolrigError(f"pore_network: model must be one of {', '.join(MODELS)}, got {model!r}")
     arr = _mask(pore_mask)
     v = _voxel(pore_mask, voxel)
-    raw = _volrig.pore_network(arr, v, (0.0, 0.0, 0.0), progress)
+    raw = _volrig.pore_network(arr, v, (0.0, 0.0, 0.0), regions, progress)
     faces = raw["pore_faces"]
     net = PoreNetwork(
         porosity=float(raw["pore_voxels"]) / float(arr.size), pore_coords=raw["pore_coords"],
@@ -199,7 +203,8 @@ def pore_network(pore_mask, voxel: Union[float, Sequence[float], None] = None, m
         pore_faces={f: (faces & (1 << k)) != 0 for k, f in enumerate(FACES)},
         throat_conns=raw["throat_conns"].astype(np.int64), throat_diameter=raw["throat_inscribed_diameter"],
         throat_total_length=raw["throat_total_length"], throat_coords=raw["throat_coords"],
-        throat_area=raw["throat_area"], shape=tuple(int(s) for s in arr.shape), voxel=v, model=model)
+        throat_area=raw["throat_area"], shape=tuple(int(s) for s in arr.shape), voxel=v, model=model,
+        regions=raw.get("regions"))
     net.permeability, net.formation_factor = transport(net)
     return net
 
