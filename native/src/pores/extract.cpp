@@ -36,13 +36,13 @@ bool is_local_max(const Grid& g, const float* dt, std::int64_t x, std::int64_t y
 }
 
 /// Whether the plateau of voxel i (its 26-connected voxels of equal DT) has a neighbour of higher DT: a ridge or a
-/// saddle, not a maximum. Marks the plateau's voxels in `seen`.
+/// saddle, not a maximum. Stops at the first such neighbour (the walls' plateaus are large); when there is none,
+/// `seen` holds the whole plateau.
 bool plateau_rises(const Grid& g, const float* dt, std::int64_t i, std::unordered_set<std::int64_t>& seen) {
     const float d = dt[i];
     const std::int64_t nx = g.dims[0], nxy = g.dims[0] * g.dims[1];
     std::vector<std::int64_t> stack{i};
     seen.insert(i);
-    bool rises = false;
     while (!stack.empty()) {
         const std::int64_t v = stack.back();
         stack.pop_back();
@@ -53,11 +53,11 @@ bool plateau_rises(const Grid& g, const float* dt, std::int64_t i, std::unordere
                     const std::int64_t u = x + dx, w = y + dy, s = z + dz;
                     if (u < 0 || w < 0 || s < 0 || u >= g.dims[0] || w >= g.dims[1] || s >= g.dims[2]) continue;
                     const std::int64_t j = g.index(u, w, s);
-                    if (dt[j] > d) rises = true;
+                    if (dt[j] > d) return true;
                     if (dt[j] == d && seen.insert(j).second) stack.push_back(j);
                 }
     }
-    return rises;
+    return false;
 }
 
 /// The local maxima of the DT (voxels not below any neighbour, on plateaus that do not rise), largest first (ties
@@ -75,15 +75,15 @@ std::vector<std::int64_t> local_maxima(const Grid& g, const float* dt) {
                 }
     });
     std::vector<std::int64_t> out;
-    std::unordered_set<std::int64_t> seen, rising;  // plateau voxels visited; those of rising plateaus
+    std::unordered_set<std::int64_t> flat, mine;  // voxels of the plateaus found not to rise; one plateau's
     for (auto& s : per_slice)
         for (const std::int64_t i : s) {
-            if (!seen.count(i)) {
-                std::unordered_set<std::int64_t> mine;
-                if (plateau_rises(g, dt, i, mine)) rising.insert(mine.begin(), mine.end());
-                seen.insert(mine.begin(), mine.end());
+            if (!flat.count(i)) {
+                mine.clear();
+                if (plateau_rises(g, dt, i, mine)) continue;
+                flat.insert(mine.begin(), mine.end());
             }
-            if (!rising.count(i)) out.push_back(i);
+            out.push_back(i);
         }
     std::stable_sort(out.begin(), out.end(), [dt](std::int64_t a, std::int64_t b) { return dt[a] > dt[b]; });
     return out;
@@ -116,6 +116,8 @@ std::vector<float> open_distance(const Grid& g, const std::uint8_t* mask, const 
     for (std::int64_t z = 0; z < g.dims[2]; ++z)
         for (std::int64_t y = 0; y < g.dims[1]; ++y)
             std::copy_n(dt.begin() + pg.index(w[0], y + w[1], z + w[2]), g.dims[0], dt.begin() + g.index(0, y, z));
+    dt.resize(static_cast<std::size_t>(g.voxel_count()));
+    dt.shrink_to_fit();  // before the region labels are allocated, so the peak stays the padded transform's
     return dt;
 }
 

@@ -9,8 +9,7 @@
 namespace volrig::pores_detail {
 
 /// Euclidean DT of the pore space with the image's faces open: the mask mirrored across each face by up to 8
-/// voxels, transformed, cropped back (in place). The returned vector may hold more than voxel_count() floats; the
-/// first voxel_count() are the image's.
+/// voxels, transformed, cropped back.
 std::vector<float> open_distance(const Grid& g, const std::uint8_t* mask, const Progress& progress);
 
 /// Pore seeds: voxels whose DT is not below any of their 26 neighbours', largest DT first (ties in scan order),

@@ -2,7 +2,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <queue>
 #include <unordered_map>
 #include <utility>
 
@@ -12,20 +11,40 @@ namespace volrig::pores_detail {
 
 namespace {
 
-/// A voxel queued at a flood level: the highest level leaves the queue first, and within a level the first queued
-/// (breadth first, so seeds on one plateau grow alike).
-struct Item {
-    float level;
-    std::int64_t order;
-    std::int64_t voxel;
-    bool operator<(const Item& o) const { return level < o.level || (level == o.level && order > o.order); }
-};
+/// The flood's queue: one bucket a level (the DT in 1/16 of the finest spacing), the highest level first and each
+/// bucket first in, first out (breadth first, so seeds on one plateau grow alike). 8 bytes a queued voxel; a
+/// drained bucket's memory is freed.
+class FloodQueue {
+public:
+    explicit FloodQueue(double finest) : scale_(16.0 / finest) {}
+    int level_of(float d) const { return static_cast<int>(std::lround(static_cast<double>(d) * scale_)); }
+    /// Queues voxel v at `level` (at most the level being drained, once draining has begun).
+    void push(int level, std::int64_t v) {
+        if (static_cast<std::size_t>(level) >= buckets_.size()) buckets_.resize(static_cast<std::size_t>(level) + 1);
+        buckets_[static_cast<std::size_t>(level)].push_back(v);
+        top_ = std::max(top_, level);
+    }
+    /// The next voxel and its level; false when the queue is empty.
+    bool pop(int& level, std::int64_t& v) {
+        while (top_ >= 0) {
+            auto& b = buckets_[static_cast<std::size_t>(top_)];
+            if (head_ < b.size()) {
+                v = b[head_++];
+                level = top_;
+                return true;
+            }
+            std::vector<std::int64_t>().swap(b);
+            head_ = 0;
+            --top_;
+        }
+        return false;
+    }
 
-/// The flood's queue, numbering what it queues.
-struct FloodQueue {
-    std::priority_queue<Item> heap;
-    std::int64_t queued = 0;
-    void push(float level, std::int64_t voxel) { heap.push(Item{level, queued++, voxel}); }
+private:
+    double scale_;
+    std::vector<std::vector<std::int64_t>> buckets_;
+    int top_ = -1;
+    std::size_t head_ = 0;
 };
 
 /// The 6 face neighbours of voxel i inside the grid, as f(neighbour).
@@ -44,16 +63,14 @@ void face_neighbours(const Grid& g, std::int64_t i, F&& f) {
 /// Floods from the items queued, each voxel taking the label of the voxel it was reached from.
 void flood(const Grid& g, const float* dt, std::vector<std::int32_t>& labels, FloodQueue& queue, std::int64_t& done,
            std::int64_t total, const Progress& progress) {
-    while (!queue.heap.empty()) {
-        const Item top = queue.heap.top();
-        queue.heap.pop();
-        const float level = top.level;
-        const std::int64_t i = top.voxel;
+    int level = 0;
+    std::int64_t i = 0;
+    while (queue.pop(level, i)) {
         const std::int32_t label = labels[static_cast<std::size_t>(i)];
         face_neighbours(g, i, [&](std::int64_t j) {
             if (dt[j] <= 0 || labels[static_cast<std::size_t>(j)] != 0) return;
             labels[static_cast<std::size_t>(j)] = label;
-            queue.push(std::min(level, dt[j]), j);
+            queue.push(std::min(level, queue.level_of(dt[j])), j);
         });
         if ((++done & ((std::int64_t{1} << 20) - 1)) == 0) report(progress, static_cast<double>(done) / static_cast<double>(total));
     }
@@ -146,12 +163,12 @@ std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vec
     if (seeds.size() >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw Error("pore_network: too many pores");
     std::vector<std::int32_t> labels(static_cast<std::size_t>(n), 0);
-    FloodQueue queue;
+    FloodQueue queue(g.min_spacing());
     std::int64_t total = 0, done = 0;
     for (std::int64_t i = 0; i < n; ++i) total += dt[i] > 0 ? 1 : 0;
     for (std::size_t s = 0; s < seeds.size(); ++s) {
         labels[static_cast<std::size_t>(seeds[s])] = static_cast<std::int32_t>(s + 1);
-        queue.push(dt[seeds[s]], seeds[s]);
+        queue.push(queue.level_of(dt[seeds[s]]), seeds[s]);
     }
     flood(g, dt, labels, queue, done, total, progress);
     // Pore voxels no seed reached (a 6-connected bit whose maximum lay in another bit's ball): new regions.
@@ -159,7 +176,7 @@ std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vec
         if (dt[i] <= 0 || labels[static_cast<std::size_t>(i)] != 0) continue;
         seeds.push_back(i);
         labels[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(seeds.size());
-        queue.push(dt[i], i);
+        queue.push(queue.level_of(dt[i]), i);
         flood(g, dt, labels, queue, done, total, progress);
     }
     return labels;
