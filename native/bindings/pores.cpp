@@ -1,6 +1,6 @@
 // Bindings for volrig/pores.hpp: the pore network of a pore mask, and the network's transport solve.
-#include "convert.hpp"
 #include "volrig/pores.hpp"
+#include "convert.hpp"
 
 namespace volrig::py {
 
@@ -51,7 +51,8 @@ void bind_pores(py::module_& m) {
             if (conns.ndim() != 2 || conns.shape(1) != 2) throw Error("network_rate: conns must have shape (M, 2)");
             if (g.ndim() != 1 || g.shape(0) != conns.shape(0)) throw Error("network_rate: g must have shape (M,)");
             const auto n = static_cast<py::ssize_t>(nodes);
-            if (inlet.size() != n || outlet.size() != n) throw Error("network_rate: inlet and outlet need one flag a node");
+            if (inlet.size() != n || outlet.size() != n)
+                throw Error("network_rate: inlet and outlet need one flag a node");
             py::gil_scoped_release nogil;
             return network_rate(nodes, conns.data(), g.data(), static_cast<std::size_t>(g.shape(0)), inlet.data(),
                                 outlet.data());

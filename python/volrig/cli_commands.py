@@ -614,7 +614,8 @@ def cmd_pores(args) -> int:
     mask, voxel = _pore_mask(args)
     t = time.perf_counter()
     bars = StepBars() if _show_progress(args) else None
-    net = pore_network(mask, voxel=voxel, model=args.model, progress=(lambda f: bars("pore network", f)) if bars else None)
+    net = pore_network(mask, voxel=voxel, model=args.model,
+                       progress=(lambda f: bars("pore network", f)) if bars else None)
     if bars is not None:
         bars.close()
     elapsed = time.perf_counter() - t

@@ -145,7 +145,8 @@ def load_network(path: Union[str, Path]) -> PoreNetwork:
         d = {k: z[k] for k in z.files}
     try:
         return PoreNetwork(
-            porosity=float(d["volrig.porosity"]), pore_coords=d["pore.coords"], pore_diameter=d["pore.inscribed_diameter"],
+            porosity=float(d["volrig.porosity"]), pore_coords=d["pore.coords"],
+            pore_diameter=d["pore.inscribed_diameter"],
             pore_equivalent_diameter=d["pore.equivalent_diameter"], pore_volume=d["pore.volume"],
             pore_faces={f: d[f"pore.{f}"] for f in FACES}, throat_conns=d["throat.conns"],
             throat_diameter=d["throat.inscribed_diameter"], throat_total_length=d["throat.total_length"],

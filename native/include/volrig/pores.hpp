@@ -23,17 +23,17 @@ enum PoreFace : std::uint8_t { XMin = 1, XMax = 2, YMin = 4, YMax = 8, ZMin = 16
 /// A pore network. World coordinates are x, y, z from the image's corner: voxel (i, j, k) spans
 /// [i, i + 1) * spacing, so a voxel centre is (i + 0.5) * spacing (grid origin added).
 struct PoreNetwork {
-    std::int64_t pore_voxels = 0;               ///< voxels of the pore space
-    std::vector<double> pore_coords;            ///< 3 per pore: centre of mass (world x, y, z)
-    std::vector<double> pore_inscribed;         ///< per pore: diameter of its largest inscribed ball (world)
-    std::vector<double> pore_volume;            ///< per pore: its region's volume (world)
-    std::vector<std::uint8_t> pore_faces;       ///< per pore: PoreFace bits of the image faces its region touches
-    std::vector<std::int32_t> throat_conns;     ///< 2 per throat: pore indices, the smaller first
-    std::vector<double> throat_inscribed;       ///< per throat: 2 x the largest DT on the interface (world)
-    std::vector<double> throat_coords;          ///< 3 per throat: where that largest ball is (world x, y, z)
-    std::vector<double> throat_area;            ///< per throat: the interface's area (voxel faces, world)
-    std::vector<double> throat_total_length;    ///< per throat: |pore 1 - throat| + |throat - pore 2| (world)
-    std::vector<std::int32_t> regions;          ///< with keep_regions: per voxel its pore + 1 (0 = solid), else empty
+    std::int64_t pore_voxels = 0;             ///< voxels of the pore space
+    std::vector<double> pore_coords;          ///< 3 per pore: centre of mass (world x, y, z)
+    std::vector<double> pore_inscribed;       ///< per pore: diameter of its largest inscribed ball (world)
+    std::vector<double> pore_volume;          ///< per pore: its region's volume (world)
+    std::vector<std::uint8_t> pore_faces;     ///< per pore: PoreFace bits of the image faces its region touches
+    std::vector<std::int32_t> throat_conns;   ///< 2 per throat: pore indices, the smaller first
+    std::vector<double> throat_inscribed;     ///< per throat: 2 x the largest DT on the interface (world)
+    std::vector<double> throat_coords;        ///< 3 per throat: where that largest ball is (world x, y, z)
+    std::vector<double> throat_area;          ///< per throat: the interface's area (voxel faces, world)
+    std::vector<double> throat_total_length;  ///< per throat: |pore 1 - throat| + |throat - pore 2| (world)
+    std::vector<std::int32_t> regions;        ///< with keep_regions: per voxel its pore + 1 (0 = solid), else empty
     std::size_t pore_count() const { return pore_volume.size(); }
     std::size_t throat_count() const { return throat_inscribed.size(); }
 };

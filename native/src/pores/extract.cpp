@@ -128,7 +128,8 @@ std::vector<std::int64_t> pore_seeds(const Grid& g, const float* dt) {
     // centre has its seed in the candidate's cell or a neighbouring one.
     const double rmax = dt[cand.front()];
     std::array<std::int64_t, 3> cell{};
-    for (int a = 0; a < 3; ++a) cell[a] = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(rmax / g.spacing[a])));
+    for (int a = 0; a < 3; ++a)
+        cell[a] = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(rmax / g.spacing[a])));
     auto key = [](std::int64_t cx, std::int64_t cy, std::int64_t cz) { return (cz * 1000003 + cy) * 1000003 + cx; };
     std::unordered_map<std::int64_t, std::vector<std::int64_t>> buckets;
     std::vector<std::int64_t> kept;
@@ -147,7 +148,10 @@ std::vector<std::int64_t> pore_seeds(const Grid& g, const float* dt) {
                         const double ey = static_cast<double>((s / nx) % g.dims[1] - y) * g.spacing[1];
                         const double ez = static_cast<double>(s / nxy - z) * g.spacing[2];
                         const double r = dt[s];
-                        if (ex * ex + ey * ey + ez * ez <= r * r) { inside = true; break; }
+                        if (ex * ex + ey * ey + ez * ez <= r * r) {
+                            inside = true;
+                            break;
+                        }
                     }
                 }
         if (inside) continue;

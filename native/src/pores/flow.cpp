@@ -19,7 +19,8 @@ std::vector<std::size_t> components(std::size_t nodes, const std::int32_t* conns
         return a;
     };
     for (std::size_t e = 0; e < edges; ++e) {
-        const std::size_t a = find(static_cast<std::size_t>(conns[2 * e])), b = find(static_cast<std::size_t>(conns[2 * e + 1]));
+        const std::size_t a = find(static_cast<std::size_t>(conns[2 * e])),
+                          b = find(static_cast<std::size_t>(conns[2 * e + 1]));
         if (a != b) parent[a] = b;
     }
     for (std::size_t i = 0; i < nodes; ++i) parent[i] = find(i);
@@ -48,10 +49,12 @@ namespace volrig {
 double network_rate(std::size_t nodes, const std::int32_t* conns, const double* g, std::size_t edges,
                     const std::uint8_t* inlet, const std::uint8_t* outlet) {
     for (std::size_t e = 0; e < 2 * edges; ++e)
-        if (conns[e] < 0 || static_cast<std::size_t>(conns[e]) >= nodes) throw Error("network_rate: a node index out of range");
+        if (conns[e] < 0 || static_cast<std::size_t>(conns[e]) >= nodes)
+            throw Error("network_rate: a node index out of range");
     for (std::size_t e = 0; e < edges; ++e)
         if (!(g[e] > 0)) throw Error("network_rate: conductances must be positive and finite");
-    const std::vector<std::uint8_t> live = pores_detail::spanning(nodes, pores_detail::components(nodes, conns, edges), inlet, outlet);
+    const std::vector<std::uint8_t> live =
+        pores_detail::spanning(nodes, pores_detail::components(nodes, conns, edges), inlet, outlet);
     // Unknowns: the live nodes held at no value.
     std::vector<std::int64_t> unknown(nodes, -1);
     std::int64_t k = 0;

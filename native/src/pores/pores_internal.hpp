@@ -22,7 +22,6 @@ std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vec
                                         const Progress& progress);
 
 /// The pores' and throats' measures from the regions.
-PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<std::int32_t>& labels,
-                            std::size_t pores);
+PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<std::int32_t>& labels, std::size_t pores);
 
 }  // namespace volrig::pores_detail

@@ -72,7 +72,8 @@ void flood(const Grid& g, const float* dt, std::vector<std::int32_t>& labels, Fl
             labels[static_cast<std::size_t>(j)] = label;
             queue.push(std::min(level, queue.level_of(dt[j])), j);
         });
-        if ((++done & ((std::int64_t{1} << 20) - 1)) == 0) report(progress, static_cast<double>(done) / static_cast<double>(total));
+        if ((++done & ((std::int64_t{1} << 20) - 1)) == 0)
+            report(progress, static_cast<double>(done) / static_cast<double>(total));
     }
 }
 
@@ -90,7 +91,9 @@ struct ThroatAcc {
 };
 
 /// World coordinate of voxel index i's centre along axis a.
-inline double centre(const Grid& g, std::int64_t i, int a) { return g.origin[a] + (static_cast<double>(i) + 0.5) * g.spacing[a]; }
+inline double centre(const Grid& g, std::int64_t i, int a) {
+    return g.origin[a] + (static_cast<double>(i) + 0.5) * g.spacing[a];
+}
 
 /// Adds voxel (x, y, z) of label l to its pore.
 void add_pore_voxel(const Grid& g, PoreAcc& p, std::int64_t x, std::int64_t y, std::int64_t z, float d) {
@@ -150,7 +153,8 @@ void fill_throats(const Grid& g, const std::unordered_map<std::uint64_t, ThroatA
         }
         net.throat_total_length.push_back(std::sqrt(la) + std::sqrt(lb));
         // Faces normal to x, y and z count alike: exact on isotropic grids, a mean face elsewhere.
-        const double face = (g.spacing[0] * g.spacing[1] + g.spacing[1] * g.spacing[2] + g.spacing[0] * g.spacing[2]) / 3;
+        const double face =
+            (g.spacing[0] * g.spacing[1] + g.spacing[1] * g.spacing[2] + g.spacing[0] * g.spacing[2]) / 3;
         net.throat_area.push_back(static_cast<double>(t.faces) * face);
     }
 }
@@ -198,7 +202,8 @@ PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<st
                 for (int axis = 0; axis < 3; ++axis) {
                     if (xyz[axis] + 1 >= g.dims[axis]) continue;
                     const std::int32_t b = labels[static_cast<std::size_t>(i + step[axis])];
-                    if (b != 0 && b != a) add_interface(g, throats, a, b, xyz, axis, std::min(dt[i], dt[i + step[axis]]));
+                    if (b != 0 && b != a)
+                        add_interface(g, throats, a, b, xyz, axis, std::min(dt[i], dt[i + step[axis]]));
                 }
             }
     PoreNetwork net;
