@@ -1,27 +1,27 @@
-// Internal stages of the pore network extraction (extract.cpp, regions.cpp).
+// Internal stages of the pore network extraction (extract.cpp, regions.cpp), over the pore space of
+// pore_space.hpp.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
+#include "pore_space.hpp"
 #include "volrig/pores.hpp"
 
 namespace volrig::pores_detail {
 
-/// Euclidean DT of the pore space with the image's faces open: the mask mirrored across each face by up to 8
-/// voxels, transformed, cropped back.
-std::vector<float> open_distance(const Grid& g, const std::uint8_t* mask, const Progress& progress);
+/// Pore seeds: voxels whose DT is not below any of their 26 neighbours', on plateaus that do not rise, largest DT
+/// first (ties in scan order), a seed dropped when its centre lies in the ball (radius DT) of a seed kept before it.
+std::vector<std::int64_t> pore_seeds(const PoreSpace& dt);
 
-/// Pore seeds: voxels whose DT is not below any of their 26 neighbours', largest DT first (ties in scan order),
-/// a seed dropped when its centre lies in the ball (radius DT) of a seed kept before it.
-std::vector<std::int64_t> pore_seeds(const Grid& g, const float* dt);
-
-/// Region labels (1.. in the order of `seeds`; 0 = solid): a priority flood of the DT from the seeds, largest
-/// first, over 6-connected pore voxels. Pore voxels no seed reaches start new regions (in scan order).
-std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vector<std::int64_t>& seeds,
-                                        const Progress& progress);
+/// Region labels (1.. in the order of `seeds`): a priority flood of the DT from the seeds, largest first, over
+/// 6-connected pore voxels. Pore voxels no seed reaches start new regions (in scan order; appended to `seeds`).
+Regions flood_regions(const PoreSpace& dt, std::vector<std::int64_t>& seeds, const Progress& progress);
 
 /// The pores' and throats' measures from the regions.
-PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<std::int32_t>& labels, std::size_t pores);
+PoreNetwork measure_network(const PoreSpace& dt, const Regions& regions, std::size_t pores);
+
+/// The labels as a volume: per voxel its region (0 = solid).
+std::vector<std::int32_t> dense_labels(const PoreSpace& dt, const Regions& regions);
 
 }  // namespace volrig::pores_detail

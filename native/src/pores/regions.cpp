@@ -13,7 +13,8 @@ namespace {
 
 /// The flood's queue: one bucket a level (the DT in 1/16 of the finest spacing), the highest level first and each
 /// bucket first in, first out (breadth first, so seeds on one plateau grow alike). 8 bytes a queued voxel; a
-/// drained bucket's memory is freed.
+/// drained bucket's memory is freed. Index: the voxels' index type (32 bits where the grid allows: half the memory).
+template <class Index>
 class FloodQueue {
 public:
     explicit FloodQueue(double finest) : scale_(16.0 / finest) {}
@@ -21,7 +22,7 @@ public:
     /// Queues voxel v at `level` (at most the level being drained, once draining has begun).
     void push(int level, std::int64_t v) {
         if (static_cast<std::size_t>(level) >= buckets_.size()) buckets_.resize(static_cast<std::size_t>(level) + 1);
-        buckets_[static_cast<std::size_t>(level)].push_back(v);
+        buckets_[static_cast<std::size_t>(level)].push_back(static_cast<Index>(v));
         top_ = std::max(top_, level);
     }
     /// The next voxel and its level; false when the queue is empty.
@@ -33,7 +34,7 @@ public:
                 level = top_;
                 return true;
             }
-            std::vector<std::int64_t>().swap(b);
+            std::vector<Index>().swap(b);
             head_ = 0;
             --top_;
         }
@@ -42,7 +43,7 @@ public:
 
 private:
     double scale_;
-    std::vector<std::vector<std::int64_t>> buckets_;
+    std::vector<std::vector<Index>> buckets_;
     int top_ = -1;
     std::size_t head_ = 0;
 };
@@ -61,19 +62,21 @@ void face_neighbours(const Grid& g, std::int64_t i, F&& f) {
 }
 
 /// Floods from the items queued, each voxel taking the label of the voxel it was reached from.
-void flood(const Grid& g, const float* dt, std::vector<std::int32_t>& labels, FloodQueue& queue, std::int64_t& done,
-           std::int64_t total, const Progress& progress) {
+template <class Queue>
+void flood(const PoreSpace& dt, Regions& regions, Queue& queue, std::int64_t& done, const Progress& progress) {
+    const double total = static_cast<double>(dt.index.count());
     int level = 0;
     std::int64_t i = 0;
     while (queue.pop(level, i)) {
-        const std::int32_t label = labels[static_cast<std::size_t>(i)];
-        face_neighbours(g, i, [&](std::int64_t j) {
-            if (dt[j] <= 0 || labels[static_cast<std::size_t>(j)] != 0) return;
-            labels[static_cast<std::size_t>(j)] = label;
-            queue.push(std::min(level, queue.level_of(dt[j])), j);
+        const std::int32_t label = regions.at(i);
+        face_neighbours(dt.grid, i, [&](std::int64_t j) {
+            if (!dt.index.pore(j)) return;
+            const auto r = static_cast<std::size_t>(dt.index.rank(j));
+            if (regions.labels[r] != 0) return;
+            regions.labels[r] = label;
+            queue.push(std::min(level, queue.level_of(dt.dt[r])), j);
         });
-        if ((++done & ((std::int64_t{1} << 20) - 1)) == 0)
-            report(progress, static_cast<double>(done) / static_cast<double>(total));
+        if ((++done & ((std::int64_t{1} << 20) - 1)) == 0) report(progress, static_cast<double>(done) / total);
     }
 }
 
@@ -161,33 +164,43 @@ void fill_throats(const Grid& g, const std::unordered_map<std::uint64_t, ThroatA
 
 }  // namespace
 
-std::vector<std::int32_t> flood_regions(const Grid& g, const float* dt, std::vector<std::int64_t>& seeds,
-                                        const Progress& progress) {
-    const std::int64_t n = g.voxel_count();
+/// flood_regions with voxel indices of type Index in the queue.
+template <class Index>
+Regions flood_with(const PoreSpace& dt, std::vector<std::int64_t>& seeds, const Progress& progress) {
+    const std::int64_t n = dt.grid.voxel_count();
     if (seeds.size() >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         throw Error("pore_network: too many pores");
-    std::vector<std::int32_t> labels(static_cast<std::size_t>(n), 0);
-    FloodQueue queue(g.min_spacing());
-    std::int64_t total = 0, done = 0;
-    for (std::int64_t i = 0; i < n; ++i) total += dt[i] > 0 ? 1 : 0;
+    Regions regions;
+    regions.index = &dt.index;
+    regions.labels.assign(static_cast<std::size_t>(dt.index.count()), 0);
+    FloodQueue<Index> queue(dt.grid.min_spacing());
+    std::int64_t done = 0;
     for (std::size_t s = 0; s < seeds.size(); ++s) {
-        labels[static_cast<std::size_t>(seeds[s])] = static_cast<std::int32_t>(s + 1);
+        regions.at(seeds[s]) = static_cast<std::int32_t>(s + 1);
         queue.push(queue.level_of(dt[seeds[s]]), seeds[s]);
     }
-    flood(g, dt, labels, queue, done, total, progress);
+    flood(dt, regions, queue, done, progress);
     // Pore voxels no seed reached (a 6-connected bit whose maximum lay in another bit's ball): new regions.
     for (std::int64_t i = 0; i < n; ++i) {
-        if (dt[i] <= 0 || labels[static_cast<std::size_t>(i)] != 0) continue;
+        if (!dt.index.pore(i) || regions.at(i) != 0) continue;
+        if (seeds.size() + 1 >= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+            throw Error("pore_network: too many pores");
         seeds.push_back(i);
-        labels[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(seeds.size());
+        regions.at(i) = static_cast<std::int32_t>(seeds.size());
         queue.push(queue.level_of(dt[i]), i);
-        flood(g, dt, labels, queue, done, total, progress);
+        flood(dt, regions, queue, done, progress);
     }
-    return labels;
+    return regions;
 }
 
-PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<std::int32_t>& labels,
-                            std::size_t pores) {
+Regions flood_regions(const PoreSpace& dt, std::vector<std::int64_t>& seeds, const Progress& progress) {
+    if (dt.grid.voxel_count() <= static_cast<std::int64_t>(std::numeric_limits<std::uint32_t>::max()))
+        return flood_with<std::uint32_t>(dt, seeds, progress);
+    return flood_with<std::int64_t>(dt, seeds, progress);
+}
+
+PoreNetwork measure_network(const PoreSpace& dt, const Regions& regions, std::size_t pores) {
+    const Grid& g = dt.grid;
     std::vector<PoreAcc> acc(pores);
     std::unordered_map<std::uint64_t, ThroatAcc> throats;
     const std::int64_t step[3] = {1, g.dims[0], g.dims[0] * g.dims[1]};
@@ -195,21 +208,31 @@ PoreNetwork measure_network(const Grid& g, const float* dt, const std::vector<st
         for (std::int64_t y = 0; y < g.dims[1]; ++y)
             for (std::int64_t x = 0; x < g.dims[0]; ++x) {
                 const std::int64_t i = g.index(x, y, z);
-                const std::int32_t a = labels[static_cast<std::size_t>(i)];
-                if (a == 0) continue;
-                add_pore_voxel(g, acc[static_cast<std::size_t>(a - 1)], x, y, z, dt[i]);
+                if (!dt.index.pore(i)) continue;
+                const auto r = static_cast<std::size_t>(dt.index.rank(i));
+                const std::int32_t a = regions.labels[r];
+                const float d = dt.dt[r];
+                add_pore_voxel(g, acc[static_cast<std::size_t>(a - 1)], x, y, z, d);
                 const std::int64_t xyz[3] = {x, y, z};
                 for (int axis = 0; axis < 3; ++axis) {
-                    if (xyz[axis] + 1 >= g.dims[axis]) continue;
-                    const std::int32_t b = labels[static_cast<std::size_t>(i + step[axis])];
-                    if (b != 0 && b != a)
-                        add_interface(g, throats, a, b, xyz, axis, std::min(dt[i], dt[i + step[axis]]));
+                    if (xyz[axis] + 1 >= g.dims[axis] || !dt.index.pore(i + step[axis])) continue;
+                    const auto rb = static_cast<std::size_t>(dt.index.rank(i + step[axis]));
+                    const std::int32_t b = regions.labels[rb];
+                    if (b != a) add_interface(g, throats, a, b, xyz, axis, std::min(d, dt.dt[rb]));
                 }
             }
     PoreNetwork net;
     fill_pores(g, acc, net);
     fill_throats(g, throats, net);
     return net;
+}
+
+std::vector<std::int32_t> dense_labels(const PoreSpace& dt, const Regions& regions) {
+    std::vector<std::int32_t> out(static_cast<std::size_t>(dt.grid.voxel_count()), 0);
+    std::size_t r = 0;
+    for (std::int64_t i = 0; i < dt.grid.voxel_count(); ++i)
+        if (dt.index.pore(i)) out[static_cast<std::size_t>(i)] = regions.labels[r++];
+    return out;
 }
 
 }  // namespace volrig::pores_detail
