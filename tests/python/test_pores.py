@@ -211,3 +211,17 @@ def test_berea_acceptance():
     # volrig's x (array axis 2) against the simulation's x too.
     assert abs(k_md[0] / BEREA_K_MD[0] - 1) < 0.25 and abs(net.formation_factor[0] / BEREA_F[0] - 1) < 0.10
     assert elapsed < 60
+
+
+def test_berea_memory_at_most_3x_the_image():
+    """The issue's memory line, measured as benchmarks/bench_pores.py does (2.5x measured), in a fresh process."""
+    path = shared("rock/berea_100_to_300.npz")
+    code = ("import resource, sys, numpy as np, volrig\n"
+            f"im = np.load({str(path)!r})['im']\n"
+            "rss = [int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmRSS:')][0]\n"
+            "volrig.pore_network(im, voxel=5.345e-6)\n"
+            "peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss\n"
+            "print(peak * 1024 / im.size)\n")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
+                         env={"PYTHONPATH": str(REPO / "python")}).stdout
+    assert float(out) <= 3.0

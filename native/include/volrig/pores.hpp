@@ -39,9 +39,10 @@ struct PoreNetwork {
 };
 
 /// Extracts the network of `mask`'s pore space (non-zero = pore). The distance transform treats the image's faces
-/// as open (the pore space is mirrored across them), so pores cut by a face keep their size. Memory: the mask, a
-/// float distance and an int32 region label per voxel (plus the flood's front). Throws Error for a mask without
-/// pore or without solid voxels; Cancelled when `progress` says so.
+/// as open (voxels outside count as pore), so pores cut by a face keep their size. Memory: a bit and a quarter a
+/// voxel, and per pore voxel a float distance, an int32 region label and, while queued, a 32-bit index (64 on grids
+/// above 2^32 voxels). Throws Error for a mask without pore or without solid voxels; Cancelled when `progress`
+/// says so.
 /// With `keep_regions`, the network keeps the region labels (4 bytes a voxel).
 PoreNetwork extract_pore_network(const Grid& grid, const std::uint8_t* mask, const Progress& progress = {},
                                  bool keep_regions = false);
