@@ -6,7 +6,7 @@ The image: ../shared/data/rock/berea_100_to_300.npz (key im, 200³, True = pore,
 message when absent). Its reference figures (PoreSpyIO_on_Berea.py beside it) name the array's axes 0, 1, 2 x, y,
 z, as PoreSpy does; volrig's x, y, z are the array's axes 2, 1, 0, so both readings are printed.
 
-Peak memory: the process's peak resident set (ru_maxrss) during the call less its resident set before it (the image
+Peak memory: the process's peak resident set (VmHWM) during the call less its resident set before it (the image
 loaded), over the image's bytes (one byte a voxel), for the first call (the later ones, timed, run on a heap the
 earlier ones grew).
 
@@ -14,7 +14,6 @@ Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/bench_pores.py [--repeat 3]
 """
 import argparse
 import os
-import resource
 import sys
 import time
 
@@ -32,11 +31,12 @@ K_MD = (1360.0, 1304.0, 1193.0)  # the simulation's x, y, z = the array's axes 0
 F = (23.12, 23.99, 25.22)
 
 
-def rss_kb() -> int:
-    """The resident set now, in kB (Linux /proc)."""
+def status_kb(key: str) -> int:
+    """A /proc/self/status figure in kB: VmRSS (resident now) or VmHWM (the process's own high-water mark, which
+    ru_maxrss is not: it carries the forking parent's resident set)."""
     with open("/proc/self/status") as f:
         for line in f:
-            if line.startswith("VmRSS:"):
+            if line.startswith(key + ":"):
                 return int(line.split()[1])
     return 0
 
@@ -50,14 +50,14 @@ def main() -> None:
         print(f"skipped: {path} is absent (the ../shared/data folder sits beside the checkout)")
         return
     im = np.load(path)["im"]
-    before = rss_kb()
+    before = status_kb("VmRSS")
     times = []
     for run in range(args.repeat):
         t = time.perf_counter()
         net = volrig.pore_network(im, voxel=5.345e-6)
         times.append(time.perf_counter() - t)
         if run == 0:  # the first call's peak: later calls run on a heap the earlier ones grew
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+            peak = status_kb("VmHWM") - before
     print(f"Berea {im.shape[0]}x{im.shape[1]}x{im.shape[2]}: porosity {net.porosity:.5f} (mask mean "
           f"{im.mean():.5f}); {net.pore_count} pores, {net.throat_count} throats, mean coordination "
           f"{net.coordination.mean():.2f}")
