@@ -1,9 +1,12 @@
 // Pore networks (volrig/pores.hpp): the transport solve against hand-solved networks, and the extraction on
-// geometries whose pores and throats are known (docs/pores.md).
+// geometries whose pores and throats are known, and the pore space's transform against brute force (docs/pores.md).
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 
+#include "pores/pore_space.hpp"
 #include "volrig/pores.hpp"
 
 using namespace volrig;
@@ -93,4 +96,42 @@ TEST_CASE("extract_pore_network: a tube across the box touches both x faces; err
     CHECK_THROWS_AS(extract_pore_network(g, none.data()), Error);
     CHECK_THROWS_AS(extract_pore_network(g, all.data()), Error);
     CHECK_THROWS_AS(extract_pore_network(g, m.data(), [](double) { return false; }), Cancelled);
+}
+
+TEST_CASE("pore_distance: the open-faced transform against brute force; ranks", "[pores]") {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int trial = 0; trial < 20; ++trial) {
+        Grid g;
+        g.dims = {1 + static_cast<std::int64_t>(u(rng) * 9), 1 + static_cast<std::int64_t>(u(rng) * 9),
+                  1 + static_cast<std::int64_t>(u(rng) * 9)};
+        if (trial % 2) g.spacing = {0.5 + u(rng), 0.5 + u(rng), 0.5 + u(rng)};
+        std::vector<std::uint8_t> m(static_cast<std::size_t>(g.voxel_count()));
+        for (auto& v : m) v = u(rng) < 0.7 ? 1 : 0;
+        m[0] = 0;  // at least one solid voxel
+        pores_detail::PoreSpace s(g, m.data());
+        pores_detail::pore_distance(s, m.data(), {});
+        std::int64_t rank = 0;
+        for (std::int64_t i = 0; i < g.voxel_count(); ++i) {
+            REQUIRE(s.index.pore(i) == (m[static_cast<std::size_t>(i)] != 0));
+            REQUIRE(s.index.rank(i) == rank);
+            if (!m[static_cast<std::size_t>(i)]) {
+                CHECK(s[i] == 0.0f);
+                continue;
+            }
+            ++rank;
+            // Brute force: the nearest solid voxel's centre inside the image (outside counts as pore).
+            const std::int64_t x = i % g.dims[0], y = (i / g.dims[0]) % g.dims[1], z = i / (g.dims[0] * g.dims[1]);
+            double best = 1e300;
+            for (std::int64_t j = 0; j < g.voxel_count(); ++j) {
+                if (m[static_cast<std::size_t>(j)]) continue;
+                const double dx = static_cast<double>(j % g.dims[0] - x) * g.spacing[0];
+                const double dy = static_cast<double>((j / g.dims[0]) % g.dims[1] - y) * g.spacing[1];
+                const double dz = static_cast<double>(j / (g.dims[0] * g.dims[1]) - z) * g.spacing[2];
+                best = std::min(best, dx * dx + dy * dy + dz * dz);
+            }
+            CHECK(s[i] == Approx(std::sqrt(best)).epsilon(1e-5));
+        }
+        CHECK(s.index.count() == rank);
+    }
 }
