@@ -72,6 +72,7 @@ CAPABILITIES: dict[str, dict[str, list[str]]] = {
     "collide": {"headers": []},
     "drawing": {"headers": []},  # drawings: PNG reading (native), inflation to a solid (Python)
     "track": {"headers": []},  # feature tracking over time steps: features and point overlaps (native), events (Python)
+    "pores": {"headers": []},  # pore networks of rock (thesis 9.4): extraction, flow (native), OpenPNM files (Python)
 }
 
 # Modules of python/volrig that belong to no one capability: the package's front, the pipeline that chains the

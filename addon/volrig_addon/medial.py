@@ -1,5 +1,6 @@
-"""Thickness and medial surface of the segmented object: Show Thickness (local thickness, ``volrig`` thickness)
-and Medial Surface (``volrig.medial_surface``); their buttons are on the Segment panel (volume.py)."""
+"""Thickness, medial surface and pore network of the segmented object: Show Thickness (local thickness, ``volrig``
+thickness), Medial Surface (``volrig.medial_surface``) and Pore Network (``volrig.pore_network``: the segmentation
+is the pore space); their buttons are on the Segment panel (volume.py)."""
 import bpy
 import numpy as np
 from bpy.props import FloatProperty
@@ -62,7 +63,26 @@ class VOLRIG_OT_medial_surface(_OnVolume, bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (VOLRIG_OT_show_thickness, VOLRIG_OT_medial_surface)
+class VOLRIG_OT_pore_network(_OnVolume, bpy.types.Operator):
+    """Show the network of the segmented pore space (a rock's pores: pores as spheres, throats as cylinders, coloured
+    by their inscribed diameter) as <name>_pores; reports porosity, counts and the network's permeability"""
+    bl_idname = "volrig.pore_network"
+    bl_label = "Pore Network"
+
+    def run(self, context, vol):
+        with _ProgressBar(context) as bar:
+            mask = scans.mask(vol)
+            show = bar.steps({"pores": (0, 100)})
+            net = volrig.pore_network(mask, progress=lambda f: show("pores", f))
+        obj = objects.update_pore_network(vol, net, mask.origin, mask.spacing)
+        k = ", ".join(f"{a} {v:.3g}" for a, v in zip("xyz", net.permeability))
+        self.report({"INFO"}, f"volrig: {obj.name}: porosity {net.porosity:.4f}, {net.pore_count:,} pores, "
+                              f"{net.throat_count:,} throats, mean coordination {net.coordination.mean():.2f}; "
+                              f"permeability {k} (volume units²), blue narrow to red wide")
+        return {"FINISHED"}
+
+
+CLASSES = (VOLRIG_OT_show_thickness, VOLRIG_OT_medial_surface, VOLRIG_OT_pore_network)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

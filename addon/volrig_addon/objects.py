@@ -6,6 +6,9 @@
 - ``<name>_medial``   Mesh (child of ``<name>``): the medial surface of the plates, a ``thickness`` point attribute
                       coloured through a ramp, the rods as loose edges (``rod`` edge attribute) with a ``radius``
                       point attribute, made tubes by the ``volrig rods`` geometry nodes.
+- ``<name>_pores``    Mesh (child of ``<name>``): the segmented pore space's network (volrig.pore_network), a sphere
+                      a pore (its inscribed diameter) and a cylinder a throat, coloured by a ``thickness`` point
+                      attribute (the diameter) through the thickness ramp.
 - ``<name>_skeleton`` preview mesh: one vertex per skeleton point at the current thinness, spheres instanced.
 - ``<name>_rig``      Armature built from the rig's joints in volume units (roll 0), scaled into the scene.
 - ``<name>_spheres``  Mesh parented to the rig: one vertex per rig point with a ``radius`` attribute, the
@@ -189,6 +192,84 @@ def update_medial_surface(volume_obj, ms) -> bpy.types.Object:
         obj.modifiers.new(ROD_NODES, "NODES").node_group = rod_nodes()
     top = float(np.percentile(values, 99)) if values.size else 1.0
     materials.set_medial_range(obj.active_material, top)
+    return obj
+
+
+def _sphere(segments: int = 10, rings: int = 6):
+    """A unit UV sphere: (vertices, triangles)."""
+    verts = [(0.0, 0.0, 1.0)]
+    for r in range(1, rings):
+        t = np.pi * r / rings
+        verts += [(np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t))
+                  for a in 2 * np.pi * np.arange(segments) / segments]
+    verts.append((0.0, 0.0, -1.0))
+    tris, last = [], len(verts) - 1
+    for k in range(segments):
+        k1 = (k + 1) % segments
+        tris.append((0, 1 + k, 1 + k1))
+        tris.append((last, 1 + (rings - 2) * segments + k1, 1 + (rings - 2) * segments + k))
+        for r in range(rings - 2):
+            a, b = 1 + r * segments, 1 + (r + 1) * segments
+            tris += [(a + k, b + k, b + k1), (a + k, b + k1, a + k1)]
+    return np.array(verts), np.array(tris)
+
+
+def _cylinders(p0, p1, radius, segments: int = 8):
+    """Open cylinders of ``radius`` from each p0 to p1: (vertices, triangles), 2 x segments vertices each."""
+    axis = p1 - p0
+    length = np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    w = axis / length
+    helper = np.where(np.abs(w[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    u = np.cross(w, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(w, u)
+    a = 2 * np.pi * np.arange(segments) / segments
+    ring = np.cos(a)[None, :, None] * u[:, None, :] + np.sin(a)[None, :, None] * v[:, None, :]
+    ring = ring * radius[:, None, None]
+    verts = np.concatenate([p0[:, None, :] + ring, p1[:, None, :] + ring], axis=1).reshape(-1, 3)
+    k = np.arange(segments)
+    k1 = (k + 1) % segments
+    one = np.concatenate([np.stack([k, segments + k, segments + k1], 1), np.stack([k, segments + k1, k1], 1)])
+    tris = (one[None, :, :] + (2 * segments * np.arange(len(p0)))[:, None, None]).reshape(-1, 3)
+    return verts, tris
+
+
+def update_pore_network(volume_obj, net, origin, spacing) -> bpy.types.Object:
+    """Shows a ``volrig.PoreNetwork`` of the scan's segmentation as ``<name>_pores``, parented to the scan (grid
+    frame, volume units): a sphere of its inscribed diameter at each pore, a cylinder of its inscribed diameter along
+    each throat, the ``thickness`` point attribute (the diameter) coloured through the thickness ramp; replaces the
+    mesh's geometry when it exists."""
+    # The network's coordinates run from the image's corner; the grid frame puts voxel centres at origin + i spacing.
+    centres = net.pore_coords + np.asarray(origin, float) - 0.5 * np.asarray(spacing, float)
+    unit, unit_tris = _sphere()
+    radius = net.pore_diameter / 2.0
+    sv = (centres[:, None, :] + radius[:, None, None] * unit[None, :, :]).reshape(-1, 3)
+    st = (unit_tris[None, :, :] + (len(unit) * np.arange(len(centres)))[:, None, None]).reshape(-1, 3)
+    p0, p1 = centres[net.throat_conns[:, 0]], centres[net.throat_conns[:, 1]]
+    cv, ct = _cylinders(p0, p1, net.throat_diameter / 2.0)
+    co = np.concatenate([sv, cv])
+    tris = np.concatenate([st, ct + len(sv)]).astype(np.int32)
+    values = np.concatenate([np.repeat(net.pore_diameter, len(unit)), np.repeat(net.throat_diameter, 16)])
+    obj = members(volume_obj).get("PORES")
+    if obj is None:
+        name = volume_obj.name + "_pores"
+        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "PORES")
+        obj.parent = volume_obj
+        obj.matrix_parent_inverse.identity()
+        obj.data.materials.append(materials.medial_material(volume_obj.name + " pores"))
+    mesh = obj.data
+    mesh.clear_geometry()
+    mesh.vertices.add(len(co))
+    mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    mesh.loops.add(3 * len(tris))
+    mesh.loops.foreach_set("vertex_index", tris.ravel())
+    mesh.polygons.add(len(tris))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(tris), 3, dtype=np.int32))
+    mesh.polygons.foreach_set("loop_total", np.full(len(tris), 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    attr = mesh.attributes.get("thickness") or mesh.attributes.new("thickness", "FLOAT", "POINT")
+    attr.data.foreach_set("value", values.astype(np.float32))
+    materials.set_medial_range(obj.active_material, float(np.percentile(values, 99)) if values.size else 1.0)
     return obj
 
 

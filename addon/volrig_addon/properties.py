@@ -31,6 +31,7 @@ class VolrigObject(volume.VolumeSettings, skeleton.SkeletonSettings, medial.Medi
         ("THICKNESS", "Thickness", "The segmented object coloured by its local thickness"),
         ("MEDIAL", "Medial surface",
          "The medial surface of the object's plates coloured by thickness, its rods as edges"),
+        ("PORES", "Pore network", "The pore space's network: spheres (pores) and cylinders (throats) by size"),
         ("PATH", "Centerline", "The fly-through's Bezier curve along the centerline"),
         ("CAMERA", "Fly-through camera", "The camera flying along the centerline"),
         ("LIGHT", "Headlight", "The point light riding with the fly-through camera"),

@@ -1,7 +1,7 @@
 """Import and segment: the Import Volume operator (NRRD, MetaImage, NIfTI, OpenVDB, raw; File > Import too), the
 import of a volume's samples into a new cache folder and Volume object (``import_samples``, also for drawings and
 straightened volumes), Preview Mask, and the Volume and Segment panels (the Segment panel also holds the thickness
-and medial surface buttons: medial.py)."""
+and medial surface and pore network buttons: medial.py)."""
 import os
 import uuid
 
@@ -228,6 +228,7 @@ class VOLRIG_PT_segment(_VolrigPanel, bpy.types.Panel):
         layout.operator("volrig.show_thickness", icon="MOD_THICKNESS")  # (one row each: the sidebar is narrow)
         layout.prop(s, "plane_t")
         layout.operator("volrig.medial_surface", icon="SURFACE_NSURFACE")
+        layout.operator("volrig.pore_network", icon="MESH_UVSPHERE")
 
 
 CLASSES = (VOLRIG_OT_import_volume, VOLRIG_OT_preview_mask, VOLRIG_PT_volume, VOLRIG_PT_segment)

@@ -190,5 +190,6 @@ void bind_centerline(py::module_& m);
 void bind_collide(py::module_& m);
 void bind_drawing(py::module_& m);
 void bind_track(py::module_& m);
+void bind_pores(py::module_& m);
 
 }  // namespace volrig::py

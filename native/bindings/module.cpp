@@ -45,4 +45,5 @@ PYBIND11_MODULE(_volrig, m) {
     volrig::py::bind_collide(m);
     volrig::py::bind_drawing(m);
     volrig::py::bind_track(m);
+    volrig::py::bind_pores(m);
 }

@@ -32,6 +32,7 @@ from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
                       tissue_classes, tissue_grids)
 from .track import Event, Tracking, track
+from .pores import PoreNetwork, load_network, pore_network
 from . import pipeline
 
 __version__ = "0.1.0"
@@ -50,7 +51,8 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
            "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
-           "part_grids", "explode_matrices", "vdb_grids", "track", "Tracking", "Event"]
+           "part_grids", "explode_matrices", "vdb_grids", "track", "Tracking", "Event", "PoreNetwork", "pore_network",
+           "load_network"]
 
 
 def __getattr__(name):

@@ -1,4 +1,4 @@
-"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,inflate,track,demo}``. Run with -h for each command's options.
+"""Command line: ``python -m volrig {info,skeletonize,rig,animate,bake-mocap,bake,centerline,flythrough,contacts,thickness,medial,pores,inflate,track,demo}``. Run with -h for each command's options.
 
 The parser and ``main`` live here; the commands themselves (``cmd_<name>``) and their helpers in volrig.cli_commands.
 """
@@ -22,6 +22,7 @@ from .cli_commands import (
     cmd_inflate,
     cmd_info,
     cmd_medial,
+    cmd_pores,
     cmd_rig,
     cmd_skeletonize,
     cmd_thickness,
@@ -239,6 +240,23 @@ def _medial_command(sub) -> None:
                    help="output .ply: vertices with a 'thickness' property, triangles, rods as edges (world units)")
 
 
+def _pores_command(sub) -> None:
+    p = _add_command(sub, "pores", "pore network of a rock's pore space (pores, throats), its permeability and "
+                                   "formation factor along x, y, z, as OpenPNM's .npz or CSV", cmd_pores)
+    _add_load_options(p)
+    p.add_argument("--shape", type=int, nargs=3, metavar=("N0", "N1", "N2"),
+                   help="raw files: the array's shape in numpy's C order, slowest axis first (--dims X Y Z "
+                        "reversed); element type uint8 unless --dtype")
+    p.add_argument("--key", default="im", help=".npz files: the array's key (default im)")
+    p.add_argument("--invert", action="store_true", help="zero is pore (default: non-zero is pore)")
+    p.add_argument("--voxel", type=float, help="voxel size in metres (default: the file's spacing, else 1)")
+    p.add_argument("--model", choices=("pyramids_and_cuboids", "cones_and_cylinders"), default="pyramids_and_cuboids",
+                   help="conduit shapes for the flow (default pyramids_and_cuboids, as OpenPNM's SNOW example)")
+    p.add_argument("--progress", action="store_true", help="show a progress bar on stderr (always on a terminal)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .npz (OpenPNM's keys) or .csv (<stem>_pores.csv and <stem>_throats.csv)")
+
+
 def _contacts_command(sub) -> None:
     p = _add_command(sub, "contacts", "frames where two rigged volumes touch, or one passes through itself, over BVH "
                                       "clips", cmd_contacts)
@@ -333,6 +351,7 @@ def main(argv=None) -> int:
     _centerline_command(sub)
     _thickness_command(sub)
     _medial_command(sub)
+    _pores_command(sub)
     _contacts_command(sub)
     _flythrough_command(sub)
     _inflate_command(sub)

@@ -611,3 +611,49 @@ def cmd_demo(args) -> int:
     run_demo(args.output, scale=args.scale, thinness=args.thinness)
     return 0
 
+
+
+def _pore_mask(args):
+    """The pore mask and its voxel size of ``volrig pores``: an .npz's array (--key), else any volume volrig reads
+    (raw with --shape as numpy's C-order shape, or --dims X Y Z), non-zero = pore (--invert: zero = pore)."""
+    from .volume import Volume
+    if args.file.lower().endswith(".npz"):
+        with np.load(args.file) as z:
+            if args.key not in z.files:
+                raise VolrigError(f"{args.file}: no array {args.key!r} (it holds {', '.join(z.files)}); pass --key")
+            arr = z[args.key]
+        spacing = None
+    else:
+        if args.shape is not None:
+            if args.dims is not None:
+                raise VolrigError("pass --shape (numpy's order, slowest axis first) or --dims X Y Z, not both")
+            args.dims = list(reversed(args.shape))
+            args.dtype = args.dtype or "uint8"
+        v = _load(args)
+        arr, spacing = v.array, v.spacing
+    mask = (arr == 0) if args.invert else (arr != 0)
+    voxel = args.voxel if args.voxel is not None else (spacing if spacing is not None else 1.0)
+    return Volume(mask, tuple(np.broadcast_to(np.asarray(voxel, float), (3,))), (0.0, 0.0, 0.0)), voxel
+
+
+def cmd_pores(args) -> int:
+    from .pores import AXES, pore_network
+    if not args.output.lower().endswith((".npz", ".csv")):
+        raise VolrigError(f"{args.output}: the output must be .npz or .csv")
+    mask, voxel = _pore_mask(args)
+    t = time.perf_counter()
+    bars = StepBars() if _show_progress(args) else None
+    net = pore_network(mask, voxel=voxel, model=args.model,
+                       progress=(lambda f: bars("pore network", f)) if bars else None)
+    if bars is not None:
+        bars.close()
+    elapsed = time.perf_counter() - t
+    written = net.save(args.output)
+    print(f"porosity {net.porosity:.4f}; {net.pore_count:,} pores, {net.throat_count:,} throats, mean coordination "
+          f"{net.coordination.mean() if net.pore_count else 0:.2f}; network in {elapsed:.2f} s")
+    for a in range(3):
+        k = net.permeability[a]
+        perm = f"{k:.4g} m² ({net.permeability_md[a]:.4g} mD)" if k > 0 else "0 (no path joins the two faces)"
+        print(f"  {AXES[a]}: permeability {perm}, formation factor {net.formation_factor[a]:.4g}")
+    print("-> " + ", ".join(str(p) for p in written))
+    return 0
