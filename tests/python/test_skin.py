@@ -302,3 +302,40 @@ def test_rig_mesh_skins_given_points_instead_of_the_vertices():
     expected = skin_weights(a.mask, a.rig, coarse)
     assert abs(b.weights - expected).max() == 0
     assert np.allclose(b.pose(volrig.rest_pose(len(b.rig.bones))), coarse)
+
+
+def stick_figure_mesh(thickness):
+    """A T-posed figure about 1.8 units tall of closed boxes: arms ``thickness`` across, legs 1.5 times, the trunk 3
+    times and the head 5 times as thick (at rig_mesh's 160 voxels, a thickness of 0.011 is one voxel)."""
+    t = thickness / 2
+    boxes = [((-3 * t, -2 * t, 0.9), (3 * t, 2 * t, 1.5)),                      # trunk
+             ((-5 * t, -5 * t, 1.52), (5 * t, 5 * t, 1.52 + 10 * t)),           # head, on a neck
+             ((-t, -t, 1.5), (t, t, 1.53)),                                    # neck
+             ((-0.7, -t, 1.42 - t), (0.7, t, 1.42 + t)),                       # arms, spread
+             ((-0.15, -1.5 * t, 0.9 - 1.5 * t), (0.15, 1.5 * t, 0.9 + 1.5 * t))]  # hips
+    boxes += [((s * 0.15 - 1.5 * t, -1.5 * t, 0.0), (s * 0.15 + 1.5 * t, 1.5 * t, 0.9)) for s in (-1, 1)]  # legs
+    vs, fs = [], []
+    for lo, hi in boxes:
+        v, f = box_mesh(lo, hi)
+        fs.append(f + sum(len(x) for x in vs))
+        vs.append(v)
+    return np.concatenate(vs), np.concatenate(fs)
+
+
+def test_a_stick_figure_is_voxelized_finer_until_its_limbs_are_whole():
+    """At 160 voxels the sticks are one voxel across: no body plan can be read. rig_mesh voxelizes such a mesh once
+    more, finer (its skeleton's median radius under MIN_RADIUS_VOXELS), and finds the humanoid; told not to, it
+    stays at 160."""
+    from volrig import pipeline
+    v, f = stick_figure_mesh(0.011)
+    side = float(np.ptp(v, axis=0).max())
+    fine = rig_mesh(v, f, up=(0, 0, 1))
+    assert fine.voxel_size < side / 160 / 1.25  # refined
+    assert fine.voxel_size >= side / pipeline.MAX_MESH_VOXELS - 1e-9
+    assert fine.rig.kind == "humanoid", fine.rig.note
+    coarse = rig_mesh(v, f, up=(0, 0, 1), min_radius_voxels=0)
+    assert coarse.voxel_size == pytest.approx(side / 160)
+    assert coarse.rig.kind != "humanoid"
+    # a thick figure is left at 160 voxels
+    v, f = stick_figure_mesh(0.1)
+    assert rig_mesh(v, f, up=(0, 0, 1)).voxel_size == pytest.approx(float(np.ptp(v, axis=0).max()) / 160)
