@@ -53,11 +53,11 @@ class _Step:
     point_label: np.ndarray   # int32 their features
     dt: np.ndarray            # float32 their distance transform (ball radius in the metric's units)
     scores: np.ndarray        # float32 their thinness scores (descending)
-    ijk: np.ndarray           # int32 (N, 3) their voxel indices [z, y, x]
     ball: np.ndarray          # float32 dt³: their balls' volumes (to a constant)
     first: np.ndarray         # int64 per feature, the position of its first point in the order
     spacing: tuple
     origin: tuple
+    metric: str
 
     @property
     def ones(self) -> np.ndarray:
@@ -152,7 +152,7 @@ def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str, p
     np.minimum.at(first, point_label, np.arange(len(order)))
     dt = np.asarray(dt)
     return _Step(labels, sizes, world, voxels, flat[voxels], order, point_label, dt, np.asarray(scores),
-                 np.asarray(ijk), dt ** 3, first[1:], tuple(spacing), tuple(origin))
+                 dt ** 3, first[1:], tuple(spacing), tuple(origin), metric)
 
 
 def _count_above(scores: np.ndarray, thinness: float) -> int:
@@ -285,13 +285,15 @@ class Tracking:
         return _track_steps(self._steps, thinness, self.tolerance if tolerance is None else tolerance)
 
     def skeleton_points(self, step: int, feature: int, thinness: Optional[float] = None):
-        """(ijk (N, 3) [z, y, x], radii in voxels) of one feature's skeleton at ``thinness`` (default: this
-        tracking's)."""
+        """(ijk (N, 3) int [z, y, x], radii in world units) of one feature's skeleton at ``thinness`` (default:
+        this tracking's)."""
         s = self._steps[step]
         tp = self.thinness if thinness is None else thinness
         k = _count_above(s.scores, tp)
         sel = np.flatnonzero(s.point_label[:k] == feature)
-        return s.ijk[sel], s.dt[sel]
+        ijk = np.stack(np.unravel_index(s.points[sel], s.labels.shape), axis=1)
+        r = s.dt[sel] if s.metric == "euclidean" else s.dt[sel] / np.float32(3.0) * np.float32(min(s.spacing))
+        return ijk, r
 
     def track_volume(self, step: int) -> np.ndarray:
         """int32 [z, y, x]: each voxel its feature's track id (0 outside the features)."""
