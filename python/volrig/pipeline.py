@@ -295,6 +295,28 @@ def _finer_voxels(pts, size: float, voxels: int, min_radius: float, object_voxel
     return finer if finer >= 1.25 * voxels else None
 
 
+def mesh_skeleton(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
+                  thinness: Optional[float] = None, voxelize_method: str = "auto",
+                  min_radius_voxels: float = MIN_RADIUS_VOXELS, progress: ProgressFn = None, staged=None):
+    """``rig_mesh``'s first steps: (mask, voxel size, Skeleton, skeleton points at ``thinness`` voxels): the mesh
+    voxelized at ``voxel_size`` (default its longest side / ``voxels``; voxelized once more, finer, when its
+    skeleton's median radius comes out under ``min_radius_voxels``: ``_finer_voxels``) and skeletonized.
+    ``progress`` follows the voxelization, ``staged(step, fraction)`` the skeletonization."""
+    thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
+    v, f = _points(vertices), np.asarray(faces)
+    size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
+    for attempt in range(2):  # once more, finer, when the parts came out too thin
+        mask = voxelize(v, f, size, progress=progress, method=voxelize_method)
+        sk = skeleton_of(mask, progress=staged)
+        pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
+        finer = None if voxel_size is not None or attempt else _finer_voxels(pts, size, voxels, min_radius_voxels,
+                                                                           int(np.count_nonzero(mask.array)))
+        if finer is None:
+            break
+        voxels, size = finer, mesh_voxel_size(v, finer)
+    return mask, size, sk, pts
+
+
 def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
              thinness: Optional[float] = None, influences: int = 4, blend: float = SKIN_BLEND,
              progress: ProgressFn = None, skin_points=None, voxelize_method: str = "auto",
@@ -315,22 +337,14 @@ def rig_mesh(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int
     min_radius_voxels: with ``voxel_size`` not given, a mesh whose skeleton's median radius comes out thinner than
     this many voxels is voxelized again, finer (up to ``MAX_MESH_VOXELS``), so thin limbs stay whole; 0: never.
     """
-    thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v = _points(vertices)
     f = np.asarray(faces)
-    size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
     step = {"skeletonize": (0.15, 0.35), "skeleton-tree": (0.35, 0.5), "autorig": (0.5, 0.65), "bind": (0.65, 0.7)}
     staged = None if progress is None else \
         (lambda name, x: progress(step[name][0] + (step[name][1] - step[name][0]) * x))
-    for attempt in range(2):  # once more, finer, when the parts came out too thin
-        mask = voxelize(v, f, size, progress=_span(progress, 0.0, 0.15), method=voxelize_method)
-        sk = skeleton_of(mask, progress=staged)
-        pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
-        finer = None if voxel_size is not None or attempt else _finer_voxels(pts, size, voxels, min_radius_voxels,
-                                                                           int(np.count_nonzero(mask.array)))
-        if finer is None:
-            break
-        voxels, size = finer, mesh_voxel_size(v, finer)
+    mask, size, sk, pts = mesh_skeleton(v, f, voxel_size, voxels=voxels, thinness=thinness,
+                                        voxelize_method=voxelize_method, min_radius_voxels=min_radius_voxels,
+                                        progress=_span(progress, 0.0, 0.15), staged=staged)
     r = rig_skeleton(pts, mask, progress=staged, **autorig_options)
     if skin_points is not None:
         v, f = _points(skin_points), np.zeros((0, 3), dtype=np.int64)

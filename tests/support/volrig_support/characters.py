@@ -53,19 +53,18 @@ class PlanSubject:
         return plan_label(self.plan)
 
     def rig(self, **options):
-        """The rig a user gets (options go to autorig: detail=, plan_weights=, markers=, kind=): a mesh voxelized as
-        ``volrig.rig_mesh`` voxelizes it (its longest side / 160), then for both the skeleton at the default
-        thinness and ``pipeline.rig_skeleton``: rig_mesh's steps without its skin weights."""
-        import volrig
+        """The rig a user gets (options go to autorig: detail=, plan_weights=, markers=, kind=): a mesh voxelized and
+        skeletonized as ``volrig.rig_mesh`` does it (``pipeline.mesh_skeleton``: its longest side / 160, finer when
+        its parts come out thinner than 2 voxels), a mask skeletonized at the default thinness, then
+        ``pipeline.rig_skeleton``: rig_mesh's steps without its skin weights."""
         from volrig import pipeline as P
-        from volrig.skin import MESH_VOXELS, mesh_voxel_size
-        mask = self.mask
         if self.mesh is not None:
-            v, f = self.mesh
-            mask = volrig.voxelize(v, f, mesh_voxel_size(v, MESH_VOXELS), method="auto")
-        sk = P.skeleton_of(mask)
-        pts = P.skeleton_points(sk, thinness=P.thinness_from_voxels(P.DEFAULT_THINNESS_VOXELS, sk.metric,
-                                                                     mask.spacing))
+            mask, _, _, pts = P.mesh_skeleton(*self.mesh)
+        else:
+            mask = self.mask
+            sk = P.skeleton_of(mask)
+            pts = P.skeleton_points(sk, thinness=P.thinness_from_voxels(P.DEFAULT_THINNESS_VOXELS, sk.metric,
+                                                                         mask.spacing))
         return P.rig_skeleton(pts, mask, up=self.up, **options).rig
 
     def vertices(self) -> np.ndarray:
