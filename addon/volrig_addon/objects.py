@@ -106,6 +106,19 @@ def _child_volume(volume_obj, role: str, suffix: str, material) -> bpy.types.Obj
     return obj
 
 
+def _child_mesh(volume_obj, role: str, suffix: str, material) -> bpy.types.Object:
+    """The mesh object of ``role`` over the scan (parented to it, in its frame), made with ``material()`` when
+    missing."""
+    obj = members(volume_obj).get(role)
+    if obj is None:
+        name = volume_obj.name + suffix
+        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), role)
+        obj.parent = volume_obj
+        obj.matrix_parent_inverse.identity()
+        obj.data.materials.append(material())
+    return obj
+
+
 def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
     """Shows ``mask`` as ``<name>_mask``: a Volume object over the scan (parented to it) whose grid is the mask,
     written to the cache as mask_<key>.vdb."""
@@ -156,13 +169,7 @@ def update_medial_surface(volume_obj, ms) -> bpy.types.Object:
     co = np.concatenate(verts)
     values = np.concatenate(thick)
     faces = np.asarray(ms.faces, dtype=np.int32).reshape(-1, 3)
-    obj = members(volume_obj).get("MEDIAL")
-    if obj is None:
-        name = volume_obj.name + "_medial"
-        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "MEDIAL")
-        obj.parent = volume_obj
-        obj.matrix_parent_inverse.identity()
-        obj.data.materials.append(materials.medial_material(volume_obj.name))
+    obj = _child_mesh(volume_obj, "MEDIAL", "_medial", lambda: materials.medial_material(volume_obj.name))
     mesh = obj.data
     mesh.clear_geometry()
     mesh.vertices.add(len(co))
@@ -250,13 +257,7 @@ def update_pore_network(volume_obj, net, origin, spacing) -> bpy.types.Object:
     co = np.concatenate([sv, cv])
     tris = np.concatenate([st, ct + len(sv)]).astype(np.int32)
     values = np.concatenate([np.repeat(net.pore_diameter, len(unit)), np.repeat(net.throat_diameter, 16)])
-    obj = members(volume_obj).get("PORES")
-    if obj is None:
-        name = volume_obj.name + "_pores"
-        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), "PORES")
-        obj.parent = volume_obj
-        obj.matrix_parent_inverse.identity()
-        obj.data.materials.append(materials.medial_material(volume_obj.name + " pores"))
+    obj = _child_mesh(volume_obj, "PORES", "_pores", lambda: materials.medial_material(volume_obj.name + " pores"))
     mesh = obj.data
     mesh.clear_geometry()
     mesh.vertices.add(len(co))
