@@ -94,25 +94,13 @@ def _cached_preview(volume_obj, prefix: str, write) -> str:
     return os.path.join(volume_obj.volrig.cache_dir, os.path.basename(path))
 
 
-def _child_volume(volume_obj, role: str, suffix: str, material) -> bpy.types.Object:
-    """The Volume object of ``role`` over the scan (parented to it), made with ``material`` when missing."""
+def _child(volume_obj, role: str, suffix: str, data, material) -> bpy.types.Object:
+    """The object of ``role`` over the scan (parented to it, in its frame), made when missing with new data from
+    ``data`` (``bpy.data.volumes`` or ``bpy.data.meshes``) and the material ``material()``."""
     obj = members(volume_obj).get(role)
     if obj is None:
         name = volume_obj.name + suffix
-        obj = _new_object(volume_obj, name, bpy.data.volumes.new(name), role)
-        obj.parent = volume_obj
-        obj.matrix_parent_inverse.identity()
-        obj.data.materials.append(material)
-    return obj
-
-
-def _child_mesh(volume_obj, role: str, suffix: str, material) -> bpy.types.Object:
-    """The mesh object of ``role`` over the scan (parented to it, in its frame), made with ``material()`` when
-    missing."""
-    obj = members(volume_obj).get(role)
-    if obj is None:
-        name = volume_obj.name + suffix
-        obj = _new_object(volume_obj, name, bpy.data.meshes.new(name), role)
+        obj = _new_object(volume_obj, name, data.new(name), role)
         obj.parent = volume_obj
         obj.matrix_parent_inverse.identity()
         obj.data.materials.append(material())
@@ -123,7 +111,7 @@ def update_mask_preview(volume_obj, mask: volrig.Volume) -> bpy.types.Object:
     """Shows ``mask`` as ``<name>_mask``: a Volume object over the scan (parented to it) whose grid is the mask,
     written to the cache as mask_<key>.vdb."""
     rel = _cached_preview(volume_obj, "mask", lambda path: volrig.write_vdb(path, {"density": mask}))
-    obj = _child_volume(volume_obj, "MASK", "_mask", _mask_material())
+    obj = _child(volume_obj, "MASK", "_mask", bpy.data.volumes, _mask_material)
     obj.data.filepath = rel
     return obj
 
@@ -143,7 +131,8 @@ def update_thickness(volume_obj, mask: volrig.Volume, progress=None) -> tuple:
     t = computed[0] if computed else volrig.load(os.path.join(scans.cache_dir(volume_obj), os.path.basename(rel)),
                                                  grid="thickness")
     values = t.array[t.array > 0]
-    obj = _child_volume(volume_obj, "THICKNESS", "_thickness", materials.thickness_material(volume_obj.name))
+    obj = _child(volume_obj, "THICKNESS", "_thickness", bpy.data.volumes,
+                 lambda: materials.thickness_material(volume_obj.name))
     obj.data.filepath = rel
     s = volume_obj.volrig
     extent = max(d * sp for d, sp in zip(s.dims, s.spacing)) * s.unit_scale
@@ -169,7 +158,7 @@ def update_medial_surface(volume_obj, ms) -> bpy.types.Object:
     co = np.concatenate(verts)
     values = np.concatenate(thick)
     faces = np.asarray(ms.faces, dtype=np.int32).reshape(-1, 3)
-    obj = _child_mesh(volume_obj, "MEDIAL", "_medial", lambda: materials.medial_material(volume_obj.name))
+    obj = _child(volume_obj, "MEDIAL", "_medial", bpy.data.meshes, lambda: materials.medial_material(volume_obj.name))
     mesh = obj.data
     mesh.clear_geometry()
     mesh.vertices.add(len(co))
@@ -257,7 +246,8 @@ def update_pore_network(volume_obj, net, origin, spacing) -> bpy.types.Object:
     co = np.concatenate([sv, cv])
     tris = np.concatenate([st, ct + len(sv)]).astype(np.int32)
     values = np.concatenate([np.repeat(net.pore_diameter, len(unit)), np.repeat(net.throat_diameter, 16)])
-    obj = _child_mesh(volume_obj, "PORES", "_pores", lambda: materials.medial_material(volume_obj.name + " pores"))
+    obj = _child(volume_obj, "PORES", "_pores", bpy.data.meshes,
+                 lambda: materials.medial_material(volume_obj.name + " pores"))
     mesh = obj.data
     mesh.clear_geometry()
     mesh.vertices.add(len(co))
