@@ -5,7 +5,7 @@ id (stable colours per track), its skeleton's points drawn over it. Bottom: the 
 feature (x: step, y: centroid x, size: volume, colour: track), edges for matches, splits and merges marked.
 Needs ../shared/data. Writes docs/images/track_fingers.png.
 With --blender, run inside Blender: the same run imported with the add-on's Import Tracked Series (salt >= 30,
-the whole box) and four frames rendered in Cycles: docs/images/track_blender.png.
+the whole box) and four frames rendered in Cycles (EEVEE where Cycles renders no grids): docs/images/track_blender.png.
 
     PYTHONPATH=python /usr/bin/python3 scripts/track_pictures.py [--out docs/images]
     blender -b --factory-startup --python scripts/track_pictures.py -- --blender [--out docs/images]
@@ -73,7 +73,8 @@ def blender_sheet(out: str) -> None:
     import bpy
     import mathutils
     import volrig_addon
-    from blender_scenes import new_scene, render_frames, sheet
+    from volrig_addon import engines
+    from blender_scenes import engine_name, new_scene, render_frames, sheet
     volrig_addon.register()
     work = tempfile.mkdtemp(prefix="volrig_tracks_")
     scene = new_scene(os.path.join(work, "tracks.blend"))
@@ -90,13 +91,12 @@ def blender_sheet(out: str) -> None:
     sun.rotation_euler, sun.data.energy = (0.6, 0.2, 0.3), 6.0
     scene.world = bpy.data.worlds.new("world")
     scene.world.color = (0.35, 0.35, 0.38)
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples, scene.cycles.use_denoising = 32, False
+    engines.use(scene, samples=32)  # Cycles, or EEVEE where this Blender's Cycles renders no grids
     scene.render.resolution_x, scene.render.resolution_y = 480, 400
     frames = [1, 10, 19, 28]
     paths = render_frames(scene, frames, work)
     sheet(paths, [f"frame {f}" for f in frames], os.path.join(out, "track_blender.png"),
-          "viscous fingers (salt >= 30) by Import Tracked Series: a colour per track (Cycles)")
+          f"viscous fingers (salt >= 30) by Import Tracked Series: a colour per track ({engine_name(scene)})")
     print(f"-> {os.path.join(out, 'track_blender.png')}")
 
 
