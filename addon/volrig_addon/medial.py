@@ -21,6 +21,14 @@ class MedialSettings:
                                        "larger plates; at least 5 against noise)")
 
 
+def _on_mask(context, vol, compute):
+    """``compute(mask, progress)`` on the volume's segmentation, with the window manager's progress bar."""
+    with _ProgressBar(context) as bar:
+        mask = scans.mask(vol)
+        show = bar.steps({"compute": (0, 100)})
+        return mask, compute(mask, lambda f: show("compute", f))
+
+
 class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
     """Show the segmented object coloured by its local thickness (each voxel: the diameter of the largest ball
     inside the object that contains it) as <name>_thickness"""
@@ -28,10 +36,7 @@ class VOLRIG_OT_show_thickness(_OnVolume, bpy.types.Operator):
     bl_label = "Show Thickness"
 
     def run(self, context, vol):
-        with _ProgressBar(context) as bar:
-            mask = scans.mask(vol)
-            show = bar.steps({"thickness": (0, 100)})
-            obj, values = objects.update_thickness(vol, mask, progress=lambda f: show("thickness", f))
+        _, (obj, values) = _on_mask(context, vol, lambda mask, p: objects.update_thickness(vol, mask, progress=p))
         if values.size == 0:
             self.report({"WARNING"}, "volrig: the mask is empty: no thickness to show")
             return {"FINISHED"}
@@ -49,10 +54,7 @@ class VOLRIG_OT_medial_surface(_OnVolume, bpy.types.Operator):
 
     def run(self, context, vol):
         t = vol.volrig.plane_t
-        with _ProgressBar(context) as bar:
-            mask = scans.mask(vol)
-            show = bar.steps({"medial": (0, 100)})
-            ms = volrig.medial_surface(mask, t=t, progress=lambda f: show("medial", f))
+        _, ms = _on_mask(context, vol, lambda mask, p: volrig.medial_surface(mask, t=t, progress=p))
         if len(ms.faces) == 0 and not ms.rods:
             self.report({"WARNING"}, f"volrig: no plates or rods found at Plate t = {t:g} voxels (try a smaller t)")
             return {"FINISHED"}
@@ -70,10 +72,7 @@ class VOLRIG_OT_pore_network(_OnVolume, bpy.types.Operator):
     bl_label = "Pore Network"
 
     def run(self, context, vol):
-        with _ProgressBar(context) as bar:
-            mask = scans.mask(vol)
-            show = bar.steps({"pores": (0, 100)})
-            net = volrig.pore_network(mask, progress=lambda f: show("pores", f))
+        mask, net = _on_mask(context, vol, lambda mask, p: volrig.pore_network(mask, progress=p))
         obj = objects.update_pore_network(vol, net, mask.origin, mask.spacing)
         k = ", ".join(f"{a} {v:.3g}" for a, v in zip("xyz", net.permeability))
         self.report({"INFO"}, f"volrig: {obj.name}: porosity {net.porosity:.4f}, {net.pore_count:,} pores, "

@@ -134,8 +134,7 @@ class VOLRIG_OT_import_tracks(bpy.types.Operator, ImportHelper):
         scene.frame_start, scene.frame_end = 1, tr.steps
         n = add_markers(scene, tr) if self.markers else 0
         frame_timelines(context)
-        tracks = len(set(np.concatenate(tr.track_ids).tolist()))
-        self.report({"INFO"}, f"volrig: {obj.name}: {tr.steps} steps, {tracks} tracks, {n} events marked")
+        self.report({"INFO"}, f"volrig: {obj.name}: {tr.steps} steps, {tr.track_count} tracks, {n} events marked")
         return {"FINISHED"}
 
 

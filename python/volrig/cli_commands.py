@@ -587,8 +587,7 @@ def cmd_track(args) -> int:
     tr = track(args.steps, lo=args.lo, hi=args.hi, thinness=args.thinness, min_size=args.min_size,
                tolerance=args.tolerance)
     counts = ", ".join(f"{n} {k}" for k, n in tr.event_counts().items() if n)
-    tracks = len(set(np.concatenate(tr.track_ids).tolist()))
-    print(f"{args.steps}: {tr.steps} steps, {sum(len(v) for v in tr.volumes)} features, {tracks} tracks; "
+    print(f"{args.steps}: {tr.steps} steps, {sum(len(v) for v in tr.volumes)} features, {tr.track_count} tracks; "
           f"events: {counts or 'none'} ({time.perf_counter() - t:.2f} s)")
     for e in tr.events:
         if e.kind != "continuation":

@@ -59,13 +59,6 @@ class _Step:
     origin: tuple
     metric: str
 
-    @property
-    def ones(self) -> np.ndarray:
-        """Weight 1 for every feature voxel (made once)."""
-        if getattr(self, "_ones", None) is None:
-            self._ones = np.ones(len(self.voxels), np.float32)
-        return self._ones
-
 
 def _step_files(folder: str) -> List[str]:
     names = sorted(n for n in os.listdir(folder) if any(n.lower().endswith(e) for e in FORMATS if e.startswith(".")))
@@ -95,21 +88,21 @@ def _vdb_box(path: str):
 
 
 def _common_boxes(items):
-    """Per step, the [z, y, x] offset of its array in the box all steps fit (None where steps share a grid as they
-    are: arrays, dense files), and that box's shape. VDB steps are stored cropped to their active voxels, each step
-    its own box on one lattice; they are placed in the box around them all. In-memory Volumes likewise, by origin."""
+    """Per step, the [z, y, x] offset of its array in the box all steps fit, and that box's shape; (None, None)
+    where the steps share a grid as they are (arrays, dense files). VDB steps are stored cropped to their active
+    voxels, each step its own box on one lattice: they are placed in the box around them all. Volumes likewise, by
+    origin."""
+    first = next((x for x in items if isinstance(x, Volume)), None)
     boxes = []
     for it in items:
         if isinstance(it, (str, os.PathLike)) and os.fspath(it).lower().endswith(".vdb"):
             boxes.append(_vdb_box(os.fspath(it)))
         elif isinstance(it, Volume):
-            first = next(x for x in items if isinstance(x, Volume))
             lo = np.round((np.array(it.origin) - first.origin) / np.array(first.spacing)).astype(np.int64)
             boxes.append((lo, lo + np.array(it.dims) - 1))
         else:
             return None, None
-    if any(b is None for b in boxes) or len({tuple(b[1] - b[0]) for b in boxes}) == 1 and \
-            len({tuple(b[0]) for b in boxes}) == 1:
+    if any(b is None for b in boxes) or len({(tuple(b[0]), tuple(b[1])) for b in boxes}) == 1:
         return None, None
     low = np.min([b[0] for b in boxes], axis=0)
     high = np.max([b[1] for b in boxes], axis=0)
@@ -166,7 +159,7 @@ def _points_at(s: _Step, thinness: float):
     (score > thinness), each point weighted by its ball's volume (the weights are scaled to each feature's voxels
     once counted, ``_overlaps``). A feature whose skeleton is empty there keeps its best point."""
     if thinness <= 0:
-        return s.voxels, s.voxel_label, s.ones
+        return s.voxels, s.voxel_label, np.ones(len(s.voxels), np.float32)
     k = _count_above(s.scores, thinness)
     take = np.concatenate([np.arange(k), s.first[s.first >= k]])  # the late features' best points too
     take = take[np.argsort(s.points[take], kind="stable")]
@@ -299,6 +292,11 @@ class Tracking:
         """int32 [z, y, x]: each voxel its feature's track id (0 outside the features)."""
         lut = np.concatenate([[0], self.track_ids[step]]).astype(np.int32)
         return lut[self.labels[step]]
+
+    @property
+    def track_count(self) -> int:
+        """How many tracks the series holds (ids 1..track_count)."""
+        return int(max((int(t.max()) for t in self.track_ids if len(t)), default=0))
 
     def event_counts(self) -> dict:
         return {k: sum(e.kind == k for e in self.events) for k in EVENT_KINDS}

@@ -40,17 +40,16 @@ Overlaps point_overlaps(const Grid& g, const std::int32_t* next_labels, std::int
         if (dense) table[static_cast<std::size_t>(label[i]) * width + static_cast<std::size_t>(b)] += weight[i];
         else sparse[static_cast<std::uint64_t>(label[i]) << 32 | static_cast<std::uint32_t>(b)] += weight[i];
     }
-    for (std::size_t k = 0; k < table.size(); ++k)
-        if (table[k] != 0) sparse[(k / width) << 32 | (k % width)] = table[k];
-    std::vector<std::uint64_t> keys;
-    keys.reserve(sparse.size());
-    for (const auto& kv : sparse) keys.push_back(kv.first);
-    std::sort(keys.begin(), keys.end());
-    for (const std::uint64_t k : keys) {
-        o.a.push_back(static_cast<std::int32_t>(k >> 32));
-        o.b.push_back(static_cast<std::int32_t>(k & 0xffffffffu));
-        o.weight.push_back(sparse[k]);
-    }
+    const auto emit = [&o](std::uint64_t a, std::uint64_t b, double w) {
+        o.a.push_back(static_cast<std::int32_t>(a));
+        o.b.push_back(static_cast<std::int32_t>(b));
+        o.weight.push_back(w);
+    };
+    for (std::size_t k = 0; k < table.size(); ++k)  // the dense table is in (a, b) order already
+        if (table[k] != 0) emit(k / width, k % width, table[k]);
+    std::vector<std::pair<std::uint64_t, double>> pairs(sparse.begin(), sparse.end());
+    std::sort(pairs.begin(), pairs.end());
+    for (const auto& [key, w] : pairs) emit(key >> 32, key & 0xffffffffu, w);
     return o;
 }
 
