@@ -172,6 +172,9 @@ def _overlaps(a: _Step, b: _Step, pa, pb, clock: list) -> dict:
     directions kept (equal, and exact, at thinness 0)."""
     t0 = time.perf_counter()
     fa, fb, wf, ta = _volrig.point_overlaps(b.labels, len(b.sizes), *pa)
+    if pa[0] is a.voxels and pb[0] is b.voxels:  # every voxel a point (thinness 0): |A ∩ B| exactly, one pass
+        clock[0] += time.perf_counter() - t0
+        return dict(zip(zip(fa.tolist(), fb.tolist()), wf.tolist()))
     gb, ga, wg, tb = _volrig.point_overlaps(a.labels, len(a.sizes), *pb)
     clock[0] += time.perf_counter() - t0
     wf = wf * a.sizes[fa - 1] / ta[fa]
