@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 
 #include "rig/bones/bones.hpp"
 #include "volrig/error.hpp"
@@ -117,11 +118,14 @@ private:
 
     /// The segment other than s (and `exclude`) nearest to s around the point c (within radius w): the socket of
     /// a head.
-    std::int32_t socket_of(std::int32_t s, std::int32_t exclude, const P3& c, double w, const Patch& own) const {
+    /// a head of the mirror limb's bone (a femur) is no socket (of the other femur, fused with its hemipelvis at the
+    /// voxel size: the two halves of the pelvis meet at the symphysis)
+    std::int32_t socket_of(std::int32_t s, std::int32_t exclude, const P3& c, double w, const Patch& own,
+                           std::int32_t mirror) const {
         std::int32_t best = 0;
         double gap = p_.reach;
         for (const auto& [t, count] : segments_near(c, w)) {
-            if (t == s || t == exclude || count < 8) continue;
+            if (t == s || t == exclude || t == mirror || count < 8) continue;
             const Contact k = contact_of(own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
             if (k.found && k.gap < gap) gap = k.gap, best = t;
         }
@@ -148,6 +152,24 @@ private:
         return nullptr;
     }
     bool seed_ball(BoneJoint& j, int cb, int db);
+    struct ShaftHead {
+        P3 at;
+        double length;
+    };
+    std::optional<ShaftHead> shaft_head(std::int32_t s, int db) const;
+    std::optional<ShaftHead> seed_by_shaft(BoneJoint& j, int cb, int db, double w);
+    /// A ball joint's long bone: the segment its limb's hinge (knee, elbow) found on its near side, else `own`.
+    std::int32_t hinge_segment(const std::string& name, std::int32_t own) const {
+        const std::string side = name.substr(name.size() - 2);
+        const BoneJoint* mid = placed(std::string(name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
+        return mid && mid->parent_segment > 0 ? mid->parent_segment : own;
+    }
+    /// Whether segment s has a voxel within w of c.
+    bool near_segment(std::int32_t s, const P3& c, double w) const {
+        const auto seen = segments_near(c, w);
+        const auto it = seen.find(s);
+        return it != seen.end() && it->second > 0;
+    }
     bool fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w);
     void split(std::int32_t s, int cb, const P3& at, const P3& axis);
     void move(BoneJoint& j, int cb, const P3& to, const char* how);
@@ -175,6 +197,7 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     // wrist's is the lower piece)
     j.parent_segment = pb >= 0 ? segment_along(pb, 0.5, 0.95) : 0;
     bool done = false;
+    if (lj.ball) j.child_segment = hinge_segment(j.name, j.child_segment);
     if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
@@ -352,16 +375,67 @@ bool Fitter::seed_ball(BoneJoint& j, int cb, int db) {
     return true;
 }
 
+/// The share of its limb a hinge with child bone `child` lies at (kLimbJoints' along; 0 when none is known).
+double along_of(const std::string& child) {
+    for (const LimbJoint& lj : kLimbJoints)
+        if (!lj.ball && child == lj.child) return lj.along;
+    return 0.0;
+}
+
+/// Where a head lies by its long bone's shaft: up the shaft from its hinge (the bone's principal axis over its
+/// voxels within kShaftReach of its expected length of the hinge), at that length, the limb's proportions against
+/// the bone below (an upper arm 0.56 / 0.44 of the forearm, a thigh as long as the shin). The bone's far end is no
+/// guide: a humerus fused with the scapula at the voxel size ends at the spine.
+constexpr double kShaftReach = 0.6;
+std::optional<Fitter::ShaftHead> Fitter::shaft_head(std::int32_t s, int db) const {
+    const std::string distal = out_.rig.names[db];
+    const double along = along_of(distal.substr(0, distal.size() - 2));
+    if (along <= 0 || along >= 1) return std::nullopt;
+    const P3 k = head(db);
+    const double expect = along / (1 - along) * length(db);
+    const Patch p = patch_of(g_, out_.segments.labels, s, k, kShaftReach * expect);
+    if (p.pos.size() < 8) return std::nullopt;
+    P3 c{0, 0, 0};
+    const P3 axis = principal_axis(p.pos, c);
+    const double sign = dot(sub(c, k), axis) >= 0 ? 1.0 : -1.0;
+    return ShaftHead{add(k, {sign * expect * axis[0], sign * expect * axis[1], sign * expect * axis[2]}), expect};
+}
+
+/// A head the outer shape put off its long bone altogether (a raised arm's shoulder out on the arm, where the arm's
+/// medial axis leaves the trunk) starts again where its shaft puts it; one further than kShaftSlack of the bone's
+/// expected length from there (a hip high on the flank of legs held apart) is sought from where it is. Either way
+/// its head is then sought within kShaftWindow of that length, not just near the outer shape's joint. Returns where
+/// the shaft puts the head, or nothing when the outer shape's joint lies there.
+constexpr double kShaftSlack = 0.25, kShaftWindow = 0.4;
+std::optional<Fitter::ShaftHead> Fitter::seed_by_shaft(BoneJoint& j, int cb, int db, double w) {
+    const auto e = shaft_head(j.child_segment, db);
+    if (!e) return std::nullopt;
+    const bool off = !near_segment(j.child_segment, head(cb), w);
+    if (!off && norm(sub(head(cb), e->at)) <= kShaftSlack * e->length) return std::nullopt;
+    if (off) move(j, cb, e->at, "seed");
+    return e;
+}
+
 bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
     const std::string side = j.name.substr(j.name.size() - 2);
     const BoneJoint* mid = placed(std::string(j.name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
-    if (mid && mid->parent_segment > 0) j.child_segment = mid->parent_segment;  // the long bone the hinge found
     const std::int32_t exclude = mid ? mid->child_segment : (db >= 0 ? segment_of(db) : 0);
-    const bool seeded = db >= 0 && seed_ball(j, cb, db);
+    bool seeded = db >= 0 && seed_ball(j, cb, db);
+    std::optional<ShaftHead> shaft;
     if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, 60.0);  // the long bone's length
+    else if (db >= 0 && (shaft = seed_by_shaft(j, cb, db, w)))
+        w = std::max(w, kShaftWindow * shaft->length), seeded = true;
     if (!fit_ball(j, cb, exclude, w)) return false;
     for (int pass = 0; seeded && pass < 3 && j.how == "contact"; ++pass)  // from the socket, the head's sphere
         fit_ball(j, cb, exclude, w);
+    // a socket far from where the shaft puts the head is another joint's (a sacroiliac joint where the femur fused
+    // with its hemipelvis at the voxel size): the head is then that fused bone's thickest there
+    if (shaft && norm(sub(head(cb), shaft->at)) > kShaftSlack * shaft->length) {
+        const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, shaft->at, w);
+        if (!c) return false;
+        j.parent_segment = 0;
+        move(j, cb, *c, "thickest");
+    }
     return true;
 }
 
@@ -370,7 +444,9 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
 bool Fitter::fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w) {
     const P3 at = head(cb);
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
-    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own);
+    const std::string name = out_.rig.names[cb];
+    const int mirror = bone(name.substr(0, name.size() - 1) + (name.back() == 'L' ? "R" : "L"));
+    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own, mirror >= 0 ? segment_of(mirror) : 0);
     if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
         const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
         if (c) move(j, cb, *c, "thickest");

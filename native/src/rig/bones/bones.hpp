@@ -109,6 +109,9 @@ Section limb_section(const Patch& p, const Limb& limb, double radius, double sla
 std::optional<P3> thickest_point(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s,
                                  const P3& centre, double radius);
 
+/// The points' centroid (into `centre`) and principal axis (unit: the direction of their largest spread).
+P3 principal_axis(const std::vector<P3>& pts, P3& centre);
+
 /// A segment's two ends along its principal axis (the centroids of its voxels within a few percent of its length
 /// of either extreme) and its centroid; found = false for an empty segment.
 struct SegmentEnds {

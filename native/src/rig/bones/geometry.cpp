@@ -272,23 +272,26 @@ std::optional<P3> thickest_point(const Grid& g, const std::vector<std::int32_t>&
     return centroid(best);
 }
 
+P3 principal_axis(const std::vector<P3>& pts, P3& centre) {
+    centre = centroid(pts);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const P3& p : pts) {
+        const Eigen::Vector3d q(p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]);
+        cov += q * q.transpose();
+    }
+    const Eigen::Vector3d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(2);
+    return {axis.x(), axis.y(), axis.z()};
+}
+
 SegmentEnds segment_ends(const Grid& g, const std::vector<std::int32_t>& labels, std::int32_t s) {
     SegmentEnds e;
     std::vector<P3> pts;
     for (std::size_t i = 0; i < labels.size(); ++i)
         if (labels[i] == s) pts.push_back(voxel_position(g, static_cast<std::int64_t>(i)));
     if (pts.size() < 2) return e;
-    e.centroid = centroid(pts);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const P3& p : pts) {
-        const Eigen::Vector3d q(p[0] - e.centroid[0], p[1] - e.centroid[1], p[2] - e.centroid[2]);
-        cov += q * q.transpose();
-    }
-    const Eigen::Vector3d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(2);
+    const P3 axis = principal_axis(pts, e.centroid);
     std::vector<double> t(pts.size());
-    for (std::size_t k = 0; k < pts.size(); ++k)
-        t[k] = (pts[k][0] - e.centroid[0]) * axis.x() + (pts[k][1] - e.centroid[1]) * axis.y() +
-               (pts[k][2] - e.centroid[2]) * axis.z();
+    for (std::size_t k = 0; k < pts.size(); ++k) t[k] = dot(sub(pts[k], e.centroid), axis);
     const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
     const double band = std::max(0.04 * (*hi - *lo), 2.0 * std::max({g.spacing[0], g.spacing[1], g.spacing[2]}));
     std::vector<P3> low, high;
