@@ -7,6 +7,7 @@ distance from the bone-derived reference (``volrig_support.subjects.visible_huma
 
     PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py [--mm 2] [--repeat 3] [--json out.json]
     PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py --mm 2 --slice-step 4   # slices 8 mm apart
+    PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py --mm 2 --pose 150 15  # arms raised, legs apart
     PYTHONPATH=python /usr/bin/python3 benchmarks/bench_bones.py --frog   # the bone body (flesh missing)
 
 ``--slice-step k`` keeps every k-th axial slice (an anisotropic scan: slices k * mm apart); the reference joints
@@ -48,6 +49,17 @@ def frog(repeat: int) -> int:
     return 0
 
 
+def posed(labels, ref, arms, legs):
+    """The body posed by its own rig (volrig_support.subjects.posed_visible_human), and its joints moved."""
+    from volrig.pipeline import rig_skeleton
+    a = np.asarray(labels.array)
+    mask, bone = labels.like(a > 0), labels.like(np.isin(a, BONE))
+    rigged = rig_skeleton(volrig.skeletonize(mask).top(15000), mask, up=(0, 0, 1), rigid=bone, bone=bone)
+    out, moved = S.posed_visible_human(labels, rigged, arms, legs, {n: ref[n] for n in JOINTS})
+    print(f"posed: arms raised {arms:g} degrees, legs {legs:g} degrees apart; grid {out.array.shape[::-1]}")
+    return out, moved
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mm", type=int, default=2, choices=(1, 2, 4))
@@ -56,12 +68,17 @@ def main() -> int:
     ap.add_argument("--json", help="also write the figures to this JSON file")
     ap.add_argument("--slice-step", type=int, default=1, help="keep every k-th axial slice (default 1: all)")
     ap.add_argument("--frog", action="store_true", help="time the bone body on the frog instead (flesh missing)")
+    ap.add_argument("--pose", type=float, nargs=2, metavar=("ARMS", "LEGS"),
+                    help="first pose the body by its own rig: arms raised ARMS degrees from hanging (90: T-pose), "
+                         "legs LEGS degrees apart; the reference joints move with their bones")
     args = ap.parse_args()
     if args.frog:
         return frog(args.repeat)
 
     full = S.visible_human_labels(args.mm)
     ref = S.visible_human_joints(full)
+    if args.pose:
+        full, ref = posed(full, ref, *args.pose)
     a = np.asarray(full.array)[::args.slice_step]
     sp = full.spacing
     labels = volrig.Volume(a, (sp[0], sp[1], sp[2] * args.slice_step), full.origin)

@@ -239,29 +239,13 @@ def test_a_joint_bent_90_degrees_moves_each_segment_with_its_own_bone(child, joi
     assert np.linalg.norm(r.rig.joints[r.rig.bones[cb][1]] - fit.rig.joints[fit.rig.bones[cb][1]]) == 0
 
 
-CHILD_OF = {"shoulder": "upper_arm", "elbow": "forearm", "wrist": "hand", "hip": "thigh", "knee": "shin",
-            "ankle": "foot"}
-
-
 def posed_vhm(arms, legs):
-    """The 2 mm Visible Human posed by its own rig (rigid bone layer, nearest sampling: a label map again), both
-    arms raised `arms` degrees from hanging and both legs `legs` degrees apart, and its reference joints moved by
-    their bones' matrices."""
     v = vhm(2)
     if "rigged" not in v:
         v["rigged"] = (rig_skeleton(v["pts"], v["mask"], up=(0, 0, 1), rigid=v["bone"], bone=v["bone"]),
                        rig_to_bones(v["plain"], v["bone"]))
-    r = v["rigged"][0]
-    pose = r.rig.pose({"upper_arm.L": ([0, 1, 0], -arms), "upper_arm.R": ([0, 1, 0], arms),
-                       "thigh.L": ([0, 1, 0], -legs), "thigh.R": ([0, 1, 0], legs)})
-    frame = volrig.Deformer(v["labels"], v["pts"], r.binding).frame(pose, mode="dual_quaternion", sampling="nearest")
     ref = S.visible_human_joints(v["labels"])
-    moved = {}
-    for n in LIMB_JOINTS:
-        m = pose[r.rig.index(CHILD_OF[n.split(".")[0]] + n[-2:])]
-        moved[n] = m[:3, :3] @ ref[n] + m[:3, 3]
-    labels = frame.values
-    return volrig.Volume(np.rint(np.asarray(labels.array)).astype(np.int16), labels.spacing, labels.origin), moved
+    return S.posed_visible_human(v["labels"], v["rigged"][0], arms, legs, {n: ref[n] for n in LIMB_JOINTS})
 
 
 @pytest.mark.parametrize("arms,legs,slices", [(150, 15, 1), (90, 0, 1), (150, 15, 4)],

@@ -171,6 +171,29 @@ def visible_human_labels(mm: int) -> Volume:
     return load(str(_data(f"visible-human/austinman_{mm}mm_labels.nii.gz")))
 
 
+#: The bone a limb joint moves with (its head's bone).
+_JOINT_BONE = {"shoulder": "upper_arm", "elbow": "forearm", "wrist": "hand", "hip": "thigh", "knee": "shin",
+               "ankle": "foot"}
+
+
+def posed_visible_human(labels: Volume, rigged, arms: float, legs: float, reference: Dict[str, np.ndarray]):
+    """The Visible Human's labels posed by its own rig (``rigged``: ``pipeline.rig_skeleton`` with the rigid bone
+    layer; nearest sampling, so the frame is a label map again): both arms raised ``arms`` degrees from hanging
+    (90: a T-pose) and both legs ``legs`` degrees apart, sideways. Returns (posed int16 labels Volume, the
+    ``reference`` limb joints moved by their bones' matrices)."""
+    from volrig.deform import Deformer
+    rig = rigged.rig
+    pose = rig.pose({"upper_arm.L": ([0, 1, 0], -arms), "upper_arm.R": ([0, 1, 0], arms),
+                     "thigh.L": ([0, 1, 0], -legs), "thigh.R": ([0, 1, 0], legs)})
+    frame = Deformer(labels, rigged.points, rigged.binding).frame(pose, mode="dual_quaternion", sampling="nearest")
+    moved = {}
+    for name, at in reference.items():
+        m = pose[rig.index(_JOINT_BONE[name.split(".")[0]] + name[-2:])]
+        moved[name] = m[:3, :3] @ at + m[:3, 3]
+    out = frame.values
+    return Volume(np.rint(np.asarray(out.array)).astype(np.int16), out.spacing, out.origin), moved
+
+
 def visible_human_subject(mm: int = 4, joints: bool = True) -> Subject:
     """The Visible Human body mask at ``mm`` resolution, with its bone-derived joints (``joints=False`` skips
     them: about 30 s at 1 mm)."""

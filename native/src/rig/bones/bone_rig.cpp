@@ -63,6 +63,10 @@ public:
         : g_(g), p_(bone_params(g, opt)), out_{rig, {}, std::move(segs), {}} {
         for (std::size_t b = 0; b < rig.names.size(); ++b) index_[rig.names[b]] = static_cast<int>(b);
         cell_ = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+        members_.resize(out_.segments.sizes.size() + 1);
+        const auto& labels = out_.segments.labels;
+        for (std::size_t i = 0; i < labels.size(); ++i)
+            if (labels[i] > 0) members_[static_cast<std::size_t>(labels[i])].push_back(static_cast<std::int64_t>(i));
     }
 
     BoneRig run() {
@@ -179,6 +183,8 @@ private:
     BoneRig out_;
     std::map<std::string, int> index_;
     double cell_ = 1;
+    /// Each segment's voxels (linear indices, ascending; [0] unused), kept with the labels through splits.
+    std::vector<std::vector<std::int64_t>> members_;
 };
 
 void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
@@ -316,8 +322,8 @@ bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
 /// the two segments (the parent's end nearer the child's centroid, and the child's nearer the parent's).
 bool Fitter::reseed_hinge(BoneJoint& j, int pb, int cb, double w) {
     if (j.child_segment == 0) return false;
-    const SegmentEnds p = segment_ends(g_, out_.segments.labels, j.parent_segment);
-    const SegmentEnds c = segment_ends(g_, out_.segments.labels, j.child_segment);
+    const SegmentEnds p = segment_ends(g_, members_[static_cast<std::size_t>(j.parent_segment)]);
+    const SegmentEnds c = segment_ends(g_, members_[static_cast<std::size_t>(j.child_segment)]);
     if (!p.found || !c.found) return false;
     const auto nearer = [](const SegmentEnds& e, const P3& q) { return norm(sub(e.a, q)) < norm(sub(e.b, q)) ? e.a : e.b; };
     const P3 pe = nearer(p, c.centroid), ce = nearer(c, p.centroid);
@@ -341,7 +347,7 @@ bool Fitter::reseed_hinge(BoneJoint& j, int pb, int cb, double w) {
 /// from the bones'): the child keeps it, and the parent takes the largest segment meeting it at its end nearer the
 /// joint (a femur, not the patella or the fibula).
 bool Fitter::reseed_shared(BoneJoint& j, int pb, int cb, double w) {
-    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    const SegmentEnds e = segment_ends(g_, members_[static_cast<std::size_t>(j.child_segment)]);
     if (!e.found) return false;
     const P3 end = norm(sub(e.a, head(cb))) < norm(sub(e.b, head(cb))) ? e.a : e.b;
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, end, w);
@@ -363,7 +369,7 @@ bool Fitter::reseed_shared(BoneJoint& j, int pb, int cb, double w) {
 /// A head the outer shape put nearer its limb's middle joint (knee, elbow: bone db's head) than half its long
 /// bone's length (a hip below the knee) starts again at the long bone's end away from that joint.
 bool Fitter::seed_ball(BoneJoint& j, int cb, int db) {
-    const SegmentEnds e = segment_ends(g_, out_.segments.labels, j.child_segment);
+    const SegmentEnds e = segment_ends(g_, members_[static_cast<std::size_t>(j.child_segment)]);
     if (!e.found) return false;
     const P3 k = head(db);
     const P3 far = norm(sub(e.a, k)) > norm(sub(e.b, k)) ? e.a : e.b;
@@ -486,6 +492,14 @@ void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
     }
     out_.segments.sizes[static_cast<std::size_t>(s - 1)] -= moved;
     out_.segments.sizes.push_back(moved);
+    std::vector<std::int64_t>& from = members_[static_cast<std::size_t>(s)];
+    std::vector<std::int64_t> gone;
+    const auto kept = std::stable_partition(from.begin(), from.end(), [&](std::int64_t i) {
+        return out_.segments.labels[static_cast<std::size_t>(i)] == s;
+    });
+    gone.assign(kept, from.end());
+    from.erase(kept, from.end());
+    members_.push_back(std::move(gone));
 }
 
 /// Moves the head of bone cb to `to`; an end bone (its tail no bone's head) keeps its direction and length.

@@ -283,11 +283,11 @@ P3 principal_axis(const std::vector<P3>& pts, P3& centre) {
     return {axis.x(), axis.y(), axis.z()};
 }
 
-SegmentEnds segment_ends(const Grid& g, const std::vector<std::int32_t>& labels, std::int32_t s) {
+SegmentEnds segment_ends(const Grid& g, const std::vector<std::int64_t>& voxels) {
     SegmentEnds e;
     std::vector<P3> pts;
-    for (std::size_t i = 0; i < labels.size(); ++i)
-        if (labels[i] == s) pts.push_back(voxel_position(g, static_cast<std::int64_t>(i)));
+    pts.reserve(voxels.size());
+    for (const std::int64_t i : voxels) pts.push_back(voxel_position(g, i));
     if (pts.size() < 2) return e;
     const P3 axis = principal_axis(pts, e.centroid);
     std::vector<double> t(pts.size());
