@@ -324,11 +324,14 @@ TISSUE_PREFIX = "volrig tissue look"
 
 
 def tissue_sums(tree, tissues, x=-1100, y=0):
-    """The nodes summing a label map's visible tissues in node tree ``tree``: each adds its opacity (a Value node)
-    times its ``tissue_<key>`` grid to the density, and its colour (an RGB node) weighted the same way to the
-    colour. Returns the (density, mean colour) sockets, or None when
-    no tissue is visible. A hidden tissue's grid is not read at all, so it leaves no shell. Nodes are named
-    ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and so on."""
+    """The nodes summing a label map's visible tissues in node tree ``tree`` from its one ``tissue`` grid (each
+    voxel's class index k + 1, ``tissues`` in class-index order: ``volrig.tissue_grid``): each class adds its opacity
+    (a Value node) times its indicator max(0, 1 - |tissue - (k + 1)|) to the density, and its colour (an RGB node)
+    weighted the same way to the colour. The indicators sum to 1 between any two neighbouring indices, so an
+    interpolated boundary between classes of neighbouring index mixes the two real neighbours only (further apart,
+    the classes between show for a fraction of a voxel: ``volrig.tissues``, why classes are ordered by opacity).
+    Returns the (density, mean colour) sockets, or None when no tissue is visible. A hidden tissue adds nothing.
+    Nodes are named ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and so on."""
     link = tree.links.new
 
     def node(kind, label, dx, dy, **props):
@@ -340,15 +343,25 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
         return nd
 
     density, colour = None, None
-    for k, t in enumerate([t for t in tissues if t.visible]):
+    grid = None
+    for k, t in [(k, t) for k, t in enumerate(tissues) if t.visible]:
         dy = -220 * k
-        grid = node("ShaderNodeAttribute", f"grid {t.key}", 0, dy, attribute_name=f"tissue_{t.key}")
+        if grid is None:
+            grid = node("ShaderNodeAttribute", "grid", -400, 0, attribute_name=volrig.tissues.GRID)
+        off = node("ShaderNodeMath", f"offset {t.key}", -200, dy, operation="SUBTRACT")
+        link(grid.outputs["Fac"], off.inputs[0])
+        off.inputs[1].default_value = float(k + 1)
+        away = node("ShaderNodeMath", f"distance {t.key}", -100, dy, operation="ABSOLUTE")
+        link(off.outputs[0], away.inputs[0])
+        near = node("ShaderNodeMath", f"indicator {t.key}", 0, dy + 60, operation="SUBTRACT", use_clamp=True)
+        near.inputs[0].default_value = 1.0
+        link(away.outputs[0], near.inputs[1])
         opacity = node("ShaderNodeValue", f"opacity {t.key}", 0, dy - 110)
         opacity.outputs[0].default_value = t.opacity
         rgb = node("ShaderNodeRGB", f"colour {t.key}", 200, dy - 60)
         rgb.outputs[0].default_value = (*t.color, 1.0)
         weight = node("ShaderNodeMath", f"weight {t.key}", 200, dy + 60, operation="MULTIPLY")
-        link(grid.outputs["Fac"], weight.inputs[0])
+        link(near.outputs[0], weight.inputs[0])
         link(opacity.outputs[0], weight.inputs[1])
         tinted = node("ShaderNodeVectorMath", f"tinted {t.key}", 400, dy, operation="SCALE")
         link(rgb.outputs[0], tinted.inputs[0])
@@ -377,21 +390,9 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
     return density, mean.outputs[0]
 
 
-def tissue_materials(name: str, tissues, strength: float = 1.0, max_grids: int = 0):
-    """:func:`tissue_material` split into materials each reading at most ``max_grids`` grids (0: one material), for
-    EEVEE, which renders nothing for a volume material reading more grids than its GPU's texture units allow.
-    Shown on as many Volume objects of the same file, they add up to the one material's look exactly: the objects'
-    extinctions add, and so do their scatterings (each class's colour times its density)."""
-    visible = [t for t in tissues if t.visible]
-    if max_grids <= 0 or len(visible) <= max_grids:
-        return [tissue_material(name, tissues, strength)]
-    chunks = [visible[i:i + max_grids] for i in range(0, len(visible), max_grids)]
-    return [tissue_material(f"{name} {k + 1}", chunk, strength) for k, chunk in enumerate(chunks)]
-
-
 def tissue_material(name: str, tissues, strength: float = 1.0):
-    """``<name> tissues``: a Principled Volume over a label map's per-tissue occupancy grids (``tissue_<key>``,
-    written by a bake with tissue looks: ``volrig.tissue_grids``), colour and density from ``tissue_sums``;
+    """``<name> tissues``: a Principled Volume over a label map's ``tissue`` grid of class indices (written by a bake
+    with tissue looks: ``volrig.tissue_grid``), colour and density from ``tissue_sums``;
     ``volrig tissue strength`` scales the density (per world unit of the volume's grid)."""
     mat = bpy.data.materials.new(f"{name} tissues")
     compat.use_nodes(mat)
