@@ -176,14 +176,40 @@ def tissue_grid(labels: Volume, tissues: Sequence[Tissue]) -> Volume:
 
 def brick_classes(brick_values: np.ndarray, tissues: Sequence[Tissue]) -> np.ndarray:
     """``tissue_grid`` of a frame in 8³ bricks (``BrickedFrame.brick_values``: [brick z, y, x, z, y, x]), brick by
-    brick: bricks without a code stay zero and untouched, and the temporaries are one brick layer's."""
+    brick: bricks without a code stay zero and untouched, and the temporaries are one brick layer's. Half-float
+    values (a bake's) go through one table over their 65,536 bit patterns."""
     out = np.zeros(brick_values.shape, np.uint8)
-    lut = class_lut(tissues)
+    half = brick_values.dtype == np.float16
+    lut = _half_lut(tissues) if half else class_lut(tissues)
     for z in range(brick_values.shape[0]):
         layer = brick_values[z].reshape(-1, 512)
-        used = np.flatnonzero(layer.any(axis=1))
-        if len(used):
-            out[z].reshape(-1, 512)[used] = _class_of(_codes(layer[used]), tissues, lut)
+        used = np.flatnonzero((layer.view(np.uint16) if half else layer).any(axis=1))
+        if not len(used):
+            continue
+        if half:
+            cls = lut[layer[used].view(np.uint16)]
+            if (cls == _NOT_A_CODE).any():
+                raise VolrigError("tissue classes: the labels are not integers (bake label maps with nearest sampling)")
+        else:
+            cls = _class_of(_codes(layer[used]), tissues, lut)
+        out[z].reshape(-1, 512)[used] = cls
+    return out
+
+
+#: ``_half_lut``'s entry for a bit pattern that is no whole number (no class index: at most 254 classes there).
+_NOT_A_CODE = 255
+
+
+def _half_lut(tissues: Sequence[Tissue]) -> np.ndarray:
+    """Class (uint8) of each of the 65,536 half-float bit patterns: whole numbers by their code's class,
+    others (fractions, infinities, NaN) _NOT_A_CODE."""
+    if len(tissues) >= _NOT_A_CODE:
+        raise VolrigError(f"tissue classes: {len(tissues)} classes in half-float frames (at most 254)")
+    values = np.arange(1 << 16, dtype=np.uint32).astype(np.uint16).view(np.float16).astype(np.float64)
+    whole = np.isfinite(values)
+    whole[whole] = values[whole] == np.round(values[whole])
+    out = np.full(1 << 16, _NOT_A_CODE, np.uint8)
+    out[whole] = _class_of(values[whole].astype(np.int64), tissues)
     return out
 
 

@@ -114,8 +114,9 @@ def test_an_absent_class_has_no_voxels_and_bad_labels_are_refused():
     for bad in (np.full((2, 2, 2), 1.5, np.float32), np.full((2, 2, 2), np.nan, np.float32)):
         with pytest.raises(volrig.VolrigError, match="not integers"):
             volrig.tissue_grid(volrig.Volume(bad, (1, 1, 1)), tissues)
-        with pytest.raises(volrig.VolrigError, match="not integers"):
-            volrig.tissues.brick_classes(_bricks(bad), tissues)
+        for values in (bad, bad.astype(np.float16)):  # (half floats: a bake's values, through their own table)
+            with pytest.raises(volrig.VolrigError, match="not integers"):
+                volrig.tissues.brick_classes(_bricks(values), tissues)
 
 
 def test_the_classes_travel_in_the_files_metadata(tmp_path):
