@@ -34,7 +34,6 @@ def _hwm_bytes() -> int:
 
 def child_bake(a) -> None:
     """One bake in this process (plain, or with tissues): prints its figures as JSON on the last line."""
-    import numpy as np
     import volrig
     from volrig import pipeline
     from volrig.mocap import read_bvh
@@ -43,11 +42,11 @@ def child_bake(a) -> None:
     motion = read_bvh(a.clip)
     frames = pipeline.clip_frames(motion.frame_count, a.frames)
     _, matrices = pipeline.mocap_poses(saved.rig, motion, frames)
-    tissues = ()
-    if a.child == "tissue":
-        table = volrig.read_tissue_table(a.tissues)
-        tissues = volrig.tissue_classes(table, present=np.unique(source.array))
     loaded = _hwm_bytes()
+    tissues = ()
+    if a.child == "tissue":  # (as `volrig bake-mocap --tissues` finds them)
+        table = volrig.read_tissue_table(a.tissues)
+        tissues = volrig.tissue_classes(table, present=volrig.tissues.codes_present(source.array))
     bake = pipeline.FolderBake(source, saved.points, saved.binding, a.out, "vhm", sampling="nearest",
                                tissues=tissues, frames=len(frames))
     t = time.perf_counter()

@@ -66,7 +66,7 @@ def looks_of(args, tissues):
         raise SystemExit(f"showcase: {', '.join(sorted(unknown))}: no such tissue class; classes: "
                          + ", ".join(t.name for t in tissues))
     tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
-    return tissues, hidden, peeled, opacity
+    return volrig.tissues.index_order(tissues), hidden, peeled, opacity  # (the class indices of these looks)
 
 
 def stride_frames(rig, motion, args, up):
@@ -240,7 +240,7 @@ def main(argv):
         if not found:
             raise SystemExit(f"showcase: none of {args.tissues}'s codes is in {args.labels}")
         tissues, hidden, peeled, opacity = looks_of(args, found)  # (before the work: a typo fails at once)
-        files, frames = rig_and_bake(args, work, labels, table, found)
+        files, frames = rig_and_bake(args, work, labels, table, tissues)
         scene = scene_for(labels, args.height, args.view)
         engines.use(scene, args.samples)
         faint = ", ".join(sorted(opacity)) + " faint" if opacity else "as the preset"

@@ -323,15 +323,25 @@ def set_thickness_range(mat, top: float, density: float) -> None:
 TISSUE_PREFIX = "volrig tissue look"
 
 
+#: Half-width, in code units, of the match between the ``density`` grid and a class's codes (``tissue_sums``).
+CODE_MATCH = 0.5
+
+
 def tissue_sums(tree, tissues, x=-1100, y=0):
-    """The nodes summing a label map's visible tissues in node tree ``tree`` from its one ``tissue`` grid (each
-    voxel's class index k + 1, ``tissues`` in class-index order: ``volrig.tissue_grid``): each class adds its opacity
-    (a Value node) times its indicator max(0, 1 - |tissue - (k + 1)|) to the density, and its colour (an RGB node)
-    weighted the same way to the colour. The indicators sum to 1 between any two neighbouring indices, so an
-    interpolated boundary between classes of neighbouring index mixes the two real neighbours only (further apart,
-    the classes between show for a fraction of a voxel: ``volrig.tissues``, why classes are ordered by opacity).
-    Returns the (density, mean colour) sockets, or None when no tissue is visible. A hidden tissue adds nothing.
-    Nodes are named ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and so on."""
+    """The nodes summing a label map's visible tissues in node tree ``tree`` from its ``tissue`` grid (each voxel's
+    class index k, ``tissues`` in class-index order: ``volrig.tissue_grid``) and its ``density`` grid (the codes):
+    each class adds its opacity (a Value node) times its weight to the density, and its colour (an RGB node)
+    weighted the same way to the colour. Returns the (density, mean colour) sockets, or None when no tissue is
+    visible. A hidden tissue adds nothing.
+
+    Both grids interpolate, so between two classes the index passes the classes in between. Class k's weight is
+    max(0, 1 - |v - k|) (v: the interpolated index) times how well the interpolated code d matches one of its codes
+    c scaled by v / k, max(0, 1 - |d - c v / k| / CODE_MATCH): inside the class d = c, and across its boundary with
+    the outside (0) d = c v / k exactly (the class fades out over the last 1 / k of the voxel there: skin, class 1,
+    as an occupancy would), whereas a class the index passes between two others matches only where two lines
+    cross, a film of about a hundredth of a voxel. Between two classes both fade out within a fraction of the voxel
+    (a gap rather than a third class). Nodes are named ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and
+    so on."""
     link = tree.links.new
 
     def node(kind, label, dx, dy, **props):
@@ -342,26 +352,41 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
             setattr(nd, k, v)
         return nd
 
+    def math(op, label, dx, dy, *inputs, clamp=False):
+        nd = node("ShaderNodeMath", label, dx, dy, operation=op, use_clamp=clamp)
+        for socket, v in zip(nd.inputs, inputs):
+            if isinstance(v, bpy.types.NodeSocket):
+                link(v, socket)
+            else:
+                socket.default_value = float(v)
+        return nd.outputs[0]
+
     density, colour = None, None
-    grid = None
+    index = code = None
     for k, t in [(k, t) for k, t in enumerate(tissues) if t.visible]:
         dy = -220 * k
-        if grid is None:
-            grid = node("ShaderNodeAttribute", "grid", -400, 0, attribute_name=volrig.tissues.GRID)
-        off = node("ShaderNodeMath", f"offset {t.key}", -200, dy, operation="SUBTRACT")
-        link(grid.outputs["Fac"], off.inputs[0])
-        off.inputs[1].default_value = float(k + 1)
-        away = node("ShaderNodeMath", f"distance {t.key}", -100, dy, operation="ABSOLUTE")
-        link(off.outputs[0], away.inputs[0])
-        near = node("ShaderNodeMath", f"indicator {t.key}", 0, dy + 60, operation="SUBTRACT", use_clamp=True)
-        near.inputs[0].default_value = 1.0
-        link(away.outputs[0], near.inputs[1])
+        if index is None:
+            index = node("ShaderNodeAttribute", "grid", -1000, 0, attribute_name=volrig.tissues.GRID).outputs["Fac"]
+            code = node("ShaderNodeAttribute", "codes", -1000, -200, attribute_name="density").outputs["Fac"]
+        scaled = math("MULTIPLY", f"scaled {t.key}", -800, dy, index, 1.0 / (k + 1))
+        offset = math("ABSOLUTE", f"offset {t.key}", -700, dy - 60, math("SUBTRACT", f"index {t.key}", -800, dy - 60,
+                                                                         index, k + 1.0))
+        near = math("SUBTRACT", f"indicator {t.key}", -600, dy, 1.0, offset, clamp=True)
+        match = None
+        for n, c in enumerate(t.codes):
+            off = math("MULTIPLY_ADD", f"code {t.key} {c}", -700 + 40 * n, dy - 120, scaled, -float(c), code)
+            away = math("ABSOLUTE", f"code distance {t.key} {c}", -680 + 40 * n, dy - 140, off)
+            one = math("MULTIPLY_ADD", f"code match {t.key} {c}", -660 + 40 * n, dy - 160, away,
+                       -1.0 / CODE_MATCH, 1.0, clamp=True)
+            match = one if match is None else math("ADD", f"code sum {t.key} {c}", -640 + 40 * n, dy - 180,
+                                                     match, one)
+        gate = math("MULTIPLY", f"gate {t.key}", -400, dy, near, match if match is not None else 0.0)
         opacity = node("ShaderNodeValue", f"opacity {t.key}", 0, dy - 110)
         opacity.outputs[0].default_value = t.opacity
         rgb = node("ShaderNodeRGB", f"colour {t.key}", 200, dy - 60)
         rgb.outputs[0].default_value = (*t.color, 1.0)
         weight = node("ShaderNodeMath", f"weight {t.key}", 200, dy + 60, operation="MULTIPLY")
-        link(near.outputs[0], weight.inputs[0])
+        link(gate, weight.inputs[0])
         link(opacity.outputs[0], weight.inputs[1])
         tinted = node("ShaderNodeVectorMath", f"tinted {t.key}", 400, dy, operation="SCALE")
         link(rgb.outputs[0], tinted.inputs[0])

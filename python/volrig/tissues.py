@@ -9,7 +9,8 @@ it through a per-class indicator max(0, 1 - |v - k|) (the add-on's ``materials.t
 of neighbouring index the two real neighbours mix and nothing else. Between classes further apart the indices in
 between appear for a fraction of the voxel; ``tissue_classes`` orders the classes by opacity (hidden ones first), so
 such a boundary passes only through classes whose opacity lies between its two sides' (no opaque shell appears
-between two faint tissues), and the outside (0) meets the faintest classes first.
+between two faint tissues); skin comes first (``OUTER``), so the body's surface, where the outside (0) meets it,
+is exact.
 
 The classes come from a label table (code -> tissue name: ``read_tissue_table`` reads TSV or CSV files such as the
 Visible Human's ``austinman_tissues.tsv``) matched against ``TISSUE_CLASSES``, a preset the user can edit or replace:
@@ -138,6 +139,15 @@ def outside_codes(table: Dict[int, str]) -> List[int]:
     return sorted({0} | {c for c, name in table.items() if re.search(OUTSIDE_NAMES, name, re.I)})
 
 
+def codes_present(array) -> np.ndarray:
+    """``np.unique(array)`` a slab of about 16 M values at a time: no sorted copy of a whole 1 mm body."""
+    a = np.asarray(array)
+    if a.ndim < 2 or not a.size:
+        return np.unique(a)
+    step = max(1, (1 << 24) // a[0].size)
+    return np.unique(np.concatenate([np.unique(a[z:z + step]) for z in range(0, len(a), step)]))
+
+
 def body_codes(table: Dict[int, str], present=None) -> List[int]:
     """The table's body codes (not ``outside_codes``), only those in ``present`` when given."""
     keep = None if present is None else {int(c) for c in np.asarray(present).ravel() if c == int(c)}
@@ -158,7 +168,19 @@ def tissue_classes(table: Dict[int, str], classes: Sequence[TissueClass] = TISSU
         codes.setdefault(match.name, []).append(int(code))
     found = [Tissue(c.name, part_key(c.name), codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible))
              for c in list(classes) + [OTHER] if c.name in codes]
-    return sorted(found, key=lambda t: t.opacity if t.visible else 0.0)
+    return index_order(found)
+
+
+#: Classes that meet the outside: first in ``index_order`` (class 1 next to the outside's 0), so the body's surface
+#: passes through no other class.
+OUTER = ("skin",)
+
+
+def index_order(tissues: Sequence[Tissue]) -> List[Tissue]:
+    """``tissues`` in the order of the ``tissue`` grid's class indices: the OUTER classes, then by opacity (hidden
+    classes as 0; ties in the given order): see the module's description. Order the classes again with the opacities
+    a render will use (``tissue_classes`` orders them by the preset's)."""
+    return sorted(tissues, key=lambda t: (t.name not in OUTER, t.opacity if t.visible else 0.0))
 
 
 #: The file metadata entry naming a frame's tissue classes (``classes_metadata``).

@@ -286,6 +286,12 @@ def test_finds_the_tissue_table_beside_a_label_map(tmp_path):
     assert volrig.find_tissue_table(str(lab), [0, 84, 180]) == str(good)
 
 
+@pytest.mark.parametrize("shape", [(0, 3, 3), (5,), (40, 300, 301), (3, 2, 2)])
+def test_codes_present_are_np_unique_by_slabs(shape):
+    a = np.random.default_rng(2).integers(-3, 200, size=shape).astype(np.int16)
+    np.testing.assert_array_equal(volrig.tissues.codes_present(a), np.unique(a))
+
+
 def test_body_codes_and_label_text_round_trip():
     table = {0: "ExternalAir", 1: "Void", 2: "InternalAir", 3: "Skin", 4: "Bone", 9: "Fat", 10: "Muscle"}
     body = volrig.tissues.body_codes(table, [0, 2, 3, 4, 9, 10, 77])
