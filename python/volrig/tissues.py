@@ -4,13 +4,11 @@ index, 1..K in the order of the classes; 0 = none) with the classes named in the
 (``METADATA``: key, name, colour, opacity, visible, codes), so a renderer shows each class its own way from one grid.
 
 A label map's codes are not values: a renderer that interpolates them makes codes that are in neither tissue at every
-boundary (fat 136 next to muscle 180 passes through 152, gland). The class index interpolates too, so the looks read
-it through a per-class indicator max(0, 1 - |v - k|) (the add-on's ``materials.tissue_sums``): between two classes
-of neighbouring index the two real neighbours mix and nothing else. Between classes further apart the indices in
-between appear for a fraction of the voxel; ``tissue_classes`` orders the classes by opacity (hidden ones first), so
-such a boundary passes only through classes whose opacity lies between its two sides' (no opaque shell appears
-between two faint tissues); skin comes first (``OUTER``), so the body's surface, where the outside (0) meets it,
-is exact.
+boundary (fat 136 next to muscle 180 passes through 152, gland). The class index interpolates too (between classes 2
+and 5 it passes 3 and 4), so the add-on's looks weigh each class by its index indicator times a match of the
+interpolated codes with the class's own (``materials.tissue_sums``; docs/tissues.md, Why one grid renders right).
+Skin is class 1 (``OUTER``: the body's surface fades as an occupancy would), the others follow by opacity
+(``index_order``).
 
 The classes come from a label table (code -> tissue name: ``read_tissue_table`` reads TSV or CSV files such as the
 Visible Human's ``austinman_tissues.tsv``) matched against ``TISSUE_CLASSES``, a preset the user can edit or replace:

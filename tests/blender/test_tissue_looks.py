@@ -102,8 +102,9 @@ def test_hidden_and_coloured_tissues_render_exactly(blocks, tmp_path):
     changed = np.abs(hidden[..., 3] - full[..., 3]) > 1.5 / 255
     assert changed.any() and not (changed & ~bone).any()  # the alpha changes inside the bone's region only
     # where the bone was, nothing is left: its surface's index passes the muscle's and the fat's (lower), but the
-    # codes there are the bone's (materials.tissue_sums)
-    assert hidden[..., 3][only_bone].max() < 1e-3
+    # codes there are the bone's (materials.tissue_sums). (At most one step of the 8-bit PNG: EEVEE's texture
+    # filtering interpolates the two grids with its own rounding.)
+    assert hidden[..., 3][only_bone].max() < 1.5 / 255
 
     _tissue(vol, "bone").visible = True
     muscle = _projected(scene, vol, g["tissue"] == _index(vol, "muscle"), first, grow=2)
