@@ -49,10 +49,11 @@ def test_classes_group_codes_by_the_first_matching_name():
     assert t["air"].codes == [2] and not t["air"].visible  # gas inside the body: hidden
     assert t[OTHER.name].codes == [7]           # no class matches
     assert all(0 not in x.codes for x in t.values())  # outside air and code 0 are in no class
-    found = volrig.tissue_classes(TABLE)
-    weights = [x.opacity if x.visible else 0.0 for x in found]  # the class indices' order: by opacity, hidden first
-    assert weights == sorted(weights) and found[0].name == "air"
-    assert [x.name for x in found] == ["air", "fat", "skin", "muscle", OTHER.name, "heart", "bone"]
+    found = volrig.tissue_classes(TABLE)  # the class indices' order: skin (next to the outside), then by opacity
+    weights = [x.opacity if x.visible else 0.0 for x in found[1:]]
+    assert found[0].name == "skin" and weights == sorted(weights) and found[1].name == "air"
+    assert [x.name for x in found] == ["skin", "air", "fat", "muscle", OTHER.name, "heart", "bone"]
+    assert volrig.tissues.index_order(found[::-1]) == found
     assert [x.name for x in volrig.tissue_classes(TABLE, present=[0, 84, 136])] == ["fat", "bone"]
     mine = [TissueClass("hard", "bone", (1, 1, 1), 1.0), TissueClass("soft", "fat|muscle", (1, 0, 0), 0.2, False)]
     got = {x.name: (x.codes, x.visible) for x in volrig.tissue_classes(TABLE, mine)}
