@@ -137,6 +137,10 @@ def test_the_classes_travel_in_the_files_metadata(tmp_path):
     (tmp_path / "not.vdb").write_bytes(b"x" * 100)
     with pytest.raises(volrig.FileFormatError, match="not an OpenVDB file"):
         volrig.vdb_metadata(str(tmp_path / "not.vdb"))
+    cut = tmp_path / "cut.vdb"  # the metadata cut short: said so, nothing read past the file
+    cut.write_bytes(open(path, "rb").read()[:90])
+    with pytest.raises(volrig.FileFormatError, match="truncated or corrupt"):
+        volrig.vdb_metadata(str(cut))
 
 
 def test_the_visible_humans_table_puts_every_code_in_a_class():
