@@ -1,5 +1,5 @@
 """The animated Visible Human (issue 21's showcase): a labelled scan rigged automatically, driven by a motion-capture
-walk, baked with per-tissue grids and rendered in Cycles with per-tissue looks (skin and muscle faint over the moving
+walk, baked with its tissue grid (each voxel's class) and rendered in Cycles with per-tissue looks (skin and muscle faint over the moving
 skeleton and organs, then the skeleton and organs alone). Headless; point it at any labelled scan with its table of
 tissue codes:
 
@@ -66,7 +66,7 @@ def looks_of(args, tissues):
         raise SystemExit(f"showcase: {', '.join(sorted(unknown))}: no such tissue class; classes: "
                          + ", ".join(t.name for t in tissues))
     tissues = [t._replace(visible=t.name not in hidden, opacity=opacity.get(t.name, t.opacity)) for t in tissues]
-    return tissues, hidden, peeled, opacity
+    return volrig.tissues.index_order(tissues), hidden, peeled, opacity  # (the class indices of these looks)
 
 
 def stride_frames(rig, motion, args, up):
@@ -163,18 +163,17 @@ def scene_for(labels, height, view):
     return scene
 
 
-def show(scene, path, mats):
-    """Volume objects of one baked frame, at 1/1000 scale, one per tissue material (several where EEVEE cannot
-    read every tissue's grid in one: materials.tissue_materials), the previous ones removed."""
+def show(scene, path, mat):
+    """The Volume object of one baked frame, at 1/1000 scale, with the tissue material ``mat``, the previous one
+    removed."""
     for ob in [o for o in scene.objects if o.type == "VOLUME"]:
         bpy.data.objects.remove(ob)
-    for k, mat in enumerate(mats):
-        data = bpy.data.volumes.new(f"{os.path.basename(path)} {k}")
-        data.filepath = path
-        ob = bpy.data.objects.new(data.name, data)
-        ob.scale = (0.001, 0.001, 0.001)
-        data.materials.append(mat)
-        scene.collection.objects.link(ob)
+    data = bpy.data.volumes.new(os.path.basename(path))
+    data.filepath = path
+    ob = bpy.data.objects.new(data.name, data)
+    ob.scale = (0.001, 0.001, 0.001)
+    data.materials.append(mat)
+    scene.collection.objects.link(ob)
 
 
 def grid(rows, labels, out, title):
@@ -241,7 +240,7 @@ def main(argv):
         if not found:
             raise SystemExit(f"showcase: none of {args.tissues}'s codes is in {args.labels}")
         tissues, hidden, peeled, opacity = looks_of(args, found)  # (before the work: a typo fails at once)
-        files, frames = rig_and_bake(args, work, labels, table, found)
+        files, frames = rig_and_bake(args, work, labels, table, tissues)
         scene = scene_for(labels, args.height, args.view)
         engines.use(scene, args.samples)
         faint = ", ".join(sorted(opacity)) + " faint" if opacity else "as the preset"
@@ -251,12 +250,10 @@ def main(argv):
                           [t._replace(visible=t.visible and t.name not in peeled) for t in tissues]))
         rows = []
         for caption, look in looks:
-            eevee = scene.render.engine != "CYCLES"  # (EEVEE reads a limited number of grids per material)
-            mats = materials.tissue_materials("showcase", look, strength=args.strength,
-                                              max_grids=engines.EEVEE_GRIDS if eevee else 0)
+            mat = materials.tissue_material("showcase", look, strength=args.strength)  # (one grid: EEVEE too)
             row = []
             for k, path in enumerate(files):
-                show(scene, path, mats)
+                show(scene, path, mat)
                 scene.render.filepath = os.path.join(work, f"render_{len(rows)}_{k + 1:02d}.png")
                 started = time.perf_counter()
                 with quiet_stdout():

@@ -67,7 +67,7 @@ class VolrigPart(bpy.types.PropertyGroup):
 class VolrigTissue(bpy.types.PropertyGroup):
     """One line of the Tissues list: a class of a label map's codes ("bone": 84, 92, 172) and its look
     (tissue_looks.py)."""
-    key: StringProperty(name="Key", description="The class's grid: tissue_<key>")
+    key: StringProperty(name="Key", description="The class's name in the material's nodes (a part key)")
     codes: StringProperty(name="Codes", description="The label map's codes in this class, comma-separated")
     visible: BoolProperty(name="Visible", default=True, update=_look_changed,
                           description="Show the class's voxels (hidden: rendered as if they were empty)")

@@ -323,12 +323,25 @@ def set_thickness_range(mat, top: float, density: float) -> None:
 TISSUE_PREFIX = "volrig tissue look"
 
 
+#: Half-width, in code units, of the match between the ``density`` grid and a class's codes (``tissue_sums``).
+CODE_MATCH = 0.5
+
+
 def tissue_sums(tree, tissues, x=-1100, y=0):
-    """The nodes summing a label map's visible tissues in node tree ``tree``: each adds its opacity (a Value node)
-    times its ``tissue_<key>`` grid to the density, and its colour (an RGB node) weighted the same way to the
-    colour. Returns the (density, mean colour) sockets, or None when
-    no tissue is visible. A hidden tissue's grid is not read at all, so it leaves no shell. Nodes are named
-    ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and so on."""
+    """The nodes summing a label map's visible tissues in node tree ``tree`` from its ``tissue`` grid (each voxel's
+    class index k, ``tissues`` in class-index order: ``volrig.tissue_grid``) and its ``density`` grid (the codes):
+    each class adds its opacity (a Value node) times its weight to the density, and its colour (an RGB node)
+    weighted the same way to the colour. Returns the (density, mean colour) sockets, or None when no tissue is
+    visible. A hidden tissue adds nothing.
+
+    Both grids interpolate, so between two classes the index passes the classes in between. Class k's weight is
+    max(0, 1 - |v - k|) (v: the interpolated index) times how well the interpolated code d matches one of its codes
+    c scaled by v / k, max(0, 1 - |d - c v / k| / CODE_MATCH): inside the class d = c, and across its boundary with
+    the outside (0) d = c v / k exactly (the class fades out over the last 1 / k of the voxel there: skin, class 1,
+    as an occupancy would), whereas a class the index passes between two others matches only where two lines
+    cross, a film of about a hundredth of a voxel. Between two classes both fade out within a fraction of the voxel
+    (a gap rather than a third class). Nodes are named ``<TISSUE_PREFIX> opacity <key>``, ``... colour <key>`` and
+    so on."""
     link = tree.links.new
 
     def node(kind, label, dx, dy, **props):
@@ -339,16 +352,41 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
             setattr(nd, k, v)
         return nd
 
+    def math(op, label, dx, dy, *inputs, clamp=False):
+        nd = node("ShaderNodeMath", label, dx, dy, operation=op, use_clamp=clamp)
+        for socket, v in zip(nd.inputs, inputs):
+            if isinstance(v, bpy.types.NodeSocket):
+                link(v, socket)
+            else:
+                socket.default_value = float(v)
+        return nd.outputs[0]
+
     density, colour = None, None
-    for k, t in enumerate([t for t in tissues if t.visible]):
+    index = code = None
+    for k, t in [(k, t) for k, t in enumerate(tissues) if t.visible]:
         dy = -220 * k
-        grid = node("ShaderNodeAttribute", f"grid {t.key}", 0, dy, attribute_name=f"tissue_{t.key}")
+        if index is None:
+            index = node("ShaderNodeAttribute", "grid", -1000, 0, attribute_name=volrig.tissues.GRID).outputs["Fac"]
+            code = node("ShaderNodeAttribute", "codes", -1000, -200, attribute_name="density").outputs["Fac"]
+        scaled = math("MULTIPLY", f"scaled {t.key}", -800, dy, index, 1.0 / (k + 1))
+        offset = math("ABSOLUTE", f"offset {t.key}", -700, dy - 60, math("SUBTRACT", f"index {t.key}", -800, dy - 60,
+                                                                         index, k + 1.0))
+        near = math("SUBTRACT", f"indicator {t.key}", -600, dy, 1.0, offset, clamp=True)
+        match = None
+        for n, c in enumerate(t.codes):
+            off = math("MULTIPLY_ADD", f"code {t.key} {c}", -700 + 40 * n, dy - 120, scaled, -float(c), code)
+            away = math("ABSOLUTE", f"code distance {t.key} {c}", -680 + 40 * n, dy - 140, off)
+            one = math("MULTIPLY_ADD", f"code match {t.key} {c}", -660 + 40 * n, dy - 160, away,
+                       -1.0 / CODE_MATCH, 1.0, clamp=True)
+            match = one if match is None else math("ADD", f"code sum {t.key} {c}", -640 + 40 * n, dy - 180,
+                                                     match, one)
+        gate = math("MULTIPLY", f"gate {t.key}", -400, dy, near, match if match is not None else 0.0)
         opacity = node("ShaderNodeValue", f"opacity {t.key}", 0, dy - 110)
         opacity.outputs[0].default_value = t.opacity
         rgb = node("ShaderNodeRGB", f"colour {t.key}", 200, dy - 60)
         rgb.outputs[0].default_value = (*t.color, 1.0)
         weight = node("ShaderNodeMath", f"weight {t.key}", 200, dy + 60, operation="MULTIPLY")
-        link(grid.outputs["Fac"], weight.inputs[0])
+        link(gate, weight.inputs[0])
         link(opacity.outputs[0], weight.inputs[1])
         tinted = node("ShaderNodeVectorMath", f"tinted {t.key}", 400, dy, operation="SCALE")
         link(rgb.outputs[0], tinted.inputs[0])
@@ -377,21 +415,9 @@ def tissue_sums(tree, tissues, x=-1100, y=0):
     return density, mean.outputs[0]
 
 
-def tissue_materials(name: str, tissues, strength: float = 1.0, max_grids: int = 0):
-    """:func:`tissue_material` split into materials each reading at most ``max_grids`` grids (0: one material), for
-    EEVEE, which renders nothing for a volume material reading more grids than its GPU's texture units allow.
-    Shown on as many Volume objects of the same file, they add up to the one material's look exactly: the objects'
-    extinctions add, and so do their scatterings (each class's colour times its density)."""
-    visible = [t for t in tissues if t.visible]
-    if max_grids <= 0 or len(visible) <= max_grids:
-        return [tissue_material(name, tissues, strength)]
-    chunks = [visible[i:i + max_grids] for i in range(0, len(visible), max_grids)]
-    return [tissue_material(f"{name} {k + 1}", chunk, strength) for k, chunk in enumerate(chunks)]
-
-
 def tissue_material(name: str, tissues, strength: float = 1.0):
-    """``<name> tissues``: a Principled Volume over a label map's per-tissue occupancy grids (``tissue_<key>``,
-    written by a bake with tissue looks: ``volrig.tissue_grids``), colour and density from ``tissue_sums``;
+    """``<name> tissues``: a Principled Volume over a label map's ``tissue`` grid of class indices (written by a bake
+    with tissue looks: ``volrig.tissue_grid``), colour and density from ``tissue_sums``;
     ``volrig tissue strength`` scales the density (per world unit of the volume's grid)."""
     mat = bpy.data.materials.new(f"{name} tissues")
     compat.use_nodes(mat)

@@ -1,12 +1,13 @@
 """Per-tissue looks for label maps: the scan's tissue classes (``volrig.tissue_classes`` of a table of codes and
-names, or one class per label without a table) listed on the Volume object (``volrig.tissues``), each visible or
-hidden, in its own colour and opacity, in Cycles.
+names; the classes a baked frame's metadata names when a frame is imported; one class per label without either)
+listed on the Volume object (``volrig.tissues``), each visible or hidden, in its own colour and opacity.
 
 The rest volume (``tissues.vdb`` in the cache, or the parts' rest file when per-part looks are on too) and every
-baked frame hold one occupancy grid per class (``tissue_<key>``: 1 on its voxels); the material sums the visible
-classes' opacity and colour over them (``materials.tissue_sums``), so an interpolated boundary mixes the two real
-neighbours and never a third tissue's colour, and a hidden class is not read at all. Label maps bake with nearest
-sampling (turning the looks on sets it; a bake with trilinear sampling and tissue looks is refused).
+baked frame hold one label grid of class indices (``tissue``: the list's k-th class is k + 1); the material sums the
+visible classes' opacity and colour over per-class indicators of it (``materials.tissue_sums``), so an interpolated
+boundary mixes its two real neighbours (and, between classes of distant index, for a fraction of a voxel the classes
+of opacity between theirs), and a hidden class adds nothing. Label maps bake with nearest sampling (turning the
+looks on sets it; a bake with trilinear sampling and tissue looks is refused).
 """
 
 import bpy
@@ -21,10 +22,14 @@ from .state import write_tissues_rest as write_rest  # noqa: F401
 
 
 def classes(volume_obj):
-    """The source's tissue classes from the object's table (all codes present), or one per label without one."""
+    """The source's tissue classes from the object's table (all codes present), else those its imported file's
+    metadata names (a frame baked with tissue looks), else one per label."""
     codes = np.unique(scans.source(volume_obj).array)
     table = bpy.path.abspath(volume_obj.volrig.tissue_table)
     if not volume_obj.volrig.tissue_table:
+        baked = volrig.tissues.file_classes(bpy.path.abspath(volume_obj.volrig.source))
+        if baked:
+            return baked
         if len(codes) > 256 or np.any(codes != np.round(codes)):
             raise volrig.VolrigError(f"{volume_obj.name} is not a label map ({len(codes)} distinct values, "
                                      f"{'not all integers' if np.any(codes != np.round(codes)) else 'too many'}): "

@@ -147,17 +147,22 @@ def import_samples(context, vol: volrig.Volume, name: str, unit_scale: float, so
 
 def _take_tissue_table(obj, vol: volrig.Volume, source: str) -> None:
     """A label map with its tissue table beside the file (``volrig.find_tissue_table``; integer values, at most
-    256 of them): segmented as its body codes, per-tissue looks on (nearest sampling), and Automatic rigid tissue
-    then binds its bone."""
+    256 of them), or a frame baked with tissue looks (its classes in its metadata: ``volrig.tissues.file_classes``):
+    segmented as its body codes, per-tissue looks on (nearest sampling), and Automatic rigid tissue then binds its
+    bone."""
     some = np.unique(vol.array[:: max(1, vol.array.shape[0] // 32)])
     if not source or len(some) > 256 or not np.array_equal(some, np.round(some)):
         return
     codes = np.unique(vol.array)
-    table = volrig.find_tissue_table(source, codes)
-    if not table:
+    baked = volrig.tissues.file_classes(source)
+    table = "" if baked else volrig.find_tissue_table(source, codes)
+    if not table and not baked:
         return
     s = obj.volrig
-    body = volrig.tissues.body_codes(volrig.read_tissue_table(table), codes)
+    if baked:
+        body = sorted({c for t in baked for c in t.codes} & {int(c) for c in codes})
+    else:
+        body = volrig.tissues.body_codes(volrig.read_tissue_table(table), codes)
     s.segment_by, s.labels = "LABELS", pipeline.labels_text(body)
     s.tissue_table = table
     s.use_tissues = True

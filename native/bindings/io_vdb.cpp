@@ -19,7 +19,7 @@ using Grids = std::vector<std::pair<std::string, py::array>>;
 /// views of half floats; the GIL released while the grids are built).
 VdbGrids built_grids(const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
                      const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins,
-                     const std::vector<std::string>& labels) {
+                     const std::vector<std::string>& labels, const VdbMetadata& metadata) {
     if (!origins.empty() && origins.size() != grids.size())
         throw Error(path + ": " + std::to_string(origins.size()) + " origins for " + std::to_string(grids.size()) +
                     " grids");
@@ -35,7 +35,7 @@ VdbGrids built_grids(const std::string& path, const Grids& grids, const std::arr
         views.back().second.labels = std::find(labels.begin(), labels.end(), name) != labels.end();
     }
     py::gil_scoped_release release;
-    return build_vdb(path, views, half);
+    return build_vdb(path, views, half, metadata);
 }
 
 }  // namespace
@@ -90,19 +90,21 @@ void bind_vdb(py::module_& m) {
         "write_vdb",
         [](const std::string& path, const Grids& grids, const std::array<double, 3>& spacing,
            const std::array<double, 3>& origin, bool half, const std::vector<std::array<double, 3>>& origins,
-           const std::vector<std::string>& labels) {
-            VdbGrids built = built_grids(path, grids, spacing, origin, half, origins, labels);
+           const std::vector<std::string>& labels, const VdbMetadata& metadata) {
+            VdbGrids built = built_grids(path, grids, spacing, origin, half, origins, labels, metadata);
             py::gil_scoped_release release;
             built.write(path);
         },
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
         py::arg("origins") = std::vector<std::array<double, 3>>{}, py::arg("labels") = std::vector<std::string>{},
-        "write_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[])\n\n"
+        py::arg("metadata") = VdbMetadata{},
+        "write_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[], metadata=[])\n\n"
         "grids: list of (name, numpy array [z, y, x], or [brick z, y, x, z, y, x] in 8³ bricks as a Deformer's\n"
         "frame in bricks); spacing and origin (x, y, z), or one origin per grid\n"
         "(origins), each a whole number of voxels from the first grid's (one voxel lattice).\n"
         "float32/float64/uint8/bool arrays become float grids (half floats when half), other integer arrays\n"
         "int32 grids, and so do the integer grids named in labels (uint8 too). Only non-zero voxels are active.\n"
+        "metadata: the file's string metadata, (name, value) pairs.\n"
         "Written to a temporary file and renamed.");
 
     py::class_<VdbGrids>(m, "VdbGrids", "Grids built by build_vdb, for one write (then freed).")
@@ -119,7 +121,8 @@ void bind_vdb(py::module_& m) {
         &built_grids,
         py::arg("path"), py::arg("grids"), py::arg("spacing"), py::arg("origin"), py::arg("half") = false,
         py::arg("origins") = std::vector<std::array<double, 3>>{}, py::arg("labels") = std::vector<std::string>{},
-        "build_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[]) -> VdbGrids\n\n"
+        py::arg("metadata") = VdbMetadata{},
+        "build_vdb(path, grids, spacing, origin, half=False, origins=[], labels=[], metadata=[]) -> VdbGrids\n\n"
         "write_vdb's first half: the grids built (and checked) now, written by VdbGrids.write(path) later; the\n"
         "arrays may go in between. path names the file in errors.");
 }

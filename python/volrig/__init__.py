@@ -12,7 +12,7 @@ from .mesh import read_mesh, read_tgf, subdivide, voxelize
 from .segment import label_components, segment
 from .skeleton import (MAX_THINNESS, Skeleton, SkeletonPoints, distance_transform, reconstruct,
                        reconstruction_loss, skeletonize)
-from .volume import Volume, dicom_series, load, vdb_grids, write_vdb
+from .volume import Volume, dicom_series, load, vdb_grids, vdb_metadata, write_vdb
 
 read_volume = load  # the native core's name for it
 from .tree import SkeletonTree, skeleton_tree
@@ -30,7 +30,7 @@ from .skin import MeshRig, pose_vertices, skin_weights
 from .pipeline import rig_mesh
 from .parts import Part, bone_parts, explode_matrices, part_grids
 from .tissues import (TISSUE_CLASSES, Tissue, TissueClass, find_tissue_table, label_classes, read_tissue_table,
-                      tissue_classes, tissue_grids)
+                      tissue_classes, tissue_grid)
 from .track import Event, Tracking, track
 from .pores import PoreNetwork, load_network, pore_network
 from . import pipeline
@@ -50,8 +50,8 @@ __all__ = ["Volume", "load", "read_volume", "dicom_series", "write_vdb", "segmen
            "Collider", "Collision", "Contact", "ClipContacts", "collide", "self_collide", "collisions",
            "local_thickness", "plane_like", "plane_measure", "medial_surface", "MedialSurface", "subdivide", "MeshRig",
            "rig_mesh", "skin_weights", "pose_vertices", "inflate", "drawing_colours", "Part", "bone_parts", "TISSUE_CLASSES", "Tissue", "TissueClass", "read_tissue_table",
-           "tissue_classes", "tissue_grids", "label_classes", "find_tissue_table",
-           "part_grids", "explode_matrices", "vdb_grids", "track", "Tracking", "Event", "PoreNetwork", "pore_network",
+           "tissue_classes", "tissue_grid", "label_classes", "find_tissue_table",
+           "part_grids", "explode_matrices", "vdb_grids", "vdb_metadata", "track", "Tracking", "Event", "PoreNetwork", "pore_network",
            "load_network"]
 
 

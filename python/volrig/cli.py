@@ -193,7 +193,7 @@ def _bake_mocap_command(sub) -> None:
                    help="nearest for label maps")
     p.add_argument("--name", help="file name stem (default: the volume file's)")
     p.add_argument("--tissues", help="label maps: a table of tissue codes and names (TSV or CSV); each frame also "
-                                     "holds a tissue_<class> grid per tissue class (skin, muscle, bone, ...) for "
+                                     "holds the tissue grid, each voxel's tissue class (skin, muscle, bone, ...), for "
                                      "per-tissue looks; needs --sampling nearest")
     p.add_argument("--skip-existing", action="store_true", help="leave frames whose file exists (resume a farm job)")
     p.add_argument("--lattice-tables", action="store_true",

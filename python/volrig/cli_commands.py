@@ -235,8 +235,8 @@ def cmd_animate(args) -> int:
 
 def _tissues(path: str, source):
     """The tissue classes of a label map (``volrig.tissue_classes`` of the table at ``path``, the codes present)."""
-    from .tissues import read_tissue_table, tissue_classes
-    tissues = tissue_classes(read_tissue_table(path), present=np.unique(source.array))
+    from .tissues import codes_present, read_tissue_table, tissue_classes
+    tissues = tissue_classes(read_tissue_table(path), present=codes_present(source.array))
     if not tissues:
         raise VolrigError(f"{path}: none of its tissue codes is in the volume")
     sys.stderr.write("tissues: " + ", ".join(f"{t.name} ({len(t.codes)})" for t in tissues) + "\n")

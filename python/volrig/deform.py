@@ -16,7 +16,8 @@ from . import _volrig
 from ._volrig import VolrigError
 from .parts import part_grids
 from .rigid_layer import RigidLayer
-from .tissues import tissue_grids
+from .tissues import GRID as TISSUE_GRID
+from .tissues import brick_classes, classes_metadata, tissue_grid
 from .rig import Binding, rest_pose
 from .skeleton import ProgressFn, SkeletonPoints
 from .volume import Volume, _source_array, build_vdb
@@ -93,9 +94,10 @@ class Frame:
     def save(self, path, half: bool = True, parts=(), tissues=(), substitutes=None) -> None:
         """Writes an OpenVDB file with the grids ``density`` (the values, or the mask for binary frames; half
         floats when ``half``) and ``bone`` (int32), for each of ``parts`` (``volrig.Part``) its
-        ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``) and for each of ``tissues``
-        (``volrig.Tissue``; the values a label map sampled nearest) its ``tissue_<key>`` (``volrig.tissue_grids``),
-        placed by spacing and origin; atomically. ``substitutes``: grids replacing some of those (``{name:
+        ``density_<key>`` and ``mask_<key>`` (``volrig.part_grids``) and, with ``tissues`` (``volrig.Tissue``; the
+        values a label map sampled nearest), the ``tissue`` label grid of class indices (``volrig.tissue_grid``) with
+        the classes in the file's metadata (``volrig.tissues.classes_metadata``), placed by spacing and origin;
+        atomically. ``substitutes``: grids replacing some of those (``{name:
         Volume}``, e.g. a part's ``density_<key>`` from another volume: ``volrig.parts.substitute_grid``)."""
         self.vdb(path, half, parts, tissues, substitutes).write(os.fspath(path))
 
@@ -105,9 +107,10 @@ class Frame:
         density = self.values if self.values is not None else self.mask
         grids = {"density": density, "bone": self.bone}
         grids.update(part_grids(density, self.bone, parts) if parts else {})
-        grids.update(tissue_grids(density, tissues) if tissues else {})
+        grids.update(_tissue_grid(self.values, tissues, tissue_grid))
         grids.update(substitutes or {})
-        return build_vdb(os.fspath(path), grids, half=half)
+        return build_vdb(os.fspath(path), grids, half=half, labels=("bone", TISSUE_GRID),
+                         metadata=classes_metadata(tissues) if tissues else None)
 
 
 class BrickedFrame:
@@ -171,13 +174,24 @@ class BrickedFrame:
         self.vdb(path, half, parts, tissues, substitutes).write(os.fspath(path))
 
     def vdb(self, path, half: bool = True, parts=(), tissues=(), substitutes=None):
-        """As ``Frame.vdb``; the grids ``density`` and ``bone`` straight from the bricks (parts, tissues and
+        """As ``Frame.vdb``; the grids ``density``, ``bone`` and ``tissue`` straight from the bricks (parts and
         substitutes from ``dense()``)."""
-        if parts or tissues or substitutes:
+        if parts or substitutes:
             return self.dense().vdb(path, half, parts, tissues, substitutes)
         density = self.brick_values if self.brick_values is not None else (self.brick_bone > 0).view(np.uint8)
-        return build_vdb(os.fspath(path), {"density": density, "bone": self.brick_bone}, self.spacing,
-                         self._origin, half=half, labels=("bone",))
+        grids = {"density": density, "bone": self.brick_bone}
+        grids.update(_tissue_grid(self.brick_values, tissues, brick_classes))
+        return build_vdb(os.fspath(path), grids, self.spacing, self._origin, half=half, labels=("bone", TISSUE_GRID),
+                         metadata=classes_metadata(tissues) if tissues else None)
+
+
+def _tissue_grid(values, tissues, classes) -> dict:
+    """{"tissue": ``classes(values, tissues)``} with tissues (the values a label map's codes), else {}."""
+    if not tissues:
+        return {}
+    if values is None:
+        raise VolrigError("tissue looks need the label map's values: a binary frame has none")
+    return {TISSUE_GRID: classes(values, tissues)}
 
 
 def _sphere_arrays(points: SkeletonPoints, binding: Binding):

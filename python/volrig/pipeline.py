@@ -28,7 +28,8 @@ from .deform import DEFORM_REVISION, Deformer
 from .files import atomic_output
 from .mesh import MESH_EXTENSIONS, ProgressFn, voxelize
 from .parts import part_grids, substitute_grid
-from .tissues import tissue_grids
+from .tissues import GRID as TISSUE_GRID
+from .tissues import classes_metadata, tissue_grid
 from .rig import Binding, Rig, autorig_fit, bind, rest_pose
 from .rigfile import RiggedSkeleton, load_rig
 from .segment import check_range, segment
@@ -516,7 +517,8 @@ def write_rest_looks(path: str, source: Volume, points: Optional[SkeletonPoints]
     """The rest volume with its looks: an OpenVDB file of ``density`` (the source's values, float32); with
     ``parts`` (which need the rig's ``points`` and ``binding``) ``bone`` (``rest_labels``, the object's ``mask``
     filled), each part's ``density_<key>`` and ``mask_<key>`` and ``density_outside`` (``volrig.part_grids``); with
-    ``tissues`` (a label map's classes) each one's ``tissue_<key>`` (``volrig.tissue_grids``); ``substitutes``
+    ``tissues`` (a label map's classes) the ``tissue`` grid of class indices (``volrig.tissue_grid``) and the classes
+    in the file's metadata; ``substitutes``
     ({part key: Volume}) replace those parts' ``density_<key>`` (``volrig.parts.substitute_grid``)."""
     values = source.like(source.array.astype(np.float32, copy=False))
     grids = {"density": values}
@@ -528,8 +530,10 @@ def write_rest_looks(path: str, source: Volume, points: Optional[SkeletonPoints]
         grids.update(part_grids(values, labels, parts, outside=True))
         subs = check_substitutes(source, parts, substitutes)
         grids.update(substituted(labels, rest_pose(binding.weights.shape[1]), parts, subs, "trilinear"))
-    grids.update(tissue_grids(values, tissues) if tissues else {})
-    write_vdb(path, grids, half=False)
+    if tissues:
+        grids[TISSUE_GRID] = tissue_grid(source, tissues)
+    write_vdb(path, grids, half=False, labels=("bone", TISSUE_GRID),
+              metadata=classes_metadata(tissues) if tissues else None)
 
 
 def check_substitutes(source: Volume, parts, substitutes) -> dict:
@@ -562,6 +566,18 @@ def _no_thickness(thickness) -> bool:
 TABLES_PAY_AFTER = 16
 
 
+def _whole_in_half(source: Volume) -> bool:
+    """Half floats hold every value of ``source`` exactly: whole numbers within +-2048 (a label map's codes)."""
+    a = np.asarray(source.array)
+    if a.dtype.kind in "iub":
+        return a.size == 0 or (int(a.min()) >= -2048 and int(a.max()) <= 2048)
+    for z in range(0, a.shape[0], 16):  # (a slab at a time: no temporary the size of the source)
+        slab = a[z:z + 16]
+        if np.abs(slab).max(initial=0) > 2048 or np.any(slab != np.round(slab)):
+            return False
+    return True
+
+
 def lattice_after_for(frames: Optional[int], tables: bool = True) -> Optional[int]:
     """``Deformer.lattice_after`` for a bake of ``frames`` frames: -1 (never) without ``tables``; with them 0 (at the
     first frame) from TABLES_PAY_AFTER frames on, -1 below, None (the Deformer's own default) when not known."""
@@ -575,7 +591,8 @@ def lattice_after_for(frames: Optional[int], tables: bool = True) -> Optional[in
 class FolderBake:
     """Poses of one bound skeleton reconstructed into a VDB sequence in ``folder`` (grids ``density``, half floats,
     and ``bone``, each of ``parts``' ``density_<key>`` and ``mask_<key>``: ``volrig.part_grids``, and each of
-    ``tissues``' ``tissue_<key>``: ``volrig.tissue_grids``, label maps baked with nearest sampling; written
+    with ``tissues`` the ``tissue`` grid of class indices and the classes in the file's metadata:
+    ``volrig.tissue_grid``, label maps baked with nearest sampling; written
     atomically). The Deformer is built once.
 
     ``track=True`` keeps ``poses.json`` in the folder: the hash of each frame's pose with everything else the
@@ -587,8 +604,8 @@ class FolderBake:
     A frame's file is written on a thread of its own while the next frame computes (the Deformer and the VDB
     writer release the GIL); a failed write raises at the next ``bake`` or at ``finish``, which every bake loop
     calls at its end (it waits for the last write and frees the frames' memory). Frames hold their values as the
-    half floats the files store (``Deformer.frame(..., half=True)``), except with tissue looks, which read the label
-    map's codes exactly.
+    half floats the files store (``Deformer.frame(..., half=True)``); with tissue looks too when half floats hold
+    the label map's codes exactly (all within +-2048), else float32.
 
     A bake draws its frames without the bones' lattice tables (``Deformer.lattice_after`` -1): they would hold
     1-3 bytes per source voxel more for frames about 5% (smooth modes) to 20% (rigid) faster (docs/deform.md,
@@ -610,6 +627,7 @@ class FolderBake:
         if self.tissues and sampling != "nearest":
             raise VolrigError("tissue looks need the label map's own codes: bake with nearest sampling")
         self.deformer = Deformer(source, points, binding, lattice_after=self.lattice_after)
+        self._half = not self.tissues or _whole_in_half(source)
         self._thick = None  # (factors, Deformer of the thickened source, radius_scale) of the last thickness
         self.poses_path = os.path.join(folder, "poses.json") if track else None
         w = binding.weights.tocsr()
@@ -668,7 +686,7 @@ class FolderBake:
         deformer, radius_scale = self._deformer_for(thickness)
         frame = deformer.frame(matrices, mode=self.mode, sampling=self.sampling, radius_scale=radius_scale,
                                keep_volume=self.keep_volume, progress=progress, bricks=True,
-                               half=not self.tissues)  # (tissue looks read the label map's exact codes)
+                               half=self._half)  # (tissue looks read the label map's exact codes)
         self._wait()  # the previous frame's grids are written and freed before this one's are built
         subs = substituted(frame.bone, matrices, self.parts, self.substitutes, self.sampling) if self.substitutes else {}
         grids = frame.vdb(self.path(number), half=True, parts=self.parts, tissues=self.tissues, substitutes=subs)

@@ -1,11 +1,14 @@
-"""Per-tissue looks for label maps (issue 21): tissue codes grouped into classes (skin, fat, muscle, bone, organs,
-...), each with its own colour, opacity and visibility, written as one occupancy grid per class so a renderer shows
-each class its own way without interpolating the codes.
+"""Per-tissue looks for label maps (issues 21, 56): tissue codes grouped into classes (skin, fat, muscle, bone, organs,
+...), each with its own colour, opacity and visibility, written as ONE label grid ``tissue`` (each voxel's class
+index, 1..K in the order of the classes; 0 = none) with the classes named in the file's metadata
+(``METADATA``: key, name, colour, opacity, visible, codes), so a renderer shows each class its own way from one grid.
 
-A label map's codes are not values: a renderer that interpolates them (Cycles does, even with closest sampling it
-may pick a neighbour) makes codes that are in neither tissue at every boundary (fat 136 next to muscle 180 passes
-through 152, gland). ``tissue_grids`` writes ``tissue_<key>``: 1 on the class's voxels, 0 elsewhere; interpolating
-an occupancy gives a mix of the two real neighbours and nothing else.
+A label map's codes are not values: a renderer that interpolates them makes codes that are in neither tissue at every
+boundary (fat 136 next to muscle 180 passes through 152, gland). The class index interpolates too (between classes 2
+and 5 it passes 3 and 4), so the add-on's looks weigh each class by its index indicator times a match of the
+interpolated codes with the class's own (``materials.tissue_sums``; docs/tissues.md, Why one grid renders right).
+Skin is class 1 (``OUTER``: the body's surface fades as an occupancy would), the others follow by opacity
+(``index_order``).
 
 The classes come from a label table (code -> tissue name: ``read_tissue_table`` reads TSV or CSV files such as the
 Visible Human's ``austinman_tissues.tsv``) matched against ``TISSUE_CLASSES``, a preset the user can edit or replace:
@@ -15,6 +18,7 @@ names matching ``OUTSIDE_NAMES`` (external air) are left out.
 from __future__ import annotations
 
 import csv
+import json
 import re
 from typing import Dict, List, NamedTuple, Sequence, Tuple
 
@@ -69,7 +73,7 @@ LABEL_COLORS = [(0.90, 0.30, 0.25), (0.30, 0.65, 0.90), (0.95, 0.80, 0.30), (0.4
 
 
 class Tissue(NamedTuple):
-    """One class of a label map: its codes, its look, and ``key`` naming its grid ``tissue_<key>``."""
+    """One class of a label map: its codes, its look, and ``key`` naming it (a part key: letters, digits, _)."""
     name: str
     key: str
     codes: List[int]
@@ -133,6 +137,15 @@ def outside_codes(table: Dict[int, str]) -> List[int]:
     return sorted({0} | {c for c, name in table.items() if re.search(OUTSIDE_NAMES, name, re.I)})
 
 
+def codes_present(array) -> np.ndarray:
+    """``np.unique(array)`` a slab of about 16 M values at a time: no sorted copy of a whole 1 mm body."""
+    a = np.asarray(array)
+    if a.ndim < 2 or not a.size:
+        return np.unique(a)
+    step = max(1, (1 << 24) // a[0].size)
+    return np.unique(np.concatenate([np.unique(a[z:z + step]) for z in range(0, len(a), step)]))
+
+
 def body_codes(table: Dict[int, str], present=None) -> List[int]:
     """The table's body codes (not ``outside_codes``), only those in ``present`` when given."""
     keep = None if present is None else {int(c) for c in np.asarray(present).ravel() if c == int(c)}
@@ -142,68 +155,154 @@ def body_codes(table: Dict[int, str], present=None) -> List[int]:
 
 def tissue_classes(table: Dict[int, str], classes: Sequence[TissueClass] = TISSUE_CLASSES,
                    present: Sequence[int] = None) -> List[Tissue]:
-    """The table's body codes grouped by ``classes`` (first match on the name), in the classes' order, then
-    "other"; classes without codes are left out. ``present``: only these codes (e.g. ``np.unique`` of the labels)."""
+    """The table's body codes grouped by ``classes`` (first match on the name; codes no class matches: "other"),
+    ordered by opacity (hidden classes as 0; ties in the classes' order): the order of the ``tissue`` grid's class
+    indices (see the module's description). Classes without codes are left out. ``present``: only these codes (e.g.
+    ``np.unique`` of the labels)."""
     from .parts import part_key
     codes: Dict[str, List[int]] = {}
     for code in body_codes(table, present):
         match = next((c for c in classes if c.pattern and re.search(c.pattern, table[code], re.I)), OTHER)
         codes.setdefault(match.name, []).append(int(code))
-    return [Tissue(c.name, part_key(c.name), codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible))
-            for c in list(classes) + [OTHER] if c.name in codes]
+    found = [Tissue(c.name, part_key(c.name), codes[c.name], tuple(c.color), float(c.opacity), bool(c.visible))
+             for c in list(classes) + [OTHER] if c.name in codes]
+    return index_order(found)
 
 
-def tissue_grids(labels: Volume, tissues: Sequence[Tissue]) -> Dict[str, Volume]:
-    """``tissue_<key>`` per tissue class: uint8, 1 on the voxels whose code is one of the class's, each cropped to
-    those voxels (its own origin on the labels' lattice). ``labels``: an integer label map (a frame baked with
-    nearest sampling holds the codes themselves)."""
-    lab = np.asarray(labels.array)
+#: Classes that meet the outside: first in ``index_order`` (class 1 next to the outside's 0), so the body's surface
+#: passes through no other class.
+OUTER = ("skin",)
+
+
+def index_order(tissues: Sequence[Tissue]) -> List[Tissue]:
+    """``tissues`` in the order of the ``tissue`` grid's class indices: the OUTER classes, then by opacity (hidden
+    classes as 0; ties in the given order): see the module's description. Order the classes again with the opacities
+    a render will use (``tissue_classes`` orders them by the preset's)."""
+    return sorted(tissues, key=lambda t: (t.name not in OUTER, t.opacity if t.visible else 0.0))
+
+
+#: The file metadata entry naming a frame's tissue classes (``classes_metadata``).
+METADATA = "volrig_tissues"
+#: The label grid of class indices.
+GRID = "tissue"
+
+
+def tissue_grid(labels: Volume, tissues: Sequence[Tissue]) -> Volume:
+    """The ``tissue`` grid of a label map: each voxel's class index (uint8, 1-based in the order of ``tissues``, 0 =
+    none) on the labels' grid. ``labels``: an integer label map (a frame baked with nearest sampling holds the codes
+    themselves). Write it as a label grid (``write_vdb(..., labels=("tissue",))``)."""
+    return labels.like(_class_of(_codes(labels.array), tissues))
+
+
+def brick_classes(brick_values: np.ndarray, tissues: Sequence[Tissue]) -> np.ndarray:
+    """``tissue_grid`` of a frame in 8³ bricks (``BrickedFrame.brick_values``: [brick z, y, x, z, y, x]), brick by
+    brick: bricks without a code stay zero and untouched, and the temporaries are one brick layer's. Half-float
+    values (a bake's) go through one table over their 65,536 bit patterns."""
+    out = np.zeros(brick_values.shape, np.uint8)
+    half = brick_values.dtype == np.float16
+    lut = _half_lut(tissues) if half else class_lut(tissues)
+    for z in range(brick_values.shape[0]):
+        layer = brick_values[z].reshape(-1, 512)
+        used = np.flatnonzero((layer.view(np.uint16) if half else layer).any(axis=1))
+        if not len(used):
+            continue
+        if half:
+            cls = lut[layer[used].view(np.uint16)]
+            if (cls == _NOT_A_CODE).any():
+                raise VolrigError("tissue classes: the labels are not integers (bake label maps with nearest sampling)")
+        else:
+            cls = _class_of(_codes(layer[used]), tissues, lut)
+        out[z].reshape(-1, 512)[used] = cls
+    return out
+
+
+#: ``_half_lut``'s entry for a bit pattern that is no whole number (no class index: at most 254 classes there).
+_NOT_A_CODE = 255
+
+
+def _half_lut(tissues: Sequence[Tissue]) -> np.ndarray:
+    """Class (uint8) of each of the 65,536 half-float bit patterns: whole numbers by their code's class,
+    others (fractions, infinities, NaN) _NOT_A_CODE."""
+    if len(tissues) >= _NOT_A_CODE:
+        raise VolrigError(f"tissue classes: {len(tissues)} classes in half-float frames (at most 254)")
+    values = np.arange(1 << 16, dtype=np.uint32).astype(np.uint16).view(np.float16).astype(np.float64)
+    whole = np.isfinite(values)
+    whole[whole] = values[whole] == np.round(values[whole])
+    out = np.full(1 << 16, _NOT_A_CODE, np.uint8)
+    out[whole] = _class_of(values[whole].astype(np.int64), tissues)
+    return out
+
+
+def _codes(lab: np.ndarray) -> np.ndarray:
+    """``lab`` as integer codes: integer arrays as they are, whole-number floats as int32 (else VolrigError)."""
+    lab = np.asarray(lab)
     if lab.dtype.kind == "f":
         if not np.all(np.isfinite(lab)) or np.any(lab != np.round(lab)) or np.abs(lab).max(initial=0) >= 2 ** 31:
-            raise VolrigError("tissue_grids: the labels are not integers (bake label maps with nearest sampling)")
-        lab = lab.astype(np.int32)  # (codes: the lookup table's path)
-    elif lab.dtype.kind not in "iub":
-        raise VolrigError(f"tissue_grids: labels of dtype {lab.dtype} are not integer codes")
-    cls = _class_of(lab, tissues)
-    grids = {}
-    for k, t in enumerate(tissues):
-        grids[f"tissue_{t.key}"] = _cropped(labels, cls == k + 1)
-    return grids
+            raise VolrigError("tissue classes: the labels are not integers (bake label maps with nearest sampling)")
+        return lab.astype(np.int32)
+    if lab.dtype.kind not in "iub":
+        raise VolrigError(f"tissue classes: labels of dtype {lab.dtype} are not integer codes")
+    return lab
 
 
-def _class_of(lab: np.ndarray, tissues: Sequence[Tissue]) -> np.ndarray:
-    """Each voxel's class (1-based, 0 = none), uint8: a lookup table over the codes when they are small
-    non-negative integers, else a search among the classes' sorted codes."""
+def class_lut(tissues: Sequence[Tissue]):
+    """(codes sorted, their classes) and, when every code is a small non-negative integer, a lookup table code ->
+    class (uint8); the classes 1-based in the order of ``tissues``."""
+    if len(tissues) > 255:
+        raise VolrigError(f"tissue classes: {len(tissues)} classes (at most 255)")
     codes = np.array([c for t in tissues for c in t.codes], dtype=np.int64)
     owner = np.array([k + 1 for k, t in enumerate(tissues) for _ in t.codes], dtype=np.uint8)
-    if len(tissues) > 254:
-        raise VolrigError(f"tissue_grids: {len(tissues)} classes (at most 254)")
-    if not len(codes):
-        return np.zeros(lab.shape, np.uint8)
-    if lab.dtype.kind in "iub" and lab.size and 0 <= lab.min() and lab.max() < 1 << 20:
-        lut = np.zeros(int(lab.max()) + 1, np.uint8)
-        keep = codes <= lab.max()
-        lut[codes[keep]] = owner[keep]
-        return lut[lab]
     order = np.argsort(codes, kind="stable")
     codes, owner = codes[order], owner[order]
+    table = None
+    if len(codes) and codes[0] >= 0 and codes[-1] < 1 << 20:
+        table = np.zeros(int(codes[-1]) + 2, np.uint8)  # (the last entry: every code beyond, none)
+        table[codes] = owner
+    return codes, owner, table
+
+
+def _class_of(lab: np.ndarray, tissues: Sequence[Tissue], lut=None) -> np.ndarray:
+    """Each voxel's class (1-based, 0 = none), uint8, of integer codes ``lab``: a lookup table over the codes when
+    they are small non-negative integers, else a search among the classes' sorted codes."""
+    codes, owner, table = class_lut(tissues) if lut is None else lut
+    if not len(codes):
+        return np.zeros(lab.shape, np.uint8)
+    if table is not None and lab.size and lab.min() >= 0:
+        return table[np.minimum(lab, len(table) - 1)]
     values = lab.astype(np.int64)
     i = np.minimum(np.searchsorted(codes, values), len(codes) - 1)
     return np.where(codes[i] == values, owner[i], 0).astype(np.uint8)
 
 
-def _cropped(like: Volume, m: np.ndarray) -> Volume:
-    """``m`` (bool, on ``like``'s grid) as uint8 cropped to its true voxels (its origin on the same lattice); one
-    zero voxel at the origin when there is none."""
-    zs = np.flatnonzero(m.any(axis=(1, 2)))
-    if not len(zs):
-        return Volume(np.zeros((1, 1, 1), np.uint8), like.spacing, like.origin)
-    slab = m[zs[0]:zs[-1] + 1]
-    ys, xs = np.flatnonzero(slab.any(axis=(0, 2))), np.flatnonzero(slab.any(axis=(0, 1)))
-    box = slab[:, ys[0]:ys[-1] + 1, xs[0]:xs[-1] + 1]
-    lo = np.array([xs[0], ys[0], zs[0]])
-    origin = tuple(o + sp * i for o, sp, i in zip(like.origin, like.spacing, lo))
-    return Volume(box.astype(np.uint8), like.spacing, origin)
+def classes_metadata(tissues: Sequence[Tissue]) -> Dict[str, str]:
+    """The file metadata naming the ``tissue`` grid's classes: {METADATA: JSON list, in class-index order, of
+    {key, name, color, opacity, visible, codes}} (``classes_from_metadata`` reads it back)."""
+    return {METADATA: json.dumps([{"key": t.key, "name": t.name, "color": [round(float(c), 4) for c in t.color],
+                                   "opacity": float(t.opacity), "visible": bool(t.visible),
+                                   "codes": [int(c) for c in t.codes]} for t in tissues])}
+
+
+def classes_from_metadata(metadata: Dict[str, str]) -> List[Tissue]:
+    """The classes ``classes_metadata`` wrote (class index k + 1 is the list's k-th), [] when the metadata name
+    none; VolrigError when the entry is malformed."""
+    text = metadata.get(METADATA)
+    if not text:
+        return []
+    try:
+        return [Tissue(str(d["name"]), str(d["key"]), [int(c) for c in d["codes"]],
+                       tuple(float(c) for c in d["color"][:3]), float(d["opacity"]), bool(d["visible"]))
+                for d in json.loads(text)]
+    except (ValueError, TypeError, KeyError, IndexError) as e:
+        raise VolrigError(f"the file's tissue classes ({METADATA}) are malformed: {e}") from None
+
+
+def file_classes(path: str) -> List[Tissue]:
+    """The tissue classes an OpenVDB file's metadata names (a frame baked with tissue looks: ``classes_metadata``),
+    [] for other files."""
+    from .volume import format_of, vdb_metadata
+    if format_of(path) != "vdb":
+        return []
+    return classes_from_metadata(vdb_metadata(path))
 
 
 def label_classes(codes) -> List[Tissue]:

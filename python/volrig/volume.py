@@ -321,7 +321,7 @@ def dicom_series(path: str) -> list:
     return series
 
 
-def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()) -> None:
+def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=(), metadata=None) -> None:
     """Write several named grids on one geometry to an OpenVDB file.
 
     grids:   mapping name -> Volume or array [z, y, x], e.g. {"density": v, "bone": labels}. Floating (float16
@@ -332,19 +332,21 @@ def write_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, la
     half:    store float grids as 16-bit half floats (smaller files, ~3 significant digits).
     labels:  names of integer grids that are labels: int32 grids whatever their dtype, uint8 too (a bake's frame
              holds its bone labels as bytes).
+    metadata: {name: str} written as the file's metadata (``vdb_metadata`` reads it back), e.g. a bake's tissue
+             classes (``volrig.tissues.METADATA``).
     The file is written to a temporary name and renamed.
     """
-    _volrig.write_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels))
+    _volrig.write_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels, metadata))
 
 
-def build_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=()):
+def build_vdb(path: str, grids, spacing=None, origin=None, half: bool = True, labels=(), metadata=None):
     """``write_vdb`` in two steps: the grids built now (checked as ``write_vdb`` checks them; ``path`` names the
     file in errors), written by ``.write(path)`` later, say on another thread once the arrays are gone (a bake's
     frame goes back to its Deformer as soon as its grids are built). The grids are freed once written."""
-    return _volrig.build_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels))
+    return _volrig.build_vdb(*_vdb_arguments(path, grids, spacing, origin, half, labels, metadata))
 
 
-def _vdb_arguments(path, grids, spacing, origin, half, labels):
+def _vdb_arguments(path, grids, spacing, origin, half, labels, metadata=None):
     items = list(grids.items()) if hasattr(grids, "items") else list(grids)
     if not items:
         raise VolrigError(f"{path}: no grids to write")
@@ -358,4 +360,41 @@ def _vdb_arguments(path, grids, spacing, origin, half, labels):
             a = a.view(np.uint8)
         arrays.append((str(name), a))
         origins.append(_vec3(g.origin, "origin") if isinstance(g, Volume) else origin)
-    return _native_path(path)[1], arrays, spacing, origin, bool(half), origins, [str(n) for n in labels]
+    meta = [(str(k), str(v)) for k, v in (metadata or {}).items()]
+    return _native_path(path)[1], arrays, spacing, origin, bool(half), origins, [str(n) for n in labels], meta
+
+
+#: The OpenVDB file versions whose header ``vdb_metadata`` reads (OpenVDB 3 on: per-grid compression).
+_VDB_VERSIONS = (222, 1000)
+
+
+def vdb_metadata(path: str) -> dict:
+    """The OpenVDB file's string metadata ({name: str}; entries of other types left out), from its header only
+    (what ``write_vdb(..., metadata=)`` wrote). Raises ``FileFormatError`` on a file that is not OpenVDB."""
+    import struct
+    with open(_native_path(path)[1], "rb") as f:
+        head = f.read(8 + 12 + 1 + 36)
+        if len(head) < 57 or struct.unpack_from("<q", head)[0] != 0x56444220:
+            raise FileFormatError(f"{path}: not an OpenVDB file")
+        version = struct.unpack_from("<I", head, 8)[0]
+        if not _VDB_VERSIONS[0] <= version < _VDB_VERSIONS[1]:
+            raise FileFormatError(f"{path}: OpenVDB file version {version}: metadata not read")
+
+        def chunk(limit=1 << 24) -> bytes:
+            raw = f.read(4)
+            n = struct.unpack("<I", raw)[0] if len(raw) == 4 else -1
+            data = f.read(n) if 0 <= n <= limit else b""
+            if n < 0 or n > limit or len(data) != n:
+                raise FileFormatError(f"{path}: truncated or corrupt OpenVDB file metadata")
+            return data
+
+        raw = f.read(4)
+        count = struct.unpack("<i", raw)[0] if len(raw) == 4 else -1
+        if not 0 <= count < 1 << 16:
+            raise FileFormatError(f"{path}: corrupt OpenVDB file metadata ({count} entries)")
+        out = {}
+        for _ in range(count):
+            name, kind, value = chunk(), chunk(), chunk()
+            if kind == b"string":
+                out[name.decode("utf-8", "replace")] = value.decode("utf-8", "replace")
+        return out

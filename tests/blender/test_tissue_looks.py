@@ -1,5 +1,6 @@
-"""Per-tissue looks for label maps (issue 21): the Tissues list from a tissue table, the rest volume's and the baked
-frames' tissue grids, and renders where a hidden tissue leaves nothing and a coloured one no fringe."""
+"""Per-tissue looks for label maps (issues 21, 56): the Tissues list from a tissue table, the rest volume's and the
+baked frames' one ``tissue`` grid of class indices, a baked frame imported with its classes (from its metadata, no
+table), and renders where a hidden tissue leaves nothing and a coloured one no fringe."""
 import numpy as np
 import pytest
 
@@ -14,6 +15,16 @@ PHANTOM_TABLE = "code\tname\n0\tExternalAir\n80\tMuscle\n100\tFat\n220\tBoneCort
 
 def _tissue(vol, name):
     return next(t for t in vol.volrig.tissues if t.name == name)
+
+
+def _index(vol, name):
+    """The class index of tissue ``name`` in the ``tissue`` grid (its place in the list, 1-based)."""
+    return [t.name for t in vol.volrig.tissues].index(name) + 1
+
+
+def _read_attributes(vol):
+    nodes = vol.data.materials[0].node_tree.nodes
+    return {n.attribute_name for n in nodes if n.type == "ATTRIBUTE" and any(o.is_linked for o in n.outputs)}
 
 
 @pytest.fixture
@@ -35,23 +46,23 @@ def blocks(empty_scene, tmp_path):
 
 
 def test_tissues_list_and_rest_volume(blocks):
-    from volrig_addon import tissue_looks
+    from volrig_addon import materials, tissue_looks
     vol, lab = blocks
     vol.volrig.use_tissues = True
-    assert [t.name for t in vol.volrig.tissues] == ["bone", "muscle", "fat"]
-    assert [t.codes for t in vol.volrig.tissues] == ["84", "180", "136"]
+    assert [t.name for t in vol.volrig.tissues] == ["fat", "muscle", "bone"]  # by opacity: the class indices
+    assert [t.codes for t in vol.volrig.tissues] == ["136", "180", "84"]
     assert vol.volrig.sampling == "nearest"
     path = tissue_looks.rest_file(vol)
     assert bpy.path.abspath(vol.data.filepath) == path and not vol.data.is_sequence
-    g, first = _grids(path, ["density", "tissue_bone", "tissue_muscle", "tissue_fat"])
+    g, first = _grids(path, ["density", "tissue"])
     for name, code in (("bone", 84), ("muscle", 180), ("fat", 136)):
-        assert np.array_equal(g[f"tissue_{name}"] > 0, g["density"] == code)
-    nodes = vol.data.materials[0].node_tree.nodes
-    assert {n.attribute_name for n in nodes if n.type == "ATTRIBUTE"} >= {"tissue_bone", "tissue_muscle",
-                                                                           "tissue_fat"}
-    _tissue(vol, "fat").visible = False  # a hidden tissue's grid is not read at all
-    nodes = vol.data.materials[0].node_tree.nodes
-    assert "tissue_fat" not in {n.attribute_name for n in nodes if n.type == "ATTRIBUTE"}
+        assert np.array_equal(g["tissue"] == _index(vol, name), g["density"] == code)
+    assert np.array_equal(g["tissue"] > 0, g["density"] > 0)
+    assert "tissue" in _read_attributes(vol)  # one grid for every class
+    fat = f"{materials.TISSUE_PREFIX} opacity fat"
+    assert fat in vol.data.materials[0].node_tree.nodes
+    _tissue(vol, "fat").visible = False  # a hidden tissue adds nothing
+    assert fat not in vol.data.materials[0].node_tree.nodes
     # looks survive Find Tissues; without a table every label is its own class
     run_op(bpy.ops.volrig.find_tissues)
     assert not _tissue(vol, "fat").visible
@@ -80,9 +91,9 @@ def test_hidden_and_coloured_tissues_render_exactly(blocks, tmp_path):
     scene = _stage(vol, tmp_path)
     full = _render(scene, tmp_path / "full.png")
     assert compare("tissues_full", tmp_path / "full.png", alpha=True) > PASS  # the blocks of 3.4's Cycles
-    g, first = _grids(tissue_looks.rest_file(vol), ["tissue_bone", "tissue_muscle", "tissue_fat"])
-    bone = _projected(scene, vol, g["tissue_bone"], first, grow=2)
-    only_bone = _projected(scene, vol, g["tissue_bone"], first, grow=0, outer=False)
+    g, first = _grids(tissue_looks.rest_file(vol), ["tissue"])
+    bone = _projected(scene, vol, g["tissue"] == _index(vol, "bone"), first, grow=2)
+    only_bone = _projected(scene, vol, g["tissue"] == _index(vol, "bone"), first, grow=0, outer=False)
     assert only_bone.sum() >= 10 and full[..., 3][only_bone].mean() > 0.9
 
     _tissue(vol, "bone").visible = False
@@ -90,41 +101,59 @@ def test_hidden_and_coloured_tissues_render_exactly(blocks, tmp_path):
     # (one step of the 8-bit PNG allowed: the bone's grid no longer read shifts a few samples' random numbers)
     changed = np.abs(hidden[..., 3] - full[..., 3]) > 1.5 / 255
     assert changed.any() and not (changed & ~bone).any()  # the alpha changes inside the bone's region only
-    assert hidden[..., 3][only_bone].max() < 1e-3  # where the bone was, nothing is left
+    # where the bone was, nothing is left: its surface's index passes the muscle's and the fat's (lower), but the
+    # codes there are the bone's (materials.tissue_sums). (At most one step of the 8-bit PNG: EEVEE's texture
+    # filtering interpolates the two grids with its own rounding.)
+    assert hidden[..., 3][only_bone].max() < 1.5 / 255
 
     _tissue(vol, "bone").visible = True
-    muscle = _projected(scene, vol, g["tissue_muscle"], first, grow=2)
+    muscle = _projected(scene, vol, g["tissue"] == _index(vol, "muscle"), first, grow=2)
     _tissue(vol, "muscle").color = (0.0, 0.0, 1.0)
     blue = _render(scene, tmp_path / "blue.png")
     assert np.abs(blue[~muscle] - full[~muscle]).max() < 1.5 / 255  # no fringe outside the muscle's region
-    inside = _projected(scene, vol, g["tissue_muscle"], first, grow=0, outer=False) & (full[..., 3] > 0.2)
+    inside = _projected(scene, vol, g["tissue"] == _index(vol, "muscle"), first, grow=0, outer=False) & (
+        full[..., 3] > 0.2)
     assert inside.sum() >= 10
     bluer = (blue[..., 2] - blue[..., 0])[inside] - (full[..., 2] - full[..., 0])[inside]
     assert bluer.mean() > 0.1
 
 
-def test_bake_writes_tissue_grids_of_the_posed_labels(rigged, tmp_path):
-    from volrig_addon import bake
+def test_bake_writes_the_tissue_grid_and_an_imported_frame_gets_the_looks(rigged, tmp_path):
+    from volrig_addon import bake, materials
     vol = rigged
     table = tmp_path / "phantom.tsv"
     table.write_text(PHANTOM_TABLE)
     vol.volrig.tissue_table = str(table)
     vol.volrig.use_tissues = True
-    assert [t.name for t in vol.volrig.tissues] == ["bone", "muscle", "fat"]
+    assert [t.name for t in vol.volrig.tissues] == ["fat", "muscle", "bone"]
+    _tissue(vol, "muscle").color = (0.1, 0.2, 0.9)  # a look of the user's travels with the frames
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, 1
     run_op(bpy.ops.volrig.bake)
     path = bake.frame_path(vol, 1)
-    assert {g["name"] for g in volrig._volrig.vdb_grids(path)} >= {"density", "bone", "tissue_bone",
-                                                                    "tissue_muscle", "tissue_fat"}
-    g, _ = _grids(path, ["density", "tissue_bone", "tissue_muscle", "tissue_fat"])
+    assert {g["name"] for g in volrig.vdb_grids(path)} == {"density", "bone", "tissue"}
+    g, _ = _grids(path, ["density", "tissue"])
     for name, code in (("bone", 220), ("muscle", 80), ("fat", 100)):
-        assert g[f"tissue_{name}"].any()
-        assert np.array_equal(g[f"tissue_{name}"] > 0, np.isclose(g["density"], code))
+        assert (g["tissue"] == _index(vol, name)).any()
+        assert np.array_equal(g["tissue"] == _index(vol, name), np.isclose(g["density"], code))
     # trilinear sampling would blend the codes: the bake refuses
     vol.volrig.sampling = "trilinear"
     with pytest.raises(RuntimeError, match="nearest sampling"):
         bpy.ops.volrig.bake()
+    # the frame imported on its own, no table: its classes and looks from its metadata
+    run_op(bpy.ops.volrig.import_volume, filepath=path, unit="MM")
+    frame = bpy.context.active_object
+    s = frame.volrig
+    assert frame != vol and s.tissue_table == "" and s.use_tissues and s.sampling == "nearest"
+    assert [(t.name, t.codes) for t in s.tissues] == [("fat", "100"), ("muscle", "80"), ("bone", "220")]
+    assert tuple(_tissue(frame, "muscle").color) == pytest.approx((0.1, 0.2, 0.9))
+    assert "tissue" in _read_attributes(frame)
+    nodes = frame.data.materials[0].node_tree.nodes
+    for t in s.tissues:
+        assert tuple(nodes[f"{materials.TISSUE_PREFIX} colour {t.key}"].outputs[0].default_value)[:3] == \
+            pytest.approx(tuple(t.color))
+        scaled = nodes[f"{materials.TISSUE_PREFIX} scaled {t.key}"].inputs[1].default_value  # 1 / its index
+        assert scaled == pytest.approx(1.0 / _index(frame, t.name))
 
 
 def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp_path):
@@ -146,7 +175,7 @@ def test_rig_binds_the_tissue_tables_bone_rigidly(empty_scene, phantom_file, tmp
     assert bpy.path.abspath(vol.volrig.tissue_table) == str(table)
     s = vol.volrig  # taken as a label map: its body codes, per-tissue looks on, nearest sampling
     assert s.use_tissues and s.sampling == "nearest" and s.segment_by == "LABELS" and s.labels == "80, 100, 220"
-    assert [t.name for t in s.tissues] == ["bone", "muscle", "fat"]
+    assert [t.name for t in s.tissues] == ["fat", "muscle", "bone"]
     rigid = scans.rigid(vol)
     assert np.array_equal(rigid.array, phantom_file[1].volume.array == 220)
     vol.volrig.rigid_by = "LABELS"
@@ -210,8 +239,8 @@ def test_tissues_with_parts_on_and_off(rigged, tmp_path):
     vol.volrig.use_tissues = True
     shown = bpy.path.abspath(vol.data.filepath)
     assert shown == looks.rest_file(vol)
-    assert {"tissue_bone", "mask_left_arm"} <= {g["name"] for g in volrig._volrig.vdb_grids(shown)}
+    assert {"tissue", "mask_left_arm"} <= {g["name"] for g in volrig.vdb_grids(shown)}
     vol.volrig.use_parts = False
     shown = bpy.path.abspath(vol.data.filepath)
     assert shown == tissue_looks.rest_file(vol)
-    assert "tissue_bone" in {g["name"] for g in volrig._volrig.vdb_grids(shown)}
+    assert "tissue" in {g["name"] for g in volrig.vdb_grids(shown)}

@@ -597,3 +597,26 @@ TEST_CASE("a bake's grids are written as OpenVDB writes them, bricked or not, an
     REQUIRE(r.grid.dims == std::array<std::int64_t, 3>{96, 64, 40});
     REQUIRE(r.data == v.data);
 }
+
+TEST_CASE("the file's string metadata is written as OpenVDB writes it", "[vdb]") {
+    TempDir tmp;
+    Volume v = make_volume<float>({16, 8, 8}, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, DType::Float32);
+    for (std::size_t i = 0; i < 16 * 8 * 8; ++i) values<float>(v)[i] = static_cast<float>(i % 7);
+    const std::string path = tmp / "meta.vdb", ref = tmp / "openvdb.vdb";
+    const VdbMetadata meta{{"volrig_tissues", "[{\"key\": \"bone\"}]"}, {"note", ""}};
+    write_vdb(path, {{"density", v.view()}}, false, meta);
+    openvdb::io::File in(path);
+    in.open(false);
+    const openvdb::MetaMap::Ptr got = in.getMetadata();
+    openvdb::GridPtrVec grids{in.readGrid("density")};
+    in.close();
+    REQUIRE(got->metaCount() == 2);
+    REQUIRE(got->metaValue<std::string>("volrig_tissues") == "[{\"key\": \"bone\"}]");
+    REQUIRE(got->metaValue<std::string>("note").empty());
+    openvdb::io::File out(ref);
+    out.write(grids, *got);
+    out.close();
+    REQUIRE(without_uuid(file_bytes(ref)) == without_uuid(file_bytes(path)));
+    REQUIRE_THROWS_WITH(write_vdb(path, {{"density", v.view()}}, false, {{"", "x"}}),
+                        Catch::Contains("metadata entry needs a non-empty name"));
+}

@@ -1,5 +1,6 @@
-"""Per-tissue looks for label maps (issue 21): tissue tables, classes, per-class occupancy grids, and bakes that
-write them (the Python package and the command line)."""
+"""Per-tissue looks for label maps (issues 21, 56): tissue tables, classes, the one ``tissue`` grid of class indices
+(dense and brick by brick), its classes in the file's metadata, and bakes that write them (the Python package and
+the command line)."""
 import os
 import subprocess
 import sys
@@ -48,9 +49,12 @@ def test_classes_group_codes_by_the_first_matching_name():
     assert t["air"].codes == [2] and not t["air"].visible  # gas inside the body: hidden
     assert t[OTHER.name].codes == [7]           # no class matches
     assert all(0 not in x.codes for x in t.values())  # outside air and code 0 are in no class
-    order = [x.name for x in volrig.tissue_classes(TABLE)]
-    assert order == [c.name for c in volrig.TISSUE_CLASSES if c.name in t] + [OTHER.name]
-    assert [x.name for x in volrig.tissue_classes(TABLE, present=[0, 84, 136])] == ["bone", "fat"]
+    found = volrig.tissue_classes(TABLE)  # the class indices' order: skin (next to the outside), then by opacity
+    weights = [x.opacity if x.visible else 0.0 for x in found[1:]]
+    assert found[0].name == "skin" and weights == sorted(weights) and found[1].name == "air"
+    assert [x.name for x in found] == ["skin", "air", "fat", "muscle", OTHER.name, "heart", "bone"]
+    assert volrig.tissues.index_order(found[::-1]) == found
+    assert [x.name for x in volrig.tissue_classes(TABLE, present=[0, 84, 136])] == ["fat", "bone"]
     mine = [TissueClass("hard", "bone", (1, 1, 1), 1.0), TissueClass("soft", "fat|muscle", (1, 0, 0), 0.2, False)]
     got = {x.name: (x.codes, x.visible) for x in volrig.tissue_classes(TABLE, mine)}
     assert got == {"hard": ([84, 92], True), "soft": ([61, 136, 180], False), "other": ([2, 7, 204], True)}
@@ -65,28 +69,78 @@ def _place(grid: volrig.Volume, like: volrig.Volume) -> np.ndarray:
     return full
 
 
-@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.float32])
-def test_grids_are_each_class_occupancy_exactly(dtype):
+def _reference(codes: np.ndarray, tissues) -> np.ndarray:
+    """Each voxel's class index the slow way: k + 1 where the code is one of class k's, 0 elsewhere."""
+    out = np.zeros(codes.shape, np.uint8)
+    for k, t in enumerate(tissues):
+        out[np.isin(codes, t.codes)] = k + 1
+    return out
+
+
+def _bricks(a: np.ndarray) -> np.ndarray:
+    """A [z, y, x] array padded with zeros to multiples of 8 and cut into 8³ bricks [brick z, y, x, z, y, x]."""
+    n = -(-np.array(a.shape) // 8) * 8
+    padded = np.zeros(n, a.dtype)
+    padded[:a.shape[0], :a.shape[1], :a.shape[2]] = a
+    return np.ascontiguousarray(padded.reshape(n[0] // 8, 8, n[1] // 8, 8, n[2] // 8, 8).transpose(0, 2, 4, 1, 3, 5))
+
+
+def _unbricked(b: np.ndarray, shape) -> np.ndarray:
+    nb = b.shape[:3]
+    whole = b.transpose(0, 3, 1, 4, 2, 5).reshape(nb[0] * 8, nb[1] * 8, nb[2] * 8)
+    return whole[:shape[0], :shape[1], :shape[2]]
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.float32, np.float16])
+def test_the_tissue_grid_is_each_voxels_class_dense_and_by_brick(dtype):
     rng = np.random.default_rng(7)
     codes = np.array(sorted(TABLE))
     lab = volrig.Volume(rng.choice(codes, size=(9, 11, 13)).astype(dtype), (0.5, 1.0, 2.0), (3.0, -1.0, 2.0))
     tissues = volrig.tissue_classes(TABLE)
-    grids = volrig.tissue_grids(lab, tissues)
-    assert set(grids) == {f"tissue_{t.key}" for t in tissues}
-    for t in tissues:
-        g = grids[f"tissue_{t.key}"]
-        assert g.array.dtype == np.uint8 and g.spacing == lab.spacing
-        np.testing.assert_array_equal(_place(g, lab), np.isin(lab.array, t.codes).astype(np.uint8))
-        assert g.array.shape[0] <= lab.array.shape[0]  # cropped to its voxels: never larger than the labels
+    want = _reference(lab.array, tissues)
+    g = volrig.tissue_grid(lab, tissues)
+    assert g.array.dtype == np.uint8 and g.spacing == lab.spacing and g.origin == lab.origin
+    np.testing.assert_array_equal(g.array, want)
+    got = volrig.tissues.brick_classes(_bricks(np.asarray(lab.array)), tissues)
+    assert got.dtype == np.uint8
+    np.testing.assert_array_equal(_unbricked(got, lab.array.shape), want)
 
 
-def test_grids_of_an_absent_class_are_empty_and_bad_labels_are_refused():
+def test_an_absent_class_has_no_voxels_and_bad_labels_are_refused():
     lab = volrig.Volume(np.full((4, 4, 4), 180, np.uint8), (1, 1, 1))
-    grids = volrig.tissue_grids(lab, volrig.tissue_classes(TABLE))
-    assert grids["tissue_muscle"].array.sum() == 64 and grids["tissue_bone"].array.sum() == 0
-    with pytest.raises(volrig.VolrigError, match="not integers"):
-        volrig.tissue_grids(volrig.Volume(np.full((2, 2, 2), 1.5, np.float32), (1, 1, 1)),
-                            volrig.tissue_classes(TABLE))
+    tissues = volrig.tissue_classes(TABLE)
+    g = volrig.tissue_grid(lab, tissues).array
+    muscle = [t.name for t in tissues].index("muscle") + 1
+    assert (g == muscle).all()
+    for bad in (np.full((2, 2, 2), 1.5, np.float32), np.full((2, 2, 2), np.nan, np.float32)):
+        with pytest.raises(volrig.VolrigError, match="not integers"):
+            volrig.tissue_grid(volrig.Volume(bad, (1, 1, 1)), tissues)
+        for values in (bad, bad.astype(np.float16)):  # (half floats: a bake's values, through their own table)
+            with pytest.raises(volrig.VolrigError, match="not integers"):
+                volrig.tissues.brick_classes(_bricks(values), tissues)
+
+
+def test_the_classes_travel_in_the_files_metadata(tmp_path):
+    tissues = volrig.tissue_classes(TABLE)
+    lab = volrig.Volume(np.array(sorted(TABLE), np.int16).reshape(1, 1, -1), (1.0, 1.0, 1.0))
+    path = str(tmp_path / "t.vdb")
+    volrig.write_vdb(path, {"density": lab, "tissue": volrig.tissue_grid(lab, tissues)}, labels=("tissue",),
+                     metadata=volrig.tissues.classes_metadata(tissues))
+    assert volrig.tissues.classes_from_metadata(volrig.vdb_metadata(path)) == tissues
+    assert {g["name"]: g["type"] for g in volrig.vdb_grids(path)}["tissue"] == "int32"
+    np.testing.assert_array_equal(_place(volrig.load(path, grid="tissue"), lab), _reference(lab.array, tissues))
+    plain = str(tmp_path / "plain.vdb")
+    volrig.write_vdb(plain, {"density": lab})
+    assert volrig.vdb_metadata(plain) == {} and volrig.tissues.classes_from_metadata({}) == []
+    with pytest.raises(volrig.VolrigError, match="malformed"):
+        volrig.tissues.classes_from_metadata({volrig.tissues.METADATA: "[{\"key\": 1}]"})
+    (tmp_path / "not.vdb").write_bytes(b"x" * 100)
+    with pytest.raises(volrig.FileFormatError, match="not an OpenVDB file"):
+        volrig.vdb_metadata(str(tmp_path / "not.vdb"))
+    cut = tmp_path / "cut.vdb"  # the metadata cut short: said so, nothing read past the file
+    cut.write_bytes(open(path, "rb").read()[:90])
+    with pytest.raises(volrig.FileFormatError, match="truncated or corrupt"):
+        volrig.vdb_metadata(str(cut))
 
 
 def test_the_visible_humans_table_puts_every_code_in_a_class():
@@ -102,6 +156,24 @@ def test_the_visible_humans_table_puts_every_code_in_a_class():
     assert names[180] == "Muscle" and 180 in t["muscle"].codes and 136 in t["fat"].codes
     assert OTHER.name not in t, t[OTHER.name].codes  # the preset names every tissue of the Visible Human
     assert sum(len(x.codes) for x in t.values()) == 63  # all but external air
+
+
+def test_the_visible_humans_tissue_grid_by_brick_equals_the_dense_one(tmp_path):
+    """The 4 mm Visible Human's label map, brick by brick (a bake's path) and written, against the dense reference."""
+    data = SHARED_DATA / "visible-human"
+    if not (data / "austinman_4mm_labels.nii.gz").exists() or not (data / "austinman_tissues.tsv").exists():
+        pytest.skip(f"real data not available: {data}/austinman_4mm_labels.nii.gz, austinman_tissues.tsv")
+    lab = volrig.load(str(data / "austinman_4mm_labels.nii.gz"))
+    codes = np.asarray(lab.array)
+    tissues = volrig.tissue_classes(volrig.read_tissue_table(str(data / "austinman_tissues.tsv")),
+                                    present=np.unique(codes))
+    want = _reference(codes, tissues)
+    assert len(tissues) >= 12 and len(np.unique(want)) == len(tissues) + 1
+    bricks = volrig.tissues.brick_classes(_bricks(codes.astype(np.float16)), tissues)  # (a bake's half values)
+    np.testing.assert_array_equal(_unbricked(bricks, codes.shape), want)
+    path = str(tmp_path / "vh.vdb")
+    volrig.write_vdb(path, {"tissue": bricks}, lab.spacing, lab.origin, labels=("tissue",))
+    np.testing.assert_array_equal(_place(volrig.load(path, grid="tissue"), lab), want)
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +199,7 @@ def labelled_rig(tmp_path_factory):
     return vol, pts, rig, binding, src, rig_file, table
 
 
-def test_folder_bake_writes_each_tissues_grid_of_the_posed_labels(tmp_path, labelled_rig):
+def test_folder_bake_writes_the_tissue_grid_of_the_posed_labels(tmp_path, labelled_rig):
     vol, pts, rig, binding, *_ = labelled_rig
     tissues = volrig.tissue_classes({84: "BoneCortical", 180: "Muscle", 204: "SkinDry"})
     with pytest.raises(volrig.VolrigError, match="nearest sampling"):
@@ -137,29 +209,33 @@ def test_folder_bake_writes_each_tissues_grid_of_the_posed_labels(tmp_path, labe
     bake.bake(1, m)
     bake.finish()
     path = bake.path(1)
-    names = {g["name"] for g in volrig._volrig.vdb_grids(path)}
-    assert names == {"density", "bone", "tissue_bone", "tissue_muscle", "tissue_skin"}
+    assert {g["name"] for g in volrig.vdb_grids(path)} == {"density", "bone", "tissue"}
+    assert volrig.tissues.classes_from_metadata(volrig.vdb_metadata(path)) == tissues
     frame = volrig.Deformer(vol, pts, binding).frame(m, mode="linear", sampling="nearest")
-    codes = np.asarray(frame.values.array)
-    for t in tissues:
-        g = volrig.load(path, grid=f"tissue_{t.key}")
-        np.testing.assert_array_equal(_place(g, frame.values) > 0.5, np.isin(codes, t.codes))
+    want = _reference(np.asarray(frame.values.array), tissues)
+    assert set(np.unique(want)) == {0, 1, 2, 3}
+    np.testing.assert_array_equal(_place(volrig.load(path, grid="tissue"), frame.values), want)
+    dense = str(tmp_path / "dense.vdb")  # a Frame's own save writes the same grid
+    frame.save(dense, tissues=tissues)
+    np.testing.assert_array_equal(_place(volrig.load(dense, grid="tissue"), frame.values), want)
 
 
 def test_folder_bake_keeps_codes_past_half_float_range(tmp_path, labelled_rig):
-    """A bake holds its frames' values as half floats, except with tissue looks: a 16-bit label map's code 4097
-    (4096 in half floats) keeps its voxels in its tissue's grid."""
+    """A bake holds its frames' values as half floats, with tissue looks too unless the codes pass 2048: a 16-bit
+    label map's code 4097 (4096 in half floats) keeps its voxels in its tissue's class."""
     vol, pts, rig, binding, *_ = labelled_rig
     lab = np.asarray(vol.array).astype(np.uint16)
     lab[lab == 84] = 4097
     wide = volrig.Volume(lab, vol.spacing)
     tissues = volrig.tissue_classes({4097: "BoneCortical", 180: "Muscle", 204: "SkinDry"})
     bake = volrig.pipeline.FolderBake(wide, pts, binding, str(tmp_path), "wide", sampling="nearest", tissues=tissues)
+    assert not bake._half and volrig.pipeline.FolderBake(vol, pts, binding, str(tmp_path), "x", sampling="nearest",
+                                                         tissues=tissues)._half
     m = rig.pose({"b": ([0, 0, 1], 40.0)})
     bake.bake(1, m)
     bake.finish()
     frame = volrig.Deformer(wide, pts, binding).frame(m, mode="linear", sampling="nearest")
-    bone = _place(volrig.load(bake.path(1), grid="tissue_bone"), frame.values) > 0.5
+    bone = _place(volrig.load(bake.path(1), grid="tissue"), frame.values) == [t.name for t in tissues].index("bone") + 1
     assert bone.any()
     np.testing.assert_array_equal(bone, np.asarray(frame.values.array) == 4097)
 
@@ -182,21 +258,24 @@ def test_cli_bake_mocap_with_tissues(tmp_path, labelled_rig):
     assert r.returncode == 2 and "--sampling nearest" in r.stderr and "Traceback" not in r.stderr, r.stderr
     r = run("--tissues", str(table), "--sampling", "nearest")
     assert r.returncode == 0, r.stderr
-    assert "tissues: skin (1), bone (1), muscle (1)" in r.stderr
-    names = {g["name"] for g in volrig._volrig.vdb_grids(str(tmp_path / "out" / "bar_0001.vdb"))}
-    assert {"tissue_bone", "tissue_muscle", "tissue_skin"} <= names
+    assert "tissues: skin (1), muscle (1), bone (1)" in r.stderr
+    out = str(tmp_path / "out" / "bar_0001.vdb")
+    assert {g["name"] for g in volrig.vdb_grids(out)} == {"density", "bone", "tissue"}
+    assert [t.name for t in volrig.tissues.classes_from_metadata(volrig.vdb_metadata(out))] == ["skin", "muscle", "bone"]
     r = run("--tissues", str(tmp_path / "missing.tsv"), "--sampling", "nearest")
     assert r.returncode != 0 and "missing.tsv" in r.stderr and "Traceback" not in r.stderr
 
 
-def test_grids_of_negative_and_large_codes():
-    """Codes a lookup table cannot index (negative, huge) take the search path and give the same grids."""
+def test_classes_of_negative_and_large_codes():
+    """Codes a lookup table cannot index (negative, huge) take the search path and give the same classes."""
     rng = np.random.default_rng(5)
     table = {-7: "BoneCortical", 3: "Muscle", 5_000_000: "Fat"}
-    lab = volrig.Volume(rng.choice([0, -7, 3, 5_000_000], size=(6, 7, 8)).astype(np.int64), (1.0, 1.0, 1.0))
-    for t in volrig.tissue_classes(table):
-        g = volrig.tissue_grids(lab, [t])[f"tissue_{t.key}"]
-        np.testing.assert_array_equal(_place(g, lab), np.isin(lab.array, t.codes).astype(np.uint8))
+    lab = volrig.Volume(rng.choice([0, -7, 3, 5_000_000, 11], size=(6, 7, 8)).astype(np.int64), (1.0, 1.0, 1.0))
+    tissues = volrig.tissue_classes(table)
+    np.testing.assert_array_equal(volrig.tissue_grid(lab, tissues).array, _reference(lab.array, tissues))
+    small = volrig.Volume(rng.choice([0, 3, 9, 70], size=(6, 7, 8)).astype(np.int32), (1.0, 1.0, 1.0))
+    tissues = volrig.tissue_classes({3: "Muscle", 9: "Fat"})  # 70: past the lookup table's codes, in no class
+    np.testing.assert_array_equal(volrig.tissue_grid(small, tissues).array, _reference(small.array, tissues))
 
 
 def test_finds_the_tissue_table_beside_a_label_map(tmp_path):
@@ -210,6 +289,12 @@ def test_finds_the_tissue_table_beside_a_label_map(tmp_path):
     good = tmp_path / "body_tissues.tsv"
     good.write_text("value\ttissue\n84\tBoneCortical\n180\tMuscle\n")
     assert volrig.find_tissue_table(str(lab), [0, 84, 180]) == str(good)
+
+
+@pytest.mark.parametrize("shape", [(0, 3, 3), (5,), (40, 300, 301), (3, 2, 2)])
+def test_codes_present_are_np_unique_by_slabs(shape):
+    a = np.random.default_rng(2).integers(-3, 200, size=shape).astype(np.int16)
+    np.testing.assert_array_equal(volrig.tissues.codes_present(a), np.unique(a))
 
 
 def test_body_codes_and_label_text_round_trip():

@@ -151,7 +151,10 @@ Volume read_vdb(const std::string& path, const std::string& grid = "", const Rea
 /// spacing and origin go into its transform). Floating and uint8 volumes (masks, 8-bit scans) become FloatGrids
 /// (stored as half floats when `half`); other integer volumes (e.g. int16/int32 bone labels), and uint8 ones marked
 /// as labels (VolumeView::labels), become Int32Grids. Only non-zero voxels are active; the background is 0.
-void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
+/// `metadata`: the file's string metadata (name, value), e.g. a bake's tissue classes (read back by volrig.vdb_metadata).
+using VdbMetadata = std::vector<std::pair<std::string, std::string>>;
+void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false,
+               const VdbMetadata& metadata = {});
 
 /// write_vdb in two steps: the grids built while the samples are at hand (build_vdb, checked as write_vdb checks
 /// them; `path` names the file in errors), written later, say on another thread once the samples are gone (a
@@ -171,10 +174,12 @@ public:
     bool written() const;  ///< true once written (or moved from)
 
 private:
-    friend VdbGrids build_vdb(const std::string&, const std::vector<std::pair<std::string, VolumeView>>&, bool);
+    friend VdbGrids build_vdb(const std::string&, const std::vector<std::pair<std::string, VolumeView>>&, bool,
+                              const VdbMetadata&);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
-VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false);
+VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half = false,
+                   const VdbMetadata& metadata = {});
 
 }  // namespace volrig

@@ -440,10 +440,10 @@ void write_grid(std::ostream& os, const BuiltGrid& b) {
     gd.seekToEnd(os);
 }
 
-/// What io::File::write(grids) writes (Archive::write: header, no file metadata, the grids), for grids whose leaf
-/// buffers are precompressed. The bytes equal OpenVDB's for the same whole grids but the header's random UUID (the
+/// What io::File::write(grids) writes (Archive::write: header, the file metadata `meta`, the grids), for grids whose
+/// leaf buffers are precompressed. The bytes equal OpenVDB's for the same whole grids but the header's random UUID (the
 /// Catch2 case "a bake's grids are written as OpenVDB writes them" compares them).
-void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids) {
+void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids, const openvdb::MetaMap& meta) {
     openvdb::io::setDataCompression(os, file_compression());
     openvdb::io::setWriteGridStatsMetadata(os, true);
     put<std::int64_t>(os, openvdb::OPENVDB_MAGIC);
@@ -452,7 +452,7 @@ void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids) {
     put<std::uint32_t>(os, openvdb::OPENVDB_LIBRARY_MINOR_VERSION);
     put<char>(os, 1);  // seekable: grid offsets present
     os << random_uuid();
-    openvdb::MetaMap().writeMeta(os);
+    meta.writeMeta(os);
     put(os, static_cast<std::int32_t>(grids.size()));
     for (const BuiltGrid& b : grids) {
         write_grid(os, b);
@@ -464,6 +464,7 @@ void write_archive(std::ostream& os, const std::vector<BuiltGrid>& grids) {
 
 struct VdbGrids::Impl {
     std::vector<BuiltGrid> grids;
+    openvdb::MetaMap meta;
     bool written = false;
 };
 
@@ -480,7 +481,7 @@ void VdbGrids::write(const std::string& path) {
         write_atomically(path, [&](const std::string& tmp) {
             std::ofstream file(tmp, std::ios_base::out | std::ios_base::binary | std::ios_base::trunc);
             if (!file) throw Error(path + ": cannot create the file " + tmp);
-            write_archive(file, impl_->grids);
+            write_archive(file, impl_->grids, impl_->meta);
             file.close();
             if (!file) throw Error(path + ": cannot write the OpenVDB file (the disk may be full)");
         });
@@ -493,14 +494,18 @@ void VdbGrids::write(const std::string& path) {
     impl_->grids.clear();
 }
 
-void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
-    build_vdb(path, grids, half).write(path);
+void write_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half,
+               const VdbMetadata& metadata) {
+    build_vdb(path, grids, half, metadata).write(path);
 }
 
-VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half) {
+VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::string, VolumeView>>& grids, bool half,
+                   const VdbMetadata& metadata) {
     initialize_openvdb();
     if (grids.empty()) throw Error(path + ": no grids to write");
     const Grid& g0 = grids.front().second.grid;
+    for (const auto& entry : metadata)
+        if (entry.first.empty()) throw Error(path + ": a metadata entry needs a non-empty name");
     std::set<std::string> names;
     for (const auto& [name, view] : grids) {
         const std::string subject = path + ": grid '" + name + "'";
@@ -543,6 +548,7 @@ VdbGrids build_vdb(const std::string& path, const std::vector<std::pair<std::str
     }
     VdbGrids built;
     built.impl_->grids = std::move(out);
+    for (const auto& [name, value] : metadata) built.impl_->meta.insertMeta(name, openvdb::StringMetadata(value));
     return built;
 }
 
