@@ -110,6 +110,41 @@ TEST_CASE("bone rig: touching bones split at the narrowest section", "[rig][bone
         CHECK(b.segments.labels[static_cast<std::size_t>(p.grid.index(20, 20 - 7, z))] == femur);
 }
 
+/// A hip: the femur and tibia of femur_tibia (1 mm voxels, the femur z 62..100 here) with a femoral head (radius 10
+/// about (20, 20, 108)) under an acetabulum (a plate z 121..132 over x 5..55), on a grid 70 wide.
+Phantom hip_joint() {
+    Phantom p;
+    p.grid.dims = {70, 40, 140};
+    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
+    for (std::int64_t z = 0; z < 140; ++z)
+        for (std::int64_t y = 0; y < 40; ++y)
+            for (std::int64_t x = 0; x < 70; ++x) {
+                const double r = std::hypot(x - 20.0, y - 20.0);
+                const bool shaft = (z >= 62 && z <= 100) || (z >= 12 && z <= 56);
+                const bool head = std::hypot(r, z - 108.0) <= 10.0;
+                const bool socket = z >= 121 && z <= 132 && x >= 5 && x <= 55 && y >= 5 && y <= 35;
+                p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = (shaft && r <= kRadius) || head || socket;
+            }
+    return p;
+}
+
+TEST_CASE("bone rig: a hip the outer shape put off its femur is found up the femur's shaft", "[rig][bones]") {
+    const Phantom p = hip_joint();
+    Rig r = leg_rig();
+    r.joints = {{58, 20, 108}, {20, 20, 59}, {20, 20, 10}};  // the hip 38 mm out to the side: no femur near it
+    const BoneRig b = rig_to_bones(p.grid, p.bone.data(), r);
+    const BoneJoint& hip = joint_named(b, "hip.L");
+    CHECK(joint_named(b, "knee.L").how == "contact");
+    CHECK(hip.how == "ball");  // the head's sphere, facing its socket
+    CHECK(std::abs(hip.to[0] - 20.0) <= 1.5);
+    CHECK(std::abs(hip.to[1] - 20.0) <= 1.5);
+    CHECK(std::abs(hip.to[2] - 108.0) <= 1.5);
+    CHECK(hip.child_segment == joint_named(b, "knee.L").parent_segment);  // the femur the knee found
+    // Near its femur, the same guess is left to the sphere fit from where it is (no shaft seed needed)
+    r.joints[0] = {24, 20, 112};
+    CHECK(std::abs(joint_named(rig_to_bones(p.grid, p.bone.data(), r), "hip.L").to[2] - 108.0) <= 1.5);
+}
+
 TEST_CASE("bone rig: bad input is refused clearly; rigs without limbs are kept", "[rig][bones]") {
     const Phantom p = femur_tibia(0);
     const std::vector<std::uint8_t> empty(p.bone.size(), 0);
