@@ -3,6 +3,7 @@
 // the narrowest section). The Visible Human's joints: tests/python/test_bones.py.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 
 #include "volrig/error.hpp"
@@ -19,21 +20,26 @@ struct Phantom {
     std::vector<std::uint8_t> bone;
 };
 
+/// Bone on a grid of `dims` 1 mm voxels wherever inside(x, y, z, r) holds (r: the distance from the axis x = y = 20).
+template <class F>
+Phantom phantom_of(const std::array<std::int64_t, 3>& dims, F&& inside) {
+    Phantom p;
+    p.grid.dims = dims;
+    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
+    for (std::int64_t z = 0; z < dims[2]; ++z)
+        for (std::int64_t y = 0; y < dims[1]; ++y)
+            for (std::int64_t x = 0; x < dims[0]; ++x)
+                p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = inside(x, y, z, std::hypot(x - 20.0, y - 20.0));
+    return p;
+}
+
 /// A femur (z 62..106) above a tibia (z 12..56), radius 8 about x = y = 20 (1 mm voxels); `neck` > 0 joins them
 /// through the gap z 57..61 with a cylinder of that radius.
 Phantom femur_tibia(double neck) {
-    Phantom p;
-    p.grid.dims = {40, 40, 120};
-    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
-    for (std::int64_t z = 0; z < 120; ++z)
-        for (std::int64_t y = 0; y < 40; ++y)
-            for (std::int64_t x = 0; x < 40; ++x) {
-                const double r = std::hypot(x - 20.0, y - 20.0);
-                const bool shaft = (z >= 62 && z <= 106) || (z >= 12 && z <= 56);
-                const bool in = (shaft && r <= kRadius) || (z > 56 && z < 62 && r <= neck);
-                p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = in;
-            }
-    return p;
+    return phantom_of({40, 40, 120}, [neck](std::int64_t, std::int64_t, std::int64_t z, double r) {
+        const bool shaft = (z >= 62 && z <= 106) || (z >= 12 && z <= 56);
+        return (shaft && r <= kRadius) || (z > 56 && z < 62 && r <= neck);
+    });
 }
 
 /// A leg rig: thigh.L from (20, 20, 112) to a knee guessed at (23, 18, 66), shin.L down to (20, 20, 6).
@@ -113,19 +119,12 @@ TEST_CASE("bone rig: touching bones split at the narrowest section", "[rig][bone
 /// A hip: the femur and tibia of femur_tibia (1 mm voxels, the femur z 62..100 here) with a femoral head (radius 10
 /// about (20, 20, 108)) under an acetabulum (a plate z 121..132 over x 5..55), on a grid 70 wide.
 Phantom hip_joint() {
-    Phantom p;
-    p.grid.dims = {70, 40, 140};
-    p.bone.assign(static_cast<std::size_t>(p.grid.voxel_count()), 0);
-    for (std::int64_t z = 0; z < 140; ++z)
-        for (std::int64_t y = 0; y < 40; ++y)
-            for (std::int64_t x = 0; x < 70; ++x) {
-                const double r = std::hypot(x - 20.0, y - 20.0);
-                const bool shaft = (z >= 62 && z <= 100) || (z >= 12 && z <= 56);
-                const bool head = std::hypot(r, z - 108.0) <= 10.0;
-                const bool socket = z >= 121 && z <= 132 && x >= 5 && x <= 55 && y >= 5 && y <= 35;
-                p.bone[static_cast<std::size_t>(p.grid.index(x, y, z))] = (shaft && r <= kRadius) || head || socket;
-            }
-    return p;
+    return phantom_of({70, 40, 140}, [](std::int64_t x, std::int64_t y, std::int64_t z, double r) {
+        const bool shaft = (z >= 62 && z <= 100) || (z >= 12 && z <= 56);
+        const bool head = std::hypot(r, z - 108.0) <= 10.0;
+        const bool socket = z >= 121 && z <= 132 && x >= 5 && x <= 55 && y >= 5 && y <= 35;
+        return (shaft && r <= kRadius) || head || socket;
+    });
 }
 
 TEST_CASE("bone rig: a hip the outer shape put off its femur is found up the femur's shaft", "[rig][bones]") {
