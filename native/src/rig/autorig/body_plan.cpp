@@ -84,7 +84,6 @@ PlanFeatures shared_features(const NodeTree& t, const Reading& r, const LimbPath
     f[kRootsCross] = 1.0 - std::abs(roots_legs.dot(roots_arms));
     f[kPairsCross] = 1.0 - std::abs(across_legs.dot(across_arms));
     f[kHeadBehind] = std::max(0.0, -unit(t.at(r.chest), t.at(r.head)).dot(axis));
-    f[kHeadAside] = 0.5 * (1.0 - unit(t.at(r.chest), t.at(r.head)).dot(axis));
     double reach = 0;
     for (int s = 0; s < 2; ++s)
         reach += 0.25 * ((t.at(r.legs[s]) - t.at(r.pelvis)).norm() + (t.at(r.arms[s]) - t.at(r.chest)).norm());
@@ -160,14 +159,6 @@ bool arms_between(const NodeTree& t, std::uint32_t head, std::uint32_t arms_meet
     return t.length(t.path(head, arms_meet)) < t.length(t.path(head, pelvis));
 }
 
-/// A humanoid's spine must point up when up is given (autorig's contract): a reading whose spine points more than
-/// 120 degrees from up (kUpsideDown, its cosine: a head where the feet are) is no humanoid at all, whatever its
-/// other terms, rather than a penalised one. Lying bodies (the spine across up) stay readings.
-constexpr double kUpsideDown = -0.5;  // cos 120 degrees
-bool upside_down(const NodeTree& t, const Reading& r, const std::optional<Vec>& up) {
-    return up && unit(t.at(r.pelvis), t.at(r.chest)).dot(*up) < kUpsideDown;
-}
-
 /// Every assignment of five extremities to head, legs, arms, read as a humanoid and as a quadruped; the best of
 /// each kind kept in `best`, every reading appended to `all` when given.
 void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double left_out, double left_out_thickness,
@@ -191,7 +182,6 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 const int broken = broken_markers(t, r, paths, in.markers);
                 const PlanFeatures shared = shared_features(t, r, paths, left_out, left_out_thickness, object_extent);
                 for (const bool humanoid : {true, false}) {
-                    if (humanoid && upside_down(t, r, in.up)) continue;
                     PlanFeatures f = shared;
                     if (humanoid) humanoid_features(t, r, paths, in.up, f);
                     else quadruped_features(t, r, in.up, f);

@@ -41,15 +41,13 @@ enum PlanTerm : int {
                       ///< mean direction)
     kQSpineTilt,      ///< quadruped: the spine is not level (|cos| with up, or that up)
     kHandShape,       ///< hand: search_hand's shape penalty (finger lengths and thicknesses, palm, thumb, stub)
-    kHeadAside,       ///< the head leaves the chest aside from the spine's direction ((1 - cos) / 2: a spur off the
-                      ///< back, a shoulder blade, read as a head is square to the spine)
     kPlanTerms
 };
 
 inline constexpr std::array<const char*, kPlanTerms> kPlanTermNames = {
     "bias_humanoid", "bias_quadruped", "bias_hand", "mirror_legs", "mirror_arms", "left_out", "head_thin",
     "pairs_cross", "roots_cross", "head_behind", "limbs_short", "narrow_span", "limb_ratio", "arms_flat", "legs_flat", "h_legs_thin", "h_hands_low", "h_legs_not_down",
-    "h_spine_not_up", "q_legs_along", "q_limbs_not_down", "q_spine_tilt", "hand_shape", "head_aside"};
+    "h_spine_not_up", "q_legs_along", "q_limbs_not_down", "q_spine_tilt", "hand_shape"};
 
 using PlanFeatures = std::array<double, kPlanTerms>;
 
