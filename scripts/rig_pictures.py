@@ -139,6 +139,19 @@ def draw_bone_rigs(out: str, only: set) -> None:
         draw(bone_case("Visible Human 2 mm (bone labels)", labels.like(a > 0), labels.like(np.isin(a, S.BONE_LABELS)), 15000,
                        up=(0, 0, 1), reference=np.array(list(ref.values()))),
              os.path.join(out, "rig_bones_vhm.png"), views=((0, 2), (1, 2)))
+    if "bones_posed" in only and os.path.exists(vhm):
+        from volrig.pipeline import rig_skeleton
+        from volrig_support import subjects as S
+        labels = S.visible_human_labels(2)
+        a = np.asarray(labels.array)
+        mask, bone = labels.like(a > 0), labels.like(np.isin(a, S.BONE_LABELS))
+        rigged = rig_skeleton(volrig.skeletonize(mask).top(15000), mask, up=(0, 0, 1), rigid=bone, bone=bone)
+        posed, ref = S.posed_visible_human(labels, rigged, 150, 15, S.visible_human_joints(labels))
+        b = np.asarray(posed.array)
+        draw(bone_case("Visible Human 2 mm posed by its own rig (arms raised 150°, legs 15° apart)",
+                       posed.like(b > 0), posed.like(np.isin(b, S.BONE_LABELS)), 15000, up=(0, 0, 1),
+                       reference=np.array(list(ref.values()))),
+             os.path.join(out, "rig_bones_posed.png"), views=((0, 2), (1, 2)))
     frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
     if "bones_frog" in only and os.path.exists(frog):
         vol = volrig.load(frog)  # organs and bones, no skin: the plan comes from the bone (label 13) itself
@@ -184,7 +197,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
     ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4", "bones_vhm",
-                                                "bones_frog", "bones_ct"]),
+                                                "bones_posed", "bones_frog", "bones_ct"]),
                     help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
