@@ -148,7 +148,7 @@ def draw_bone_rigs(out: str, only: set) -> None:
         rigged = rig_skeleton(volrig.skeletonize(mask).top(15000), mask, up=(0, 0, 1), rigid=bone, bone=bone)
         posed, ref = S.posed_visible_human(labels, rigged, 150, 15, S.visible_human_joints(labels))
         b = np.asarray(posed.array)
-        draw(bone_case("Visible Human 2 mm posed by its own rig (arms raised 150°, legs 15° apart)",
+        draw(bone_case("Visible Human 2 mm, posed (arms up 150°, legs 15° apart)",
                        posed.like(b > 0), posed.like(np.isin(b, S.BONE_LABELS)), 15000, up=(0, 0, 1),
                        reference=np.array(list(ref.values()))),
              os.path.join(out, "rig_bones_posed.png"), views=((0, 2), (1, 2)))
