@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
 from typing import Dict, List, NamedTuple, Sequence, Tuple
 
@@ -298,9 +299,9 @@ def classes_from_metadata(metadata: Dict[str, str]) -> List[Tissue]:
 
 def file_classes(path: str) -> List[Tissue]:
     """The tissue classes an OpenVDB file's metadata names (a frame baked with tissue looks: ``classes_metadata``),
-    [] for other files."""
-    from .volume import format_of, vdb_metadata
-    if format_of(path) != "vdb":
+    [] for other files (any other ending: a drawing's image, a folder, a NIfTI)."""
+    from .volume import vdb_metadata
+    if not os.fspath(path).lower().endswith(".vdb") or os.path.isdir(path):
         return []
     return classes_from_metadata(vdb_metadata(path))
 

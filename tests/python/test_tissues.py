@@ -328,3 +328,12 @@ def test_the_showcase_script_renders_the_walking_visible_human(tmp_path):
                           "--height", "32", "--samples", "1", "--out", str(tmp_path / "x.png")],
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "no such tissue class" in bad.stdout + bad.stderr
+
+
+def test_file_classes_of_files_that_are_not_vdb_are_none(tmp_path):
+    """A drawing's image, a NIfTI or a folder has no baked classes (no error: the add-on asks of every import)."""
+    from volrig.tissues import file_classes
+    png = tmp_path / "hero.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n")
+    assert file_classes(str(png)) == [] and file_classes(str(tmp_path)) == []
+    assert file_classes(str(tmp_path / "body.nii.gz")) == []
