@@ -1,6 +1,7 @@
 // rig/bones/bone_rig.cpp: a role-named rig's limb joints moved to the articulations its bone tissue shows
 // (volrig/rig.hpp rig_to_bones): limb bones matched to segments, joints at contacts, heads, narrowest sections.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <optional>
@@ -120,16 +121,15 @@ private:
         return seen;
     }
 
-    /// The segment other than s (and `exclude`) nearest to s around the point c (within radius w): the socket of
-    /// a head.
-    /// a head of the mirror limb's bone (a femur) is no socket (of the other femur, fused with its hemipelvis at the
-    /// voxel size: the two halves of the pelvis meet at the symphysis)
-    std::int32_t socket_of(std::int32_t s, std::int32_t exclude, const P3& c, double w, const Patch& own,
-                           std::int32_t mirror) const {
+    /// The segment other than s and `exclude` (the hinge's child; the mirror limb's bone: the other femur, fused
+    /// with its hemipelvis at the voxel size, meets this one's at the symphysis) nearest to s around the point c
+    /// (within radius w): the socket of a head.
+    std::int32_t socket_of(std::int32_t s, const std::array<std::int32_t, 2>& exclude, const P3& c, double w,
+                           const Patch& own) const {
         std::int32_t best = 0;
         double gap = p_.reach;
         for (const auto& [t, count] : segments_near(c, w)) {
-            if (t == s || t == exclude || t == mirror || count < 8) continue;
+            if (t == s || t == exclude[0] || t == exclude[1] || count < 8) continue;
             const Contact k = contact_of(own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
             if (k.found && k.gap < gap) gap = k.gap, best = t;
         }
@@ -162,11 +162,20 @@ private:
     };
     std::optional<ShaftHead> shaft_head(std::int32_t s, int db) const;
     std::optional<ShaftHead> seed_by_shaft(BoneJoint& j, int cb, int db, double w);
-    /// A ball joint's long bone: the segment its limb's hinge (knee, elbow) found on its near side, else `own`.
+    /// A ball joint's limb hinge (the knee of a hip, the elbow of a shoulder), when placed.
+    const BoneJoint* hinge_of(const std::string& name) const {
+        return placed(std::string(name.rfind("hip", 0) == 0 ? "knee" : "elbow") + name.substr(name.size() - 2));
+    }
+    /// A ball joint's long bone: the segment its limb's hinge found on its near side, else `own`.
     std::int32_t hinge_segment(const std::string& name, std::int32_t own) const {
-        const std::string side = name.substr(name.size() - 2);
-        const BoneJoint* mid = placed(std::string(name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
+        const BoneJoint* mid = hinge_of(name);
         return mid && mid->parent_segment > 0 ? mid->parent_segment : own;
+    }
+    /// The segment the mirror limb's bone of cb runs through (thigh.R for thigh.L), 0 when it has none.
+    std::int32_t mirror_segment(int cb) const {
+        const std::string& name = out_.rig.names[cb];
+        const int mirror = bone(name.substr(0, name.size() - 1) + (name.back() == 'L' ? "R" : "L"));
+        return mirror >= 0 ? segment_of(mirror) : 0;
     }
     /// Whether segment s has a voxel within w of c.
     bool near_segment(std::int32_t s, const P3& c, double w) const {
@@ -174,7 +183,7 @@ private:
         const auto it = seen.find(s);
         return it != seen.end() && it->second > 0;
     }
-    bool fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w);
+    bool fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& exclude, double w);
     void split(std::int32_t s, int cb, const P3& at, const P3& axis);
     void move(BoneJoint& j, int cb, const P3& to, const char* how);
 
@@ -423,9 +432,9 @@ std::optional<Fitter::ShaftHead> Fitter::seed_by_shaft(BoneJoint& j, int cb, int
 }
 
 bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
-    const std::string side = j.name.substr(j.name.size() - 2);
-    const BoneJoint* mid = placed(std::string(j.name.rfind("hip", 0) == 0 ? "knee" : "elbow") + side);
-    const std::int32_t exclude = mid ? mid->child_segment : (db >= 0 ? segment_of(db) : 0);
+    const BoneJoint* mid = hinge_of(j.name);
+    const std::array<std::int32_t, 2> exclude{mid ? mid->child_segment : (db >= 0 ? segment_of(db) : 0),
+                                             mirror_segment(cb)};
     bool seeded = db >= 0 && seed_ball(j, cb, db);
     std::optional<ShaftHead> shaft;
     if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, 60.0);  // the long bone's length
@@ -447,12 +456,10 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
 
 /// A ball joint from where bone cb's head lies now: the sphere of its head, else the contact with its socket, else
 /// (no socket apart from it) its thickest bone.
-bool Fitter::fit_ball(BoneJoint& j, int cb, std::int32_t exclude, double w) {
+bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& exclude, double w) {
     const P3 at = head(cb);
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
-    const std::string name = out_.rig.names[cb];
-    const int mirror = bone(name.substr(0, name.size() - 1) + (name.back() == 'L' ? "R" : "L"));
-    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own, mirror >= 0 ? segment_of(mirror) : 0);
+    j.parent_segment = socket_of(j.child_segment, exclude, at, w, own);
     if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
         const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
         if (c) move(j, cb, *c, "thickest");

@@ -112,8 +112,8 @@ std::optional<P3> thickest_point(const Grid& grid, const std::vector<std::int32_
 /// The points' centroid (into `centre`) and principal axis (unit: the direction of their largest spread).
 P3 principal_axis(const std::vector<P3>& pts, P3& centre);
 
-/// A segment's two ends (its voxels' linear indices) along its principal axis (the centroids of its voxels within a few percent of its length
-/// of either extreme) and its centroid; found = false for an empty segment.
+/// A segment's (its voxels' linear indices) two ends along its principal axis (the centroids of its voxels within
+/// a few percent of its length of either extreme) and its centroid; found = false for an empty segment.
 struct SegmentEnds {
     bool found = false;
     P3 a{0, 0, 0}, b{0, 0, 0}, centroid{0, 0, 0};
