@@ -3,9 +3,14 @@
 // the narrowest section). The Visible Human's joints: tests/python/test_bones.py.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <random>
 
+#include "rig/bones/bones.hpp"
+#include "volrig/components.hpp"
 #include "volrig/error.hpp"
 #include "volrig/rig.hpp"
 
@@ -232,4 +237,110 @@ TEST_CASE("bone body: bones far apart stay apart after the last growth; an empty
     CHECK(b.radius == Approx(2.0 * std::pow(kBoneBodyGrowth, kBoneBodySteps - 1)));
     const std::vector<std::uint8_t> none(p.bone.size(), 0);
     CHECK_THROWS_AS(bone_body(p.grid, none.data()), Error);
+}
+
+namespace {
+
+/// Random bone: balls of radius 1.5-4 voxels scattered over a small grid (some cut by its border), the sparse
+/// passes' test subject.
+Phantom random_bone(unsigned seed, const std::array<std::int64_t, 3>& dims) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<std::array<double, 4>> balls(12);
+    for (auto& b : balls)
+        b = {u(rng) * static_cast<double>(dims[0]), u(rng) * static_cast<double>(dims[1]),
+             u(rng) * static_cast<double>(dims[2]), 1.5 + 2.5 * u(rng)};
+    Phantom p = phantom_of(dims, [&](std::int64_t x, std::int64_t y, std::int64_t z, double) {
+        return std::any_of(balls.begin(), balls.end(), [&](const auto& b) {
+            return std::hypot(x - b[0], y - b[1], z - b[2]) <= b[3];
+        });
+    });
+    p.grid.spacing = {1.0, 1.0, 2.0};  // (an opening of 2 mm: 2 steps; the slices one)
+    return p;
+}
+
+/// bone_segments by its definition on the dense grid: `steps` 6-neighbour erosions (the border erodes), the
+/// 26-connected components of at least `min_voxels`, every other bone voxel taking the core it reaches first.
+std::vector<std::int32_t> dense_segments(const Phantom& p, int steps, std::int64_t min_voxels) {
+    const Grid& g = p.grid;
+    std::vector<std::uint8_t> a(p.bone), b(a.size());
+    for (int s = 0; s < steps; ++s) {
+        for (std::int64_t z = 0; z < g.dims[2]; ++z)
+            for (std::int64_t y = 0; y < g.dims[1]; ++y)
+                for (std::int64_t x = 0; x < g.dims[0]; ++x) {
+                    const auto at = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+                        return i >= 0 && j >= 0 && k >= 0 && i < g.dims[0] && j < g.dims[1] && k < g.dims[2] &&
+                               a[static_cast<std::size_t>(g.index(i, j, k))];
+                    };
+                    b[static_cast<std::size_t>(g.index(x, y, z))] = at(x, y, z) && at(x - 1, y, z) && at(x + 1, y, z) &&
+                                                                   at(x, y - 1, z) && at(x, y + 1, z) &&
+                                                                   at(x, y, z - 1) && at(x, y, z + 1);
+                }
+        a.swap(b);
+    }
+    Components c = label_components(g, a.data());
+    for (auto& l : c.labels)
+        if (l > 0 && c.sizes[static_cast<std::size_t>(l - 1)] < min_voxels) l = 0;
+    std::vector<std::uint8_t> code(a.size());
+    for (std::size_t i = 0; i < code.size(); ++i) code[i] = c.labels[i] ? 1 : (p.bone[i] ? 2 : 0);
+    const std::vector<std::int64_t> pairs = nearest_seed_fill(g, code.data());
+    for (std::size_t k = 0; k + 1 < pairs.size(); k += 2)
+        c.labels[static_cast<std::size_t>(pairs[k])] = c.labels[static_cast<std::size_t>(pairs[k + 1])];
+    return c.labels;
+}
+
+}  // namespace
+
+TEST_CASE("bone segments: the sparse passes equal the dense definition on random bone", "[rig][bones]") {
+    for (unsigned seed = 1; seed <= 12; ++seed) {
+        const Phantom p = random_bone(seed, {23, 19, 14});
+        BoneRigOptions opt;
+        opt.opening = 2.0;     // two erosion steps at 1 mm
+        opt.min_volume = 8.0;  // 4 voxels of 2 mm^3: the floor of 8 voxels
+        std::vector<std::int32_t> want;
+        try {
+            want = dense_segments(p, 2, 8);
+        } catch (const Error&) {
+            continue;
+        }
+        if (std::none_of(want.begin(), want.end(), [](std::int32_t l) { return l > 0; })) {
+            CHECK_THROWS_AS(bone_segments(p.grid, p.bone.data(), opt), Error);
+            continue;
+        }
+        const BoneSegments s = bone_segments(p.grid, p.bone.data(), opt);
+        CHECK(s.labels == want);
+    }
+}
+
+TEST_CASE("bone contact: the bucketed search equals the brute-force one", "[rig][bones]") {
+    using rig_detail::P3;
+    for (unsigned seed = 1; seed <= 6; ++seed) {
+        const Phantom a = random_bone(seed, {30, 26, 18}), b = random_bone(seed + 100, {30, 26, 18});
+        std::vector<std::int32_t> labels(a.bone.size());
+        for (std::size_t i = 0; i < labels.size(); ++i) labels[i] = a.bone[i] ? 1 : (b.bone[i] ? 2 : 0);
+        const P3 centre{15, 13, 18};
+        const rig_detail::Patch pa = rig_detail::patch_of(a.grid, labels, 1, centre, 14);
+        const rig_detail::Patch pb = rig_detail::patch_of(a.grid, labels, 2, centre, 14);
+        for (const double reach : {3.0, 40.0}) {
+            const rig_detail::Contact got = rig_detail::contact_of(a.grid, pa, pb, reach, 1.5);
+            // brute force: every surface voxel against every other's
+            const auto nearest = [](const rig_detail::Patch& p, const rig_detail::Patch& q, std::size_t k) {
+                double best = std::numeric_limits<double>::infinity();
+                for (std::size_t m = 0; m < q.pos.size(); ++m)
+                    if (q.surface[m]) best = std::min(best, rig_detail::dist2(p.pos[k], q.pos[m]));
+                return std::sqrt(best);
+            };
+            double gap = std::numeric_limits<double>::infinity();
+            for (std::size_t k = 0; k < pa.pos.size(); ++k)
+                if (pa.surface[k]) gap = std::min(gap, nearest(pa, pb, k));
+            REQUIRE(got.found == (gap <= reach));
+            if (!got.found) continue;
+            CHECK(got.gap == gap);
+            std::size_t na = 0, nb = 0;
+            for (std::size_t k = 0; k < pa.pos.size(); ++k) na += pa.surface[k] && nearest(pa, pb, k) <= gap + 1.5;
+            for (std::size_t k = 0; k < pb.pos.size(); ++k) nb += pb.surface[k] && nearest(pb, pa, k) <= gap + 1.5;
+            CHECK(got.a.size() == na);
+            CHECK(got.b.size() == nb);
+        }
+    }
 }

@@ -60,14 +60,15 @@ void for_box(const Grid& g, const std::array<std::int64_t, 3>& lo, const std::ar
 
 class Fitter {
 public:
-    Fitter(const Grid& g, const BoneRigOptions& opt, const Rig& rig, BoneSegments&& segs)
-        : g_(g), p_(bone_params(g, opt)), out_{rig, {}, std::move(segs), {}} {
+    /// `voxels`: the bone's voxels (ascending), whose segments `segs` are.
+    Fitter(const Grid& g, const BoneParams& p, const Rig& rig, BoneSegments&& segs, const std::vector<std::int64_t>& voxels)
+        : g_(g), p_(p), out_{rig, {}, std::move(segs), {}} {
         for (std::size_t b = 0; b < rig.names.size(); ++b) index_[rig.names[b]] = static_cast<int>(b);
         cell_ = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
         members_.resize(out_.segments.sizes.size() + 1);
-        const auto& labels = out_.segments.labels;
-        for (std::size_t i = 0; i < labels.size(); ++i)
-            if (labels[i] > 0) members_[static_cast<std::size_t>(labels[i])].push_back(static_cast<std::int64_t>(i));
+        for (std::int64_t i : voxels)
+            if (const std::int32_t s = out_.segments.labels[static_cast<std::size_t>(i)]; s > 0)
+                members_[static_cast<std::size_t>(s)].push_back(i);
     }
 
     BoneRig run() {
@@ -130,7 +131,7 @@ private:
         double gap = p_.reach;
         for (const auto& [t, count] : segments_near(c, w)) {
             if (t == s || t == exclude[0] || t == exclude[1] || count < 8) continue;
-            const Contact k = contact_of(own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
+            const Contact k = contact_of(g_, own, patch_of(g_, out_.segments.labels, t, c, w), p_.reach, cell_);
             if (k.found && k.gap < gap) gap = k.gap, best = t;
         }
         return best;
@@ -306,7 +307,7 @@ Patch Fitter::child_side(const BoneJoint& j, const Patch& parent, const P3& at, 
         for (const P3& q : p.pos)
             for (int a = 0; a < 3; ++a) c[a] += q[a] / static_cast<double>(p.pos.size());
         if (t != j.child_segment && dot(sub(c, at), axis) <= 0) continue;
-        if (!contact_of(p, parent, p_.reach, cell_).found) continue;
+        if (!contact_of(g_, p, parent, p_.reach, cell_).found) continue;
         out.pos.insert(out.pos.end(), p.pos.begin(), p.pos.end());
         out.surface.insert(out.surface.end(), p.surface.begin(), p.surface.end());
         out.index.insert(out.index.end(), p.index.begin(), p.index.end());
@@ -318,7 +319,7 @@ bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
     const P3 at = head(cb);
     const Patch parent = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
     const Patch child = child_side(j, parent, at, axis_of(pb), w);
-    const Contact k = contact_of(parent, child, p_.reach, std::max(1.5 * cell_, 4.0));
+    const Contact k = contact_of(g_, parent, child, p_.reach, std::max(1.5 * cell_, 4.0));
     if (!k.found) {
         j.why = "no segment meets segment " + std::to_string(j.parent_segment) + " there";
         return false;
@@ -364,7 +365,7 @@ bool Fitter::reseed_shared(BoneJoint& j, int pb, int cb, double w) {
     int most = 0;
     for (const auto& [t, count] : segments_near(end, w))
         if (t != j.child_segment && count > most &&
-            contact_of(own, patch_of(g_, out_.segments.labels, t, end, w), p_.reach, cell_).found)
+            contact_of(g_, own, patch_of(g_, out_.segments.labels, t, end, w), p_.reach, cell_).found)
             most = count, other = t;
     if (other == 0) return false;
     const std::string why = j.why;
@@ -467,9 +468,9 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
         return c.has_value();
     }
     const Patch other = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
-    const Contact k = contact_of(own, other, p_.reach, cell_);
+    const Contact k = contact_of(g_, own, other, p_.reach, cell_);
     // the head's surface facing its socket, a few voxels deep into the gap
-    const Contact cap = contact_of(own, other, p_.reach, std::max(3 * cell_, 6.0));
+    const Contact cap = contact_of(g_, own, other, p_.reach, std::max(3 * cell_, 6.0));
     const Sphere s = fit_sphere(cap.a);
 
     if (s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius)
@@ -531,8 +532,10 @@ namespace volrig {
 
 BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt) {
     check_rig(rig);
-    BoneSegments segs = bone_segments(grid, bone, opt);
-    return rig_detail::Fitter(grid, opt, rig, std::move(segs)).run();
+    using namespace rig_detail;
+    const BoneParams p = bone_params(grid, opt);
+    const std::vector<std::int64_t> voxels = bone_voxels(grid, bone);
+    return Fitter(grid, p, rig, segments_of(grid, voxels, p), voxels).run();
 }
 
 }  // namespace volrig

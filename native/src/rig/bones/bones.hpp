@@ -42,6 +42,9 @@ struct Crop {
 };
 Crop crop_of(const Grid& g, const std::uint8_t* bone, const std::array<std::int64_t, 3>& pad);
 
+/// The bone's voxels (linear indices of its non-zero bytes, ascending), found slice by slice in parallel.
+std::vector<std::int64_t> bone_voxels(const Grid& g, const std::uint8_t* bone);
+
 /// The options with their defaults filled in for `grid` (opening in voxels at least 1).
 struct BoneParams {
     int erode_steps = 1;
@@ -49,6 +52,9 @@ struct BoneParams {
     double reach = 20.0;
 };
 BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt);
+
+/// bone_segments of the bone voxels `voxels` (bone_voxels).
+BoneSegments segments_of(const Grid& grid, const std::vector<std::int64_t>& voxels, const BoneParams& p);
 
 /// Bone voxels of a segment near a point: world positions, and whether each lies on the segment's surface (a
 /// 6-neighbour outside the segment).
@@ -62,15 +68,15 @@ struct Patch {
 Patch patch_of(const Grid& grid, const std::vector<std::int32_t>& labels, std::int32_t s, const P3& centre,
                double radius);
 
-/// The contact between two patches: the surface voxels of each within `tolerance` of the closest distance
-/// between them (searched up to `reach`); found = false when they lie farther apart.
+/// The contact between two patches of `grid`: the surface voxels of each within `tolerance` of the closest
+/// distance between them (searched up to `reach`); found = false when they lie farther apart.
 struct Contact {
     bool found = false;
     double gap = 0;                  ///< closest distance between surface voxel centres (mm)
     std::vector<P3> a, b;            ///< the contact voxels of each side
     P3 centre{0, 0, 0};              ///< midpoint of the two sides' centroids
 };
-Contact contact_of(const Patch& a, const Patch& b, double reach, double tolerance);
+Contact contact_of(const Grid& grid, const Patch& a, const Patch& b, double reach, double tolerance);
 
 /// Least-squares sphere through points: centre and radius; radius <= 0 when the fit is degenerate.
 struct Sphere {

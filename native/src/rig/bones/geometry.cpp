@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "rig/bones/bones.hpp"
+#include "common/point_grid.hpp"
 #include "volrig/distance.hpp"
 
 namespace volrig::rig_detail {
@@ -35,18 +36,44 @@ bool on_surface(const Grid& g, const std::vector<std::int32_t>& labels, std::int
     return false;
 }
 
-/// For each surface point of `a`, the distance to the nearest surface point of `b` (infinity: none).
-std::vector<double> nearest_of(const Patch& a, const Patch& b) {
-    std::vector<P3> bs;
+/// Voxel (x, y, z) of a linear index.
+std::array<std::int64_t, 3> voxel_of(const Grid& g, std::int64_t index) {
+    return {index % g.dims[0], (index / g.dims[0]) % g.dims[1], index / (g.dims[0] * g.dims[1])};
+}
+
+/// For each surface point of `a`, the distance to the nearest surface point of `b` when at most `limit`, else
+/// infinity: b's surface voxels bucketed in cells at least `limit` wide, each of a's searched in the cells around it.
+std::vector<double> nearest_of(const Grid& g, const Patch& a, const Patch& b, double limit) {
+    std::vector<std::int32_t> zyx;
+    std::vector<std::size_t> which;
     for (std::size_t k = 0; k < b.pos.size(); ++k)
-        if (b.surface[k]) bs.push_back(b.pos[k]);
+        if (b.surface[k]) {
+            const std::array<std::int64_t, 3> v = voxel_of(g, b.index[k]);
+            zyx.insert(zyx.end(), {static_cast<std::int32_t>(v[2]), static_cast<std::int32_t>(v[1]),
+                                   static_cast<std::int32_t>(v[0])});
+            which.push_back(k);
+        }
+    std::array<std::int64_t, 3> cell{};
+    for (int x = 0; x < 3; ++x) {  // (compared before the cast: an unbounded reach is one cell)
+        const double c = std::ceil(limit / g.spacing[x]);
+        cell[x] = c < static_cast<double>(g.dims[x]) ? std::max<std::int64_t>(1, static_cast<std::int64_t>(c)) : g.dims[x];
+    }
+    const common_detail::PointGrid near(g, PointSet{zyx.data(), nullptr, which.size()}, cell);
     std::vector<double> d(a.pos.size(), std::numeric_limits<double>::infinity());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, a.pos.size()), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             if (!a.surface[k]) continue;
-            double best = d[k];
-            for (const P3& q : bs) best = std::min(best, dist2(a.pos[k], q));
-            d[k] = std::sqrt(best);
+            const std::array<std::int64_t, 3> v = voxel_of(g, a.index[k]);
+            const std::int32_t at[3] = {static_cast<std::int32_t>(v[2]), static_cast<std::int32_t>(v[1]),
+                                        static_cast<std::int32_t>(v[0])};
+            const std::array<std::int64_t, 3> c = near.cell_of(at);
+            double best = limit * limit;
+            bool seen = false;
+            near.for_each_in_box({c[0] - 1, c[1] - 1, c[2] - 1}, {c[0] + 1, c[1] + 1, c[2] + 1}, [&](std::uint32_t i) {
+                const double e = dist2(a.pos[k], b.pos[which[i]]);
+                if (e <= best) best = e, seen = true;
+            });
+            if (seen) d[k] = std::sqrt(best);
         }
     });
     return d;
@@ -62,7 +89,7 @@ std::vector<P3> within(const Patch& p, const std::vector<double>& d, double limi
 }  // namespace
 
 P3 voxel_position(const Grid& g, std::int64_t index) {
-    const std::int64_t x = index % g.dims[0], y = (index / g.dims[0]) % g.dims[1], z = index / (g.dims[0] * g.dims[1]);
+    const auto [x, y, z] = voxel_of(g, index);
     return {g.origin[0] + g.spacing[0] * static_cast<double>(x), g.origin[1] + g.spacing[1] * static_cast<double>(y),
             g.origin[2] + g.spacing[2] * static_cast<double>(z)};
 }
@@ -91,9 +118,9 @@ Patch patch_of(const Grid& g, const std::vector<std::int32_t>& labels, std::int3
     return p;
 }
 
-Contact contact_of(const Patch& a, const Patch& b, double reach, double tolerance) {
+Contact contact_of(const Grid& g, const Patch& a, const Patch& b, double reach, double tolerance) {
     Contact c;
-    const std::vector<double> da = nearest_of(a, b), db = nearest_of(b, a);
+    const std::vector<double> da = nearest_of(g, a, b, reach + tolerance), db = nearest_of(g, b, a, reach + tolerance);
     const double gap = da.empty() ? std::numeric_limits<double>::infinity() : *std::min_element(da.begin(), da.end());
     if (!(gap <= reach)) return c;
     c.found = true;
