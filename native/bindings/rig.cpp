@@ -209,6 +209,7 @@ void bind_rig(py::module_& m) {
     m.attr("AUTORIG_KINDS") = names_tuple(kAutorigKinds);  // spelled once in the core (volrig/rig.hpp)
     m.attr("MARKER_NAMES") = names_tuple(kMarkerNames);
     m.attr("PLAN_TERMS") = py::tuple(py::cast(autorig_plan_terms()));
+    m.attr("PLAN_WEIGHTS") = py::tuple(py::cast(autorig_fitted_weights()));
     bind_autorig(m);
 
     m.def(

@@ -241,6 +241,19 @@ MARKER_NAMES = tuple(_volrig.MARKER_NAMES)
 BARE_BONE_SHARE = float(_volrig.BARE_BONE_SHARE)
 #: The body-plan features whose weights are fitted to data (``plan_weights=`` adds neutral chains' score).
 PLAN_TERMS = tuple(_volrig.PLAN_TERMS)
+#: The fitted weights (``PLAN_TERMS``', then neutral chains' score): ``plan_weights``' default.
+PLAN_WEIGHTS = tuple(_volrig.PLAN_WEIGHTS)
+
+
+def bone_plan_weights() -> List[float]:
+    """The weights a body plan read from the bone itself (``autorig(bone=)`` without flesh) is scored with: the
+    fitted ones, but a head thinner than an extremity the reading leaves out costs as much as no plan (neutral
+    chains' score). A skeleton's head is its skull, the thickest end of a vertebrate's bones, even where a long tail
+    sticks out further; an outer shape's head leaf is often an ear or a muzzle thinner than its tail, which is why
+    the weight fitted to the characters' shapes is small."""
+    w = list(PLAN_WEIGHTS)
+    w[PLAN_TERMS.index("head_thin")] = w[-1]
+    return w
 
 
 def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[int] = None,
@@ -276,14 +289,15 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  points the user marked on the object. Each must lie nearest the limb (or head, or pelvis) its name
                  gives in the body plan chosen, and the marked joints move to them (a chin gives the head joint's
                  height). With markers a body plan always wins over neutral chains; VolrigError when none meets them.
-    plan_weights: the body-plan penalties' weights (``PLAN_TERMS`` then chains' score; None: the fitted ones),
-                 for fitting and cross-validating them.
+    plan_weights: the body-plan penalties' weights (``PLAN_TERMS`` then chains' score; None: the fitted ones,
+                 ``PLAN_WEIGHTS``, or ``bone_plan_weights()`` for a plan read from the bone), for fitting and
+                 cross-validating them.
     bone:        the scan's bone tissue (a bool Volume or array on the mask's grid, z, y, x), when known: a
                  humanoid's or quadruped's limb joints then move to the articulations the bones show
                  (``volrig.bones.rig_to_bones``; ``rig.bone_joints`` says which moved, and how). When the
                  flesh is missing (``BARE_BONE_SHARE`` of the outer surface or more is bone), the body plan is read
-                 from the bone grown into a body (``volrig.bones.bone_body``) and ``rig.note`` says so. None: the
-                 rig from the outer shape alone.
+                 from the bone grown into a body (``volrig.bones.bone_body``), its head the skull (the thickest
+                 end: ``bone_plan_weights``), and ``rig.note`` says so. None: the rig from the outer shape alone.
     When no body plan fits, the rig is neutral chains and ``rig.note`` says so.
     """
     return autorig_fit(points, tree, mask, bones=bones, prune_scale=prune_scale, tolerance=tolerance, roles=roles,
@@ -309,10 +323,10 @@ def autorig_fit(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optiona
     if bone is not None:
         _mask_for(points, bone)  # the same geometry as the skeleton's
         plan = _plan_from_bones(plan, bone)
+    weights = plan.weights if plan_weights is None else plan_weights
     d = _volrig.autorig(plan.mask, points.spacing, points.origin, plan.ijk, plan.radii, plan.edges, int(bones or 0),
                         float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(plan.own_scale),
-                        progress, _markers(markers),
-                        [] if plan_weights is None else [float(w) for w in plan_weights])
+                        progress, _markers(markers), [] if weights is None else [float(w) for w in weights])
     d["joint_points"] = plan.joint_points(d["joint_points"])
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],
@@ -339,6 +353,7 @@ class _Plan:
     own_scale: bool
     note: str = ""
     user_points: Optional[SkeletonPoints] = None  # set when the plan's points are not the caller's
+    weights: Optional[List[float]] = None  # the plan weights when not the fitted ones (bone_plan_weights)
 
     def joint_points(self, jp: np.ndarray) -> np.ndarray:
         """The rig's joint points as indices into the caller's points (the nearest of them; -1 stays)."""
@@ -371,7 +386,8 @@ def _plan_from_bones(plan: _Plan, bone) -> _Plan:
     pts = skeletonize(body).top(_BONE_BODY_POINTS)
     ijk, radii = _point_arrays(pts)
     note = f"body plan from the bones ({share:.0%} of the surface is bare bone; the bone grown by {radius:.1f} mm)"
-    return _Plan(_mask_for(pts, body), pts, ijk, radii, skeleton_tree(pts, body).edges, True, note, plan.points)
+    return _Plan(_mask_for(pts, body), pts, ijk, radii, skeleton_tree(pts, body).edges, True, note, plan.points,
+                 bone_plan_weights())
 
 
 def _markers(markers) -> dict:

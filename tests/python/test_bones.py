@@ -286,10 +286,14 @@ def test_the_frog_rigs_from_its_bones():
     """The frog's labels hold organs and bones, no skin: 47% of its outer surface is bare bone, so the body plan is
     read from the bone (label 13) grown into a body. Each limb chain then runs on its own limb's bones: the four
     limbs' bone segments are disjoint, their middle joints lie within 5 mm of bone, the legs hang from the end away from the
-    head, and left and right lie on either side of the spine."""
+    head, and left and right lie on either side of the spine; with up given (its limbs below its trunk) or not."""
     vol, mask, pts, tree, bone = frog()
     assert volrig.bones.bare_bone_share(mask, bone) > volrig.rig.BARE_BONE_SHARE
-    rig = volrig.autorig(pts, tree, mask, bone=bone)
+    for up in (None, (0, 0, -1)):  # (its limbs below its trunk: read back to front before the skull was the head)
+        _check_frog_rig(volrig.autorig(pts, tree, mask, bone=bone, up=up), bone)
+
+
+def _check_frog_rig(rig, bone):
     assert rig.kind in ("humanoid", "quadruped") and rig.note.startswith("body plan from the bones"), rig.note
     b = np.asarray(bone.array).astype(bool)
     to_bone = volrig.distance_transform(bone.like(~b))  # mm to the nearest bone voxel
@@ -326,10 +330,11 @@ def _segment_distance(p, a, b):
     return float(np.linalg.norm(p - (a + t * d)))
 
 
-def bones_only_quadruped(scale=2.0):
+def bones_only_quadruped(scale=2.0, tail=4):
     """A small four-legged animal's skeleton and organs, no skin (as a frog's or a mouse's labels may be): label 13
     its bones (vertebrae, girdles, leg bones with joint spaces between them, a tail, a skull thicker than the trunk
-    on a neck), label 5 organs in the trunk; trunk along y (head at -y), legs down (z up), ``scale`` voxels a unit.
+    on a neck), label 5 organs in the trunk; trunk along y (head at -y), legs down (z up), ``scale`` voxels a unit;
+    ``tail`` vertebrae 6 units long from the pelvis (14: a tail longer than the trunk, as a mouse's).
     Returns the labels Volume and each leg's long bones (name -> [(a, b)] in voxels, x, y, z)."""
     from volrig_support.subjects import _capsule_mask
 
@@ -346,7 +351,7 @@ def bones_only_quadruped(scale=2.0):
     spine = [j["hips"] + t * (j["chest"] - j["hips"]) for t in np.linspace(0, 1, 9)]
     bones = [(*apart(a, b, 0.8), 2.2) for a, b in zip(spine[:-1], spine[1:])]
     bones.append((*apart(j["chest"], (0, -46, 56), 1.0), 1.8))  # neck
-    bones += [(*apart((0, 38 + 6 * k, 46 - k), (0, 44 + 6 * k, 45 - k), 0.6), 1.2) for k in range(4)]  # tail
+    bones += [(*apart((0, 31 + 6 * k, 45 - k), (0, 37 + 6 * k, 44 - k), 0.6), 1.2) for k in range(tail)]  # tail
     for name, (top, mid, low) in legs.items():
         girdle = j["chest" if name.startswith("front") else "hips"]
         bones += [(girdle, np.add(top, (-np.sign(top[0]) * 1.5, 0, 0.5)), 2.0),
@@ -360,12 +365,15 @@ def bones_only_quadruped(scale=2.0):
     return volrig.Volume(labels), at
 
 
-def test_a_small_quadruped_rigs_from_its_bones_with_each_leg_on_its_own_bones():
+@pytest.mark.parametrize("tail", [4, 14])
+def test_a_small_quadruped_rigs_from_its_bones_with_each_leg_on_its_own_bones(tail):
     """Issue 54's small four-legged vertebrate: bones and organs, no skin, the skull thicker than the trunk. The
     body plan is read from the bone grown into a body (its thickest node, the skull, an end on a neck: a leaf like
     the feet, so five extremities); it is a quadruped, up given or not, and each leg's knee or elbow lies on its own
-    leg's bones."""
-    labels, legs = bones_only_quadruped()
+    leg's bones. With a tail longer than its trunk (a mouse's) too: the tail sticks out furthest but is thin, and
+    the plan read from bones takes the skull, the thickest end, for the head (bone_plan_weights; before, such a
+    body was rigged back to front, its tail the head)."""
+    labels, legs = bones_only_quadruped(tail=tail)
     mask = volrig.segment(labels)
     bone = volrig.rigid_tissue(labels, labels=[13])
     pts = volrig.skeletonize(mask).top(40000)

@@ -86,6 +86,10 @@ struct AutorigOptions {
 /// The names of the body-plan features (the order of AutorigOptions::plan_weights, which adds the chains' score).
 std::vector<std::string> autorig_plan_terms();
 
+/// The fitted body-plan weights (autorig_plan_terms' order, then the chains' score): AutorigOptions::plan_weights'
+/// default.
+std::vector<double> autorig_fitted_weights();
+
 /// What autorig kept, for pictures and diagnostics.
 struct AutorigDetail {
     std::vector<std::uint8_t> kept;  ///< per point: 1 when it survived spur pruning

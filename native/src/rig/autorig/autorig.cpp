@@ -291,6 +291,8 @@ std::vector<std::string> autorig_plan_terms() {
     return {rig_detail::kPlanTermNames.begin(), rig_detail::kPlanTermNames.end()};
 }
 
+std::vector<double> autorig_fitted_weights() { return rig_detail::fitted_plan_weights(); }
+
 Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
             const std::vector<std::array<std::uint32_t, 2>>& edges, const AutorigOptions& opt,
             const Progress& progress, AutorigDetail* detail) {

@@ -247,8 +247,8 @@ PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<Pl
     auto weight = [&](std::size_t i) { return std::max(ext[i].first, 0.0) * t.end_radius(ext[i].second); };
     for (int i = 0; i < m; ++i) total += weight(static_cast<std::size_t>(i));
     for (int mask5 = 0; mask5 < (1 << m); ++mask5) {
-        // A body plan includes the most prominent extremity.
-        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5 || (mask5 & 1) != 1) continue;
+        // Any five: a tail longer than the body may be left out (kLeftOut prices what is).
+        if (__builtin_popcount(static_cast<unsigned>(mask5)) != 5) continue;
         std::array<std::uint32_t, 5> leaf{};
         double left_out = 0, left_out_thickness = 0;
         for (int i = 0, k = 0; i < m; ++i) {
