@@ -158,6 +158,12 @@ def draw_bone_rigs(out: str, only: set) -> None:
         draw(bone_case("frog (label 13 its skeleton)", volrig.segment(vol), volrig.rigid_tissue(vol, labels=[13]),
                        40000),
              os.path.join(out, "rig_bones_frog.png"), views=((0, 1), (0, 2)))
+    if "bones_mouse" in only:  # synthetic: a small quadruped's bone labels, its tail longer than its trunk
+        from volrig_support import subjects as S
+        labels, _ = S.bones_only_quadruped(tail=14)
+        draw(bone_case("small quadruped (synthetic bones), tail longer than its trunk",
+                       volrig.segment(labels), volrig.rigid_tissue(labels, labels=[13]), 40000),
+             os.path.join(out, "rig_bones_mouse.png"), views=((1, 2), (0, 1)))
     ct = os.path.join(SHARED, "totalseg", "example_ct.nii.gz")
     if "bones_ct" in only and os.path.exists(ct):
         vol = volrig.load(ct)  # an abdominal CT (part of a body): bone by Hounsfield units
@@ -197,7 +203,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
     ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4", "bones_vhm",
-                                                "bones_posed", "bones_frog", "bones_ct"]),
+                                                "bones_posed", "bones_frog", "bones_mouse", "bones_ct"]),
                     help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)

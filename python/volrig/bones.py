@@ -102,9 +102,11 @@ def bone_body(bone) -> Tuple[Volume, float, float]:
 
 def bone_segments(bone, opening: Optional[float] = None, min_volume: Optional[float] = None) -> Tuple[Volume, np.ndarray]:
     """The bone tissue (a bool Volume or array, z, y, x) split into rigid segments: an opening of ``opening`` mm
-    (default 4, at least one voxel) parts bones touching across a joint at the voxel size; the eroded bone's
-    26-connected components of at least ``min_volume`` mm^3 (default 1000) are the segments, and every bone voxel
-    joins the one it reaches first through the bone. Returns (int32 labels Volume, voxels per segment)."""
+    (default 4, or a twentieth of the skeleton's size, the cube root of its bone's volume, when smaller; at least
+    one voxel) parts bones touching across a joint at the voxel size; the eroded bone's 26-connected components of
+    at least ``min_volume`` mm^3 (default 1000, or 1/600 of the bone's volume when smaller: a mouse's skeleton gets
+    its own proportions) are the segments, and every bone voxel joins the one it reaches first through the bone.
+    Returns (int32 labels Volume, voxels per segment)."""
     arr = _bone_array(bone)
     spacing, origin = _geometry(bone)
     labels, sizes = _volrig.bone_segments(arr, spacing, origin, float(opening or 0.0), float(min_volume or 0.0))
@@ -122,7 +124,8 @@ def rig_to_bones(rig, bone, opening: Optional[float] = None, min_volume: Optiona
     a hip or shoulder to the centre of a sphere fitted to the head's surface facing its socket, a joint inside one
     segment to its narrowest section (the segment is split there). End joints (hand and foot tips) move with their
     bone's head, keeping its direction. Joints the bones cannot show keep their position (``BoneJoint.why``).
-    ``reach``: how far apart (mm) two segments may be and still meet (default 20)."""
+    ``reach``: how far apart (mm) two segments may be and still meet (default 20, or a quarter of the skeleton's
+    size when smaller; the fitter's other windows shrink with the skeleton below the frog's the same way)."""
     arr = _bone_array(bone, like_shape)
     spacing, origin = _geometry(bone)
     d = _volrig.rig_to_bones(arr, spacing, origin, rig.joints, rig.bones, rig.names, rig.parents,

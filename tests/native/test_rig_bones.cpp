@@ -344,3 +344,22 @@ TEST_CASE("bone contact: the bucketed search equals the brute-force one", "[rig]
         }
     }
 }
+
+TEST_CASE("bone segments: the defaults scale with the skeleton (a femur and tibia a tenth the size)", "[rig][bones]") {
+    Phantom p = femur_tibia(0);
+    p.grid.spacing = {0.1, 0.1, 0.1};  // 4.5 mm long bones: an adult's 4 mm opening would erode them away
+    const BoneSegments s = bone_segments(p.grid, p.bone.data());
+    REQUIRE(s.sizes.size() == 2);
+    CHECK(s.labels[static_cast<std::size_t>(p.grid.index(20, 20, 80))] !=
+          s.labels[static_cast<std::size_t>(p.grid.index(20, 20, 30))]);
+    BoneRigOptions adult;
+    adult.opening = 4.0;
+    CHECK_THROWS_AS(bone_segments(p.grid, p.bone.data(), adult), Error);
+    Rig r = leg_rig();
+    for (auto& j : r.joints)
+        for (double& c : j) c *= 0.1;
+    const BoneRig fit = rig_to_bones(p.grid, p.bone.data(), r);
+    const BoneJoint& knee = joint_named(fit, "knee.L");
+    CHECK(knee.how == "contact");
+    CHECK(std::abs(knee.to[2] - 5.9) <= 0.15);  // the gap z 57..61 (voxels): its centre at 5.9 mm
+}

@@ -142,14 +142,16 @@ Binding bind(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, co
 // ---- rigs from a scan's bones (native/src/rig/bones/, docs/rig.md "Rigs from the bones") --------------------------
 
 struct BoneRigOptions {
-    /// Bones touching across an articulation are parted by an opening of this radius (mm; 0 = 4 mm, at least
-    /// one voxel): the bone is eroded (6-neighbour steps), its 26-connected components labelled, and every bone
-    /// voxel given the component reached in fewest steps.
+    /// Bones touching across an articulation are parted by an opening of this radius (mm; 0 = 4 mm or a
+    /// twentieth of the skeleton's size, the cube root of its bone's volume, whichever is smaller; at least one
+    /// voxel): the bone is eroded (6-neighbour steps), its 26-connected components labelled, and every bone voxel
+    /// given the component reached in fewest steps.
     double opening = 0;
-    /// Components of the eroded bone smaller than this (mm^3; 0 = 1000, a 10 mm cube) are no segments of their
-    /// own: their voxels go to the nearest segment.
+    /// Components of the eroded bone smaller than this (mm^3; 0 = 1000, a 10 mm cube, or 1/600 of the bone's
+    /// volume, whichever is smaller) are no segments of their own: their voxels go to the nearest segment.
     double min_volume = 0;
-    /// How far (mm) two segments may lie apart and still meet at a joint (0 = 20 mm).
+    /// How far (mm) two segments may lie apart and still meet at a joint (0 = 20 mm or a quarter of the skeleton's
+    /// size, whichever is smaller).
     double reach = 0;
 };
 

@@ -11,6 +11,8 @@ mask's world frame, and reference joints (world positions, named) where there ar
 - ``capsules_<pose>`` (scale): a humanoid of capsules generated here (``capsule_subject``) in a pose autorig was
   not developed on (``CAPSULE_POSES``: knees apart, feet wide, a stride, a T-pose, arms up...); its true joints.
   ``capsule_quadruped_subject(tail, scale)``: a dog of capsules with a tail of any length (not in ``SUBJECTS``).
+  ``bones_only_quadruped(scale, tail)``: a small four-legged animal's bone and organ labels, no skin, its tail
+  ``tail`` vertebrae long (14: longer than its trunk, as a mouse's), and each leg's long bones.
 - ``arm``, ``hand``: libigl's meshes with their TGF skeletons (``joints`` named "j0", "j1", ...; ``bones`` the
   TGF edges), voxelized; ``knight``, ``cow``, ``lion``, ``horse``, ``camel``: meshes without reference joints.
 
@@ -310,6 +312,39 @@ def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0, front: flo
 
 
 SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES) + tuple(f"capsules_{p}" for p in CAPSULE_POSES)
+
+
+def bones_only_quadruped(scale=2.0, tail=4):
+    """A small four-legged animal's skeleton and organs, no skin (as a frog's or a mouse's labels may be): label 13
+    its bones (vertebrae, girdles, leg bones with joint spaces between them, a tail, a skull thicker than the trunk
+    on a neck), label 5 organs in the trunk; trunk along y (head at -y), legs down (z up), ``scale`` voxels a unit;
+    ``tail`` vertebrae 6 units long from the pelvis (14: a tail longer than the trunk, as a mouse's).
+    Returns the labels Volume and each leg's long bones (name -> [(a, b)] in voxels, x, y, z)."""
+    def apart(a, b, gap):  # a bone from a to b, short of both joints by ``gap``
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        d = (b - a) / np.linalg.norm(b - a)
+        return a + gap * d, b - gap * d
+
+    j = {"hips": np.array([0, 30, 45.]), "chest": np.array([0, -28, 48.])}
+    legs = {}
+    for side, s in (("L", 1), ("R", -1)):
+        legs[f"front.{side}"] = [(s * 9, -28, 42), (s * 9, -30, 24), (s * 9, -28, 6)]
+        legs[f"hind.{side}"] = [(s * 9, 30, 40), (s * 9, 36, 24), (s * 9, 30, 6)]
+    spine = [j["hips"] + t * (j["chest"] - j["hips"]) for t in np.linspace(0, 1, 9)]
+    bones = [(*apart(a, b, 0.8), 2.2) for a, b in zip(spine[:-1], spine[1:])]
+    bones.append((*apart(j["chest"], (0, -46, 56), 1.0), 1.8))  # neck
+    bones += [(*apart((0, 31 + 6 * k, 45 - k), (0, 37 + 6 * k, 44 - k), 0.6), 1.2) for k in range(tail)]  # tail
+    for name, (top, mid, low) in legs.items():
+        girdle = j["chest" if name.startswith("front") else "hips"]
+        bones += [(girdle, np.add(top, (-np.sign(top[0]) * 1.5, 0, 0.5)), 2.0),
+                  (*apart(top, mid, 1.5), 2.4), (*apart(mid, low, 1.5), 1.9), (*apart(low, np.add(low, (0, -7, -3)), 1.0), 1.2)]
+    skull = [((0, -55, 60), 7)]
+    bone, shift = _capsule_mask(bones, skull, scale, pad=10)
+    body, _ = _capsule_mask([(j["hips"] + (0, -3, -2), j["chest"] + (0, 3, -2), 8)] + bones, skull, scale, pad=10)
+    labels = np.where(bone, 13, np.where(body, 5, 0)).astype(np.uint8)
+    at = {name: [(np.add(a, shift) * scale, np.add(b, shift) * scale) for a, b in zip(p[:-1], p[1:])]
+          for name, p in legs.items()}
+    return Volume(labels), at
 
 
 def load_subject(name: str, **kw) -> Subject:

@@ -95,7 +95,7 @@ private:
     /// The segment with most voxels near the stretch of bone b between the shares `from` and `to` of its length.
     std::int32_t segment_along(int b, double from, double to) const {
         const P3 a = lerp(head(b), tail(b), from), e = lerp(head(b), tail(b), to);
-        const double r = std::clamp(0.1 * length(b), 3 * cell_, 40.0);
+        const double r = std::clamp(0.1 * length(b), 3 * cell_, std::max(3 * cell_, 40.0 * p_.scale));
         std::array<std::int64_t, 3> lo{}, hi{};
         box_of(g_, a, e, r, lo, hi);
         std::map<std::int32_t, std::int64_t> votes;
@@ -207,7 +207,7 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     j.from = j.to = head(cb);
     j.how = "kept";
     const double span = pb >= 0 ? std::min(length(cb), length(pb)) : length(cb);
-    const double w = std::clamp(0.3 * span, 3 * cell_, 60.0);
+    const double w = std::clamp(0.3 * span, 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
     j.child_segment = segment_of(cb);
     // the parent's segment at the joint's end of it (a forearm parted mid-shaft where slices lie far apart: the
     // wrist's is the lower piece)
@@ -253,7 +253,7 @@ bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
 }
 
 /// How far from the limb (mm) and from the share its proportions put a hidden hinge at it is sought.
-constexpr double kLimbRadius = 60.0, kLimbBand = 0.15;
+constexpr double kLimbRadius = 60.0, kLimbBand = 0.15;  // (kLimbRadius an adult's: times BoneParams::scale)
 
 /// A knee or an elbow whose parent's segment runs on into the child bone's first stretch (slices too far apart to
 /// part them there: the humerus fused with the top of the forearm), where the bones show no contact near the outer
@@ -285,8 +285,8 @@ bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
     const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
     const P3 mid = lerp(limb.a, limb.b, 0.5);
     const P3 axis = unit(add(unit(sub(limb.k, limb.a)), unit(sub(limb.b, limb.k))));  // splits upper from lower
-    const Patch p = patch_of(g_, out_.segments.labels, j.child_segment, mid, 0.5 * length + kLimbRadius);
-    const Section s = limb_section(p, limb, kLimbRadius, slab_along(axis));
+    const Patch p = patch_of(g_, out_.segments.labels, j.child_segment, mid, 0.5 * length + kLimbRadius * p_.scale);
+    const Section s = limb_section(p, limb, kLimbRadius * p_.scale, slab_along(axis));
     if (!s.found) return false;
     const std::int32_t shared = j.child_segment;
     move(j, cb, s.centre, s.bulge ? "bulge" : "section");
@@ -319,7 +319,7 @@ bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
     const P3 at = head(cb);
     const Patch parent = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
     const Patch child = child_side(j, parent, at, axis_of(pb), w);
-    const Contact k = contact_of(g_, parent, child, p_.reach, std::max(1.5 * cell_, 4.0));
+    const Contact k = contact_of(g_, parent, child, p_.reach, std::max(1.5 * cell_, 4.0 * p_.scale));
     if (!k.found) {
         j.why = "no segment meets segment " + std::to_string(j.parent_segment) + " there";
         return false;
@@ -438,7 +438,7 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
                                              mirror_segment(cb)};
     bool seeded = db >= 0 && seed_ball(j, cb, db);
     std::optional<ShaftHead> shaft;
-    if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, 60.0);  // the long bone's length
+    if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));  // the long bone's length
     else if (db >= 0 && (shaft = seed_by_shaft(j, cb, db, w)))
         w = std::max(w, kShaftWindow * shaft->length), seeded = true;
     if (!fit_ball(j, cb, exclude, w)) return false;
@@ -470,7 +470,7 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
     const Patch other = patch_of(g_, out_.segments.labels, j.parent_segment, at, w);
     const Contact k = contact_of(g_, own, other, p_.reach, cell_);
     // the head's surface facing its socket, a few voxels deep into the gap
-    const Contact cap = contact_of(g_, own, other, p_.reach, std::max(3 * cell_, 6.0));
+    const Contact cap = contact_of(g_, own, other, p_.reach, std::max(3 * cell_, 6.0 * p_.scale));
     const Sphere s = fit_sphere(cap.a);
 
     if (s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius)
@@ -482,7 +482,7 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
 
 /// Voxels of segment s beyond the plane (at, axis) and near bone cb become a new segment.
 void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
-    const double r = std::clamp(0.3 * length(cb), 3 * cell_, 60.0);
+    const double r = std::clamp(0.3 * length(cb), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
     // the child bone and the bones below it (a shin and its foot: a foot fused with the tibia goes with it)
     std::vector<int> below{cb};
     for (std::size_t k = 0; k < below.size(); ++k)
@@ -533,8 +533,8 @@ namespace volrig {
 BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt) {
     check_rig(rig);
     using namespace rig_detail;
-    const BoneParams p = bone_params(grid, opt);
     const std::vector<std::int64_t> voxels = bone_voxels(grid, bone);
+    const BoneParams p = bone_params(grid, opt, voxels.size());
     return Fitter(grid, p, rig, segments_of(grid, voxels, p), voxels).run();
 }
 

@@ -45,13 +45,23 @@ Crop crop_of(const Grid& g, const std::uint8_t* bone, const std::array<std::int6
 /// The bone's voxels (linear indices of its non-zero bytes, ascending), found slice by slice in parallel.
 std::vector<std::int64_t> bone_voxels(const Grid& g, const std::uint8_t* bone);
 
-/// The options with their defaults filled in for `grid` (opening in voxels at least 1).
+/// The defaults scale with the skeleton: its size is the cube root of its bone's volume (190 mm for an adult's, 87
+/// for the frog's, 3.5 for a mouse-sized one), and the opening, a segment's least volume and the reach are an adult's
+/// (4 mm, 1000 mm^3, 20 mm) or these shares of it, whichever is smaller; both shares leave the adult's and the
+/// frog's defaults as they were.
+inline constexpr double kAdultOpening = 4.0, kAdultMinVolume = 1000.0, kAdultReach = 20.0;
+inline constexpr double kOpeningShare = 1.0 / 20, kMinVolumeShare = 1.0 / 600, kReachShare = 1.0 / 4;
+
+/// The options with their defaults filled in for `grid` and a bone of `bone_voxels` voxels (opening in voxels at
+/// least 1).
 struct BoneParams {
     int erode_steps = 1;
     std::int64_t min_voxels = 8;
     double reach = 20.0;
+    /// The skeleton's size against an adult's (at most 1; the frog's is 1): the fitter's windows in mm shrink by it.
+    double scale = 1.0;
 };
-BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt);
+BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt, std::size_t bone_voxels);
 
 /// bone_segments of the bone voxels `voxels` (bone_voxels).
 BoneSegments segments_of(const Grid& grid, const std::vector<std::int64_t>& voxels, const BoneParams& p);

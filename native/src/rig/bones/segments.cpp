@@ -16,16 +16,18 @@
 
 namespace volrig::rig_detail {
 
-BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt) {
+BoneParams bone_params(const Grid& grid, const BoneRigOptions& opt, std::size_t bone_voxels) {
     if (!(opt.opening >= 0) || !(opt.min_volume >= 0) || !(opt.reach >= 0))
         throw Error("bone rig: opening, min_volume and reach must be non-negative");
-    BoneParams p;
-    const double opening = opt.opening > 0 ? opt.opening : 4.0;
-    p.erode_steps = std::max(1, static_cast<int>(std::lround(opening / grid.min_spacing())));
     const double cell = grid.spacing[0] * grid.spacing[1] * grid.spacing[2];
-    const double volume = opt.min_volume > 0 ? opt.min_volume : 1000.0;
-    p.min_voxels = std::max<std::int64_t>(8, static_cast<std::int64_t>(std::ceil(volume / cell)));
-    p.reach = opt.reach > 0 ? opt.reach : 20.0;
+    const double volume = static_cast<double>(bone_voxels) * cell, size = std::cbrt(volume);
+    BoneParams p;
+    p.scale = std::min(1.0, kOpeningShare * size / kAdultOpening);
+    const double opening = opt.opening > 0 ? opt.opening : std::min(kAdultOpening, kOpeningShare * size);
+    p.erode_steps = std::max(1, static_cast<int>(std::lround(opening / grid.min_spacing())));
+    const double least = opt.min_volume > 0 ? opt.min_volume : std::min(kAdultMinVolume, kMinVolumeShare * volume);
+    p.min_voxels = std::max<std::int64_t>(8, static_cast<std::int64_t>(std::ceil(least / cell)));
+    p.reach = opt.reach > 0 ? opt.reach : std::min(kAdultReach, kReachShare * size);
     return p;
 }
 
@@ -193,8 +195,8 @@ namespace volrig {
 
 BoneSegments bone_segments(const Grid& grid, const std::uint8_t* bone, const BoneRigOptions& opt) {
     using namespace rig_detail;
-    const BoneParams p = bone_params(grid, opt);
-    return segments_of(grid, bone_voxels(grid, bone), p);
+    const std::vector<std::int64_t> voxels = bone_voxels(grid, bone);
+    return segments_of(grid, voxels, bone_params(grid, opt, voxels.size()));
 }
 
 }  // namespace volrig
