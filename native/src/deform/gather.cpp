@@ -195,13 +195,17 @@ void Gather::contact_fields(const Block& b, Local& loc) const {
     double box[6];
     block_box(b, box);
     const std::size_t r = posed_.region(b.k);
+    loc.listed.resize(s_.fields.size(), 0);
     for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) {  // those whose balls meet the block
         const PosedBall& pb = posed_.ball[posed_.meets[j]];
+        auto& listed = loc.listed[static_cast<std::size_t>(pb.field)];
         double near2;
-        if (least_power_over(pb, box, s_.s2, posed_.rel, near2) < 0) loc.all_fields.push_back(pb.field);
+        if (listed || !(least_power_over(pb, box, s_.s2, posed_.rel, near2) < 0)) continue;  // (listed once)
+        listed = 1;
+        loc.all_fields.push_back(pb.field);
     }
+    for (auto f = loc.all_fields.begin() + first; f != loc.all_fields.end(); ++f) loc.listed[static_cast<std::size_t>(*f)] = 0;
     std::sort(loc.all_fields.begin() + first, loc.all_fields.end());
-    loc.all_fields.erase(std::unique(loc.all_fields.begin() + first, loc.all_fields.end()), loc.all_fields.end());
 }
 
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.

@@ -33,6 +33,7 @@ struct Local {
     std::int64_t contact = 0;      // voxels given up by a yielding field
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
+    std::vector<std::uint8_t> listed;             // sliding contact: per field, whether all_fields holds it already
     std::vector<CellBounds> range, range_sub;
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
