@@ -182,7 +182,8 @@ void Gather::blend_candidate(const Block& b, Local& loc) const {
 
 /// Sliding contact's candidates of a block (loc.all_fields): the block's, with the blend candidate's groups one by
 /// one (every group a posed sphere meeting the block belongs to: a field that yields hands its voxels to the
-/// others, so none may be left out for being beaten).
+/// others, so none may be left out for being beaten), in increasing order: from its tile's list, a group's balls
+/// until one meets the block.
 void Gather::contact_fields(const Block& b, Local& loc) const {
     loc.all_fields.clear();
     bool blend = false;
@@ -191,17 +192,76 @@ void Gather::contact_fields(const Block& b, Local& loc) const {
         else loc.all_fields.push_back(loc.fields[k]);
     }
     if (!blend) return;
-    const auto first = static_cast<std::ptrdiff_t>(loc.all_fields.size());
     double box[6];
     block_box(b, box);
-    const std::size_t r = posed_.region(b.k);
-    for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) {  // those whose balls meet the block
-        const PosedBall& pb = posed_.ball[posed_.meets[j]];
-        double near2;
-        if (least_power_over(pb, box, s_.s2, posed_.rel, near2) < 0) loc.all_fields.push_back(pb.field);
+    const std::int32_t t = contact_tile_[posed_.tile_of(b.k)];
+    const std::vector<std::uint32_t>& in = contact_balls_[static_cast<std::size_t>(t)];
+    for (std::size_t j = 0; j < in.size();) {
+        const std::int32_t f = posed_.ball[in[j]].field;
+        bool meets = false;
+        for (; j < in.size() && posed_.ball[in[j]].field == f; ++j) {
+            double near2;
+            if (!meets && least_power_over(posed_.ball[in[j]], box, s_.s2, posed_.rel, near2) < 0) meets = true;
+        }
+        if (meets) loc.all_fields.push_back(f);
     }
-    std::sort(loc.all_fields.begin() + first, loc.all_fields.end());
-    loc.all_fields.erase(std::unique(loc.all_fields.begin() + first, loc.all_fields.end()), loc.all_fields.end());
+}
+
+/// The posed balls of each contact-zone tile: those of its region, ordered by field (once per region), whose balls
+/// meet the tile (a ball missing the tile misses each of its blocks: least_power_over grows with the distance to
+/// the box).
+void Gather::list_contact_balls() {
+    if (zone_.empty() || posed_.empty()) return;
+    contact_tile_.assign(static_cast<std::size_t>(posed_.nt[0] * posed_.nt[1] * posed_.nt[2]), -1);
+    std::vector<std::int32_t> region_of(posed_.begin.size() - 1, -1);
+    std::vector<std::array<std::int64_t, 3>> tiles;
+    std::vector<std::size_t> regions, tile_region;
+    for (std::int64_t z = 0; z < nb_[2]; ++z)
+        for (std::int64_t y = 0; y < nb_[1]; ++y)
+            for (std::int64_t x = 0; x < nb_[0]; ++x) {
+                const std::int64_t k[3] = {x, y, z};
+                std::int32_t& t = contact_tile_[posed_.tile_of(k)];
+                if (!zone_[static_cast<std::size_t>((z * nb_[1] + y) * nb_[0] + x)] || t >= 0) continue;
+                t = static_cast<std::int32_t>(tiles.size());
+                tiles.push_back({x / 2, y / 2, z / 2});
+                std::int32_t& r = region_of[posed_.region(k)];
+                if (r < 0) {
+                    r = static_cast<std::int32_t>(regions.size());
+                    regions.push_back(posed_.region(k));
+                }
+                tile_region.push_back(static_cast<std::size_t>(r));
+            }
+    std::vector<std::vector<std::uint32_t>> by_field(regions.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, regions.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        for (std::size_t i = rg.begin(); i != rg.end(); ++i) by_field[i] = region_by_field(regions[i]);
+    });
+    contact_balls_.resize(tiles.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
+        for (std::size_t i = rg.begin(); i != rg.end(); ++i)
+            contact_balls_[i] = tile_balls(tiles[i].data(), by_field[tile_region[i]]);
+    });
+}
+
+/// The balls meeting region r, by field, then increasing.
+std::vector<std::uint32_t> Gather::region_by_field(std::size_t r) const {
+    std::vector<std::uint32_t> out(posed_.meets.begin() + posed_.begin[r], posed_.meets.begin() + posed_.begin[r + 1]);
+    std::stable_sort(out.begin(), out.end(), [&](std::uint32_t a, std::uint32_t c) { return posed_.ball[a].field < posed_.ball[c].field; });
+    return out;
+}
+
+/// Those of its region's balls `in` that meet tile t (its voxels in the box), in the order of `in`.
+std::vector<std::uint32_t> Gather::tile_balls(const std::int64_t* t, const std::vector<std::uint32_t>& in) const {
+    double box[6];
+    for (int a = 0; a < 3; ++a) {
+        box[a] = static_cast<double>(bx_[a] + t[a] * PosedBalls::kTile);
+        box[3 + a] = static_cast<double>(bx_[a] + std::min(bx_[3 + a], (t[a] + 1) * PosedBalls::kTile) - 1);
+    }
+    std::vector<std::uint32_t> out;
+    for (const std::uint32_t j : in) {
+        double near2;
+        if (least_power_over(posed_.ball[j], box, s_.s2, posed_.rel, near2) < 0) out.push_back(j);
+    }
+    return out;
 }
 
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.

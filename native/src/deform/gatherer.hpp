@@ -80,6 +80,7 @@ public:
         for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
         words_ = (set.fields.size() + 63) / 64;
         mark_contact_zones();
+        list_contact_balls();
     }
 
     template <class S>
@@ -123,6 +124,9 @@ private:
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void mark_contact_zones();
+    void list_contact_balls();
+    std::vector<std::uint32_t> region_by_field(std::size_t r) const;
+    std::vector<std::uint32_t> tile_balls(const std::int64_t* t, const std::vector<std::uint32_t>& in) const;
     bool block_meets(const Contact& c, const std::int64_t* k) const;
     void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
@@ -151,6 +155,10 @@ private:
     const PosedBalls posed_;    // then their spheres posed
     const std::vector<std::uint64_t> bits_;
     std::vector<std::uint8_t> zone_;  // per output block: whether a contact zone meets it (empty: no contacts)
+    // Per tile of posed_ (16³) holding a contact-zone block: its index in contact_balls_, else -1 (empty: none)
+    std::vector<std::int32_t> contact_tile_;
+    // Per such tile: the posed balls of its region meeting the tile, by field, then increasing
+    std::vector<std::vector<std::uint32_t>> contact_balls_;
     std::int64_t nb_[3];
     std::size_t words_;
     tbb::enumerable_thread_specific<Local> locals_;
