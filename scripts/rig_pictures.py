@@ -97,7 +97,7 @@ def draw(case, path: str, views=((0, 2), (1, 2))):
         if case["reference"] is not None:
             ref = case["reference"]
             ax.plot(ref[:, i], ref[:, j], "+", color="green", ms=10, mew=2)
-        if rig.kind in ("humanoid", "quadruped"):
+        if rig.kind in ("humanoid", "quadruped", "winged"):
             for b, name in enumerate(rig.names):
                 if name.endswith(".L") or name in ("head", "hips"):
                     h, t = rig.bones[b]
@@ -202,7 +202,7 @@ def draw_poses(path: str, poses=("knees_apart", "wide", "stride", "tpose"), scal
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
-    ap.add_argument("--only", default=",".join(["phantom", "poses", "frog", "arm", *MESHES, "vhm4", "bones_vhm",
+    ap.add_argument("--only", default=",".join(["phantom", "poses", "bird", "frog", "arm", *MESHES, "vhm4", "bones_vhm",
                                                 "bones_posed", "bones_frog", "bones_mouse", "bones_ct"]),
                     help="comma list of pictures to draw (default: all)")
     args = ap.parse_args(argv)
@@ -215,6 +215,12 @@ def main(argv=None):
              os.path.join(args.out, "rig_phantom.png"))
     if "poses" in only:
         draw_poses(os.path.join(args.out, "rig_poses.png"))
+    if "bird" in only:  # synthetic: two flat wings held out, two legs, a head (the winged template)
+        from volrig_support import subjects as S
+        bird = S.capsule_bird_subject(1.0)
+        draw(rig_case("capsule bird (volrig_support.subjects.capsule_bird_subject)", bird.mask, 15000,
+                      np.array(list(bird.joints.values()))),
+             os.path.join(args.out, "rig_bird.png"), views=((0, 2), (1, 2)))
     frog = os.path.join(SHARED, "frogtissue", "frogtissue.mhd")
     if "frog" in only:
         if os.path.exists(frog):

@@ -19,9 +19,10 @@ from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _Vo
 
 #: The body plans a rig is fitted to (Rig's Body plan, and Import Drawing's and Rig Mesh's).
 BODY_PLANS = [
-    ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, hand, chains) and keep the best"),
+    ("AUTO", "Best fit", "Fit every template (humanoid, quadruped, winged, hand, chains) and keep the best"),
     ("humanoid", "Humanoid", "Force the humanoid template (head, two arms, two legs: 21 Rigify bones)"),
     ("quadruped", "Quadruped", "Force the quadruped template (four legs, spine, head; tail and neck as found)"),
+    ("winged", "Winged", "Force the winged template (two wings, two legs, spine, head; tail as found)"),
     ("chains", "Chains", "Neutral chains along the skeleton's branches (no body roles)"),
     ("hand", "Hand", "Force the hand template (palm, thumb and four fingers of three bones each)"),
 ]
@@ -34,7 +35,7 @@ class RigSettings:
                          description="Skeleton-tree: 1 weighs edges by length only, lower prefers equal radii")
     bones: IntProperty(name="Bones", default=24, min=1, max=200, description="Bone count target")
     roles: BoolProperty(name="Body roles", default=True,
-                        description="Name bones as a humanoid, quadruped or hand when the shape looks like one")
+                        description="Name bones as a humanoid, quadruped, winged body or hand when the shape looks like one")
     body_plan: EnumProperty(name="Body plan", items=BODY_PLANS, default="AUTO",
                             description="The template the rig is fitted to; pick another and press Rig to refit")
     use_scene_up: BoolProperty(name="Scene up", default=True,

@@ -250,7 +250,7 @@ def rig_skeleton(points: SkeletonPoints, mask: Volume, *, alpha: float = 0.9, ma
                  bone: Optional[Volume] = None, markers: Optional[dict] = None, plan_weights=None,
                  detail: Optional[list] = None) -> RiggedSkeleton:
     """Skeleton-tree, automatic armature and binding of ``points`` (what ``save_rig`` writes). ``kind`` forces a
-    template (humanoid, quadruped, hand, chains), ``up`` gives the world's up direction in the volume's frame,
+    template (humanoid, quadruped, winged, hand, chains), ``up`` gives the world's up direction in the volume's frame,
     ``own_scale=False`` rigs ``points`` themselves rather than autorig's own skeleton (see ``autorig``) and ``rigid``
     is tissue that must not bend (``bind(..., rigid=)``); ``markers`` ({name: point}, see ``autorig``) guide the body
     plan and place the marked joints; ``plan_weights`` and ``detail`` go to ``autorig``. ``bone``: the scan's bone

@@ -29,7 +29,7 @@ class Rig:
     names:   B unique bone names.
     parents: (B,) int32 parent bone of each bone, -1 for roots. Defaults to the bone whose tail is this bone's
              head (-1 when there is none).
-    kind:    one of ``KINDS`` ("humanoid", "quadruped", "hand", "chains": from ``autorig``) or "custom".
+    kind:    one of ``KINDS`` ("humanoid", "quadruped", "winged", "hand", "chains": from ``autorig``) or "custom".
     joint_points: (K,) int64 skeleton point each joint sits on, -1 when none (end joints moved to the surface,
              joints placed by hand and not snapped).
     fit:     how well autorig's template fits the shape, 0..1 (0 for other rigs).
@@ -247,12 +247,19 @@ PLAN_WEIGHTS = tuple(_volrig.PLAN_WEIGHTS)
 
 def bone_plan_weights() -> List[float]:
     """The weights a body plan read from the bone itself (``autorig(bone=)`` without flesh) is scored with: the
-    fitted ones, but a head thinner than an extremity the reading leaves out costs as much as no plan (neutral
-    chains' score). A skeleton's head is its skull, the thickest end of a vertebrate's bones, even where a long tail
+    fitted ones, but a head thinner than an extremity the reading leaves out costs a reading its whole margin over
+    no plan (neutral chains' score less the lower of the humanoid's and the quadruped's bias: what an ideal reading
+    scores), and nothing is a sheet (below). A skeleton's head is its skull, the thickest end of a vertebrate's bones, even where a long tail
     sticks out further; an outer shape's head leaf is often an ear or a muzzle thinner than its tail, which is why
     the weight fitted to the characters' shapes is small."""
     w = list(PLAN_WEIGHTS)
-    w[PLAN_TERMS.index("head_thin")] = w[-1]
+    ideal = min(w[PLAN_TERMS.index("bias_humanoid")], w[PLAN_TERMS.index("bias_quadruped")])
+    w[PLAN_TERMS.index("head_thin")] = max(w[-1] - ideal, w[PLAN_TERMS.index("head_thin")])
+    # Flat bones (shoulder blades, the pelvis, the skull's plates) make no limb a sheet, and no wing is read from
+    # bones: the flatness terms are left out and the winged plan never beats chains.
+    for term in ("arms_flat", "legs_flat", "w_wings_round"):
+        w[PLAN_TERMS.index(term)] = 0.0
+    w[PLAN_TERMS.index("bias_winged")] = w[-1] + 1000.0
     return w
 
 
@@ -262,7 +269,7 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
             markers: Optional[dict] = None, plan_weights=None, bone=None) -> Rig:
     """Articulated skeleton from a skeleton-tree (see the module docstring).
 
-    Every template (humanoid, quadruped, hand, neutral chains) is fitted and scored; the best wins. The result's
+    Every template (humanoid, quadruped, winged, hand, neutral chains) is fitted and scored; the best wins. The result's
     ``kind``, ``fit`` (0..1), ``runner_up`` / ``runner_up_fit``, ``up`` and ``up_confidence`` say what was found.
     The rig is made from the object's own skeleton at autorig's scale (the object resampled to about 400 voxels
     along its longest extent when finer), whatever ``points`` and ``tree`` hold (they then only give each joint's
@@ -277,9 +284,11 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
     roles:       try the humanoid / quadruped body plans (a guess from the shape's five main extremities: a molar
                  with four roots passes for a quadruped); False gives neutral chains.
     detail:      pass a list to receive an ``AutorigResult`` appended to it.
-    kind:        force a template, one of ``KINDS``: "humanoid", "quadruped", "hand" or "chains" (None: the best
-                 fit). A forced body plan is built whatever its score; ValueError when the shape has no extremities
-                 for it (five for a humanoid or quadruped; six for a hand: a wrist and five fingers).
+    kind:        force a template, one of ``KINDS``: "humanoid", "quadruped", "winged", "hand" or "chains" (None: the
+                 best fit). A forced body plan is built whatever its score; ValueError when the shape has no
+                 extremities for it (five for a humanoid, quadruped or winged body; six for a hand: a wrist and five
+                 fingers). A winged body's wings get an arm's bones (shoulder, upper_arm, forearm, hand: a bird's
+                 humerus, radius and ulna, hand).
     up:          the world's up direction in the volume's frame (x, y, z), when known (e.g. the scene's +Z). A
                  humanoid's spine must then point up and a quadruped's limbs down. None: inferred.
     own_scale:   False rigs ``points`` and ``tree`` themselves (the rig then depends on how many points were kept):

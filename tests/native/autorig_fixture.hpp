@@ -135,7 +135,7 @@ inline Candidate quadruped_rig(const Figure& f) {
     const Solid solid(f, {120, 60, 80});
     const PlanSearch s = search_plans(solid.tree, {Vec(0, 0, 1), fitted_plan_weights(), {}});
     REQUIRE(s.quadruped.score < plan_limit());
-    return build_plan(solid.context(), s.quadruped, false, 0.35);
+    return build_plan(solid.context(), s.quadruped, PlanKind::Quadruped, 0.35);
 }
 
 /// How far the bones named tail* reach behind `o` along -x, and below it along -z.

@@ -374,3 +374,30 @@ TEST_CASE("build_plan keeps a quadruped's tail as a chain parented to its hips; 
     CHECK(std::count(names.begin(), names.end(), "head") == 1);
     CHECK(c.up.z() > 0.9);
 }
+
+TEST_CASE("cross_section_ratio is 1 across a round limb and the width over the thickness across a sheet",
+          "[autorig]") {
+    // A rod of radius 4 along x, a plate 2 thick and 16 wide along x beside it (apart), a rod touching a trunk.
+    Block block({60, 60, 60});
+    Grid& g = block.g;
+    std::vector<std::uint8_t>& mask = block.mask;
+    std::fill(mask.begin(), mask.end(), 0);
+    auto set = [&](std::int64_t x, std::int64_t y, std::int64_t z) { mask[static_cast<std::size_t>(g.index(x, y, z))] = 1; };
+    for (std::int64_t x = 0; x < 60; ++x)
+        for (std::int64_t y = 0; y < 60; ++y)
+            for (std::int64_t z = 0; z < 60; ++z) {
+                if ((y - 10) * (y - 10) + (z - 10) * (z - 10) <= 16) set(x, y, z);   // rod
+                if (y >= 32 && y < 48 && z >= 10 && z < 12) set(x, y, z);           // plate
+            }
+    const RigContext c = block.context();
+    const Vec along(1, 0, 0);
+    CHECK(c.cross_section_ratio(Vec(30, 10, 10), along, 12) == Approx(1.0).margin(0.05));
+    // The plate within reach 12 of its middle: 16 wide (all of it), 2 thick: std ratio 16 / 2.
+    CHECK(c.cross_section_ratio(Vec(30, 40, 10.5), along, 12) == Approx(8.0).margin(0.6));
+    // Within reach 4: the disc cuts it 8 wide.
+    CHECK(c.cross_section_ratio(Vec(30, 40, 10.5), along, 4) == Approx(4.0).margin(0.8));
+    // Across the rod (along y): its section is the rod's length within reach (a sheet-like section) ...
+    CHECK(c.cross_section_ratio(Vec(30, 10, 10), Vec(0, 1, 0), 12) > 2.5);
+    // Outside the object: 1.
+    CHECK(c.cross_section_ratio(Vec(30, 25, 30), along, 12) == 1.0);
+}

@@ -51,7 +51,7 @@ def test_kind_is_forced_and_checked(half):
     assert autorig(pts, tree, mask, kind="humanoid").kind == "humanoid"
     quad = autorig(pts, tree, mask, kind="quadruped")  # forced: built whatever its score
     assert quad.kind == "quadruped" and set(quad.names) == ROLE_BONES
-    with pytest.raises(ValueError, match="kind must be one of 'humanoid', 'quadruped', 'hand', 'chains'"):
+    with pytest.raises(ValueError, match="kind must be one of 'humanoid', 'quadruped', 'winged', 'hand', 'chains'"):
         autorig(pts, tree, mask, kind="dragon")
     assert "hand" in volrig.rig.KINDS
     # The phantom has five extremities, a hand needs six: a clear error, no crash.

@@ -43,7 +43,7 @@ void check_rig(const Rig& rig);
 std::array<double, 16> rest_matrix(const std::array<double, 3>& head, const std::array<double, 3>& tail);
 
 /// The templates autorig fits (AutorigOptions::kind, Rig::kind): body plans, then neutral chains.
-inline constexpr std::array<const char*, 4> kAutorigKinds = {"humanoid", "quadruped", "hand", "chains"};
+inline constexpr std::array<const char*, 5> kAutorigKinds = {"humanoid", "quadruped", "winged", "hand", "chains"};
 
 /// Marker names autorig accepts (AutorigOptions::markers): joints of the humanoid and quadruped templates (a
 /// quadruped's front legs are its arms).

@@ -20,8 +20,8 @@ import numpy as np
 from . import data_root
 
 AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
-#: Plans autorig builds; any other known plan (winged, fish, many-armed, none) is judged right as neutral chains.
-RIGGED_PLANS = ("humanoid", "quadruped", "hand")
+#: Plans autorig builds; any other known plan (fish, many-armed, none) is judged right as neutral chains.
+RIGGED_PLANS = ("humanoid", "quadruped", "winged", "hand")
 #: The older subjects (volrig_support.subjects) used besides the shared characters: meshes, the phantom, the
 #: Visible Human, capsule humanoids in three poses and capsule dogs with tails of 0, 40 and 70 units (the last also
 #: with front legs 1.6 times as thick: a bull's). "name@240": the mesh voxelized at 240 voxels instead of 160.

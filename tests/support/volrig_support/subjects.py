@@ -311,6 +311,34 @@ def capsule_quadruped_subject(tail: float = 40.0, scale: float = 1.0, front: flo
                    f"volrig_support.subjects.capsule_quadruped_subject({tail:g}, {scale:g})")
 
 
+def capsule_bird_subject(scale: float = 1.0, span: float = 60.0) -> Subject:
+    """A bird of capsules standing (z up; trunk along y, head at -y): a trunk 38 units long, a neck and a ball head,
+    two legs 36 long with feet forward, a short tail, and two wings ``span`` units long held out level: flat plates
+    3 thick with an elliptical planform (chord 26 at the shoulder); ``scale`` voxels per unit. Reference joints:
+    shoulders, wing tips, hips, knees, ankles."""
+    j = {"hips": (0, 18, 46), "chest": (0, -16, 52), "head": (0, -30, 70)}
+    for side, s_ in (("L", 1), ("R", -1)):
+        j.update({f"shoulder.{side}": (s_ * 8, -10, 54), f"wingtip.{side}": (s_ * (8 + span), -10, 54),
+                  f"hip.{side}": (s_ * 6, 14, 40), f"knee.{side}": (s_ * 6, 20, 22), f"ankle.{side}": (s_ * 6, 14, 5)})
+    j = {k: np.asarray(v, dtype=np.float64) for k, v in j.items()}
+    caps = [(j["hips"], j["chest"], 11), (j["chest"], (0, -26, 62), 5), (j["hips"], (0, 34, 50), 4),
+            (j["wingtip.L"], j["wingtip.R"], 1.5)]  # the wings' span, for the box (the plates are drawn below)
+    for side in "LR":
+        caps += [(j[f"hip.{side}"], j[f"knee.{side}"], 3.5), (j[f"knee.{side}"], j[f"ankle.{side}"], 2.5),
+                 (j[f"ankle.{side}"], j[f"ankle.{side}"] + (0, -9, -2), 2)]
+    mask, shift = _capsule_mask(caps, [(j["head"], 8)], scale, pad=10)
+    z, y, x = (np.arange(n, dtype=np.float64)[:, None, None] if a == 0 else
+               np.arange(n, dtype=np.float64)[None, :, None] if a == 1 else np.arange(n, dtype=np.float64)[None, None, :]
+               for a, n in enumerate(mask.shape))
+    fx, fy, fz = x / scale - shift[0], y / scale - shift[1], z / scale - shift[2]
+    u = (np.abs(fx) - 8) / span  # 0 at the shoulder, 1 at the tip
+    chord = 13 * np.sqrt(np.clip(1 - u ** 2, 0, 1))
+    mask |= (u >= 0) & (u <= 1) & (np.abs(fy + 10) <= chord) & (np.abs(fz - 54) <= 1.5)
+    joints = {n: (p + shift) * scale for n, p in j.items() if "." in n}
+    return Subject(f"capsule_bird_{scale:g}", Volume(mask), "winged", _unit((0, 0, 1)), _unit((0, -1, 0)), joints, None,
+                   f"volrig_support.subjects.capsule_bird_subject({scale:g}, {span:g})")
+
+
 SUBJECTS = ("phantom", "vhm4", "vhm2", "vhm1") + tuple(MESHES) + tuple(f"capsules_{p}" for p in CAPSULE_POSES)
 
 

@@ -79,7 +79,7 @@ void check_options(const PointSet& pts, const std::vector<std::array<std::uint32
 
 void check_markers(const AutorigOptions& opt) {
     if (opt.markers.empty()) return;
-    if (opt.kind == "hand" || opt.kind == "chains" || !opt.roles)
+    if (opt.kind == "hand" || opt.kind == "winged" || opt.kind == "chains" || !opt.roles)
         throw Error("autorig: markers place a humanoid's or quadruped's joints; they cannot guide kind '" +
                     (opt.roles ? opt.kind : std::string("chains")) + "'");
     std::vector<std::string> seen;
@@ -158,7 +158,7 @@ void export_readings(std::vector<rig_detail::PlanReading> readings, const rig_de
     }
 }
 
-/// The body plans' candidates (humanoid, quadruped, hand) that can be built, best first (the plan the markers
+/// The body plans' candidates (humanoid, quadruped, winged, hand) that can be built, best first (the plan the markers
 /// show, fewest markers broken, lowest score); every reading scored goes to `detail` when given.
 std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const AutorigOptions& opt,
                                        const PlanInput& in, AutorigDetail* detail) {
@@ -170,12 +170,20 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     // Best first: the plan the markers show (marked_kind), then the fewest markers broken, then the lowest score.
     const std::string marked = opt.kind.empty() ? marked_kind(in) : "";
     std::vector<std::pair<std::tuple<bool, int, double>, Candidate>> ranked;
-    for (const auto& [plan, kind] : {std::pair{s.humanoid, "humanoid"}, std::pair{s.quadruped, "quadruped"}})
-        if (admits(opt, in, kind, plan.score)) {
-            ranked.push_back({{!marked.empty() && marked != kind, plan.broken, plan.score},
-                              rig_detail::build_plan(c, plan, std::string(kind) == "humanoid", opt.tolerance, in.up)});
+    for (const auto kind : {rig_detail::PlanKind::Humanoid, rig_detail::PlanKind::Quadruped,
+                            rig_detail::PlanKind::Winged}) {
+        const rig_detail::Plan& plan = kind == rig_detail::PlanKind::Humanoid    ? s.humanoid
+                                       : kind == rig_detail::PlanKind::Quadruped ? s.quadruped
+                                                                                 : s.winged;
+        const std::string name = rig_detail::plan_kind_name(kind);
+        // Markers name a humanoid's or a quadruped's joints.
+        if (kind == rig_detail::PlanKind::Winged && !in.markers.empty()) continue;
+        if (admits(opt, in, name, plan.score)) {
+            ranked.push_back({{!marked.empty() && marked != name, plan.broken, plan.score},
+                              rig_detail::build_plan(c, plan, kind, opt.tolerance, in.up)});
             finish_plan(ranked.back().second, plan.score, in);
         }
+    }
     const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree);
     if (const double hs = rig_detail::hand_plan_score(hand, in.weights); in.markers.empty() && admits(opt, in, "hand", hs)) {
         ranked.push_back({{false, 0, hs}, rig_detail::hand_rig(c, hand)});
@@ -273,7 +281,6 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
     const rig_detail::LevelSetTree lst = rig_detail::shape_tree(rg, rmask, rpts, redges, progress);
     report(progress, 0.5);
     rig_detail::NodeTree tree(lst.centroid, lst.radius, lst.edges);
-    tree.set_spread(lst.spread);
     tree.prune(opt.prune_scale);
     tree.root_off_an_end();
     tree.root_path_at_thicker_end();
@@ -282,7 +289,9 @@ std::vector<Candidate> fit_templates(const Grid& rg, const std::uint8_t* rmask, 
         *detail = AutorigDetail{};
         fill_detail(g, pts, lst, tree, shift, *detail);
     }
-    return candidates(rig_detail::RigContext{rg, rmask, rpts, tree, lst.rep}, opt, in, detail);
+    const rig_detail::RigContext context{rg, rmask, rpts, tree, lst.rep};
+    tree.set_sheet(rig_detail::node_sheets(context));
+    return candidates(context, opt, in, detail);
 }
 
 }  // namespace

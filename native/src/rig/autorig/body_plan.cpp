@@ -45,17 +45,18 @@ Vec unit(const Vec& a, const Vec& b) {
     return d.norm() > 0 ? Vec(d / d.norm()) : Vec::Zero();
 }
 
-/// How much a limb (base to tip) is a sheet: the median, over its nodes beyond its first third (out of the trunk),
-/// of their spread over their radius, divided by kSheetSpread and at most 1 (a round limb's pieces spread about as
-/// far as their band: 0 to 1 radius; a wing's span its width).
-constexpr double kSheetSpread = 4.0;
+/// How much a limb (base to tip) is a sheet: the median, over the nodes of its middle third (out of the trunk,
+/// short of the hand or foot, which are flat on every animal), of how far their cross-section's width exceeds its
+/// thickness (NodeTree::sheet - 1), over kSheetRatio - 1 and at most 1 (a round limb 0; a wing, a fin or a
+/// flipper, flat along its whole length, 1).
+constexpr double kSheetRatio = 4.0;
 double flatness(const NodeTree& t, const std::vector<std::uint32_t>& path) {
     std::vector<double> ratio;
-    for (std::size_t k = path.size() / 3; k < path.size(); ++k)
-        ratio.push_back(t.spread(path[k]) / std::max(t.radius(path[k]), 1e-12));
+    for (std::size_t k = path.size() / 3; k < std::max(path.size() / 3 + 1, (2 * path.size() + 2) / 3) && k < path.size(); ++k)
+        ratio.push_back((t.sheet(path[k]) - 1.0) / (kSheetRatio - 1.0));
     if (ratio.empty()) return 0.0;
     std::nth_element(ratio.begin(), ratio.begin() + static_cast<std::ptrdiff_t>(ratio.size() / 2), ratio.end());
-    return std::min(1.0, ratio[ratio.size() / 2] / kSheetSpread);
+    return std::clamp(ratio[ratio.size() / 2], 0.0, 1.0);
 }
 
 /// A reading's limb paths, computed once: legs from the pelvis, arms from the chest.
@@ -125,6 +126,15 @@ void quadruped_features(const NodeTree& t, const Reading& r, const std::optional
     f[kQSpineTilt] = std::abs(axis.dot(u));
 }
 
+/// The winged reading's own features (plan_score.hpp): its arms are wings, so their flatness is no penalty but
+/// its lack is.
+void winged_features(const NodeTree& t, const Reading& r, const std::optional<Vec>& up, PlanFeatures& f) {
+    f[kBiasWinged] = 1;
+    f[kWWingsRound] = 1.0 - f[kArmsFlat];
+    f[kArmsFlat] = 0;
+    if (up) f[kWLegsNotDown] = 0.5 * (1.0 + unit(t.at(r.pelvis), 0.5 * (t.at(r.legs[0]) + t.at(r.legs[1]))).dot(*up));
+}
+
 /// How many markers a reading breaks: a marker holds when the role it names (RoleMarker) is the one whose
 /// extremity path from its base lies nearest to it (a groin: the pelvis nearer than the chest).
 int broken_markers(const NodeTree& t, const Reading& r, const LimbPaths& p, const std::vector<RoleMarker>& markers) {
@@ -159,7 +169,7 @@ bool arms_between(const NodeTree& t, std::uint32_t head, std::uint32_t arms_meet
     return t.length(t.path(head, arms_meet)) < t.length(t.path(head, pelvis));
 }
 
-/// Every assignment of five extremities to head, legs, arms, read as a humanoid and as a quadruped; the best of
+/// Every assignment of five extremities to head, legs, arms, read as a humanoid, a quadruped and a winged body; the best of
 /// each kind kept in `best`, every reading appended to `all` when given.
 void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, double left_out, double left_out_thickness,
               const SearchInput& in, PlanSearch& best, std::vector<PlanReading>* all) {
@@ -181,16 +191,17 @@ void consider(const NodeTree& t, const std::array<std::uint32_t, 5>& leaf, doubl
                 const LimbPaths paths(t, r);
                 const int broken = broken_markers(t, r, paths, in.markers);
                 const PlanFeatures shared = shared_features(t, r, paths, left_out, left_out_thickness, object_extent);
-                for (const bool humanoid : {true, false}) {
+                for (const PlanKind kind : {PlanKind::Humanoid, PlanKind::Quadruped, PlanKind::Winged}) {
                     PlanFeatures f = shared;
-                    if (humanoid) humanoid_features(t, r, paths, in.up, f);
-                    else quadruped_features(t, r, in.up, f);
+                    if (kind == PlanKind::Humanoid) humanoid_features(t, r, paths, in.up, f);
+                    else if (kind == PlanKind::Quadruped) quadruped_features(t, r, in.up, f);
+                    else winged_features(t, r, in.up, f);
                     const double score = plan_score(f, in.weights);
-                    Plan& slot = humanoid ? best.humanoid : best.quadruped;
+                    Plan& slot = best.of(kind);
                     // Markers first (fewest broken), then the score.
                     if (broken < slot.broken || (broken == slot.broken && score < slot.score))
                         slot = Plan{r.head, {r.legs[0], r.legs[1]}, {r.arms[0], r.arms[1]}, score, broken};
-                    if (all) all->push_back({humanoid ? "humanoid" : "quadruped", f, {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}});
+                    if (all) all->push_back({plan_kind_name(kind), f, {r.head, r.legs[0], r.legs[1], r.arms[0], r.arms[1]}});
                 }
             }
 }
@@ -229,6 +240,18 @@ void restore_proximal(const RigContext& c, Rig& rig, const std::string& proximal
     const double want = ratio * (bone_end(rig, static_cast<std::size_t>(d), 1) - mid).norm();
     if ((bone_end(rig, static_cast<std::size_t>(p), 0) - mid).norm() < kHiddenEnd * want)
         lengthen_proximal(c, rig, static_cast<std::size_t>(p), want);
+}
+
+std::vector<double> node_sheets(const RigContext& c) {
+    const NodeTree& t = c.tree;
+    std::vector<double> out(t.size(), 1.0);
+    for (const std::uint32_t v : t.order()) {
+        const std::uint32_t p = t.parent(v);
+        const std::uint32_t q = p != kNone ? p : (t.children(v).empty() ? kNone : t.children(v)[0]);
+        if (q == kNone || (t.at(v) - t.at(q)).norm() == 0) continue;
+        out[v] = c.cross_section_ratio(t.at(v), (t.at(v) - t.at(q)).normalized(), kSectionRadii * t.radius(v));
+    }
+    return out;
 }
 
 bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves) {
@@ -293,10 +316,21 @@ void place_hidden_joints(const RigContext& c, Rig& rig, const std::vector<std::u
                leg_sfx);
 }
 
+/// A wing's path from the chest up to its node farthest from the chest: the level-set tree of a sheet runs around
+/// its border, so the leaf it ends at may lie back near the body (on the trailing edge) past the wing's tip.
+std::vector<std::uint32_t> out_to_farthest(const NodeTree& t, std::vector<std::uint32_t> path) {
+    std::size_t far = 0;
+    for (std::size_t k = 1; k < path.size(); ++k)
+        if ((t.at(path[k]) - t.at(path[0])).norm() > (t.at(path[far]) - t.at(path[0])).norm()) far = k;
+    path.resize(std::max<std::size_t>(far + 1, 2));
+    return path;
+}
+
 }  // namespace
 
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, double tolerance,
                      const std::optional<Vec>& up) {
+    const bool humanoid = kind == PlanKind::Humanoid;
     const NodeTree& t = c.tree;
     const std::uint32_t H = plan.head;
     const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
@@ -326,6 +360,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
     const Vec front = perp(forward, body_up).norm() > 0 ? Vec(perp(forward, body_up).normalized()) : Vec::Zero();
     for (int k = 0; k < 2; ++k) {
         arm[k] = t.path(chest, plan.arms[k]);
+        if (kind == PlanKind::Winged) arm[k] = out_to_farthest(t, arm[k]);
         if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), body_up, front);
         arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
                               : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);
@@ -337,6 +372,19 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
         out.up = spine_dir;
         const Vec legs = (0.5 * (t.at(plan.legs[0]) + t.at(plan.legs[1])) - t.at(pelvis)).normalized();
         out.up_confidence = std::clamp(-2.0 * legs.dot(spine_dir) - 1.0, 0.0, 1.0);
+    } else if (kind == PlanKind::Winged) {
+        // The legs hang down; forward is the spine's way across up (a bird's), or the feet's when the spine
+        // stands up (a penguin's).
+        const Vec legs = unit(t.at(pelvis), t.at(plan.legs[0])) + unit(t.at(pelvis), t.at(plan.legs[1]));
+        out.up = up ? *up : (legs.norm() > 0 ? Vec(-legs.normalized()) : spine_dir);
+        out.up_confidence = up ? 1.0 : std::clamp(legs.norm() / 2.0, 0.0, 1.0);
+        forward = perp(spine_dir, out.up);
+        if (forward.norm() < 0.5)
+            for (int s = 0; s < 2; ++s) {
+                const auto& k = leg_fit[s].cuts;
+                forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), out.up);
+            }
+        if (forward.norm() == 0) forward = out.up.unitOrthogonal();
     } else {
         forward = spine_dir;
         Vec down = Vec::Zero();
@@ -364,8 +412,8 @@ Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, doubl
         const std::string sfx = ((s == 0) == leg0_left) ? ".L" : ".R";
         b.chain(leg[s], leg_fit[s].cuts, {"pelvis" + sfx, "thigh" + sfx, "shin" + sfx, "foot" + sfx});
     }
-    add_extra_chains(c, b, !humanoid, tolerance);
-    out.rig = b.finish(humanoid ? "humanoid" : "quadruped");
+    add_extra_chains(c, b, kind, tolerance);
+    out.rig = b.finish(plan_kind_name(kind));
     if (humanoid)
         for (int s = 0; s < 2; ++s) {  // joints the medial axis does not show
             const std::string arm_sfx = ((s == 0) == arm0_left) ? ".L" : ".R", leg_sfx = ((s == 0) == leg0_left) ? ".L" : ".R";

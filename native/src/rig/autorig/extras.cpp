@@ -53,9 +53,17 @@ std::vector<std::uint32_t> path_to_held(const NodeTree& t, const RigBuilder& b, 
     return best;
 }
 
+/// Whether a winged body's bone is one of its wings' (they carry the arm's names).
+bool is_wing_bone(const std::string& name) {
+    for (const char* prefix : {"shoulder.", "upper_arm.", "forearm.", "hand."})
+        if (name.rfind(prefix, 0) == 0) return true;
+    return false;
+}
+
 }  // namespace
 
-void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance) {
+void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double tolerance) {
+    const bool quadruped = kind != PlanKind::Humanoid;  // tails named so; no hand or foot rule
     const NodeTree& t = c.tree;
     int added = 0;
     for (const auto& [significance, leaf] : t.extremities()) {
@@ -92,6 +100,7 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double
         // A humanoid's fingers and toes go with its hand and foot: a part there is kept when it sticks out farther
         // than the hand (foot) is long (a sword held, not fingers curled against the pelvis).
         if (!quadruped && significance < end_part_reach(b.rig(), owner, t.at(at))) continue;
+        if (kind == PlanKind::Winged && is_wing_bone(owner)) continue;
         const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;

@@ -17,9 +17,10 @@ public:
     std::size_t size() const { return pos_.size(); }
     const Vec& at(std::uint32_t v) const { return pos_[v]; }
     double radius(std::uint32_t v) const { return rad_[v]; }
-    /// How far node v's points spread from its centroid (LevelSetTree::spread; 0 when not given).
-    double spread(std::uint32_t v) const { return spread_.empty() ? 0.0 : spread_[v]; }
-    void set_spread(std::vector<double> spread) { spread_ = std::move(spread); }
+    /// How flat the object is across node v (RigContext::cross_section_ratio: 1 round, more for a sheet; 1 when
+    /// not given).
+    double sheet(std::uint32_t v) const { return sheet_.empty() ? 1.0 : sheet_[v]; }
+    void set_sheet(std::vector<double> sheet) { sheet_ = std::move(sheet); }
     std::uint32_t root() const { return root_; }
     std::uint32_t parent(std::uint32_t v) const { return parent_[v]; }
     std::uint32_t depth(std::uint32_t v) const { return depth_[v]; }
@@ -66,7 +67,7 @@ public:
 private:
     std::vector<Vec> pos_;
     std::vector<double> rad_;
-    std::vector<double> spread_;
+    std::vector<double> sheet_;
     std::vector<std::vector<std::uint32_t>> adj_;
     std::vector<std::uint8_t> kept_;
     std::uint32_t root_ = 0;

@@ -3,16 +3,21 @@
 #include "rig/autorig/plan_score.hpp"
 
 #include <cmath>
+#include <iterator>
 
 #include "volrig/error.hpp"
 
 namespace volrig::rig_detail {
 
-const std::vector<double>& fitted_plan_weights() {
-    static const std::vector<double> w = {
+namespace {
+constexpr double kFitted[] = {
 #include "rig/autorig/plan_weights.inc"
-    };
-    static_assert(kPlanWeights == kPlanTerms + 1);
+};
+static_assert(std::size(kFitted) == kPlanWeights, "plan_weights.inc: one weight per term, then the chains' score");
+}  // namespace
+
+const std::vector<double>& fitted_plan_weights() {
+    static const std::vector<double> w(std::begin(kFitted), std::end(kFitted));
     return w;
 }
 
@@ -23,7 +28,7 @@ const std::vector<double>& plan_weights(const std::vector<double>& given) {
                     "PLAN_TERMS, then the chains' score), got " + std::to_string(given.size()));
     for (std::size_t k = 0; k < given.size(); ++k) {
         if (!std::isfinite(given[k])) throw Error("autorig: plan_weights must be finite");
-        const bool bias = k <= kBiasHand || k == static_cast<std::size_t>(kPlanTerms);
+        const bool bias = k <= kBiasWinged || k == static_cast<std::size_t>(kPlanTerms);
         if (!bias && given[k] < 0)
             throw Error(std::string("autorig: the weight of penalty '") + kPlanTermNames[k] + "' must be >= 0");
     }

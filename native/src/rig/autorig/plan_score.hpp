@@ -19,6 +19,7 @@ enum PlanTerm : int {
     kBiasHumanoid,    ///< 1 for a humanoid reading
     kBiasQuadruped,   ///< 1 for a quadruped reading
     kBiasHand,        ///< 1 for a hand reading
+    kBiasWinged,      ///< 1 for a winged reading (two wings, two legs, a head)
     kMirrorLegs,      ///< the legs' tips do not mirror each other across the spine (relative to their length)
     kMirrorArms,      ///< nor the arms' tips
     kLeftOut,         ///< share left out of the seven most significant extremities' weight (significance times end
@@ -41,13 +42,16 @@ enum PlanTerm : int {
                       ///< mean direction)
     kQSpineTilt,      ///< quadruped: the spine is not level (|cos| with up, or that up)
     kHandShape,       ///< hand: search_hand's shape penalty (finger lengths and thicknesses, palm, thumb, stub)
+    kWWingsRound,     ///< winged: the wings are not sheets (1 - their flatness, kArmsFlat's measure; kArmsFlat is 0
+                      ///< for a winged reading)
+    kWLegsNotDown,    ///< winged: the legs do not hang down ((1 + cos) / 2 with up; without up, 0)
     kPlanTerms
 };
 
 inline constexpr std::array<const char*, kPlanTerms> kPlanTermNames = {
-    "bias_humanoid", "bias_quadruped", "bias_hand", "mirror_legs", "mirror_arms", "left_out", "head_thin",
+    "bias_humanoid", "bias_quadruped", "bias_hand", "bias_winged", "mirror_legs", "mirror_arms", "left_out", "head_thin",
     "pairs_cross", "roots_cross", "head_behind", "limbs_short", "narrow_span", "limb_ratio", "arms_flat", "legs_flat", "h_legs_thin", "h_hands_low", "h_legs_not_down",
-    "h_spine_not_up", "q_legs_along", "q_limbs_not_down", "q_spine_tilt", "hand_shape"};
+    "h_spine_not_up", "q_legs_along", "q_limbs_not_down", "q_spine_tilt", "hand_shape", "w_wings_round", "w_legs_not_down"};
 
 using PlanFeatures = std::array<double, kPlanTerms>;
 

@@ -39,6 +39,57 @@ double RigContext::reach_inside(const Vec& from, const Vec& dir, double start, d
     return reach;
 }
 
+namespace {
+
+/// Whether the voxel nearest q is in the object.
+bool inside_nearest(const Grid& g, const std::uint8_t* mask, const Vec& q) {
+    std::int64_t v[3];
+    for (int a = 0; a < 3; ++a) {
+        v[a] = std::llround((q[a] - g.origin[a]) / g.spacing[a]);
+        if (v[a] < 0 || v[a] >= g.dims[a]) return false;
+    }
+    return mask[g.index(v[0], v[1], v[2])] != 0;
+}
+
+/// The cross-section's lattice: (2n+1)^2 cells `step` apart, at most kSectionCells across.
+constexpr std::int64_t kSectionCells = 25;
+
+}  // namespace
+
+double RigContext::cross_section_ratio(const Vec& at, const Vec& dir, double reach) const {
+    const Vec u = dir.unitOrthogonal(), w = dir.cross(u).normalized();
+    const double step = std::max(grid.min_spacing(), reach / kSectionCells);
+    const std::int64_t n = static_cast<std::int64_t>(std::ceil(reach / step)), side = 2 * n + 1;
+    auto cell = [&](std::int64_t i, std::int64_t j) { return at + (static_cast<double>(i) * step) * u + (static_cast<double>(j) * step) * w; };
+    if (!inside_nearest(grid, mask, at)) return 1.0;
+    // Flood fill over the lattice from `at`, 4-connected, within the disc.
+    std::vector<std::uint8_t> seen(static_cast<std::size_t>(side * side), 0);
+    std::vector<std::pair<std::int64_t, std::int64_t>> todo{{0, 0}};
+    seen[static_cast<std::size_t>(n * side + n)] = 1;
+    double s1[2] = {0, 0}, s2[3] = {0, 0, 0}, count = 0;
+    while (!todo.empty()) {
+        const auto [i, j] = todo.back();
+        todo.pop_back();
+        const double x = static_cast<double>(i) * step, y = static_cast<double>(j) * step;
+        s1[0] += x, s1[1] += y, s2[0] += x * x, s2[1] += x * y, s2[2] += y * y, count += 1;
+        for (const auto& [di, dj] : {std::pair<std::int64_t, std::int64_t>{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+            const std::int64_t a = i + di, b = j + dj;
+            if (std::abs(a) > n || std::abs(b) > n || static_cast<double>(a * a + b * b) * step * step > reach * reach)
+                continue;
+            std::uint8_t& s = seen[static_cast<std::size_t>((b + n) * side + (a + n))];
+            if (s || !inside_nearest(grid, mask, cell(a, b))) continue;
+            s = 1;
+            todo.emplace_back(a, b);
+        }
+    }
+    // The 2-D covariance's eigenvalues, each with a cell's own variance (a section one cell thick is no line).
+    const double mx = s1[0] / count, my = s1[1] / count, cell_var = step * step / 12.0;
+    const double xx = s2[0] / count - mx * mx + cell_var, xy = s2[1] / count - mx * my,
+                 yy = s2[2] / count - my * my + cell_var;
+    const double mean = 0.5 * (xx + yy), dev = std::sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
+    return std::sqrt((mean + dev) / std::max(mean - dev, 1e-12 * mean));
+}
+
 std::int32_t bone_index(const Rig& rig, const std::string& name) {
     const auto it = std::find(rig.names.begin(), rig.names.end(), name);
     return it == rig.names.end() ? -1 : static_cast<std::int32_t>(it - rig.names.begin());

@@ -24,6 +24,11 @@ struct RigContext {
     /// How far from `from` along the unit vector `dir` the object reaches without a gap, from `start` up to
     /// `limit` (world units), in steps of half the finest spacing; `start` itself when the next step leaves it.
     double reach_inside(const Vec& from, const Vec& dir, double start, double limit) const;
+    /// How flat the object's cross-section through `at` across the unit vector `dir` is: the ratio of its long to
+    /// its short standard deviation (1 for a round limb, the width over the thickness for a sheet), over the piece
+    /// connected to `at` within `reach` of it (a disc: a limb lying against the trunk leaks into it no farther). 1
+    /// when `at` lies outside the object.
+    double cross_section_ratio(const Vec& at, const Vec& dir, double reach) const;
 };
 
 /// The index of the bone named `name` in `rig`, or -1.

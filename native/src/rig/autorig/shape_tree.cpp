@@ -52,12 +52,10 @@ void level_pieces(const PointSet& pts, const std::vector<Vec>& pos, const Skelet
         ++count[k];
     }
     for (std::size_t k = 0; k < t.centroid.size(); ++k) t.centroid[k] /= static_cast<double>(count[k]);
-    t.spread.assign(t.centroid.size(), 0.0);
     for (std::uint32_t i = 0; i < n; ++i) {
         const std::uint32_t k = t.node_of_point[i];
         if (k == kNone) continue;
         if ((pos[i] - t.centroid[k]).squaredNorm() < (pos[t.rep[k]] - t.centroid[k]).squaredNorm()) t.rep[k] = i;
-        t.spread[k] = std::max(t.spread[k], (pos[i] - t.centroid[k]).norm());
     }
 }
 

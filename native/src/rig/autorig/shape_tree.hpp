@@ -36,9 +36,6 @@ struct LevelSetTree {
     std::vector<Vec> centroid;
     std::vector<double> radius;
     std::vector<std::uint32_t> rep;
-    /// Per node: the farthest of its points from its centroid (a limb's piece is about as wide as its band; a
-    /// sheet's, a wing's or a fin's, spans its width).
-    std::vector<double> spread;
     std::vector<std::array<std::uint32_t, 2>> edges;
     std::vector<std::uint32_t> node_of_point;  // kNone outside the part
 };

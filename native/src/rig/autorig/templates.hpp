@@ -58,12 +58,20 @@ constexpr double kHandsAboveFeet = 0.25;
 /// is at least this (a camel's neck rises at about 45 degrees; a limb hangs across the spine); a shortfall is added.
 constexpr double kHeadAhead = 0.25;
 
+/// The body plans read from five extremities: the same head, legs and arms, told apart by their features (a winged
+/// reading's arms are wings).
+enum class PlanKind { Humanoid, Quadruped, Winged };
+inline const char* plan_kind_name(PlanKind k) {
+    return k == PlanKind::Humanoid ? "humanoid" : k == PlanKind::Quadruped ? "quadruped" : "winged";
+}
+
 struct PlanSearch {
-    Plan humanoid, quadruped;
+    Plan humanoid, quadruped, winged;
+    Plan& of(PlanKind k) { return k == PlanKind::Humanoid ? humanoid : k == PlanKind::Quadruped ? quadruped : winged; }
 };
 
-/// Discrete search over the assignments of five of the seven most significant extremities (the most significant
-/// always in) to head, legs and arms, each read as a humanoid and as a quadruped and scored by plan_score over its
+/// Discrete search over the assignments of five of the seven most significant extremities to head, legs and arms,
+/// each read as a humanoid, a quadruped and a winged body and scored by plan_score over its
 /// features (plan_score.hpp). The best reading of each kind: the fewest markers broken, then the lowest score;
 /// every reading appended to `all` when given (for fitting the weights).
 PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all = nullptr);
@@ -76,13 +84,19 @@ inline double plan_limit() { return chains_score(fitted_plan_weights()); }
 inline const std::vector<double> kSpineProportions{1.0, 1.0, 1.0};
 Fit trunk_fit(const Chain4& spine);
 
+/// Per node of the tree (kept ones; 1 elsewhere): RigContext::cross_section_ratio across the tree's direction there
+/// (from its parent), within kSectionRadii of its radius: a wing's or a fin's width over its thickness, 1 for a round
+/// limb (NodeTree::sheet).
+constexpr double kSectionRadii = 3.0;
+std::vector<double> node_sheets(const RigContext& c);
+
 /// Whether the extremities' bounding box is at least half the object's (a body plan spans the object).
 bool spans_object(const NodeTree& t, const std::vector<std::uint32_t>& leaves);
 
 /// The role-named rig of a plan (Rigify's names: hips, spine, chest, neck, head, shoulder / upper_arm / forearm /
-/// hand and pelvis / thigh / shin / foot with .L/.R) and its extra parts (add_extra_chains), or a candidate without
-/// bones when its chains are too short to cut.
-Candidate build_plan(const RigContext& c, const Plan& plan, bool humanoid, double tolerance,
+/// hand and pelvis / thigh / shin / foot with .L/.R; a wing's bones are its arm's: humerus, radius and ulna, hand)
+/// and its extra parts (add_extra_chains), or a candidate without bones when its chains are too short to cut.
+Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, double tolerance,
                      const std::optional<Vec>& up = std::nullopt);
 
 /// A limb whose proximal bone (upper arm, thigh) comes out shorter than kHiddenEnd times `ratio` times the next
@@ -205,11 +219,12 @@ void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& bo
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
 /// kExtraReach times their own mean radius, become chains parented to the bone holding the node they hang from,
-/// cut at bends like neutral chains (at most 4 bones). Named tail, tail.001, ... when a quadruped's hang from its
-/// hips, spine or pelvis with the tip behind the hips, else chain.<parent bone>, chain.<parent bone>.001, ...
+/// cut at bends like neutral chains (at most 4 bones). Named tail, tail.001, ... when a quadruped's or a winged
+/// body's hang from its hips, spine or pelvis with the tip behind the hips, else chain.<parent bone>,
+/// chain.<parent bone>.001, ... A winged body's wing keeps none: a sheet's medial axis branches along its edges.
 constexpr int kMaxExtraChains = 6;
 constexpr double kExtraReach = 2.0;
-void add_extra_chains(const RigContext& c, RigBuilder& b, bool quadruped, double tolerance);
+void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double tolerance);
 
 /// A hand: a wrist stub and five fingers (thumb first, then index, middle, ring, pinky across the palm) meeting
 /// on a palm at `palm` (where the first finger leaves the path from the wrist).
