@@ -343,12 +343,18 @@ void Gather::decide_block(const Block& b, Local& loc) const {
     std::int32_t* const win = loc.win;
     loc.live.resize(loc.fields.size());
     const std::int32_t whole = decide_.settle(loc.range.data(), loc.fields.size(), loc.live.data(), 1);
-    // (the blend candidate's field is known per voxel only: its sub-blocks)
-    if (whole < 0 || loc.ball[static_cast<std::size_t>(whole)] == kBlendBalls) return decide_sub_blocks(b, loc);
+    if (whole < 0) return decide_sub_blocks(b, loc);
+    // the blend candidate's field is known per voxel only, unless all the balls that may give its power over the
+    // block are one field's (then the least of them is that field's at every voxel): else its sub-blocks
+    std::int32_t field = loc.fields[static_cast<std::size_t>(whole)];
+    if (loc.ball[static_cast<std::size_t>(whole)] == kBlendBalls) {
+        field = one_field(loc.block_balls.data(), loc.block_span[static_cast<std::size_t>(whole)]);
+        if (field < 0) return decide_sub_blocks(b, loc);
+    }
     std::fill(win, win + 512, kEmpty);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
-            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + b.e[0], loc.fields[static_cast<std::size_t>(whole)]);
+            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + b.e[0], field);
     loc.by[0] += b.e[0] * b.e[1] * b.e[2];
 }
 
@@ -380,7 +386,13 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
-        if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls) {  // its voxels' fields from its exact powers
+        const std::int32_t one = w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls
+                                     ? one_field(loc.sub_balls.data(), loc.sub_span[static_cast<std::size_t>(w) * 8 + static_cast<std::size_t>(sb)])
+                                     : kNoField;
+        if (one >= 0) {  // the blend candidate wins all of it, and its balls there are one field's
+            sub_win[sb] = one;
+            lv[static_cast<std::size_t>(w) * 8] = 0;
+        } else if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls) {  // its voxels' fields from its exact powers
             sub_win[sb] = kOpen;
             any_open = true;
         } else if (w >= 0) {

@@ -67,6 +67,7 @@ struct Local {
 /// field is known per voxel only (loc.exact_field) and whose loc.fields entry is kBlend.
 enum Kind : std::uint8_t { kLattice = 0, kGroup = 1, kBlendBalls = 2 };
 constexpr std::int32_t kBlend = -3;
+constexpr std::int32_t kNoField = -4;  // one_field: the balls are more than one field's
 
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
 inline std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
@@ -120,6 +121,15 @@ private:
     void contact_fields(const Block& b, Local& loc) const;
     std::int32_t field_at(const Local& loc, std::size_t k, std::size_t li) const {
         return loc.ball[k] == kBlendBalls ? loc.exact_field[k * 512 + li] : loc.fields[k];
+    }
+    /// The field of all the posed balls list[span] (the blend candidate's over a block or sub-block), or kNoField
+    /// when they are more than one field's (or none).
+    std::int32_t one_field(const std::uint32_t* list, std::array<std::uint32_t, 2> span) const {
+        if (span[0] == span[1]) return kNoField;
+        const std::int32_t f = posed_.ball[list[span[0]]].field;
+        for (std::uint32_t i = span[0] + 1; i < span[1]; ++i)
+            if (posed_.ball[list[i]].field != f) return kNoField;
+        return f;
     }
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
