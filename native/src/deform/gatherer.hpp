@@ -33,6 +33,7 @@ struct Local {
     std::int64_t contact = 0;      // voxels given up by a yielding field
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
+    bool groups_pending = false;  // sliding contact: the blend candidate's groups are still to add to all_fields
     std::vector<CellBounds> range, range_sub;
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
@@ -81,7 +82,6 @@ public:
         for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
         words_ = (set.fields.size() + 63) / 64;
         mark_contact_zones();
-        list_contact_balls();
     }
 
     template <class S>
@@ -118,7 +118,8 @@ private:
                           std::vector<std::uint32_t>& out, Local& loc) const;
     bool ball_candidate(const Block& b, std::int32_t f, Local& loc) const;
     void blend_candidate(const Block& b, Local& loc) const;
-    void contact_fields(const Block& b, Local& loc) const;
+    void contact_fields(Local& loc) const;
+    void contact_groups(const Block& b, Local& loc) const;
     std::int32_t field_at(const Local& loc, std::size_t k, std::size_t li) const {
         return loc.ball[k] == kBlendBalls ? loc.exact_field[k * 512 + li] : loc.fields[k];
     }
@@ -134,9 +135,6 @@ private:
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void mark_contact_zones();
-    void list_contact_balls();
-    std::vector<std::uint32_t> region_by_field(std::size_t r) const;
-    std::vector<std::uint32_t> tile_balls(const std::int64_t* t, const std::vector<std::uint32_t>& in) const;
     bool block_meets(const Contact& c, const std::int64_t* k) const;
     void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
@@ -165,10 +163,6 @@ private:
     const PosedBalls posed_;    // then their spheres posed
     const std::vector<std::uint64_t> bits_;
     std::vector<std::uint8_t> zone_;  // per output block: whether a contact zone meets it (empty: no contacts)
-    // Per tile of posed_ (16³) holding a contact-zone block: its index in contact_balls_, else -1 (empty: none)
-    std::vector<std::int32_t> contact_tile_;
-    // Per such tile: the posed balls of its region meeting the tile, by field, then increasing
-    std::vector<std::vector<std::uint32_t>> contact_balls_;
     std::int64_t nb_[3];
     std::size_t words_;
     tbb::enumerable_thread_specific<Local> locals_;
