@@ -216,7 +216,7 @@ TEST_CASE("blocks and sub-blocks whose blended balls are one field's are decided
     // it is filled with that field at once (by_block) instead of per voxel; at the joint the voxels still go one by
     // one (by_cube). Random poses, every mode, with and without sliding contact: the brute-force scatter's voxels.
     std::mt19937 rng(56);
-    std::int64_t whole = 0, per_voxel = 0;
+    std::int64_t whole = 0, per_voxel = 0, contact = 0;
     for (auto spacing : {std::array<double, 3>{1.0, 1.0, 1.0}, std::array<double, 3>{0.9, 1.2, 1.1}}) {
         const Limb L = make_limb(spacing, 3);
         Deformer d(L.view(), L.spheres(true));
@@ -236,12 +236,14 @@ TEST_CASE("blocks and sub-blocks whose blended balls are one field's are decided
                             fast.stats.covered);
                     whole += fast.stats.by_block;
                     per_voxel += fast.stats.by_cube + fast.stats.by_sphere + fast.stats.by_search;
+                    contact += fast.stats.contact;
                 }
         }
     }
-    INFO("whole " << whole << " per voxel " << per_voxel);
+    INFO("whole " << whole << " per voxel " << per_voxel << " contact " << contact);
     REQUIRE(whole > 0);
     REQUIRE(per_voxel > 0);
+    REQUIRE(contact > 0);  // voxels given up at contact planes: the groups sought at a block's first yielding voxel
 }
 
 /// Voxels labelled with bone 0 lying more than 1.5 voxels past the plane through `joint` (world) with unit normal n.
