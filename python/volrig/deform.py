@@ -56,10 +56,11 @@ class Frame:
     bone:   Volume int16 on the same grid: index + 1 of the bone each voxel came from, 0 = empty.
     offset: (x, y, z) source-lattice index of output voxel (0, 0, 0): the output grid lies on the source lattice.
     stats:  covered voxels, exact queries the bounds did not settle, blended spheres, and how the covered voxels were
-            decided: by_block (whole blocks one bone covers alone), by_cube (per-cube power ranges), by_sphere (the
-            power of the sphere labelling the cube), by_search (the full per-voxel search); exact_sub_blocks counts
-            the (field, 4³ sub-block) pairs whose powers came straight from the one sphere that is the field's
-            nearest over the sub-block's whole preimage (no per-voxel table lookups).
+            decided: by_block (whole blocks or 4³ sub-blocks one field covers and wins alone), by_cube (per-cube
+            power ranges), by_sphere (the power of the sphere labelling the cube), by_search (the full per-voxel
+            search); exact_sub_blocks counts the (field, 4³ sub-block) pairs whose powers came straight from the
+            one sphere that is the field's nearest over the sub-block's whole preimage (no per-voxel table
+            lookups).
 
     The arrays are read-only: once a frame is gone, its Deformer reuses the memory for the next one, re-zeroing only
     what it wrote. Copy an array (``np.array(frame.values.array)``) to change it; drop frames you are done with

@@ -182,86 +182,34 @@ void Gather::blend_candidate(const Block& b, Local& loc) const {
 
 /// Sliding contact's candidates of a block (loc.all_fields): the block's, with the blend candidate's groups one by
 /// one (every group a posed sphere meeting the block belongs to: a field that yields hands its voxels to the
-/// others, so none may be left out for being beaten), in increasing order: from its tile's list, a group's balls
-/// until one meets the block.
-void Gather::contact_fields(const Block& b, Local& loc) const {
+/// others, so none may be left out for being beaten), in increasing order. Here, before decide_block drops the
+/// candidates that cannot win, the block's own; the groups are added by contact_groups at the block's first
+/// voxel whose winner yields (few blocks of a contact zone have one).
+void Gather::contact_fields(Local& loc) const {
     loc.all_fields.clear();
-    bool blend = false;
+    loc.groups_pending = false;
     for (std::size_t k = 0; k < loc.fields.size(); ++k) {
-        if (loc.ball[k] == kBlendBalls) blend = true;
+        if (loc.ball[k] == kBlendBalls) loc.groups_pending = true;
         else loc.all_fields.push_back(loc.fields[k]);
     }
-    if (!blend) return;
+}
+
+/// The blend candidate's groups of the block, appended to loc.all_fields in increasing order: those of the posed
+/// balls of its region (posed_.meets) that meet the block.
+void Gather::contact_groups(const Block& b, Local& loc) const {
+    loc.groups_pending = false;
     double box[6];
     block_box(b, box);
-    const std::int32_t t = contact_tile_[posed_.tile_of(b.k)];
-    const std::vector<std::uint32_t>& in = contact_balls_[static_cast<std::size_t>(t)];
-    for (std::size_t j = 0; j < in.size();) {
-        const std::int32_t f = posed_.ball[in[j]].field;
-        bool meets = false;
-        for (; j < in.size() && posed_.ball[in[j]].field == f; ++j) {
-            double near2;
-            if (!meets && least_power_over(posed_.ball[in[j]], box, s_.s2, posed_.rel, near2) < 0) meets = true;
-        }
-        if (meets) loc.all_fields.push_back(f);
-    }
-}
-
-/// The posed balls of each contact-zone tile: those of its region, ordered by field (once per region), whose balls
-/// meet the tile (a ball missing the tile misses each of its blocks: least_power_over grows with the distance to
-/// the box).
-void Gather::list_contact_balls() {
-    if (zone_.empty() || posed_.empty()) return;
-    contact_tile_.assign(static_cast<std::size_t>(posed_.nt[0] * posed_.nt[1] * posed_.nt[2]), -1);
-    std::vector<std::int32_t> region_of(posed_.begin.size() - 1, -1);
-    std::vector<std::array<std::int64_t, 3>> tiles;
-    std::vector<std::size_t> regions, tile_region;
-    for (std::int64_t z = 0; z < nb_[2]; ++z)
-        for (std::int64_t y = 0; y < nb_[1]; ++y)
-            for (std::int64_t x = 0; x < nb_[0]; ++x) {
-                const std::int64_t k[3] = {x, y, z};
-                std::int32_t& t = contact_tile_[posed_.tile_of(k)];
-                if (!zone_[static_cast<std::size_t>((z * nb_[1] + y) * nb_[0] + x)] || t >= 0) continue;
-                t = static_cast<std::int32_t>(tiles.size());
-                tiles.push_back({x / 2, y / 2, z / 2});
-                std::int32_t& r = region_of[posed_.region(k)];
-                if (r < 0) {
-                    r = static_cast<std::int32_t>(regions.size());
-                    regions.push_back(posed_.region(k));
-                }
-                tile_region.push_back(static_cast<std::size_t>(r));
-            }
-    std::vector<std::vector<std::uint32_t>> by_field(regions.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, regions.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
-        for (std::size_t i = rg.begin(); i != rg.end(); ++i) by_field[i] = region_by_field(regions[i]);
-    });
-    contact_balls_.resize(tiles.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles.size()), [&](const tbb::blocked_range<std::size_t>& rg) {
-        for (std::size_t i = rg.begin(); i != rg.end(); ++i)
-            contact_balls_[i] = tile_balls(tiles[i].data(), by_field[tile_region[i]]);
-    });
-}
-
-/// The balls meeting region r, by field, then increasing.
-std::vector<std::uint32_t> Gather::region_by_field(std::size_t r) const {
-    std::vector<std::uint32_t> out(posed_.meets.begin() + posed_.begin[r], posed_.meets.begin() + posed_.begin[r + 1]);
-    std::stable_sort(out.begin(), out.end(), [&](std::uint32_t a, std::uint32_t c) { return posed_.ball[a].field < posed_.ball[c].field; });
-    return out;
-}
-
-/// Those of its region's balls `in` that meet tile t (its voxels in the box), in the order of `in`.
-std::vector<std::uint32_t> Gather::tile_balls(const std::int64_t* t, const std::vector<std::uint32_t>& in) const {
-    double box[6];
-    for (int a = 0; a < 3; ++a) {
-        box[a] = static_cast<double>(bx_[a] + t[a] * PosedBalls::kTile);
-        box[3 + a] = static_cast<double>(bx_[a] + std::min(bx_[3 + a], (t[a] + 1) * PosedBalls::kTile) - 1);
-    }
-    std::vector<std::uint32_t> out;
-    for (const std::uint32_t j : in) {
+    const std::size_t r = posed_.region(b.k);
+    const auto first = loc.all_fields.size();
+    for (std::uint32_t j = posed_.begin[r]; j < posed_.begin[r + 1]; ++j) {
+        const PosedBall& pb = posed_.ball[posed_.meets[j]];
         double near2;
-        if (least_power_over(posed_.ball[j], box, s_.s2, posed_.rel, near2) < 0) out.push_back(j);
+        if (least_power_over(pb, box, s_.s2, posed_.rel, near2) < 0) loc.all_fields.push_back(pb.field);
     }
-    return out;
+    std::sort(loc.all_fields.begin() + static_cast<std::ptrdiff_t>(first), loc.all_fields.end());
+    loc.all_fields.erase(std::unique(loc.all_fields.begin() + static_cast<std::ptrdiff_t>(first), loc.all_fields.end()),
+                         loc.all_fields.end());
 }
 
 /// The fields whose rest data the block's preimage meets and that may cover it, with their power ranges over it.
@@ -343,12 +291,18 @@ void Gather::decide_block(const Block& b, Local& loc) const {
     std::int32_t* const win = loc.win;
     loc.live.resize(loc.fields.size());
     const std::int32_t whole = decide_.settle(loc.range.data(), loc.fields.size(), loc.live.data(), 1);
-    // (the blend candidate's field is known per voxel only: its sub-blocks)
-    if (whole < 0 || loc.ball[static_cast<std::size_t>(whole)] == kBlendBalls) return decide_sub_blocks(b, loc);
+    if (whole < 0) return decide_sub_blocks(b, loc);
+    // the blend candidate's field is known per voxel only, unless all the balls that may give its power over the
+    // block are one field's (then the least of them is that field's at every voxel): else its sub-blocks
+    std::int32_t field = loc.fields[static_cast<std::size_t>(whole)];
+    if (loc.ball[static_cast<std::size_t>(whole)] == kBlendBalls) {
+        field = one_field(loc.block_balls.data(), loc.block_span[static_cast<std::size_t>(whole)]);
+        if (field < 0) return decide_sub_blocks(b, loc);
+    }
     std::fill(win, win + 512, kEmpty);
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy)
-            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + b.e[0], loc.fields[static_cast<std::size_t>(whole)]);
+            std::fill(win + (dz * 8 + dy) * 8, win + (dz * 8 + dy) * 8 + b.e[0], field);
     loc.by[0] += b.e[0] * b.e[1] * b.e[2];
 }
 
@@ -380,7 +334,13 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
         for (std::size_t k = 0; k < K; ++k) sr[k] = sub_range(k, q0, sb, loc);
         std::uint8_t* lv = loc.live.data() + sb;
         const std::int32_t w = decide_.settle(sr.data(), K, lv, 8);
-        if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls) {  // its voxels' fields from its exact powers
+        const std::int32_t one = w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls
+                                     ? one_field(loc.sub_balls.data(), loc.sub_span[static_cast<std::size_t>(w) * 8 + static_cast<std::size_t>(sb)])
+                                     : kNoField;
+        if (one >= 0) {  // the blend candidate wins all of it, and its balls there are one field's
+            sub_win[sb] = one;
+            lv[static_cast<std::size_t>(w) * 8] = 0;
+        } else if (w >= 0 && loc.ball[static_cast<std::size_t>(w)] == kBlendBalls) {  // its voxels' fields from its exact powers
             sub_win[sb] = kOpen;
             any_open = true;
         } else if (w >= 0) {
@@ -560,7 +520,6 @@ void Gather::mark_contact_zones() {
 /// covering it yields).
 void Gather::slide(const Block& b, Local& loc) const {
     const FieldContacts& fc = *s_.contacts;
-    if (loc.cands.size() < loc.all_fields.size()) loc.cands.resize(loc.all_fields.size());
     for (std::size_t li = 0; li < 512; ++li) {
         const std::int32_t w = loc.win[li];
         if (w < 0 || fc[static_cast<std::size_t>(w)].empty()) continue;
@@ -569,9 +528,11 @@ void Gather::slide(const Block& b, Local& loc) const {
         if (d[0] >= b.e[0] || d[1] >= b.e[1] || d[2] >= b.e[2]) continue;  // past the box's edge
         const std::int64_t m3[3] = {b.base[0] + d[0], b.base[1] + d[1], b.base[2] + d[2]};
         if (!yields(fc[static_cast<std::size_t>(w)], m3, s_.s2)) continue;
+        if (loc.groups_pending) contact_groups(b, loc);
         loc.others.clear();
         for (const std::int32_t f : loc.all_fields)
             if (f != w && !yields(fc[static_cast<std::size_t>(f)], m3, s_.s2)) loc.others.push_back(f);
+        if (loc.cands.size() < loc.others.size()) loc.cands.resize(loc.others.size());
         const std::int32_t v = decide_.resolve(loc.others.data(), loc.others.size(), m3, loc.cands.data(), loc.queries);
         if (v < 0) continue;
         loc.win[li] = v;
@@ -695,7 +656,7 @@ void Gather::run(const S& sampler, const Progress& progress) {
             if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
             std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
             const bool contact = !zone_.empty() && zone_[static_cast<std::size_t>(k)];
-            if (contact) contact_fields(b, loc);  // decide_block drops those that cannot win
+            if (contact) contact_fields(loc);  // decide_block drops those that cannot win
             decide_block(b, loc);
             if (contact) slide(b, loc);
             const std::int64_t ncov = write_block(b, loc, sampler);

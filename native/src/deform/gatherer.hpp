@@ -33,6 +33,7 @@ struct Local {
     std::int64_t contact = 0;      // voxels given up by a yielding field
     std::vector<std::int32_t> fields, running;  // the block's candidate fields; those still in the running at a voxel
     std::vector<std::int32_t> all_fields, others;  // sliding contact: every candidate; those not yielding at a voxel
+    bool groups_pending = false;  // sliding contact: the blend candidate's groups are still to add to all_fields
     std::vector<CellBounds> range, range_sub;
     std::vector<std::uint8_t> live;
     // per candidate, per voxel of the block: the cube holding its preimage, split into lanes
@@ -67,6 +68,7 @@ struct Local {
 /// field is known per voxel only (loc.exact_field) and whose loc.fields entry is kBlend.
 enum Kind : std::uint8_t { kLattice = 0, kGroup = 1, kBlendBalls = 2 };
 constexpr std::int32_t kBlend = -3;
+constexpr std::int32_t kNoField = -4;  // one_field: the balls are more than one field's
 
 /// The origin of 4³ sub-block sb (bits x, y, z) in its 8³ block.
 inline std::array<std::int64_t, 3> sub_origin(int sb) { return {(sb & 1) * 4, ((sb >> 1) & 1) * 4, (sb >> 2) * 4}; }
@@ -80,7 +82,6 @@ public:
         for (int a = 0; a < 3; ++a) nb_[a] = (bx[3 + a] + kBlock - 1) / kBlock;
         words_ = (set.fields.size() + 63) / 64;
         mark_contact_zones();
-        list_contact_balls();
     }
 
     template <class S>
@@ -117,16 +118,23 @@ private:
                           std::vector<std::uint32_t>& out, Local& loc) const;
     bool ball_candidate(const Block& b, std::int32_t f, Local& loc) const;
     void blend_candidate(const Block& b, Local& loc) const;
-    void contact_fields(const Block& b, Local& loc) const;
+    void contact_fields(Local& loc) const;
+    void contact_groups(const Block& b, Local& loc) const;
     std::int32_t field_at(const Local& loc, std::size_t k, std::size_t li) const {
         return loc.ball[k] == kBlendBalls ? loc.exact_field[k * 512 + li] : loc.fields[k];
+    }
+    /// The field of all the posed balls list[span] (the blend candidate's over a block or sub-block), or kNoField
+    /// when they are more than one field's (or none).
+    std::int32_t one_field(const std::uint32_t* list, std::array<std::uint32_t, 2> span) const {
+        if (span[0] == span[1]) return kNoField;
+        const std::int32_t f = posed_.ball[list[span[0]]].field;
+        for (std::uint32_t i = span[0] + 1; i < span[1]; ++i)
+            if (posed_.ball[list[i]].field != f) return kNoField;
+        return f;
     }
     void block_candidates(const Block& b, Local& loc) const;
     void decide_block(const Block& b, Local& loc) const;
     void mark_contact_zones();
-    void list_contact_balls();
-    std::vector<std::uint32_t> region_by_field(std::size_t r) const;
-    std::vector<std::uint32_t> tile_balls(const std::int64_t* t, const std::vector<std::uint32_t>& in) const;
     bool block_meets(const Contact& c, const std::int64_t* k) const;
     void slide(const Block& b, Local& loc) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
@@ -155,10 +163,6 @@ private:
     const PosedBalls posed_;    // then their spheres posed
     const std::vector<std::uint64_t> bits_;
     std::vector<std::uint8_t> zone_;  // per output block: whether a contact zone meets it (empty: no contacts)
-    // Per tile of posed_ (16³) holding a contact-zone block: its index in contact_balls_, else -1 (empty: none)
-    std::vector<std::int32_t> contact_tile_;
-    // Per such tile: the posed balls of its region meeting the tile, by field, then increasing
-    std::vector<std::vector<std::uint32_t>> contact_balls_;
     std::int64_t nb_[3];
     std::size_t words_;
     tbb::enumerable_thread_specific<Local> locals_;
