@@ -26,9 +26,10 @@ class BoneJoint:
     before, after: (3,) world positions (equal when the joint was kept).
     how:     "contact" (centre of the contact between two segments), "ball" (centre of a sphere fitted to a head
              where it faces its socket), "thickest" (a head fused with its socket at the voxel size: its thickest
-             bone), "section" (one segment spans the joint: its narrowest section, where it is split), "bulge" (one
-             segment spans a knee, elbow or ankle with no narrower section: its widest bone along the limb, split
-             there) or "kept".
+             bone), "section" (one segment spans the joint, or a bone fused on to the parent's end beyond a contact:
+             its narrowest section, where it is split; or a wrist or ankle sought again at its mirror's length),
+             "bulge" (one segment spans a knee, elbow or ankle with no narrower section: its widest bone along the
+             limb, split there) or "kept".
     why:     for a kept joint, why the bones could not place it ("" otherwise).
     parent_segment, child_segment: the segments either side (labels of ``BonesFit.segments``; 0 = none).
     """

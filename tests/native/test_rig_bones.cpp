@@ -363,3 +363,23 @@ TEST_CASE("bone segments: the defaults scale with the skeleton (a femur and tibi
     CHECK(knee.how == "contact");
     CHECK(std::abs(knee.to[2] - 5.9) <= 0.15);  // the gap z 57..61 (voxels): its centre at 5.9 mm
 }
+
+TEST_CASE("bone rig: a bone fused on to a segment's end is found behind the contact by its valley", "[rig][bones]") {
+    // a "tibia" (z 40..110, radius 8) and a "talus" (z 14..33, radius 8) fused through a neck (z 34..39) of radius
+    // `neck`; the contact found at the talus' far end (z 16), the parent bone pointing down
+    const auto fused = [](double neck) {
+        const Phantom p = phantom_of({40, 40, 120}, [neck](std::int64_t, std::int64_t, std::int64_t z, double r) {
+            return ((z >= 40 && z <= 110) || (z >= 14 && z <= 33)) ? r <= kRadius : (z > 33 && z < 40 && r <= neck);
+        });
+        std::vector<std::int32_t> labels(p.bone.begin(), p.bone.end());
+        const rig_detail::P3 at{20, 20, 16}, down{0, 0, -1};
+        const rig_detail::Patch patch = rig_detail::patch_of(p.grid, labels, 1, at, 45);
+        return rig_detail::fused_end(patch, at, down, 15, 30, 10, 1.0, 0.1);
+    };
+    const rig_detail::Section s = fused(6.0);  // the neck holds 56% of a full section's bone
+    REQUIRE(s.found);
+    CHECK(std::abs(s.centre[2] - 36.5) <= 2.0);
+    CHECK(std::hypot(s.centre[0] - 20, s.centre[1] - 20) <= 1.0);
+    CHECK_FALSE(fused(kRadius).found);  // one even bone: no valley
+    CHECK_FALSE(fused(7.8).found);      // a valley under a tenth of its wall: not a joint
+}

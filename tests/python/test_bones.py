@@ -96,11 +96,15 @@ def test_vhm_bones_improve_on_the_outer_shape(mm):
     assert err(v["rig"]) < 0.6 * err(v["plain"]), (err(v["rig"]), err(v["plain"]))
 
 
-@pytest.mark.parametrize("step,least", [(2, 11), (3, 11), (4, 10)], ids=["4mm", "6mm", "8mm"])
+@pytest.mark.parametrize("step,least", [(2, 12), (3, 12), (4, 11)], ids=["4mm", "6mm", "8mm"])
 def test_vhm_on_slices_far_apart(step, least):
     """An anisotropic scan: the 2 mm Visible Human with every `step`-th axial slice kept (slices 4, 6 and 8 mm
     apart), against the full grid's reference joints: at least `least` of the 12 limb joints within 30 mm (issue 54
-    asks 11 up to 8 mm: at 8 mm the left wrist, its hand resting on the pelvis, and the left ankle stay short)."""
+    asks 11 up to 8 mm: at 8 mm the left wrist, its hand resting on the pelvis, stays 32 mm short). At 4 and 6 mm the
+    left ankle's talus fuses with the tibia and its contact with the forefoot is the next joint down, 35-50 mm low
+    (11 of 12 before 2026-12-07); the valley left in the tibia's segment just above it is the ankle. At 8 mm the left
+    ankle's section lay in the foot, 82 mm low (10 of 12 before): its shin 14% longer than the right one, whose
+    thighs agree, it is sought again at the right shin's length (bilateral symmetry)."""
     full = vhm(2)
     a = np.asarray(full["labels"].array)[::step]
     sp = full["labels"].spacing
@@ -248,13 +252,16 @@ def posed_vhm(arms, legs):
     return S.posed_visible_human(v["labels"], v["rigged"][0], arms, legs, {n: ref[n] for n in LIMB_JOINTS})
 
 
-@pytest.mark.parametrize("arms,legs,slices", [(150, 15, 1), (90, 0, 1), (150, 15, 4)],
-                         ids=["arms-raised-legs-apart", "t-pose", "arms-raised-8mm-slices"])
+@pytest.mark.parametrize("arms,legs,slices", [(150, 15, 1), (90, 0, 1), (150, 15, 4), (90, 0, 4)],
+                         ids=["arms-raised-legs-apart", "t-pose", "arms-raised-8mm-slices", "t-pose-8mm-slices"])
 def test_a_posed_body_rigs_from_its_bones(arms, legs, slices):
     """Standing bodies unlike the one the rules were written on (issue 54): the Visible Human posed by its own rig,
     arms raised or straight out, legs apart, then rigged again from scratch. Humanoid, and every limb joint within
     15 mm of where its bones put it at 2 mm; with slices 8 mm apart, 11 of 12 within 30 mm. The outer shape alone
-    misses by 29-39 mm on average (shoulders out on a raised arm, hips high on the flank of legs apart)."""
+    misses by 29-39 mm on average (shoulders out on a raised arm, hips high on the flank of legs apart). The T-pose
+    on 8 mm slices: its left humerus and forearm fuse into one segment while the outer shape's shoulder lies 214 mm
+    in on the chest and its elbow 86 mm short; the elbow is sought along the limb from that segment's own far end
+    (9 of 12 before 2026-12-07: elbow 88 mm, shoulder 190 mm off)."""
     posed, ref = posed_vhm(arms, legs)
     a = np.asarray(posed.array)[::slices]
     posed = volrig.Volume(a, (posed.spacing[0], posed.spacing[1], posed.spacing[2] * slices), posed.origin)

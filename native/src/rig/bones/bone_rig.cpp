@@ -58,6 +58,8 @@ void for_box(const Grid& g, const std::array<std::int64_t, 3>& lo, const std::ar
             }
 }
 
+double along_of(const std::string& child);
+
 class Fitter {
 public:
     /// `voxels`: the bone's voxels (ascending), whose segments `segs` are.
@@ -74,6 +76,8 @@ public:
     BoneRig run() {
         for (const char* sfx : {".L", ".R"})
             for (const LimbJoint& lj : kLimbJoints) place(lj, sfx);
+        for (const LimbJoint& lj : kLimbJoints)
+            if (!lj.ball && along_of(lj.parent) > 0) mirror_length(lj);  // wrists and ankles
         out_.bone_segment.assign(out_.rig.bones.size(), 0);
         for (std::size_t b = 0; b < out_.rig.bones.size(); ++b) out_.bone_segment[b] = segment_of(static_cast<int>(b));
         check_rig(out_.rig);
@@ -138,7 +142,9 @@ private:
     }
 
     void place(const LimbJoint& lj, const std::string& sfx);
+    void mirror_length(const LimbJoint& lj);
     P3 axis_of(int b) const;
+    std::optional<P3> bone_top(const BoneJoint& j, int pb, int cb, double along) const;
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
     bool place_in_limb(BoneJoint& j, int pb, int cb, double along);
     bool hidden_in_parent(BoneJoint& j, int pb, int cb, double along);
@@ -148,9 +154,15 @@ private:
     double slab_along(const P3& axis) const;
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
+    void fused_beyond(BoneJoint& j, int pb, int cb, double w);
     bool place_ball(BoneJoint& j, int cb, int db, double w);
     bool reseed_hinge(BoneJoint& j, int pb, int cb, double w);
     bool reseed_shared(BoneJoint& j, int pb, int cb, double w);
+    /// Whether rig joint `joint` was placed from the bones already.
+    bool placed_joint(std::int32_t joint) const {
+        return std::any_of(out_.joints.begin(), out_.joints.end(),
+                           [&](const BoneJoint& k) { return k.joint == joint && k.how != "kept"; });
+    }
     const BoneJoint* placed(const std::string& name) const {
         for (const BoneJoint& k : out_.joints)
             if (k.name == name && k.how != "kept") return &k;
@@ -218,13 +230,81 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
     else if (j.parent_segment == j.child_segment)  // near the outer shape's joint unless that is far off
-        done = (!off_proportion(pb, cb, lj.along) && place_in_section(j, pb, cb, w)) ||
+        done = (!off_proportion(pb, cb, lj.along) && !bone_top(j, pb, cb, lj.along) && place_in_section(j, pb, cb, w)) ||
                (lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
     else  // a child without a segment of its own: whatever meets the parent
         done = place_hinge(j, pb, cb, w) || (lj.along > 0 && hidden_in_parent(j, pb, cb, lj.along)) ||
                reseed_hinge(j, pb, cb, w);
     if (!done && j.why.empty()) j.why = "the bones show no articulation there";
     out_.joints.push_back(j);
+}
+
+/// How far from the joint the far end of a shared segment may lie, in the parent bone's expected length.
+constexpr double kTopSpan[2] = {0.5, 2.0};
+
+/// A hinge whose parent bone's head the outer shape put off their shared segment, and not from the bones (a
+/// shoulder guessed inside the chest): the shared segment's far end from the child's tail (its principal axis'
+/// end), when it lies between kTopSpan of the parent's expected length (the limb's proportions against the child
+/// bone) from the joint; nothing otherwise.
+std::optional<P3> Fitter::bone_top(const BoneJoint& j, int pb, int cb, double along) const {
+    if (along <= 0 || along >= 1 || placed_joint(out_.rig.bones[pb][0])) return std::nullopt;
+    const double w = std::clamp(0.3 * std::min(length(cb), length(pb)), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
+    if (near_segment(j.child_segment, head(pb), w)) return std::nullopt;
+    const SegmentEnds e = segment_ends(g_, members_[static_cast<std::size_t>(j.child_segment)]);
+    if (!e.found) return std::nullopt;
+    const P3 far = norm(sub(e.a, tail(cb))) > norm(sub(e.b, tail(cb))) ? e.a : e.b;
+    const double expect = along / (1 - along) * length(cb), span = norm(sub(far, head(cb)));
+    if (span < kTopSpan[0] * expect || span > kTopSpan[1] * expect) return std::nullopt;
+    return far;
+}
+
+/// Bilateral symmetry (a wrist's or an ankle's pair): where the forearms or shins, measured between the joints
+/// placed, differ by more than kMirrorSlack while the bones above them (upper arms, thighs) agree within it, one of
+/// the two distal joints is off (a left ankle whose outer shape lay in the foot and whose section lies in the foot's
+/// bones, 82 mm low on 8 mm slices). Each side's narrowest section is sought along its parent bone at either side's
+/// length (all segments within kMirrorWindow of that length around it): the length whose two valleys are deeper
+/// together is the joint's, and the other side's joint moves to its section there when its own valley there is
+/// deeper than at its own length (its segments stay as they were split).
+constexpr double kMirrorSlack = 0.05, kMirrorWindow = 0.1;
+void Fitter::mirror_length(const LimbJoint& lj) {
+    BoneJoint* side[2] = {nullptr, nullptr};
+    for (BoneJoint& k : out_.joints)
+        if (k.name == std::string(lj.name) + ".L") side[0] = &k;
+        else if (k.name == std::string(lj.name) + ".R") side[1] = &k;
+    if (!side[0] || !side[1] || side[0]->how == "kept" || side[1]->how == "kept") return;
+    int pb[2], cb[2];
+    for (int s = 0; s < 2; ++s) {
+        const std::string sfx = s == 0 ? ".L" : ".R";
+        pb[s] = bone(lj.parent + sfx), cb[s] = bone(lj.child + sfx);
+        if (pb[s] < 0 || cb[s] < 0) return;
+    }
+    const double len[2] = {length(pb[0]), length(pb[1])};
+    const int up[2] = {out_.rig.parents[pb[0]], out_.rig.parents[pb[1]]};  // the bones above (upper arm, thigh)
+    if (up[0] < 0 || up[1] < 0 ||
+        std::abs(length(up[0]) - length(up[1])) > kMirrorSlack * std::min(length(up[0]), length(up[1])))
+        return;
+    if (std::abs(len[0] - len[1]) <= kMirrorSlack * std::min(len[0], len[1])) return;
+    // each side's section at either length: the length whose sections are deeper on both sides is the joint's
+    Section at[2][2];  // [side][length]
+    double score[2] = {0, 0};
+    for (int s = 0; s < 2; ++s)
+        for (int l = 0; l < 2; ++l) {
+            const P3 axis = axis_of(pb[s]), c = add(head(pb[s]), {len[l] * axis[0], len[l] * axis[1], len[l] * axis[2]});
+            const double half = kMirrorWindow * len[l];
+            Patch p;
+            for (const auto& [t, count] : segments_near(c, half)) {
+                const Patch q = patch_of(g_, out_.segments.labels, t, c, 2 * half);
+                p.pos.insert(p.pos.end(), q.pos.begin(), q.pos.end());
+                p.surface.insert(p.surface.end(), q.surface.begin(), q.surface.end());
+                p.index.insert(p.index.end(), q.index.begin(), q.index.end());
+            }
+            at[s][l] = narrowest_section(p, c, axis, half, slab_along(axis));
+            score[l] += at[s][l].found ? at[s][l].share : 0;
+        }
+    const int l = score[0] >= score[1] ? 0 : 1;
+    const int s = 1 - l;  // the side whose length lost
+    if (!at[s][l].found || at[s][l].share <= at[s][s].share) return;
+    move(*side[s], cb[s], at[s][l].centre, "section");
 }
 
 P3 Fitter::axis_of(int b) const { return unit(sub(tail(b), head(b))); }
@@ -281,7 +361,9 @@ bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
 /// its proportions put the joint at and kLimbRadius of the limb (limb_section: its deepest valley, else its bulge,
 /// the condyles and the plateau or the epicondyles), where the segment is split.
 bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
-    const Limb limb{head(pb), head(cb), tail(cb), along - kLimbBand, along + kLimbBand};
+    const std::optional<P3> far = bone_top(j, pb, cb, along);
+    const P3 top = far ? *far : head(pb);
+    const Limb limb{top, head(cb), tail(cb), along - kLimbBand, along + kLimbBand};
     const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
     const P3 mid = lerp(limb.a, limb.b, 0.5);
     const P3 axis = unit(add(unit(sub(limb.k, limb.a)), unit(sub(limb.b, limb.k))));  // splits upper from lower
@@ -325,7 +407,25 @@ bool Fitter::place_hinge(BoneJoint& j, int pb, int cb, double w) {
         return false;
     }
     move(j, cb, k.centre, "contact");
+    fused_beyond(j, pb, cb, w);
     return true;
+}
+
+/// How deep a valley in the parent's segment just before a hinge's contact must be (over its lower wall) to mark a
+/// bone fused on to the parent's end (fused_end): the tibia and the talus fused on 8 mm slices leave 10-25%.
+constexpr double kFusedValley = 0.1;
+
+/// A hinge at a contact whose parent segment holds, within the window w behind it (along the parent bone), a valley
+/// of at least kFusedValley and more bone between that valley and the contact (the talus and calcaneus joined to
+/// the tibia where slices lie far apart, whose contact with the forefoot is the next joint down): the joint moves to
+/// the valley, and the parent's segment is split there (the part beyond goes with the child bone).
+void Fitter::fused_beyond(BoneJoint& j, int pb, int cb, double w) {
+    const P3 at = head(cb), axis = axis_of(pb);
+    const Patch p = patch_of(g_, out_.segments.labels, j.parent_segment, at, 1.5 * w);
+    const Section s = fused_end(p, at, axis, w, w, 0.5 * w, slab_along(axis), kFusedValley);
+    if (!s.found) return;
+    split(j.parent_segment, cb, s.centre, axis);
+    move(j, cb, s.centre, "section");
 }
 
 /// A hinge the outer shape put beyond the window of its bones' contact: started again between the facing ends of

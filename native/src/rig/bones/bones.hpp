@@ -102,8 +102,16 @@ struct Section {
     bool found = false;
     P3 centre{0, 0, 0};
     bool bulge = false;  ///< limb_section: the bulge, no valley
+    double share = 0;    ///< narrowest_section: the valley's depth over its lower wall
 };
 Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, double half_length, double slab);
+
+/// A bone fused on to the end of a segment (a talus and calcaneus joined to the tibia on slices 8 mm apart, the
+/// contact found then the next joint down): the deepest valley of the patch's slab profile along `axis` (unit,
+/// pointing away from the segment's body) between `back` behind `at` and `ahead` beyond it, within `radius` of the
+/// axis, when it lies behind `at` and is at least `least` of its lower wall; its centroid. found = false otherwise.
+Section fused_end(const Patch& p, const P3& at, const P3& axis, double radius, double back, double ahead, double slab,
+                  double least);
 
 /// A limb as the outer shape guessed it: from the parent bone's head a through the guessed joint k to the child
 /// bone's tail b; its joint is searched between the shares `from` and `to` of its length from a.

@@ -192,11 +192,14 @@ int deepest_valley(const std::vector<long>& count, double* share = nullptr) {
     return best < 0 ? best : best + (run - 1) / 2;
 }
 
-/// The centroid of the voxels whose bin lies in [lo, hi].
+/// The centroid of the voxels whose bin lies in [lo, hi]; where those bins hold no bone (a valley that is a clean
+/// gap), the range widens a bin each way until it does (the gap's facing ends), not the origin.
 P3 bins_centroid(const Patch& p, const std::vector<int>& bin, int lo, int hi) {
     std::vector<P3> in;
-    for (std::size_t k = 0; k < p.pos.size(); ++k)
-        if (bin[k] >= lo && bin[k] <= hi) in.push_back(p.pos[k]);
+    const int last = bin.empty() ? 0 : *std::max_element(bin.begin(), bin.end());
+    for (; in.empty() && (lo >= 0 || hi <= last); --lo, ++hi)
+        for (std::size_t k = 0; k < p.pos.size(); ++k)
+            if (bin[k] >= 0 && bin[k] >= lo && bin[k] <= hi) in.push_back(p.pos[k]);
     return centroid(in);
 }
 
@@ -208,10 +211,29 @@ Section narrowest_section(const Patch& p, const P3& centre, const P3& axis, doub
     if (n < 3 || p.pos.empty()) return s;
     std::vector<int> bin;
     const std::vector<long> count = slab_profile(p, centre, axis, half_length, slab, n, bin);
-    const int best = deepest_valley(count);
+    const int best = deepest_valley(count, &s.share);
     if (best < 0) return s;
     s.found = true;
     s.centre = bins_centroid(p, bin, best - 1, best + 1);
+    return s;
+}
+
+Section fused_end(const Patch& p, const P3& at, const P3& axis, double radius, double back, double ahead, double slab,
+                  double least) {
+    Section s;
+    const int n = static_cast<int>(std::ceil(std::max(back, ahead) / slab));
+    if (n < 3 || p.pos.empty()) return s;
+    std::vector<int> bin;
+    std::vector<long> count = slab_profile(p, at, axis, radius, slab, n, bin);
+    const int first = n - static_cast<int>(std::floor(back / slab)), last = n + static_cast<int>(std::floor(ahead / slab));
+    for (std::size_t k = 0; k < bin.size(); ++k)
+        if (bin[k] >= 0 && (bin[k] < first || bin[k] > last)) bin[k] = -1;
+    const std::vector<long> window(count.begin() + first, count.begin() + last + 1);
+    double share = 0;
+    const int v = deepest_valley(window, &share);
+    if (v < 0 || v + first >= n || share < least) return s;
+    s.found = true;
+    s.centre = bins_centroid(p, bin, v + first - 1, v + first + 1);
     return s;
 }
 
