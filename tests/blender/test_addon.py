@@ -201,6 +201,10 @@ def test_rig_reports_its_fit_refits_as_another_kind_and_takes_up_from_the_scene(
     run_op(bpy.ops.volrig.rig)
     assert vol.volrig.rig_found.startswith("chains, fit ")
     assert all(b.name.startswith("chain") for b in _members(vol)["RIG"].data.bones)
+    vol.volrig.body_plan = "winged"  # forced: built whatever its score, wings with the arm's bones
+    run_op(bpy.ops.volrig.rig)
+    assert vol.volrig.rig_found.startswith("winged, fit ")
+    assert {"upper_arm.L", "forearm.R", "thigh.L"} <= {b.name for b in _members(vol)["RIG"].data.bones}
     # the volume lying on its back (turned -90 degrees about X): the scene's up is the volume's -y
     from mathutils import Matrix
     from volrig_addon.objects import scene_up
