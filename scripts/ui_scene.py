@@ -3,8 +3,8 @@ skeletonized and rigged through the add-on's operators, the volrig panels on the
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
 its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
 UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid
-(volrig_support.subjects.capsule_subject, e.g. wide) instead of the phantom. UI_MARKERS=1: four markers placed
-before Rig (the Markers box lists the missing ones)."""
+(volrig_support.subjects.capsule_subject, e.g. wide; "bird": capsule_bird_subject) instead of the phantom.
+UI_MARKERS=1: four markers placed before Rig (the Markers box lists the missing ones)."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
@@ -93,8 +93,9 @@ def setup():
     path = os.path.join(WORK, f"{name}.nrrd")
     if not os.path.exists(path):
         if pose:
-            from volrig_support.subjects import capsule_subject
-            volrig.Volume(capsule_subject(pose, 1.0).mask.array.astype("uint8") * 255).save(path)
+            from volrig_support.subjects import capsule_bird_subject, capsule_subject
+            subject = capsule_bird_subject(1.0) if pose == "bird" else capsule_subject(pose, 1.0)
+            volrig.Volume(subject.mask.array.astype("uint8") * 255).save(path)
         else:
             volrig.phantom.humanoid(0.4).volume.save(path)
     win, override = empty_view3d()
