@@ -249,17 +249,18 @@ def bone_plan_weights() -> List[float]:
     """The weights a body plan read from the bone itself (``autorig(bone=)`` without flesh) is scored with: the
     fitted ones, but a head thinner than an extremity the reading leaves out costs a reading its whole margin over
     no plan (neutral chains' score less the lower of the humanoid's and the quadruped's bias: what an ideal reading
-    scores), and nothing is a sheet (below). A skeleton's head is its skull, the thickest end of a vertebrate's bones, even where a long tail
-    sticks out further; an outer shape's head leaf is often an ear or a muzzle thinner than its tail, which is why
-    the weight fitted to the characters' shapes is small."""
+    scores), and nothing is a sheet (below). A skeleton's head is its skull, the thickest end of a vertebrate's
+    bones, even where a long tail sticks out further; an outer shape's head leaf is often an ear or a muzzle
+    thinner than its tail, which is why the weight fitted to the characters' shapes is small."""
     w = list(PLAN_WEIGHTS)
     ideal = min(w[PLAN_TERMS.index("bias_humanoid")], w[PLAN_TERMS.index("bias_quadruped")])
     w[PLAN_TERMS.index("head_thin")] = max(w[-1] - ideal, w[PLAN_TERMS.index("head_thin")])
     # Flat bones (shoulder blades, the pelvis, the skull's plates) make no limb a sheet, and no wing is read from
-    # bones: the flatness terms are left out and the winged plan never beats chains.
+    # bones: the flatness terms are left out, and a winged reading starts at chains' score (its penalties are at
+    # least 0, and a plan must score below chains).
     for term in ("arms_flat", "legs_flat", "w_wings_round"):
         w[PLAN_TERMS.index(term)] = 0.0
-    w[PLAN_TERMS.index("bias_winged")] = w[-1] + 1000.0
+    w[PLAN_TERMS.index("bias_winged")] = w[-1]
     return w
 
 

@@ -172,9 +172,7 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     std::vector<std::pair<std::tuple<bool, int, double>, Candidate>> ranked;
     for (const auto kind : {rig_detail::PlanKind::Humanoid, rig_detail::PlanKind::Quadruped,
                             rig_detail::PlanKind::Winged}) {
-        const rig_detail::Plan& plan = kind == rig_detail::PlanKind::Humanoid    ? s.humanoid
-                                       : kind == rig_detail::PlanKind::Quadruped ? s.quadruped
-                                                                                 : s.winged;
+        const rig_detail::Plan& plan = s.of(kind);
         const std::string name = rig_detail::plan_kind_name(kind);
         // Markers name a humanoid's or a quadruped's joints.
         if (kind == rig_detail::PlanKind::Winged && !in.markers.empty()) continue;

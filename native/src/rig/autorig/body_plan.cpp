@@ -51,9 +51,10 @@ Vec unit(const Vec& a, const Vec& b) {
 /// flipper, flat along its whole length, 1).
 constexpr double kSheetRatio = 4.0;
 double flatness(const NodeTree& t, const std::vector<std::uint32_t>& path) {
+    // The middle third: nodes [n/3, ceil(2n/3)), at least one.
+    const std::size_t n = path.size(), lo = n / 3, hi = std::min(n, std::max(lo + 1, (2 * n + 2) / 3));
     std::vector<double> ratio;
-    for (std::size_t k = path.size() / 3; k < std::max(path.size() / 3 + 1, (2 * path.size() + 2) / 3) && k < path.size(); ++k)
-        ratio.push_back((t.sheet(path[k]) - 1.0) / (kSheetRatio - 1.0));
+    for (std::size_t k = lo; k < hi; ++k) ratio.push_back((t.sheet(path[k]) - 1.0) / (kSheetRatio - 1.0));
     if (ratio.empty()) return 0.0;
     std::nth_element(ratio.begin(), ratio.begin() + static_cast<std::ptrdiff_t>(ratio.size() / 2), ratio.end());
     return std::clamp(ratio[ratio.size() / 2], 0.0, 1.0);
@@ -316,6 +317,17 @@ void place_hidden_joints(const RigContext& c, Rig& rig, const std::vector<std::u
                leg_sfx);
 }
 
+/// Where the feet point (forward): the sum of the legs' last bones (`leg`: the legs' nodes, `fit`: their cuts)
+/// across `up`.
+Vec feet_forward(const NodeTree& t, const std::vector<std::uint32_t> (&leg)[2], const Fit (&fit)[2], const Vec& up) {
+    Vec forward = Vec::Zero();
+    for (int s = 0; s < 2; ++s) {
+        const auto& k = fit[s].cuts;
+        forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), up);
+    }
+    return forward;
+}
+
 /// A wing's path from the chest up to its node farthest from the chest: the level-set tree of a sheet runs around
 /// its border, so the leaf it ends at may lie back near the body (on the trailing edge) past the wing's tip.
 std::vector<std::uint32_t> out_to_farthest(const NodeTree& t, std::vector<std::uint32_t> path) {
@@ -351,11 +363,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
     // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
     Candidate out;
     Vec forward = Vec::Zero();
-    if (humanoid)
-        for (int s = 0; s < 2; ++s) {  // feet point forward: the last bone of each leg
-            const auto& k = leg_fit[s].cuts;
-            forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), spine_dir);
-        }
+    if (humanoid) forward = feet_forward(t, leg, leg_fit, spine_dir);
     const Vec body_up = up ? *up : spine_dir;
     const Vec front = perp(forward, body_up).norm() > 0 ? Vec(perp(forward, body_up).normalized()) : Vec::Zero();
     for (int k = 0; k < 2; ++k) {
@@ -379,11 +387,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
         out.up = up ? *up : (legs.norm() > 0 ? Vec(-legs.normalized()) : spine_dir);
         out.up_confidence = up ? 1.0 : std::clamp(legs.norm() / 2.0, 0.0, 1.0);
         forward = perp(spine_dir, out.up);
-        if (forward.norm() < 0.5)
-            for (int s = 0; s < 2; ++s) {
-                const auto& k = leg_fit[s].cuts;
-                forward += perp(t.at(leg[s][k[k.size() - 1]]) - t.at(leg[s][k[k.size() - 2]]), out.up);
-            }
+        if (forward.norm() < 0.5) forward = feet_forward(t, leg, leg_fit, out.up);
         if (forward.norm() == 0) forward = out.up.unitOrthogonal();
     } else {
         forward = spine_dir;

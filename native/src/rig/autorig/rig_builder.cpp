@@ -51,7 +51,8 @@ bool inside_nearest(const Grid& g, const std::uint8_t* mask, const Vec& q) {
     return mask[g.index(v[0], v[1], v[2])] != 0;
 }
 
-/// The cross-section's lattice: (2n+1)^2 cells `step` apart, at most kSectionCells across.
+/// The cross-section's lattice: (2n+1)^2 cells `step` apart, n at most kSectionCells (a voxel apart when the
+/// reach allows).
 constexpr std::int64_t kSectionCells = 25;
 
 }  // namespace

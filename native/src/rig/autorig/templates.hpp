@@ -68,6 +68,7 @@ inline const char* plan_kind_name(PlanKind k) {
 struct PlanSearch {
     Plan humanoid, quadruped, winged;
     Plan& of(PlanKind k) { return k == PlanKind::Humanoid ? humanoid : k == PlanKind::Quadruped ? quadruped : winged; }
+    const Plan& of(PlanKind k) const { return const_cast<PlanSearch&>(*this).of(k); }
 };
 
 /// Discrete search over the assignments of five of the seven most significant extremities to head, legs and arms,
