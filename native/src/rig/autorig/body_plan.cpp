@@ -359,6 +359,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
         leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
         ok = ok && leg_fit[k].cuts.size() == 5;
     }
+    if (ok && humanoid) match_limb_fits(c, leg, leg_fit, kLegProportions);
     if (!ok) return Candidate{};
     // Orientation: the spine points up (humanoid) or forward (quadruped); left = up x forward.
     Candidate out;
@@ -425,6 +426,9 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
                                 front);
         }
     if (humanoid) {
+        std::string leg_sfx[2];
+        for (int s = 0; s < 2; ++s) leg_sfx[s] = ((s == 0) == leg0_left) ? ".L" : ".R";
+        raise_low_hips(c, out.rig, leg, leg_sfx, body_up);
         level_hips(out.rig, body_up);
         centre_chest(out.rig, body_up);
         recut_spine(out.rig, c.samples(spine));

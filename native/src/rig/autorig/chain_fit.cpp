@@ -108,7 +108,7 @@ Fit fit_chain(const Chain4& chain, int k) {
     return best_pieces(pc, pieces, [](std::size_t, std::size_t, std::size_t) { return 0.0; });
 }
 
-Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra) {
+Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra, double weight) {
     const PieceCosts pc(chain);
     const std::size_t m = pc.m, k = ratios.size();
     if (k == 0 || m < k + 1) return Fit{};
@@ -118,7 +118,7 @@ Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, dou
     return best_pieces(pc, k, [&](std::size_t j, std::size_t a, std::size_t b) {
         const double len = pc.arc[b] - pc.arc[a] + (b == m - 1 ? extra : 0.0);
         const double r = std::log(std::max(len, 1e-12) / std::max(whole * ratios[j - 1] / sum, 1e-12));
-        return kProportionWeight * static_cast<double>(m) * r * r;
+        return weight * static_cast<double>(m) * r * r;
     });
 }
 

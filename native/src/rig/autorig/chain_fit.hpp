@@ -30,7 +30,8 @@ constexpr double kProportionWeight = 0.05;
 /// a thin foot's wiggles outweigh a knee), plus kProportionWeight * samples * log(length / expected)^2 per bone;
 /// exact over at most 64 samples (dynamic programming). `worst` as for fit_chain. Empty cuts when the chain has
 /// fewer samples than bones + 1.
-Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra);
+Fit proportional_fit(const Chain4& chain, const std::vector<double>& ratios, double extra,
+                     double weight = kProportionWeight);
 
 /// A humanoid limb cut into four bones by proportional_fit with Drillis and Contini's proportions (fractions of the
 /// height): half the shoulder breadth 0.13, upper arm 0.186, forearm 0.146, hand 0.108 reaching one tip radius

@@ -1,5 +1,6 @@
 // rig/autorig/extras.cpp: the parts a body plan leaves out, kept as chains (see templates.hpp).
 #include <algorithm>
+#include <limits>
 #include <set>
 
 #include "rig/autorig/templates.hpp"
@@ -60,12 +61,23 @@ bool is_wing_bone(const std::string& name) {
     return false;
 }
 
+/// The longest side of the box around the tree's nodes: the body's size.
+double tree_extent(const NodeTree& t) {
+    Vec lo = Vec::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (std::uint32_t v : t.order()) {
+        lo = lo.cwiseMin(t.at(v));
+        hi = hi.cwiseMax(t.at(v));
+    }
+    return t.order().empty() ? 0.0 : (hi - lo).maxCoeff();
+}
+
 }  // namespace
 
 void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double tolerance) {
     const bool quadruped = kind != PlanKind::Humanoid;  // tails named so; no hand or foot rule
     const NodeTree& t = c.tree;
     int added = 0;
+    const double least_part = kExtraShare * tree_extent(t);
     for (const auto& [significance, leaf] : t.extremities()) {
         if (added == kMaxExtraChains) break;
         if (b.bone_of(leaf) >= 0) continue;  // a template limb's tip
@@ -101,6 +113,8 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double 
         // than the hand (foot) is long (a sword held, not fingers curled against the pelvis).
         if (!quadruped && significance < end_part_reach(b.rig(), owner, t.at(at))) continue;
         if (kind == PlanKind::Winged && is_wing_bone(owner)) continue;
+        const bool at_hand = !quadruped && (owner.rfind("forearm", 0) == 0 || owner.rfind("hand", 0) == 0);
+        if (!at_hand && !tail && significance < least_part) continue;
         const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;

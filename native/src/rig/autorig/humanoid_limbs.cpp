@@ -289,6 +289,88 @@ void between(Rig& rig, const std::string& name, int end, const std::string& left
 
 }  // namespace
 
+namespace {
+
+/// The arc length of each piece of a fit.
+std::vector<double> piece_lengths(const Chain4& chain, const Fit& f) {
+    const std::vector<double> arc = arc_of(chain);
+    std::vector<double> out;
+    for (std::size_t j = 0; j + 1 < f.cuts.size(); ++j) out.push_back(arc[f.cuts[j + 1]] - arc[f.cuts[j]]);
+    return out;
+}
+
+/// Each length after the first over their sum (the first: the root's bone, which the fork sets).
+std::vector<double> distal_shares(const std::vector<double>& lengths) {
+    double sum = 0;
+    for (std::size_t j = 1; j < lengths.size(); ++j) sum += lengths[j];
+    std::vector<double> out;
+    for (std::size_t j = 1; j < lengths.size(); ++j) out.push_back(sum > 0 ? lengths[j] / sum : 0.0);
+    return out;
+}
+
+}  // namespace
+
+void match_limb_fits(const RigContext& c, const std::vector<std::uint32_t> (&limb)[2], Fit (&fit)[2],
+                     const std::vector<double>& prior) {
+    Chain4 chain[2];
+    std::vector<double> length[2], share[2];
+    for (int s = 0; s < 2; ++s) {
+        chain[s] = c.samples(limb[s]);
+        length[s] = piece_lengths(chain[s], fit[s]);
+        if (length[s].size() != prior.size()) return;
+        share[s] = distal_shares(length[s]);
+    }
+    double mismatch = 0;
+    for (std::size_t j = 0; j < share[0].size(); ++j) mismatch = std::max(mismatch, std::abs(share[0][j] - share[1][j]));
+    if (mismatch <= kLimbMismatch) return;
+    const std::vector<double> expected = distal_shares(prior);
+    auto off = [&](const std::vector<double>& sh) {
+        double sum = 0;
+        for (std::size_t j = 0; j < sh.size(); ++j) sum += std::abs(std::log(std::max(sh[j], 1e-9) / expected[j]));
+        return sum;
+    };
+    const int bad = off(share[0]) > off(share[1]) ? 0 : 1;
+    // The root's bone (pelvis, shoulder) keeps its cut: the fork set it, not a bend.
+    const std::size_t root = fit[bad].cuts[1];
+    const Chain4 distal(chain[bad].begin() + static_cast<std::ptrdiff_t>(root), chain[bad].end());
+    const Fit again = proportional_fit(distal, std::vector<double>(length[1 - bad].begin() + 1, length[1 - bad].end()),
+                                       0.0, kMatchWeight * kProportionWeight);
+    if (again.cuts.size() + 1 != fit[bad].cuts.size()) return;
+    for (std::size_t j = 0; j < again.cuts.size(); ++j) fit[bad].cuts[j + 1] = root + again.cuts[j];
+}
+
+void raise_low_hips(const RigContext& c, Rig& rig, const std::vector<std::uint32_t> (&leg)[2],
+                    const std::string (&sfx)[2], const Vec& body_up) {
+    const std::int32_t neck = bone_index(rig, "neck");
+    std::int32_t thigh[2], shin[2];
+    for (int s = 0; s < 2; ++s) {
+        thigh[s] = bone_index(rig, "thigh" + sfx[s]);
+        shin[s] = bone_index(rig, "shin" + sfx[s]);
+        if (thigh[s] < 0 || shin[s] < 0 || leg[s].empty()) return;
+    }
+    if (neck < 0) return;
+    const Chain4 chain[2] = {c.samples(leg[0]), c.samples(leg[1])};
+    double sole = std::numeric_limits<double>::infinity(), hip = 0;
+    for (int s = 0; s < 2; ++s) {
+        for (const auto& q : chain[s]) sole = std::min(sole, q.head<3>().dot(body_up) - q[3]);
+        hip += 0.5 * bone_end(rig, static_cast<std::size_t>(thigh[s]), 0).dot(body_up);
+    }
+    const double neck_height = bone_end(rig, static_cast<std::size_t>(neck), 0).dot(body_up) - sole;
+    const double least = sole + kLeastHipHeight * neck_height;
+    if (hip >= least) return;
+    const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
+    for (int s = 0; s < 2; ++s) {
+        const auto t = static_cast<std::size_t>(thigh[s]);
+        const Vec head = bone_end(rig, t, 0) + (least - hip) * body_up;
+        move_joint(rig, rig.bones[t][0], head);
+        const Vec want = head + share * (bone_end(rig, static_cast<std::size_t>(shin[s]), 1) - head);
+        std::size_t best = 0;
+        for (std::size_t k = 1; k < chain[s].size(); ++k)
+            if ((chain[s][k].head<3>() - want).norm() < (chain[s][best].head<3>() - want).norm()) best = k;
+        move_joint(rig, rig.bones[t][1], chain[s][best].head<3>());
+    }
+}
+
 void level_hips(Rig& rig, const Vec& body_up) {
     const std::int32_t l = bone_index(rig, "thigh.L"), r = bone_index(rig, "thigh.R");
     if (l < 0 || r < 0) return;
