@@ -682,8 +682,8 @@ void Gather::one_block(const Block& b, std::int64_t k, Local& loc, const S& samp
 
 /// One pass over all blocks (no barriers), a task per region of 4³ blocks (posed_'s regions, x fastest within), so
 /// that the source its blocks sample and their tiles' posed balls stay in the caches from one block to the next
-/// (rows of blocks across the whole box left them there for the next row only); the calling thread reports
-/// progress as regions complete, and a cancel from it unwinds the whole loop.
+/// (along the box's rows of blocks, a block's neighbours in y and z came a whole row or slab of blocks later); the
+/// calling thread reports progress as regions complete, and a cancel from it unwinds the whole loop.
 template <class S>
 void Gather::run(const S& sampler, const Progress& progress) {
     constexpr std::int64_t kSide = PosedBalls::kRegion / kBlock;  // blocks per region and axis
