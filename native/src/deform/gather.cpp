@@ -568,33 +568,26 @@ void Gather::undecided(const Block& b, Local& loc) const {
     }
 }
 
-/// The covered voxels, straight into the output row by row (C order, or the block's brick: the box is then aligned
-/// to them): the bone label, and the sample through the winning field's map, as the decisions saw it (along a row,
-/// a run of one field steps its preimage by a column). Marks what it writes, records the covered voxels in
-/// loc.layer, and returns their count.
+/// The samples of the block's covered voxels in row order (as write_block visits them), each through its winning
+/// field's map as the decisions saw it (along a row, a run of one field steps its preimage by a column). Nearest
+/// sampling takes the elements' indices first and loads them apart from that arithmetic, so that many loads of the
+/// source (far larger than the caches) are in flight at once: waiting on one load a voxel was half of the writing.
 template <class S>
-std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) const {
-    const std::int64_t nx = bx_[3], ny = bx_[4];
-    std::int64_t ncov = 0;
-    const BoneOut bone_out = BoneOut::of(out_);
-    const ValueOut value_out = ValueOut::of(out_);
+void Gather::block_samples(const Block& b, const Local& loc, const S& sampler, float* v) const {
+    const bool nearest = o_.sampling == Sampling::Nearest;
+    std::int64_t at[512];
+    std::size_t n = 0;
     for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
         for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
             const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
-            const std::int64_t bx0 = b.k[0] * kBlock, y = b.k[1] * kBlock + dy, z = b.k[2] * kBlock + dz;
-            const auto row = o_.bricks ? brick_index(bx0, y, z, out_.grid.dims) : static_cast<std::size_t>((z * ny + y) * nx + bx0);
             std::int32_t run = -1;  // the field of the previous voxel in the row, -1 after a gap
             std::int64_t pf[3] = {0, 0, 0};
-            std::uint64_t xs = 0;
             for (std::int64_t dx = 0; dx < b.e[0]; ++dx) {
                 const std::int32_t w = wrow[dx];
                 if (w < 0) {
                     run = -1;
                     continue;
                 }
-                xs |= std::uint64_t{1} << dx;
-                bone_out.put(row + static_cast<std::size_t>(dx), owner_[static_cast<std::size_t>(w)] + 1);
-                if (!value_out) continue;
                 const Pull& pl = s_.pull(w);
                 if (w == run) {
                     pl.step(pf, 0);
@@ -603,7 +596,38 @@ std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) c
                     pl.fixed(m3, pf);
                     run = w;
                 }
-                value_out.put(row + static_cast<std::size_t>(dx), sampler.sample(pf, o_.sampling));
+                if (nearest) at[n++] = sampler.nearest_index(pf);
+                else v[n++] = sampler.trilinear(pf);
+            }
+        }
+    if (nearest)
+        for (std::size_t i = 0; i < n; ++i) v[i] = sampler.element(at[i]);
+}
+
+/// The covered voxels, straight into the output row by row (C order, or the block's brick: the box is then aligned
+/// to them): the bone label, and the sample (block_samples). Marks what it writes, records the covered voxels in
+/// loc.layer, and returns their count.
+template <class S>
+std::int64_t Gather::write_block(const Block& b, Local& loc, const S& sampler) const {
+    const std::int64_t nx = bx_[3], ny = bx_[4];
+    std::int64_t ncov = 0;
+    const BoneOut bone_out = BoneOut::of(out_);
+    const ValueOut value_out = ValueOut::of(out_);
+    float v[512];
+    if (value_out) block_samples(b, loc, sampler, v);
+    std::size_t n = 0;  // the next sample
+    for (std::int64_t dz = 0; dz < b.e[2]; ++dz)
+        for (std::int64_t dy = 0; dy < b.e[1]; ++dy) {
+            const std::int32_t* wrow = loc.win + (dz * 8 + dy) * 8;
+            const std::int64_t bx0 = b.k[0] * kBlock, y = b.k[1] * kBlock + dy, z = b.k[2] * kBlock + dz;
+            const auto row = o_.bricks ? brick_index(bx0, y, z, out_.grid.dims) : static_cast<std::size_t>((z * ny + y) * nx + bx0);
+            std::uint64_t xs = 0;
+            for (std::int64_t dx = 0; dx < b.e[0]; ++dx) {
+                const std::int32_t w = wrow[dx];
+                if (w < 0) continue;
+                xs |= std::uint64_t{1} << dx;
+                bone_out.put(row + static_cast<std::size_t>(dx), owner_[static_cast<std::size_t>(w)] + 1);
+                if (value_out) value_out.put(row + static_cast<std::size_t>(dx), v[n++]);
             }
             if (!xs) continue;
             ncov += __builtin_popcountll(xs);
@@ -639,35 +663,48 @@ void Gather::add_extent(const Block& b, Local& loc) const {
     }
 }
 
-/// One pass over all blocks (no barriers); the calling thread reports progress as blocks complete, and a cancel
-/// from it unwinds the whole loop.
+/// One block: its candidates, decisions, sliding contact and writing (block index k, x fastest).
+template <class S>
+void Gather::one_block(const Block& b, std::int64_t k, Local& loc, const S& sampler) const {
+    block_candidates(b, loc);
+    if (loc.fields.empty()) return;
+    if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
+    std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
+    const bool contact = !zone_.empty() && zone_[static_cast<std::size_t>(k)];
+    if (contact) contact_fields(loc);  // decide_block drops those that cannot win
+    decide_block(b, loc);
+    if (contact) slide(b, loc);
+    const std::int64_t ncov = write_block(b, loc, sampler);
+    if (!ncov) return;
+    loc.covered += ncov;
+    add_extent(b, loc);
+}
+
+/// One pass over all blocks (no barriers), a task per region of 4³ blocks (posed_'s regions, x fastest within), so
+/// that the source its blocks sample and their tiles' posed balls stay in the caches from one block to the next
+/// (along the box's rows of blocks, a block's neighbours in y and z came a whole row or slab of blocks later); the
+/// calling thread reports progress as regions complete, and a cancel from it unwinds the whole loop.
 template <class S>
 void Gather::run(const S& sampler, const Progress& progress) {
-    const std::int64_t total_blocks = nb_[0] * nb_[1] * nb_[2];
+    constexpr std::int64_t kSide = PosedBalls::kRegion / kBlock;  // blocks per region and axis
+    const std::int64_t nr[3] = {(nb_[0] + kSide - 1) / kSide, (nb_[1] + kSide - 1) / kSide, (nb_[2] + kSide - 1) / kSide};
+    const std::int64_t regions = nr[0] * nr[1] * nr[2];
     std::atomic<std::int64_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();
-    std::int64_t next_report = total_blocks / 40;
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, total_blocks, 64), [&](const tbb::blocked_range<std::int64_t>& rg) {
+    std::int64_t next_report = regions / 40;
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, regions, 1), [&](const tbb::blocked_range<std::int64_t>& rg) {
         Local& loc = locals_.local();
-        for (std::int64_t k = rg.begin(); k != rg.end(); ++k) {
-            const Block b = block(k % nb_[0], (k / nb_[0]) % nb_[1], k / (nb_[0] * nb_[1]));
-            block_candidates(b, loc);
-            if (loc.fields.empty()) continue;
-            if (loc.fields.size() > 32767) throw Error("deform: more than 32767 bones or weight groups meet one output block");
-            std::fill(loc.layer, loc.layer + 8, std::uint64_t{0});
-            const bool contact = !zone_.empty() && zone_[static_cast<std::size_t>(k)];
-            if (contact) contact_fields(loc);  // decide_block drops those that cannot win
-            decide_block(b, loc);
-            if (contact) slide(b, loc);
-            const std::int64_t ncov = write_block(b, loc, sampler);
-            if (!ncov) continue;
-            loc.covered += ncov;
-            add_extent(b, loc);
+        for (std::int64_t r = rg.begin(); r != rg.end(); ++r) {
+            const std::int64_t r0[3] = {(r % nr[0]) * kSide, ((r / nr[0]) % nr[1]) * kSide, (r / (nr[0] * nr[1])) * kSide};
+            for (std::int64_t kz = r0[2]; kz < std::min(r0[2] + kSide, nb_[2]); ++kz)
+                for (std::int64_t ky = r0[1]; ky < std::min(r0[1] + kSide, nb_[1]); ++ky)
+                    for (std::int64_t kx = r0[0]; kx < std::min(r0[0] + kSide, nb_[0]); ++kx)
+                        one_block(block(kx, ky, kz), (kz * nb_[1] + ky) * nb_[0] + kx, loc, sampler);
         }
         const std::int64_t now = done.fetch_add(static_cast<std::int64_t>(rg.size())) + static_cast<std::int64_t>(rg.size());
         if (progress && std::this_thread::get_id() == caller && now >= next_report) {
-            next_report = now + total_blocks / 40;
-            report(progress, 0.55 + 0.4 * static_cast<double>(now) / static_cast<double>(total_blocks));
+            next_report = now + regions / 40;
+            report(progress, 0.55 + 0.4 * static_cast<double>(now) / static_cast<double>(regions));
         }
     });
     report(progress, 0.95);

@@ -150,6 +150,10 @@ private:
     bool load_first_label(Local& loc, std::size_t r, std::size_t li, const std::int64_t* m3) const;
     bool load_first_labels(Local& loc, std::size_t& n_run, std::size_t li, const std::int64_t* m3) const;
     template <class S>
+    void one_block(const Block& b, std::int64_t k, Local& loc, const S& sampler) const;
+    template <class S>
+    void block_samples(const Block& b, const Local& loc, const S& sampler, float* v) const;
+    template <class S>
     std::int64_t write_block(const Block& b, Local& loc, const S& sampler) const;
     void add_extent(const Block& b, Local& loc) const;
 

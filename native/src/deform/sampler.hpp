@@ -15,9 +15,8 @@ struct Sampler {
     const T* data;
     std::int64_t nx, ny, nz;
 
-    float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
-        return static_cast<float>(data[(z * ny + y) * nx + x]);
-    }
+    float at(std::int64_t x, std::int64_t y, std::int64_t z) const { return element((z * ny + y) * nx + x); }
+    float element(std::int64_t i) const { return static_cast<float>(data[i]); }
     /// A sample as a double: through float, as at() gives it (exactly, and in one conversion, for small integers).
     static double value(T v) {
         if constexpr (std::is_integral_v<T> && sizeof(T) <= 2) return static_cast<double>(v);
@@ -29,9 +28,11 @@ struct Sampler {
         const std::int64_t i = (v >> Pull::kBits) + ((v >> (Pull::kBits - 1)) & 1);  // round half up
         return i < 0 ? 0 : (i >= n ? n - 1 : i);
     }
-    float nearest(const std::int64_t* p) const {
-        return at(clamp_index(p[0], nx), clamp_index(p[1], ny), clamp_index(p[2], nz));
+    /// The element nearest() reads: its index into data.
+    std::int64_t nearest_index(const std::int64_t* p) const {
+        return (clamp_index(p[2], nz) * ny + clamp_index(p[1], ny)) * nx + clamp_index(p[0], nx);
     }
+    float nearest(const std::int64_t* p) const { return element(nearest_index(p)); }
     static void cell(std::int64_t v, std::int64_t n, std::int64_t& i0, std::int64_t& i1, double& f) {
         i0 = v >> Pull::kBits;
         f = Pull::fraction(v);

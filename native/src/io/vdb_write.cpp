@@ -204,9 +204,15 @@ std::vector<const typename TreeT::LeafNodeType*> leaves_in_write_order(const Tre
 /// saves floats as halves) through OpenVDB's own HalfWriter/writeData. The byte is always NO_MASK_OR_INACTIVE_VALS,
 /// the one MaskCompress finds for these leaves (every inactive value is the background), so it is not recomputed
 /// from a full 512-value buffer per leaf; the Catch2 byte comparison against io::File guards this.
-template <class GridT, class ValuesOf>
+///
+/// `Stored` is the type values_of writes: the grid's value type, or, for half floats written as half floats (a
+/// bake's frames), the halves themselves, written as they are: HalfWriter would convert their floats back to the
+/// very same halves (half -> float -> half is exact), one conversion each way per voxel.
+template <class GridT, class Stored = typename GridT::ValueType, class ValuesOf>
 BuiltGrid compress_buffers(typename GridT::Ptr grid, ValuesOf&& values_of) {
     using ValueT = typename GridT::ValueType;
+    constexpr bool kHalves = std::is_same_v<Stored, openvdb::math::half>;
+    static_assert(kHalves || std::is_same_v<Stored, ValueT>, "values as the grid's type, or as half floats");
     using LeafT = typename GridT::TreeType::LeafNodeType;
     namespace io = openvdb::io;
     constexpr std::size_t kRun = 256;  // leaves per task
@@ -221,8 +227,9 @@ BuiltGrid compress_buffers(typename GridT::Ptr grid, ValuesOf&& values_of) {
         if (records_sizes()) out.delayed.resizeCompressedSize(leaves.size());
     }
     const bool half = grid->saveFloatAsHalf();
+    if (kHalves && !half) throw Error("half floats are written as such only to a grid saving half floats");
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, out.runs.size()), [&](const auto& r) {
-        std::vector<ValueT> active(LeafT::SIZE);
+        std::vector<Stored> active(LeafT::SIZE);
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             std::ostringstream s;
             for (std::size_t i = k * kRun; i < std::min(leaves.size(), (k + 1) * kRun); ++i) {
@@ -232,8 +239,9 @@ BuiltGrid compress_buffers(typename GridT::Ptr grid, ValuesOf&& values_of) {
                 s.put(static_cast<char>(kMetadata));
                 out.delayed.setMask(i, kMetadata);
                 const auto data = static_cast<std::int64_t>(s.tellp());
-                if (half) io::HalfWriter<io::RealToHalf<ValueT>::isReal, ValueT>::write(s, active.data(), count,
-                                                                                             out.compression);
+                if constexpr (kHalves) io::writeData<Stored>(s, active.data(), count, out.compression);
+                else if (half) io::HalfWriter<io::RealToHalf<ValueT>::isReal, ValueT>::write(s, active.data(), count,
+                                                                                                  out.compression);
                 else io::writeData<ValueT>(s, active.data(), count, out.compression);
                 if (records_sizes()) out.delayed.setCompressedSize(i, static_cast<std::int64_t>(s.tellp()) - data);
             }
@@ -321,17 +329,21 @@ BuiltGrid build_grid(const In* src, const Grid& g, bool bricked, bool half, open
         }
     }
     if (overflow.seen) return {};
-    return compress_buffers<GridT>(grid, [&](const LeafT& leaf, ValueT* out) {
+    const auto values_of = [&](const LeafT& leaf, auto* out) {
+        using Stored = std::remove_pointer_t<decltype(out)>;
         const openvdb::Coord o = leaf.origin();
         const In* p = src + sample(o.x(), o.y(), o.z());
         const std::int64_t sy = bricked ? D : nx, sz = bricked ? D * D : nx * ny;  // (x steps by 1 in both)
         std::size_t count = 0;
         for (auto it = leaf.getValueMask().beginOn(); it; ++it) {  // leaf order: (x << 6) + (y << 3) + z
             const openvdb::Index n = it.pos();
-            out[count++] = static_cast<ValueT>(p[(n & 7) * sz + ((n >> 3) & 7) * sy + (n >> 6)]);
+            out[count++] = static_cast<Stored>(p[(n & 7) * sz + ((n >> 3) & 7) * sy + (n >> 6)]);
         }
         return count;
-    });
+    };
+    if constexpr (std::is_same_v<In, openvdb::math::half> && std::is_same_v<ValueT, float>)
+        if (half) return compress_buffers<GridT, openvdb::math::half>(grid, values_of);
+    return compress_buffers<GridT>(grid, values_of);
 }
 
 template <class GridT>
