@@ -126,7 +126,9 @@ def rig_to_bones(rig, bone, opening: Optional[float] = None, min_volume: Optiona
     segment to its narrowest section (the segment is split there). End joints (hand and foot tips) move with their
     bone's head, keeping its direction. Joints the bones cannot show keep their position (``BoneJoint.why``).
     ``reach``: how far apart (mm) two segments may be and still meet (default 20, or a quarter of the skeleton's
-    size when smaller; the fitter's other windows shrink with the skeleton below the frog's the same way)."""
+    size when smaller; the fitter's other windows shrink with the skeleton below the frog's the same way). On
+    slices at least twice as far apart as the pixels (an anisotropic CT) the bone is first interpolated between its
+    slices (shape-based) and fitted on that; the segments come back on the scan's own grid (docs/rig.md)."""
     arr = _bone_array(bone, like_shape)
     spacing, origin = _geometry(bone)
     d = _volrig.rig_to_bones(arr, spacing, origin, rig.joints, rig.bones, rig.names, rig.parents,

@@ -383,3 +383,95 @@ TEST_CASE("bone rig: a bone fused on to a segment's end is found behind the cont
     CHECK_FALSE(fused(kRadius).found);  // one even bone: no valley
     CHECK_FALSE(fused(7.8).found);      // a valley under a tenth of its wall: not a joint
 }
+
+namespace {
+
+/// A phantom with every `step`-th slice along z kept from slice `phase` (slices `step` mm apart, origin moved up).
+Phantom every_slice(const Phantom& p, int step, int phase) {
+    Phantom out;
+    out.grid = p.grid;
+    out.grid.dims[2] = (p.grid.dims[2] - phase + step - 1) / step;
+    out.grid.spacing[2] = p.grid.spacing[2] * step;
+    out.grid.origin[2] = p.grid.origin[2] + phase * p.grid.spacing[2];
+    const std::int64_t slice = p.grid.dims[0] * p.grid.dims[1];
+    for (std::int64_t z = 0; z < out.grid.dims[2]; ++z) {
+        const auto from = p.bone.begin() + (z * step + phase) * slice;
+        out.bone.insert(out.bone.end(), from, from + slice);
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("bone slices: a tilted rod on slices 4 mm apart interpolated back up to its outline", "[rig][bones]") {
+    // a rod of radius 6 tilted 30 degrees from z: its cross-sections move 2.3 mm a slice, so the slices alone
+    // overlap less than the rod does; shape-based interpolation puts the rod back between them
+    const double t = std::tan(30.0 * 3.14159265358979 / 180.0);
+    const Phantom full = phantom_of({60, 40, 60}, [t](std::int64_t x, std::int64_t y, std::int64_t z, double) {
+        return std::hypot(static_cast<double>(x) - 18.0 - t * static_cast<double>(z), static_cast<double>(y) - 20.0) <= 6.0 &&
+               z >= 4 && z <= 52;
+    });
+    for (int phase = 0; phase < 4; ++phase) {
+        const Phantom thin = every_slice(full, 4, phase);
+        const auto fine = rig_detail::refine_slices(thin.grid, thin.bone.data());
+        REQUIRE(fine);
+        CHECK(fine->axis == 2);
+        CHECK(fine->factor == 4);
+        CHECK(fine->grid.spacing[2] == Approx(1.0));
+        std::int64_t differ = 0, inside = 0;
+        for (std::int64_t z = 0; z < fine->grid.dims[2]; ++z)
+            for (std::int64_t y = 0; y < fine->grid.dims[1]; ++y)
+                for (std::int64_t x = 0; x < fine->grid.dims[0]; ++x) {
+                    const std::int64_t fz = static_cast<std::int64_t>(std::lround(fine->grid.origin[2])) + z,
+                                       fy = fine->lo[1] + y, fx = fine->lo[0] + x;
+                    if (fz < 0 || fz >= full.grid.dims[2]) continue;
+                    const bool want = full.bone[static_cast<std::size_t>(full.grid.index(fx, fy, fz))] != 0;
+                    const bool got = fine->bone[static_cast<std::size_t>(fine->grid.index(x, y, z))] != 0;
+                    inside += want;
+                    // a voxel may differ only on the rod's outline: within a voxel and a half of its surface (each
+                    // slice's outline is jagged by a voxel, and the blend of two such outlines by up to half more)
+                    const double r = std::hypot(static_cast<double>(fx) - 18.0 - t * static_cast<double>(fz),
+                                                static_cast<double>(fy) - 20.0);
+                    if (want != got && std::abs(r - 6.0) > 1.5 && fz > 8 && fz < 48) ++differ;
+                }
+        CHECK(differ == 0);
+        CHECK(inside > 0);
+        // the slices themselves are kept as they were
+        for (std::int64_t z = 0; z < thin.grid.dims[2]; ++z)
+            for (std::int64_t y = 0; y < thin.grid.dims[1]; ++y)
+                for (std::int64_t x = 0; x < thin.grid.dims[0]; ++x) {
+                    const std::array<std::int64_t, 3> f{x - fine->lo[0], y - fine->lo[1], (z - fine->lo[2]) * 4};
+                    const bool in_box = f[0] >= 0 && f[1] >= 0 && f[2] >= 0 && f[0] < fine->grid.dims[0] &&
+                                        f[1] < fine->grid.dims[1] && f[2] < fine->grid.dims[2];
+                    const bool got = in_box && fine->bone[static_cast<std::size_t>(fine->grid.index(f[0], f[1], f[2]))];
+                    REQUIRE(got == (thin.bone[static_cast<std::size_t>(thin.grid.index(x, y, z))] != 0));
+                }
+    }
+    // slices less than twice as far apart as the in-plane spacing are not interpolated; 5 mm over 2 mm: 2.5 mm
+    Phantom iso = full;
+    CHECK_FALSE(rig_detail::refine_slices(iso.grid, iso.bone.data()));
+    iso.grid.spacing[2] = 1.9;
+    CHECK_FALSE(rig_detail::refine_slices(iso.grid, iso.bone.data()));
+    iso.grid.spacing = {2.0, 2.0, 5.0};
+    const auto coarse = rig_detail::refine_slices(iso.grid, iso.bone.data());
+    REQUIRE(coarse);
+    CHECK(coarse->factor == 2);
+    CHECK(coarse->grid.spacing[2] == Approx(2.5));
+}
+
+TEST_CASE("bone rig: the knee found on slices 4 mm apart at every phase, segments on the scan's own slices", "[rig][bones]") {
+    const Phantom full = femur_tibia(0);
+    for (int phase = 0; phase < 4; ++phase) {
+        const Phantom thin = every_slice(full, 4, phase);
+        const BoneRig r = rig_to_bones(thin.grid, thin.bone.data(), leg_rig());
+        const BoneJoint& knee = joint_named(r, "knee.L");
+        CHECK(knee.how == "contact");
+        CHECK(std::abs(knee.to[2] - 59.0) <= 4.0);  // the gap z 57..61, its slices 4 mm apart
+        CHECK(std::hypot(knee.to[0] - 20.0, knee.to[1] - 20.0) <= 1.5);
+        REQUIRE(r.segments.labels.size() == thin.bone.size());
+        std::int64_t total = 0;
+        for (std::size_t i = 0; i < thin.bone.size(); ++i) CHECK((r.segments.labels[i] > 0) == (thin.bone[i] != 0));
+        for (const std::int64_t s : r.segments.sizes) total += s;
+        CHECK(total == std::count(thin.bone.begin(), thin.bone.end(), std::uint8_t{1}));
+    }
+}

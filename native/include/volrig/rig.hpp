@@ -191,6 +191,8 @@ struct BoneRig {
 /// between two segments goes to their contact's centre (hips and shoulders: the centre of a sphere fitted to the
 /// head's surface facing its socket), a joint inside one segment to its narrowest section, where the segment is
 /// split. End joints move with their bone's head (directions kept). A rig without role names is returned as is.
+/// On slices at least twice as far apart as the pixels the bone is interpolated between them first and fitted on
+/// that (native/src/rig/bones/slices.cpp); the segments come back on `grid`.
 BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt = {});
 
 // ---- when the flesh is missing (native/src/rig/bones/body.cpp) ---------------------------------------------------

@@ -63,8 +63,10 @@ double along_of(const std::string& child);
 class Fitter {
 public:
     /// `voxels`: the bone's voxels (ascending), whose segments `segs` are.
-    Fitter(const Grid& g, const BoneParams& p, const Rig& rig, BoneSegments&& segs, const std::vector<std::int64_t>& voxels)
-        : g_(g), p_(p), out_{rig, {}, std::move(segs), {}} {
+    /// `sampled`: the spacing the scan sampled the bone at (g's own, or the slices' where g interpolates them).
+    Fitter(const Grid& g, const std::array<double, 3>& sampled, const BoneParams& p, const Rig& rig,
+           BoneSegments&& segs, const std::vector<std::int64_t>& voxels)
+        : g_(g), sampled_(sampled), p_(p), out_{rig, {}, std::move(segs), {}} {
         for (std::size_t b = 0; b < rig.names.size(); ++b) index_[rig.names[b]] = static_cast<int>(b);
         cell_ = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
         members_.resize(out_.segments.sizes.size() + 1);
@@ -152,6 +154,9 @@ private:
     /// the limb's proportions put it at (never when along is 0: no share known).
     bool off_proportion(int pb, int cb, double along) const;
     double slab_along(const P3& axis) const;
+    double slab_sampled(const P3& axis) const;
+    /// Whether the grid interpolates the scan's slices (rig_detail::Refined).
+    bool interpolated() const { return sampled_ != g_.spacing; }
     Patch child_side(const BoneJoint& j, const Patch& parent, const P3& at, const P3& axis, double w) const;
     bool place_hinge(BoneJoint& j, int pb, int cb, double w);
     void fused_beyond(BoneJoint& j, int pb, int cb, double w);
@@ -201,6 +206,7 @@ private:
     void move(BoneJoint& j, int cb, const P3& to, const char* how);
 
     const Grid& g_;
+    std::array<double, 3> sampled_;
     BoneParams p_;
     BoneRig out_;
     std::map<std::string, int> index_;
@@ -229,9 +235,13 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
-    else if (j.parent_segment == j.child_segment)  // near the outer shape's joint unless that is far off
-        done = (!off_proportion(pb, cb, lj.along) && !bone_top(j, pb, cb, lj.along) && place_in_section(j, pb, cb, w)) ||
-               (lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
+    else if (j.parent_segment == j.child_segment) {  // near the outer shape's joint unless that is far off, and
+        // along the limb; the limb first on slices interpolated (place_in_limb says why)
+        const bool limb_first = interpolated() && lj.along > 0;
+        done = (limb_first && place_in_limb(j, pb, cb, lj.along)) ||
+               (!off_proportion(pb, cb, lj.along) && !bone_top(j, pb, cb, lj.along) && place_in_section(j, pb, cb, w)) ||
+               (!limb_first && lj.along > 0 && place_in_limb(j, pb, cb, lj.along)) || reseed_shared(j, pb, cb, w);
+    }
     else  // a child without a segment of its own: whatever meets the parent
         done = place_hinge(j, pb, cb, w) || (lj.along > 0 && hidden_in_parent(j, pb, cb, lj.along)) ||
                reseed_hinge(j, pb, cb, w);
@@ -271,7 +281,9 @@ void Fitter::mirror_length(const LimbJoint& lj) {
     for (BoneJoint& k : out_.joints)
         if (k.name == std::string(lj.name) + ".L") side[0] = &k;
         else if (k.name == std::string(lj.name) + ".R") side[1] = &k;
-    if (!side[0] || !side[1] || side[0]->how == "kept" || side[1]->how == "kept") return;
+    if (!side[0] || !side[1]) return;
+    const bool kept[2] = {side[0]->how == "kept", side[1]->how == "kept"};
+    if (kept[0] && kept[1]) return;
     int pb[2], cb[2];
     for (int s = 0; s < 2; ++s) {
         const std::string sfx = s == 0 ? ".L" : ".R";
@@ -283,7 +295,7 @@ void Fitter::mirror_length(const LimbJoint& lj) {
     if (up[0] < 0 || up[1] < 0 ||
         std::abs(length(up[0]) - length(up[1])) > kMirrorSlack * std::min(length(up[0]), length(up[1])))
         return;
-    if (std::abs(len[0] - len[1]) <= kMirrorSlack * std::min(len[0], len[1])) return;
+    if (!kept[0] && !kept[1] && std::abs(len[0] - len[1]) <= kMirrorSlack * std::min(len[0], len[1])) return;
     // each side's section at either length: the length whose sections are deeper on both sides is the joint's
     Section at[2][2];  // [side][length]
     double score[2] = {0, 0};
@@ -301,22 +313,39 @@ void Fitter::mirror_length(const LimbJoint& lj) {
             at[s][l] = narrowest_section(p, c, axis, half, slab_along(axis));
             score[l] += at[s][l].found ? at[s][l].share : 0;
         }
-    const int l = score[0] >= score[1] ? 0 : 1;
+    // a side the bones did not place (a hand without a segment of its own, its outer shape's wrist far out) takes
+    // its section at the other side's length; else the length whose sections are deeper
+    const int l = kept[0] ? 1 : kept[1] ? 0 : score[0] >= score[1] ? 0 : 1;
     const int s = 1 - l;  // the side whose length lost
+    if (kept[s]) {
+        if (!at[s][l].found) return;
+        move(*side[s], cb[s], at[s][l].centre, "section");
+        side[s]->why.clear();
+        return;
+    }
     if (!at[s][l].found || at[s][l].share <= at[s][s].share) return;
     move(*side[s], cb[s], at[s][l].centre, "section");
 }
 
 P3 Fitter::axis_of(int b) const { return unit(sub(tail(b), head(b))); }
 
+/// How thick a section's slabs are along `axis` on voxels of `spacing`: the largest of the spacing times the axis'
+/// share on each grid axis, at least the finest spacing.
+double slab_of(const std::array<double, 3>& spacing, const P3& axis) {
+    double slab = std::min({spacing[0], spacing[1], spacing[2]});
+    for (int a = 0; a < 3; ++a) slab = std::max(slab, std::abs(axis[a]) * spacing[a]);
+    return slab;
+}
+
 /// How thick a section's slabs are along `axis`: a voxel's longest extent along it (its spacing times the axis'
 /// share on each grid axis, the largest), at least the finest spacing. On a grid with slices 8 mm apart a slab
 /// along the slices' normal is 8 mm thick: thinner slabs would fall between the slices and read as valleys.
-double Fitter::slab_along(const P3& axis) const {
-    double slab = g_.min_spacing();
-    for (int a = 0; a < 3; ++a) slab = std::max(slab, std::abs(axis[a]) * g_.spacing[a]);
-    return slab;
-}
+double Fitter::slab_along(const P3& axis) const { return slab_of(g_.spacing, axis); }
+
+/// slab_along for the scan's own voxels where the grid interpolates between its slices: a valley thinner than a
+/// slice there is the interpolation's (fused_end on a raised arm's humerus took the olecranon fossa, a thin plate
+/// of bone between two slices, for a bone fused on to its end, and pulled the elbow 30 mm up the humerus).
+double Fitter::slab_sampled(const P3& axis) const { return slab_of(sampled_, axis); }
 
 bool Fitter::place_in_section(BoneJoint& j, int pb, int cb, double w) {
     const P3 axis = axis_of(pb), at = head(cb);
@@ -355,11 +384,15 @@ bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
     return false;
 }
 
-/// A knee, an elbow or an ankle whose two bones run through one segment with no narrower section near the outer
-/// shape's joint (slices too far apart to show the joint space, and that joint far off): sought along the whole
-/// limb, from the parent's head through the outer shape's joint to the child's tail, within kLimbBand of the share
+/// A knee, an elbow, a wrist or an ankle whose two bones run through one segment (slices too far apart to show the
+/// joint space): sought along the whole limb, from the parent's head through the outer shape's joint to the child's tail, within kLimbBand of the share
 /// its proportions put the joint at and kLimbRadius of the limb (limb_section: its deepest valley, else its bulge,
-/// the condyles and the plateau or the epicondyles), where the segment is split.
+/// the condyles and the plateau or the epicondyles), where the segment is split. On slices interpolated it is
+/// tried before the search near the outer shape's joint: the interpolation bridges the joint spaces the slices
+/// missed, so valleys near that joint are the bone's shape, not a joint (the outer shape's knee of legs held apart
+/// lies 60 mm off, and its window's deepest valley 100 mm up the femur), while the limb's proportions hold for any
+/// adult's limb. Where the grid is the scan's own, a valley near a joint the outer shape placed well is the finer
+/// guide (on the 4 mm labels a talus fused with the tibia: its valley 1 mm from the ankle, the limb's bulge 28 mm).
 bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
     const std::optional<P3> far = bone_top(j, pb, cb, along);
     const P3 top = far ? *far : head(pb);
@@ -422,7 +455,7 @@ constexpr double kFusedValley = 0.1;
 void Fitter::fused_beyond(BoneJoint& j, int pb, int cb, double w) {
     const P3 at = head(cb), axis = axis_of(pb);
     const Patch p = patch_of(g_, out_.segments.labels, j.parent_segment, at, 1.5 * w);
-    const Section s = fused_end(p, at, axis, w, w, 0.5 * w, slab_along(axis), kFusedValley);
+    const Section s = fused_end(p, at, axis, w, w, 0.5 * w, slab_sampled(axis), kFusedValley);
     if (!s.found) return;
     split(j.parent_segment, cb, s.centre, axis);
     move(j, cb, s.centre, "section");
@@ -545,7 +578,9 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
     for (int pass = 0; seeded && pass < 3 && j.how == "contact"; ++pass)  // from the socket, the head's sphere
         fit_ball(j, cb, exclude, w);
     // a socket far from where the shaft puts the head is another joint's (a sacroiliac joint where the femur fused
-    // with its hemipelvis at the voxel size): the head is then that fused bone's thickest there
+    // with its hemipelvis at the voxel size): the head is then that fused bone's thickest there. Whether the outer
+    // shape's joint was near the shaft's head or not: a socket found near it may still be the wrong joint.
+    if (!shaft && db >= 0 && !seeded) shaft = shaft_head(j.child_segment, db);
     if (shaft && norm(sub(head(cb), shaft->at)) > kShaftSlack * shaft->length) {
         const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, shaft->at, w);
         if (!c) return false;
@@ -630,12 +665,27 @@ void Fitter::move(BoneJoint& j, int cb, const P3& to, const char* how) {
 
 namespace volrig {
 
-BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt) {
-    check_rig(rig);
+namespace {
+
+BoneRig fit_on(const Grid& grid, const std::array<double, 3>& sampled, const std::uint8_t* bone, const Rig& rig,
+              const BoneRigOptions& opt) {
     using namespace rig_detail;
     const std::vector<std::int64_t> voxels = bone_voxels(grid, bone);
     const BoneParams p = bone_params(grid, opt, voxels.size());
-    return Fitter(grid, p, rig, segments_of(grid, voxels, p), voxels).run();
+    return Fitter(grid, sampled, p, rig, segments_of(grid, voxels, p), voxels).run();
+}
+
+}  // namespace
+
+BoneRig rig_to_bones(const Grid& grid, const std::uint8_t* bone, const Rig& rig, const BoneRigOptions& opt) {
+    check_rig(rig);
+    // slices far apart: fitted on the bone interpolated between them (rig_detail::Refined says why), the segments
+    // given back on the scan's own grid
+    const std::optional<rig_detail::Refined> fine = rig_detail::refine_slices(grid, bone);
+    if (!fine) return fit_on(grid, grid.spacing, bone, rig, opt);
+    BoneRig out = fit_on(fine->grid, grid.spacing, fine->bone.data(), rig, opt);
+    out.segments = rig_detail::on_slices(*fine, grid, out.segments);
+    return out;
 }
 
 }  // namespace volrig

@@ -144,6 +144,27 @@ struct SegmentEnds {
 };
 SegmentEnds segment_ends(const Grid& grid, const std::vector<std::int64_t>& voxels);
 
+/// A bone mask on slices far apart, interpolated between them (shape-based interpolation: each slice's signed
+/// distance to its outline, in mm, blended linearly along the slices' normal; bone where the blend is inside).
+/// Its slices `factor` times as close as the grid's (the coarsest spacing over the finer in-plane one, rounded
+/// down), on the bone's box grown by a voxel (`lo`: the box's voxel (0, 0, 0) in the grid; every factor-th slice
+/// along `axis` is one of the grid's, its own bone). rig_to_bones fits on it: the opening and the contacts'
+/// tolerances then hold the same millimetres along the slices as across them, whether a slice falls on a joint or
+/// 8 mm off it (on the 8 mm grid itself a 6-neighbour erosion step is 8 mm along the slices' normal: the 4 mm
+/// opening ate 16 mm of bone along it, more than a horizontal humerus' half-thickness).
+struct Refined {
+    Grid grid;
+    int axis = 2;
+    int factor = 1;
+    std::array<std::int64_t, 3> lo{};
+    std::vector<std::uint8_t> bone;
+};
+/// Nothing when the grid's slices are less than twice as far apart as its in-plane spacing (the frog's 1.5 mm
+/// slices over 1 mm pixels keep their grid).
+std::optional<Refined> refine_slices(const Grid& g, const std::uint8_t* bone);
+/// Segments on the refined grid back on the grid `g` it was made from (its own slices'; sizes recounted).
+BoneSegments on_slices(const Refined& r, const Grid& g, const BoneSegments& fine);
+
 /// World position of a voxel index (origin + spacing * ijk, as bind and autorig place points).
 P3 voxel_position(const Grid& grid, std::int64_t index);
 
