@@ -270,7 +270,8 @@ TEST_CASE("posed blend spheres: each tile's and block's kept spheres give the le
     // Three blend groups of one random set, each moved by its own blend of two rotations: the gather takes them as
     // one candidate, pruned per 32³ region, 16³ tile and 8³ block in output space (every blend is rigid). At every
     // output voxel the least (power, global index) over the kept spheres, each through its own group's fixed-point
-    // map, must be the least over all spheres of all groups wherever that covers, within the kept range. Far
+    // map, must be the least over all spheres of all groups wherever that covers, within the kept range (the block's
+    // list pruned, as the gather's, from the tile's spheres its octant masks keep for the block). Far
     // translations make the fixed-point maps' error (the margins) large.
     for (const std::array<double, 3> shift : {std::array<double, 3>{2.5, -1.5, 0.7}, std::array<double, 3>{3000.5, -2200.25, 1700.0}}) {
         RandomSpheres rs(91, 60, {0.9, 1.2, 1.05});
@@ -324,9 +325,12 @@ TEST_CASE("posed blend spheres: each tile's and block's kept spheres give the le
                         box[a] = static_cast<double>(base[a]);
                         box[3 + a] = box[a] + static_cast<double>(e[a] - 1);
                     }
-                    std::vector<std::uint32_t> kept;
+                    const std::vector<std::uint8_t>& octants = posed.octants[posed.tile_of(k)];
+                    REQUIRE(octants.size() == tile.size());
+                    std::vector<std::uint32_t> in, kept;  // the tile's spheres kept for the block, as the gather
+                    octant_list(tile.data(), octants.data(), tile.size(), PosedBalls::octant_of(k), in);
                     const CellBounds rg = prune_balls(posed.ball.data(), posed.rel, s2.data(), set.bound_step, box,
-                                                      tile.data(), tile.size(), kept, scratch);
+                                                      in.data(), in.size(), kept, scratch);
                     blocks += !kept.empty();
                     kept_total += static_cast<std::int64_t>(kept.size());
                     REQUIRE(std::is_sorted(kept.begin(), kept.end()));
@@ -349,6 +353,65 @@ TEST_CASE("posed blend spheres: each tile's and block's kept spheres give the le
         CHECK(covered > 2000);
         CHECK(kept_total * 4 < blocks * 60);  // the pruning keeps a few per block, not the 60
     }
+}
+
+TEST_CASE("octant masks keep, in every octant of a box, the sphere of least power at each of its voxels", "[deform][stages]") {
+    // Random spheres around random boxes (odd sizes: octants of unequal sides, or none above the split), anisotropic
+    // metric: at every voxel of each octant, the least (power, index) over the spheres the masks keep for it is the
+    // least over all. Many spheres, so that masks do clear bits.
+    struct Ball {
+        double c[3];
+        double lim;
+    };
+    std::mt19937 rng(57);
+    std::uniform_real_distribution<double> u(0, 1);
+    const double s2[3] = {0.8, 1.3, 1.0};
+    std::int64_t cleared = 0, checked = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+        const std::int64_t lo[3] = {static_cast<std::int64_t>(u(rng) * 20) - 10, static_cast<std::int64_t>(u(rng) * 20),
+                                    static_cast<std::int64_t>(u(rng) * 20) + 5};
+        const std::int64_t half = trial % 2 ? 4 : 8, side[3] = {2 * half, 2 * half - trial % 3, trial % 5 ? 2 * half : half - 1};
+        std::vector<Ball> balls(120);
+        for (Ball& b : balls) {
+            for (int a = 0; a < 3; ++a) b.c[a] = static_cast<double>(lo[a]) + (u(rng) * 1.6 - 0.3) * static_cast<double>(2 * half);
+            b.lim = std::pow(1 + u(rng) * 2.5 * static_cast<double>(half), 2);
+        }
+        std::vector<std::uint32_t> list(balls.size());
+        for (std::uint32_t j = 0; j < list.size(); ++j) list[j] = j;
+        double box[6], split[3];
+        for (int a = 0; a < 3; ++a) {
+            box[a] = static_cast<double>(lo[a]);
+            box[3 + a] = static_cast<double>(lo[a] + side[a] - 1);
+            split[a] = static_cast<double>(lo[a] + half);
+        }
+        std::vector<std::uint8_t> mask(list.size());
+        std::vector<double> scratch;
+        octant_masks(balls.data(), 1e-9, s2, box, split, list.data(), list.size(), scratch, mask.data());
+        for (const std::uint8_t m : mask) cleared += 8 - __builtin_popcount(m);
+        auto least = [&](const std::int64_t* q, const std::vector<std::uint32_t>& in) {
+            std::pair<double, std::uint32_t> best{kInf, 0};
+            for (const std::uint32_t j : in) {
+                const Ball& b = balls[j];
+                const double p = length2(static_cast<double>(q[0]) - b.c[0], static_cast<double>(q[1]) - b.c[1],
+                                         static_cast<double>(q[2]) - b.c[2], s2) - b.lim;
+                best = std::min(best, {p, j});
+            }
+            return best;
+        };
+        std::int64_t q[3];
+        for (q[2] = lo[2]; q[2] < lo[2] + side[2]; ++q[2])
+            for (q[1] = lo[1]; q[1] < lo[1] + side[1]; ++q[1])
+                for (q[0] = lo[0]; q[0] < lo[0] + side[0]; ++q[0]) {
+                    int o = 0;
+                    for (int a = 0; a < 3; ++a) o |= (q[a] >= lo[a] + half) << a;
+                    std::vector<std::uint32_t> in;
+                    octant_list(list.data(), mask.data(), list.size(), o, in);
+                    REQUIRE(least(q, in) == least(q, list));
+                    ++checked;
+                }
+    }
+    INFO("cleared " << cleared << " of " << 40 * 120 * 8 << " bits over " << checked << " voxels");
+    CHECK(cleared > 40 * 120 * 4);  // most spheres drop out of most octants
 }
 
 TEST_CASE("rebind rebuilds only the fields whose spheres changed, and frames stay equal to a fresh Deformer's", "[deform][stages]") {

@@ -161,10 +161,15 @@ bool Gather::ball_candidate(const Block& b, std::int32_t f, Local& loc) const {
     return true;
 }
 
-/// The blend candidate of the block (kBlend): its range over the block's voxels from the posed spheres meeting the
-/// block, and those that may give its power there (indices into posed_.ball, increasing); none when none covers.
+/// The blend candidate of the block (kBlend): its range over the block's voxels from the posed spheres of its tile
+/// that the tile's octant masks keep for the block, and those that may give its power there (indices into
+/// posed_.ball, increasing); none when none covers.
 void Gather::blend_candidate(const Block& b, Local& loc) const {
-    const std::vector<std::uint32_t>& in = posed_.kept[posed_.tile_of(b.k)];
+    const std::size_t t = posed_.tile_of(b.k);
+    const std::vector<std::uint32_t>& tile = posed_.kept[t];
+    loc.octant_in.clear();
+    octant_list(tile.data(), posed_.octants[t].data(), tile.size(), PosedBalls::octant_of(b.k), loc.octant_in);
+    const std::vector<std::uint32_t>& in = loc.octant_in;
     if (in.empty()) return;
     double box[6];
     block_box(b, box);
@@ -273,8 +278,10 @@ CellBounds Gather::sub_range(std::size_t k, const std::int64_t* q0, int sb, Loca
             box[a] = static_cast<double>(q0[a]);
             box[3 + a] = static_cast<double>(q0[a] + 3);
         }
-        r = ball_range(posed_.ball.data(), posed_.rel, box, loc.block_balls.data() + span[0], span[1] - span[0],
-                       loc.sub_balls, loc);
+        loc.octant_in.clear();  // those of the block's spheres that blend_sub_masks keeps for the sub-block
+        octant_list(loc.block_balls.data() + span[0], loc.blend_octants.data(), span[1] - span[0], sb, loc.octant_in);
+        r = ball_range(posed_.ball.data(), posed_.rel, box, loc.octant_in.data(), loc.octant_in.size(), loc.sub_balls,
+                       loc);
     } else {
         std::int64_t ra[3], rb[3];
         preimage_box(f, q0, 4, ra, rb, box);
@@ -306,6 +313,20 @@ void Gather::decide_block(const Block& b, Local& loc) const {
     loc.by[0] += b.e[0] * b.e[1] * b.e[2];
 }
 
+/// The octant_masks of the blend candidate's spheres of the block (loc.block_balls[span]) over its 4³ sub-blocks,
+/// into loc.blend_octants: sub_range prunes each sub-block's from those its mask keeps.
+void Gather::blend_sub_masks(const Block& b, Local& loc, std::array<std::uint32_t, 2> span) const {
+    double box[6], split[3];  // the block's voxels (a superset at the box's edge, as sub_range's sub-blocks)
+    for (int a = 0; a < 3; ++a) {
+        box[a] = static_cast<double>(b.base[a]);
+        box[3 + a] = box[a] + (kBlock - 1);
+        split[a] = box[a] + 4;
+    }
+    loc.blend_octants.resize(span[1] - span[0]);
+    octant_masks(posed_.ball.data(), posed_.rel, s_.s2, box, split, loc.block_balls.data() + span[0], span[1] - span[0],
+                 loc.near_power, loc.blend_octants.data());
+}
+
 /// Each 4³ sub-block, from each live candidate's range over the sub-block's preimage: decided whole the same way,
 /// or looked up voxel by voxel for the candidates live there.
 void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
@@ -318,6 +339,8 @@ void Gather::decide_sub_blocks(const Block& b, Local& loc) const {
             cand[K++] = cand[k];
         }
     cand.resize(K);
+    for (std::size_t k = 0; k < K; ++k)
+        if (loc.ball[k] == kBlendBalls) blend_sub_masks(b, loc, loc.block_span[k]);
     loc.sub_balls.clear();
     loc.sub_span.resize(K * 8);
     std::int32_t sub_win[8];  // kOpen: decided voxel by voxel; else kEmpty or the winning field

@@ -49,6 +49,8 @@ struct Local {
     std::vector<std::uint8_t> ball;
     std::vector<std::uint32_t> block_balls, sub_balls, exact_local;
     std::vector<std::int32_t> exact_field;  // the blend candidate's: per voxel the field (group) giving `exact`
+    std::vector<std::uint32_t> octant_in;     // the blend candidate's spheres kept for a block or sub-block
+    std::vector<std::uint8_t> blend_octants;  // per sphere of its block_balls span: its octant_masks (sub-blocks)
     std::vector<std::array<std::uint32_t, 2>> block_span, sub_span;
     NearSpheres near;
     std::vector<double> near_power;
@@ -137,6 +139,7 @@ private:
     void mark_contact_zones();
     bool block_meets(const Contact& c, const std::int64_t* k) const;
     void slide(const Block& b, Local& loc) const;
+    void blend_sub_masks(const Block& b, Local& loc, std::array<std::uint32_t, 2> span) const;
     void decide_sub_blocks(const Block& b, Local& loc) const;
     void lookups(const Block& b, Local& loc) const;
     void cube_cells(const Block& b, Local& loc, std::size_t k, int sb) const;

@@ -10,6 +10,61 @@
 
 namespace volrig::deform_detail {
 
+namespace {
+
+struct PruneScratch {
+    std::vector<double> powers;
+    std::vector<std::uint32_t> region, in;
+    std::vector<std::uint8_t> octants;
+};
+
+/// The voxels of block k of side s (clipped to the box bx) as {lo x, y, z, hi x, y, z} (absolute output lattice).
+void box_of(const Box& bx, const std::int64_t* k, std::int64_t s, double* box) {
+    for (int a = 0; a < 3; ++a) {
+        box[a] = static_cast<double>(bx[a] + k[a] * s);
+        box[3 + a] = static_cast<double>(bx[a] + std::min(bx[3 + a], (k[a] + 1) * s) - 1);
+    }
+}
+
+/// The octant_masks of the spheres list[0, n) over `box`, split into halves of `half` voxels.
+void halves_masks(const PosedBalls& out, const FieldSet& set, const double* box, std::int64_t half,
+                  const std::vector<std::uint32_t>& list, std::vector<double>& scratch, std::vector<std::uint8_t>& mask) {
+    const double split[3] = {box[0] + static_cast<double>(half), box[1] + static_cast<double>(half),
+                             box[2] + static_cast<double>(half)};
+    mask.resize(list.size());
+    octant_masks(out.ball.data(), out.rel, set.s2, box, split, list.data(), list.size(), scratch, mask.data());
+}
+
+/// Region r's spheres pruned (prune_balls over those meeting it), then each of its 2³ tiles' from those the
+/// region's octant masks keep for the tile, with the tile's own masks for its blocks.
+void prune_region(PosedBalls& out, const FieldSet& set, const Box& bx, std::size_t r, PruneScratch& sc) {
+    const std::uint32_t n = out.begin[r + 1] - out.begin[r];
+    if (!n) return;
+    const std::int64_t k[3] = {static_cast<std::int64_t>(r) % out.nr[0], (static_cast<std::int64_t>(r) / out.nr[0]) % out.nr[1],
+                               static_cast<std::int64_t>(r) / (out.nr[0] * out.nr[1])};
+    double box[6];
+    box_of(bx, k, PosedBalls::kRegion, box);
+    sc.region.clear();
+    prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, out.meets.data() + out.begin[r], n, sc.region,
+                sc.powers);
+    if (sc.region.empty()) return;
+    halves_masks(out, set, box, PosedBalls::kTile, sc.region, sc.powers, sc.octants);
+    std::int64_t t[3];  // its 2³ tiles
+    for (t[2] = 2 * k[2]; t[2] < std::min(2 * k[2] + 2, out.nt[2]); ++t[2])
+        for (t[1] = 2 * k[1]; t[1] < std::min(2 * k[1] + 2, out.nt[1]); ++t[1])
+            for (t[0] = 2 * k[0]; t[0] < std::min(2 * k[0] + 2, out.nt[0]); ++t[0]) {
+                sc.in.clear();
+                octant_list(sc.region.data(), sc.octants.data(), sc.region.size(), PosedBalls::octant_of(t), sc.in);
+                box_of(bx, t, PosedBalls::kTile, box);
+                const std::size_t ti = out.tile(t);
+                prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, sc.in.data(), sc.in.size(),
+                            out.kept[ti], sc.powers);
+                halves_masks(out, set, box, kBlock, out.kept[ti], sc.powers, out.octants[ti]);
+            }
+}
+
+}  // namespace
+
 PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
     PosedBalls out;
     std::vector<std::array<std::uint32_t, 3>> order;  // (global, field, local)
@@ -56,40 +111,11 @@ PosedBalls pose_balls(const FieldSet& set, const Box& bx) {
                         [&](std::int64_t x, std::int64_t y, std::int64_t z) { out.meets[next[index(x, y, z)]++] = static_cast<std::uint32_t>(j); }, side);
     for (int a = 0; a < 3; ++a) out.nt[a] = (bx[3 + a] + PosedBalls::kTile - 1) / PosedBalls::kTile;
     out.kept.resize(static_cast<std::size_t>(out.nt[0] * out.nt[1] * out.nt[2]));
-    auto box_of = [&](const std::int64_t* k, std::int64_t s, double* box) {  // the voxels of block k of side s
-        for (int a = 0; a < 3; ++a) {
-            box[a] = static_cast<double>(bx[a] + k[a] * s);
-            box[3 + a] = static_cast<double>(bx[a] + std::min(bx[3 + a], (k[a] + 1) * s) - 1);
-        }
-    };
-    struct Scratch {
-        std::vector<double> powers;
-        std::vector<std::uint32_t> region;
-    };
-    tbb::enumerable_thread_specific<Scratch> scratch;
+    out.octants.resize(out.kept.size());
+    tbb::enumerable_thread_specific<PruneScratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nreg), [&](const tbb::blocked_range<std::size_t>& rg) {
-        Scratch& sc = scratch.local();
-        for (std::size_t r = rg.begin(); r != rg.end(); ++r) {
-            const std::uint32_t n = out.begin[r + 1] - out.begin[r];
-            if (!n) continue;
-            const std::int64_t k[3] = {static_cast<std::int64_t>(r) % out.nr[0], (static_cast<std::int64_t>(r) / out.nr[0]) % out.nr[1],
-                                       static_cast<std::int64_t>(r) / (out.nr[0] * out.nr[1])};
-            double box[6];
-            box_of(k, side, box);
-            sc.region.clear();
-            prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, out.meets.data() + out.begin[r], n,
-                        sc.region, sc.powers);
-            if (sc.region.empty()) continue;
-            std::int64_t t[3];  // its 2³ tiles
-            for (t[2] = 2 * k[2]; t[2] < std::min(2 * k[2] + 2, out.nt[2]); ++t[2])
-                for (t[1] = 2 * k[1]; t[1] < std::min(2 * k[1] + 2, out.nt[1]); ++t[1])
-                    for (t[0] = 2 * k[0]; t[0] < std::min(2 * k[0] + 2, out.nt[0]); ++t[0]) {
-                        box_of(t, PosedBalls::kTile, box);
-                        prune_balls(out.ball.data(), out.rel, set.s2, set.bound_step, box, sc.region.data(),
-                                    sc.region.size(), out.kept[out.tile(t)],
-                                    sc.powers);
-                    }
-        }
+        PruneScratch& sc = scratch.local();
+        for (std::size_t r = rg.begin(); r != rg.end(); ++r) prune_region(out, set, bx, r, sc);
     });
     return out;
 }

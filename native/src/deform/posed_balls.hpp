@@ -106,9 +106,68 @@ struct PosedBall {
     std::uint32_t local;  // its index in that field
 };
 
+/// Per sphere list[j] (j < n), into mask[j]: the octants of the box {lo x, y, z, hi x, y, z} (split along each axis
+/// before the voxel split[a]; bit x + 2 y + 4 z, as sub_origin) where it may give the least power of the list's
+/// spheres: its bit is clear where the sphere least at the box's centre (w) beats it all over the octant. Their
+/// powers differ by an affine function (prune_balls): the difference at the centre, less both margins, against its
+/// largest fall from the centre into the octant, per axis. An octant's pruning then reads only its spheres (w
+/// among them), not all of the box's. `scratch` holds n doubles.
+template <class S>
+void octant_masks(const S* sph, double rel, const double* s2, const double* box, const double* split,
+                  const std::uint32_t* list, std::size_t n, std::vector<double>& scratch, std::uint8_t* mask) {
+    if (n == 0) return;
+    scratch.resize(n);
+    double* const centre = scratch.data();  // each one's power at the box's centre
+    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
+    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
+    const double half2 = length2(h[0], h[1], h[2], s2);
+    std::size_t w = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+        const auto& sp = sph[list[j]];
+        centre[j] = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
+        if (centre[j] < centre[w]) w = j;
+    }
+    auto margin = [&](std::size_t j) { return rel * (2 * (centre[j] + sph[list[j]].lim + half2) + sph[list[j]].lim + 1); };
+    const double* cw = sph[list[w]].c;
+    const double beat = centre[w] + margin(w);
+    double t[3][4];  // per axis, from the centre: the lower octant's first and last voxel, the upper one's
+    for (int a = 0; a < 3; ++a) {
+        t[a][0] = box[a] - mid[a];
+        t[a][1] = std::min(split[a] - 1, box[3 + a]) - mid[a];
+        t[a][2] = split[a] - mid[a];
+        t[a][3] = box[3 + a] - mid[a];
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+        const double lead = centre[j] - margin(j) - beat;  // j's least lead over w at the centre
+        mask[j] = 0xff;
+        if (!(lead > 0)) continue;
+        const auto& sp = sph[list[j]];
+        double fall[3][2], slack = 0;  // per axis and half: the most the lead falls (w's gain on j) from the centre
+        for (int a = 0; a < 3; ++a) {
+            const double g = 2 * s2[a] * (cw[a] - sp.c[a]);  // the lead's slope along axis a
+            fall[a][0] = std::max(-g * t[a][0], -g * t[a][1]);
+            fall[a][1] = std::max(-g * t[a][2], -g * t[a][3]);
+            slack += std::abs(g) * h[a];
+        }
+        slack *= 1e-9;
+        std::uint8_t m = 0;
+        for (int o = 0; o < 8; ++o)
+            if (!(lead > fall[0][o & 1] + fall[1][(o >> 1) & 1] + fall[2][o >> 2] + slack)) m |= static_cast<std::uint8_t>(1u << o);
+        mask[j] = m;
+    }
+}
+
+/// The entries of list[0, n) whose mask has bit `octant`, appended to out in their order.
+inline void octant_list(const std::uint32_t* list, const std::uint8_t* mask, std::size_t n, int octant,
+                        std::vector<std::uint32_t>& out) {
+    const auto bit = static_cast<std::uint8_t>(1u << octant);
+    for (std::size_t j = 0; j < n; ++j)
+        if (mask[j] & bit) out.push_back(list[j]);
+}
+
 /// The posed spheres: per region of 4³ output blocks (32³ voxels) those meeting it, and per tile of 2³ blocks (16³
 /// voxels) the ones that may give the blend's power over it (prune_balls over the region's, then over the tile's:
-/// the blocks' lists start from these).
+/// the blocks' lists start from these, each from those the tile's octant_masks keep for the block).
 struct PosedBalls {
     static constexpr std::int64_t kRegion = 4 * kBlock, kTile = 2 * kBlock;
     std::vector<PosedBall> ball;        // in increasing global sphere index (ties go to the lower)
@@ -117,6 +176,7 @@ struct PosedBalls {
     std::vector<std::uint32_t> begin;   // per region (x fastest), then one more: its span of `meets`
     std::vector<std::uint32_t> meets;   // the balls meeting each region (with a voxel's margin), increasing
     std::vector<std::vector<std::uint32_t>> kept;  // per tile: those that may give the blend's power there
+    std::vector<std::vector<std::uint8_t>> octants;  // per tile, per kept sphere: its octant_masks (the tile's blocks)
     double rel = 0;                     // margin per unit of (squared distance + limit + 1) on any power bound
 
     bool empty() const { return ball.empty(); }
@@ -130,6 +190,8 @@ struct PosedBalls {
         const std::int64_t t[3] = {k[0] / 2, k[1] / 2, k[2] / 2};
         return tile(t);
     }
+    /// Output block k's octant in its tile (octant_masks' bit).
+    static int octant_of(const std::int64_t* k) { return static_cast<int>((k[0] & 1) | ((k[1] & 1) << 1) | ((k[2] & 1) << 2)); }
 };
 
 /// The fields without lattice tables posed by their motions, over the output box bx (empty when there are none),
