@@ -401,3 +401,23 @@ TEST_CASE("cross_section_ratio is 1 across a round limb and the width over the t
     // Outside the object: 1.
     CHECK(c.cross_section_ratio(Vec(30, 25, 30), along, 12) == 1.0);
 }
+
+TEST_CASE("build_plan makes a chain of a part sticking out by a quarter of the body, not of a smaller one",
+          "[autorig]") {
+    // The stick figure (90 tall) with a part forward off its chest: 12 long (6 of its radii, an eighth of the body:
+    // a fold, a bun) or 40 (a long tail or trunk).
+    auto chains_of = [](double length) {
+        std::uint32_t head = 0;
+        Figure f = stick_figure(head);
+        f.limb(20, Vec(0, -length, 20), 2, 2);  // node 20: the spine at z 20
+        const Solid solid(f, {1, 1, 1});
+        const PlanSearch s = search_plans(solid.tree, {Vec(0, 0, 1), fitted_plan_weights(), {}});
+        REQUIRE(s.humanoid.score < plan_limit());
+        REQUIRE(s.humanoid.head == head);
+        const Candidate c = build_plan(solid.context(), s.humanoid, PlanKind::Humanoid, 0.35);
+        return std::count_if(c.rig.names.begin(), c.rig.names.end(),
+                             [](const std::string& n) { return n.rfind("chain.", 0) == 0; });
+    };
+    CHECK(chains_of(12.0) == 0);
+    CHECK(chains_of(40.0) >= 1);
+}

@@ -505,3 +505,71 @@ TEST_CASE("bend_corner moves a bent elbow from the rounded axis to the corner of
     bend_corner(sg.context(), rig, straight, "upper_arm.L", "forearm.L");
     CHECK(rig.joints[1][2] == 30);
 }
+
+TEST_CASE("match_limb_fits gives a leg whose knee fell on its ankle the other leg's proportions", "[autorig]") {
+    // Two straight legs from a pelvis at z 110: 8 across, 100 down, a foot 15 forward; nodes 1 apart.
+    Figure f(Vec(20, 20, 110), 8.0);
+    std::vector<std::uint32_t> leg[2];
+    for (int s = 0; s < 2; ++s) {
+        const double x = 20 + (s ? 8.0 : -8.0);
+        const auto first = static_cast<std::uint32_t>(f.pos.size());
+        f.limb(f.limb(f.limb(0, Vec(x, 20, 110), 8, 6), Vec(x, 20, 10), 6, 4), Vec(x, 5, 10), 3, 2);
+        leg[s].push_back(0);
+        for (auto k = first; k < f.pos.size(); ++k) leg[s].push_back(k);
+    }
+    REQUIRE(leg[0].size() == 124);
+    const Solid solid(f, {40, 40, 120});
+    // Indices into each leg: its pelvis bone ends at 8, the knee at 58 (z 60), the ankle at 108, the toe at 123.
+    Fit fit[2] = {Fit{{0, 8, 58, 108, 123}, 0.0}, Fit{{0, 8, 106, 113, 123}, 0.0}};  // leg 1: knee on the ankle
+    match_limb_fits(solid.context(), leg, fit, kLegProportions);
+    CHECK(fit[0].cuts == std::vector<std::size_t>{0, 8, 58, 108, 123});
+    REQUIRE(fit[1].cuts.size() == 5);
+    CHECK(fit[1].cuts[1] == 8);  // the pelvis bone keeps its cut
+    CHECK(std::abs(static_cast<double>(fit[1].cuts[2]) - 58) <= 2);
+    CHECK(std::abs(static_cast<double>(fit[1].cuts[3]) - 108) <= 2);
+    // Shares within kLimbMismatch: both fits stay.
+    Fit close[2] = {Fit{{0, 8, 58, 108, 123}, 0.0}, Fit{{0, 8, 62, 108, 123}, 0.0}};
+    match_limb_fits(solid.context(), leg, close, kLegProportions);
+    CHECK(close[1].cuts == std::vector<std::size_t>{0, 8, 62, 108, 123});
+}
+
+TEST_CASE("raise_low_hips: legs forking far below the neck get their hips at the least hip height", "[autorig]") {
+    // Legs from a fork at z 30 down to soles at z 0 (end radius 1); the neck's base at z 100.
+    auto body = [](double fork) {
+        Figure f(Vec(20, 20, fork), 6.0);
+        std::vector<std::uint32_t> leg[2];
+        for (int s = 0; s < 2; ++s) {
+            const double x = 20 + (s ? 8.0 : -8.0);
+            const auto first = static_cast<std::uint32_t>(f.pos.size());
+            f.limb(f.limb(0, Vec(x, 20, fork), 4, 4), Vec(x, 20, 1), 4, 1);
+            for (auto k = first; k < f.pos.size(); ++k) leg[s].push_back(k);
+        }
+        Rig rig;
+        rig.joints = {{20, 20, fork}, {20, 20, 100}, {20, 20, 110}, {12, 20, fork}, {12, 20, 8}, {12, 20, 1},
+                      {28, 20, fork}, {28, 20, 8}, {28, 20, 1}};
+        rig.joint_points.assign(rig.joints.size(), 0);
+        rig.bones = {{0, 1}, {1, 2}, {3, 4}, {4, 5}, {6, 7}, {7, 8}};
+        rig.names = {"hips", "neck", "thigh.L", "shin.L", "thigh.R", "shin.R"};
+        rig.parents = {-1, 0, 0, 2, 0, 4};
+        return std::make_tuple(f, std::vector<std::uint32_t>(leg[0]), std::vector<std::uint32_t>(leg[1]), rig);
+    };
+    const std::string sfx[2] = {".L", ".R"};
+    auto [f, l0, l1, rig] = body(30.0);
+    const std::vector<std::uint32_t> leg[2] = {l0, l1};
+    const Solid solid(f, {40, 40, 120});
+    raise_low_hips(solid.context(), rig, leg, sfx, Vec(0, 0, 1));
+    const double least = kLeastHipHeight * 100.0;  // the sole at z 0: the last node (z 1) less its radius 1
+    const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
+    for (std::size_t hip : {3u, 6u}) {
+        CHECK(rig.joints[hip][2] == Approx(least).margin(0.01));
+        CHECK(rig.joints[hip + 1][2] == Approx(least + share * (1 - least)).margin(1.0));  // the knee, on the axis
+        CHECK(rig.joints[hip + 1][0] == Approx(rig.joints[hip][0]));
+    }
+    // Hips above it stay.
+    auto [g, m0, m1, high] = body(70.0);
+    const std::vector<std::uint32_t> legs_high[2] = {m0, m1};
+    const Solid solid_high(g, {40, 40, 120});
+    raise_low_hips(solid_high.context(), high, legs_high, sfx, Vec(0, 0, 1));
+    CHECK(high.joints[3][2] == 70);
+    CHECK(high.joints[4][2] == 8);
+}

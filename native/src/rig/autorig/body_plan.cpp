@@ -328,16 +328,6 @@ Vec feet_forward(const NodeTree& t, const std::vector<std::uint32_t> (&leg)[2], 
     return forward;
 }
 
-/// A wing's path from the chest up to its node farthest from the chest: the level-set tree of a sheet runs around
-/// its border, so the leaf it ends at may lie back near the body (on the trailing edge) past the wing's tip.
-std::vector<std::uint32_t> out_to_farthest(const NodeTree& t, std::vector<std::uint32_t> path) {
-    std::size_t far = 0;
-    for (std::size_t k = 1; k < path.size(); ++k)
-        if ((t.at(path[k]) - t.at(path[0])).norm() > (t.at(path[far]) - t.at(path[0])).norm()) far = k;
-    path.resize(std::max<std::size_t>(far + 1, 2));
-    return path;
-}
-
 }  // namespace
 
 Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, double tolerance,
@@ -369,7 +359,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
     const Vec front = perp(forward, body_up).norm() > 0 ? Vec(perp(forward, body_up).normalized()) : Vec::Zero();
     for (int k = 0; k < 2; ++k) {
         arm[k] = t.path(chest, plan.arms[k]);
-        if (kind == PlanKind::Winged) arm[k] = out_to_farthest(t, arm[k]);
+        if (kind == PlanKind::Winged) arm[k] = t.out_to_farthest(arm[k]);
         if (humanoid) fused[k] = fused_arm(c, c.samples(arm[k]), body_up, front);
         arm_fit[k] = fused[k] ? Fit{fused[k]->cuts, 0.0}
                               : humanoid ? limb_fit(c.samples(arm[k]), true) : fit_chain(c.samples(arm[k]), 4);

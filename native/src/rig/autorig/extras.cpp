@@ -99,6 +99,7 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double 
         if (holder < 0 || nodes.size() < 2 || significance < kExtraReach * t.mean_radius(nodes)) continue;
         nodes.push_back(at);
         std::reverse(nodes.begin(), nodes.end());
+        nodes = t.out_to_farthest(std::move(nodes));
         const Chain4 samples = c.samples(nodes);
         Fit fit;
         for (int pieces = 1; pieces <= 4; ++pieces) {

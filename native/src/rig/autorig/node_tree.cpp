@@ -200,4 +200,12 @@ Vec NodeTree::point_along(const std::vector<std::uint32_t>& nodes, double share)
     return pos_[nodes.back()];
 }
 
+std::vector<std::uint32_t> NodeTree::out_to_farthest(std::vector<std::uint32_t> path) const {
+    std::size_t far = 0;
+    for (std::size_t k = 1; k < path.size(); ++k)
+        if ((at(path[k]) - at(path[0])).norm() > (at(path[far]) - at(path[0])).norm()) far = k;
+    path.resize(std::min(path.size(), std::max<std::size_t>(far + 1, 2)));
+    return path;
+}
+
 }  // namespace volrig::rig_detail

@@ -61,6 +61,10 @@ public:
     double length(const std::vector<std::uint32_t>& nodes) const;
     /// The point `share` (0..1) of the way along that polyline.
     Vec point_along(const std::vector<std::uint32_t>& nodes, double share) const;
+    /// A path from its first node out to its node farthest (straight line) from there, two nodes at least: the
+    /// level-set tree of a sheet (a wing, a tail's fin) runs around its border, so the leaf a path ends at may lie
+    /// back near where it started, past the part's tip.
+    std::vector<std::uint32_t> out_to_farthest(std::vector<std::uint32_t> path) const;
     /// Mean radius of the few nodes nearest an end of a path (its thickness there).
     double end_radius(std::uint32_t end) const;
 
