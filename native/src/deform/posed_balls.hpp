@@ -33,6 +33,24 @@ inline double least_power_over(const S& sp, const double* box, const double* s2,
     return near2 - sp.lim - rel * (near2 + 2 * sp.lim + 1);
 }
 
+/// Into centre[j] (j < n) sphere list[j]'s power at the centre of the box {lo x, y, z, hi x, y, z}, into h its
+/// half extents and into half2 its squared half-diagonal; returns the index j of the least (prune_balls and
+/// octant_masks start from it).
+template <class S>
+inline std::size_t powers_at_centre(const S* sph, const double* s2, const double* box, const std::uint32_t* list,
+                                    std::size_t n, double* centre, double* h, double& half2) {
+    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
+    for (int a = 0; a < 3; ++a) h[a] = 0.5 * (box[3 + a] - box[a]);
+    half2 = length2(h[0], h[1], h[2], s2);
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto& sp = sph[list[i]];
+        centre[i] = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
+        if (centre[i] < centre[k]) k = i;
+    }
+    return k;
+}
+
 /// A ball candidate's power range over a box (a group's: a preimage box in rest index space, its spheres; the blend
 /// candidate's: output voxels, the posed spheres) from the spheres `in` (indices into sph, a superset of those
 /// whose balls meet the box), and into `out` (in the order of `in`) the spheres that may give its power there. Two
@@ -51,15 +69,8 @@ CellBounds prune_balls(const S* sph, double rel, const double* s2, double bound_
     scratch.resize(2 * n);
     double* const centre = scratch.data();      // each one's power at the box's centre
     double* const least = scratch.data() + n;   // the kept ones' least powers over the box
-    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
-    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
-    const double half2 = length2(h[0], h[1], h[2], s2);
-    std::size_t k = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-        const auto& sp = sph[in[i]];
-        centre[i] = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
-        if (centre[i] < centre[k]) k = i;
-    }
+    double h[3], half2 = 0;
+    const std::size_t k = powers_at_centre(sph, s2, box, in, n, centre, h, half2);
     auto margin = [&](std::size_t i) {  // at least rel (far² + lim + 1)
         const double lim = sph[in[i]].lim;
         return rel * (2 * (centre[i] + lim + half2) + lim + 1);
@@ -118,24 +129,18 @@ void octant_masks(const S* sph, double rel, const double* s2, const double* box,
     if (n == 0) return;
     scratch.resize(n);
     double* const centre = scratch.data();  // each one's power at the box's centre
-    const double mid[3] = {0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])};
-    const double h[3] = {0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])};
-    const double half2 = length2(h[0], h[1], h[2], s2);
-    std::size_t w = 0;
-    for (std::size_t j = 0; j < n; ++j) {
-        const auto& sp = sph[list[j]];
-        centre[j] = length2(mid[0] - sp.c[0], mid[1] - sp.c[1], mid[2] - sp.c[2], s2) - sp.lim;
-        if (centre[j] < centre[w]) w = j;
-    }
+    double h[3], half2 = 0;
+    const std::size_t w = powers_at_centre(sph, s2, box, list, n, centre, h, half2);
     auto margin = [&](std::size_t j) { return rel * (2 * (centre[j] + sph[list[j]].lim + half2) + sph[list[j]].lim + 1); };
     const double* cw = sph[list[w]].c;
     const double beat = centre[w] + margin(w);
     double t[3][4];  // per axis, from the centre: the lower octant's first and last voxel, the upper one's
     for (int a = 0; a < 3; ++a) {
-        t[a][0] = box[a] - mid[a];
-        t[a][1] = std::min(split[a] - 1, box[3 + a]) - mid[a];
-        t[a][2] = split[a] - mid[a];
-        t[a][3] = box[3 + a] - mid[a];
+        const double mid = 0.5 * (box[a] + box[3 + a]);
+        t[a][0] = box[a] - mid;
+        t[a][1] = std::min(split[a] - 1, box[3 + a]) - mid;
+        t[a][2] = split[a] - mid;
+        t[a][3] = box[3 + a] - mid;
     }
     for (std::size_t j = 0; j < n; ++j) {
         const double lead = centre[j] - margin(j) - beat;  // j's least lead over w at the centre
