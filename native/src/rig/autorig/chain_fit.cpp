@@ -126,4 +126,11 @@ Fit limb_fit(const Chain4& chain, bool arm) {
     return proportional_fit(chain, arm ? kArmProportions : kLegProportions, arm ? chain.back()[3] : 0.0);
 }
 
+std::size_t nearest_sample(const Chain4& chain, const Eigen::Vector3d& q) {
+    std::size_t best = 0;
+    for (std::size_t k = 1; k < chain.size(); ++k)
+        if ((chain[k].head<3>() - q).norm() < (chain[best].head<3>() - q).norm()) best = k;
+    return best;
+}
+
 }  // namespace volrig::rig_detail

@@ -47,4 +47,7 @@ inline const std::vector<double> kLegProportions{0.095, 0.245, 0.246, 0.11};
 /// Arc length along a chain's positions, from its first sample.
 std::vector<double> arc_of(const Chain4& chain);
 
+/// The index of the chain's sample nearest the point q (the first of equals; 0 for an empty chain).
+std::size_t nearest_sample(const Chain4& chain, const Eigen::Vector3d& q);
+
 }  // namespace volrig::rig_detail

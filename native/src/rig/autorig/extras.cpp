@@ -1,6 +1,5 @@
 // rig/autorig/extras.cpp: the parts a body plan leaves out, kept as chains (see templates.hpp).
 #include <algorithm>
-#include <limits>
 #include <set>
 
 #include "rig/autorig/templates.hpp"
@@ -61,23 +60,13 @@ bool is_wing_bone(const std::string& name) {
     return false;
 }
 
-/// The longest side of the box around the tree's nodes: the body's size.
-double tree_extent(const NodeTree& t) {
-    Vec lo = Vec::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (std::uint32_t v : t.order()) {
-        lo = lo.cwiseMin(t.at(v));
-        hi = hi.cwiseMax(t.at(v));
-    }
-    return t.order().empty() ? 0.0 : (hi - lo).maxCoeff();
-}
-
 }  // namespace
 
 void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double tolerance) {
     const bool quadruped = kind != PlanKind::Humanoid;  // tails named so; no hand or foot rule
     const NodeTree& t = c.tree;
     int added = 0;
-    const double least_part = kExtraShare * tree_extent(t);
+    const double least_part = kExtraShare * t.box_size(t.order()).maxCoeff();  // of the body's longest side
     for (const auto& [significance, leaf] : t.extremities()) {
         if (added == kMaxExtraChains) break;
         if (b.bone_of(leaf) >= 0) continue;  // a template limb's tip
@@ -100,13 +89,6 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double 
         nodes.push_back(at);
         std::reverse(nodes.begin(), nodes.end());
         nodes = t.out_to_farthest(std::move(nodes));
-        const Chain4 samples = c.samples(nodes);
-        Fit fit;
-        for (int pieces = 1; pieces <= 4; ++pieces) {
-            fit = fit_chain(samples, pieces);
-            if (fit.worst <= tolerance || static_cast<int>(fit.cuts.size()) - 1 < pieces) break;
-        }
-        if (fit.cuts.size() < 2) continue;
         const bool tail = quadruped && is_tail(b.rig(), b.rig().names[static_cast<std::size_t>(holder)], t.at(leaf));
         const std::int32_t parent = tail ? holder : b.attach_bone(at, t.radius(at));
         const std::string& owner = b.rig().names[static_cast<std::size_t>(parent)];
@@ -116,6 +98,14 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double 
         if (kind == PlanKind::Winged && is_wing_bone(owner)) continue;
         const bool at_hand = !quadruped && (owner.rfind("forearm", 0) == 0 || owner.rfind("hand", 0) == 0);
         if (!at_hand && !tail && significance < least_part) continue;
+        // Cut at bends, once it is kept.
+        const Chain4 samples = c.samples(nodes);
+        Fit fit;
+        for (int pieces = 1; pieces <= 4; ++pieces) {
+            fit = fit_chain(samples, pieces);
+            if (fit.worst <= tolerance || static_cast<int>(fit.cuts.size()) - 1 < pieces) break;
+        }
+        if (fit.cuts.size() < 2) continue;
         const std::string base = unused_base(b.rig(), tail ? "tail" : "chain." + owner);
         b.chain(nodes, fit.cuts, numbered_names(base, fit.cuts.size() - 1), parent);
         ++added;

@@ -221,16 +221,12 @@ void heel_ankle(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>&
     const Vec knee = bone_end(rig, static_cast<std::size_t>(shin), 0), ankle = bone_end(rig, static_cast<std::size_t>(shin), 1);
     const Chain4 chain = c.samples(leg);
     const std::vector<double> arc = arc_of(chain);
-    std::size_t bend = 0;  // the axis node at the rig's ankle
-    for (std::size_t k = 1; k < chain.size(); ++k)
-        if ((chain[k].head<3>() - ankle).norm() < (chain[bend].head<3>() - ankle).norm()) bend = k;
+    const std::size_t bend = nearest_sample(chain, ankle);  // the axis node at the rig's ankle
     std::size_t heel = bend;  // the widest node within kNeckWindow radii of it
     for (std::size_t k = 0; k < chain.size(); ++k)
         if (std::abs(arc[k] - arc[bend]) <= kNeckWindow * chain[bend][3] && chain[k][3] > chain[heel][3]) heel = k;
     const Vec middle = 0.5 * (knee + ankle);  // the neck: the narrowest node from mid-shin to the heel
-    std::size_t from = 0;
-    for (std::size_t k = 1; k < chain.size(); ++k)
-        if ((chain[k].head<3>() - middle).norm() < (chain[from].head<3>() - middle).norm()) from = k;
+    const std::size_t from = nearest_sample(chain, middle);
     std::size_t neck = heel;
     for (std::size_t k = from; k < heel; ++k)
         if (chain[k][3] < chain[neck][3]) neck = k;
@@ -248,9 +244,7 @@ void wrist_at_neck(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     const Vec wrist = bone_end(rig, static_cast<std::size_t>(forearm), 1);
     const Chain4 chain = c.samples(arm);
     const std::vector<double> arc = arc_of(chain);
-    std::size_t at = 0;  // the axis node at the rig's wrist
-    for (std::size_t k = 1; k < chain.size(); ++k)
-        if ((chain[k].head<3>() - wrist).norm() < (chain[at].head<3>() - wrist).norm()) at = k;
+    const std::size_t at = nearest_sample(chain, wrist);  // the axis node at the rig's wrist
     std::optional<std::size_t> best;
     // No noise floor here (see kNeckNoise): a hand resting on the pelvis widens the mask beyond the wrist by
     // less than that at the Visible Human's 2 mm, and the wrist must also be the narrowest node of its window.
@@ -364,10 +358,7 @@ void raise_low_hips(const RigContext& c, Rig& rig, const std::vector<std::uint32
         const Vec head = bone_end(rig, t, 0) + (least - hip) * body_up;
         move_joint(rig, rig.bones[t][0], head);
         const Vec want = head + share * (bone_end(rig, static_cast<std::size_t>(shin[s]), 1) - head);
-        std::size_t best = 0;
-        for (std::size_t k = 1; k < chain[s].size(); ++k)
-            if ((chain[s][k].head<3>() - want).norm() < (chain[s][best].head<3>() - want).norm()) best = k;
-        move_joint(rig, rig.bones[t][1], chain[s][best].head<3>());
+        move_joint(rig, rig.bones[t][1], chain[s][nearest_sample(chain[s], want)].head<3>());
     }
 }
 
@@ -449,9 +440,7 @@ void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>
     const Vec joint = bone_end(rig, static_cast<std::size_t>(p), 1);
     const Chain4 chain = c.samples(limb);
     const std::vector<double> arc = arc_of(chain);
-    std::size_t at = 0;  // the axis sample at the joint
-    for (std::size_t k = 1; k < chain.size(); ++k)
-        if ((chain[k].head<3>() - joint).norm() < (chain[at].head<3>() - joint).norm()) at = k;
+    const std::size_t at = nearest_sample(chain, joint);  // the axis sample at the joint
     const double radius = chain[at][3];
     std::vector<Vec> before, after;  // each bone's axis, off the rounded bend
     for (std::size_t k = 0; k < chain.size(); ++k)

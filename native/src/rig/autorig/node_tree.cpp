@@ -168,14 +168,16 @@ std::vector<std::uint32_t> NodeTree::path(std::uint32_t a, std::uint32_t b) cons
     return up;
 }
 
-double NodeTree::extent(const std::vector<std::uint32_t>& nodes) const {
+Vec NodeTree::box_size(const std::vector<std::uint32_t>& nodes) const {
     Vec lo = Vec::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
     for (std::uint32_t v : nodes) {
         lo = lo.cwiseMin(at(v));
         hi = hi.cwiseMax(at(v));
     }
-    return nodes.empty() ? 0.0 : (hi - lo).norm();
+    return nodes.empty() ? Vec::Zero() : Vec(hi - lo);
 }
+
+double NodeTree::extent(const std::vector<std::uint32_t>& nodes) const { return box_size(nodes).norm(); }
 
 double NodeTree::mean_radius(const std::vector<std::uint32_t>& nodes) const {
     double s = 0;

@@ -54,7 +54,9 @@ public:
     std::uint32_t median(std::uint32_t a, std::uint32_t b, std::uint32_t c) const;
     /// Nodes of the path from a to b, both included.
     std::vector<std::uint32_t> path(std::uint32_t a, std::uint32_t b) const;
-    /// Diagonal of the bounding box of the given nodes' positions.
+    /// Size (hi - lo per axis) of the bounding box of the given nodes' positions; zero for none.
+    Vec box_size(const std::vector<std::uint32_t>& nodes) const;
+    /// Diagonal of that box.
     double extent(const std::vector<std::uint32_t>& nodes) const;
     double mean_radius(const std::vector<std::uint32_t>& nodes) const;
     /// Length of the polyline through the given nodes' positions.

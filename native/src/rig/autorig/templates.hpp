@@ -201,7 +201,7 @@ void bend_corner(const RigContext& c, Rig& rig, const std::vector<std::uint32_t>
 /// limb whose shares lie farther from `prior`'s (Drillis and Contini's) is fitted again beyond its root's bone with
 /// the other's lengths as its proportions, kMatchWeight times as strongly as limb_fit's (`limb[s]`: its nodes from the root out). Legs
 /// only: the pair's fits on the shared characters (benchmarks/rig_characters.py) bring the legs' mean CD-J2J 5.35 ->
-/// 5.30 (better on 7, worse on none), the arms' 5.30 -> 5.31 (artists' 4.72 -> 4.81): a hand's fingers and a
+/// 5.30 (better on 6, worse on 1 by 0.01), the arms' 5.30 -> 5.31 (artists' 4.72 -> 4.81): a hand's fingers and a
 /// raised or fused arm make the arms' pieces differ for reasons other than a misfit.
 constexpr double kLimbMismatch = 0.1;
 constexpr double kMatchWeight = 10.0;
