@@ -96,7 +96,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         if preview is not None:
             preview.hide_set(True)
         looks.refresh(vol)
-        self.report({"WARNING"} if r.rig.kind == "chains" and r.rig.note else {"INFO"},
+        self.report({"WARNING"} if "no body plan" in r.rig.note else {"INFO"},  # fits / stands along the given up
                     f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 

@@ -410,7 +410,7 @@ TEST_CASE("level_hips puts both hip joints at the mean of their heights", "[auto
     CHECK(rig.joints[0][0] == 4);
 }
 
-TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and its tail straight up",
+TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and its tail straight up, half-way",
           "[autorig]") {
     // A neck from z 20 up to 30, the head's axis running forward to the face (y 2); the head's top at z 39.
     const Block block({20, 20, 40});
@@ -430,7 +430,23 @@ TEST_CASE("place_head puts the head joint 0.6 of the way down from the top and i
     CHECK(rig.joints[1][1] == Approx(9.5).margin(0.6));
     CHECK(rig.joints[2][0] == Approx(rig.joints[1][0]));  // straight up
     CHECK(rig.joints[2][1] == Approx(rig.joints[1][1]));
-    CHECK(rig.joints[2][2] == Approx(top).margin(0.6));
+    CHECK(rig.joints[2][2] == Approx(rig.joints[1][2] + kHeadTail * (top - rig.joints[1][2])).margin(0.6));
+}
+
+TEST_CASE("end_hands_and_feet ends hands at the knuckles and feet at the ball, a hand holding fingers kept", "[autorig]") {
+    Rig rig;
+    rig.joints = {{0, 0, 0}, {10, 0, 0}, {0, 0, 0}, {-10, 0, 0}, {-12, 0, 0}, {0, 0, -50}, {0, -9, -50}};
+    rig.joint_points = {0, 0, 0, 0, 0, 0, 0};
+    rig.bones = {{0, 1}, {2, 3}, {3, 4}, {5, 6}};
+    rig.names = {"hand.L", "hand.R", "finger.R", "foot.L"};
+    rig.parents = {-1, -1, 1, -1};
+    end_hands_and_feet(rig);
+    CHECK(rig.joints[1][0] == Approx(10 * kHandToKnuckles));
+    CHECK(rig.joint_points[1] == -1);
+    CHECK(rig.joints[3][0] == -10);  // the finger's root stays
+    CHECK(rig.joints[6][1] == Approx(-9 * kFootToBall));
+    CHECK(rig.joints[6][2] == -50);
+    CHECK(rig.joints[0][0] == 0);  // heads stay
 }
 
 TEST_CASE("deepest_dip finds a knee between thigh and calf, not the narrowing towards the ankle", "[autorig]") {

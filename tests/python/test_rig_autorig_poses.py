@@ -78,3 +78,30 @@ def test_capsule_bird_is_winged(scale, up):
         assert np.linalg.norm(knee - s.joints["knee." + side]) / scale < 2.5 * 3.5, side
     assert not [n for n in rig.names if n.startswith(("chain.shoulder", "chain.upper_arm", "chain.forearm",
                                                       "chain.hand"))]
+
+
+def test_a_body_lying_across_the_given_up_is_rigged_as_it_lies():
+    """A standing figure given an up across it (+y: a character modelled lying down, or its up mislabelled): no
+    humanoid or quadruped reading stands along that up (their terms for a spine not up and limbs not down, and the
+    winged and hand biases, raised to 100 to make that certain), so chains would win; instead the reading without up, clear of
+    chains by the weights' margin, is taken, with its own up and a note saying the given up was overruled. With that
+    reading's score raised to within the margin, chains stay."""
+    from volrig.rig import PLAN_TERMS, PLAN_WEIGHTS
+    s = S.capsule_subject("wide", 0.6)
+    pts = volrig.skeletonize(s.mask).top(15000)
+    tree = volrig.skeleton_tree(pts, s.mask)
+    w = list(PLAN_WEIGHTS)
+    for term in ("bias_winged", "bias_hand", "h_spine_not_up", "q_limbs_not_down"):
+        w[PLAN_TERMS.index(term)] = 100.0
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=w)
+    assert rig.kind == "humanoid" and rig.up @ s.up > 0.97, (rig.kind, rig.up)
+    assert "given up" in rig.note and rig.runner_up == "chains"
+    free = volrig.autorig(pts, tree, s.mask, plan_weights=w)  # the reading without up, joint for joint
+    assert free.kind == "humanoid" and free.fit > 0.9 and free.note == "" and np.allclose(rig.joints, free.joints)
+    # The same reading within the margin of chains (fit = 1 / (1 + exp(score - chains)): the humanoid's bias raised
+    # until its score lies 0.5 below chains') leaves chains, saying no plan fits.
+    w[PLAN_TERMS.index("bias_humanoid")] += np.log(free.fit / (1 - free.fit)) - 0.5
+    w[PLAN_TERMS.index("bias_quadruped")] = 100.0
+    assert volrig.autorig(pts, tree, s.mask, plan_weights=w).fit == pytest.approx(1 / (1 + np.exp(-0.5)), abs=1e-6)
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=w)
+    assert rig.kind == "chains" and "no body plan fits" in rig.note

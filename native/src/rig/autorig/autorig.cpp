@@ -37,9 +37,10 @@
 // 5. humanoid_limbs: a humanoid's joints the medial axis does not show are placed by rules on the object itself
 //    (walks along rays inside it): shoulders in the corner under the shoulder's top and outer side, bent elbows at
 //    the corner of the bones' lines, knees at the leg's deepest dip, hips and chest between their joints, the
-//    head bone up from 0.6 of the way down from the crown.
+//    head bone up from 0.6 of the way down from the crown, half-way to it.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <tuple>
 
 #include "rig/autorig/coarse.hpp"
@@ -195,14 +196,37 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     return out;
 }
 
+/// When the given up lets no body plan beat chains: the best body plan read without it, when it scores
+/// kUpOverruleMargin below chains (a character modelled lying down, or its up mislabelled), marked up_overruled
+/// with a note saying so; none otherwise (a shape no plan fits either way stays chains).
+std::vector<Candidate> plan_without_up(const rig_detail::RigContext& c, const AutorigOptions& opt,
+                                       const PlanInput& in) {
+    const PlanInput free{std::nullopt, in.weights, {}};
+    std::vector<Candidate> found = plan_candidates(c, opt, free, nullptr);
+    const double least_fit =
+        rig_detail::plan_fit(rig_detail::chains_score(in.weights) - rig_detail::kUpOverruleMargin, in.weights);
+    if (found.empty() || found[0].fit < least_fit || found[0].up_confidence < rig_detail::kUpOverruleClarity)
+        return {};
+    Candidate& k = found[0];
+    k.up_overruled = true;
+    char along[64];
+    std::snprintf(along, sizeof along, "(%.2f, %.2f, %.2f)", k.up.x(), k.up.y(), k.up.z());
+    k.rig.note = "no body plan stands along the given up; rigged as a " + k.rig.kind + " whose up is " + along +
+                 " (check the up axis, or choose a plan)";
+    found.resize(1);
+    return found;
+}
+
 /// Every template's candidate, best first: body plans within their limit (or forced, or meeting markers) by
-/// score, then chains (not with markers).
+/// score (read without up when it rules every plan out: plan_without_up), then chains (not with markers).
 std::vector<Candidate> candidates(const rig_detail::RigContext& c, const AutorigOptions& opt, const PlanInput& in,
                                   AutorigDetail* detail) {
     const int target = opt.bones > 0 ? opt.bones : 24;
     std::vector<Candidate> out;
-    if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains")
+    if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains") {
         out = plan_candidates(c, opt, in, detail);
+        if (out.empty() && opt.kind.empty() && in.markers.empty() && in.up) out = plan_without_up(c, opt, in);
+    }
     if (!in.markers.empty() && out.empty())
         throw Error("autorig: the markers need a humanoid or quadruped body plan, and this shape has no five "
                     "extremities for one");
@@ -342,7 +366,7 @@ Rig autorig(const Grid& g, const std::uint8_t* mask, const PointSet& pts,
     rig.fit = found[0].fit;
     Vec up = found[0].up;
     rig.up_confidence = found[0].up_confidence;
-    if (opt.up) {
+    if (opt.up && !found[0].up_overruled) {
         up = Vec((*opt.up)[0], (*opt.up)[1], (*opt.up)[2]).normalized();
         rig.up_confidence = 1.0;
     }

@@ -423,6 +423,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
         centre_chest(out.rig, body_up);
         recut_spine(out.rig, c.samples(spine));
         place_head(c, out.rig, c.samples(head), body_up);
+        end_hands_and_feet(out.rig);
     }
     return out;
 }

@@ -417,7 +417,20 @@ void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& bo
         joint += 0.5 * (c.reach_inside(joint, d, 0.0, limit) - c.reach_inside(joint, -d, 0.0, limit)) * d;
     }
     move_joint(rig, rig.bones[hb][0], joint);
-    move_joint(rig, rig.bones[hb][1], joint + c.reach_inside(joint, body_up, 0.0, 2.0 * height) * body_up);
+    move_joint(rig, rig.bones[hb][1], joint + kHeadTail * c.reach_inside(joint, body_up, 0.0, 2.0 * height) * body_up);
+}
+
+void end_hands_and_feet(Rig& rig) {
+    std::vector<int> heads(rig.joints.size(), 0);
+    for (const auto& b : rig.bones) ++heads[static_cast<std::size_t>(b[0])];
+    for (const char* side : {".L", ".R"})
+        for (const auto& [name, share] : {std::pair{"hand", kHandToKnuckles}, std::pair{"foot", kFootToBall}}) {
+            const std::int32_t b = bone_index(rig, name + std::string(side));
+            if (b < 0 || heads[static_cast<std::size_t>(rig.bones[static_cast<std::size_t>(b)][1])]) continue;
+            const auto bb = static_cast<std::size_t>(b);
+            const Vec head = bone_end(rig, bb, 0);
+            move_joint(rig, rig.bones[bb][1], head + share * (bone_end(rig, bb, 1) - head));
+        }
 }
 
 namespace {

@@ -19,6 +19,7 @@ struct Candidate {
     double fit = 0;
     Vec up = Vec::Zero();
     double up_confidence = 0;
+    bool up_overruled = false;  ///< read without the given up, which no body plan fitted (autorig.cpp)
 };
 
 /// The five extremities of a body plan: head, two legs (meeting at the pelvis), two arms (meeting at the chest).
@@ -78,6 +79,15 @@ struct PlanSearch {
 PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all = nullptr);
 /// The score below which a body plan beats neutral chains, with the fitted weights.
 inline double plan_limit() { return chains_score(fitted_plan_weights()); }
+/// How far below chains' score a body plan read without the given up must score to overrule that up, when no plan
+/// fits it (a character modelled lying down): the margin the weights were fitted to (fit_plan_weights.py: each
+/// subject's own plan 1 below every other reading), so only a reading as clear as training asks of the right plan.
+constexpr double kUpOverruleMargin = 1.0;
+/// ... and that reading must show its own up clearly (Candidate::up_confidence: a humanoid's legs within 18 degrees
+/// of opposite its spine). A guard against overruling up for a shape that only happens to score: of the development
+/// subjects' right humanoid and quadruped readings without up, 33 of 39 show their up at 0.9 or more; the shapes
+/// with no plan that read as a plan without up (a lone arm, a statue) at 0.47-0.54.
+constexpr double kUpOverruleClarity = 0.9;
 
 /// The trunk from the pelvis to the chest cut into hips, spine and chest at these shares of its chord (a trunk's
 /// medial axis wiggles: cuts at its bends, or shares of its arc, wander between resolutions), or by fit_chain when
@@ -235,9 +245,28 @@ void recut_spine(Rig& rig, Chain4 spine);
 /// A humanoid's head bone points up (Rigify's), from the head joint to the top of the head, whichever extremity
 /// (the face, the crown) the medial axis reaches: the head joint goes to the head chain's sample (`head`: from the
 /// chest out) at kHeadShare of the height from the neck's base to the top of the head below the top (Rigify's
-/// metarig: the head 0.6 of the way from the neck's base to the crown), the tail straight up to the surface.
+/// metarig: the head 0.6 of the way from the neck's base to the crown), the tail straight up, kHeadTail of the way to
+/// the surface.
 constexpr double kHeadShare = 0.6;
+/// The head bone ends half-way from the head joint to the crown, not at the crown: the reference skeletons end the
+/// head at the skull's base (13 of the 15 humanoid references, artists' and RigNet's, have no joint above volrig's
+/// head joint), so a tail on the crown was a joint 10-36 (x 100, longest side 1) from any of theirs. Half-way keeps
+/// a bone the animator can see and grab inside the head (J2J over the 24 references: 5.26 at the crown, 5.14 at
+/// half, 5.09 at a fifth).
+constexpr double kHeadTail = 0.5;
 void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& body_up);
+
+/// A humanoid's hands end at the knuckles and its feet at the ball of the foot, not at the fingertips and toe tips
+/// the fit reaches: where Rigify's metarig ends its hand and foot bones (its fingers and toe bones go on from there)
+/// and where the reference skeletons, artists' and RigNet's, end theirs or start their fingers. kHandToKnuckles: the
+/// palm's share of the hand's length, wrist to the middle finger's knuckle (about 0.55 in adult anthropometry);
+/// kFootToBall: from the ankle to the ball of the foot over the ankle to the toe tip (the ball at about 0.73 of the
+/// foot's length from the heel, the ankle at 0.2: 2/3). Over the 24 references, J2J 4.94 -> 4.73, worse on none by
+/// more than 0.01 (hands and feet at half: 4.70; the optimum is flat from 0.5 to 0.7). A hand holding fingers'
+/// chains keeps its end (their roots).
+constexpr double kHandToKnuckles = 0.55;
+constexpr double kFootToBall = 2.0 / 3.0;
+void end_hands_and_feet(Rig& rig);
 
 /// Extra parts (tails, trunks, ears, wings, horns): the most significant branches that no template bone holds
 /// (at most kMaxExtraChains) and stick out of the body (their significance, NodeTree::extremities) by at least
