@@ -1,7 +1,8 @@
 """For scripts/ui_screenshot: Blender with its UI (under Xvfb), the add-on enabled, the phantom imported,
 skeletonized and rigged through the add-on's operators, the volrig panels on the sidebar's first tab. Prints
 "UI READY" when the screen is ready for a screenshot. UI_MESH=1: the shared knight mesh instead, rigged by Rig Mesh,
-its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider).
+its left elbow bent and that forearm made thicker, in pose mode with the forearm selected (its thickness slider);
+UI_MESH=<path under the data root>: that mesh, rigged.
 UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid
 (volrig_support.subjects.capsule_subject, e.g. wide; "bird": capsule_bird_subject) instead of the phantom.
 UI_MARKERS=1: four markers placed before Rig (the Markers box lists the missing ones)."""
@@ -62,17 +63,22 @@ def live_preview(vol):
     bpy.context.scene.frame_set(20)
 
 
-def knight_scene():
+def knight_scene(mesh: str = "1"):
     """The shared knight (+Y up in the file: turned to +Z) rigged by Rig Mesh, the left elbow bent 90 degrees and
-    the left forearm 1.6 times as thick, in pose mode with the forearm active."""
+    the left forearm 1.6 times as thick, in pose mode with the forearm active. ``mesh``: another mesh under the data
+    root (UI_MESH=characters/axl/....obj), +Y up in its file as the add-on's importers take it, rigged and left so."""
     import math
     import numpy as np
-    v, f = volrig.read_mesh(str(data_root() / "meshes" / "decimated-knight.off"))
+    path = "meshes/decimated-knight.off" if mesh == "1" else mesh
+    v, f = volrig.read_mesh(str(data_root() / path))
     v = np.asarray(v, float)
     from volrig_addon import mesh_rig
-    mesh_rig.new_mesh_object(bpy.context, "knight", np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
+    name = os.path.basename(path).split(".")[0][:20]
+    mesh_rig.new_mesh_object(bpy.context, name, np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
     print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
     arm = bpy.context.active_object
+    if mesh != "1":
+        return
     bpy.ops.object.mode_set(mode="POSE")
     pb = arm.pose.bones["forearm.L"]
     pb.rotation_mode = "XYZ"
@@ -240,7 +246,7 @@ def empty_view3d():
 def setup_mesh():
     win, override = empty_view3d()
     with override:
-        knight_scene()
+        knight_scene(os.environ["UI_MESH"])
     return show_volrig_sidebar(win, "SOLID", three_quarter=True)
 
 

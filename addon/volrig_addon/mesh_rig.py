@@ -33,7 +33,7 @@ from volrig.skin import MESH_VOXELS, SKIN_BLEND, thickness_offsets
 
 from . import drawing, objects
 from . import markers as marker_ui
-from .ops_base import _reported
+from .ops_base import _draw_found, _found_level, _reported
 
 MODIFIER = "volrig"
 THICKNESS = objects.THICKNESS
@@ -364,7 +364,7 @@ class VOLRIG_OT_rig_mesh(bpy.types.Operator):
             o.select_set(False)
         arm.select_set(True)
         context.view_layer.objects.active = arm
-        self.report({"INFO"}, f"volrig: {obj['volrig_rig_found']}: {len(mr.rig)} bones, "
+        self.report(_found_level(mr.rig.note), f"volrig: {obj['volrig_rig_found']}: {len(mr.rig)} bones, "
                               f"{len(obj.data.vertices):,} vertices skinned")
         return {"FINISHED"}
 
@@ -419,7 +419,7 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
         col.label(text=f"{arm.name}: {len(arm.data.bones)} bones", icon="BONE_DATA")
         found = obj.get("volrig_rig_found", "")
         if found:
-            col.label(text=found.partition(" (")[0], icon="INFO")
+            _draw_found(col, found)
         mod = obj.modifiers[MODIFIER]
         layout.prop(mod, "use_deform_preserve_volume")
         layout.operator(VOLRIG_OT_thickness_keys.bl_idname, icon="SHAPEKEY_DATA")

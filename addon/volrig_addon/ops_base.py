@@ -111,6 +111,28 @@ def _labelled(layout, settings, *names, text: str = "") -> None:
         split.prop(settings, name, text="")
 
 
+def _draw_found(layout, found: str) -> None:
+    """What autorig found (``pipeline.describe_rig``: "humanoid, fit 0.93 (runner-up chains 0.61); note; ..."): kind
+    and fit, the runner-up, then each part of the note on a line of its own (a sidebar cuts long labels)."""
+    head, _, note = found.partition("; ")
+    head, _, runner_up = head.partition(" (")
+    col = layout.column(align=True)
+    col.label(text=head, icon="INFO")
+    if runner_up:
+        col.label(text=runner_up.rstrip(")"), icon="BLANK1")
+    for part in (p for p in note.split("; ") if p):
+        col.label(text=part, icon="ERROR" if part.startswith(_WARNINGS) else "BLANK1")
+
+
+#: How the notes a user must act on begin (autorig.cpp): no plan fits, or the given up was overruled.
+_WARNINGS = ("no body plan fits", "given up overruled")
+
+
+def _found_level(note: str) -> set:
+    """The report level of a rig's note: a warning when no body plan fits or the given up was overruled."""
+    return {"WARNING"} if any(w in note for w in _WARNINGS) else {"INFO"}
+
+
 class _VolrigPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"

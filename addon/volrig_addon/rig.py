@@ -11,7 +11,7 @@ import volrig
 from volrig import pipeline
 
 from . import looks, markers, objects, scans
-from .ops_base import _labelled, _OnVolume, _ProgressBar, _props, _settings, _VolrigPanel
+from .ops_base import _draw_found, _found_level, _labelled, _OnVolume, _ProgressBar, _props, _settings, _VolrigPanel
 
 
 #: The Rig button's progress bar: each pipeline step's share.
@@ -96,7 +96,7 @@ class VOLRIG_OT_rig(_OnVolume, bpy.types.Operator):
         if preview is not None:
             preview.hide_set(True)
         looks.refresh(vol)
-        self.report({"WARNING"} if "no body plan" in r.rig.note else {"INFO"},  # fits / stands along the given up
+        self.report(_found_level(r.rig.note),
                     f"volrig: {s.rig_found}: {len(r.rig)} bones on {len(r.points):,} spheres")
         return {"FINISHED"}
 
@@ -207,15 +207,8 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
             else:
                 layout.operator("volrig.thickness", icon="MOD_THICKNESS")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
-            if s.rig_found:  # "humanoid, fit 0.93 (runner-up chains 0.61); note": kind and fit, runner-up, note
-                found, _, note = s.rig_found.partition("; ")
-                found, _, runner_up = found.partition(" (")
-                col = layout.column(align=True)
-                col.label(text=found, icon="INFO")
-                if runner_up:
-                    col.label(text=runner_up.rstrip(")"), icon="BLANK1")
-                if note:
-                    col.label(text=note, icon="ERROR")
+            if s.rig_found:
+                _draw_found(layout, s.rig_found)
             if s.rigid_voxels:  # the rigid layer: bones move whole
                 layout.label(text=f"rigid layer: {s.rigid_voxels:,} voxels", icon="MOD_SOLIDIFY")
         if "SPHERES" in parts:

@@ -105,3 +105,38 @@ def test_a_body_lying_across_the_given_up_is_rigged_as_it_lies():
     assert volrig.autorig(pts, tree, s.mask, plan_weights=w).fit == pytest.approx(1 / (1 + np.exp(-0.5)), abs=1e-6)
     rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=w)
     assert rig.kind == "chains" and "no body plan fits" in rig.note
+
+
+def test_a_weak_reading_along_the_given_up_is_overruled_a_clear_one_kept():
+    """The same figure given +y, with a humanoid reading under that up scoring 0.3 below chains (the weight of the
+    spine not pointing up chosen so; fit 0.57): not clear of chains by the weights' margin (1), while the reading
+    without up is (fit > 0.9, standing along z), so the up is overruled. Scoring 1.5 below chains, the reading
+    under the given up is kept as it is."""
+    from volrig.rig import PLAN_TERMS, PLAN_WEIGHTS
+    s = S.capsule_subject("wide", 0.6)
+    pts = volrig.skeletonize(s.mask).top(15000)
+    tree = volrig.skeleton_tree(pts, s.mask)
+    w = np.array(PLAN_WEIGHTS, float)
+    for term in ("bias_winged", "bias_hand", "bias_quadruped"):
+        w[PLAN_TERMS.index(term)] = 100.0
+    spine = PLAN_TERMS.index("h_spine_not_up")
+    detail = []
+    volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=list(w), detail=detail)
+    F = np.asarray(detail[0].reading_features, float)
+    F = F[[k == "humanoid" for k in detail[0].reading_kind]]
+    chains = w[-1]
+
+    def weighted(below):  # w with the spine's weight making the best humanoid reading under +y score chains - below
+        lo, hi = 0.0, 100.0
+        for _ in range(60):
+            w[spine] = (lo + hi) / 2
+            lo, hi = (w[spine], hi) if (F @ w[:-1]).min() < chains - below else (lo, w[spine])
+        return list(w)
+
+    weak = weighted(0.3)
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=weak)
+    assert rig.kind == "humanoid" and "given up" in rig.note and rig.up @ s.up > 0.97, (rig.note, rig.up)
+    clear = weighted(1.5)
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), plan_weights=clear)
+    assert rig.kind == "humanoid" and rig.note == "" and np.allclose(rig.up, (0, 1, 0))
+    assert rig.fit == pytest.approx(1 / (1 + np.exp(-1.5)), abs=1e-3)

@@ -123,6 +123,7 @@ bool consistent(const Rig& rig) {
 
 /// A built body plan: its fit from its score, the markers applied.
 void finish_plan(Candidate& k, double score, const PlanInput& in) {
+    k.score = score;
     k.fit = rig_detail::plan_fit(score, in.weights);
     if (!in.markers.empty() && !k.rig.bones.empty())
         rig_detail::apply_markers(k.rig, in.markers, in.up ? *in.up : k.up);
@@ -186,6 +187,7 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     const rig_detail::HandPlan hand = rig_detail::search_hand(c.tree);
     if (const double hs = rig_detail::hand_plan_score(hand, in.weights); in.markers.empty() && admits(opt, in, "hand", hs)) {
         ranked.push_back({{false, 0, hs}, rig_detail::hand_rig(c, hand)});
+        ranked.back().second.score = hs;
         ranked.back().second.fit = rig_detail::plan_fit(hs, in.weights);
     }
     if (detail) export_readings(std::move(readings), hand, *detail);
@@ -196,36 +198,42 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
     return out;
 }
 
-/// When the given up lets no body plan beat chains: the best body plan read without it, when it scores
-/// kUpOverruleMargin below chains (a character modelled lying down, or its up mislabelled), marked up_overruled
-/// with a note saying so; none otherwise (a shape no plan fits either way stays chains).
+/// When no body plan is clear of chains by kUpOverruleMargin under the given up (`under_up`: the candidates found
+/// with it, best first): the best body plan read without it, when that scores the margin below chains and below
+/// every reading under the up, shows its own up clearly and lies across the given axis (more than 45 degrees off it
+/// either way: a character modelled lying down, or its up mislabelled; a given up reversed still rules upside-down
+/// readings out, as the weights' hard constraints ask). Marked up_overruled, with a note saying so; none otherwise.
 std::vector<Candidate> plan_without_up(const rig_detail::RigContext& c, const AutorigOptions& opt,
-                                       const PlanInput& in) {
+                                       const PlanInput& in, const std::vector<Candidate>& under_up) {
+    const double chains = rig_detail::chains_score(in.weights), margin = rig_detail::kUpOverruleMargin;
+    const double best_under_up = under_up.empty() ? chains : std::min(chains, under_up[0].score);
+    if (best_under_up <= chains - margin) return {};  // a clear reading under the up: the up holds
     const PlanInput free{std::nullopt, in.weights, {}};
     std::vector<Candidate> found = plan_candidates(c, opt, free, nullptr);
-    const double least_fit =
-        rig_detail::plan_fit(rig_detail::chains_score(in.weights) - rig_detail::kUpOverruleMargin, in.weights);
-    if (found.empty() || found[0].fit < least_fit || found[0].up_confidence < rig_detail::kUpOverruleClarity)
-        return {};
+    if (found.empty()) return {};
     Candidate& k = found[0];
+    if (!(k.score <= best_under_up - margin && k.up_confidence >= rig_detail::kUpOverruleClarity &&
+          std::abs(k.up.normalized().dot(*in.up)) < std::sqrt(0.5)))
+        return {};
     k.up_overruled = true;
     char along[64];
     std::snprintf(along, sizeof along, "(%.2f, %.2f, %.2f)", k.up.x(), k.up.y(), k.up.z());
-    k.rig.note = "no body plan stands along the given up; rigged as a " + k.rig.kind + " whose up is " + along +
-                 " (check the up axis, or choose a plan)";
+    k.rig.note = "given up overruled; no body plan stands along it; rigged standing along " + std::string(along) +
+                 "; check the up axis, or choose a plan";
     found.resize(1);
     return found;
 }
 
 /// Every template's candidate, best first: body plans within their limit (or forced, or meeting markers) by
-/// score (read without up when it rules every plan out: plan_without_up), then chains (not with markers).
+/// score (read without up when no plan stands along it: plan_without_up), then chains (not with markers).
 std::vector<Candidate> candidates(const rig_detail::RigContext& c, const AutorigOptions& opt, const PlanInput& in,
                                   AutorigDetail* detail) {
     const int target = opt.bones > 0 ? opt.bones : 24;
     std::vector<Candidate> out;
     if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains") {
         out = plan_candidates(c, opt, in, detail);
-        if (out.empty() && opt.kind.empty() && in.markers.empty() && in.up) out = plan_without_up(c, opt, in);
+        if (opt.kind.empty() && in.markers.empty() && in.up)
+            if (std::vector<Candidate> free = plan_without_up(c, opt, in, out); !free.empty()) out = std::move(free);
     }
     if (!in.markers.empty() && out.empty())
         throw Error("autorig: the markers need a humanoid or quadruped body plan, and this shape has no five "

@@ -19,7 +19,8 @@ struct Candidate {
     double fit = 0;
     Vec up = Vec::Zero();
     double up_confidence = 0;
-    bool up_overruled = false;  ///< read without the given up, which no body plan fitted (autorig.cpp)
+    double score = std::numeric_limits<double>::infinity();  ///< plan_score's (a body plan's or the hand's)
+    bool up_overruled = false;  ///< read without the given up, along which no body plan stood (autorig.cpp)
 };
 
 /// The five extremities of a body plan: head, two legs (meeting at the pelvis), two arms (meeting at the chest).
@@ -79,9 +80,10 @@ struct PlanSearch {
 PlanSearch search_plans(const NodeTree& t, const SearchInput& in, std::vector<PlanReading>* all = nullptr);
 /// The score below which a body plan beats neutral chains, with the fitted weights.
 inline double plan_limit() { return chains_score(fitted_plan_weights()); }
-/// How far below chains' score a body plan read without the given up must score to overrule that up, when no plan
-/// fits it (a character modelled lying down): the margin the weights were fitted to (fit_plan_weights.py: each
-/// subject's own plan 1 below every other reading), so only a reading as clear as training asks of the right plan.
+/// How far below chains' score, and below every reading under the given up, a body plan read without that up must
+/// score to overrule it, when no reading under it is that clear of chains (a character modelled lying down): the
+/// margin the weights were fitted to (fit_plan_weights.py: each subject's own plan 1 below every other reading), so
+/// only a reading as clear as training asks of the right plan.
 constexpr double kUpOverruleMargin = 1.0;
 /// ... and that reading must show its own up clearly (Candidate::up_confidence: a humanoid's legs within 18 degrees
 /// of opposite its spine). A guard against overruling up for a shape that only happens to score: of the development

@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 
+#include "rig/autorig/templates.hpp"
 #include "rig/bones/bones.hpp"
 #include "volrig/error.hpp"
 
@@ -24,12 +25,16 @@ struct LimbJoint {
     const char* distal;
     double along;  ///< a hinge (knee, elbow, ankle): its share of the limb from the parent's head to the child's
                    ///< tail (Drillis-Contini: thigh 0.245 / shin 0.246, upper arm 0.186 / forearm 0.146, shin 0.246
-                   ///< / foot 0.11), where it is searched when hidden; 0 for the others
+                   ///< / foot 0.11; autorig's hand and foot bones end at the knuckles and the ball of the foot),
+                   ///< where it is searched when hidden; 0 for the others
 };
 constexpr LimbJoint kLimbJoints[] = {
-    {"forearm", "upper_arm", "elbow", false, "", 0.56}, {"upper_arm", "", "shoulder", true, "forearm", 0},
-    {"hand", "forearm", "wrist", false, "", 0.575},         {"shin", "thigh", "knee", false, "", 0.5},
-    {"thigh", "", "hip", true, "shin", 0},              {"foot", "shin", "ankle", false, "", 0.69},
+    {"forearm", "upper_arm", "elbow", false, "", 0.56},
+    {"upper_arm", "", "shoulder", true, "forearm", 0},
+    {"hand", "forearm", "wrist", false, "", 0.146 / (0.146 + 0.108 * kHandToKnuckles)},
+    {"shin", "thigh", "knee", false, "", 0.5},
+    {"thigh", "", "hip", true, "shin", 0},
+    {"foot", "shin", "ankle", false, "", 0.246 / (0.246 + 0.11 * kFootToBall)},
 };
 
 
