@@ -193,51 +193,6 @@ def show(scene, path, mat, name=None):
     scene.collection.objects.link(ob)
 
 
-def grid(rows, labels, out, title, cell=(2.4, 4.2), crop=None):
-    """Rows of (image, caption) as one PNG, each row's label at its left; ``cell``: inches a picture, ``crop``:
-    (first, last) columns of each picture kept."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.image as mpimg
-    import matplotlib.pyplot as plt
-    n = max(len(r) for r in rows)
-    fig, axes = plt.subplots(len(rows), n, figsize=(cell[0] * n, cell[1] * len(rows)), squeeze=False)
-    for r, (row, label) in enumerate(zip(rows, labels)):
-        for c in range(n):
-            ax = axes[r][c]
-            ax.set_xticks([])
-            ax.set_yticks([])
-            for side in ax.spines.values():
-                side.set_visible(False)
-            if c < len(row):
-                img = mpimg.imread(row[c][0])
-                ax.imshow(img if crop is None else img[:, crop[0]:crop[1] + 1])
-                ax.set_title(row[c][1], fontsize=9)
-        axes[r][0].set_ylabel(label, fontsize=9)
-    fig.suptitle(title, fontsize=10)
-    fig.savefig(out, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-
-
-def body_columns(paths, pad=0.08):
-    """(first, last) pixel columns where any of the images ``paths`` differs from its background (its corners'
-    median), widened by ``pad`` of their width each side: the contact sheet of a wide video keeps the body."""
-    import matplotlib.image as mpimg
-    lo, hi, width = None, None, 0
-    for path in paths:
-        img = mpimg.imread(path)[..., :3]
-        width = img.shape[1]
-        corners = np.concatenate([img[:8, :8].reshape(-1, 3), img[:8, -8:].reshape(-1, 3)])
-        cols = np.nonzero((np.abs(img - np.median(corners, axis=0)).sum(axis=2) > 0.08).any(axis=0))[0]
-        if cols.size:
-            lo = cols[0] if lo is None else min(lo, cols[0])
-            hi = cols[-1] if hi is None else max(hi, cols[-1])
-    if lo is None:
-        return None
-    margin = int(pad * (hi - lo + 1))
-    return max(int(lo) - margin, 0), min(int(hi) + margin, width - 1)
-
-
 def main(argv):
     ap = argparse.ArgumentParser(prog="showcase.py")
     ap.add_argument("--mm", type=int, choices=plan.MM, default=4,
@@ -361,16 +316,10 @@ def main(argv):
             log(f"wrote {args.video}: {os.path.getsize(args.video) / 1e6:.2f} MB, {len(frames) * args.loops} frames "
                 f"at {args.fps:g} fps")
             pick = [rows[0][i] for i in plan.sheet_subset(len(frames), args.sheet)]
-            per_row = min(len(pick), 6)
-            sheet_rows = [pick[i:i + per_row] for i in range(0, len(pick), per_row)]
-            crop = body_columns([p for p, _ in pick])
-            aspect = ((crop[1] - crop[0] + 1) if crop else scene.render.resolution_x) / scene.render.resolution_y
-            grid(sheet_rows, [""] * len(sheet_rows), args.out,
-                 f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}; {engine}, "
-                 f"{looks[0][0]}): {len(pick)} of the video's {len(frames)} frames",
-                 cell=(max(2.6 * aspect, 1.0), 2.6), crop=crop)
+            plan.video_sheet(pick, args.out, f"{os.path.basename(args.labels)} walking ({os.path.basename(args.clip)}; "
+                             f"{engine}, {looks[0][0]}):\n{len(pick)} of the video's {len(frames)} frames")
         else:
-            grid(rows, [caption for caption, _ in looks], args.out, title)
+            plan.grid(rows, [caption for caption, _ in looks], args.out, title)
         log(f"wrote {args.out} in {time.perf_counter() - t0:.0f} s")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -96,3 +96,62 @@ def ffmpeg_command(pattern: str, out: str, fps: float = 24, crf: int = 28, loops
     return [ffmpeg, "-y", "-loglevel", "error", "-framerate", f"{fps:g}", "-stream_loop", str(loops - 1),
             "-start_number", "1", "-i", pattern, "-c:v", "libx264", "-preset", "slow", "-crf", str(int(crf)),
             "-pix_fmt", "yuv420p", "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-movflags", "+faststart", out]
+
+
+def grid(rows, labels, out, title, cell=(2.4, 4.2), crop=None):
+    """Rows of (image, caption) as one PNG, each row's label at its left; ``cell``: inches a picture, ``crop``:
+    (first, last) columns of each picture kept."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image as mpimg
+    import matplotlib.pyplot as plt
+    n = max(len(r) for r in rows)
+    fig, axes = plt.subplots(len(rows), n, figsize=(cell[0] * n, cell[1] * len(rows)), squeeze=False)
+    for r, (row, label) in enumerate(zip(rows, labels)):
+        for c in range(n):
+            ax = axes[r][c]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            for side in ax.spines.values():
+                side.set_visible(False)
+            if c < len(row):
+                img = mpimg.imread(row[c][0])
+                ax.imshow(img if crop is None else img[:, crop[0]:crop[1] + 1])
+                ax.set_title(row[c][1], fontsize=9)
+        axes[r][0].set_ylabel(label, fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    fig.savefig(out, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+
+
+def body_columns(paths, pad=0.08):
+    """(first, last) pixel columns where any of the images ``paths`` differs from its background (its corners'
+    median), widened by ``pad`` of their width each side: the contact sheet of a wide video keeps the body."""
+    import matplotlib.image as mpimg
+    lo, hi, width = None, None, 0
+    for path in paths:
+        img = mpimg.imread(path)[..., :3]
+        width = img.shape[1]
+        corners = np.concatenate([img[:8, :8].reshape(-1, 3), img[:8, -8:].reshape(-1, 3)])
+        cols = np.nonzero((np.abs(img - np.median(corners, axis=0)).sum(axis=2) > 0.08).any(axis=0))[0]
+        if cols.size:
+            lo = cols[0] if lo is None else min(lo, cols[0])
+            hi = cols[-1] if hi is None else max(hi, cols[-1])
+    if lo is None:
+        return None
+    margin = int(pad * (hi - lo + 1))
+    return max(int(lo) - margin, 0), min(int(hi) + margin, width - 1)
+
+
+def video_sheet(pick, out, title, most=6, height=3.6):
+    """The contact sheet of a video's frames ``pick`` ((image, caption), in order): rows of at most ``most`` as even
+    as they go (8: two rows of 4), each picture cropped to the columns where the frames show the body and
+    ``height`` inches high."""
+    rows = -(-len(pick) // most)
+    per_row = -(-len(pick) // rows)
+    crop = body_columns([p for p, _ in pick])
+    import matplotlib.image as mpimg
+    h, w = mpimg.imread(pick[0][0]).shape[:2]
+    aspect = ((crop[1] - crop[0] + 1) if crop else w) / h
+    grid([pick[i:i + per_row] for i in range(0, len(pick), per_row)], [""] * rows, out, title,
+         cell=(max(height * aspect, 1.0), height), crop=crop)

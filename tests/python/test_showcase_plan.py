@@ -117,3 +117,22 @@ def test_the_command_encodes_frames_that_ffprobe_reads_back(tmp_path):
                             "stream=codec_name,width,height,pix_fmt,nb_read_frames", "-of", "csv=p=0", str(out)],
                            capture_output=True, text=True)
     assert probe.stdout.strip().split(",") == ["h264", "82", "46", "yuv420p", "10"]
+
+
+def test_a_video_sheet_crops_to_the_body_in_rows_as_even_as_they_go(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.image as mpimg
+    import matplotlib.pyplot as plt
+    pick = []
+    for k in range(8):  # a wide dark frame, a bright body in columns 90-108 (moving by a column a frame)
+        img = np.full((60, 200, 3), 0.15)
+        img[10:50, 90 + k:102 + k] = 0.8
+        plt.imsave(tmp_path / f"f{k}.png", img)
+        pick.append((str(tmp_path / f"f{k}.png"), f"frame {k}"))
+    assert plan.body_columns([p for p, _ in pick]) == (90 - 1, 108 + 1)  # (8% of 19 columns each side: 1)
+    out = tmp_path / "sheet.png"
+    plan.video_sheet(pick, str(out), "title")
+    sheet = mpimg.imread(str(out))
+    assert sheet.shape[0] > sheet.shape[1] * 0.5  # two rows of four, not a row of six and one of two
+    assert plan.sheet_subset(8, 6) == [0, 1, 3, 4, 5, 7]
