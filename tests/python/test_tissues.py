@@ -330,6 +330,36 @@ def test_the_showcase_script_renders_the_walking_visible_human(tmp_path):
     assert bad.returncode != 0 and "no such tissue class" in bad.stdout + bad.stderr
 
 
+@pytest.mark.skipif(__import__("shutil").which("blender") is None, reason="blender is not on PATH")
+def test_the_showcase_script_encodes_a_video_of_a_walk_cycle(tmp_path):
+    """scripts/showcase.py --video at a tiny size: three frames of a whole walk cycle (4 mm) rendered in the first
+    look, encoded as H.264 (ffprobe reads back its codec, size and frames) with a contact sheet beside it."""
+    import shutil
+    labels = SHARED_DATA / "visible-human" / "austinman_4mm_labels.nii.gz"
+    if not labels.exists():
+        pytest.skip(f"real data not available: {labels}")
+    if shutil.which("ffmpeg") is None or shutil.which("ffprobe") is None:
+        pytest.skip("ffmpeg/ffprobe not installed (apt-get install -y ffmpeg; scripts/setup installs it)")
+    video, frames = tmp_path / "walk.mp4", tmp_path / "frames"
+    r = subprocess.run(["blender", "-b", "--factory-startup", "--python-exit-code", "1", "--python",
+                        os.path.join(REPO, "scripts", "showcase.py"), "--", "--mm", "4", "--count", "3",
+                        "--full-cycle", "--width", "96", "--height", "54", "--samples", "1", "--video", str(video),
+                        "--frames", str(frames), "--loops", "2", "--fps", "12"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "(a whole cycle)" in r.stdout and "baked 3/3" in r.stdout and r.stdout.count("rendered 3/3") == 1
+    assert sorted(p.name for p in frames.iterdir()) == ["frame_001.png", "frame_002.png", "frame_003.png"]
+    assert video.stat().st_size > 0 and (tmp_path / "walk_sheet.png").stat().st_size > 0
+    probe = subprocess.run(["ffprobe", "-v", "error", "-select_streams", "v:0", "-count_frames", "-show_entries",
+                            "stream=codec_name,width,height,nb_read_frames", "-of", "csv=p=0", str(video)],
+                           capture_output=True, text=True)
+    assert probe.stdout.strip().split(",") == ["h264", "96", "54", "6"]  # (3 frames played twice)
+    import matplotlib.image as mpimg
+    img = mpimg.imread(str(frames / "frame_002.png"))[..., :3]
+    background = np.median(img.reshape(-1, 3), axis=0)
+    assert (np.abs(img - background).sum(axis=2) > 0.15).mean() > 0.01  # a body in the frame
+
+
 def test_file_classes_of_files_that_are_not_vdb_are_none(tmp_path):
     """A drawing's image, a NIfTI or a folder has no baked classes (no error: the add-on asks of every import)."""
     from volrig.tissues import file_classes
