@@ -263,8 +263,9 @@ void place_head(const RigContext& c, Rig& rig, const Chain4& head, const Vec& bo
 /// and where the reference skeletons, artists' and RigNet's, end theirs or start their fingers. kHandToKnuckles: the
 /// palm's share of the hand's length, wrist to the middle finger's knuckle (about 0.55 in adult anthropometry);
 /// kFootToBall: from the ankle to the ball of the foot over the ankle to the toe tip (the ball at about 0.73 of the
-/// foot's length from the heel, the ankle at 0.2: 2/3). Over the 24 references, J2J 4.94 -> 4.73, worse on none by
-/// more than 0.01 (hands and feet at half: 4.70; the optimum is flat from 0.5 to 0.7). A hand holding fingers'
+/// foot's length from the heel, the ankle at 0.2: 2/3). Over the 24 references (compiled weights), J2J 4.94 -> 4.75;
+/// with kHeadTail 5.26 -> 4.75, no character worse (a sweep moving the built ends afterwards: hands and feet at half
+/// 4.70, flat from 0.5 to 0.7). A hand holding fingers'
 /// chains keeps its end (their roots).
 constexpr double kHandToKnuckles = 0.55;
 constexpr double kFootToBall = 2.0 / 3.0;
