@@ -193,7 +193,8 @@ def show(scene, path, mat, name=None):
     scene.collection.objects.link(ob)
 
 
-def main(argv):
+def parse_args(argv):
+    """The command line (module docstring), --labels defaulting to the Visible Human at --mm."""
     ap = argparse.ArgumentParser(prog="showcase.py")
     ap.add_argument("--mm", type=int, choices=plan.MM, default=4,
                     help="the Visible Human labels' resolution in mm (default: 4); --labels wins over it")
@@ -240,6 +241,11 @@ def main(argv):
     args = ap.parse_args(argv)
     if args.labels is None:
         args.labels = plan.labels_for(args.mm, DATA)
+    return args
+
+
+def main(argv):
+    args = parse_args(argv)
     for what, path in (("labels", args.labels), ("tissues", args.tissues), ("clip", args.clip)):
         if not os.path.exists(path):
             raise SystemExit(f"showcase: {what} file {path} not found (the Visible Human and CMU clips live in "

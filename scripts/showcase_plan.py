@@ -1,4 +1,4 @@
-"""The showcase's choices that need no Blender (scripts/showcase.py imports them; tests/python/test_showcase_plan.py
+"""The showcase's choices that need no Blender (scripts/showcase.py imports them; tests/python/test_tissues_showcase.py
 tests them under plain Python): the labels file of a resolution, which BVH frames show the walk (half a stride or a
 whole cycle), which rendered frames go on a video's contact sheet, and the ffmpeg command that encodes the frames."""
 import os
