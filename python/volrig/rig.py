@@ -297,8 +297,9 @@ def autorig(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optional[in
                  of the voxels, loses.
     markers:     {name: (x, y, z) world point} for any of ``MARKER_NAMES`` (``{"chin": p, "wrist.L": p, ...}``):
                  points the user marked on the object. Each must lie nearest the limb (or head, or pelvis) its name
-                 gives in the body plan chosen, and the marked joints move to them (a chin gives the head joint's
-                 height). With markers a body plan always wins over neutral chains; VolrigError when none meets them.
+                 gives in the body plan chosen, and the marked joints move to them (a chin: the head joint; a
+                 groin: the hips' root; a knee or elbow marked on one side only sets the other's at the same
+                 share of its limb). With markers a body plan always wins over neutral chains; VolrigError when none meets them.
     plan_weights: the body-plan penalties' weights (``PLAN_TERMS`` then chains' score; None: the fitted ones,
                  ``PLAN_WEIGHTS``, or ``bone_plan_weights()`` for a plan read from the bone), for fitting and
                  cross-validating them.

@@ -138,6 +138,30 @@ TEST_CASE("NodeTree prunes spurs inside a ball and ranks extremities by how far 
     CHECK(p.size() == 40 + 25 + 1);
 }
 
+TEST_CASE("from_own_side drops a limb path's nodes before it reaches its side of the body", "[autorig]") {
+    // A ring pelvis (a stick figure's): the path to the left leg (-x) starts on the ring's right side (x = 6),
+    // runs round the ring's front to x = -6, then down the leg.
+    Figure f(Vec(6, 0, 0), 2.0);
+    const std::uint32_t front = f.limb(0, Vec(0, 6, 0), 2, 2);
+    const std::uint32_t left = f.limb(front, Vec(-6, 0, 0), 2, 2);
+    const std::uint32_t foot = f.limb(left, Vec(-6, 0, -40), 2, 2);
+    const NodeTree t = f.tree();
+    const std::vector<std::uint32_t> path = t.path(0, foot);
+    const std::vector<std::uint32_t> own = t.from_own_side(path, Vec(-1, 0, 0), 0.0);
+    REQUIRE(own.size() < path.size());
+    CHECK(own.front() == 0);                     // still hangs from the root
+    CHECK(t.at(own[1]).x() < 0);                 // then at once on the left
+    for (std::size_t k = 1; k < own.size(); ++k) CHECK(t.at(own[k]).x() <= 0);
+    CHECK(own.back() == foot);
+    CHECK(t.from_own_side(path, Vec(1, 0, 0), 0.0) == path);  // a root on the limb's own side: kept
+    // A path that reaches its side only after half its length (an arm folded across the body) keeps its nodes.
+    Figure g(Vec(6, 0, 0), 2.0);
+    const std::uint32_t stub = g.limb(g.limb(g.limb(0, Vec(6, 20, 0), 2, 2), Vec(-6, 20, 0), 2, 2), Vec(-6, 20, -4), 2, 2);
+    const NodeTree u = g.tree();
+    const std::vector<std::uint32_t> late = u.path(0, stub);
+    CHECK(u.from_own_side(late, Vec(-1, 0, 0), 0.0) == late);
+}
+
 TEST_CASE("a path is rooted at its thicker end", "[autorig]") {
     Figure f(Vec(0, 0, 0), 3.0);
     f.limb(0, Vec(30, 0, 0), 3, 1);

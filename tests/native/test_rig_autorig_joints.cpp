@@ -269,6 +269,10 @@ TEST_CASE("straight_knee: a straight leg's knee at the thigh's share, a bent one
     const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
     CHECK(straight.rig.joints[2][2] == Approx(100 * (1 - share)).margin(1.5));
     CHECK(straight.rig.joint_points[2] == -1);
+    Leg bowed(12.0, 100.0);  // 12 off the line: more than its radius, but a bend of 0.12 of its length (27 degrees)
+    Solid sw(bowed.f, {10, 25, 110});
+    straight_knee(sw.context(), bowed.rig, bowed.nodes, ".L");
+    CHECK(bowed.rig.joints[2][2] == Approx(100 * (1 - share)).margin(1.5));
     Leg bent(30.0, 100.0);  // a bent knee: its bend stays
     Solid sb(bent.f, {10, 40, 110});
     straight_knee(sb.context(), bent.rig, bent.nodes, ".L");

@@ -45,8 +45,32 @@ def test_markers_choose_the_plan_and_place_their_joints(stride):
     assert rig.kind == "humanoid" and rig.note == ""
     for name in ("wrist.L", "wrist.R", "knee.L"):  # marked joints sit on their markers, sides as marked
         assert np.linalg.norm(S.rig_joint(rig, name) - marks[name]) < 1e-6, name
-    head = rig.heads()[rig.names.index("head")]
-    assert head[2] == pytest.approx(marks["chin"][2], abs=1e-6)  # a chin gives the head joint's height
+    heads = rig.heads()
+    assert np.linalg.norm(heads[rig.names.index("head")] - marks["chin"]) < 1e-6  # a chin is the head joint
+    assert np.linalg.norm(heads[rig.names.index("hips")] - marks["groin"]) < 1e-6  # a groin the hips' root
+
+
+def _share(rig, side):
+    """Where the knee lies between hip and ankle on one side (0 at the hip, 1 at the ankle)."""
+    hip, knee = rig.heads()[rig.names.index("thigh" + side)], rig.tails()[rig.names.index("thigh" + side)]
+    ankle = rig.tails()[rig.names.index("shin" + side)]
+    return float(np.dot(knee - hip, ankle - hip) / np.dot(ankle - hip, ankle - hip))
+
+
+def test_a_knee_marked_on_one_side_sets_the_other_at_the_same_share_of_its_leg(stride):
+    s, pts, tree = stride
+    plain = volrig.autorig(pts, tree, s.mask, up=(0, 0, 1))
+    hip = plain.heads()[plain.names.index("thigh.L")]
+    ankle = plain.tails()[plain.names.index("shin.L")]
+    knee = hip + 0.35 * (ankle - hip)  # a knee marked well above the rig's own
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 0, 1), markers={"knee.L": knee})
+    assert np.linalg.norm(S.rig_joint(rig, "knee.L") - knee) < 1e-6
+    assert _share(rig, ".L") == pytest.approx(0.35, abs=1e-6)
+    assert abs(_share(plain, ".R") - 0.35) > 0.05  # the other knee was elsewhere ...
+    assert _share(rig, ".R") == pytest.approx(0.35, abs=1e-6)  # ... and now matches
+    both = volrig.autorig(pts, tree, s.mask, up=(0, 0, 1),
+                          markers={"knee.L": knee, "knee.R": S.rig_joint(plain, "knee.R")})
+    assert np.linalg.norm(S.rig_joint(both, "knee.R") - S.rig_joint(plain, "knee.R")) < 1e-6  # both marked: as marked
 
 
 def test_markers_swap_sides_when_they_say_so(stride):

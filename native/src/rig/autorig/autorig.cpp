@@ -126,7 +126,7 @@ void finish_plan(Candidate& k, double score, const PlanInput& in) {
     k.score = score;
     k.fit = rig_detail::plan_fit(score, in.weights);
     if (!in.markers.empty() && !k.rig.bones.empty())
-        rig_detail::apply_markers(k.rig, in.markers, in.up ? *in.up : k.up);
+        rig_detail::apply_markers(k.rig, in.markers);
 }
 
 /// The body plan markers name, when they show it: a humanoid's wrists are above its knees along up (standing,

@@ -9,7 +9,9 @@ namespace volrig::rig_detail {
 
 namespace {
 
-/// The joint a marker names: the head (end 0) or tail (end 1) of a bone; a chin names the head bone's head.
+/// The joint a marker names: the head (end 0) or tail (end 1) of a bone; a chin names the head bone's head (the
+/// head joint, at the chin's height, centred in the neck: where ray_marker puts a click on the chin), a groin the
+/// hips bone's head (the root, where the legs' bones fork).
 struct MarkedJoint {
     const char* bone;
     int end;
@@ -27,7 +29,7 @@ MarkedJoint marked_joint(const std::string& base) {
         {"chin", {"head", 0}},         {"neck", {"neck", 0}},    {"head_top", {"head", 1}},
         {"shoulder", {"upper_arm", 0}}, {"elbow", {"forearm", 0}}, {"wrist", {"hand", 0}},
         {"hand_tip", {"hand", 1}},     {"hip", {"thigh", 0}},    {"knee", {"shin", 0}},
-        {"ankle", {"foot", 0}},        {"toe", {"foot", 1}}};
+        {"ankle", {"foot", 0}},        {"toe", {"foot", 1}},     {"groin", {"hips", 0}}};
     for (const auto& [n, j] : kJoints)
         if (base == n) return j;
     return {nullptr, 0};
@@ -66,6 +68,35 @@ void side_limb(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers
     }
 }
 
+/// Whether a marker of this name was given.
+bool marked(const std::vector<std::pair<std::string, Vec>>& markers, const std::string& name) {
+    return std::any_of(markers.begin(), markers.end(), [&](const auto& m) { return m.first == name; });
+}
+
+/// The share along limb `first`'s head to limb `second`'s tail at which q lies (0.5 when they coincide).
+double share_along(const Rig& rig, std::int32_t first, std::int32_t second, const Vec& q) {
+    const Vec s = bone_end(rig, static_cast<std::size_t>(first), 0), e = bone_end(rig, static_cast<std::size_t>(second), 1);
+    return (e - s).squaredNorm() > 0 ? (q - s).dot(e - s) / (e - s).squaredNorm() : 0.5;
+}
+
+/// The unmarked side's middle joint (a knee, an elbow: the tail of `proximal`) moved along its limb's line to the
+/// share at which the marked side's lies between hip and ankle (shoulder and wrist), its offset off that line (a
+/// bent knee's) kept: a body's two legs (arms) have the same proportions, and the marked one's are the user's.
+void match_middle(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers, const std::string& marker,
+                  const std::string& proximal, const std::string& distal) {
+    for (const std::string side : {".L", ".R"}) {
+        const std::string other = side == ".L" ? ".R" : ".L";
+        if (!marked(markers, marker + side) || marked(markers, marker + other)) continue;
+        const std::int32_t p = bone_index(rig, proximal + side), d = bone_index(rig, distal + side);
+        const std::int32_t po = bone_index(rig, proximal + other), dd = bone_index(rig, distal + other);
+        if (p < 0 || d < 0 || po < 0 || dd < 0) return;
+        const double want = share_along(rig, p, d, bone_end(rig, static_cast<std::size_t>(p), 1));
+        const Vec now = bone_end(rig, static_cast<std::size_t>(po), 1);
+        const Vec line = bone_end(rig, static_cast<std::size_t>(dd), 1) - bone_end(rig, static_cast<std::size_t>(po), 0);
+        move_joint(rig, rig.bones[static_cast<std::size_t>(po)][1], now + (want - share_along(rig, po, dd, now)) * line);
+    }
+}
+
 }  // namespace
 
 RoleMarker::Role marker_role(const std::string& name) {
@@ -81,7 +112,7 @@ RoleMarker::Role marker_role(const std::string& name) {
     return RoleMarker::Leg;
 }
 
-void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers, const Vec& up) {
+void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers) {
     side_limb(rig, markers, {"shoulder", "upper_arm", "forearm", "hand"}, RoleMarker::Arm);
     side_limb(rig, markers, {"pelvis", "thigh", "shin", "foot"}, RoleMarker::Leg);
     for (const auto& [name, at] : markers) {
@@ -91,10 +122,10 @@ void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& mar
         const std::int32_t b = bone_index(rig, mj.bone + side);
         if (b < 0) continue;
         const std::int32_t j = rig.bones[static_cast<std::size_t>(b)][static_cast<std::size_t>(mj.end)];
-        const Vec now = bone_end(rig, static_cast<std::size_t>(b), mj.end);
-        // A chin lies on the face, in front of the head joint: it gives the joint's height only.
-        move_joint(rig, j, base == "chin" ? Vec(now + (at - now).dot(up) * up) : at);
+        move_joint(rig, j, at);
     }
+    match_middle(rig, markers, "knee", "thigh", "shin");
+    match_middle(rig, markers, "elbow", "upper_arm", "forearm");
 }
 
 }  // namespace volrig::rig_detail

@@ -210,4 +210,17 @@ std::vector<std::uint32_t> NodeTree::out_to_farthest(std::vector<std::uint32_t> 
     return path;
 }
 
+std::vector<std::uint32_t> NodeTree::from_own_side(std::vector<std::uint32_t> path, const Vec& across,
+                                                 double mid) const {
+    auto side = [&](std::size_t k) { return at(path[k]).dot(across) - mid; };
+    if (path.size() < 3 || side(0) >= 0) return path;
+    std::size_t own = path.size();  // the first node from which on the path stays on its side
+    while (own > 0 && side(own - 1) > 0) --own;
+    if (own <= 1 || own >= path.size()) return path;
+    const std::vector<std::uint32_t> before(path.begin(), path.begin() + static_cast<std::ptrdiff_t>(own) + 1);
+    if (length(before) > 0.5 * length(path)) return path;
+    path.erase(path.begin() + 1, path.begin() + static_cast<std::ptrdiff_t>(own));
+    return path;
+}
+
 }  // namespace volrig::rig_detail

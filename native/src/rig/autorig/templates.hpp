@@ -157,9 +157,13 @@ void place_fused_shoulder(Rig& rig, const std::string& upper_arm, const Vec& sho
 void hip_on_thigh_line(Rig& rig, const std::string& thigh);
 
 /// A leg is straight when no node of its axis between hip and ankle (`leg`: those nodes) lies more than this
-/// times their mean radius off the hip-ankle line; its knee then goes to the node nearest the thigh's share of
-/// hip-ankle (Drillis and Contini), not to a wiggle of the axis or of the radius.
-constexpr double kStraightLeg = 1.0;
+/// share of the hip-ankle distance off their line (a knee bent by less than about 45 degrees: 2 atan(2 * 0.2));
+/// its knee then goes to the node nearest the thigh's share of hip-ankle (Drillis and Contini), not to a wiggle of
+/// the axis (knee pads, boot tops, a calf). Relative to the leg's length, not its radius: a thin leg's axis strays
+/// many of its radii where a thick one's does not. The shared reference skeletons (compiled weights): mean CD-J2J
+/// 4.75 -> 4.68, better on 5 (the T-pose human 3.00 -> 2.26, its axis bowed forward over the shin), worse on
+/// none; flat from 0.12 up (a bend fit then only for sitting and crouching knees).
+constexpr double kStraightLegBend = 0.2;
 /// ... and then to the narrowest node within kNeckWindow radii of it, when the leg widens from there by kNeckRise
 /// on both sides (thigh above, calf below: a human knee).
 constexpr double kNeckWindow = 2.0;
@@ -317,9 +321,12 @@ constexpr double kPalmThickness = 2.5;
 Candidate hand_rig(const RigContext& c, const HandPlan& plan);
 
 /// Markers on a body plan's rig (`markers`: names of kMarkerNames and points in the rig's frame): limbs swap their
-/// .L / .R names when the markers say the other side, then each marked joint moves to its marker (a chin sets the
-/// head joint's height along `up`; a groin only chose the pelvis).
-void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers, const Vec& up);
+/// .L / .R names when the markers say the other side, then each marked joint moves to its marker (a chin: the head
+/// joint; a groin: the hips' root), and a knee or elbow marked on one side only sets the other side's at the same
+/// share of its limb. The shared humanoids with five markers from their references (compiled weights), each step
+/// after the one before: the other knee 3.57 -> 3.56, the groin -> 3.32, then (with legs from their own side) the
+/// whole chin -> 3.13.
+void apply_markers(Rig& rig, const std::vector<std::pair<std::string, Vec>>& markers);
 
 /// Neutral chains between branch points, cut at bends until every node lies within tolerance * its radius of its
 /// bone, at most `target` bones (the least significant branches left out first). Fit: 1 - the worst deviation
