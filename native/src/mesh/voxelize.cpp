@@ -581,11 +581,41 @@ std::int64_t closing_mask(const IndexMesh& m, const Grids& g, double r, Volume& 
     });
 }
 
-/// The recursive fill of VoxelizeMethod::Winding (winding_mask).
+/// The recursive fill of VoxelizeMethod::Winding (winding_mask). `known` (optional, on the output grid): voxels
+/// already known to be inside (Auto's flood mask, which the winding mask is united with). They are set inside
+/// without their |w|, and a block wholly known is filled without evaluating anything in it; every other voxel is
+/// decided exactly as without `known` (the same lattice values, the same block tests), so the union is unchanged.
 class WindingFill {
 public:
-    WindingFill(const WindingNumber& wn, const TriangleTree& tree, const Grid& out, std::uint8_t* dst)
-        : wn_(wn), tree_(tree), nx_(out.dims[0]), ny_(out.dims[1]), nz_(out.dims[2]), dst_(dst) {}
+    WindingFill(const WindingNumber& wn, const TriangleTree& tree, const Grid& out, std::uint8_t* dst,
+                const std::uint8_t* known = nullptr)
+        : wn_(wn), tree_(tree), nx_(out.dims[0]), ny_(out.dims[1]), nz_(out.dims[2]), dst_(dst), known_(known) {}
+
+    /// True when every voxel of the block [x0, x0 + s)^3 (clipped to the grid) is known to be inside.
+    bool all_known(std::int64_t x0, std::int64_t y0, std::int64_t z0, std::int64_t s) const {
+        if (!known_) return false;
+        const std::int64_t x1 = std::min(nx_, x0 + s), y1 = std::min(ny_, y0 + s), z1 = std::min(nz_, z0 + s);
+        for (std::int64_t z = z0; z < z1; ++z)
+            for (std::int64_t y = y0; y < y1; ++y) {
+                const std::uint8_t* row = known_ + (z * ny_ + y) * nx_;
+                if (std::find(row + x0, row + x1, std::uint8_t(0)) != row + x1) return false;
+            }
+        return true;
+    }
+
+    /// Whether lattice point (i, j, k) of a split block (0..2 each) is a corner of a child k (bit 0: +x, bit 1: +y,
+    /// bit 2: +z) with need[k].
+    static bool needed(int i, int j, int k, const bool need[8]) {
+        for (int d = std::max(0, k - 1); d <= std::min(1, k); ++d)
+            for (int b = std::max(0, j - 1); b <= std::min(1, j); ++b)
+                for (int a = std::max(0, i - 1); a <= std::min(1, i); ++a)
+                    if (need[a | b << 1 | d << 2]) return true;
+        return false;
+    }
+
+    bool known(std::int64_t x, std::int64_t y, std::int64_t z) const {
+        return known_ && known_[(z * ny_ + y) * nx_ + x] != 0;
+    }
 
     float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
         return static_cast<float>(
@@ -596,6 +626,7 @@ public:
     /// y0 + s * (k >> 1 & 1), z0 + s * (k >> 2)) have |w| = c[k]; returns the number of inside voxels.
     std::int64_t fill(std::int64_t x0, std::int64_t y0, std::int64_t z0, std::int64_t s, const float c[8]) const {
         if (x0 >= nx_ || y0 >= ny_ || z0 >= nz_) return 0;
+        if (all_known(x0, y0, z0, s)) return fill_block(x0, y0, z0, s, true);
         if (s == 1) {
             const bool in = c[0] >= 0.5f;
             dst_[(z0 * ny_ + y0) * nx_ + x0] = in ? 1 : 0;
@@ -611,11 +642,7 @@ public:
             !tree_.any_within(openvdb::Vec3d(static_cast<double>(x0) + half, static_cast<double>(y0) + half,
                                              static_cast<double>(z0) + half),
                               std::sqrt(3.0) * half + 0.5)) {
-            const std::int64_t x1 = std::min(nx_, x0 + s), y1 = std::min(ny_, y0 + s), z1 = std::min(nz_, z0 + s);
-            for (std::int64_t z = z0; z < z1; ++z)
-                for (std::int64_t y = y0; y < y1; ++y)
-                    std::fill(dst_ + (z * ny_ + y) * nx_ + x0, dst_ + (z * ny_ + y) * nx_ + x1, any_in ? 1 : 0);
-            return any_in ? (x1 - x0) * (y1 - y0) * (z1 - z0) : 0;
+            return fill_block(x0, y0, z0, s, any_in);
         }
         if (s == 2) {  // the block's eight voxels: (x0, y0, z0) known, the other seven evaluated
             const std::int64_t x1 = std::min(nx_, x0 + 2), y1 = std::min(ny_, y0 + 2), z1 = std::min(nz_, z0 + 2);
@@ -623,15 +650,20 @@ public:
             for (std::int64_t z = z0; z < z1; ++z)
                 for (std::int64_t y = y0; y < y1; ++y)
                     for (std::int64_t x = x0; x < x1; ++x) {
-                        const bool in = (x == x0 && y == y0 && z == z0 ? c[0] : at(x, y, z)) >= 0.5f;
+                        const bool in = known(x, y, z) || (x == x0 && y == y0 && z == z0 ? c[0] : at(x, y, z)) >= 0.5f;
                         dst_[(z * ny_ + y) * nx_ + x] = in ? 1 : 0;
                         count += in;
                     }
             return count;
         }
-        // |w| on the 3 x 3 x 3 lattice of step s / 2: the eight corners known, the rest evaluated (those of
-        // children wholly outside the grid are not needed).
+        // |w| on the 3 x 3 x 3 lattice of step s / 2: the eight corners known, the rest evaluated where a child
+        // needs them (not for children wholly outside the grid or wholly known to be inside: never read).
         const std::int64_t h = s / 2;
+        bool need[8];
+        for (int k = 0; k < 8; ++k) {
+            const std::int64_t cx = x0 + (k & 1) * h, cy = y0 + ((k >> 1) & 1) * h, cz = z0 + (k >> 2) * h;
+            need[k] = cx < nx_ && cy < ny_ && cz < nz_ && !all_known(cx, cy, cz, h);
+        }
         float w[27];
         for (int k = 0; k < 3; ++k)
             for (int j = 0; j < 3; ++j)
@@ -639,10 +671,8 @@ public:
                     float& wv = w[9 * k + 3 * j + i];
                     if (i != 1 && j != 1 && k != 1) {
                         wv = c[(i >> 1) | (j & 2) | ((k >> 1) << 2)];
-                    } else if ((i == 2 && x0 + h >= nx_) || (j == 2 && y0 + h >= ny_) || (k == 2 && z0 + h >= nz_)) {
-                        wv = 0;  // a corner of children outside the grid only
                     } else {
-                        wv = at(x0 + i * h, y0 + j * h, z0 + k * h);
+                        wv = needed(i, j, k, need) ? at(x0 + i * h, y0 + j * h, z0 + k * h) : 0.0f;
                     }
                 }
         std::int64_t count = 0;
@@ -658,11 +688,71 @@ public:
     static constexpr float kWindingMargin = 0.1f;
 
 private:
+    /// Sets the block [x0, x0 + s)^3 (clipped to the grid) to `in`; returns its inside voxels.
+    std::int64_t fill_block(std::int64_t x0, std::int64_t y0, std::int64_t z0, std::int64_t s, bool in) const {
+        const std::int64_t x1 = std::min(nx_, x0 + s), y1 = std::min(ny_, y0 + s), z1 = std::min(nz_, z0 + s);
+        for (std::int64_t z = z0; z < z1; ++z)
+            for (std::int64_t y = y0; y < y1; ++y)
+                std::fill(dst_ + (z * ny_ + y) * nx_ + x0, dst_ + (z * ny_ + y) * nx_ + x1, in ? 1 : 0);
+        return in ? (x1 - x0) * (y1 - y0) * (z1 - z0) : 0;
+    }
+
     const WindingNumber& wn_;
     const TriangleTree& tree_;
     std::int64_t nx_, ny_, nz_;
     std::uint8_t* dst_;
+    const std::uint8_t* known_;
 };
+
+/// The blocks of side kStride that winding_mask fills, and the lattice of their corners.
+struct WindingBlocks {
+    static constexpr std::int64_t kStride = 8;
+    std::int64_t bx, by, bz, cx, cy, cz;
+
+    explicit WindingBlocks(const Grid& out)
+        : bx((out.dims[0] + kStride - 1) / kStride),
+          by((out.dims[1] + kStride - 1) / kStride),
+          bz((out.dims[2] + kStride - 1) / kStride),
+          cx(bx + 1),
+          cy(by + 1),
+          cz(bz + 1) {}
+    std::int64_t blocks() const { return bx * by * bz; }
+    std::int64_t corners() const { return cx * cy * cz; }
+    /// Corner k (bit 0: +x, bit 1: +y, bit 2: +z) of block b.
+    std::size_t corner(std::int64_t b, int k) const {
+        const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
+        return static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx + jx + (k & 1));
+    }
+};
+
+/// |w| at the block corners that some block not wholly known to be inside needs (the others are left at 0 and
+/// never read).
+std::vector<float> winding_corners(const WindingFill& filler, const WindingBlocks& B) {
+    constexpr std::int64_t S = WindingBlocks::kStride;
+    std::vector<std::uint8_t> open_block(static_cast<std::size_t>(B.blocks()));  // not wholly known inside
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, B.blocks()), [&](const tbb::blocked_range<std::int64_t>& r) {
+        for (std::int64_t b = r.begin(); b != r.end(); ++b)
+            open_block[static_cast<std::size_t>(b)] =
+                !filler.all_known(b % B.bx * S, (b / B.bx) % B.by * S, b / (B.bx * B.by) * S, S);
+    });
+    // Corner (x, y, z) belongs to the blocks (x - a, y - b, z - d), a, b, d in {0, 1}, that exist.
+    auto needed = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+        for (std::int64_t d = std::max<std::int64_t>(0, z - 1); d <= std::min(z, B.bz - 1); ++d)
+            for (std::int64_t b = std::max<std::int64_t>(0, y - 1); b <= std::min(y, B.by - 1); ++b)
+                for (std::int64_t a = std::max<std::int64_t>(0, x - 1); a <= std::min(x, B.bx - 1); ++a)
+                    if (open_block[static_cast<std::size_t>((d * B.by + b) * B.bx + a)]) return true;
+        return false;
+    };
+    std::vector<float> corner(static_cast<std::size_t>(B.corners()), 0.0f);
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, B.cz * B.cy), [&](const tbb::blocked_range<std::int64_t>& r) {
+        for (std::int64_t zy = r.begin(); zy != r.end(); ++zy)
+            for (std::int64_t x = 0; x < B.cx; ++x)
+                if (needed(x, zy % B.cy, zy / B.cy))
+                    corner[static_cast<std::size_t>(zy * B.cx + x)] =
+                        filler.at(x * S, (zy % B.cy) * S, (zy / B.cy) * S);
+    });
+    return corner;
+}
 
 /// VoxelizeMethod::Winding: inside when |w| >= 0.5 at the voxel centre (w the generalized winding number). |w| is
 /// evaluated on the lattice of every 8th voxel (block corners, some just past the grid's far end). A block whose
@@ -670,8 +760,9 @@ private:
 /// triangle enters takes their answer: w is harmonic off the surface, so it cannot swing across 0.5 and back
 /// inside such a block. Any other block is split in eight (|w| evaluated at the 19 new lattice points) and its
 /// children tested the same way, down to single voxels. Fills v; returns the number of inside voxels.
-std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Progress& progress) {
-    constexpr std::int64_t kStride = 8;
+/// `known` (Auto: the flood's mask, on `out`): voxels taken as inside without their |w| (WindingFill).
+std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Progress& progress,
+                          const std::uint8_t* known = nullptr) {
     // The mesh in the output grid's index space: voxel centres at whole coordinates.
     Mesh local;
     local.triangles = mesh.triangles;
@@ -686,36 +777,24 @@ std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Pr
     const TriangleTree tree(points, local.triangles);
     report(progress, 0.05);
     v.data.assign(static_cast<std::size_t>(out.voxel_count()), 0);
-    const WindingFill filler(wn, tree, out, v.data.data());
-
-    const std::int64_t nx = out.dims[0], ny = out.dims[1], nz = out.dims[2];
-    const std::int64_t bx = (nx + kStride - 1) / kStride, by = (ny + kStride - 1) / kStride,
-                       bz = (nz + kStride - 1) / kStride;
-    const std::int64_t cx = bx + 1, cy = by + 1, cz = bz + 1;
-    std::vector<float> corner(static_cast<std::size_t>(cx * cy * cz));
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, cz * cy), [&](const tbb::blocked_range<std::int64_t>& r) {
-        for (std::int64_t zy = r.begin(); zy != r.end(); ++zy)
-            for (std::int64_t x = 0; x < cx; ++x)
-                corner[static_cast<std::size_t>(zy * cx + x)] =
-                    filler.at(x * kStride, (zy % cy) * kStride, (zy / cy) * kStride);
-    });
+    const WindingFill filler(wn, tree, out, v.data.data(), known);
+    const WindingBlocks B(out);
+    const std::vector<float> corner = winding_corners(filler, B);
     report(progress, 0.15);
 
     // Blocks in about ten slabs of block rows, so that progress is reported (and a cancel seen) between them
     // from the calling thread.
-    const std::int64_t blocks = bx * by * bz, chunk = std::max<std::int64_t>(bx * by, blocks / 10);
+    constexpr std::int64_t S = WindingBlocks::kStride;
+    const std::int64_t blocks = B.blocks(), chunk = std::max<std::int64_t>(B.bx * B.by, blocks / 10);
     std::int64_t inside = 0;
     for (std::int64_t first = 0; first < blocks; first += chunk) {
         inside += tbb::parallel_reduce(
             tbb::blocked_range<std::int64_t>(first, std::min(blocks, first + chunk), 1), std::int64_t(0),
             [&](const tbb::blocked_range<std::int64_t>& r, std::int64_t count) {
                 for (std::int64_t b = r.begin(); b != r.end(); ++b) {
-                    const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
                     float c[8];
-                    for (int k = 0; k < 8; ++k)
-                        c[k] = corner[static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx +
-                                                               jx + (k & 1))];
-                    count += filler.fill(jx * kStride, jy * kStride, jz * kStride, kStride, c);
+                    for (int k = 0; k < 8; ++k) c[k] = corner[B.corner(b, k)];
+                    count += filler.fill(b % B.bx * S, (b / B.bx) % B.by * S, b / (B.bx * B.by) * S, S, c);
                 }
                 return count;
             },
@@ -756,8 +835,8 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
         if (!flood) {
             inside = winding_mask(mesh, g.out, v, part);
         } else {
-            Volume w;
-            winding_mask(mesh, g.out, w, part);
+            Volume w;  // the flood's inside voxels are known: only the others need |w|
+            winding_mask(mesh, g.out, w, part, v.data.data());
             inside = 0;
             for (std::size_t i = 0; i < v.data.size(); ++i) {
                 v.data[i] |= w.data[i];
