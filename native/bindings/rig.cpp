@@ -172,7 +172,7 @@ void bind_autorig(py::module_& m) {
         [](const MaskArray& mask, const Vec3& spacing, const Vec3& origin, const IjkArray& ijk, const FloatArray& radius,
            const EdgeArray& edges, int bones, double prune_scale, double tolerance, bool roles,
            const std::string& kind, const std::optional<Vec3>& up, bool own_scale, const py::object& progress,
-           const std::map<std::string, Vec3>& markers, const std::vector<double>& plan_weights) {
+           const std::map<std::string, Vec3>& markers, const std::vector<double>& plan_weights, bool want_detail) {
             const Grid g = grid_of(mask, spacing, origin, "mask");
             const PointSet pts = point_set(ijk, &radius, "autorig");
             const auto e = edges_of(edges);
@@ -188,19 +188,20 @@ void bind_autorig(py::module_& m) {
             opt.plan_weights = plan_weights;
             Progress p = progress_of(progress);
             Rig r;
-            AutorigDetail detail;
+            AutorigDetail detail;  // only when asked for: without it autorig skips work only the detail reports
             {
                 py::gil_scoped_release nogil;
-                r = autorig(g, mask.data(), pts, e, opt, p, &detail);
+                r = autorig(g, mask.data(), pts, e, opt, p, want_detail ? &detail : nullptr);
             }
             py::dict d = dict_of(std::move(r));
-            add_detail(d, std::move(detail), pts.n);
+            if (want_detail) add_detail(d, std::move(detail), pts.n);
             return d;
         },
         py::arg("mask"), py::arg("spacing"), py::arg("origin"), py::arg("ijk"), py::arg("radius"), py::arg("edges"),
         py::arg("bones"), py::arg("prune_scale"), py::arg("tolerance"), py::arg("roles"), py::arg("kind") = "",
         py::arg("up") = py::none(), py::arg("own_scale") = true, py::arg("progress") = py::none(),
-        py::arg("markers") = std::map<std::string, Vec3>{}, py::arg("plan_weights") = std::vector<double>{});
+        py::arg("markers") = std::map<std::string, Vec3>{}, py::arg("plan_weights") = std::vector<double>{},
+        py::arg("detail") = true);
 }
 
 }  // namespace

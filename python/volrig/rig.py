@@ -337,7 +337,8 @@ def autorig_fit(points: SkeletonPoints, tree: SkeletonTree, mask, bones: Optiona
     weights = plan.weights if plan_weights is None else plan_weights
     d = _volrig.autorig(plan.mask, points.spacing, points.origin, plan.ijk, plan.radii, plan.edges, int(bones or 0),
                         float(prune_scale), float(tolerance), bool(roles), kind or "", up, bool(plan.own_scale),
-                        progress, _markers(markers), [] if weights is None else [float(w) for w in weights])
+                        progress, _markers(markers), [] if weights is None else [float(w) for w in weights],
+                        detail is not None)
     d["joint_points"] = plan.joint_points(d["joint_points"])
     if detail is not None:
         detail.append(AutorigResult(d["kept"], int(d["root"]), d["nodes"], d["node_radius"], d["node_edges"],

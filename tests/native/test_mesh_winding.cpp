@@ -244,3 +244,80 @@ TEST_CASE("voxelize, winding and auto: progress in order, cancelling stops it", 
         check_voxelize_progress(holed, 0.04, with(m), 10, {0.0, 0.3, 0.6, 0.9});
     }
 }
+
+namespace {
+
+/// The icosphere (levels, radius r) without the triangles that have a vertex above z = `cut`: an open cap.
+Mesh cut_sphere(int levels, double r, double cut) {
+    const Mesh sphere = icosphere(levels, r);
+    Mesh m = sphere;
+    m.triangles.clear();
+    for (const auto& t : sphere.triangles)
+        if (std::max({sphere.vertices[t[0]][2], sphere.vertices[t[1]][2], sphere.vertices[t[2]][2]}) < cut)
+            m.triangles.push_back(t);
+    return m;
+}
+
+}  // namespace
+
+TEST_CASE("winding number: the far-field expansion is of second order (its error falls as the fifth power)",
+          "[mesh][winding]") {
+    // Seen from farther than beta times its radius the whole open cap is one cluster: fast gives the root's
+    // expansion alone. The kernel falls as 1 / d^2 and each order of the expansion adds a power, so the error
+    // against the exact sum falls as 1 / d^5 with the distance d when the zeroth, first and second order terms are
+    // right (measured: by 32 to 43 times per doubling); any wrong term leaves 1 / d^4 (16 times) or slower.
+    const Mesh cap = cut_sphere(3, 1.0, 0.3);
+    const WindingNumber w(cap, 2.0);
+    for (const Vec3& dir : {Vec3{0.3, -0.2, 1.0}, Vec3{1.0, 0.5, -0.4}, Vec3{-0.6, 0.8, 0.1}}) {
+        const double len = std::hypot(dir[0], dir[1], dir[2]);
+        auto error = [&](double d) {
+            const Vec3 p{dir[0] / len * d, dir[1] / len * d, dir[2] / len * d};
+            return std::abs(w(p) - w.exact(p));
+        };
+        const double e8 = error(8), e16 = error(16), e32 = error(32);
+        INFO("errors at 8, 16, 32: " << e8 << " " << e16 << " " << e32);
+        CHECK(e8 < 1e-4);
+        CHECK(e8 / e16 > 24);
+        CHECK(e16 / e32 > 24);
+    }
+}
+
+TEST_CASE("voxelize, auto: on open meshes exactly the union of the flood's and the winding number's masks",
+          "[mesh][voxelize][winding]") {
+    // Auto evaluates the winding number only where the flood has not already found the inside; the union must
+    // come out voxel for voxel as the two methods' masks computed apart.
+    Mesh holes = icosphere(3, 1.0, {0.2, 0.1, -0.3});
+    for (std::size_t k = 0; k < holes.triangles.size(); k += 37) holes.triangles.erase(holes.triangles.begin() + k);
+    Mesh boxes = open_box();
+    Mesh far_box = flipped(open_box());
+    for (auto& p : far_box.vertices) p = {p[0] * 0.6 + 1.3, p[1] * 1.4 - 0.2, p[2] * 0.8 + 0.1};
+    boxes = soup(boxes, far_box);
+    const Mesh cap = cut_sphere(3, 1.0, 0.6);
+    for (const Mesh* m : std::initializer_list<const Mesh*>{&holes, &boxes, &cap}) {
+        REQUIRE_FALSE(is_closed(*m));
+        for (double h : {0.05, 0.031}) {
+            const Volume a = voxelize(*m, h, with(VoxelizeMethod::Auto));
+            // (a method that finds no inside voxel throws: all outside)
+            auto apart = [&](VoxelizeMethod method) {
+                try {
+                    return voxelize(*m, h, with(method)).data;
+                } catch (const Error&) {
+                    return std::vector<std::uint8_t>(a.data.size(), 0);
+                }
+            };
+            const std::vector<std::uint8_t> f = apart(VoxelizeMethod::Flood), w = apart(VoxelizeMethod::Winding);
+            REQUIRE(a.data.size() == f.size());
+            REQUIRE(a.data.size() == w.size());
+            std::int64_t wrong = 0, only_winding = 0, only_flood = 0;
+            for (std::size_t i = 0; i < a.data.size(); ++i) {
+                wrong += a.data[i] != (f[i] | w[i]);
+                only_winding += w[i] && !f[i];
+                only_flood += f[i] && !w[i];
+            }
+            INFO("voxel size " << h << ": " << only_winding << " voxels inside by the winding number alone, "
+                                << only_flood << " by the flood alone");
+            CHECK(wrong == 0);
+            CHECK(only_winding > 0);  // the union is not one method's mask: both parts are exercised
+        }
+    }
+}

@@ -123,3 +123,31 @@ TEST_CASE("check_rig names what is wrong", "[rig]") {
     r.joints[1] = {0, 0, 0};
     CHECK_THROWS_WITH(check_rig(r), Catch::Contains("zero length"));
 }
+
+TEST_CASE("autorig gives the same rig and runner-up with and without the detail", "[rig][autorig]") {
+    // Without the detail autorig leaves out neutral chains when two body plans stand before them; the rig and its
+    // runner-up must not change. A stick figure (head, trunk, arms, legs) and the T.
+    const std::vector<std::array<double, 6>> figure = {{30, 10, 40, 30, 10, 75}, {30, 10, 75, 30, 10, 92},
+                                                       {30, 10, 70, 8, 10, 50},  {30, 10, 70, 52, 10, 50},
+                                                       {30, 10, 40, 22, 10, 4},  {30, 10, 40, 38, 10, 4}};
+    const std::vector<std::array<double, 6>> tee = {{30, 8, 4, 30, 8, 50}, {6, 8, 50, 54, 8, 50}};
+    for (const auto* segs : {&figure, &tee}) {
+        const Shape s = capsules({60, 20, 98}, *segs, 4.0);
+        const Points p = skeleton_of(s, 0.3);
+        const SkeletonTree t = skeleton_tree(s.grid, s.mask.data(), p.set(), TreeOptions{});
+        for (const bool up : {false, true}) {
+            AutorigOptions opt;
+            if (up) opt.up = std::array<double, 3>{0, 0, 1};
+            AutorigDetail detail;
+            const Rig with = autorig(s.grid, s.mask.data(), p.set(), t.edges, opt, {}, &detail);
+            const Rig without = autorig(s.grid, s.mask.data(), p.set(), t.edges, opt, {}, nullptr);
+            CHECK(with.kind == without.kind);
+            CHECK(with.names == without.names);
+            CHECK(with.joints == without.joints);
+            CHECK(with.fit == without.fit);
+            CHECK(with.runner_up == without.runner_up);
+            CHECK(with.runner_up_fit == without.runner_up_fit);
+            CHECK(detail.chains_fit != -1.0);  // the detail still reports the chains' fit
+        }
+    }
+}

@@ -102,7 +102,8 @@ enum class VoxelizeMethod {
     /// Flood when the mesh is closed (is_closed: every edge shared by exactly two triangles), so closed meshes
     /// give exactly Flood's mask; otherwise the union of Flood's and Winding's masks: the winding number restores
     /// the interiors the flood loses through wide holes, the flood keeps the parts its closing joins across gaps
-    /// narrower than 2 closing_radius (which the winding number leaves apart). Takes the time of both.
+    /// narrower than 2 closing_radius (which the winding number leaves apart). The winding number is evaluated
+    /// only where the flood found no inside (the union is the same as the two masks made apart).
     Auto,
 };
 

@@ -1,4 +1,6 @@
-// mesh/voxelize.cpp: the solid a triangle mesh encloses, as a dense mask (volrig/mesh.hpp).
+// mesh/voxelize.cpp: the solid a triangle mesh encloses, as a dense mask (volrig/mesh.hpp): the flood methods here,
+// the winding number's mask in mesh/winding_mask.cpp (Auto unites the two on an open mesh), the exact distances of
+// both in mesh/triangle_tree.hpp.
 //
 // Why not OpenVDB's signed distance alone: meshToVolume decides inside/outside by flood-filling the exterior sign
 // through narrow-band voxels farther than 0.75 voxel from the surface, then propagating signs into the tiles. A hole
@@ -30,7 +32,6 @@
 //      OpenVDB's sign gives 58,630. They differ on 184 voxels, all within 1.3 voxels of the surface; a winding-number
 //      test sides with the closing on 76 of them (OpenVDB's sign is not exact either) and with OpenVDB on 108.
 #include <openvdb/openvdb.h>
-#include <openvdb/math/Proximity.h>
 #include <openvdb/tools/MeshToVolume.h>
 
 #include <tbb/blocked_range.h>
@@ -46,11 +47,16 @@
 #include <sstream>
 #include <thread>
 
+#include "mesh/triangle_tree.hpp"
+#include "mesh/winding_mask.hpp"
 #include "volrig/mesh.hpp"
 
 namespace volrig {
 
 namespace {
+
+using mesh_detail::TriangleTree;
+using mesh_detail::winding_mask;
 
 /// OpenVDB reads the mesh through this: vertex positions in the working grid's index space.
 struct IndexSpaceMesh {
@@ -61,131 +67,6 @@ struct IndexSpaceMesh {
     std::size_t pointCount() const { return points.size(); }
     std::size_t vertexCount(std::size_t) const { return 3; }
     void getIndexSpacePoint(std::size_t n, std::size_t v, openvdb::Vec3d& pos) const { pos = points[triangles[n][v]]; }
-};
-
-/// Exact distance from a point to the nearest triangle: a bounding-volume hierarchy (median splits, up to four
-/// triangles per leaf) searched nearest-first with the best distance so far as the bound.
-class TriangleTree {
-public:
-    TriangleTree(const std::vector<openvdb::Vec3d>& points, const std::vector<std::array<std::uint32_t, 3>>& triangles)
-        : points_(points), triangles_(triangles), order_(triangles.size()) {
-        std::vector<openvdb::Vec3d> centroid(triangles.size());
-        for (std::size_t i = 0; i < triangles.size(); ++i) {
-            order_[i] = static_cast<std::uint32_t>(i);
-            const auto& t = triangles[i];
-            centroid[i] = (points[t[0]] + points[t[1]] + points[t[2]]) / 3.0;
-        }
-        nodes_.reserve(2 * triangles.size() / kLeafSize + 2);
-        build(0, triangles.size(), centroid);
-    }
-
-    /// Distance from p to the nearest triangle, or `bound` when none is nearer than `bound`; `closest` (when given
-    /// and a triangle is nearer than `bound`) receives the nearest surface point.
-    double nearest(const openvdb::Vec3d& p, double bound, openvdb::Vec3d* closest = nullptr) const {
-        double best2 = bound * bound;
-        search(p, [&](const openvdb::Vec3d& q) {
-            const double d2 = (q - p).lengthSqr();
-            if (d2 < best2) {
-                best2 = d2;
-                if (closest) *closest = q;
-            }
-            return best2;
-        }, best2);
-        return std::sqrt(best2);
-    }
-
-    /// True when some triangle comes nearer to p than `distance`.
-    bool any_within(const openvdb::Vec3d& p, double distance) const {
-        const double limit = distance * distance;
-        bool found = false;
-        search(p, [&](const openvdb::Vec3d& q) {
-            found = found || (q - p).lengthSqr() < limit;
-            return found ? -1.0 : limit;
-        }, limit);
-        return found;
-    }
-
-private:
-    /// Visits the closest point of every triangle in the boxes nearer than the bound that `visit` returns
-    /// (nearest boxes first); a negative bound stops the search.
-    template <class Visit>
-    void search(const openvdb::Vec3d& p, const Visit& visit, double bound2) const {
-        std::uint32_t stack[128];
-        int top = 0;
-        stack[top++] = 0;
-        while (top > 0) {
-            const Node& n = nodes_[stack[--top]];
-            if (box_distance2(n, p) >= bound2) continue;
-            if (n.count > 0) {
-                for (std::uint32_t k = n.first; k < n.first + n.count; ++k) {
-                    const auto& t = triangles_[order_[k]];
-                    openvdb::Vec3d uvw;
-                    bound2 = visit(openvdb::math::closestPointOnTriangleToPoint(points_[t[0]], points_[t[1]],
-                                                                                 points_[t[2]], p, uvw));
-                    if (bound2 < 0) return;
-                }
-                continue;
-            }
-            // Nearer child last, so it is searched first.
-            const std::uint32_t a = node_index(&n) + 1, b = n.first;
-            const bool a_first = box_distance2(nodes_[a], p) <= box_distance2(nodes_[b], p);
-            stack[top++] = a_first ? b : a;
-            stack[top++] = a_first ? a : b;
-        }
-    }
-
-    static constexpr std::size_t kLeafSize = 4;
-    struct Node {
-        openvdb::Vec3d lo, hi;
-        std::uint32_t first = 0;  // leaf: first entry of order_; inner node: index of the right child
-        std::uint32_t count = 0;  // leaf: number of triangles; 0 for inner nodes (left child follows the node)
-    };
-
-    std::uint32_t node_index(const Node* n) const { return static_cast<std::uint32_t>(n - nodes_.data()); }
-
-    static double box_distance2(const Node& n, const openvdb::Vec3d& p) {
-        double d2 = 0;
-        for (int a = 0; a < 3; ++a) {
-            const double d = std::max({n.lo[a] - p[a], 0.0, p[a] - n.hi[a]});
-            d2 += d * d;
-        }
-        return d2;
-    }
-
-    std::uint32_t build(std::size_t begin, std::size_t end, const std::vector<openvdb::Vec3d>& centroid) {
-        const auto index = static_cast<std::uint32_t>(nodes_.size());
-        nodes_.emplace_back();
-        Node box;
-        box.lo = openvdb::Vec3d(std::numeric_limits<double>::infinity());
-        box.hi = openvdb::Vec3d(-std::numeric_limits<double>::infinity());
-        for (std::size_t k = begin; k < end; ++k)
-            for (std::uint32_t v : triangles_[order_[k]]) {
-                box.lo = openvdb::math::minComponent(box.lo, points_[v]);
-                box.hi = openvdb::math::maxComponent(box.hi, points_[v]);
-            }
-        if (end - begin <= kLeafSize) {
-            box.first = static_cast<std::uint32_t>(begin);
-            box.count = static_cast<std::uint32_t>(end - begin);
-            nodes_[index] = box;
-            return index;
-        }
-        const openvdb::Vec3d ext = box.hi - box.lo;
-        const int axis = ext[0] >= ext[1] && ext[0] >= ext[2] ? 0 : (ext[1] >= ext[2] ? 1 : 2);
-        const std::size_t mid = begin + (end - begin) / 2;
-        std::nth_element(order_.begin() + static_cast<std::ptrdiff_t>(begin),
-                         order_.begin() + static_cast<std::ptrdiff_t>(mid),
-                         order_.begin() + static_cast<std::ptrdiff_t>(end),
-                         [&](std::uint32_t x, std::uint32_t y) { return centroid[x][axis] < centroid[y][axis]; });
-        build(begin, mid, centroid);  // the left child is index + 1
-        box.first = build(mid, end, centroid);
-        nodes_[index] = box;
-        return index;
-    }
-
-    const std::vector<openvdb::Vec3d>& points_;
-    const std::vector<std::array<std::uint32_t, 3>>& triangles_;
-    std::vector<std::uint32_t> order_;
-    std::vector<Node> nodes_;
 };
 
 /// Progress and cancel for OpenVDB: its stage boundaries (percent >= 0, called from the thread that started the
@@ -581,150 +462,6 @@ std::int64_t closing_mask(const IndexMesh& m, const Grids& g, double r, Volume& 
     });
 }
 
-/// The recursive fill of VoxelizeMethod::Winding (winding_mask).
-class WindingFill {
-public:
-    WindingFill(const WindingNumber& wn, const TriangleTree& tree, const Grid& out, std::uint8_t* dst)
-        : wn_(wn), tree_(tree), nx_(out.dims[0]), ny_(out.dims[1]), nz_(out.dims[2]), dst_(dst) {}
-
-    float at(std::int64_t x, std::int64_t y, std::int64_t z) const {
-        return static_cast<float>(
-            std::abs(wn_({static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)})));
-    }
-
-    /// Fills the voxels of the block [x0, x0 + s)^3 (clipped to the grid) whose corners (x0 + s * (k & 1),
-    /// y0 + s * (k >> 1 & 1), z0 + s * (k >> 2)) have |w| = c[k]; returns the number of inside voxels.
-    std::int64_t fill(std::int64_t x0, std::int64_t y0, std::int64_t z0, std::int64_t s, const float c[8]) const {
-        if (x0 >= nx_ || y0 >= ny_ || z0 >= nz_) return 0;
-        if (s == 1) {
-            const bool in = c[0] >= 0.5f;
-            dst_[(z0 * ny_ + y0) * nx_ + x0] = in ? 1 : 0;
-            return in;
-        }
-        bool any_in = false, any_out = false, close = false;
-        for (int k = 0; k < 8; ++k) {
-            (c[k] >= 0.5f ? any_in : any_out) = true;
-            close = close || std::abs(c[k] - 0.5f) < kWindingMargin;
-        }
-        const double half = 0.5 * static_cast<double>(s);
-        if (!(any_in && any_out) && !close &&
-            !tree_.any_within(openvdb::Vec3d(static_cast<double>(x0) + half, static_cast<double>(y0) + half,
-                                             static_cast<double>(z0) + half),
-                              std::sqrt(3.0) * half + 0.5)) {
-            const std::int64_t x1 = std::min(nx_, x0 + s), y1 = std::min(ny_, y0 + s), z1 = std::min(nz_, z0 + s);
-            for (std::int64_t z = z0; z < z1; ++z)
-                for (std::int64_t y = y0; y < y1; ++y)
-                    std::fill(dst_ + (z * ny_ + y) * nx_ + x0, dst_ + (z * ny_ + y) * nx_ + x1, any_in ? 1 : 0);
-            return any_in ? (x1 - x0) * (y1 - y0) * (z1 - z0) : 0;
-        }
-        if (s == 2) {  // the block's eight voxels: (x0, y0, z0) known, the other seven evaluated
-            const std::int64_t x1 = std::min(nx_, x0 + 2), y1 = std::min(ny_, y0 + 2), z1 = std::min(nz_, z0 + 2);
-            std::int64_t count = 0;
-            for (std::int64_t z = z0; z < z1; ++z)
-                for (std::int64_t y = y0; y < y1; ++y)
-                    for (std::int64_t x = x0; x < x1; ++x) {
-                        const bool in = (x == x0 && y == y0 && z == z0 ? c[0] : at(x, y, z)) >= 0.5f;
-                        dst_[(z * ny_ + y) * nx_ + x] = in ? 1 : 0;
-                        count += in;
-                    }
-            return count;
-        }
-        // |w| on the 3 x 3 x 3 lattice of step s / 2: the eight corners known, the rest evaluated (those of
-        // children wholly outside the grid are not needed).
-        const std::int64_t h = s / 2;
-        float w[27];
-        for (int k = 0; k < 3; ++k)
-            for (int j = 0; j < 3; ++j)
-                for (int i = 0; i < 3; ++i) {
-                    float& wv = w[9 * k + 3 * j + i];
-                    if (i != 1 && j != 1 && k != 1) {
-                        wv = c[(i >> 1) | (j & 2) | ((k >> 1) << 2)];
-                    } else if ((i == 2 && x0 + h >= nx_) || (j == 2 && y0 + h >= ny_) || (k == 2 && z0 + h >= nz_)) {
-                        wv = 0;  // a corner of children outside the grid only
-                    } else {
-                        wv = at(x0 + i * h, y0 + j * h, z0 + k * h);
-                    }
-                }
-        std::int64_t count = 0;
-        for (int k = 0; k < 8; ++k) {
-            const int a = k & 1, b = (k >> 1) & 1, d = k >> 2;
-            float cc[8];
-            for (int m = 0; m < 8; ++m) cc[m] = w[9 * (d + (m >> 2)) + 3 * (b + ((m >> 1) & 1)) + a + (m & 1)];
-            count += fill(x0 + a * h, y0 + b * h, z0 + d * h, h, cc);
-        }
-        return count;
-    }
-
-    static constexpr float kWindingMargin = 0.1f;
-
-private:
-    const WindingNumber& wn_;
-    const TriangleTree& tree_;
-    std::int64_t nx_, ny_, nz_;
-    std::uint8_t* dst_;
-};
-
-/// VoxelizeMethod::Winding: inside when |w| >= 0.5 at the voxel centre (w the generalized winding number). |w| is
-/// evaluated on the lattice of every 8th voxel (block corners, some just past the grid's far end). A block whose
-/// eight corners agree, none within 0.1 of the threshold, and whose circumscribed ball (plus half a voxel) no
-/// triangle enters takes their answer: w is harmonic off the surface, so it cannot swing across 0.5 and back
-/// inside such a block. Any other block is split in eight (|w| evaluated at the 19 new lattice points) and its
-/// children tested the same way, down to single voxels. Fills v; returns the number of inside voxels.
-std::int64_t winding_mask(const Mesh& mesh, const Grid& out, Volume& v, const Progress& progress) {
-    constexpr std::int64_t kStride = 8;
-    // The mesh in the output grid's index space: voxel centres at whole coordinates.
-    Mesh local;
-    local.triangles = mesh.triangles;
-    local.vertices.resize(mesh.vertices.size());
-    std::vector<openvdb::Vec3d> points(mesh.vertices.size());
-    for (std::size_t i = 0; i < points.size(); ++i)
-        for (std::size_t a = 0; a < 3; ++a) {
-            local.vertices[i][a] = (mesh.vertices[i][a] - out.origin[a]) / out.spacing[a];
-            points[i][static_cast<int>(a)] = local.vertices[i][a];
-        }
-    const WindingNumber wn(local);
-    const TriangleTree tree(points, local.triangles);
-    report(progress, 0.05);
-    v.data.assign(static_cast<std::size_t>(out.voxel_count()), 0);
-    const WindingFill filler(wn, tree, out, v.data.data());
-
-    const std::int64_t nx = out.dims[0], ny = out.dims[1], nz = out.dims[2];
-    const std::int64_t bx = (nx + kStride - 1) / kStride, by = (ny + kStride - 1) / kStride,
-                       bz = (nz + kStride - 1) / kStride;
-    const std::int64_t cx = bx + 1, cy = by + 1, cz = bz + 1;
-    std::vector<float> corner(static_cast<std::size_t>(cx * cy * cz));
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, cz * cy), [&](const tbb::blocked_range<std::int64_t>& r) {
-        for (std::int64_t zy = r.begin(); zy != r.end(); ++zy)
-            for (std::int64_t x = 0; x < cx; ++x)
-                corner[static_cast<std::size_t>(zy * cx + x)] =
-                    filler.at(x * kStride, (zy % cy) * kStride, (zy / cy) * kStride);
-    });
-    report(progress, 0.15);
-
-    // Blocks in about ten slabs of block rows, so that progress is reported (and a cancel seen) between them
-    // from the calling thread.
-    const std::int64_t blocks = bx * by * bz, chunk = std::max<std::int64_t>(bx * by, blocks / 10);
-    std::int64_t inside = 0;
-    for (std::int64_t first = 0; first < blocks; first += chunk) {
-        inside += tbb::parallel_reduce(
-            tbb::blocked_range<std::int64_t>(first, std::min(blocks, first + chunk), 1), std::int64_t(0),
-            [&](const tbb::blocked_range<std::int64_t>& r, std::int64_t count) {
-                for (std::int64_t b = r.begin(); b != r.end(); ++b) {
-                    const std::int64_t jx = b % bx, jy = (b / bx) % by, jz = b / (bx * by);
-                    float c[8];
-                    for (int k = 0; k < 8; ++k)
-                        c[k] = corner[static_cast<std::size_t>(((jz + (k >> 2)) * cy + jy + ((k >> 1) & 1)) * cx +
-                                                               jx + (k & 1))];
-                    count += filler.fill(jx * kStride, jy * kStride, jz * kStride, kStride, c);
-                }
-                return count;
-            },
-            [](std::int64_t a, std::int64_t b) { return a + b; });
-        report(progress, 0.15 + 0.8 * static_cast<double>(std::min(blocks, first + chunk)) / static_cast<double>(blocks));
-    }
-    return inside;
-}
-
 }  // namespace
 
 Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt, const Progress& progress) {
@@ -756,8 +493,8 @@ Volume voxelize(const Mesh& mesh, double voxel_size, const VoxelizeOptions& opt,
         if (!flood) {
             inside = winding_mask(mesh, g.out, v, part);
         } else {
-            Volume w;
-            winding_mask(mesh, g.out, w, part);
+            Volume w;  // the flood's inside voxels are known: only the others need |w|
+            winding_mask(mesh, g.out, w, part, v.data.data());
             inside = 0;
             for (std::size_t i = 0; i < v.data.size(); ++i) {
                 v.data[i] |= w.data[i];

@@ -67,9 +67,67 @@ struct WindingNumber::Impl {
         std::uint32_t first = 0; // leaf: first triangle; inner: index of the right child (the left follows)
         std::uint32_t count = 0; // leaf: number of triangles; 0 for inner nodes
     };
+    /// What the traversal reads of a node: its centre, reach and children (Node's first, count, radius2).
+    struct Hot {
+        V3 p;
+        double radius2;
+        std::uint32_t first, count;
+    };
+    /// A node's far-field expansion reduced to what the sum needs (far_field): n; tr M; the symmetric part of M as
+    /// the coefficients of r^T M r (xx, yy, zz, xy, xz, yz); the vector c with c . r = 2 sum_jl t_jjl r_l +
+    /// sum_jk t_jkk r_j; and the ten coefficients of the cubic form t[r, r, r] (xxx, yyy, zzz, xxy, xxz, yyx, yyz,
+    /// zzx, zzy, xyz). 23 numbers instead of 39 summed term by term: the same expansion, its sums in another order
+    /// (so equal up to rounding; voxelize's masks came out byte for byte the same on the 32 shared characters).
+    struct Far {
+        double n[3], trace_m, m[6], c[3], t[10];
+    };
     std::vector<Tri> tris;  // in leaf order
-    std::vector<Node> nodes;
+    std::vector<Node> nodes;  // while building; then reduced to hot and far (same index) and freed
+    std::vector<Hot> hot;
+    std::vector<Far> far;
     double beta = 2;
+
+    static Far reduced(const Node& n) {
+        Far f{};
+        f.n[0] = n.n.x, f.n[1] = n.n.y, f.n[2] = n.n.z;
+        f.trace_m = n.m[0] + n.m[4] + n.m[8];
+        const double* m = n.m;
+        const double ms[6] = {m[0], m[4], m[8], m[1] + m[3], m[2] + m[6], m[5] + m[7]};
+        std::copy(ms, ms + 6, f.m);
+        auto t = [&n](int j, int k, int l) { return n.t[9 * j + 3 * k + l]; };
+        for (int l = 0; l < 3; ++l)
+            f.c[l] = 2.0 * (t(0, 0, l) + t(1, 1, l) + t(2, 2, l)) + t(l, 0, 0) + t(l, 1, 1) + t(l, 2, 2);
+        auto sym3 = [&t](int a, int b) { return t(a, a, b) + t(a, b, a) + t(b, a, a); };  // coefficient of r_a^2 r_b
+        const double ts[10] = {t(0, 0, 0), t(1, 1, 1), t(2, 2, 2), sym3(0, 1), sym3(0, 2), sym3(1, 0), sym3(1, 2),
+                               sym3(2, 0), sym3(2, 1),
+                               t(0, 1, 2) + t(0, 2, 1) + t(1, 0, 2) + t(1, 2, 0) + t(2, 0, 1) + t(2, 1, 0)};
+        std::copy(ts, ts + 10, f.t);
+        return f;
+    }
+
+    /// hot and far from nodes (after build).
+    void reduce() {
+        hot.resize(nodes.size());
+        far.resize(nodes.size());
+        for (std::size_t i = 0; i < nodes.size(); ++i) {
+            hot[i] = {nodes[i].p, nodes[i].radius2, nodes[i].first, nodes[i].count};
+            far[i] = reduced(nodes[i]);
+        }
+    }
+
+    /// 4 pi times the cluster's far-field winding number at q, r = p - q, d2 = |r|^2 (the expansion of the opening
+    /// comment, second order: 1/2 sum_jkl t_jkl H_jkl = 1/2 (-3 (2 sum_jl t_jjl r_l + sum_jk t_jkk r_j) / |r|^5 +
+    /// 15 t[r, r, r] / |r|^7)).
+    static double far_field(const Far& f, const V3& r, double d2) {
+        const double inv_d2 = 1.0 / d2, inv_d3 = inv_d2 / std::sqrt(d2);
+        const double x = r.x, y = r.y, z = r.z, xx = x * x, yy = y * y, zz = z * z;
+        const double rmr = f.m[0] * xx + f.m[1] * yy + f.m[2] * zz + f.m[3] * x * y + f.m[4] * x * z + f.m[5] * y * z;
+        const double cr = f.c[0] * x + f.c[1] * y + f.c[2] * z;
+        const double trrr = f.t[0] * xx * x + f.t[1] * yy * y + f.t[2] * zz * z + f.t[3] * xx * y + f.t[4] * xx * z +
+                            f.t[5] * yy * x + f.t[6] * yy * z + f.t[7] * zz * x + f.t[8] * zz * y + f.t[9] * x * y * z;
+        const double second = 0.5 * inv_d2 * (-3.0 * cr + 15.0 * trrr * inv_d2);
+        return (f.n[0] * x + f.n[1] * y + f.n[2] * z + f.trace_m - 3.0 * rmr * inv_d2 + second) * inv_d3;
+    }
 
     /// Builds the node over tris[begin, end); returns its index.
     std::uint32_t build(std::size_t begin, std::size_t end, std::vector<V3>& centroid) {
@@ -167,35 +225,18 @@ struct WindingNumber::Impl {
         stack[top++] = 0;
         double sum = 0;
         while (top > 0) {
-            const Node& n = nodes[stack[--top]];
+            const std::uint32_t i = stack[--top];
+            const Hot& n = hot[i];
             const V3 r = n.p - q;
             const double d2 = dot(r, r);
             if (d2 > beta2 * n.radius2) {
-                const double inv_d2 = 1.0 / d2, inv_d3 = inv_d2 / std::sqrt(d2);
-                const double rv[3] = {r.x, r.y, r.z};
-                double rmr = 0;
-                for (int j = 0; j < 3; ++j)
-                    for (int i = 0; i < 3; ++i) rmr += rv[j] * n.m[3 * j + i] * rv[i];
-                // Second order: 1/2 sum_jkl t_jkl H_jkl with H the Hessian of (x - q) / |x - q|^3 at p, i.e.
-                // 1/2 (-3 (2 sum_jl t_jjl r_l + sum_jk t_jkk r_j) / |r|^5 + 15 t[r, r, r] / |r|^7).
-                double tjjl = 0, tjkk = 0, trrr = 0;
-                for (int j = 0; j < 3; ++j) {
-                    const double* tj = n.t + 9 * j;
-                    for (int l = 0; l < 3; ++l) tjjl += tj[3 * j + l] * rv[l];
-                    tjkk += (tj[0] + tj[4] + tj[8]) * rv[j];
-                    double tr_ = 0;
-                    for (int k = 0; k < 3; ++k)
-                        for (int l = 0; l < 3; ++l) tr_ += tj[3 * k + l] * rv[k] * rv[l];
-                    trrr += tr_ * rv[j];
-                }
-                const double second = 0.5 * inv_d2 * (-3.0 * (2.0 * tjjl + tjkk) + 15.0 * trrr * inv_d2);
-                sum += (dot(n.n, r) + n.m[0] + n.m[4] + n.m[8] - 3.0 * rmr * inv_d2 + second) * inv_d3;
+                sum += far_field(far[i], r, d2);
             } else if (n.count > 0) {
                 for (std::uint32_t k = n.first; k < n.first + n.count; ++k)
                     sum += solid_angle(tris[k].a, tris[k].b, tris[k].c, q);
             } else {
                 stack[top++] = n.first;
-                stack[top++] = static_cast<std::uint32_t>(&n - nodes.data()) + 1;
+                stack[top++] = i + 1;
             }
         }
         return sum / kFourPi;
@@ -230,6 +271,9 @@ WindingNumber::WindingNumber(const Mesh& mesh, double beta) : impl_(std::make_un
     }
     impl_->nodes.reserve(4 * tris.size() / kLeafSize + 4);
     impl_->build(0, tris.size(), centroid);
+    impl_->reduce();
+    impl_->nodes.clear();
+    impl_->nodes.shrink_to_fit();
 }
 
 WindingNumber::~WindingNumber() = default;

@@ -224,8 +224,9 @@ std::vector<Candidate> plan_without_up(const rig_detail::RigContext& c, const Au
     return found;
 }
 
-/// Every template's candidate, best first: body plans within their limit (or forced, or meeting markers) by
-/// score (read without up when no plan stands along it: plan_without_up), then chains (not with markers).
+/// The templates' candidates, best first: body plans within their limit (or forced, or meeting markers) by score
+/// (read without up when no plan stands along it: plan_without_up), then chains (not with markers; left out when
+/// two body plans precede them and no detail is asked for: autorig reads only the first two).
 std::vector<Candidate> candidates(const rig_detail::RigContext& c, const AutorigOptions& opt, const PlanInput& in,
                                   AutorigDetail* detail) {
     const int target = opt.bones > 0 ? opt.bones : 24;
@@ -238,7 +239,11 @@ std::vector<Candidate> candidates(const rig_detail::RigContext& c, const Autorig
     if (!in.markers.empty() && out.empty())
         throw Error("autorig: the markers need a humanoid or quadruped body plan, and this shape has no five "
                     "extremities for one");
-    if (opt.kind.empty() || opt.kind == "chains") {
+    // Chains come last, and the rig reads only the first two candidates (the rig and its runner-up): chains are built
+    // when asked for, for the detail's chains_fit, or when fewer than two body plans stand before them.
+    const bool want_chains =
+        opt.kind == "chains" || (opt.kind.empty() && (detail || (in.markers.empty() && out.size() < 2)));
+    if (want_chains) {
         Candidate chains = rig_detail::chain_rig(c, target, opt.tolerance);
         if (detail) detail->chains_fit = chains.rig.bones.empty() ? -1.0 : chains.fit;
         if (!chains.rig.bones.empty() && in.markers.empty()) {
