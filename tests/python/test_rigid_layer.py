@@ -258,7 +258,7 @@ def test_rigid_tissue_off_the_source_grid_is_refused(limb):
 
 
 def test_the_visible_human_hand_bones_stay_with_the_hand_at_2_mm():
-    """Issue 56's speck: at 1 and 2 mm the humerus, forearm and hand bones touch (one 26-connected piece of rigid
+    """Issue 56: at 1 and 2 mm the humerus, forearm and hand bones touch (one 26-connected piece of rigid
     tissue, 93% of its ball volume the humerus's), and the whole piece once went to upper_arm, so the hand's bones
     and the tissue around them left the hand when the elbow bent. Rigged as scripts/showcase.py rigs it, no point
     the geodesic binding gives to a forearm or a hand may move with another bone of the arm (426 on the left did)."""
