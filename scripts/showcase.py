@@ -8,7 +8,7 @@ tissue codes:
         [--tissues ../shared/data/visible-human/austinman_tissues.tsv] [--clip ../shared/data/bvh/131_01.bvh] \\
         [--count 4] [--samples 16] [--height 640] [--hide fat] [--opacity skin=0.015,muscle=0.012] \\
         [--peel skin,muscle,cartilage] [--view 1 -0.35 0.1] [--out docs/images/showcase_vhm.png] \\
-        [--mm 4|2|1] [--width W] [--full-cycle] [--step-rate 2] \\
+        [--mm 4|2|1] [--width W] [--full-cycle] [--bvh-frames N ...] [--step-rate 2] \\
         [--video out.mp4 [--fps 24] [--crf 28] [--loops 1] [--sheet 12] [--frames DIR]]
 
 The scan is any label map volrig reads (NIfTI, NRRD, MetaImage, DICOM, TIFF) whose non-zero codes are the body
@@ -118,7 +118,8 @@ def rig_and_plan(args, work, labels, table, tissues):
     log(f"rigged {os.path.basename(args.labels)}: {int(body.array.sum()):,} body voxels, {len(points):,} spheres, "
         f"{r.rig.kind} ({len(r.rig)} bones) in {time.perf_counter() - t:.1f} s; tissues: " + ", ".join(x.name for x in tissues))
     motion = volrig.read_bvh(args.clip)
-    frames = stride_frames(r.rig, motion, args, np.asarray(up, float))
+    frames = ([f - 1 for f in args.bvh_frames] if args.bvh_frames
+              else stride_frames(r.rig, motion, args, np.asarray(up, float)))
     _, matrices = pipeline.mocap_poses(r.rig, motion, frames, up_axis=args.clip_up)
     bake = pipeline.FolderBake(labels, r.points, r.binding, work, "body", mode="linear", sampling="nearest",
                                tissues=tissues)
@@ -206,6 +207,8 @@ def parse_args(argv):
                     help="BVH frames searched for half a stride (one foot farthest ahead, then the other); the "
                          "rendered frames go from the one to the other (default: 300)")
     ap.add_argument("--count", type=int, default=4, help="frames to bake and render")
+    ap.add_argument("--bvh-frames", type=int, nargs="+", default=None, metavar="N",
+                    help="these BVH frames (1-based) instead of --count frames of the walk (e.g. 183: a pose to look at)")
     ap.add_argument("--full-cycle", dest="cycle", action="store_true",
                     help="the frames span a whole walk cycle (two steps, from one foot's turn back to it, the last "
                          "left out so the frames loop) instead of half a stride")

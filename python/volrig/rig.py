@@ -579,7 +579,9 @@ def bind(points: SkeletonPoints, rig: Rig, mask, mode: str = "rigid", progress: 
     ``rigid``: tissue that must not bend (a bool Volume or array on the mask's grid; ``rigid_tissue`` makes one
     from label values or a value range of the source). Points on it move with one bone alone (weight 1): a
     26-connected rigid component wholly with the bone holding 90% of its points' ball volume, one spanning joints
-    (bones touching in a coarse label map) point by point with each point's own bone. Only soft tissue blends.
+    (bones touching in the label map; other bones' points past the joint region, more than two ball radii or a
+    quarter of their bone beyond the joint's plane, holding 1% of its ball volume) point by point with each point's
+    own bone. Only soft tissue blends.
     """
     ijk, radii = _point_arrays(points)
     arr = _mask_for(points, mask)

@@ -151,3 +151,38 @@ TEST_CASE("autorig gives the same rig and runner-up with and without the detail"
         }
     }
 }
+
+TEST_CASE("rigid tissue spanning joints keeps each point's bone even when one bone holds most of its volume",
+          "[rig][bind]") {
+    // An arm along x: upper 0-40, lower 40-70, hand 70-86. Its bone tissue runs unbroken through both joints (a fine
+    // label map, where the humerus, forearm and hand bones touch), and the upper's points are thick (radius 6, the
+    // others 2): the upper holds 96% of the component's ball volume, over the 90% that gives a component wholly
+    // to one bone. The lower's and the hand's points lie far past their joints, so the component spans joints.
+    const Shape s = capsules({90, 16, 16}, {{2, 8, 8, 88, 8, 8}}, 6.5);
+    Rig rig;
+    rig.joints = {{0, 8, 8}, {40, 8, 8}, {70, 8, 8}, {86, 8, 8}};
+    rig.bones = {{0, 1}, {1, 2}, {2, 3}};
+    rig.names = {"upper", "lower", "hand"};
+    rig.parents = {-1, 0, 1};
+    Points p;
+    for (int x = 2; x <= 88; ++x) {
+        p.ijk.insert(p.ijk.end(), {8, 8, x});
+        p.radius.push_back(x < 40 ? 6.f : 2.f);
+    }
+    std::vector<std::uint8_t> rigid(s.mask.size(), 0);
+    for (int x = 2; x <= 88; ++x) rigid[static_cast<std::size_t>(s.grid.index(x, 8, 8))] = 1;
+    const Binding b = bind(s.grid, s.mask.data(), p.set(), rig, BindMode::Smooth, {}, rigid.data());
+    for (std::size_t i = 0; i < p.radius.size(); ++i) {
+        const int x = p.ijk[3 * i + 2];
+        CHECK(b.weights[i][0] == 1.f);
+        if (x < 38) CHECK(b.bone[i] == 0);
+        if (x > 42 && x < 68) CHECK(b.bone[i] == 1);  // not carried off with the upper
+        if (x > 72) CHECK(b.bone[i] == 2);
+    }
+    // The same bone ending just past the joint (within two of its points' radii): wholly the upper's, as before.
+    std::fill(rigid.begin(), rigid.end(), 0);
+    for (int x = 2; x <= 43; ++x) rigid[static_cast<std::size_t>(s.grid.index(x, 8, 8))] = 1;
+    const Binding c = bind(s.grid, s.mask.data(), p.set(), rig, BindMode::Smooth, {}, rigid.data());
+    for (std::size_t i = 0; i < p.radius.size(); ++i)
+        if (p.ijk[3 * i + 2] <= 43) CHECK(c.bone[i] == 0);
+}

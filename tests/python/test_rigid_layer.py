@@ -255,3 +255,28 @@ def test_rigid_tissue_off_the_source_grid_is_refused(limb):
     bigger = volrig.Volume(np.zeros((100, 28, 28), np.uint8), source.spacing, source.origin)
     with pytest.raises(volrig.VolrigError, match="does not lie on the source's grid"):
         volrig.Deformer(bigger, pts, binding)
+
+
+def test_the_visible_human_hand_bones_stay_with_the_hand_at_2_mm():
+    """Issue 56: at 1 and 2 mm the humerus, forearm and hand bones touch (one 26-connected piece of rigid
+    tissue, 93% of its ball volume the humerus's), and the whole piece once went to upper_arm, so the hand's bones
+    and the tissue around them left the hand when the elbow bent. Rigged as scripts/showcase.py rigs it, no point
+    the geodesic binding gives to a forearm or a hand may move with another bone of the arm (426 on the left did)."""
+    shared("visible-human/austinman_2mm_labels.nii.gz")
+    from volrig import pipeline
+    from volrig_support import subjects as S
+    labels = S.visible_human_labels(2)
+    body = labels.like(np.asarray(labels.array) > 0)
+    sk = pipeline.skeleton_of(body)
+    pts = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(0.5, sk.metric, body.spacing))
+    del sk
+    r = pipeline.rig_skeleton(pts, body, kind="humanoid", up=(0, 0, 1),
+                              rigid=volrig.rigid_tissue(labels, labels=BONE))
+    plain = volrig.bind(r.points, r.rig, body, mode="smooth")
+    names = list(r.rig.names)
+    for side in "LR":
+        arm = [names.index(f"{b}.{side}") for b in ("forearm", "hand")]
+        on = np.isin(plain.bone, arm) & r.binding.rigid[tuple(r.points.ijk.T)]
+        assert on.sum() > 100, side  # the forearm's and the hand's bones are rigid tissue
+        moved = on & (r.binding.bone != plain.bone)
+        assert not moved.any(), (side, [names[b] for b in np.unique(r.binding.bone[moved])], int(moved.sum()))

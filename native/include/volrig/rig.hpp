@@ -135,7 +135,9 @@ struct Binding {
 /// neighbouring bone takes up to half the weight.
 /// `rigid` (optional, on the same grid): tissue that must not bend (bone). Points on it take weight 1 on one bone;
 /// a 26-connected rigid component goes wholly to the bone that holds at least 90% of its points' ball volume,
-/// one spanning joints (bones touching in a coarse label map) keeps each point's own bone.
+/// unless it spans joints (bones touching in the label map: other bones' points lying past the joint region, more
+/// than two ball radii or a quarter of their bone beyond the joint's plane, hold 1% of its ball volume); then each
+/// point keeps its own bone.
 Binding bind(const Grid& grid, const std::uint8_t* mask, const PointSet& pts, const Rig& rig, BindMode mode,
              const Progress& progress = {}, const std::uint8_t* rigid = nullptr);
 
