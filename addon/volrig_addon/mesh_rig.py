@@ -419,7 +419,7 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
         col.label(text=f"{arm.name}: {len(arm.data.bones)} bones", icon="BONE_DATA")
         found = obj.get("volrig_rig_found", "")
         if found:
-            _draw_found(col, found)
+            _draw_found(col, found, context)
         mod = obj.modifiers[MODIFIER]
         layout.prop(mod, "use_deform_preserve_volume")
         layout.operator(VOLRIG_OT_thickness_keys.bl_idname, icon="SHAPEKEY_DATA")

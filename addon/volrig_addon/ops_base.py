@@ -4,6 +4,8 @@
 (``volrig.pipeline``) does every step. Each reports user mistakes (volrig's own errors: bad files, empty
 segmentations, missing rigs; and OSError) in the UI instead of raising, lets anything else (a bug) raise, is
 undoable, and never writes to the user's source file."""
+import textwrap
+
 import volrig
 
 from . import objects
@@ -111,17 +113,35 @@ def _labelled(layout, settings, *names, text: str = "") -> None:
         split.prop(settings, name, text="")
 
 
-def _draw_found(layout, found: str) -> None:
-    """What autorig found (``pipeline.describe_rig``: "humanoid, fit 0.93 (runner-up chains 0.61); note; ..."): kind
-    and fit, the runner-up, then each part of the note on a line of its own (a sidebar cuts long labels)."""
+def found_lines(found: str, chars: int = 0) -> list:
+    """What autorig found (``pipeline.describe_rig``: "humanoid, fit 0.93 (runner-up chains 0.61); note; ..."), as
+    the sidebar's (text, icon) lines: kind and fit, the runner-up, then each part of the note on lines of its own,
+    wrapped at word boundaries to `chars` characters when given (a sidebar cuts a longer label off)."""
     head, _, note = found.partition("; ")
     head, _, runner_up = head.partition(" (")
-    col = layout.column(align=True)
-    col.label(text=head, icon="INFO")
-    if runner_up:
-        col.label(text=runner_up.rstrip(")"), icon="BLANK1")
+    lines = [(head, "INFO")] + ([(runner_up.rstrip(")"), "BLANK1")] if runner_up else [])
     for part in (p for p in note.split("; ") if p):
-        col.label(text=part, icon="ERROR" if part.startswith(_WARNINGS) else "BLANK1")
+        wrapped = textwrap.wrap(part, chars, break_long_words=False) if chars > 0 else [part]
+        icon = "ERROR" if part.startswith(_WARNINGS) else "BLANK1"
+        lines += [(text, icon if k == 0 else "BLANK1") for k, text in enumerate(wrapped)]
+    return lines
+
+
+def sidebar_chars(context) -> int:
+    """About how many characters of a label fit beside an icon in the sidebar region drawn now (0: unknown)."""
+    region = getattr(context, "region", None)
+    if region is None or region.width <= 0:
+        return 0
+    prefs = getattr(context, "preferences", None)
+    scale = (prefs.system.ui_scale if prefs else 0.0) or 1.0  # 0 in the background
+    return max(16, int((region.width - 50 * scale) / (6.5 * scale)))
+
+
+def _draw_found(layout, found: str, context=None) -> None:
+    """found_lines drawn in a column, wrapped to the sidebar's width when `context` is given."""
+    col = layout.column(align=True)
+    for text, icon in found_lines(found, sidebar_chars(context) if context is not None else 0):
+        col.label(text=text, icon=icon)
 
 
 #: How the notes a user must act on begin (autorig.cpp): no plan fits, or the given up was overruled.

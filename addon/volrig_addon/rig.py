@@ -208,7 +208,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
                 layout.operator("volrig.thickness", icon="MOD_THICKNESS")
             layout.label(text=f"{parts['RIG'].name}: {len(parts['RIG'].data.bones)} bones", icon="BONE_DATA")
             if s.rig_found:
-                _draw_found(layout, s.rig_found)
+                _draw_found(layout, s.rig_found, context)
             if s.rigid_voxels:  # the rigid layer: bones move whole
                 layout.label(text=f"rigid layer: {s.rigid_voxels:,} voxels", icon="MOD_SOLIDIFY")
         if "SPHERES" in parts:

@@ -295,3 +295,30 @@ def test_markers_on_a_mesh_place_its_joints(empty_scene):
     run_op(bpy.ops.volrig.rig_mesh)
     moved = {b.name: b.head_local for b in obj.parent.data.bones}["shin.L"]
     assert (moved - target).length < 1e-4
+
+
+def test_a_rigs_note_is_wrapped_to_the_sidebar_so_none_of_it_is_cut_off():
+    """The Mesh and Rig panels draw what autorig found a line a part, each part wrapped at words to the sidebar's
+    width (a long warning, such as an overruled up, was cut off mid-word before)."""
+    from volrig_addon.ops_base import found_lines, sidebar_chars
+    found = ("humanoid, fit 0.97 (runner-up chains 0.00); given up overruled; no body plan stands along it; "
+             "rigged standing along (-0.02, -0.99, 0.03); check the up axis, or choose a plan")
+    whole = found_lines(found)
+    assert [t for t, _ in whole][:3] == ["humanoid, fit 0.97", "runner-up chains 0.00", "given up overruled"]
+    assert whole[2][1] == "ERROR" and len(whole) == 6
+    narrow = found_lines(found, 20)
+    assert all(len(t) <= 20 for t, _ in narrow[2:]) and len(narrow) > len(whole)
+    # Every word kept, in order; only a warning's first line carries the warning icon.
+    assert " ".join(t for t, _ in narrow[2:]).split() == " ".join(t for t, _ in whole[2:]).split()
+    assert [i for _, i in narrow[2:]].count("ERROR") == 1
+    assert sidebar_chars(bpy.context) == 0  # no region in the background: not wrapped
+
+    class Region:
+        width = 300
+
+    class Context:
+        region = Region()
+        preferences = bpy.context.preferences
+
+    chars = sidebar_chars(Context())
+    assert 16 <= chars <= 45
