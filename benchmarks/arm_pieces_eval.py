@@ -27,11 +27,12 @@ import numpy as np
 from scipy import ndimage
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "tests", "support")]
+sys.path[:0] = [os.path.join(REPO, "python"), os.path.join(REPO, "tests", "support"), os.path.join(REPO, "scripts")]
 
 import volrig  # noqa: E402
 from volrig import pipeline  # noqa: E402
 from volrig_support import data_root  # noqa: E402
+from showcase_plan import rig_labels  # noqa: E402
 
 VHM = data_root() / "visible-human"
 CLIP = data_root() / "bvh" / "131_01.bvh"
@@ -39,18 +40,12 @@ ARM = ("upper_arm", "forearm", "hand")
 
 
 def rigged(mm: int):
-    """(labels, body, rigid tissue, the RiggedSkeleton) of the AustinMan at ``mm`` rigged as the showcase does."""
+    """(labels, body, the RiggedSkeleton) of the AustinMan at ``mm`` rigged as the showcase does."""
     labels = volrig.load(str(VHM / f"austinman_{mm}mm_labels.nii.gz"))
     table = volrig.read_tissue_table(str(VHM / "austinman_tissues.tsv"))
     tissues = volrig.tissue_classes(table, present=np.unique(labels.array))
-    body = labels.like(~np.isin(labels.array, volrig.tissues.outside_codes(table)))
-    sk = pipeline.skeleton_of(body)
-    points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(0.5, sk.metric, body.spacing))
-    del sk
-    bone = [t for t in tissues if t.name == "bone"]
-    rigid = volrig.rigid_tissue(labels, labels=bone[0].codes)
-    r = pipeline.rig_skeleton(points, body, kind="humanoid", up=(0, 0, 1), rigid=rigid)
-    return labels, body, rigid, r
+    body, r = rig_labels(labels, table, tissues, 0.5, "humanoid", (0, 0, 1))
+    return labels, body, r
 
 
 def rest_figures(labels, body, r) -> str:
@@ -62,7 +57,7 @@ def rest_figures(labels, body, r) -> str:
     return f"erectile voxels owned by an arm bone {groin:,}; voxels owned: {hands}"
 
 
-def rigid_moves(body, rigid, r) -> str:
+def rigid_moves(body, r) -> str:
     plain = volrig.rig.bind(r.points, r.rig, body, mode="smooth")
     names = list(r.rig.names)
     moves = Counter((names[a], names[b]) for a, b in zip(plain.bone, r.binding.bone) if a != b)
@@ -112,13 +107,13 @@ def main() -> None:
         raise SystemExit(f"arm_pieces_eval: {VHM} or {CLIP} not found (the data live in ../shared/data)")
     for mm in args.mm or [4, 2, 1]:
         t = time.perf_counter()
-        labels, body, rigid, r = rigged(mm)
+        labels, body, r = rigged(mm)
         print(f"{mm} mm: rigged in {time.perf_counter() - t:.0f} s, {len(r.points):,} spheres", flush=True)
         print(f"  rest: {rest_figures(labels, body, r)}", flush=True)
-        print(f"  rigid moves (geodesic bone -> final): {rigid_moves(body, rigid, r)}", flush=True)
+        print(f"  rigid moves (geodesic bone -> final): {rigid_moves(body, r)}", flush=True)
         print(f"  posed at BVH {args.frame}, voxels in pieces apart from the body: " +
               "; ".join(posed_figures(labels, r, args.frame)), flush=True)
-        del labels, body, rigid, r
+        del labels, body, r
 
 
 if __name__ == "__main__":

@@ -54,12 +54,6 @@ DATA = str(data_root())
 OUT = os.path.join(REPO, "docs", "images", "showcase_vhm.png")
 
 
-def body_of(labels: volrig.Volume, table) -> volrig.Volume:
-    """The body: every voxel whose code is not outside (0, or named like external air by the table)."""
-    outside = np.isin(labels.array, volrig.tissues.outside_codes(table))
-    return volrig.Volume(~outside, labels.spacing, labels.origin)
-
-
 def looks_of(args, tissues):
     """The tissues with --hide and --opacity applied, and the set hidden; SystemExit naming an unknown class."""
     names = {t.name for t in tissues}
@@ -106,16 +100,9 @@ def rig_and_plan(args, work, labels, table, tissues):
     frames). The frames are baked one at a time as they are rendered (``bake_one``): a 1 mm frame holds about
     1.4 GB while it is baked and its file about 150 MB, so none waits for the others."""
     t = time.perf_counter()
-    body = body_of(labels, table)
-    sk = pipeline.skeleton_of(body)
-    points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(args.thinness, sk.metric,
-                                                                                  body.spacing))
-    del sk
     up = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "-z": (0, 0, -1)}[args.up]
-    bone = [t for t in tissues if t.name == "bone"] if args.rigid_bone else []
-    rigid = volrig.rigid_tissue(labels, labels=bone[0].codes) if bone else None  # the rigid layer (issue 18)
-    r = pipeline.rig_skeleton(points, body, kind=args.kind, up=up, rigid=rigid)
-    log(f"rigged {os.path.basename(args.labels)}: {int(body.array.sum()):,} body voxels, {len(points):,} spheres, "
+    body, r = plan.rig_labels(labels, table, tissues, args.thinness, args.kind, up, args.rigid_bone)
+    log(f"rigged {os.path.basename(args.labels)}: {int(body.array.sum()):,} body voxels, {len(r.points):,} spheres, "
         f"{r.rig.kind} ({len(r.rig)} bones) in {time.perf_counter() - t:.1f} s; tissues: " + ", ".join(x.name for x in tissues))
     motion = volrig.read_bvh(args.clip)
     frames = ([f - 1 for f in args.bvh_frames] if args.bvh_frames

@@ -1,10 +1,13 @@
 """The showcase's choices that need no Blender (scripts/showcase.py imports them; tests/python/test_tissues_showcase.py
-tests them under plain Python): the labels file of a resolution, which BVH frames show the walk (half a stride or a
-whole cycle), which rendered frames go on a video's contact sheet, and the ffmpeg command that encodes the frames."""
+tests them under plain Python): the labels file of a resolution, the body rigged from its labels (also for
+benchmarks/arm_pieces_eval.py), which BVH frames show the walk (half a stride or a whole cycle), which rendered frames go on a video's contact sheet, and the ffmpeg command that encodes the frames."""
 import os
 import shutil
 
 import numpy as np
+
+import volrig
+from volrig import pipeline
 
 MM = (4, 2, 1)  # the Visible Human label maps beside each other in ../shared/data/visible-human
 
@@ -14,6 +17,24 @@ def labels_for(mm: int, data: str) -> str:
     if mm not in MM:
         raise SystemExit(f"showcase: --mm {mm}: the Visible Human labels come at {', '.join(map(str, MM))} mm")
     return os.path.join(data, "visible-human", f"austinman_{mm}mm_labels.nii.gz")
+
+
+def body_of(labels, table):
+    """The body: every voxel whose code is not outside (0, or named like external air by the table)."""
+    outside = np.isin(labels.array, volrig.tissues.outside_codes(table))
+    return volrig.Volume(~outside, labels.spacing, labels.origin)
+
+
+def rig_labels(labels, table, tissues, thinness: float, kind: str, up, rigid_bone: bool = True):
+    """(the body, pipeline.rig_skeleton's result) of a label map rigged as the showcase rigs it: the body's
+    skeleton at `thinness` voxels, the tissue table's bone rigid (the rigid layer, issue 18) when `rigid_bone`."""
+    body = body_of(labels, table)
+    sk = pipeline.skeleton_of(body)
+    points = pipeline.skeleton_points(sk, thinness=pipeline.thinness_from_voxels(thinness, sk.metric, body.spacing))
+    del sk
+    bone = [t for t in tissues if t.name == "bone"] if rigid_bone else []
+    rigid = volrig.rigid_tissue(labels, labels=bone[0].codes) if bone else None
+    return body, pipeline.rig_skeleton(points, body, kind=kind, up=up, rigid=rigid)
 
 
 def spread(span: int, count: int) -> list:

@@ -113,6 +113,15 @@ def _labelled(layout, settings, *names, text: str = "") -> None:
         split.prop(settings, name, text="")
 
 
+#: How the notes a user must act on begin (autorig.cpp): no plan fits, or the given up was overruled.
+_WARNINGS = ("no body plan fits", "given up overruled")
+
+
+def _is_warning(text: str) -> bool:
+    """Whether a note (or a part of one) holds something the user must act on."""
+    return any(w in text for w in _WARNINGS)
+
+
 def found_lines(found: str, chars: int = 0) -> list:
     """What autorig found (``pipeline.describe_rig``: "humanoid, fit 0.93 (runner-up chains 0.61); note; ..."), as
     the sidebar's (text, icon) lines: kind and fit, the runner-up, then each part of the note on lines of its own,
@@ -122,7 +131,7 @@ def found_lines(found: str, chars: int = 0) -> list:
     lines = [(head, "INFO")] + ([(runner_up.rstrip(")"), "BLANK1")] if runner_up else [])
     for part in (p for p in note.split("; ") if p):
         wrapped = textwrap.wrap(part, chars, break_long_words=False) if chars > 0 else [part]
-        icon = "ERROR" if part.startswith(_WARNINGS) else "BLANK1"
+        icon = "ERROR" if _is_warning(part) else "BLANK1"
         lines += [(text, icon if k == 0 else "BLANK1") for k, text in enumerate(wrapped)]
     return lines
 
@@ -144,13 +153,9 @@ def _draw_found(layout, found: str, context=None) -> None:
         col.label(text=text, icon=icon)
 
 
-#: How the notes a user must act on begin (autorig.cpp): no plan fits, or the given up was overruled.
-_WARNINGS = ("no body plan fits", "given up overruled")
-
-
 def _found_level(note: str) -> set:
     """The report level of a rig's note: a warning when no body plan fits or the given up was overruled."""
-    return {"WARNING"} if any(w in note for w in _WARNINGS) else {"INFO"}
+    return {"WARNING"} if _is_warning(note) else {"INFO"}
 
 
 class _VolrigPanel:

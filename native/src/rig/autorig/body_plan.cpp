@@ -328,23 +328,20 @@ Vec feet_forward(const NodeTree& t, const std::vector<std::uint32_t> (&leg)[2], 
     return forward;
 }
 
-/// The unit vector across `axis` from limb 1 - k's tip to limb k's (zero when they line up along it).
-Vec across_to(const NodeTree& t, const std::uint32_t (&tips)[2], int k, const Vec& axis) {
-    const Vec a = perp(t.at(tips[k]) - t.at(tips[1 - k]), axis);
-    return a.norm() > 0 ? Vec(a.normalized()) : Vec::Zero();
-}
-
-/// The body's mid-plane between a pair of limbs: the median offset of the spine's and the head's nodes along
-/// across_to(tips, 0) (the nodes where the limbs join may lie off the middle; the median holds).
-double mid_plane(const NodeTree& t, const std::vector<std::uint32_t>& spine, const std::vector<std::uint32_t>& head,
-                 const std::uint32_t (&tips)[2], const Vec& axis) {
-    const Vec across = across_to(t, tips, 0, axis);
+/// The body's mid-plane between a pair of limbs: the unit vector across `axis` from tip 1 to tip 0 (zero when they
+/// line up along it) and the median offset along it of the spine's and the head's nodes (the nodes where the limbs
+/// join may lie off the middle; the median holds).
+std::pair<Vec, double> mid_plane(const NodeTree& t, const std::vector<std::uint32_t>& spine,
+                                 const std::vector<std::uint32_t>& head, const std::uint32_t (&tips)[2],
+                                 const Vec& axis) {
+    Vec across = perp(t.at(tips[0]) - t.at(tips[1]), axis);
+    if (across.norm() > 0) across.normalize();
     std::vector<double> off;
     for (const auto* nodes : {&spine, &head})
         for (std::uint32_t n : *nodes) off.push_back(t.at(n).dot(across));
     const auto half = off.begin() + static_cast<std::ptrdiff_t>(off.size() / 2);
     std::nth_element(off.begin(), half, off.end());
-    return *half;
+    return {across, *half};
 }
 
 }  // namespace
@@ -364,10 +361,10 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
     const Vec spine_dir = (t.at(chest) - t.at(pelvis)).normalized();
     std::optional<FusedArm> fused[2];
     const Vec body_up = up ? *up : spine_dir;  // limbs' sides lie across it
-    const double mid_legs = mid_plane(t, spine, head, plan.legs, body_up);
+    const auto [across, mid] = mid_plane(t, spine, head, plan.legs, body_up);
     for (int k = 0; k < 2; ++k) {
-        leg[k] = t.from_own_side(t.path(pelvis, plan.legs[k]), across_to(t, plan.legs, k, body_up),
-                                 k == 0 ? mid_legs : -mid_legs);
+        const double sign = k == 0 ? 1.0 : -1.0;  // the second leg's side is the other way across
+        leg[k] = t.from_own_side(t.path(pelvis, plan.legs[k]), sign * across, sign * mid);
         leg_fit[k] = humanoid ? limb_fit(c.samples(leg[k]), false) : fit_chain(c.samples(leg[k]), 4);
         ok = ok && leg_fit[k].cuts.size() == 5;
     }

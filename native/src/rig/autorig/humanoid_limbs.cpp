@@ -186,15 +186,12 @@ void straight_knee(const RigContext& c, Rig& rig, const std::vector<std::uint32_
     const Chain4 chain = c.samples(leg);
     // The leg's axis between hip and ankle: straight when no node strays kStraightLegBend of their distance off
     // the hip-ankle line.
-    double worst = 0;
-    std::size_t count = 0;
+    double worst = -1;  // none between hip and ankle
     for (const auto& q : chain) {
         const Vec v = q.head<3>() - hip;
-        if (v.dot(dir) <= 0 || v.dot(dir) >= length) continue;
-        worst = std::max(worst, perp(v, dir).norm());
-        ++count;
+        if (v.dot(dir) > 0 && v.dot(dir) < length) worst = std::max(worst, perp(v, dir).norm());
     }
-    if (count == 0 || worst > kStraightLegBend * length) return;
+    if (worst < 0 || worst > kStraightLegBend * length) return;
     const double share = kLegProportions[1] / (kLegProportions[1] + kLegProportions[2]);
     // On the axis: the node nearest the proportional point along the line.
     std::size_t best = 0;

@@ -28,13 +28,13 @@ struct LimbJoint {
                    ///< / foot 0.11; autorig's hand and foot bones end at the knuckles and the ball of the foot),
                    ///< where it is searched when hidden; 0 for the others
 };
-constexpr LimbJoint kLimbJoints[] = {
+const LimbJoint kLimbJoints[] = {
     {"forearm", "upper_arm", "elbow", false, "", 0.56},
     {"upper_arm", "", "shoulder", true, "forearm", 0},
-    {"hand", "forearm", "wrist", false, "", 0.146 / (0.146 + 0.108 * kHandToKnuckles)},
+    {"hand", "forearm", "wrist", false, "", kArmProportions[2] / (kArmProportions[2] + kArmProportions[3] * kHandToKnuckles)},
     {"shin", "thigh", "knee", false, "", 0.5},
     {"thigh", "", "hip", true, "shin", 0},
-    {"foot", "shin", "ankle", false, "", 0.246 / (0.246 + 0.11 * kFootToBall)},
+    {"foot", "shin", "ankle", false, "", kLegProportions[2] / (kLegProportions[2] + kLegProportions[3] * kFootToBall)},
 };
 
 
