@@ -77,3 +77,21 @@ def test_rig_distances_is_the_chamfer_of_the_joint_sets():
     # Joints against the other bone: each set has one end over the other's bone (0) and one 0.1 beyond it (10).
     assert j2b == pytest.approx(5.0)
     assert 0 < b2b < j2b  # the bones overlap over 0.5 of their 0.6
+
+
+def test_reference_markers_are_found_along_the_up_the_skeleton_stands_along():
+    """A stick T-pose standing along +z, its file's up said to be +y (the arms' axis): read along +y its "feet" would
+    be two fingers of one hand forking in the palm, so the markers are found along +z, the first axis its legs reach
+    down a quarter of its height along; read along +z as given, the same markers."""
+    J = np.array([[0, 0, 0], [0, 0, 4], [0, 0, 6], [0, 0, 7],            # groin, chest, chin, crown
+                  [0, 3, 4], [0, 3.5, 4.3], [0, 3.5, 3.7],              # left arm: wrist, two fingers
+                  [0, -3, 4], [0, -3.5, 4.3], [0, -3.5, 3.7],           # right arm
+                  [0, 0.5, -2.5], [0, 0.5, -5], [0, -0.5, -2.5], [0, -0.5, -5]], float)  # knees, feet
+    bones = [[0, 1], [1, 2], [2, 3], [1, 4], [4, 5], [4, 6], [1, 7], [7, 8], [7, 9], [0, 10], [10, 11], [0, 12],
+             [12, 13]]
+    told = reference_markers(J, bones, (0, 1, 0))
+    right = reference_markers(J, bones, (0, 0, 1))
+    assert told.keys() == right.keys()
+    assert all(np.allclose(told[k], right[k]) for k in told)
+    assert np.allclose(right["chin"], J[2]) and np.allclose(right["groin"], J[0])
+    assert {tuple(right["wrist.L"]), tuple(right["wrist.R"])} == {tuple(J[4]), tuple(J[7])}

@@ -107,6 +107,22 @@ def test_a_body_lying_across_the_given_up_is_rigged_as_it_lies():
     assert rig.kind == "chains" and "no body plan fits" in rig.note
 
 
+def test_markers_on_a_body_lying_across_the_given_up_rig_it_as_it_lies():
+    """The same figure given +y with markers on its wrists and a knee (a user clicking a character modelled lying
+    down): the markers are hard constraints, not a reason to keep the up. Under +y its wrists lie no higher than
+    its knee, so a quadruped was read along +y; now the reading without up, keeping the markers, wins as without
+    them: a humanoid standing along z, the note saying so, its wrists and knee on the markers."""
+    s = S.capsule_subject("wide", 0.6)
+    pts = volrig.skeletonize(s.mask).top(15000)
+    tree = volrig.skeleton_tree(pts, s.mask)
+    marks = {name: s.joints[name] for name in ("wrist.L", "wrist.R", "knee.L")}
+    rig = volrig.autorig(pts, tree, s.mask, up=(0, 1, 0), markers=marks)
+    assert rig.kind == "humanoid" and rig.up @ s.up > 0.97 and "given up overruled" in rig.note, (rig.kind, rig.up)
+    joints = np.asarray(rig.joints)
+    for name, bone, end in (("wrist.L", "hand.L", 0), ("wrist.R", "hand.R", 0), ("knee.L", "shin.L", 0)):
+        assert np.allclose(joints[rig.bones[rig.names.index(bone)][end]], marks[name]), name
+
+
 def test_a_weak_reading_along_the_given_up_is_overruled_a_clear_one_kept():
     """The same figure given +y, with a humanoid reading under that up scoring 0.3 below chains (the weight of the
     spine not pointing up chosen so; fit 0.57): not clear of chains by the weights' margin (1), while the reading

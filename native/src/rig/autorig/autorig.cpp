@@ -203,12 +203,16 @@ std::vector<Candidate> plan_candidates(const rig_detail::RigContext& c, const Au
 /// every reading under the up, shows its own up clearly and lies across the given axis (more than 45 degrees off it
 /// either way: a character modelled lying down, or its up mislabelled; a given up reversed still rules upside-down
 /// readings out, as the weights' hard constraints ask). Marked up_overruled, with a note saying so; none otherwise.
+/// Markers are kept: they constrain the reading without up as they did under it (a user's clicks on a body modelled
+/// lying down are no reason to keep its up: under it the wrists lie no higher than the knees, which marked_kind
+/// reads as a quadruped).
 std::vector<Candidate> plan_without_up(const rig_detail::RigContext& c, const AutorigOptions& opt,
                                        const PlanInput& in, const std::vector<Candidate>& under_up) {
     const double chains = rig_detail::chains_score(in.weights), margin = rig_detail::kUpOverruleMargin;
-    const double best_under_up = under_up.empty() ? chains : std::min(chains, under_up[0].score);
+    double best_under_up = chains;  // with markers the candidates are not ranked by score alone
+    for (const Candidate& k : under_up) best_under_up = std::min(best_under_up, k.score);
     if (best_under_up <= chains - margin) return {};  // a clear reading under the up: the up holds
-    const PlanInput free{std::nullopt, in.weights, {}};
+    const PlanInput free{std::nullopt, in.weights, in.markers};
     std::vector<Candidate> found = plan_candidates(c, opt, free, nullptr);
     if (found.empty()) return {};
     Candidate& k = found[0];
@@ -233,7 +237,7 @@ std::vector<Candidate> candidates(const rig_detail::RigContext& c, const Autorig
     std::vector<Candidate> out;
     if (opt.kind.empty() ? opt.roles && (target >= 21 || !in.markers.empty()) : opt.kind != "chains") {
         out = plan_candidates(c, opt, in, detail);
-        if (opt.kind.empty() && in.markers.empty() && in.up)
+        if (opt.kind.empty() && in.up)
             if (std::vector<Candidate> free = plan_without_up(c, opt, in, out); !free.empty()) out = std::move(free);
     }
     if (!in.markers.empty() && out.empty())
