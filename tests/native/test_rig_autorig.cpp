@@ -171,7 +171,7 @@ TEST_CASE("a path is rooted at its thicker end", "[autorig]") {
     CHECK(t.at(t.root()).x() == Approx(-20));
 }
 
-TEST_CASE("a thick end on a neck becomes a leaf; a thick end that is the body stays the root", "[autorig]") {
+TEST_CASE("a thick end on a neck or the shoulders becomes a leaf; a thick end that is the body stays the root", "[autorig]") {
     // A big head (radius 12) on a thin neck down to a trunk junction with two legs: the head is the thickest node.
     Figure mouse(Vec(0, 0, 40), 12.0);
     const std::uint32_t junction = mouse.limb(0, Vec(0, 0, 10), 3, 5);
@@ -184,7 +184,16 @@ TEST_CASE("a thick end on a neck becomes a leaf; a thick end that is the body st
     const auto leaves = t.leaves();
     CHECK(std::count(leaves.begin(), leaves.end(), 0u) == 1);  // the head is an extremity
     CHECK(std::count(leaves.begin(), leaves.end(), leg_a) == 1);
-    // The same head right on the junction (their balls overlap: the thick end is the body): nothing moves.
+    // A big head right on the shoulders (its ball reaching into the junction's, its centre outside it): a leaf too.
+    Figure child(Vec(0, 0, 24), 12.0);
+    const std::uint32_t shoulders = child.limb(0, Vec(0, 0, 10), 4, 6);
+    child.limb(shoulders, Vec(15, 0, -20), 4, 3);
+    child.limb(shoulders, Vec(-15, 0, -20), 4, 3);
+    NodeTree c = child.tree();
+    REQUIRE(c.root() == 0);
+    c.root_off_an_end();
+    CHECK(c.root() == shoulders);
+    // The same head with the junction's ball holding its centre (the thick end is the body): nothing moves.
     Figure blob(Vec(0, 0, 14), 12.0);
     const std::uint32_t j = blob.limb(0, Vec(0, 0, 10), 6, 6);
     blob.limb(j, Vec(15, 0, -20), 4, 3);

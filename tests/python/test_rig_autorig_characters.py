@@ -95,3 +95,24 @@ def test_reference_markers_are_found_along_the_up_the_skeleton_stands_along():
     assert all(np.allclose(told[k], right[k]) for k in told)
     assert np.allclose(right["chin"], J[2]) and np.allclose(right["groin"], J[0])
     assert {tuple(right["wrist.L"]), tuple(right["wrist.R"])} == {tuple(J[4]), tuple(J[7])}
+
+
+def test_a_crouching_boys_big_head_is_his_head():
+    """The crouching boy (shapes/boy.obj, arms out): his head, the thickest part, sits on the shoulders with its
+    ball reaching into theirs. It stayed the tree's root and no extremity, so his right hand was read as the head
+    and his left arm ran down a leg (fit 0.71). Now the head is a leaf like a mouse's: head above the shoulders,
+    each hand out on its own side."""
+    s = C.characters(["boy"])[0]
+    rig = s.rig()
+    assert rig.kind == "humanoid" and rig.fit > 0.9, (rig.kind, rig.fit)
+    J = np.asarray(rig.joints)
+    up = np.asarray(s.up, float)
+
+    def end(bone, k):
+        return J[rig.bones[rig.names.index(bone)][k]]
+
+    assert end("head", 1) @ up > max(end("upper_arm.L", 0) @ up, end("upper_arm.R", 0) @ up)
+    v = s.vertices()
+    hands = [end("hand.L", 1), end("hand.R", 1)]
+    width = np.ptp(v[:, 0])
+    assert abs(hands[0][0] - hands[1][0]) > 0.6 * width  # the hands at the two ends of the arm span

@@ -37,10 +37,13 @@ public:
     /// scaled by `scale`, of the junction or of any node between it and the root; repeated until stable. Of the
     /// branches of one junction, the one whose tip reaches farthest always stays.
     void prune(double scale);
-    /// When the root (the thickest node) is an end of the tree standing clear of the first junction below it (their
-    /// balls apart: a part on a neck), reroots at that junction, so that end is a leaf and counts as an extremity:
-    /// a head thicker than the trunk (a mouse's, a child's, a cartoon's) is the end of a branch like any other.
-    /// Nothing changes on a path (no junction), an inner root, or a thick end that is the body itself.
+    /// When the root (the thickest node) is an end of the tree whose centre lies outside the ball of the first
+    /// junction below it (a part on a neck, or a big head on the shoulders whose ball reaches into theirs), reroots
+    /// at that junction, so that end is a leaf and counts as an extremity: a head thicker than the trunk (a
+    /// mouse's, a child's, a cartoon's) is the end of a branch like any other. Nothing changes on a path (no
+    /// junction), an inner root, or a thick end that is the body itself (the junction's ball holds its centre).
+    /// Balls apart was asked before 2026-12-08: a crouching boy's big head, its ball reaching into the
+    /// shoulders', stayed the root and no extremity, and his right hand was read as the head.
     void root_off_an_end();
     /// When the kept nodes form a path, reroots it at its thicker end (its bones then run outward from there).
     void root_path_at_thicker_end();
