@@ -12,7 +12,7 @@ import numpy as np
 import volrig
 
 from . import objects, scans
-from .ops_base import _reported
+from .ops_base import _reported, draw_wrapped
 
 #: The markers the panel asks for first, in this order: with them the plan and every limb come out right.
 # ---- What this feature stores: its part of Object.volrig (properties.VolrigObject joins the parts) ------------------
@@ -221,7 +221,7 @@ class VOLRIG_OT_clear_markers(_OnTarget, bpy.types.Operator):
         return {"FINISHED"}
 
 
-def draw(layout, vol) -> None:
+def draw(layout, vol, context=None) -> None:
     """The Rig and Mesh panels' Markers box: the name to place, Place and Clear, what is placed and what is missing."""
     box = layout.box()
     placed = markers_of(vol)
@@ -234,9 +234,9 @@ def draw(layout, vol) -> None:
     row.operator("volrig.place_marker", text="Place", icon="RESTRICT_SELECT_OFF")
     left = missing(vol)
     if placed and left:
-        box.label(text="missing: " + ", ".join(left), icon="INFO")
+        draw_wrapped(box, "missing: " + ", ".join(left), context, icon="INFO")
     elif not placed:
-        box.label(text="optional: chin, wrists, groin, knees", icon="INFO")  # fits the sidebar
+        draw_wrapped(box, "optional: chin, wrists, groin, knees", context, icon="INFO")
 
 
 CLASSES = (VOLRIG_OT_place_marker, VOLRIG_OT_clear_markers)

@@ -33,7 +33,7 @@ from volrig.skin import MESH_VOXELS, SKIN_BLEND, thickness_offsets
 
 from . import drawing, objects
 from . import markers as marker_ui
-from .ops_base import _draw_found, _found_level, _reported
+from .ops_base import _draw_found, _found_level, _reported, draw_wrapped
 
 MODIFIER = "volrig"
 THICKNESS = objects.THICKNESS
@@ -409,7 +409,7 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         obj = _target(context)
-        marker_ui.draw(layout, obj)
+        marker_ui.draw(layout, obj, context)
         layout.operator(VOLRIG_OT_rig_mesh.bl_idname, icon="ARMATURE_DATA")
         arm = armature_of(obj)
         if arm is None:
@@ -428,7 +428,7 @@ class VOLRIG_PT_mesh(bpy.types.Panel):
         if pb is not None and THICKNESS in pb:
             layout.prop(pb, f'["{THICKNESS}"]', text=f"{pb.name} thickness", slider=True)
         else:
-            layout.label(text="Select a bone: its thickness shows here", icon="BLANK1")
+            draw_wrapped(layout, "Select a bone: its thickness shows here", context, icon="BLANK1")
 
 
 CLASSES = (VOLRIG_OT_rig_mesh, VOLRIG_OT_thickness_keys, VOLRIG_PT_mesh)

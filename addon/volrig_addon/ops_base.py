@@ -146,6 +146,16 @@ def sidebar_chars(context) -> int:
     return max(16, int((region.width - 50 * scale) / (6.5 * scale)))
 
 
+def draw_wrapped(layout, text: str, context=None, icon: str = "NONE") -> None:
+    """A label wrapped at words to the sidebar's width (sidebar_chars; whole when `context` is None), its icon on
+    the first line: the sidebar cuts a longer label off mid-word."""
+    chars = sidebar_chars(context) if context is not None else 0
+    lines = textwrap.wrap(text, chars, break_long_words=False) if chars > 0 else [text]
+    col = layout.column(align=True)
+    for k, line in enumerate(lines):
+        col.label(text=line, icon=icon if k == 0 else "BLANK1")
+
+
 def _draw_found(layout, found: str, context=None) -> None:
     """found_lines drawn in a column, wrapped to the sidebar's width when `context` is given."""
     col = layout.column(align=True)

@@ -194,7 +194,7 @@ class VOLRIG_PT_rig(_VolrigPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.prop(s, "rigid_low")
             row.prop(s, "rigid_high")
-        markers.draw(layout, vol)
+        markers.draw(layout, vol, context)
         row = layout.row(align=True)
         row.operator("volrig.rig", icon="ARMATURE_DATA")
         row.operator("volrig.rebind", icon="FILE_REFRESH")

@@ -322,3 +322,36 @@ def test_a_rigs_note_is_wrapped_to_the_sidebar_so_none_of_it_is_cut_off():
 
     chars = sidebar_chars(Context())
     assert 16 <= chars <= 45
+
+
+def test_the_panels_hints_are_wrapped_to_the_sidebar_so_none_of_it_is_cut_off():
+    """The Markers box's hint ("optional: chin, wrists, groin, knees", "missing: ...") and the Mesh panel's
+    "Select a bone: its thickness shows here" are drawn by draw_wrapped, at words to the sidebar's width: Blender
+    3.4's sidebar showed "optional: c...groin, knees". Whole without a region (in the background)."""
+    from volrig_addon.ops_base import draw_wrapped
+
+    class Layout:
+        def __init__(self):
+            self.labels = []
+
+        def column(self, align=False):
+            return self
+
+        def label(self, text="", icon="NONE"):
+            self.labels.append((text, icon))
+
+    class Region:
+        width = 200
+
+    class Context:
+        region = Region()
+        preferences = bpy.context.preferences
+
+    hint = "optional: chin, wrists, groin, knees"
+    narrow, whole = Layout(), Layout()
+    draw_wrapped(narrow, hint, Context(), icon="INFO")
+    draw_wrapped(whole, hint, None, icon="INFO")
+    assert whole.labels == [(hint, "INFO")]
+    assert len(narrow.labels) >= 2 and all(len(t) <= 23 for t, _ in narrow.labels)
+    assert " ".join(t for t, _ in narrow.labels) == hint  # every word, in order
+    assert [i for _, i in narrow.labels] == ["INFO"] + ["BLANK1"] * (len(narrow.labels) - 1)
