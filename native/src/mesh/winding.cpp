@@ -12,14 +12,19 @@
 //     4 pi w_c ~= N . r / |r|^3 + tr(M) / |r|^3 - 3 r^T M r / |r|^5 + 1/2 T : H(r),        r = p - q,
 // with N = sum a_i (a_i: area vector, half the cross product of two edges), M = sum a_i (c_i - p)^T (c_i: the
 // triangle's centroid), T = sum n_i (x) (integral over the triangle of (x - p)(x - p)^T) and H the kernel's
-// Hessian (terms up to the second moments, Barill et al.'s order 2); nearer clusters are opened, and the triangles of leaves are summed exactly with Van
-// Oosterom and Strackee's formula tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|).
+// Hessian (terms up to the second moments, Barill et al.'s order 2); nearer clusters are opened, and the triangles
+// of leaves are summed exactly with Van Oosterom and Strackee's formula
+//     tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|),
+// the half angles of a query's leaf triangles summed as the argument of their product (mesh_detail::AngleSum, one
+// atan2 a query rather than one a triangle: atan2 was a quarter of a winding-number voxelization).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
+#include "mesh/angle_sum.hpp"
 #include "volrig/mesh.hpp"
 
 namespace volrig {
@@ -40,13 +45,19 @@ inline double norm(const V3& a) { return std::sqrt(dot(a, a)); }
 
 constexpr double kFourPi = 4.0 * M_PI;
 
-/// The signed solid angle triangle (A, B, C) subtends at q (positive when q is behind the triangle, i.e. on the
-/// side opposite to (B - A) x (C - A)).
-inline double solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
+/// Half the signed solid angle triangle (A, B, C) subtends at q (positive when q is behind the triangle, i.e. on the
+/// side opposite to (B - A) x (C - A)) is atan2(num, den) of this pair (num, den).
+inline std::pair<double, double> half_solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
     const V3 a = A - q, b = B - q, c = C - q;
     const double la = norm(a), lb = norm(b), lc = norm(c);
     const double num = dot(a, cross(b, c));
     const double den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+    return {num, den};
+}
+
+/// The signed solid angle triangle (A, B, C) subtends at q (the exact sum's terms).
+inline double solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
+    const auto [num, den] = half_solid_angle(A, B, C, q);
     return 2.0 * std::atan2(num, den);
 }
 
@@ -224,6 +235,7 @@ struct WindingNumber::Impl {
         int top = 0;
         stack[top++] = 0;
         double sum = 0;
+        mesh_detail::AngleSum near;  // the leaves' triangles: half their solid angles, one atan2 in all
         while (top > 0) {
             const std::uint32_t i = stack[--top];
             const Hot& n = hot[i];
@@ -233,13 +245,13 @@ struct WindingNumber::Impl {
                 sum += far_field(far[i], r, d2);
             } else if (n.count > 0) {
                 for (std::uint32_t k = n.first; k < n.first + n.count; ++k)
-                    sum += solid_angle(tris[k].a, tris[k].b, tris[k].c, q);
+                    near.add(half_solid_angle(tris[k].a, tris[k].b, tris[k].c, q));
             } else {
                 stack[top++] = n.first;
                 stack[top++] = i + 1;
             }
         }
-        return sum / kFourPi;
+        return (sum + 2.0 * near.total()) / kFourPi;
     }
 
     double exact(const V3& q) const {
