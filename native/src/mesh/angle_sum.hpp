@@ -13,8 +13,9 @@ namespace volrig::mesh_detail {
 /// turns are counted), so the next factor (less than pi/2 from the axis) can never carry it across the negative
 /// real axis, where atan2's branch cut is; and its size is kept within 2^-400..2^400 by exact powers of two, so
 /// with factors of size 2^-200..2^200 it cannot overflow or underflow. Any other pair (x <= 0, including atan2's
-/// signed-zero cases, or a size outside that range) gets its own atan2, exactly as summed one by one. total() adds the product's own argument (one atan2) and the turns. The result
-/// equals the sum of the atan2s up to rounding (about 1e-16 per term, as summing the atan2s has).
+/// signed-zero cases, or a size outside that range) gets its own atan2, exactly as summed one by one. total()
+/// adds the product's own argument (one atan2) and the turns. The result equals the sum of the atan2s up to
+/// rounding (about 1e-16 per term, as summing the atan2s has).
 class AngleSum {
 public:
     void add(double y, double x) {
