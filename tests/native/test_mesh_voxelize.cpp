@@ -1,5 +1,6 @@
 // Tests for volrig/mesh.hpp's voxelize: against analytic volumes and voxel-by-voxel geometry, hole closing,
-// orientation, progress and bad arguments.
+// orientation, progress and bad arguments; its triangles' distance tree (mesh/triangle_tree.hpp) against every
+// triangle tried.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <unistd.h>
 #include <vector>
 
+#include "mesh/triangle_tree.hpp"
 #include "volrig/mesh.hpp"
 
 #include "mesh_fixture.hpp"
@@ -246,4 +248,45 @@ TEST_CASE("voxelize: bad arguments and absurd grids are refused", "[mesh][voxeli
     open.triangles = {{0, 1, 2}};
     expect_error<Error>([&] { voxelize(open, 0.1); }, {"encloses no voxel centre at voxel size 0.1"});
     expect_error<Error>([&] { voxelize(QuadBox({0, 0, 0}, {0.01, 0.01, 0.01}).mesh(), 0.1); }, {"encloses no voxel"});
+}
+
+TEST_CASE("voxelize's triangle tree: the nearest distance and any_within exactly as trying every triangle",
+          "[mesh][voxelize]") {
+    // The tree passes over a leaf's triangles whose planes lie beyond the bound; its answers must be those of the
+    // brute force bit for bit (the same closest points, the least of them), at and near the surface, at vertices
+    // and on edges, with and without a bound that cuts the search short.
+    Mesh m = icosphere(2);  // with an overlapping box: curved and flat parts, coplanar neighbours
+    const Mesh box = rotated(QuadBox({0, 0, 0}, {1, 1, 1}).mesh(), 0.3, 0.2, 0.1, {0.2, 0.1, 0.0});
+    const auto first = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.insert(m.vertices.end(), box.vertices.begin(), box.vertices.end());
+    for (auto t : box.triangles) m.triangles.push_back({t[0] + first, t[1] + first, t[2] + first});
+    std::vector<openvdb::Vec3d> points;
+    for (const auto& v : m.vertices) points.emplace_back(v[0] * 20, v[1] * 20, v[2] * 20);  // about voxel units
+    const mesh_detail::TriangleTree tree(points, m.triangles);
+    const auto brute = [&](const openvdb::Vec3d& p) {
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& t : m.triangles) {
+            openvdb::Vec3d uvw;
+            const openvdb::Vec3d q = openvdb::math::closestPointOnTriangleToPoint(points[t[0]], points[t[1]],
+                                                                                 points[t[2]], p, uvw);
+            best = std::min(best, (q - p).lengthSqr());
+        }
+        return best;
+    };
+    std::mt19937 rng(25);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), step(0.0, 3.0);
+    std::vector<openvdb::Vec3d> queries;
+    for (std::size_t k = 0; k < 400; ++k) {
+        const openvdb::Vec3d& v = points[(k * 7919) % points.size()];
+        queries.push_back(k % 4 == 0 ? v : v + openvdb::Vec3d(u(rng), u(rng), u(rng)) * step(rng));
+        if (k % 8 == 1) queries.back() = (v + points[(k * 7919 + 1) % points.size()]) * 0.5;
+    }
+    for (const auto& p : queries) {
+        const double want2 = brute(p);
+        for (double bound : {0.5, 1.5, 4.0, 1e9}) {
+            const double got = tree.nearest(p, bound);
+            CHECK(got == (want2 < bound * bound ? std::sqrt(want2) : bound));
+            CHECK(tree.any_within(p, bound) == (want2 < bound * bound));
+        }
+    }
 }

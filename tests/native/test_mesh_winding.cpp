@@ -1,6 +1,7 @@
 // Tests for volrig/mesh.hpp's generalized winding number (WindingNumber, is_closed) and voxelize's Winding and Auto
 // methods: exact values on closed surfaces, the fast evaluation against the brute-force sum, open boxes, soups of
-// overlapping parts, reversed orientation, and Auto giving Flood's mask bit for bit on closed meshes.
+// overlapping parts, reversed orientation, and Auto giving Flood's mask bit for bit on closed meshes; the near
+// field's angles summed as one product's argument (mesh_detail::AngleSum) against their atan2s summed.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "mesh/angle_sum.hpp"
 #include "volrig/mesh.hpp"
 
 #include "mesh_fixture.hpp"
@@ -319,5 +321,55 @@ TEST_CASE("voxelize, auto: on open meshes exactly the union of the flood's and t
             CHECK(wrong == 0);
             CHECK(only_winding > 0);  // the union is not one method's mask: both parts are exercised
         }
+    }
+}
+
+TEST_CASE("winding number: the leaves' half solid angles summed as one product's argument equal their atan2s summed",
+          "[mesh][winding]") {
+    // mesh_detail::AngleSum (the exact near-field sums of WindingNumber's fast evaluation): one atan2 in all.
+    std::mt19937 rng(53);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const auto check = [](const std::vector<std::pair<double, double>>& pairs) {
+        mesh_detail::AngleSum sum;
+        double want = 0;
+        for (const auto& [y, x] : pairs) {
+            sum.add(y, x);
+            want += std::atan2(y, x);
+        }
+        CHECK(std::abs(sum.total() - want) <= 1e-13 * static_cast<double>(pairs.size() + 1));
+    };
+    for (int round = 0; round < 2000; ++round) {  // random pairs of every quadrant and size, up to 300 terms
+        std::vector<std::pair<double, double>> pairs(static_cast<std::size_t>(1 + round % 300));
+        const double scale = std::ldexp(1.0, round % 61 - 30);
+        for (auto& p : pairs) p = {scale * u(rng), scale * u(rng)};
+        check(pairs);
+    }
+    // Angles just under pi/2, all one way: the product turns round many times (each term near the branch cut of
+    // the next); atan2's signed zeros, zero x, and sizes beyond 2^200 or under 2^-200 on their own.
+    check(std::vector<std::pair<double, double>>(200, {1.0, 1e-9}));
+    check(std::vector<std::pair<double, double>>(200, {-1.0, 1e-12}));
+    check({{0.0, -1.0}, {-0.0, -1.0}, {0.0, 0.0}, {-0.0, -0.0}, {1.0, 0.0}, {-1.0, -0.0}, {2.0, 3.0}});
+    check({{1e70, 1e70}, {1e-70, 3e-70}, {1.0, 1e300}, {1e-300, 1e-300}, {0.5, 0.5}});
+    std::vector<std::pair<double, double>> big(100, {3e150, 4e150}), tiny(100, {-3e-150, 4e-150});
+    check(big);
+    check(tiny);
+}
+
+TEST_CASE("winding number: the fast sum against the exact one next to the surface of a fine sphere",
+          "[mesh][winding]") {
+    // Queries a thirtieth to a third of a triangle away from the surface, inside and outside: the near field's
+    // triangles subtend large angles there (x <= 0 among them), their sum about 2 pi inside.
+    const Mesh m = icosphere(4);  // 5,120 triangles about 0.066 across, sunk up to 0.0008 below the sphere
+    const WindingNumber wn(m);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), d(0.002, 0.02);
+    for (int k = 0; k < 300; ++k) {
+        Vec3 p{u(rng), u(rng), u(rng)};
+        const double len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        const double r = 1.0 + (k % 2 ? d(rng) : -d(rng));
+        for (double& c : p) c *= r / len;
+        const double fast = wn(p), exact = wn.exact(p);
+        CHECK(std::abs(fast - exact) < 1e-2);  // the far field's own error, up to 0.004 here
+        CHECK((fast >= 0.5) == (k % 2 == 0));
     }
 }

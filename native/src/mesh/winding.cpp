@@ -12,14 +12,24 @@
 //     4 pi w_c ~= N . r / |r|^3 + tr(M) / |r|^3 - 3 r^T M r / |r|^5 + 1/2 T : H(r),        r = p - q,
 // with N = sum a_i (a_i: area vector, half the cross product of two edges), M = sum a_i (c_i - p)^T (c_i: the
 // triangle's centroid), T = sum n_i (x) (integral over the triangle of (x - p)(x - p)^T) and H the kernel's
-// Hessian (terms up to the second moments, Barill et al.'s order 2); nearer clusters are opened, and the triangles of leaves are summed exactly with Van
-// Oosterom and Strackee's formula tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|).
+// Hessian (terms up to the second moments, Barill et al.'s order 2); nearer clusters are opened, and the triangles
+// of leaves are summed exactly with Van Oosterom and Strackee's formula
+//     tan(Omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|),
+// the half angles of a query's leaf triangles summed as the argument of their product (mesh_detail::AngleSum, one
+// atan2 a query rather than one a triangle: atan2 was a quarter of a winding-number voxelization).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+#include "mesh/angle_sum.hpp"
 #include "volrig/mesh.hpp"
 
 namespace volrig {
@@ -40,13 +50,52 @@ inline double norm(const V3& a) { return std::sqrt(dot(a, a)); }
 
 constexpr double kFourPi = 4.0 * M_PI;
 
-/// The signed solid angle triangle (A, B, C) subtends at q (positive when q is behind the triangle, i.e. on the
-/// side opposite to (B - A) x (C - A)).
-inline double solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
+/// Half the signed solid angle triangle (A, B, C) subtends at q (positive when q is behind the triangle, i.e. on the
+/// side opposite to (B - A) x (C - A)) is atan2(num, den) of this pair (num, den).
+inline std::pair<double, double> half_solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
     const V3 a = A - q, b = B - q, c = C - q;
     const double la = norm(a), lb = norm(b), lc = norm(c);
     const double num = dot(a, cross(b, c));
     const double den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+    return {num, den};
+}
+
+#if defined(__SSE2__)
+/// The triangles' corners by coordinate (corner[3 v + axis][k]: triangle k's corner v), for half_solid_angles.
+using Corners = std::array<std::vector<double>, 9>;
+
+/// half_solid_angle of triangles k and k + 1 at once (SSE2: the same operations in the same order, so the same
+/// numbers), added to `angles` in that order.
+inline void add_half_solid_angles(const Corners& t, std::uint32_t k, const V3& q, mesh_detail::AngleSum& angles) {
+    const auto at = [&t, k](std::size_t i, double qi) {
+        return _mm_sub_pd(_mm_loadu_pd(t[i].data() + k), _mm_set1_pd(qi));
+    };
+    const __m128d ax = at(0, q.x), ay = at(1, q.y), az = at(2, q.z), bx = at(3, q.x), by = at(4, q.y),
+                  bz = at(5, q.z), cx = at(6, q.x), cy = at(7, q.y), cz = at(8, q.z);
+    const auto mul = [](__m128d a, __m128d b) { return _mm_mul_pd(a, b); };
+    const auto add = [](__m128d a, __m128d b) { return _mm_add_pd(a, b); };
+    const auto dot = [&](__m128d x0, __m128d y0, __m128d z0, __m128d x1, __m128d y1, __m128d z1) {
+        return add(add(mul(x0, x1), mul(y0, y1)), mul(z0, z1));
+    };
+    const __m128d la = _mm_sqrt_pd(dot(ax, ay, az, ax, ay, az)), lb = _mm_sqrt_pd(dot(bx, by, bz, bx, by, bz)),
+                  lc = _mm_sqrt_pd(dot(cx, cy, cz, cx, cy, cz));
+    const __m128d ex = _mm_sub_pd(mul(by, cz), mul(bz, cy)), ey = _mm_sub_pd(mul(bz, cx), mul(bx, cz)),
+                  ez = _mm_sub_pd(mul(bx, cy), mul(by, cx));
+    const __m128d num = dot(ax, ay, az, ex, ey, ez);
+    const __m128d den = add(add(add(mul(mul(la, lb), lc), mul(dot(ax, ay, az, bx, by, bz), lc)),
+                                mul(dot(ax, ay, az, cx, cy, cz), lb)),
+                            mul(dot(bx, by, bz, cx, cy, cz), la));
+    double y[2], x[2];
+    _mm_storeu_pd(y, num);
+    _mm_storeu_pd(x, den);
+    angles.add(y[0], x[0]);
+    angles.add(y[1], x[1]);
+}
+#endif
+
+/// The signed solid angle triangle (A, B, C) subtends at q (the exact sum's terms).
+inline double solid_angle(const V3& A, const V3& B, const V3& C, const V3& q) {
+    const auto [num, den] = half_solid_angle(A, B, C, q);
     return 2.0 * std::atan2(num, den);
 }
 
@@ -82,6 +131,9 @@ struct WindingNumber::Impl {
         double n[3], trace_m, m[6], c[3], t[10];
     };
     std::vector<Tri> tris;  // in leaf order
+#if defined(__SSE2__)
+    Corners corners;  // the same, by coordinate
+#endif
     std::vector<Node> nodes;  // while building; then reduced to hot and far (same index) and freed
     std::vector<Hot> hot;
     std::vector<Far> far;
@@ -224,6 +276,7 @@ struct WindingNumber::Impl {
         int top = 0;
         stack[top++] = 0;
         double sum = 0;
+        mesh_detail::AngleSum near;  // the leaves' triangles: half their solid angles, one atan2 in all
         while (top > 0) {
             const std::uint32_t i = stack[--top];
             const Hot& n = hot[i];
@@ -232,14 +285,17 @@ struct WindingNumber::Impl {
             if (d2 > beta2 * n.radius2) {
                 sum += far_field(far[i], r, d2);
             } else if (n.count > 0) {
-                for (std::uint32_t k = n.first; k < n.first + n.count; ++k)
-                    sum += solid_angle(tris[k].a, tris[k].b, tris[k].c, q);
+                std::uint32_t k = n.first;
+#if defined(__SSE2__)
+                for (; k + 2 <= n.first + n.count; k += 2) add_half_solid_angles(corners, k, q, near);
+#endif
+                for (; k < n.first + n.count; ++k) near.add(half_solid_angle(tris[k].a, tris[k].b, tris[k].c, q));
             } else {
                 stack[top++] = n.first;
                 stack[top++] = i + 1;
             }
         }
-        return sum / kFourPi;
+        return (sum + 2.0 * near.total()) / kFourPi;
     }
 
     double exact(const V3& q) const {
@@ -272,6 +328,17 @@ WindingNumber::WindingNumber(const Mesh& mesh, double beta) : impl_(std::make_un
     impl_->nodes.reserve(4 * tris.size() / kLeafSize + 4);
     impl_->build(0, tris.size(), centroid);
     impl_->reduce();
+#if defined(__SSE2__)
+    for (std::size_t i = 0; i < 9; ++i) impl_->corners[i].resize(tris.size());
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+        const V3* v[3] = {&tris[k].a, &tris[k].b, &tris[k].c};
+        for (std::size_t c = 0; c < 3; ++c) {
+            impl_->corners[3 * c][k] = v[c]->x;
+            impl_->corners[3 * c + 1][k] = v[c]->y;
+            impl_->corners[3 * c + 2][k] = v[c]->z;
+        }
+    }
+#endif
     impl_->nodes.clear();
     impl_->nodes.shrink_to_fit();
 }
