@@ -85,6 +85,8 @@ public:
             for (const LimbJoint& lj : kLimbJoints) place(lj, sfx);
         for (const LimbJoint& lj : kLimbJoints)
             if (!lj.ball && along_of(lj.parent) > 0) mirror_length(lj);  // wrists and ankles
+        for (const LimbJoint& lj : kLimbJoints)
+            if (!lj.ball && along_of(lj.parent) > 0) seed_kept(lj);
         out_.bone_segment.assign(out_.rig.bones.size(), 0);
         for (std::size_t b = 0; b < out_.rig.bones.size(); ++b) out_.bone_segment[b] = segment_of(static_cast<int>(b));
         check_rig(out_.rig);
@@ -99,6 +101,8 @@ private:
     P3 head(int b) const { return out_.rig.joints[static_cast<std::size_t>(out_.rig.bones[b][0])]; }
     P3 tail(int b) const { return out_.rig.joints[static_cast<std::size_t>(out_.rig.bones[b][1])]; }
     double length(int b) const { return norm(sub(tail(b), head(b))); }
+    /// The window (mm) a joint is sought in: 0.3 of the shorter bone's `span`, 3 voxels to 60 mm (an adult's).
+    double window(double span) const { return std::clamp(0.3 * span, 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale)); }
 
     /// The segment the middle half of bone b runs through: the one with most voxels near that stretch.
     std::int32_t segment_of(int b) const { return segment_along(b, 0.25, 0.75); }
@@ -150,10 +154,11 @@ private:
 
     void place(const LimbJoint& lj, const std::string& sfx);
     void mirror_length(const LimbJoint& lj);
+    void seed_kept(const LimbJoint& lj);
     P3 axis_of(int b) const;
     std::optional<P3> bone_top(const BoneJoint& j, int pb, int cb, double along) const;
     bool place_in_section(BoneJoint& j, int pb, int cb, double w);
-    bool place_in_limb(BoneJoint& j, int pb, int cb, double along);
+    bool place_in_limb(BoneJoint& j, int pb, int cb, double along, bool seeded = false);
     bool hidden_in_parent(BoneJoint& j, int pb, int cb, double along);
     /// Whether the outer shape's joint between bones pb and cb lies further than kLimbBand from the share `along`
     /// the limb's proportions put it at (never when along is 0: no share known).
@@ -184,6 +189,9 @@ private:
         double length;
     };
     std::optional<ShaftHead> shaft_head(std::int32_t s, int db) const;
+    std::optional<P3> along_shaft(std::int32_t s, const P3& k, double expect) const;
+    std::optional<P3> distal_seed(const BoneJoint& j, int pb, int cb) const;
+    bool place_seeded(BoneJoint& j, int pb, int cb, double along, double w, bool last);
     std::optional<ShaftHead> seed_by_shaft(BoneJoint& j, int cb, int db, double w);
     /// A ball joint's limb hinge (the knee of a hip, the elbow of a shoulder), when placed.
     const BoneJoint* hinge_of(const std::string& name) const {
@@ -207,6 +215,7 @@ private:
         return it != seen.end() && it->second > 0;
     }
     bool fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& exclude, double w);
+    std::optional<P3> thickest(std::int32_t s, const P3& c, double w) const;
     void split(std::int32_t s, int cb, const P3& at, const P3& axis);
     void move(BoneJoint& j, int cb, const P3& to, const char* how);
 
@@ -229,15 +238,15 @@ void Fitter::place(const LimbJoint& lj, const std::string& sfx) {
     j.name = lj.name + sfx;
     j.from = j.to = head(cb);
     j.how = "kept";
-    const double span = pb >= 0 ? std::min(length(cb), length(pb)) : length(cb);
-    const double w = std::clamp(0.3 * span, 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
+    const double w = window(pb >= 0 ? std::min(length(cb), length(pb)) : length(cb));
     j.child_segment = segment_of(cb);
     // the parent's segment at the joint's end of it (a forearm parted mid-shaft where slices lie far apart: the
     // wrist's is the lower piece)
     j.parent_segment = pb >= 0 ? segment_along(pb, 0.5, 0.95) : 0;
     bool done = false;
     if (lj.ball) j.child_segment = hinge_segment(j.name, j.child_segment);
-    if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
+    if (!lj.ball && lj.along > 0 && j.parent_segment > 0 && place_seeded(j, pb, cb, lj.along, w, false)) done = true;
+    else if (lj.ball && j.child_segment == 0) j.why = "no bone segment along " + out_.rig.names[cb];
     else if (lj.ball) done = place_ball(j, cb, *lj.distal ? bone(lj.distal + sfx) : -1, w);
     else if (j.parent_segment == 0) j.why = "no bone segment along " + out_.rig.names[pb];
     else if (j.parent_segment == j.child_segment) {  // near the outer shape's joint unless that is far off, and
@@ -263,7 +272,7 @@ constexpr double kTopSpan[2] = {0.5, 2.0};
 /// bone) from the joint; nothing otherwise.
 std::optional<P3> Fitter::bone_top(const BoneJoint& j, int pb, int cb, double along) const {
     if (along <= 0 || along >= 1 || placed_joint(out_.rig.bones[pb][0])) return std::nullopt;
-    const double w = std::clamp(0.3 * std::min(length(cb), length(pb)), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
+    const double w = window(std::min(length(cb), length(pb)));
     if (near_segment(j.child_segment, head(pb), w)) return std::nullopt;
     const SegmentEnds e = segment_ends(g_, members_[static_cast<std::size_t>(j.child_segment)]);
     if (!e.found) return std::nullopt;
@@ -332,6 +341,17 @@ void Fitter::mirror_length(const LimbJoint& lj) {
     move(*side[s], cb[s], at[s][l].centre, "section");
 }
 
+/// A wrist or an ankle still where the outer shape put it after the symmetry check: sought where its parent's
+/// shaft puts it (place_seeded, `last`: a raised hand whose bones do not reach the outer shape's wrist).
+void Fitter::seed_kept(const LimbJoint& lj) {
+    for (BoneJoint& j : out_.joints) {
+        const std::string sfx = j.name.substr(j.name.size() - 2);
+        const int pb = bone(lj.parent + sfx), cb = bone(lj.child + sfx);
+        if (j.name != lj.name + sfx || j.how != "kept" || j.parent_segment <= 0 || pb < 0 || cb < 0) continue;
+        place_seeded(j, pb, cb, lj.along, window(std::min(length(cb), length(pb))), true);
+    }
+}
+
 P3 Fitter::axis_of(int b) const { return unit(sub(tail(b), head(b))); }
 
 /// How thick a section's slabs are along `axis` on voxels of `spacing`: the largest of the spacing times the axis'
@@ -398,10 +418,14 @@ bool Fitter::hidden_in_parent(BoneJoint& j, int pb, int cb, double along) {
 /// lies 60 mm off, and its window's deepest valley 100 mm up the femur), while the limb's proportions hold for any
 /// adult's limb. Where the grid is the scan's own, a valley near a joint the outer shape placed well is the finer
 /// guide (on the 4 mm labels a talus fused with the tibia: its valley 1 mm from the ankle, the limb's bulge 28 mm).
-bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along) {
-    const std::optional<P3> far = bone_top(j, pb, cb, along);
+bool Fitter::place_in_limb(BoneJoint& j, int pb, int cb, double along, bool seeded) {
+    const std::optional<P3> far = seeded ? std::nullopt : bone_top(j, pb, cb, along);
     const P3 top = far ? *far : head(pb);
-    const Limb limb{top, head(cb), tail(cb), along - kLimbBand, along + kLimbBand};
+    // seeded (place_seeded): the limb runs straight on past the seed, which lies at the share `along` of it
+    const P3 d = sub(head(cb), top);
+    const double f = (1 - along) / along;
+    const P3 on = add(head(cb), {f * d[0], f * d[1], f * d[2]});
+    const Limb limb{top, head(cb), seeded ? on : tail(cb), along - kLimbBand, along + kLimbBand};
     const double length = norm(sub(limb.k, limb.a)) + norm(sub(limb.b, limb.k));
     const P3 mid = lerp(limb.a, limb.b, 0.5);
     const P3 axis = unit(add(unit(sub(limb.k, limb.a)), unit(sub(limb.b, limb.k))));  // splits upper from lower
@@ -540,19 +564,82 @@ double along_of(const std::string& child) {
 /// voxels within kShaftReach of its expected length of the hinge), at that length, the limb's proportions against
 /// the bone below (an upper arm 0.56 / 0.44 of the forearm, a thigh as long as the shin). The bone's far end is no
 /// guide: a humerus fused with the scapula at the voxel size ends at the spine.
-constexpr double kShaftReach = 0.6;
+constexpr double kShaftReach = 0.6, kShaftSlack = 0.25, kShaftWindow = 0.4;
+constexpr double kShaftAgree = 0.7071;  // cos 45 degrees: a distal seed's shaft against the outer shape's bone
 std::optional<Fitter::ShaftHead> Fitter::shaft_head(std::int32_t s, int db) const {
     const std::string distal = out_.rig.names[db];
     const double along = along_of(distal.substr(0, distal.size() - 2));
     if (along <= 0 || along >= 1) return std::nullopt;
-    const P3 k = head(db);
     const double expect = along / (1 - along) * length(db);
+    const std::optional<P3> at = along_shaft(s, head(db), expect);
+    return at ? std::optional<ShaftHead>(ShaftHead{*at, expect}) : std::nullopt;
+}
+
+/// Where the shaft of segment s puts the far end of a long bone from its hinge k: the principal axis of the
+/// segment's voxels within kShaftReach of `expect` (mm) of k, at `expect` on their side of k.
+std::optional<P3> Fitter::along_shaft(std::int32_t s, const P3& k, double expect) const {
     const Patch p = patch_of(g_, out_.segments.labels, s, k, kShaftReach * expect);
     if (p.pos.size() < 8) return std::nullopt;
     P3 c{0, 0, 0};
     const P3 axis = principal_axis(p.pos, c);
     const double sign = dot(sub(c, k), axis) >= 0 ? 1.0 : -1.0;
-    return ShaftHead{add(k, {sign * expect * axis[0], sign * expect * axis[1], sign * expect * axis[2]}), expect};
+    return add(k, {sign * expect * axis[0], sign * expect * axis[1], sign * expect * axis[2]});
+}
+
+/// Where a wrist or an ankle lies by its parent bone's shaft (shaft_head the other way): where the bones placed the
+/// elbow or knee and the shoulder or hip above it, the forearm or shin is expected at the limb's proportions against
+/// the bone above (0.44 / 0.56 of the upper arm, as long as the thigh), down the shaft of the segment the hinge found
+/// beyond it. Nothing where those joints are not the bones' or the shaft runs more than 45 degrees (kShaftAgree)
+/// off the outer shape's bone.
+std::optional<P3> Fitter::distal_seed(const BoneJoint& j, int pb, int cb) const {
+    const int up = out_.rig.parents[static_cast<std::size_t>(pb)];
+    if (up < 0 || !placed_joint(out_.rig.bones[up][0])) return std::nullopt;
+    const auto mid = std::find_if(out_.joints.begin(), out_.joints.end(),
+                                  [&](const BoneJoint& k) { return k.joint == out_.rig.bones[pb][0] && k.how != "kept"; });
+    if (mid == out_.joints.end()) return std::nullopt;
+    const std::string& name = out_.rig.names[pb];
+    const double share = along_of(name.substr(0, name.size() - 2));  // the elbow's or the knee's
+    if (share <= 0 || share >= 1) return std::nullopt;
+    const double expect = (1 - share) / share * length(up);
+    const std::int32_t s = mid->child_segment > 0 ? mid->child_segment : j.parent_segment;
+    const std::optional<P3> at = along_shaft(s, head(pb), expect);
+    // a shaft across the outer shape's bone is some other bone's (the segment holds more than the forearm or shin)
+    if (!at || dot(unit(sub(*at, head(pb))), unit(sub(head(cb), head(pb)))) < kShaftAgree) return std::nullopt;
+    return at;
+}
+
+/// A wrist or an ankle sought where its parent's shaft puts it (distal_seed): at the parent segment's contact nearest
+/// there when the outer shape's joint lies further than kShaftSlack of the expected length from it (a wrist out on
+/// the hand: the carpals' contact lay outside its window); also along the limb straight down the shaft (the seed at
+/// the proportions' share) when the outer joint lies kLimbRadius off the shaft's line (an ankle on the toes: the limb
+/// ran across the foot) or nothing else placed it (`last`). Else it stays: the seed is the proportions', not the bones'.
+bool Fitter::place_seeded(BoneJoint& j, int pb, int cb, double along, double w, bool last) {
+    const std::optional<P3> seed = distal_seed(j, pb, cb);
+    if (!seed) return false;
+    const P3 k = head(pb), o = head(cb);
+    const bool far = norm(sub(o, *seed)) > kShaftSlack * norm(sub(*seed, k));
+    const P3 d = unit(sub(*seed, k)), v = sub(o, k);
+    const double t = dot(v, d);
+    const bool off_line = norm(sub(v, {t * d[0], t * d[1], t * d[2]})) > kLimbRadius * p_.scale;
+    if (!last && !far && !off_line) return false;
+    const BoneJoint before = j;
+    const std::int64_t point = out_.rig.joint_points.empty() ? -1 : out_.rig.joint_points[static_cast<std::size_t>(j.joint)];
+    move(j, cb, *seed, "seed");
+    j.child_segment = segment_of(cb);
+    j.parent_segment = segment_along(pb, 0.5, 0.95);
+    bool done = j.parent_segment > 0 && j.parent_segment != j.child_segment && place_hinge(j, pb, cb, w);
+    if (!done && (last || off_line) && j.parent_segment > 0) {
+        j.child_segment = j.parent_segment;
+        done = place_in_limb(j, pb, cb, along, true);
+    }
+    if (done) {
+        j.why.clear();
+        return true;
+    }
+    move(j, cb, before.to, before.how.c_str());
+    j = before;
+    if (!out_.rig.joint_points.empty()) out_.rig.joint_points[static_cast<std::size_t>(j.joint)] = point;
+    return false;
 }
 
 /// A head the outer shape put off its long bone altogether (a raised arm's shoulder out on the arm, where the arm's
@@ -560,7 +647,6 @@ std::optional<Fitter::ShaftHead> Fitter::shaft_head(std::int32_t s, int db) cons
 /// expected length from there (a hip high on the flank of legs held apart) is sought from where it is. Either way
 /// its head is then sought within kShaftWindow of that length, not just near the outer shape's joint. Returns where
 /// the shaft puts the head, or nothing when the outer shape's joint lies there.
-constexpr double kShaftSlack = 0.25, kShaftWindow = 0.4;
 std::optional<Fitter::ShaftHead> Fitter::seed_by_shaft(BoneJoint& j, int cb, int db, double w) {
     const auto e = shaft_head(j.child_segment, db);
     if (!e) return std::nullopt;
@@ -576,7 +662,7 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
                                              mirror_segment(cb)};
     bool seeded = db >= 0 && seed_ball(j, cb, db);
     std::optional<ShaftHead> shaft;
-    if (seeded) w = std::clamp(0.3 * norm(sub(head(cb), head(db))), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));  // the long bone's length
+    if (seeded) w = window(norm(sub(head(cb), head(db))));  // the long bone's length
     else if (db >= 0 && (shaft = seed_by_shaft(j, cb, db, w)))
         w = std::max(w, kShaftWindow * shaft->length), seeded = true;
     if (!fit_ball(j, cb, exclude, w)) return false;
@@ -587,7 +673,7 @@ bool Fitter::place_ball(BoneJoint& j, int cb, int db, double w) {
     // shape's joint was near the shaft's head or not: a socket found near it may still be the wrong joint.
     if (!shaft && db >= 0 && !seeded) shaft = shaft_head(j.child_segment, db);
     if (shaft && norm(sub(head(cb), shaft->at)) > kShaftSlack * shaft->length) {
-        const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, shaft->at, w);
+        const auto c = thickest(j.child_segment, shaft->at, w);
         if (!c) return false;
         j.parent_segment = 0;
         move(j, cb, *c, "thickest");
@@ -602,7 +688,7 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
     const Patch own = patch_of(g_, out_.segments.labels, j.child_segment, at, w);
     j.parent_segment = socket_of(j.child_segment, exclude, at, w, own);
     if (j.parent_segment == 0) {  // the head fused with its socket at this voxel size: its thickest bone
-        const auto c = thickest_point(g_, out_.segments.labels, j.child_segment, at, w);
+        const auto c = thickest(j.child_segment, at, w);
         if (c) move(j, cb, *c, "thickest");
         else j.why = "no bone of segment " + std::to_string(j.child_segment) + " near the joint";
         return c.has_value();
@@ -620,9 +706,26 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
     return true;
 }
 
+/// The thickest bone of segment s near c (thickest_point within w), climbed where it lies in the outer half of the
+/// window (thicker bone may lie past the window's edge): sought again around what it found while that moves by more
+/// than a voxel (at most kClimbSteps times), so that a head a window away from the outer shape's joint is reached (a
+/// hip put 92 mm low, whose window held the femur's neck at most). One in the inner half is a local thickest at the
+/// window's scale, and stays (climbing from there took a head fused with its socket to the fused mass, 21 mm off).
+constexpr int kClimbSteps = 4;
+std::optional<P3> Fitter::thickest(std::int32_t s, const P3& c, double w) const {
+    std::optional<P3> at = thickest_point(g_, out_.segments.labels, s, c, w);
+    if (!at || norm(sub(*at, c)) <= 0.5 * w) return at;
+    for (int step = 0; step < kClimbSteps; ++step) {
+        const std::optional<P3> next = thickest_point(g_, out_.segments.labels, s, *at, w);
+        if (!next || norm(sub(*next, *at)) <= cell_) break;
+        at = next;
+    }
+    return at;
+}
+
 /// Voxels of segment s beyond the plane (at, axis) and near bone cb become a new segment.
 void Fitter::split(std::int32_t s, int cb, const P3& at, const P3& axis) {
-    const double r = std::clamp(0.3 * length(cb), 3 * cell_, std::max(3 * cell_, 60.0 * p_.scale));
+    const double r = window(length(cb));
     // the child bone and the bones below it (a shin and its foot: a foot fused with the tibia goes with it)
     std::vector<int> below{cb};
     for (std::size_t k = 0; k < below.size(); ++k)
