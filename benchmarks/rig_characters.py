@@ -54,7 +54,7 @@ def reference_markers(joints, bones, up):
     leaves farthest out across the body among the rest (a hand's fingers: the one farthest out). Knee: the joint
     of the left leg's chain nearest half-way from the legs' fork to the foot; wrist: where the hand's fingers
     branch (_wrist); chin: the head leaf's parent; groin: the legs' fork. Up is the given one when the skeleton
-    stands along it (_stands_along), else the first axis it stands along: a user clicks the chin on the chin even
+    stands along it (_standing), else the first axis it stands along: a user clicks the chin on the chin even
     when the file's up is wrong (the AXL cartoon 37e2c lies along +z, its index says +y). None when the skeleton
     has fewer than five leaves or stands along no axis."""
     J = np.asarray(joints, float)
@@ -64,12 +64,11 @@ def reference_markers(joints, bones, up):
         return None
     given = np.asarray(up, float) / np.linalg.norm(up)
     axes = [given] + [s * e for e in np.eye(3) for s in (1, -1) if abs(e @ given) < 0.5]
-    up = next((a for a in axes if _stands_along(J, parent, leaves, a)), None)
-    if up is None:
+    body = next((b for b in (_standing(J, parent, leaves, a) for a in axes) if b is not None), None)
+    if body is None:
         return None
-    feet, head, hands, across, side = _extremities(J, leaves, up)
+    feet, head, hands, across, side, fork = body
     paths = {j: _path_to_root(parent, j) for j in feet + hands + [head]}
-    fork = next(k for k in paths[feet[0]] if k in paths[feet[1]])
     leg = paths[feet[0]][:paths[feet[0]].index(fork) + 1][::-1]  # fork .. foot
     arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(J[leg], axis=0), axis=1))])
     knee = leg[int(np.argmin(np.abs(arc - 0.5 * arc[-1])))]
@@ -79,29 +78,25 @@ def reference_markers(joints, bones, up):
     return {"chin": J[chin], names[0]: J[wrists[0]], names[1]: J[wrists[1]], "groin": J[fork], "knee.L": J[knee]}
 
 
-def _extremities(J, leaves, up):
-    """The feet (two lowest leaves along up), the head (highest), the hands (farthest out across the body among
-    the rest), the joints' offsets across up and the body's widest direction across it."""
+def _standing(J, parent, leaves, up):
+    """The skeleton read standing along up, or None when it does not: the feet (two lowest leaves along up), the
+    head (highest), the hands (farthest out across the body among the rest), the joints' offsets across up, the
+    body's widest direction across it, and the legs' fork. It stands when both legs reach down a quarter of its
+    height from their fork and the head is above the fork: read along a wrong axis a T-pose's "feet" are two fingers
+    of one hand, forking in the palm."""
     h = J @ up
     by_height = sorted(leaves, key=lambda j: h[j])
     feet, head = by_height[:2], by_height[-1]
+    paths = [_path_to_root(parent, f) for f in feet]
+    fork = next(k for k in paths[0] if k in paths[1])
+    if min(h[fork] - h[f] for f in feet) < 0.25 * (h.max() - h.min()) or h[head] <= h[fork]:
+        return None
     centre = J.mean(0)
     across = J - centre - np.outer(J @ up - centre @ up, up)
     rest = [j for j in leaves if j not in feet and j != head]
     side = np.linalg.svd(across[rest] - across[rest].mean(0))[2][0]  # the body's widest direction across up
     hands = [max(rest, key=lambda j: across[j] @ side), min(rest, key=lambda j: across[j] @ side)]
-    return feet, head, hands, across, side
-
-
-def _stands_along(J, parent, leaves, up):
-    """Whether a skeleton stands along up: both legs (the two lowest leaves, from where their paths fork) reach down
-    a quarter of its height, and the head is above the fork. Read along a wrong axis a T-pose's "feet" are two
-    fingers of one hand, forking in the palm."""
-    feet, head, _, _, _ = _extremities(J, leaves, up)
-    h = J @ up
-    paths = [_path_to_root(parent, f) for f in feet]
-    fork = next(k for k in paths[0] if k in paths[1])
-    return min(h[fork] - h[f] for f in feet) >= 0.25 * (h.max() - h.min()) and h[head] > h[fork]
+    return feet, head, hands, across, side, fork
 
 
 def _wrist(J, children, hand_path, head_path):

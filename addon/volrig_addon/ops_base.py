@@ -130,10 +130,14 @@ def found_lines(found: str, chars: int = 0) -> list:
     head, _, runner_up = head.partition(" (")
     lines = [(head, "INFO")] + ([(runner_up.rstrip(")"), "BLANK1")] if runner_up else [])
     for part in (p for p in note.split("; ") if p):
-        wrapped = textwrap.wrap(part, chars, break_long_words=False) if chars > 0 else [part]
-        icon = "ERROR" if _is_warning(part) else "BLANK1"
-        lines += [(text, icon if k == 0 else "BLANK1") for k, text in enumerate(wrapped)]
+        lines += wrapped_lines(part, chars, "ERROR" if _is_warning(part) else "BLANK1")
     return lines
+
+
+def wrapped_lines(text: str, chars: int, icon: str) -> list:
+    """`text` as (line, icon) pairs wrapped at words to `chars` characters (whole when 0), `icon` on the first line."""
+    lines = textwrap.wrap(text, chars, break_long_words=False) if chars > 0 else [text]
+    return [(line, icon if k == 0 else "BLANK1") for k, line in enumerate(lines)]
 
 
 def sidebar_chars(context) -> int:
@@ -149,11 +153,9 @@ def sidebar_chars(context) -> int:
 def draw_wrapped(layout, text: str, context=None, icon: str = "NONE") -> None:
     """A label wrapped at words to the sidebar's width (sidebar_chars; whole when `context` is None), its icon on
     the first line: the sidebar cuts a longer label off mid-word."""
-    chars = sidebar_chars(context) if context is not None else 0
-    lines = textwrap.wrap(text, chars, break_long_words=False) if chars > 0 else [text]
     col = layout.column(align=True)
-    for k, line in enumerate(lines):
-        col.label(text=line, icon=icon if k == 0 else "BLANK1")
+    for line, line_icon in wrapped_lines(text, sidebar_chars(context) if context is not None else 0, icon):
+        col.label(text=line, icon=line_icon)
 
 
 def _draw_found(layout, found: str, context=None) -> None:

@@ -85,7 +85,7 @@ void NodeTree::root_off_an_end() {
     std::uint32_t v = root_;
     while (children_[v].size() == 1) v = children_[v][0];
     if (v == root_ || children_[v].empty()) return;  // an inner root, or a path
-    if ((at(root_) - at(v)).norm() > radius(v)) reroot(v);  // the end's centre outside the junction's ball  // the end's ball clear of the junction's
+    if ((at(root_) - at(v)).norm() > radius(v)) reroot(v);  // the end's centre outside the junction's ball
 }
 
 void NodeTree::root_path_at_thicker_end() {
