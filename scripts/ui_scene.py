@@ -5,7 +5,8 @@ its left elbow bent and that forearm made thicker, in pose mode with the forearm
 UI_MESH=<path under the data root>: that mesh, rigged.
 UI_BAKE=1: every volrig panel closed but Bake. UI_CAPSULES=<pose>: a capsule humanoid
 (volrig_support.subjects.capsule_subject, e.g. wide; "bird": capsule_bird_subject) instead of the phantom.
-UI_MARKERS=1: four markers placed before Rig (the Markers box lists the missing ones)."""
+UI_MARKERS=1: four markers placed before Rig (the Markers box lists the missing ones); with UI_MESH, the character's
+five reference markers (benchmarks/rig_characters.py) before Rig Mesh."""
 import os, sys
 REPO = os.environ.get("REPO", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 WORK = os.environ.get("UI_WORK", "/tmp")
@@ -55,6 +56,18 @@ def markers(vol):
         bpy.ops.volrig.place_marker(location=tuple(vol.matrix_world @ Vector(tuple(map(float, p)))))
 
 
+def reference_markers_on(obj, path):
+    """UI_MARKERS=1 with UI_MESH: the five markers benchmarks/rig_characters.py takes from the character's reference
+    skeleton (chin, wrists, groin, left knee), placed on the mesh object before Rig Mesh (file +Y turned to +Z)."""
+    sys.path.insert(0, os.path.join(REPO, "benchmarks"))
+    from rig_characters import reference_markers
+    from volrig_support import characters
+    sub = characters.characters([os.path.basename(path).rsplit(".", 1)[0]])[0]
+    for name, p in reference_markers(*sub.reference, sub.up).items():
+        obj.volrig.marker_name = name
+        bpy.ops.volrig.place_marker(location=(float(p[0]), -float(p[2]), float(p[1])))
+
+
 def live_preview(vol):
     """The left forearm keyed from straight (frame 1) to bent (frame 20); frame 20 is not baked: the preview."""
     from volrig_addon.objects import members
@@ -75,6 +88,8 @@ def knight_scene(mesh: str = "1"):
     from volrig_addon import mesh_rig
     name = os.path.basename(path).split(".")[0][:20]
     mesh_rig.new_mesh_object(bpy.context, name, np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), f, smooth=True)
+    if os.environ.get("UI_MARKERS") and mesh != "1":
+        reference_markers_on(bpy.context.active_object, path)
     print("rig_mesh:", bpy.ops.volrig.rig_mesh(), flush=True)
     arm = bpy.context.active_object
     if mesh != "1":
