@@ -58,6 +58,40 @@ def test_capsule_quadruped_head_forward_and_tail_behind(tail, scale):
     assert not bad, f"tail {tail} at {scale}: " + "; ".join(bad)
 
 
+def _fan_tailed_dog(scale, radius=3.5, length=40.0, fan=18.0):
+    """The capsule dog without its tail, given a blunt tail (a cylinder ``radius`` thick, ``length`` long, up and
+    back from the rump) ending in a fan of feathers: a flat plate one voxel thick, widening from the tail's width to
+    2 x (radius + 0.7 fan) over ``fan``. Returns the mask, the tail's end (voxels) and its direction."""
+    s = S.capsule_quadruped_subject(0, scale)
+    m = np.pad(s.mask.array, ((0, int(30 * scale)), (0, int(50 * scale)), (0, 0)))  # room behind and above
+    shift = s.joints["hip.L"] / scale - np.array([9, 30, 40.0])  # figure units to the mask's (before scaling)
+    d = np.array([0, 37, 14]) / np.hypot(37, 14)
+    end = np.array([0, 30, 48.0]) + length * d
+    z, y, x = np.indices(m.shape).astype(float)
+    p = np.stack([x, y, z], -1) / scale - shift - end
+    along = p @ d
+    m |= (along >= -length) & (along <= 0) & (np.linalg.norm(p - along[..., None] * d, axis=-1) <= radius)
+    normal = np.cross(d, [1.0, 0, 0]) / np.linalg.norm(np.cross(d, [1.0, 0, 0]))
+    m |= (along >= 0) & (along <= fan) & (np.abs(p[..., 0]) <= radius + 0.7 * along) & (np.abs(p @ normal) * scale <= 0.6)
+    return volrig.Volume(m), (end + shift) * scale, d
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.5, 2.0])
+def test_a_tail_ending_in_a_fan_ends_where_the_fan_starts(scale):
+    """A tail ending in a flat fan (a bird's tail feathers, a fish's fin): the level-set tree runs along the sheet
+    and round its border, and the tail chain used to end at a corner of the fan (16 units to the side, 18 out). It
+    ends where the fan starts now, on the tail's line (extras.cpp, before_fringe)."""
+    vol, end, d = _fan_tailed_dog(scale)
+    pts = volrig.skeletonize(vol).top(15000)
+    rig = volrig.autorig(pts, volrig.skeleton_tree(pts, vol), vol, up=(0, 0, 1))
+    assert rig.kind == "quadruped"
+    tails = [b for b, n in zip(rig.bones, rig.names) if n.startswith("tail")]
+    assert len(tails) >= 2
+    off = (np.asarray(rig.joints)[tails[-1][1]] - end) / scale
+    assert abs(off[0]) < 2.0, f"the tail ends {off[0]:.1f} units to the side of its line"
+    assert -5.0 < off @ d < 5.0, f"the tail ends {off @ d:.1f} units along from the fan's start"
+
+
 @pytest.mark.parametrize("scale, up", [(1.0, (0, 0, 1)), (1.0, None), (0.7, (0, 0, 1))])
 def test_capsule_bird_is_winged(scale, up):
     """A bird of capsules (volrig_support.subjects.capsule_bird_subject; no subject the plan weights were fitted

@@ -53,6 +53,36 @@ std::vector<std::uint32_t> path_to_held(const NodeTree& t, const RigBuilder& b, 
     return best;
 }
 
+/// A fringe (before_fringe): nodes this many times thinner than the part's core...
+constexpr double kFringeThinner = 3.0;
+/// ...after the core has reached this many of its radii out of the body (a part, not a bump)...
+constexpr double kFringeCoreReach = 2.0;
+/// ...and flat: the median of their cross-sections' width over thickness (NodeTree::sheet; a round part 1-1.5).
+constexpr double kFringeFlat = 2.0;
+
+/// A part's path without the fringe at its end: where a part ends in a sheet a voxel or two thick (a bird's fan of
+/// tail feathers, a fin, a fluke, a flat ear), the level-set tree runs along the sheet's middle or round its border
+/// to a corner, nodes a few times thinner than the part's core, and out_to_farthest then ends the chain at that
+/// corner. The path ends at its last core node instead, where the sheet starts (the rig's end joint then goes on to
+/// the surface along the part, RigBuilder::finish). The core counts from where the part leaves the body's ball. On
+/// the shared characters (2026-12-08) it moved only such ends: a bird's and a dragon's fanned tails, a dog's tail.
+std::vector<std::uint32_t> before_fringe(const NodeTree& t, std::vector<std::uint32_t> path) {
+    double core = 0;
+    for (std::size_t k = 1; k + 1 < path.size(); ++k) {
+        const double out = (t.at(path[k]) - t.at(path[0])).norm();
+        if (out <= t.radius(path[0])) continue;  // still in the body
+        core = std::max(core, t.radius(path[k]));
+        if (core <= kFringeThinner * t.radius(path[k + 1]) || out <= kFringeCoreReach * core) continue;
+        std::vector<double> flat;
+        for (std::size_t i = k + 1; i < path.size(); ++i) flat.push_back(t.sheet(path[i]));
+        const auto mid = flat.begin() + static_cast<std::ptrdiff_t>(flat.size() / 2);
+        std::nth_element(flat.begin(), mid, flat.end());
+        if (*mid >= kFringeFlat) path.resize(k + 1);
+        break;  // the first thinning decides: a round tip tapering stays whole
+    }
+    return path;
+}
+
 /// Whether a winged body's bone is one of its wings' (they carry the arm's names).
 bool is_wing_bone(const std::string& name) {
     for (const char* prefix : {"shoulder.", "upper_arm.", "forearm.", "hand."})
@@ -88,7 +118,7 @@ void add_extra_chains(const RigContext& c, RigBuilder& b, PlanKind kind, double 
         if (holder < 0 || nodes.size() < 2 || significance < kExtraReach * t.mean_radius(nodes)) continue;
         nodes.push_back(at);
         std::reverse(nodes.begin(), nodes.end());
-        nodes = t.out_to_farthest(std::move(nodes));
+        nodes = t.out_to_farthest(before_fringe(t, std::move(nodes)));
         const bool tail = quadruped && is_tail(b.rig(), b.rig().names[static_cast<std::size_t>(holder)], t.at(leaf));
         const std::int32_t parent = tail ? holder : b.attach_bone(at, t.radius(at));
         const std::string& owner = b.rig().names[static_cast<std::size_t>(parent)];
