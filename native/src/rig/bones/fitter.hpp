@@ -142,6 +142,7 @@ private:
     }
 
     void place(const LimbJoint& lj, const std::string& sfx);
+    void centre_hinge(BoneJoint& j, int pb, int cb);
     void mirror_length(const LimbJoint& lj);
     void seed_kept(const LimbJoint& lj);
     P3 axis_of(int b) const;
@@ -196,6 +197,15 @@ private:
         const std::string& name = out_.rig.names[cb];
         const int mirror = bone(name.substr(0, name.size() - 1) + (name.back() == 'L' ? "R" : "L"));
         return mirror >= 0 ? segment_of(mirror) : 0;
+    }
+    /// The segment at point q (its nearest voxel's; 0 outside the grid or the segments).
+    std::int32_t segment_at(const P3& q) const {
+        std::int64_t v[3];
+        for (int a = 0; a < 3; ++a) {
+            v[a] = static_cast<std::int64_t>(std::llround((q[a] - g_.origin[a]) / g_.spacing[a]));
+            if (v[a] < 0 || v[a] >= g_.dims[a]) return 0;
+        }
+        return out_.segments.labels[static_cast<std::size_t>(g_.index(v[0], v[1], v[2]))];
     }
     /// Whether segment s has a voxel within w of c.
     bool near_segment(std::int32_t s, const P3& c, double w) const {

@@ -164,10 +164,17 @@ bool Fitter::fit_ball(BoneJoint& j, int cb, const std::array<std::int32_t, 2>& e
     const Contact cap = contact_of(g_, own, other, p_.reach, std::max(3 * cell_, 6.0 * p_.scale));
     const Sphere s = fit_sphere(cap.a);
 
-    if (s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius)
+    const bool fits = s.radius >= 2 * cell_ && s.radius <= w && norm(sub(s.centre, k.centre)) <= 1.5 * s.radius;
+    if (fits && segment_at(s.centre) == j.child_segment) {
         move(j, cb, s.centre, "ball");
-    else
-        move(j, cb, k.centre, "contact");
+        return true;
+    }
+    // a sphere whose centre lies outside the head's own bone is not that head's: its cap faced some other bone
+    // than the socket (the 8 mm standing body's left shoulder took the acromion above the humeral head for it, the
+    // centre 33 mm high); the head is then its thickest bone, as where it fused with its socket
+    const auto c = fits ? thickest(j.child_segment, at, w) : std::nullopt;
+    if (c) move(j, cb, *c, "thickest");
+    else move(j, cb, k.centre, "contact");
     return true;
 }
 
