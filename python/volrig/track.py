@@ -178,8 +178,10 @@ def _points_at(s: _Step, thinness: float):
     point."""
     if thinness <= 0:
         return (s.look, len(s.sizes), s.voxels, s.voxel_label, None, None, None)
-    k = _count_above(s.scores, thinness)
-    keep = np.sort(np.concatenate([s.rank[:k], s.rank[s.first[s.first >= k]]]))  # the late features' best too
+    keep = np.zeros(len(s.voxels), np.bool_)  # marked by position in index order: a sort without sorting
+    keep[s.rank[:_count_above(s.scores, thinness)]] = True
+    keep[s.rank[s.first]] = True  # each feature's best point, at any thinness
+    keep = np.flatnonzero(keep)
     label, ball = s.voxel_label[keep], s.voxel_ball[keep]
     totals = np.bincount(label, weights=ball, minlength=len(s.sizes) + 1)
     return (s.look, len(s.sizes), s.voxels[keep], label, ball, s.sizes, totals)
