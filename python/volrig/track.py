@@ -178,10 +178,14 @@ def _points_at(s: _Step, thinness: float):
     point."""
     if thinness <= 0:
         return (s.look, len(s.sizes), s.voxels, s.voxel_label, None, None, None)
-    keep = np.zeros(len(s.voxels), np.bool_)  # marked by position in index order: a sort without sorting
-    keep[s.rank[:_count_above(s.scores, thinness)]] = True
-    keep[s.rank[s.first]] = True  # each feature's best point, at any thinness
-    keep = np.flatnonzero(keep)
+    k = _count_above(s.scores, thinness)
+    if k < len(s.voxels) // 16:  # a few points: their positions in index order, sorted
+        keep = np.sort(np.concatenate([s.rank[:k], s.rank[s.first[s.first >= k]]]))  # each feature's best too
+    else:  # many: marked by position in index order, a sort without sorting
+        keep = np.zeros(len(s.voxels), np.bool_)
+        keep[s.rank[:k]] = True
+        keep[s.rank[s.first]] = True  # each feature's best point, at any thinness
+        keep = np.flatnonzero(keep)
     label, ball = s.voxel_label[keep], s.voxel_ball[keep]
     totals = np.bincount(label, weights=ball, minlength=len(s.sizes) + 1)
     return (s.look, len(s.sizes), s.voxels[keep], label, ball, s.sizes, totals)
