@@ -165,8 +165,9 @@ def _label_type(features: int):
 
 
 def _count_above(scores: np.ndarray, thinness: float) -> int:
-    """Points with a score above ``thinness`` (``scores`` descending): a prefix, found by bisection."""
-    return int(np.searchsorted(-scores, -np.float32(thinness), side="left"))
+    """Points with a score above ``thinness`` (``scores`` descending): a prefix, found by bisection (over the
+    scores reversed, a view: negating them would copy every voxel's)."""
+    return len(scores) - int(np.searchsorted(scores[::-1], np.float32(thinness), side="right"))
 
 
 def _points_at(s: _Step, thinness: float):
