@@ -1,7 +1,8 @@
 """Feature tracking (thesis 9.1): features numbered as scipy.ndimage.label numbers them; events and track ids of a
 synthetic series whose history is known, at thinness 0 (whole features) and from skeletons; exact overlaps at
 thinness 0 against numpy; re-tracking without skeletonizing; the shared viscous-fingering run against full-volume
-tracking; the CLI's JSON and VDB output; bad input."""
+tracking; the CLI's JSON and VDB output; bad input; the native step_overlaps against a numpy brute force on random
+steps (every label type, both directions) and the points taken at a thinness against their definition."""
 import glob
 import importlib
 import json

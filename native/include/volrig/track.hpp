@@ -43,8 +43,9 @@ struct StepPoints {
 /// The overlaps of features a (step t) and b (step t+1), sorted by (a, b), in voxels: a's points looked up in b's
 /// labels, and with `both` b's points in a's labels too, the larger estimate of the two kept per pair (a pair
 /// either direction finds is listed). Cost: one pass over each side's points counting into a register while the
-/// pair (a, b) stays the same (a dense pair table while it stays under 2^20 entries, a hash table beyond); sums
-/// are in point order, so any order of the points gives the same pairs.
+/// pair (a, b) stays the same (a dense pair table while it stays under 2^20 entries, a hash table beyond); the
+/// weights are still added in point order, so the sums are a plain loop's bit for bit. Throws on a point off the
+/// grid, a point label outside 1..count, or a label of the other step above its count.
 struct Overlaps {
     std::vector<std::int32_t> a, b;
     std::vector<double> overlap;
