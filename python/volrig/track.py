@@ -188,7 +188,8 @@ def _points_at(s: _Step, thinness: float):
         keep[s.rank[s.first]] = True  # each feature's best point, at any thinness
         keep = np.flatnonzero(keep)
     label, ball = s.voxel_label[keep], s.voxel_ball[keep]
-    totals = np.bincount(label, weights=ball, minlength=len(s.sizes) + 1)
+    totals = np.bincount(label, weights=ball, minlength=len(s.sizes) + 1).astype(np.float64, copy=False)  # no
+    # points (a step without features): numpy counts in int64
     return (s.look, len(s.sizes), s.voxels[keep], label, ball, s.sizes, totals)
 
 

@@ -225,6 +225,16 @@ def test_points_at_a_thinness_are_the_skeleton_in_index_order():
             assert np.allclose(totals[1:], [weight[label == f].sum() for f in range(1, count + 1)])
 
 
+@pytest.mark.parametrize("thinness", [0, 1.0, 3.0])
+def test_a_step_without_features_is_tracked_at_any_thinness(thinness):
+    none = np.zeros((10, 10, 10), np.float32)
+    cube = none.copy()
+    cube[2:6, 2:6, 2:6] = 1
+    tr = track([none, cube, none, cube], lo=0.5, thinness=thinness, min_size=1)
+    assert [(e.step, e.kind) for e in tr.events] == [(0, "creation"), (1, "dissipation"), (2, "creation")]
+    assert tr.edges == [] and [len(v) for v in tr.volumes] == [0, 1, 0, 1]
+
+
 def test_step_overlaps_refuse_bad_points():
     a = np.zeros((2, 2, 2), np.uint8)
     a[0, 0, 0] = 1
