@@ -55,6 +55,17 @@ py::tuple overlaps_run(const py::tuple& a, const py::tuple& b, bool both) {
                           to_numpy_shaped(std::move(o.overlap), {k}));
 }
 
+Runs runs_of(const py::array& a, std::int32_t count) {
+    if (!a.dtype().is(py::dtype::of<std::int32_t>()) || a.ndim() != 2 || a.shape(0) != 4 ||
+        !(a.flags() & py::array::c_style))
+        throw Error("run_overlaps: runs must be a C-contiguous int32 array (4, n): row, x0, x1, label");
+    Runs r;
+    r.n = static_cast<std::size_t>(a.shape(1));
+    const auto* p = static_cast<const std::int32_t*>(a.data());
+    r.row = p, r.x0 = p + r.n, r.x1 = p + 2 * r.n, r.label = p + 3 * r.n, r.count = count;
+    return r;
+}
+
 template <class L>
 py::tuple overlaps_as(const py::tuple& a, const py::tuple& b, bool both, bool small_index) {
     return small_index ? overlaps_run<std::uint32_t, L>(a, b, both) : overlaps_run<std::int64_t, L>(a, b, both);
@@ -95,6 +106,22 @@ void bind_track(py::module_& m) {
         "a, b: (labels [z, y, x], count, index ascending uint32 or int64, label, weight float32 or None, sizes "
         "int64 or None, totals float64 or None), labels one type (uint8, uint16 or int32); a's points are looked up "
         "in b's labels and with both b's in a's, the larger estimate kept");
+    m.def(
+        "run_overlaps",
+        [](const py::array& a, std::int32_t na, const py::array& b, std::int32_t nb) {
+            const Runs ra = runs_of(a, na), rb = runs_of(b, nb);
+            Overlaps o;
+            {
+                py::gil_scoped_release nogil;
+                o = run_overlaps(ra, rb);
+            }
+            const auto k = static_cast<py::ssize_t>(o.a.size());
+            return py::make_tuple(to_numpy_shaped(std::move(o.a), {k}), to_numpy_shaped(std::move(o.b), {k}),
+                                  to_numpy_shaped(std::move(o.overlap), {k}));
+        },
+        py::arg("a"), py::arg("a_count"), py::arg("b"), py::arg("b_count"),
+        "(a int32, b int32, overlap float64) sorted by (a, b): the exact overlaps of two steps' features from their "
+        "runs, each int32 (4, n): row (z * ny + y), x0, x1 (past the end), label, sorted by (row, x0)");
 }
 
 }  // namespace volrig::py

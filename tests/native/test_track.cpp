@@ -208,3 +208,43 @@ TEST_CASE("step overlaps of weighted points equal a brute force both ways, in ev
         check(std::int32_t{});
     }
 }
+
+TEST_CASE("run overlaps equal the exact intersections", "[track]") {
+    for (unsigned seed = 0; seed < 6; ++seed) {
+        const Grid g = grid_of(9 + seed, 7, 5 + seed % 3);
+        const Features fa = track_features(g, random_mask(g, 0.5, 200 + seed).data(), 1);
+        const Features fb = track_features(g, random_mask(g, 0.5, 300 + seed).data(), 1);
+        struct Columns {
+            std::vector<std::int32_t> row, x0, x1, label;
+        };
+        const auto runs_of = [&](const Features& f, Columns& c) {  // maximal runs of one label along x
+            const std::int64_t nx = g.dims[0];
+            for (std::int64_t i = 0; i < g.voxel_count(); ++i) {
+                const std::int32_t l = f.labels[static_cast<std::size_t>(i)];
+                if (!l) continue;
+                if (i % nx && f.labels[static_cast<std::size_t>(i - 1)] == l) {
+                    ++c.x1.back();
+                    continue;
+                }
+                c.row.push_back(static_cast<std::int32_t>(i / nx));
+                c.x0.push_back(static_cast<std::int32_t>(i % nx));
+                c.x1.push_back(static_cast<std::int32_t>(i % nx + 1));
+                c.label.push_back(l);
+            }
+            Runs r;
+            r.row = c.row.data(), r.x0 = c.x0.data(), r.x1 = c.x1.data(), r.label = c.label.data();
+            r.n = c.row.size(), r.count = static_cast<std::int32_t>(f.sizes.size());
+            return r;
+        };
+        Columns ca, cb;
+        const Runs ra = runs_of(fa, ca), rb = runs_of(fb, cb);
+        Pairs ref;
+        for (std::size_t i = 0; i < fa.labels.size(); ++i)
+            if (fa.labels[i] && fb.labels[i]) ref[{fa.labels[i], fb.labels[i]}] += 1;
+        REQUIRE(ref.size() > 3);
+        REQUIRE(pairs_of(run_overlaps(ra, rb)) == ref);
+        Runs bad = rb;
+        bad.count = 1;
+        REQUIRE_THROWS_WITH(run_overlaps(ra, bad), Catch::Contains("no feature of its step"));
+    }
+}

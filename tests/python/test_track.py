@@ -225,6 +225,32 @@ def test_points_at_a_thinness_are_the_skeleton_in_index_order():
             assert np.allclose(totals[1:], [weight[label == f].sum() for f in range(1, count + 1)])
 
 
+def test_run_overlaps_are_the_exact_intersections_of_random_steps():
+    rng = np.random.default_rng(7)
+    for trial in range(10):
+        shape = tuple(int(n) for n in rng.integers(3, 14, 3))
+        labels = [volrig._volrig.track_features((rng.random(shape) < p).view(np.uint8), 1)[0]
+                  for p in (0.3 + 0.05 * trial, 0.6 - 0.04 * trial)]
+        runs = [trackmod._runs(lab) for lab in labels]
+        for lab, r in zip(labels, runs):  # the runs cover every feature voxel once, with its label
+            again = np.zeros(lab.size, np.int32).reshape(-1, shape[2])
+            for row, x0, x1, f in r.T:
+                assert x1 > x0 and not again[row, x0:x1].any()
+                again[row, x0:x1] = f
+            assert np.array_equal(again.reshape(shape), lab)
+        counts = [int(lab.max()) for lab in labels]
+        fa, fb, w = volrig._volrig.run_overlaps(runs[0], counts[0], runs[1], counts[1])
+        la, lb = labels[0].ravel(), labels[1].ravel()
+        both = (la > 0) & (lb > 0)
+        pairs, n = np.unique(np.stack([la[both], lb[both]]), axis=1, return_counts=True)
+        assert [(int(x), int(y), float(c)) for (x, y), c in zip(pairs.T, n)] == list(zip(fa.tolist(), fb.tolist(),
+                                                                                          w.tolist()))
+    with pytest.raises(volrig.VolrigError, match="no feature of its step"):
+        volrig._volrig.run_overlaps(runs[0], counts[0] - 1, runs[1], counts[1])
+    with pytest.raises(volrig.VolrigError, match="int32 array"):
+        volrig._volrig.run_overlaps(runs[0].T.copy(), counts[0], runs[1], counts[1])
+
+
 @pytest.mark.parametrize("thinness", [0, 1.0, 3.0])
 def test_a_step_without_features_is_tracked_at_any_thinness(thinness):
     none = np.zeros((10, 10, 10), np.float32)

@@ -140,6 +140,35 @@ Overlaps step_overlaps(const Grid& g, const StepPoints<I, L>& a, const StepPoint
     return o;
 }
 
+Overlaps run_overlaps(const Runs& a, const Runs& b) {
+    for (const Runs* r : {&a, &b}) {
+        if (r->count < 0 || (r->n && (!r->row || !r->x0 || !r->x1 || !r->label)))
+            throw Error("run_overlaps: each step needs its runs and feature count");
+        for (std::size_t i = 0; i < r->n; ++i)
+            if (r->label[i] < 1 || r->label[i] > r->count || r->x1[i] <= r->x0[i])
+                throw Error("run_overlaps: run " + std::to_string(i) + " has no feature of its step or is empty");
+    }
+    PairTable t(a.count, b.count);
+    std::size_t i = 0, j = 0;
+    while (i < a.n && j < b.n) {
+        if (a.row[i] != b.row[j]) {
+            (a.row[i] < b.row[j] ? i : j)++;
+            continue;
+        }
+        const std::int32_t lo = std::max(a.x0[i], b.x0[j]), hi = std::min(a.x1[i], b.x1[j]);
+        if (hi > lo) *t.cell(t.key(static_cast<std::uint64_t>(a.label[i]), static_cast<std::uint64_t>(b.label[j]))) +=
+            hi - lo;
+        (a.x1[i] < b.x1[j] ? i : j)++;
+    }
+    Overlaps o;
+    for (const auto& [key, w] : t.sums(false)) {
+        o.a.push_back(static_cast<std::int32_t>(key >> 32));
+        o.b.push_back(static_cast<std::int32_t>(key & 0xffffffffu));
+        o.overlap.push_back(w);
+    }
+    return o;
+}
+
 #define VOLRIG_STEP_OVERLAPS(I, L) \
     template Overlaps step_overlaps<I, L>(const Grid&, const StepPoints<I, L>&, const StepPoints<I, L>&, bool);
 VOLRIG_STEP_OVERLAPS(std::uint32_t, std::uint8_t)
