@@ -5,7 +5,8 @@
 features of consecutive steps by the overlap of their skeletons: each skeleton point stands for its share of its
 feature's volume (its ball's volume, the feature's balls summing to the feature), and counts where it lies in the
 other step, both ways. At thinness 0 every voxel is a point of weight 1: the exact overlap of the whole features,
-Silver and Wang's volume test. ``Tracking.at(thinness)`` re-tracks without skeletonizing again.
+Silver and Wang's volume test (counted from the features' runs along x, row by row). ``Tracking.at(thinness)``
+re-tracks without skeletonizing again.
 """
 from __future__ import annotations
 
