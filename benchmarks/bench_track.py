@@ -3,13 +3,13 @@
 
 One run over a time series (default: the shared viscous-fingering run, 30 steps of 64³ from the Nested Tracking
 Graphs data): the steps are prepared once (features, their runs along x, one skeletonization each), tracked by the
-whole features (thinness 0: their exact overlaps from the runs, Silver and Wang's volume test) and by skeletons at thinness 0.5, 1 and 2
-(<3,4,5> chamfer units, as the thesis). For each: the points looked up (share of the feature voxels), the agreement
-with full-volume tracking (matched pairs and events equal, as shares of those either finds), the overlap test's
-time and the whole tracking's (events and ids too; best of --repeat) and their speed-ups over thinness 0 in the
-same run; the time to take the skeletons at the thinness (select in index order, sum the weights: the
-skeletonization's part); and
-the preparation (labelling and one skeletonization a step) the skeletons' tracking amortises.
+whole features (thinness 0: their exact overlaps from the runs, Silver and Wang's volume test) and by skeletons at
+thinness 0.5, 1 and 2 (<3,4,5> chamfer units, as the thesis). For each: the points looked up (share of the feature
+voxels), the agreement with full-volume tracking (matched pairs and events equal, as shares of those either
+finds), the overlap test's time and the whole tracking's (events and ids too; best of --repeat) and their
+speed-ups over thinness 0 in the same run; the time to take the skeletons at the thinness (select in index order,
+sum the weights: the skeletonization's part); and the preparation (labelling, runs and one skeletonization a step)
+the skeletons' tracking amortises.
 
 Two feature sets of the run: salt above 20 in the whole box (large fingers joined at the source), and above 30
 below the source layer (z < 52: separate fingers, more events). A third, synthetic, stands in for the thicker
