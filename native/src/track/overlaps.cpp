@@ -1,7 +1,6 @@
 #include <algorithm>
 #include <limits>
 #include <string>
-#include <type_traits>
 #include <unordered_map>
 
 #include "volrig/track.hpp"
