@@ -5,7 +5,8 @@
 features of consecutive steps by the overlap of their skeletons: each skeleton point stands for its share of its
 feature's volume (its ball's volume, the feature's balls summing to the feature), and counts where it lies in the
 other step, both ways. At thinness 0 every voxel is a point of weight 1: the exact overlap of the whole features,
-Silver and Wang's volume test. ``Tracking.at(thinness)`` re-tracks without skeletonizing again.
+Silver and Wang's volume test (counted from the features' runs along x, row by row). ``Tracking.at(thinness)``
+re-tracks without skeletonizing again.
 """
 from __future__ import annotations
 
@@ -42,19 +43,25 @@ class Event:
 
 @dataclass
 class _Step:
-    """One time step, prepared once: its features and its skeleton's points in descending score order."""
+    """One time step, prepared once: its features, and its voxels in index order (the full-volume test's points)
+    and in descending score order (the skeleton at a thinness is a prefix: its positions in index order, sorted,
+    take it in memory order)."""
 
     labels: np.ndarray        # int32 [z, y, x], 0 = no feature
+    look: np.ndarray          # the same labels in the smallest type holding them (uint8, uint16 or int32): looked up
+    runs: Optional[np.ndarray]  # int32 (4, n) the features' runs along x (row, x0, x1, label): the full-volume test
     sizes: np.ndarray         # int64 voxels per feature
     centroids: np.ndarray     # (F, 3) world x, y, z
-    voxels: np.ndarray        # int64 flat index of every feature voxel (the full-volume test's points)
-    voxel_label: np.ndarray   # int32 their features
+    voxels: np.ndarray        # flat index (uint32; int64 on grids of 2^32 voxels or more) of every feature voxel,
+    #                           ascending: the full-volume test's points, and the skeleton's at any thinness
+    voxel_label: np.ndarray   # their features (look's type)
+    voxel_ball: np.ndarray    # float32 dt³: their balls' volumes (to a constant)
+    rank: np.ndarray          # uint32 (int64 likewise) per point by descending score, its position in ``voxels``
+    first: np.ndarray         # int64 per feature, the position of its first (best) point by descending score
     points: np.ndarray        # int64 flat index of the skeleton's points, by descending score
     point_label: np.ndarray   # int32 their features
     dt: np.ndarray            # float32 their distance transform (ball radius in the metric's units)
     scores: np.ndarray        # float32 their thinness scores (descending)
-    ball: np.ndarray          # float32 dt³: their balls' volumes (to a constant)
-    first: np.ndarray         # int64 per feature, the position of its first point in the order
     spacing: tuple
     origin: tuple
     metric: str
@@ -132,7 +139,6 @@ def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str, p
         mask, origin = _placed(mask, spacing, origin, *place)
     labels, sizes, centroids = _volrig.track_features(np.ascontiguousarray(mask).view(np.uint8), int(min_size))
     del mask
-    voxels = np.flatnonzero(labels)
     skel = skeletonize(Volume(labels > 0, spacing, origin), metric=metric)
     ijk, _, dt, scores = skel._native.points(skel.object_count)  # object voxels by descending score
     del skel
@@ -141,48 +147,82 @@ def _prepare(step, lo: float, hi: Optional[float], min_size: int, metric: str, p
     flat = labels.reshape(-1)
     world = np.asarray(origin) + centroids * np.asarray(spacing)
     point_label = flat[order]
+    dt, scores = np.asarray(dt), np.asarray(scores)
     first = np.full(len(sizes) + 1, len(order), np.int64)
     np.minimum.at(first, point_label, np.arange(len(order)))
-    dt = np.asarray(dt)
-    return _Step(labels, sizes, world, voxels, flat[voxels], order, point_label, dt, np.asarray(scores),
-                 dt ** 3, first[1:], tuple(spacing), tuple(origin), metric)
+    by_index = np.argsort(order, kind="stable")
+    look = labels.astype(_label_type(len(sizes)))
+    index_type = np.uint32 if labels.size <= 2 ** 32 else np.int64
+    rank = np.empty(len(order), index_type)
+    rank[by_index] = np.arange(len(order), dtype=index_type)
+    voxels = order[by_index].astype(index_type)
+    return _Step(labels, look, _runs(labels), sizes, world, voxels, look.reshape(-1)[voxels], dt[by_index] ** 3,
+                 rank, first[1:], order, point_label, dt, scores, tuple(spacing), tuple(origin), metric)
+
+
+def _label_type(features: int):
+    """The smallest label type holding 0..features: the other step's labels read per point are then 1 or 2 bytes
+    a voxel for the usual feature counts, a quarter or half the memory traffic of int32."""
+    return np.uint8 if features < 2 ** 8 else np.uint16 if features < 2 ** 16 else np.int32
 
 
 def _count_above(scores: np.ndarray, thinness: float) -> int:
-    """Points with a score above ``thinness`` (``scores`` descending): a prefix, found by bisection."""
-    return int(np.searchsorted(-scores, -np.float32(thinness), side="left"))
+    """Points with a score above ``thinness`` (``scores`` descending): a prefix, found by bisection (over the
+    scores reversed, a view: negating them would copy every voxel's)."""
+    return len(scores) - int(np.searchsorted(scores[::-1], np.float32(thinness), side="right"))
 
 
 def _points_at(s: _Step, thinness: float):
-    """(flat index, feature, weight) of the points standing for the features at ``thinness``, in index order (the
-    other step's labels are then read in memory order): every voxel with weight 1 at thinness 0; else the skeleton
-    (score > thinness), each point weighted by its ball's volume (the weights are scaled to each feature's voxels
-    once counted, ``_overlaps``). A feature whose skeleton is empty there keeps its best point."""
+    """Step ``s`` as ``step_overlaps`` takes it: (labels, features, flat index, feature, weight, sizes, totals) of
+    the points standing for its features at ``thinness``, in index order (the other step's labels are then read in
+    memory order): every voxel with weight 1 at thinness 0 (no weights); else the skeleton (score > thinness), each
+    point weighted by its ball's volume, ``totals`` summing them per feature (the overlaps are scaled by sizes /
+    totals, so a feature's points stand for its voxels). A feature whose skeleton is empty there keeps its best
+    point."""
     if thinness <= 0:
-        return s.voxels, s.voxel_label, np.ones(len(s.voxels), np.float32)
+        return (s.look, len(s.sizes), s.voxels, s.voxel_label, None, None, None)
     k = _count_above(s.scores, thinness)
-    take = np.concatenate([np.arange(k), s.first[s.first >= k]])  # the late features' best points too
-    take = take[np.argsort(s.points[take], kind="stable")]
-    return s.points[take], s.point_label[take], s.ball[take]
+    if k < len(s.voxels) // 16:  # a few points: their positions in index order, sorted
+        keep = np.sort(np.concatenate([s.rank[:k], s.rank[s.first[s.first >= k]]]))  # each feature's best too
+    else:  # many: marked by position in index order, a sort without sorting
+        keep = np.zeros(len(s.voxels), np.bool_)
+        keep[s.rank[:k]] = True
+        keep[s.rank[s.first]] = True  # each feature's best point, at any thinness
+        keep = np.flatnonzero(keep)
+    label, ball = s.voxel_label[keep], s.voxel_ball[keep]
+    totals = np.bincount(label, weights=ball, minlength=len(s.sizes) + 1).astype(np.float64, copy=False)  # no
+    # points (a step without features): numpy counts in int64
+    return (s.look, len(s.sizes), s.voxels[keep], label, ball, s.sizes, totals)
 
 
-def _overlaps(a: _Step, b: _Step, pa, pb, clock: list) -> dict:
-    """{(feature of a, feature of b): overlap in voxels}: each step's points looked up in the other (a point's
-    weight scaled so that its feature's points sum to the feature's voxels), the larger estimate of the two
-    directions kept (equal, and exact, at thinness 0)."""
+def _overlaps(a: _Step, b: _Step, pa, pb, clock: list):
+    """(features of a, features of b, overlaps in voxels) sorted by pair, in one native call: each step's points
+    looked up in the other (a point's weight scaled so that its feature's points sum to the feature's voxels), the
+    larger estimate of the two directions kept. At thinness 0 (every voxel a point of weight 1): |A ∩ B| exactly,
+    from the two steps' runs along x merged row by row (a cost per run: the fastest full-volume test volrig has;
+    a's voxels looked up in b's labels, one pass, on grids too large for int32 runs)."""
     t0 = time.perf_counter()
-    fa, fb, wf, ta = _volrig.point_overlaps(b.labels, len(b.sizes), *pa)
-    if pa[0] is a.voxels and pb[0] is b.voxels:  # every voxel a point (thinness 0): |A ∩ B| exactly, one pass
-        clock[0] += time.perf_counter() - t0
-        return dict(zip(zip(fa.tolist(), fb.tolist()), wf.tolist()))
-    gb, ga, wg, tb = _volrig.point_overlaps(a.labels, len(a.sizes), *pb)
+    if pa[4] is None and a.runs is not None and b.runs is not None:
+        out = _volrig.run_overlaps(a.runs, len(a.sizes), b.runs, len(b.sizes))
+    else:
+        out = _volrig.step_overlaps(pa, pb, pa[4] is not None)
     clock[0] += time.perf_counter() - t0
-    wf = wf * a.sizes[fa - 1] / ta[fa]
-    wg = wg * b.sizes[gb - 1] / tb[gb]
-    out = dict(zip(zip(fa.tolist(), fb.tolist()), wf.tolist()))
-    for x, y, w in zip(ga.tolist(), gb.tolist(), wg.tolist()):
-        out[(x, y)] = max(out.get((x, y), 0.0), w)
     return out
+
+
+def _runs(labels: np.ndarray):
+    """The features as runs along x, int32 (4, n): row (z * ny + y), x0, x1 (past the end), label, sorted by (row,
+    x0) as ``run_overlaps`` takes them; None when the grid's rows or columns do not fit int32."""
+    nz, ny, nx = labels.shape
+    if nz * ny >= 2 ** 31 or nx >= 2 ** 31:
+        return None
+    rows = labels.reshape(-1, nx)
+    start, end = rows != 0, rows != 0
+    start[:, 1:] &= rows[:, 1:] != rows[:, :-1]
+    end[:, :-1] &= rows[:, :-1] != rows[:, 1:]
+    row, x0 = np.nonzero(start)
+    x1 = np.nonzero(end)[1] + 1  # the same runs in the same order: one start and one end each
+    return np.ascontiguousarray(np.stack([row, x0, x1, rows[row, x0]]).astype(np.int32))
 
 
 def _groups(na: int, nb: int, pairs) -> list:
@@ -339,10 +379,11 @@ def _track_steps(steps: List[_Step], thinness: float, tolerance: float) -> Track
     next_id = len(steps[0].sizes) + 1
     for t in range(len(steps) - 1):
         a, b = steps[t], steps[t + 1]
-        over = _overlaps(a, b, points[t], points[t + 1], clock)
-        pairs = sorted(p for p, w in over.items()
-                       if w >= tolerance * min(a.sizes[p[0] - 1], b.sizes[p[1] - 1]))
-        edges += [(t, x, y, over[(x, y)]) for x, y in pairs]
+        fa, fb, over = _overlaps(a, b, points[t], points[t + 1], clock)
+        keep = over >= tolerance * np.minimum(a.sizes[fa - 1], b.sizes[fb - 1])
+        found = list(zip(fa[keep].tolist(), fb[keep].tolist(), over[keep].tolist()))
+        pairs = [(x, y) for x, y, _ in found]
+        edges += [(t, x, y, w) for x, y, w in found]
         events += [Event(t, _kind(bf, af), bf, af) for bf, af in _groups(len(a.sizes), len(b.sizes), pairs)]
         ids_b, next_id = _pass_ids(ids[-1], a, b, pairs, next_id)
         ids.append(ids_b)

@@ -1,7 +1,8 @@
 """Feature tracking (thesis 9.1): features numbered as scipy.ndimage.label numbers them; events and track ids of a
 synthetic series whose history is known, at thinness 0 (whole features) and from skeletons; exact overlaps at
 thinness 0 against numpy; re-tracking without skeletonizing; the shared viscous-fingering run against full-volume
-tracking; the CLI's JSON and VDB output; bad input."""
+tracking; the CLI's JSON and VDB output; bad input; the native step_overlaps against a numpy brute force on random
+steps (every label type, both directions) and the points taken at a thinness against their definition."""
 import glob
 import importlib
 import json
@@ -159,3 +160,119 @@ def test_bad_input_is_refused_clearly(tmp_path):
     nan = v.copy()
     nan[0] = np.nan  # NaN is no feature
     assert track([nan, v], lo=5, thinness=0).volumes[0].sum() == (v[1:] >= 5).sum()
+
+
+def _brute_overlaps(a, b, both):
+    """The overlaps step_overlaps should give, by numpy: each direction's weights summed per pair in point order,
+    scaled by the feature's size over its points' total, the larger of the two directions kept."""
+    out = {}
+    for (look, count, index, label, weight, sizes, totals), other, swap in ((a, b, False), (b, a, True))[:1 + both]:
+        hit = other[0].reshape(-1)[index.astype(np.int64)]
+        sums = np.zeros((count + 1, other[1] + 1))
+        np.add.at(sums, (label.astype(np.int64), hit.astype(np.int64)),
+                  np.ones(len(index)) if weight is None else weight.astype(np.float64))
+        for x, y in zip(*np.nonzero(sums[:, 1:])):
+            w = sums[x, y + 1] if weight is None else sums[x, y + 1] * sizes[x - 1] / totals[x]
+            pair = (int(y + 1), int(x)) if swap else (int(x), int(y + 1))
+            out[pair] = max(out.get(pair, 0.0), w)
+    return out
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.int32])
+def test_step_overlaps_equal_a_brute_force_on_random_steps(dtype):
+    rng = np.random.default_rng(int(np.dtype(dtype).itemsize))
+    for trial in range(8):
+        shape = tuple(int(n) for n in rng.integers(4, 12, 3))
+        steps = []
+        for _ in range(2):
+            labels, sizes, _ = volrig._volrig.track_features((rng.random(shape) < 0.4).view(np.uint8), 1)
+            steps.append((labels.astype(dtype), sizes))
+        sides = []
+        for labels, sizes in steps:
+            index = np.flatnonzero(labels).astype(np.uint32 if trial % 2 else np.int64)
+            index = index[rng.random(len(index)) < (1.0 if trial < 2 else 0.4)]
+            label = labels.reshape(-1)[index]
+            weight = rng.uniform(0.1, 5, len(index)).astype(np.float32)
+            totals = np.bincount(label, weights=weight, minlength=len(sizes) + 1)
+            sides.append([labels, len(sizes), index, label, weight, sizes, totals])
+        if trial < 2:  # every voxel a point of weight 1: one direction, the exact intersections
+            for s in sides:
+                s[4:] = [None, None, None]
+        for both in ([False] if trial < 2 else [False, True]):
+            fa, fb, w = volrig._volrig.step_overlaps(tuple(sides[0]), tuple(sides[1]), both)
+            want = _brute_overlaps(sides[0], sides[1], both)
+            assert list(zip(fa.tolist(), fb.tolist())) == sorted(want)  # sorted by pair, each once
+            assert np.allclose(w, [want[p] for p in sorted(want)], rtol=1e-12, atol=0)
+            if trial < 2:  # integer counts: |A ∩ B|
+                la, lb = sides[0][0].astype(np.int64), sides[1][0].astype(np.int64)
+                assert all(v == np.count_nonzero((la == x) & (lb == y)) for x, y, v in zip(fa, fb, w))
+
+
+def test_points_at_a_thinness_are_the_skeleton_in_index_order():
+    tr = track(series(), lo=5, thinness=1.0)
+    for s in tr._steps:
+        for tp in (0.5, 1.0, 3.0, 50.0):
+            look, count, index, label, weight, sizes, totals = trackmod._points_at(s, tp)
+            # the voxels scoring above the thinness, and each feature's best-scoring voxel whatever its score
+            best = {}
+            for i, f in enumerate(s.point_label):
+                best.setdefault(int(f), i)
+            keep = set(np.flatnonzero(s.scores > np.float32(tp)).tolist()) | set(best.values())
+            want = np.sort(s.points[sorted(keep)])
+            assert np.array_equal(index.astype(np.int64), want) and count == len(s.sizes)
+            assert np.array_equal(label, s.labels.reshape(-1)[want]) and look.dtype == np.uint8
+            assert np.allclose(weight, (s.dt[[int(np.flatnonzero(s.points == v)[0]) for v in want]]) ** 3)
+            assert np.allclose(totals[1:], [weight[label == f].sum() for f in range(1, count + 1)])
+
+
+def test_run_overlaps_are_the_exact_intersections_of_random_steps():
+    rng = np.random.default_rng(7)
+    for trial in range(10):
+        shape = tuple(int(n) for n in rng.integers(3, 14, 3))
+        labels = [volrig._volrig.track_features((rng.random(shape) < p).view(np.uint8), 1)[0]
+                  for p in (0.3 + 0.05 * trial, 0.6 - 0.04 * trial)]
+        runs = [trackmod._runs(lab) for lab in labels]
+        for lab, r in zip(labels, runs):  # the runs cover every feature voxel once, with its label
+            again = np.zeros(lab.size, np.int32).reshape(-1, shape[2])
+            for row, x0, x1, f in r.T:
+                assert x1 > x0 and not again[row, x0:x1].any()
+                again[row, x0:x1] = f
+            assert np.array_equal(again.reshape(shape), lab)
+        counts = [int(lab.max()) for lab in labels]
+        fa, fb, w = volrig._volrig.run_overlaps(runs[0], counts[0], runs[1], counts[1])
+        la, lb = labels[0].ravel(), labels[1].ravel()
+        both = (la > 0) & (lb > 0)
+        pairs, n = np.unique(np.stack([la[both], lb[both]]), axis=1, return_counts=True)
+        assert [(int(x), int(y), float(c)) for (x, y), c in zip(pairs.T, n)] == list(zip(fa.tolist(), fb.tolist(),
+                                                                                          w.tolist()))
+    with pytest.raises(volrig.VolrigError, match="no feature of its step"):
+        volrig._volrig.run_overlaps(runs[0], counts[0] - 1, runs[1], counts[1])
+    with pytest.raises(volrig.VolrigError, match="int32 array"):
+        volrig._volrig.run_overlaps(runs[0].T.copy(), counts[0], runs[1], counts[1])
+
+
+@pytest.mark.parametrize("thinness", [0, 1.0, 3.0])
+def test_a_step_without_features_is_tracked_at_any_thinness(thinness):
+    none = np.zeros((10, 10, 10), np.float32)
+    cube = none.copy()
+    cube[2:6, 2:6, 2:6] = 1
+    tr = track([none, cube, none, cube], lo=0.5, thinness=thinness, min_size=1)
+    assert [(e.step, e.kind) for e in tr.events] == [(0, "creation"), (1, "dissipation"), (2, "creation")]
+    assert tr.edges == [] and [len(v) for v in tr.volumes] == [0, 1, 0, 1]
+
+
+def test_step_overlaps_refuse_bad_points():
+    a = np.zeros((2, 2, 2), np.uint8)
+    a[0, 0, 0] = 1
+    side = (a, 1, np.array([0], np.uint32), np.array([1], np.uint8), None, None, None)
+    assert [x.tolist() for x in volrig._volrig.step_overlaps(side, side, False)] == [[1], [1], [1.0]]
+    with pytest.raises(volrig.VolrigError, match="off the grid"):
+        volrig._volrig.step_overlaps((a, 1, np.array([8], np.uint32)) + side[3:], side, False)
+    with pytest.raises(volrig.VolrigError, match="no feature"):
+        volrig._volrig.step_overlaps(side[:3] + (np.array([2], np.uint8),) + side[4:], side, False)
+    with pytest.raises(volrig.VolrigError, match="above the other step's feature count"):
+        volrig._volrig.step_overlaps(side, (a, 0) + side[2:], False)
+    with pytest.raises(volrig.VolrigError, match="differ in type"):
+        volrig._volrig.step_overlaps(side, (a.astype(np.uint16),) + side[1:], False)
+    with pytest.raises(volrig.VolrigError, match="sizes and totals"):
+        volrig._volrig.step_overlaps(side[:4] + (np.ones(1, np.float32), None, None), side, True)

@@ -20,21 +20,53 @@ struct Features {
 
 Features track_features(const Grid& grid, const std::uint8_t* mask, std::int64_t min_size);
 
-/// Overlaps between features a of one step and b of the next: each of `n` points (voxel `index[i]` of the grid
-/// `next_labels` is on, standing for `weight[i]` voxels of feature `label[i]`) adds its weight to (label[i], b)
-/// where b = next_labels[index[i]] > 0 (the next step has `next_count` features: no label above it). Points in
-/// ascending index order read the next step's labels in memory order. With every voxel of every feature as a point of weight 1 this is the exact
-/// overlap |a ∩ b| in voxels (Silver and Wang's volume test). The pairs come sorted by (a, b); `totals[a]` sums
-/// the weights of a's points wherever they lie. Cost: one pass over the points (a dense pair table while it stays
-/// under 2^20 entries, a hash table beyond).
-struct Overlaps {
-    std::vector<std::int32_t> a, b;
-    std::vector<double> weight;
-    std::vector<double> totals;
+/// One step's side of `step_overlaps`: its feature label volume (0 = none, else 1..count; the grid's voxels) and
+/// its points: point i, at voxel index[i], stands for weight[i] voxels of feature label[i] (1..count). Points in
+/// ascending index order read the other step's labels in memory order. `weight` null: every point weighs 1 (every
+/// voxel of every feature a point: the exact overlap |A ∩ B| in voxels, Silver and Wang's volume test). With
+/// weights, `totals[f]` (f = 0..count) sums feature f's point weights and `sizes[f - 1]` is its voxels: a count
+/// landing from f's points is scaled by sizes[f - 1] / totals[f], so a feature's points stand for its voxels.
+/// Labels are one type throughout (uint8, uint16 or int32: the smallest that holds the count), indices uint32 or
+/// int64.
+template <class I, class L>
+struct StepPoints {
+    const L* labels = nullptr;
+    std::int32_t count = 0;
+    const I* index = nullptr;
+    const L* label = nullptr;
+    const float* weight = nullptr;
+    std::size_t n = 0;
+    const std::int64_t* sizes = nullptr;
+    const double* totals = nullptr;
 };
 
-Overlaps point_overlaps(const Grid& grid, const std::int32_t* next_labels, std::int32_t next_count,
-                        const std::int64_t* index,
-                        const std::int32_t* label, const float* weight, std::size_t n);
+/// The overlaps of features a (step t) and b (step t+1), sorted by (a, b), in voxels: a's points looked up in b's
+/// labels, and with `both` b's points in a's labels too, the larger estimate of the two kept per pair (a pair
+/// either direction finds is listed). Cost: one pass over each side's points counting into a register while the
+/// pair (a, b) stays the same (a dense pair table while it stays under 2^20 entries, a hash table beyond); the
+/// weights are still added in point order, so the sums are a plain loop's bit for bit. Throws on a point off the
+/// grid, a point label outside 1..count, or a label of the other step above its count.
+struct Overlaps {
+    std::vector<std::int32_t> a, b;
+    std::vector<double> overlap;
+};
+
+template <class I, class L>
+Overlaps step_overlaps(const Grid& grid, const StepPoints<I, L>& a, const StepPoints<I, L>& b, bool both);
+
+/// A step's features as runs along x: run i covers voxels x0[i] <= x < x1[i] of row[i] (row = z * ny + y) and
+/// belongs to feature label[i] (1..count); runs sorted by (row, x0), not overlapping.
+struct Runs {
+    const std::int32_t* row = nullptr;
+    const std::int32_t* x0 = nullptr;
+    const std::int32_t* x1 = nullptr;
+    const std::int32_t* label = nullptr;
+    std::size_t n = 0;
+    std::int32_t count = 0;
+};
+
+/// The exact overlaps |A ∩ B| in voxels of a's features with b's, sorted by (a, b): the full-volume test (Silver
+/// and Wang's) by runs, each row's runs of the two steps merged, at a cost per run rather than per voxel.
+Overlaps run_overlaps(const Runs& a, const Runs& b);
 
 }  // namespace volrig
