@@ -185,9 +185,16 @@ def fit(problems, l1=None, rounds=4, keep=40, w0=None):
     return w
 
 
-def load_problems(names=None, log=print):
+def load_problems(names=None, log=print, turned=False):
+    """The subjects' problems; ``turned`` adds each character with a mesh once more, turned as Blender's OBJ import
+    turns it (named "<name> (turned)"; the same shape on another voxel lattice, C.turned)."""
+    from dataclasses import replace
+    subjects = C.plan_subjects(names, without_up=True)
+    if turned:
+        subjects += [replace(C.turned(s), name=s.name + " (turned)") for s in subjects
+                     if s.mesh is not None and s.up is not None]
     out = []
-    for sub in C.plan_subjects(names, without_up=True):
+    for sub in subjects:
         t = time.perf_counter()
         kinds, feats, at_head = readings(sub)
         out.append(Problem(sub.name, sub.plan_label, kinds, feats, at_head))
@@ -196,7 +203,7 @@ def load_problems(names=None, log=print):
 
 
 def base_name(name):
-    return name.replace(" (no up)", "")
+    return name.replace(" (no up)", "").replace(" (turned)", "")
 
 
 def cross_validate(problems, l1):
@@ -223,13 +230,15 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--write", action="store_true", help="store the weights fitted on all subjects")
     ap.add_argument("--l1", type=float, default=L1, help="weight of the penalty weights' sum in the objective")
+    ap.add_argument("--turned", action="store_true",
+                    help="fit on each character twice: also turned as Blender's OBJ import turns it (another lattice)")
     ap.add_argument("--fresh", action="store_true", help="recompute the cached features")
     ap.add_argument("--json", help="write the figures here")
     a = ap.parse_args()
     if a.fresh and os.path.isdir(CACHE):
         for f in os.listdir(CACHE):
             os.remove(os.path.join(CACHE, f))
-    problems = load_problems()
+    problems = load_problems(turned=a.turned)
     w = fit(problems, a.l1)
     train = sum(p.predict(w) == p.label for p in problems)
     cv = cross_validate(problems, a.l1)

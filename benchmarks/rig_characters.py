@@ -9,8 +9,10 @@ markers, and with five markers a user would click (chin, both wrists, groin, one
 skeleton of each humanoid that has one (reference_markers: the skeleton's joints found by their place in its tree
 and along up, not by name: the references name their joints joint0, joint1...).
 
-Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/rig_characters.py [--fitted] [--no-markers] [--json out.json]
+Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/rig_characters.py [--fitted] [--turned] [--no-markers] [--json out.json]
 --fitted uses the weights compiled in (fitted on every subject, these included) instead of leave-one-out ones.
+--turned rigs each character turned as Blender's OBJ import turns it (volrig_support.characters.turned): the same
+shapes on another voxel lattice, what an add-on user rigs; the weights (fitted on the unturned ones) stay.
 """
 import argparse
 import json
@@ -155,6 +157,7 @@ def table(rows, title):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fitted", action="store_true", help="the compiled-in weights, not leave-one-out ones")
+    ap.add_argument("--turned", action="store_true", help="each character turned as Blender's OBJ import turns it")
     ap.add_argument("--no-markers", action="store_true", help="skip the pass with markers")
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args()
@@ -166,6 +169,9 @@ def main():
             train = [p for p in problems if FW.base_name(p.name) != sub.name]
             weights[sub.name] = [float(x) for x in FW.fit(train)]
     how = "fitted on all" if a.fitted else "leave-one-out"
+    if a.turned:
+        subjects = [C.turned(s) for s in subjects]
+        how += ", characters turned as Blender imports them"
     rows = [rig_row(s, weights.get(s.name)) for s in subjects]
     table(rows, f"shared characters, no markers, plan weights {how}")
     out = {"plain": rows}

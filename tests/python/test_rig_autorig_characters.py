@@ -116,3 +116,24 @@ def test_a_crouching_boys_big_head_is_his_head():
     hands = [end("hand.L", 1), end("hand.R", 1)]
     width = np.ptp(v[:, 0])
     assert abs(hands[0][0] - hands[1][0]) > 0.6 * width  # the hands at the two ends of the arm span
+
+
+def test_characters_turned_as_blender_imports_them_keep_their_plans():
+    """Blender's OBJ import turns a character ((x, y, z) -> (x, -z, y)): the same shape on another voxel lattice.
+    The bird 17872 came out as neutral chains (its wings and legs meet the trunk a node apart: a spine of 3 nodes
+    for 3 bones, so its winged rig was dropped though it scored best) and the sitting figure with five markers had
+    no rig at all (its head sits on its shoulders: a head path of 2 nodes for the neck and head). The chest now
+    moves along the trunk so both paths have their nodes (body_plan.cpp, trunk_split)."""
+    bird, sitting = (C.turned(s) for s in C.characters(["17872_ori", "rignet8333_sitting"]))
+    assert bird.rig().kind == "winged"
+    markers = reference_markers(*sitting.reference, sitting.up)
+    assert markers is not None
+    assert sitting.rig(markers={k: tuple(v) for k, v in markers.items()}).kind == "humanoid"
+
+
+def test_turned_is_the_same_character_in_another_frame():
+    sub = C.characters(["dog"])[0]
+    t = C.turned(sub)
+    assert np.allclose(t.mesh[0], sub.mesh[0] @ C.BLENDER_IMPORT.T) and np.array_equal(t.mesh[1], sub.mesh[1])
+    assert np.allclose(C.BLENDER_IMPORT @ np.asarray(sub.up, float), t.up)
+    assert np.isclose(np.linalg.det(C.BLENDER_IMPORT), 1.0)  # a turn, no mirror: left stays left

@@ -109,6 +109,22 @@ def characters(names: Optional[Sequence[str]] = None) -> List[PlanSubject]:
     return out
 
 
+#: Blender's OBJ import (forward -Z, up Y): (x, y, z) -> (x, -z, y).
+BLENDER_IMPORT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+
+
+def turned(sub: "PlanSubject", rotation=BLENDER_IMPORT) -> "PlanSubject":
+    """The same character turned by ``rotation`` (a mesh's vertices, its up, its head direction and its reference
+    joints with it), as a user gets it in another frame: the same shape on another voxel lattice (voxelize puts the
+    lattice at the bounding box's low corner, so a flipped axis moves it by a fraction of a voxel)."""
+    import dataclasses
+    R = np.asarray(rotation, float)
+    turn = lambda u: None if u is None else tuple(float(x) for x in R @ np.asarray(u, float))  # noqa: E731
+    mesh = None if sub.mesh is None else (sub.mesh[0] @ R.T, sub.mesh[1])
+    ref = None if sub.reference is None else (np.asarray(sub.reference[0], float) @ R.T, sub.reference[1])
+    return dataclasses.replace(sub, mesh=mesh, up=turn(sub.up), head=turn(sub.head), reference=ref)
+
+
 def old_subjects(names: Sequence[str] = OLD_SUBJECTS) -> List[PlanSubject]:
     from .subjects import capsule_quadruped_subject, load_subject
     out = []

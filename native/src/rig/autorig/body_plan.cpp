@@ -344,6 +344,20 @@ std::pair<Vec, double> mid_plane(const NodeTree& t, const std::vector<std::uint3
     return {across, *half};
 }
 
+/// The chest: `chest` (where the arms' paths meet the trunk), moved along the trunk from the pelvis to the head when
+/// the spine (pelvis to chest: hips, spine, chest) or the head's path (chest to head: neck, head) has too few nodes
+/// for its bones and the other can spare them. A bird's wings and legs may meet the trunk a node apart, a sitting
+/// figure's head sit on its shoulders: the reading was scored, and its rig is now built instead of dropped (on the
+/// shared characters turned as Blender imports them, 2026-12-08: a bird went to chains, a human to chains, and the
+/// sitting figure with five markers had no rig at all). No rig that was built before changes.
+std::uint32_t trunk_split(const NodeTree& t, std::uint32_t pelvis, std::uint32_t chest, std::uint32_t head) {
+    const std::vector<std::uint32_t> trunk = t.path(pelvis, head);
+    const auto at = std::find(trunk.begin(), trunk.end(), chest);
+    if (at == trunk.end() || trunk.size() < 6) return chest;
+    const auto i = static_cast<std::size_t>(at - trunk.begin());
+    return trunk[std::clamp<std::size_t>(i, 3, trunk.size() - 3)];
+}
+
 }  // namespace
 
 Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, double tolerance,
@@ -352,7 +366,7 @@ Candidate build_plan(const RigContext& c, const Plan& plan, PlanKind kind, doubl
     const NodeTree& t = c.tree;
     const std::uint32_t H = plan.head;
     const std::uint32_t pelvis = t.median(plan.legs[0], plan.legs[1], H);
-    const std::uint32_t chest = t.median(pelvis, t.median(plan.arms[0], plan.arms[1], H), H);
+    const std::uint32_t chest = trunk_split(t, pelvis, t.median(pelvis, t.median(plan.arms[0], plan.arms[1], H), H), H);
     const std::vector<std::uint32_t> spine = t.path(pelvis, chest), head = t.path(chest, H);
     std::vector<std::uint32_t> leg[2], arm[2];
     Fit leg_fit[2], arm_fit[2];
