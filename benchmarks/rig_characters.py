@@ -9,10 +9,12 @@ markers, and with five markers a user would click (chin, both wrists, groin, one
 skeleton of each humanoid that has one (reference_markers: the skeleton's joints found by their place in its tree
 and along up, not by name: the references name their joints joint0, joint1...).
 
-Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/rig_characters.py [--fitted] [--turned] [--no-markers] [--json out.json]
+Run:  PYTHONPATH=python /usr/bin/python3 benchmarks/rig_characters.py [--fitted] [--turned] [--phase FX FY FZ]
+      [--no-markers] [--json out.json]
 --fitted uses the weights compiled in (fitted on every subject, these included) instead of leave-one-out ones.
 --turned rigs each character turned as Blender's OBJ import turns it (volrig_support.characters.turned): the same
 shapes on another voxel lattice, what an add-on user rigs; the weights (fitted on the unturned ones) stay.
+--phase moves the voxel lattice by those fractions of a voxel (pipeline.mesh_skeleton's lattice_phase).
 """
 import argparse
 import json
@@ -158,6 +160,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fitted", action="store_true", help="the compiled-in weights, not leave-one-out ones")
     ap.add_argument("--turned", action="store_true", help="each character turned as Blender's OBJ import turns it")
+    ap.add_argument("--phase", type=float, nargs=3, help="the voxel lattice moved by these fractions of a voxel")
     ap.add_argument("--no-markers", action="store_true", help="skip the pass with markers")
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args()
@@ -172,6 +175,10 @@ def main():
     if a.turned:
         subjects = [C.turned(s) for s in subjects]
         how += ", characters turned as Blender imports them"
+    if a.phase:
+        from dataclasses import replace
+        subjects = [replace(s, phase=tuple(a.phase)) for s in subjects]
+        how += f", the lattice moved by {tuple(a.phase)} voxel"
     rows = [rig_row(s, weights.get(s.name)) for s in subjects]
     table(rows, f"shared characters, no markers, plan weights {how}")
     out = {"plain": rows}

@@ -298,16 +298,20 @@ def _finer_voxels(pts, size: float, voxels: int, min_radius: float, object_voxel
 
 def mesh_skeleton(vertices, faces, voxel_size: Optional[float] = None, *, voxels: int = MESH_VOXELS,
                   thinness: Optional[float] = None, voxelize_method: str = "auto",
-                  min_radius_voxels: float = MIN_RADIUS_VOXELS, progress: ProgressFn = None, staged=None):
+                  min_radius_voxels: float = MIN_RADIUS_VOXELS, progress: ProgressFn = None, staged=None,
+                  lattice_phase=None):
     """``rig_mesh``'s first steps: (mask, voxel size, Skeleton, skeleton points at ``thinness`` voxels): the mesh
     voxelized at ``voxel_size`` (default its longest side / ``voxels``; voxelized once more, finer, when its
     skeleton's median radius comes out under ``min_radius_voxels``: ``_finer_voxels``) and skeletonized.
-    ``progress`` follows the voxelization, ``staged(step, fraction)`` the skeletonization."""
+    ``progress`` follows the voxelization, ``staged(step, fraction)`` the skeletonization. ``lattice_phase``
+    (x, y, z), fractions of a voxel: the lattice moved by that much from its place (voxel centres half a voxel in
+    from the bounding box's low corner), to measure how a result depends on where the samples fall."""
     thinness = DEFAULT_THINNESS_VOXELS if thinness is None else thinness
     v, f = _points(vertices), np.asarray(faces)
     size = mesh_voxel_size(v, voxels) if voxel_size is None else float(voxel_size)
     for attempt in range(2):  # once more, finer, when the parts came out too thin
-        mask = voxelize(v, f, size, progress=progress, method=voxelize_method)
+        anchor = None if lattice_phase is None else v.min(0) + (0.5 + np.asarray(lattice_phase, float)) * size
+        mask = voxelize(v, f, size, progress=progress, method=voxelize_method, anchor=anchor)
         sk = skeleton_of(mask, progress=staged)
         pts = skeleton_points(sk, thinness=thinness_from_voxels(thinness, sk.metric, mask.spacing))
         finer = None if voxel_size is not None or attempt else _finer_voxels(pts, size, voxels, min_radius_voxels,

@@ -238,6 +238,23 @@ def test_voxelize_sphere_volume_and_the_skeleton_pipeline():
     assert sk.dt.max() == pytest.approx(0.8, abs=1.5 * h)
 
 
+def test_mesh_skeleton_moves_its_lattice_by_a_lattice_phase():
+    """pipeline.mesh_skeleton's lattice_phase: the voxel lattice moved by fractions of a voxel from its place (for
+    measuring how a rig depends on where the samples fall; benchmarks/rig_characters.py --phase)."""
+    from volrig import pipeline as P
+    v, f = icosphere(3, radius=0.8)
+    base, h, _, _ = P.mesh_skeleton(v, f, 0.05, min_radius_voxels=0)
+    moved, _, _, _ = P.mesh_skeleton(v, f, 0.05, min_radius_voxels=0, lattice_phase=(0.5, 0.0, 0.25))
+    shift = (np.asarray(moved.origin) - np.asarray(base.origin)) / h
+    assert shift - np.floor(shift) == pytest.approx([0.5, 0.0, 0.25], abs=1e-9)
+    assert moved.array.sum() == pytest.approx(base.array.sum(), rel=0.02)  # the same sphere, sampled elsewhere
+    assert not np.array_equal(moved.array.shape, base.array.shape) or not np.array_equal(moved.array, base.array)
+    same, _, _, _ = P.mesh_skeleton(v, f, 0.05, min_radius_voxels=0, lattice_phase=(0, 0, 0))
+    k = np.round((np.asarray(same.origin) - np.asarray(base.origin)) / h).astype(int)  # phase 0: the same lattice
+    assert np.allclose(np.asarray(same.origin), np.asarray(base.origin) + k * h)
+    assert same.array.sum() == base.array.sum()
+
+
 def test_voxelize_closes_small_holes():
     v, f = icosphere(3)  # edges ~0.15: 5 voxels at 0.03
     rng = np.random.default_rng(5)

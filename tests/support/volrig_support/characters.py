@@ -47,6 +47,7 @@ class PlanSubject:
     mask: object = None
     reference: Optional[tuple] = None
     head: Optional[tuple] = None  #: the direction of the head end, when known (a humanoid's: up)
+    phase: Optional[tuple] = None  #: the voxel lattice moved by these fractions of a voxel (mesh_skeleton)
 
     @property
     def plan_label(self) -> str:
@@ -59,7 +60,7 @@ class PlanSubject:
         ``pipeline.rig_skeleton``: rig_mesh's steps without its skin weights."""
         from volrig import pipeline as P
         if self.mesh is not None:
-            mask, _, _, pts = P.mesh_skeleton(*self.mesh)
+            mask, _, _, pts = P.mesh_skeleton(*self.mesh, lattice_phase=self.phase)
         else:
             mask = self.mask
             sk = P.skeleton_of(mask)
