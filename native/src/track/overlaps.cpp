@@ -116,6 +116,13 @@ std::vector<std::pair<std::uint64_t, double>> one_way(const Grid& g, const StepP
     return sums;
 }
 
+/// Appends pair (key >> 32, key & 0xffffffff) with its overlap.
+void append(Overlaps& o, std::uint64_t key, double w) {
+    o.a.push_back(static_cast<std::int32_t>(key >> 32));
+    o.b.push_back(static_cast<std::int32_t>(key & 0xffffffffu));
+    o.overlap.push_back(w);
+}
+
 }  // namespace
 
 template <class I, class L>
@@ -125,16 +132,11 @@ Overlaps step_overlaps(const Grid& g, const StepPoints<I, L>& a, const StepPoint
     const auto ab = one_way(g, a, b.labels, b.count, false);
     const auto ba = both ? one_way(g, b, a.labels, a.count, true) : decltype(ab){};
     Overlaps o;
-    const auto emit = [&o](std::uint64_t key, double w) {
-        o.a.push_back(static_cast<std::int32_t>(key >> 32));
-        o.b.push_back(static_cast<std::int32_t>(key & 0xffffffffu));
-        o.overlap.push_back(w);
-    };
     std::size_t i = 0, j = 0;  // merge the two sorted lists, the larger estimate where both have a pair
     while (i < ab.size() || j < ba.size()) {
-        if (j == ba.size() || (i < ab.size() && ab[i].first < ba[j].first)) emit(ab[i].first, ab[i].second), ++i;
-        else if (i == ab.size() || ba[j].first < ab[i].first) emit(ba[j].first, ba[j].second), ++j;
-        else emit(ab[i].first, std::max(ab[i].second, ba[j].second)), ++i, ++j;
+        if (j == ba.size() || (i < ab.size() && ab[i].first < ba[j].first)) append(o, ab[i].first, ab[i].second), ++i;
+        else if (i == ab.size() || ba[j].first < ab[i].first) append(o, ba[j].first, ba[j].second), ++j;
+        else append(o, ab[i].first, std::max(ab[i].second, ba[j].second)), ++i, ++j;
     }
     return o;
 }
@@ -160,11 +162,7 @@ Overlaps run_overlaps(const Runs& a, const Runs& b) {
         (a.x1[i] < b.x1[j] ? i : j)++;
     }
     Overlaps o;
-    for (const auto& [key, w] : t.sums(false)) {
-        o.a.push_back(static_cast<std::int32_t>(key >> 32));
-        o.b.push_back(static_cast<std::int32_t>(key & 0xffffffffu));
-        o.overlap.push_back(w);
-    }
+    for (const auto& [key, w] : t.sums(false)) append(o, key, w);
     return o;
 }
 

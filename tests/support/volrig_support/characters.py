@@ -118,12 +118,13 @@ def turned(sub: "PlanSubject", rotation=BLENDER_IMPORT) -> "PlanSubject":
     """The same character turned by ``rotation`` (a mesh's vertices, its up, its head direction and its reference
     joints with it), as a user gets it in another frame: the same shape on another voxel lattice (voxelize puts the
     lattice at the bounding box's low corner, so a flipped axis moves it by a fraction of a voxel)."""
-    import dataclasses
     R = np.asarray(rotation, float)
-    turn = lambda u: None if u is None else tuple(float(x) for x in R @ np.asarray(u, float))  # noqa: E731
+
+    def turn(u):
+        return None if u is None else tuple(float(x) for x in R @ np.asarray(u, float))
     mesh = None if sub.mesh is None else (sub.mesh[0] @ R.T, sub.mesh[1])
     ref = None if sub.reference is None else (np.asarray(sub.reference[0], float) @ R.T, sub.reference[1])
-    return dataclasses.replace(sub, mesh=mesh, up=turn(sub.up), head=turn(sub.head), reference=ref)
+    return replace(sub, mesh=mesh, up=turn(sub.up), head=turn(sub.head), reference=ref)
 
 
 def old_subjects(names: Sequence[str] = OLD_SUBJECTS) -> List[PlanSubject]:

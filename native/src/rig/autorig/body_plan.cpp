@@ -53,11 +53,7 @@ constexpr double kSheetRatio = 4.0;
 double flatness(const NodeTree& t, const std::vector<std::uint32_t>& path) {
     // The middle third: nodes [n/3, ceil(2n/3)), at least one.
     const std::size_t n = path.size(), lo = n / 3, hi = std::min(n, std::max(lo + 1, (2 * n + 2) / 3));
-    std::vector<double> ratio;
-    for (std::size_t k = lo; k < hi; ++k) ratio.push_back((t.sheet(path[k]) - 1.0) / (kSheetRatio - 1.0));
-    if (ratio.empty()) return 0.0;
-    std::nth_element(ratio.begin(), ratio.begin() + static_cast<std::ptrdiff_t>(ratio.size() / 2), ratio.end());
-    return std::clamp(ratio[ratio.size() / 2], 0.0, 1.0);
+    return std::clamp((t.median_sheet(path, lo, hi) - 1.0) / (kSheetRatio - 1.0), 0.0, 1.0);
 }
 
 /// A reading's limb paths, computed once: legs from the pelvis, arms from the chest.

@@ -73,11 +73,7 @@ std::vector<std::uint32_t> before_fringe(const NodeTree& t, std::vector<std::uin
         if (out <= t.radius(path[0])) continue;  // still in the body
         core = std::max(core, t.radius(path[k]));
         if (core <= kFringeThinner * t.radius(path[k + 1]) || out <= kFringeCoreReach * core) continue;
-        std::vector<double> flat;
-        for (std::size_t i = k + 1; i < path.size(); ++i) flat.push_back(t.sheet(path[i]));
-        const auto mid = flat.begin() + static_cast<std::ptrdiff_t>(flat.size() / 2);
-        std::nth_element(flat.begin(), mid, flat.end());
-        if (*mid >= kFringeFlat) path.resize(k + 1);
+        if (t.median_sheet(path, k + 1, path.size()) >= kFringeFlat) path.resize(k + 1);
         break;  // the first thinning decides: a round tip tapering stays whole
     }
     return path;

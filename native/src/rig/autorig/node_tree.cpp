@@ -97,6 +97,15 @@ void NodeTree::root_path_at_thicker_end() {
     if (ends.size() == 2) reroot(end_radius(ends[0]) >= end_radius(ends[1]) ? ends[0] : ends[1]);
 }
 
+double NodeTree::median_sheet(const std::vector<std::uint32_t>& path, std::size_t lo, std::size_t hi) const {
+    std::vector<double> flat;
+    for (std::size_t k = lo; k < std::min(hi, path.size()); ++k) flat.push_back(sheet(path[k]));
+    if (flat.empty()) return 1.0;
+    const auto mid = flat.begin() + static_cast<std::ptrdiff_t>(flat.size() / 2);
+    std::nth_element(flat.begin(), mid, flat.end());
+    return *mid;
+}
+
 double NodeTree::end_radius(std::uint32_t end) const {
     double s = 0;
     int n = 0;

@@ -81,6 +81,8 @@ public:
     std::vector<std::uint32_t> from_own_side(std::vector<std::uint32_t> path, const Vec& across, double mid) const;
     /// Mean radius of the few nodes nearest an end of a path (its thickness there).
     double end_radius(std::uint32_t end) const;
+    /// The median of sheet() over path[lo, hi) (the upper one of an even count; 1, round, for none).
+    double median_sheet(const std::vector<std::uint32_t>& path, std::size_t lo, std::size_t hi) const;
 
 private:
     std::vector<Vec> pos_;
